@@ -1,0 +1,98 @@
+#ifndef GROUND_FILTER_CUDA_KNN_H
+#define GROUND_FILTER_CUDA_KNN_H
+
+// Host-clean interface of the CUDA K-nearest-neighbour library (ground_filter_cuda): no CUDA
+// types, so plain C++ compilers include it. Only linkable when the package is built with CUDA.
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+namespace ground_filter {
+
+/// \brief A failed CUDA call or a device-side limit (e.g. the memory cap); errorName() is the
+///        CUDA error's name ("cudaErrorMemoryAllocation", ...).
+class CudaError : public std::runtime_error {
+ public:
+  /// \brief `error_name` is the CUDA error's name, `what` the full message.
+  CudaError(const std::string& error_name, const std::string& what)
+      : std::runtime_error(what), error_name_(error_name) {}
+  /// \brief Name of the CUDA error, e.g. "cudaErrorNoDevice".
+  const std::string& errorName() const { return error_name_; }
+
+ private:
+  std::string error_name_;
+};
+
+/// \brief Options of a CudaKnn instance.
+struct CudaKnnOptions {
+  int device = 0;                 ///< CUDA device ordinal [index] (0)
+  std::size_t memory_limit = 0;   ///< device bytes this instance may hold, 0 = 90 % of free [B] (0)
+  int level_min_points = 0;       ///< grid level choice: own cell holds >= this many, 0 = K/4 [pts]
+  bool pinned_staging = true;     ///< copy results through pinned host buffers [bool] (true)
+};
+
+/// \brief Wall times of the last CudaKnn::search (host clock, stream synchronised) [ms].
+struct CudaKnnTimings {
+  double upload_ms = 0.0;    ///< host -> device copy of the points
+  double grid_ms = 0.0;      ///< bounds, Morton sort, cell tables
+  double query_ms = 0.0;     ///< the K-nearest-neighbour kernel
+  double download_ms = 0.0;  ///< device -> host copy of the lists
+  double total_ms = 0.0;     ///< the whole call
+  int levels = 0;            ///< grid levels built (finest has 2^finest_bits cells per axis)
+  int finest_bits = 0;       ///< log2 of cells per axis of the finest level
+};
+
+/// \brief Exact K-nearest-neighbour search on a CUDA GPU over a whole cloud at once.
+///
+/// Points are sorted along a Morton curve; each power-of-two grid level over the bounding cube is a
+/// hashed cell list (memory O(points), independent of the cloud's extent). Each query picks the
+/// finest level whose own cell holds enough points, then visits shells of cells, skipping cells
+/// farther than the current K-th distance, until no unvisited cell can hold a closer point. Rows
+/// are ordered by (squared distance, index), so the lists equal a brute-force search's with ties
+/// broken by lower index. Device and pinned buffers persist and grow only when a cloud is larger
+/// than before; all work runs on one stream of this instance. Not thread-safe: one per thread.
+class CudaKnn {
+ public:
+  /// \brief Largest supported K.
+  static constexpr int kMaxK = 64;
+
+  /// \brief True when device `device` exists and runs this library's kernels; otherwise `*why`
+  ///        (if not null) says why, naming the CUDA error.
+  static bool deviceAvailable(std::string* why, int device = 0);
+
+  /// \brief Selects the device and creates the stream.
+  /// \throws CudaError when no usable device is there.
+  explicit CudaKnn(const CudaKnnOptions& options = CudaKnnOptions());
+  ~CudaKnn();
+  CudaKnn(const CudaKnn&) = delete;
+  CudaKnn& operator=(const CudaKnn&) = delete;
+
+  /// \brief Finds the `k` nearest neighbours (itself included) of each of the `n` packed xyz
+  ///        points among all of them.
+  ///
+  /// Writes `n * k` entries to `indices` and, when not null, `sq_dists` (row i at i * k, increasing
+  /// distance; -1 / +inf padding when n < k). Points must be finite.
+  /// \throws std::invalid_argument for k outside [1, kMaxK], n >= 2^31 or a NaN/Inf point.
+  /// \throws CudaError for any CUDA failure or when the memory limit is too small.
+  void search(const float* xyz, std::size_t n, int k, std::int32_t* indices, float* sq_dists);
+
+  /// \brief Timings of the last search().
+  const CudaKnnTimings& lastTimings() const;
+  /// \brief Device name, e.g. "NVIDIA H200".
+  std::string deviceName() const;
+  /// \brief Device bytes held now (persistent buffers).
+  std::size_t deviceBytes() const;
+  /// \brief The options in use.
+  const CudaKnnOptions& options() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_CUDA_KNN_H

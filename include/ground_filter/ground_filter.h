@@ -1,0 +1,62 @@
+#ifndef GROUND_FILTER_GROUND_FILTER_H
+#define GROUND_FILTER_GROUND_FILTER_H
+
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "ground_filter/cloud_view.h"
+
+namespace ground_filter {
+
+/// \brief Per-point label values written by every filter.
+enum Label : std::uint8_t {
+  kNonGround = 0,  ///< not ground; also every NaN/Inf point
+  kGround = 1,     ///< ground
+};
+
+/// \brief What one call of GroundFilter::filter did (counts and wall time of its stages).
+struct FilterStats {
+  std::size_t input_points = 0;    ///< points in the view
+  std::size_t invalid_points = 0;  ///< NaN/Inf points (labelled non-ground, never used)
+  std::size_t ground_points = 0;   ///< points labelled ground
+  double total_ms = 0.0;           ///< wall time of the whole call
+  std::string backend;             ///< neighbour backend actually used ("" when not applicable)
+  std::string note;                ///< e.g. the reason for a backend fallback; empty when none
+  /// Named stage timings in milliseconds, in execution order.
+  std::vector<std::pair<std::string, double>> stage_ms;
+};
+
+/// \brief A ground segmentation algorithm: one label per input point.
+///
+/// Contract shared by all filters: `labels` is resized to `cloud.size()`; NaN/Inf points are
+/// labelled kNonGround and never used by the algorithm; output is deterministic for a given input.
+/// A filter object keeps scratch buffers between calls and is not thread-safe; use one per thread.
+class GroundFilter {
+ public:
+  virtual ~GroundFilter() = default;
+  /// \brief Labels every point of `cloud`; fills `stats` when not null.
+  virtual void filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
+                      FilterStats* stats = nullptr) = 0;
+  /// \brief Short method name ("voxel", "normal").
+  virtual std::string name() const = 0;
+};
+
+/// \brief NAME=VALUE overrides for a filter's parameters (as given on a command line).
+using ParamSettings = std::vector<std::pair<std::string, std::string>>;
+
+/// \brief Names of the methods makeGroundFilter knows.
+std::vector<std::string> groundFilterMethods();
+
+/// \brief Creates the filter `method` with its defaults overridden by `settings`.
+/// \throws std::invalid_argument for an unknown method, unknown parameter or invalid value.
+std::unique_ptr<GroundFilter> makeGroundFilter(const std::string& method,
+                                               const ParamSettings& settings = {});
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_GROUND_FILTER_H

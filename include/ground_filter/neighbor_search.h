@@ -1,0 +1,38 @@
+#ifndef GROUND_FILTER_NEIGHBOR_SEARCH_H
+#define GROUND_FILTER_NEIGHBOR_SEARCH_H
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace ground_filter {
+
+/// \brief K-nearest-neighbour lists of every point of a packed xyz cloud (the point itself
+///        included, at distance 0).
+///
+/// Row i holds `k` entries at `indices[i * k + j]`, sorted by increasing distance. When the cloud
+/// has fewer than `k` points, each row has `size()` valid entries and the rest are -1.
+struct NeighborLists {
+  int k = 0;                          ///< entries per row
+  std::size_t points = 0;             ///< number of rows
+  std::vector<std::int32_t> indices;  ///< points * k neighbour indices, -1 = none
+  std::vector<float> sq_dists;        ///< points * k squared distances [m^2], +inf for -1 entries
+};
+
+/// \brief A K-nearest-neighbour backend (CPU kd-tree, CUDA grid, ...), chosen at run time.
+///
+/// Implementations keep their scratch buffers between calls; one object per thread.
+class NeighborSearch {
+ public:
+  virtual ~NeighborSearch() = default;
+  /// \brief Finds the `k` nearest neighbours of every point among all points of `xyz`
+  ///        (`n` packed float triplets, all finite).
+  virtual void search(const float* xyz, std::size_t n, int k, NeighborLists* out) = 0;
+  /// \brief Backend name ("kdtree", "gpu").
+  virtual std::string name() const = 0;
+};
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_NEIGHBOR_SEARCH_H

@@ -1,0 +1,89 @@
+#ifndef GROUND_FILTER_NORMAL_GROUND_FILTER_H
+#define GROUND_FILTER_NORMAL_GROUND_FILTER_H
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "ground_filter/cloud_view.h"
+#include "ground_filter/ground_filter.h"
+#include "ground_filter/neighbor_search.h"
+
+namespace ground_filter {
+
+/// \brief Parameters of the normal-vector method (Diaz et al., section 2.3.1). One line per field:
+///        meaning [unit] (default; paper value when it differs).
+struct NormalGroundFilterParams {
+  double cell_size = 0.10;          ///< x/y grid cell ordering points into columns [m] (0.10)
+  int k = 50;                       ///< neighbours per point, itself included [points] (50; 3..256)
+  double min_normal_angle = 80.0;   ///< normal-to-horizontal angle window, low end [deg] (80)
+  double max_normal_angle = 100.0;  ///< normal-to-horizontal angle window, high end [deg] (100)
+  double min_planarity = 0.0;       ///< flat when (e1 - e0) / e2 >= this, e = eigenvalues [1] (0)
+  double max_curvature = 0.05;      ///< flat when e0 / (e0 + e1 + e2) <= this [1] (0.05)
+  bool bayes_vote = true;           ///< naive-Bayes vote over each K neighbourhood [bool] (true)
+  double plane_distance = 0.10;     ///< max point-to-plane distance of a ground point [m] (0.10)
+  bool std_filter = true;           ///< keep only distances within mean +- std_factor * std [bool]
+  double std_factor = 1.0;          ///< width of that band in standard deviations [1] (1.0)
+  int ransac_iterations = 100;      ///< RANSAC hypotheses per plane, at most [1] (100)
+  bool plane_all_points = false;    ///< plane test also turns non-voted points ground [bool] (false)
+  bool local_planes = true;         ///< one plane per tile instead of one for the cloud [bool]
+  double tile_size = 8.0;           ///< tile edge for local planes [m] (8.0)
+  bool use_segments = false;        ///< paper's segments: no neighbours across borders [bool]
+  int segment_points = 65536;       ///< points per segment, at most [points] (65536, paper)
+  std::string knn_backend = "kdtree";  ///< neighbour search: kdtree | gpu [enum] (kdtree)
+  int threads = 0;                  ///< worker threads, 0 = all cores [threads] (0)
+
+  /// \brief Sets one field from text (CLI `--set NAME=VALUE`).
+  /// \throws std::invalid_argument for an unknown name or a malformed value.
+  void set(const std::string& name, const std::string& value);
+  /// \brief Checks every field's range.
+  /// \throws std::invalid_argument naming the first bad field, its value and its range.
+  void validate() const;
+};
+
+/// \brief Normal-vector ground filter: K nearest neighbours, PCA normal and flatness per point,
+///        ground candidates by normal angle, naive-Bayes neighbourhood vote, RANSAC plane(s) and
+///        a distance filter.
+class NormalGroundFilter : public GroundFilter {
+ public:
+  /// \brief Validates and stores `params`; creates the neighbour backend (a `gpu` request
+  ///        without CUDA falls back to the kd-tree, reported in FilterStats::note).
+  /// \throws std::invalid_argument when params.validate() fails.
+  explicit NormalGroundFilter(const NormalGroundFilterParams& params = NormalGroundFilterParams());
+  ~NormalGroundFilter() override;
+
+  void filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
+              FilterStats* stats = nullptr) override;
+  std::string name() const override { return "normal"; }
+
+  /// \brief The parameters in use.
+  const NormalGroundFilterParams& params() const { return params_; }
+  /// \brief Name of the neighbour backend actually used ("kdtree", "gpu").
+  std::string backend() const;
+  /// \brief Why the requested backend is not the one used; empty when it is.
+  const std::string& backendNote() const { return backend_note_; }
+
+ private:
+  struct Impl;
+  NormalGroundFilterParams params_;
+  std::string backend_note_;
+  std::unique_ptr<Impl> impl_;  // neighbour backend and scratch buffers reused between calls
+};
+
+/// \brief Per-point PCA of a K neighbourhood, as the filter computes it.
+struct PointPca {
+  float normal[3] = {0.f, 0.f, 0.f};  ///< unit eigenvector of the smallest eigenvalue (sign free)
+  float eigen[3] = {0.f, 0.f, 0.f};   ///< eigenvalues ascending, divided by their sum (0 if none)
+  bool valid = false;                 ///< false when fewer than 3 neighbours or zero spread
+};
+
+/// \brief PCA of the centred covariance of every row of `lists` over packed `xyz`, in double,
+///        with Eigen's closed-form 3x3 solver; `threads` 0 = all cores. Same result for any
+///        thread count.
+void computeNeighborhoodPca(const float* xyz, const NeighborLists& lists, int threads,
+                            std::vector<PointPca>* out);
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_NORMAL_GROUND_FILTER_H

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Runs every test (gtest for the core, rostest for the nodelets, launch file checks).
+# Installs missing packages, builds in .ws/, exits non-zero on any failure, ends with a summary line.
+set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+gf_install_deps
+gf_build
+cd "${GF_WS}"
+rm -rf "${GF_WS}/build/test_results"
+set +e
+catkin_make run_tests -j1 2>&1 | tee "${GF_WS}/run_tests.log"
+build_rc=${PIPESTATUS[0]}
+python3 "${GF_ROOT}/scripts/test_summary.py" "${GF_WS}/build/test_results"
+summary_rc=$?
+set -e
+if [ "${build_rc}" != "0" ]; then
+  echo "catkin_make run_tests exited ${build_rc} (a test target failed to build or run)"
+  exit 1
+fi
+exit "${summary_rc}"

@@ -1,0 +1,72 @@
+#include "voxel_ground_filter_nodelet.h"
+
+#include <sstream>
+#include <stdexcept>
+
+#include <pluginlib/class_list_macros.hpp>
+
+namespace ground_filter {
+
+VoxelGroundFilterParams voxelParamsFromConfig(const VoxelGroundFilterConfig& config) {
+  VoxelGroundFilterParams p;
+  p.voxel_size = config.voxel_size;
+  p.flatness_threshold = config.flatness_threshold;
+  p.min_points_per_voxel = config.min_points_per_voxel;
+  p.height_margin = config.height_margin;
+  p.plane_distance = config.plane_distance;
+  p.std_filter = config.std_filter;
+  p.std_multiplier = config.std_multiplier;
+  p.local_planes = config.local_planes;
+  p.tile_size = config.tile_size;
+  p.max_slope_deg = config.max_slope_deg;
+  p.majority_vote = config.majority_vote;
+  p.threads = config.threads;
+  return p;
+}
+
+std::string describeVoxelParams(const VoxelGroundFilterParams& p) {
+  std::ostringstream os;
+  os << std::boolalpha << "voxel_size=" << p.voxel_size
+     << " flatness_threshold=" << p.flatness_threshold
+     << " min_points_per_voxel=" << p.min_points_per_voxel << " height_margin=" << p.height_margin
+     << " plane_distance=" << p.plane_distance << " std_filter=" << p.std_filter
+     << " std_multiplier=" << p.std_multiplier << " local_planes=" << p.local_planes
+     << " tile_size=" << p.tile_size << " max_slope_deg=" << p.max_slope_deg
+     << " majority_vote=" << p.majority_vote << " threads=" << p.threads;
+  return os.str();
+}
+
+VoxelGroundFilterNodelet::VoxelGroundFilterNodelet() = default;
+VoxelGroundFilterNodelet::~VoxelGroundFilterNodelet() = default;
+
+void VoxelGroundFilterNodelet::onInitFilter() {
+  server_ = std::make_unique<dynamic_reconfigure::Server<VoxelGroundFilterConfig>>(*pnh_);
+  // The server calls back at once with the parameter-server values: that installs the filter.
+  server_->setCallback(
+      [this](VoxelGroundFilterConfig& config, uint32_t level) { reconfigure(config, level); });
+}
+
+void VoxelGroundFilterNodelet::reconfigure(VoxelGroundFilterConfig& config, uint32_t /*level*/) {
+  VoxelGroundFilterParams params = voxelParamsFromConfig(config);
+  try {
+    params.validate();
+  } catch (const std::invalid_argument& e) {
+    reportRejectedConfig(e.what());
+    // The server publishes `config` after this returns: show what is really in use.
+    if (have_good_) {
+      config = last_good_;
+      return;
+    }
+    // Refused at start: run with the .cfg defaults (the same as the library's).
+    config = VoxelGroundFilterConfig::__getDefault__();
+    params = voxelParamsFromConfig(config);
+  }
+  last_good_ = config;
+  have_good_ = true;
+  setFilterFactory([params]() { return std::make_unique<VoxelGroundFilter>(params); },
+                   describeVoxelParams(params));
+}
+
+}  // namespace ground_filter
+
+PLUGINLIB_EXPORT_CLASS(ground_filter::VoxelGroundFilterNodelet, nodelet::Nodelet)

@@ -1,0 +1,283 @@
+// demo_monitor: prints one line per filtered scan (points in, ground, non-ground, filter time,
+// latency and, when the clouds carry a `gt_ground` field, accuracy / precision / recall / F1)
+// and a summary at exit.
+//
+// Topics: ~ground, ~nonground (sensor_msgs/PointCloud2, paired by exact header stamp),
+//         ~processing_time_ms (std_msgs/Float64 of the filter nodelet, optional).
+// Parameters:
+//   ~max_scans (int, 0)       print the summary and shut down after this many scans (0 = never)
+//   ~timeout (double, 60)     give up (exit code 1) when no scan arrives for this long [s]
+#include <message_filters/subscriber.h>
+#include <message_filters/sync_policies/exact_time.h>
+#include <message_filters/synchronizer.h>
+#include <ros/ros.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <std_msgs/Float64.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <deque>
+#include <string>
+#include <vector>
+
+namespace {
+
+constexpr std::uint8_t kTruthIgnore = 255;
+
+// Confusion counts, ground being the positive class; ignored points are left out.
+struct Confusion {
+  std::uint64_t tp = 0, fp = 0, tn = 0, fn = 0, ignored = 0;
+  bool valid = false;  // false when a cloud had no usable gt_ground field
+
+  void add(const Confusion& o) {
+    tp += o.tp;
+    fp += o.fp;
+    tn += o.tn;
+    fn += o.fn;
+    ignored += o.ignored;
+  }
+  static double ratio(double num, double den) { return den > 0.0 ? num / den : 0.0; }
+  double accuracy() const { return ratio(tp + tn, tp + tn + fp + fn); }
+  double precision() const { return ratio(tp, tp + fp); }
+  double recall() const { return ratio(tp, tp + fn); }
+  double f1() const { return ratio(2.0 * tp, 2.0 * tp + fp + fn); }
+};
+
+// Counts gt_ground values of every record of `cloud`; returns false when the field is missing
+// or not uint8.
+bool countTruth(const sensor_msgs::PointCloud2& cloud, std::uint64_t* truth_ground,
+                std::uint64_t* truth_nonground, std::uint64_t* ignored) {
+  const sensor_msgs::PointField* field = nullptr;
+  for (const auto& f : cloud.fields) {
+    if (f.name == "gt_ground") field = &f;
+  }
+  if (!field || field->datatype != sensor_msgs::PointField::UINT8 ||
+      field->offset >= cloud.point_step) {
+    return false;
+  }
+  if (cloud.data.size() < static_cast<std::size_t>(cloud.row_step) * cloud.height) return false;
+  for (std::size_t r = 0; r < cloud.height; ++r) {
+    for (std::size_t c = 0; c < cloud.width; ++c) {
+      const std::uint8_t v =
+          cloud.data[r * cloud.row_step + c * cloud.point_step + field->offset];
+      if (v == 1) {
+        ++*truth_ground;
+      } else if (v == 0) {
+        ++*truth_nonground;
+      } else if (v == kTruthIgnore) {
+        ++*ignored;
+      } else {
+        ++*truth_nonground;  // any other value: not ground
+      }
+    }
+  }
+  return true;
+}
+
+class DemoMonitor {
+ public:
+  DemoMonitor() : pnh_("~"), sync_(Policy(10), sub_ground_, sub_nonground_) {
+    pnh_.param("max_scans", max_scans_, 0);
+    pnh_.param("timeout", timeout_s_, 60.0);
+    sub_ground_.subscribe(pnh_, "ground", 5);
+    sub_nonground_.subscribe(pnh_, "nonground", 5);
+    sync_.registerCallback(&DemoMonitor::pairCallback, this);
+    sub_time_ = pnh_.subscribe("processing_time_ms", 20, &DemoMonitor::timeCallback, this);
+    // Pairs wait briefly for their processing-time message; this also drives the timeout.
+    timer_ = pnh_.createWallTimer(ros::WallDuration(0.02), &DemoMonitor::flush, this);
+    last_activity_ = ros::WallTime::now();
+    std::printf("[demo_monitor] waiting for %s and %s (max_scans %d)\n",
+                sub_ground_.getTopic().c_str(), sub_nonground_.getTopic().c_str(), max_scans_);
+    std::printf("%5s %6s %8s %8s %10s %9s %9s %8s %8s %8s %8s\n", "scan", "seq", "points",
+                "ground", "nonground", "filter_ms", "latency", "acc%", "prec%", "rec%", "F1%");
+    std::fflush(stdout);
+  }
+
+  /// Exit status: 0 unless the monitor gave up waiting for the requested scans.
+  int status() const { return failed_ ? 1 : 0; }
+
+  /// Prints the summary if it was not printed yet (e.g. after Ctrl-C).
+  void finishOnExit() {
+    if (!done_) {
+      done_ = true;
+      printSummary();
+    }
+  }
+
+  void printSummary() const {
+    std::printf("[demo_monitor] summary: %zu scans", scans_);
+    if (scans_ == 0) {
+      std::printf(" (nothing received)\n");
+      std::fflush(stdout);
+      return;
+    }
+    std::printf(", mean %.0f points, mean filter %s ms, mean latency %.1f ms\n",
+                static_cast<double>(total_points_) / scans_,
+                timed_scans_ ? formatMs(sum_filter_ms_ / timed_scans_).c_str() : "n/a",
+                sum_latency_ms_ / scans_);
+    if (scored_scans_ > 0) {
+      std::printf("[demo_monitor] accuracy over %zu labelled scans: mean F1 %.2f %%; pooled "
+                  "accuracy %.2f %%, precision %.2f %%, recall %.2f %%, F1 %.2f %% "
+                  "(tp %llu fp %llu tn %llu fn %llu, ignored %llu)\n",
+                  scored_scans_, 100.0 * sum_f1_ / scored_scans_, 100.0 * pooled_.accuracy(),
+                  100.0 * pooled_.precision(), 100.0 * pooled_.recall(), 100.0 * pooled_.f1(),
+                  static_cast<unsigned long long>(pooled_.tp),
+                  static_cast<unsigned long long>(pooled_.fp),
+                  static_cast<unsigned long long>(pooled_.tn),
+                  static_cast<unsigned long long>(pooled_.fn),
+                  static_cast<unsigned long long>(pooled_.ignored));
+    } else {
+      std::printf("[demo_monitor] no scan carried gt_ground labels: accuracy not measured\n");
+    }
+    std::fflush(stdout);
+  }
+
+ private:
+  using Policy =
+      message_filters::sync_policies::ExactTime<sensor_msgs::PointCloud2, sensor_msgs::PointCloud2>;
+
+  struct Pending {
+    ros::WallTime arrival;
+    std::uint32_t seq;
+    double latency_ms;
+    std::size_t ground, nonground;
+    Confusion confusion;
+  };
+  struct Timing {
+    ros::WallTime arrival;
+    double ms;
+  };
+
+  static std::string formatMs(double ms) {
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%.2f", ms);
+    return buf;
+  }
+
+  void pairCallback(const sensor_msgs::PointCloud2ConstPtr& ground,
+                    const sensor_msgs::PointCloud2ConstPtr& nonground) {
+    Pending p;
+    p.arrival = ros::WallTime::now();
+    p.seq = ground->header.seq;
+    p.latency_ms = (ros::Time::now() - ground->header.stamp).toSec() * 1e3;
+    p.ground = static_cast<std::size_t>(ground->width) * ground->height;
+    p.nonground = static_cast<std::size_t>(nonground->width) * nonground->height;
+    // Ground output: truth ground = TP, truth non-ground = FP; non-ground output: FN / TN.
+    std::uint64_t ign_g = 0, ign_n = 0;
+    const bool ok_g = countTruth(*ground, &p.confusion.tp, &p.confusion.fp, &ign_g);
+    const bool ok_n = countTruth(*nonground, &p.confusion.fn, &p.confusion.tn, &ign_n);
+    // An empty output has no way to show its fields: it is fine when the other one has them.
+    p.confusion.valid = (ok_g || p.ground == 0) && (ok_n || p.nonground == 0) && (ok_g || ok_n);
+    p.confusion.ignored = ign_g + ign_n;
+    if (p.confusion.valid && p.confusion.tp + p.confusion.fp + p.confusion.tn + p.confusion.fn == 0) {
+      p.confusion.valid = false;  // all points ignored
+    }
+    pending_.push_back(p);
+    last_activity_ = p.arrival;
+    flush(ros::WallTimerEvent());
+  }
+
+  void timeCallback(const std_msgs::Float64ConstPtr& msg) {
+    timings_.push_back({ros::WallTime::now(), msg->data});
+    flush(ros::WallTimerEvent());
+  }
+
+  // Prints the oldest pairs in order, each with the processing time that arrived within
+  // kMatchS of it (the nodelet publishes both outputs and then the time), or n/a.
+  void flush(const ros::WallTimerEvent&) {
+    constexpr double kMatchS = 0.05, kWaitS = 0.2;
+    const ros::WallTime now = ros::WallTime::now();
+    while (!pending_.empty()) {
+      const Pending& p = pending_.front();
+      // Times from before this pair belong to scans the monitor never saw.
+      while (!timings_.empty() && (p.arrival - timings_.front().arrival).toSec() > kMatchS) {
+        timings_.pop_front();
+      }
+      double ms = -1.0;
+      if (!timings_.empty() && std::abs((timings_.front().arrival - p.arrival).toSec()) <= kMatchS) {
+        ms = timings_.front().ms;
+        timings_.pop_front();
+      } else if ((now - p.arrival).toSec() < kWaitS) {
+        break;  // its time may still be on the way
+      }
+      report(p, ms);
+      pending_.pop_front();
+      if (done_) return;
+    }
+    if (!done_ && (now - last_activity_).toSec() > timeout_s_) {
+      std::printf("[demo_monitor] ERROR: no filtered scan for %.0f s (is the filter running and "
+                  "its input publishing?)\n",
+                  timeout_s_);
+      failed_ = max_scans_ > 0;
+      finish();
+    }
+  }
+
+  void report(const Pending& p, double ms) {
+    ++scans_;
+    const std::size_t points = p.ground + p.nonground;
+    total_points_ += points;
+    sum_latency_ms_ += p.latency_ms;
+    if (ms >= 0.0) {
+      sum_filter_ms_ += ms;
+      ++timed_scans_;
+    }
+    std::printf("%5zu %6u %8zu %8zu %10zu %9s %9.1f", scans_, p.seq, points, p.ground,
+                p.nonground, ms >= 0.0 ? formatMs(ms).c_str() : "n/a", p.latency_ms);
+    if (p.confusion.valid) {
+      const Confusion& c = p.confusion;
+      std::printf(" %8.2f %8.2f %8.2f %8.2f\n", 100.0 * c.accuracy(), 100.0 * c.precision(),
+                  100.0 * c.recall(), 100.0 * c.f1());
+      pooled_.add(c);
+      sum_f1_ += c.f1();
+      ++scored_scans_;
+    } else {
+      std::printf(" %8s %8s %8s %8s\n", "n/a", "n/a", "n/a", "n/a");
+    }
+    std::fflush(stdout);
+    if (max_scans_ > 0 && scans_ >= static_cast<std::size_t>(max_scans_)) finish();
+  }
+
+  void finish() {
+    if (done_) return;
+    done_ = true;
+    printSummary();
+    ros::shutdown();
+  }
+
+  ros::NodeHandle pnh_;
+  message_filters::Subscriber<sensor_msgs::PointCloud2> sub_ground_, sub_nonground_;
+  message_filters::Synchronizer<Policy> sync_;
+  ros::Subscriber sub_time_;
+  ros::WallTimer timer_;
+
+  int max_scans_ = 0;
+  double timeout_s_ = 60.0;
+  ros::WallTime last_activity_;
+  std::deque<Pending> pending_;
+  std::deque<Timing> timings_;
+
+  std::size_t scans_ = 0, timed_scans_ = 0, scored_scans_ = 0;
+  std::uint64_t total_points_ = 0;
+  double sum_filter_ms_ = 0.0, sum_latency_ms_ = 0.0, sum_f1_ = 0.0;
+  Confusion pooled_;
+  bool done_ = false;
+  bool failed_ = false;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "demo_monitor");
+  int status = 0;
+  {
+    DemoMonitor monitor;
+    ros::spin();
+    // Ctrl-C before max_scans: still print what was seen.
+    monitor.finishOnExit();
+    status = monitor.status();
+  }
+  return status;
+}

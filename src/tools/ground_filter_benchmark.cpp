@@ -1,0 +1,284 @@
+// ground_filter_benchmark: wall time of a ground filter's core per frame (median / min / max over
+// repeated runs), throughput, and per-stage medians from FilterStats::stage_ms.
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <iostream>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "ground_filter/ground_filter.h"
+#include "ground_filter/scan_io.h"
+
+#ifndef GF_DEFAULT_DATA_DIR
+#define GF_DEFAULT_DATA_DIR "../shared/data"
+#endif
+
+namespace gf = ground_filter;
+
+namespace {
+
+const char kUsage[] =
+    "usage: ground_filter_benchmark [--method NAME] [--set NAME=VALUE]... [--repeat N]\n"
+    "                               [--warmup N] [--threads N[,N...]] [PATH...]\n"
+    "\n"
+    "Times GroundFilter::filter() on each scan (the core only: loading is not timed) and prints\n"
+    "median / min / max ms per frame, million points per second (from the median) and the\n"
+    "median of every stage the filter reports.\n"
+    "\n"
+    "PATH                scan file, directory or builtin:lidar[:SEED] / builtin:tls[:SEED];\n"
+    "                    default: DATA/semantickitti/seq00/00000{0,1,2}.bin and\n"
+    "                    DATA/unlabelled/os128_000000.pcd with DATA = $GF_DATA_DIR or the\n"
+    "                    build-time default " GF_DEFAULT_DATA_DIR "\n"
+    "--method NAME       filter method (default voxel)\n"
+    "--set NAME=VALUE    override a filter parameter (repeatable)\n"
+    "--repeat N          timed runs per file (default 20)\n"
+    "--warmup N          untimed runs per file before timing (default 2)\n"
+    "--threads LIST      set the filter's 'threads' parameter, one table row per value\n"
+    "                    (e.g. 1,2); default: the method's default\n"
+    "--help              this text\n";
+
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct Options {
+  std::string method = "voxel";
+  gf::ParamSettings settings;
+  int repeat = 20;
+  int warmup = 2;
+  std::vector<std::string> threads;  // empty: the method's default
+  std::vector<std::string> paths;
+};
+
+int parseCount(const std::string& opt, const std::string& v, int min) {
+  char* end = nullptr;
+  const long n = std::strtol(v.c_str(), &end, 10);
+  if (v.empty() || *end != '\0' || n < min || n > 1000000) {
+    throw UsageError(opt + " expects an integer >= " + std::to_string(min) + ", got '" + v + "'");
+  }
+  return static_cast<int>(n);
+}
+
+Options parseArgs(int argc, char** argv) {
+  Options o;
+  for (int i = 1; i < argc; ++i) {
+    std::string arg = argv[i];
+    std::string value;
+    bool has_inline = false;
+    if (arg.rfind("--", 0) == 0 && arg.find('=') != std::string::npos) {
+      value = arg.substr(arg.find('=') + 1);
+      arg = arg.substr(0, arg.find('='));
+      has_inline = true;
+    }
+    auto next = [&]() -> std::string {
+      if (has_inline) return value;
+      if (i + 1 >= argc) throw UsageError(arg + " needs a value");
+      return argv[++i];
+    };
+    if (arg == "--help" || arg == "-h") {
+      std::cout << kUsage;
+      std::exit(0);
+    } else if (arg == "--method") {
+      o.method = next();
+    } else if (arg == "--set") {
+      const std::string kv = next();
+      const std::size_t eq = kv.find('=');
+      if (eq == std::string::npos || eq == 0) {
+        throw UsageError("--set expects NAME=VALUE, got '" + kv + "'");
+      }
+      o.settings.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
+    } else if (arg == "--repeat") {
+      o.repeat = parseCount(arg, next(), 1);
+    } else if (arg == "--warmup") {
+      o.warmup = parseCount(arg, next(), 0);
+    } else if (arg == "--threads") {
+      const std::string list = next();
+      std::size_t start = 0;
+      while (start <= list.size()) {
+        const std::size_t comma = std::min(list.find(',', start), list.size());
+        const std::string t = list.substr(start, comma - start);
+        parseCount("--threads", t, 0);
+        o.threads.push_back(t);
+        start = comma + 1;
+      }
+    } else if (arg.size() > 1 && arg[0] == '-') {
+      throw UsageError("unknown option '" + arg + "'");
+    } else {
+      o.paths.push_back(argv[i]);
+    }
+  }
+  if (o.paths.empty()) {
+    const char* env = std::getenv("GF_DATA_DIR");
+    const std::string data = env && *env ? env : GF_DEFAULT_DATA_DIR;
+    for (const char* f : {"semantickitti/seq00/000000.bin", "semantickitti/seq00/000001.bin",
+                          "semantickitti/seq00/000002.bin", "unlabelled/os128_000000.pcd"}) {
+      o.paths.push_back(data + "/" + f);
+    }
+  }
+  return o;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+struct Row {
+  std::string label;  // file stem (+ @threads)
+  std::string file;
+  std::string threads;
+  std::size_t points = 0;
+  double median_ms = 0.0, min_ms = 0.0, max_ms = 0.0;
+  std::vector<std::pair<std::string, double>> stages;  // name, median ms (execution order)
+};
+
+int run(const Options& opt) {
+  std::vector<std::string> files;
+  for (const auto& p : opt.paths) {
+    const std::vector<std::string> found = gf::listScanFiles(p);
+    if (found.empty()) throw std::runtime_error(p + ": no .bin, .pcd or .ply files in directory");
+    files.insert(files.end(), found.begin(), found.end());
+  }
+  const std::vector<std::string> thread_values =
+      opt.threads.empty() ? std::vector<std::string>{""} : opt.threads;
+
+  // One filter per thread setting, built before any loading so bad parameters fail fast.
+  std::vector<std::unique_ptr<gf::GroundFilter>> filters;
+  for (const auto& t : thread_values) {
+    gf::ParamSettings settings = opt.settings;
+    if (!t.empty()) settings.emplace_back("threads", t);
+    try {
+      filters.push_back(gf::makeGroundFilter(opt.method, settings));
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+  }
+
+  std::vector<Row> rows;
+  std::vector<std::uint8_t> labels;
+  for (const auto& file : files) {
+    const gf::Scan scan = gf::loadScan(file);
+    const gf::CloudView view = gf::viewOf(scan.cloud);
+    for (std::size_t ti = 0; ti < filters.size(); ++ti) {
+      gf::GroundFilter& filter = *filters[ti];
+      gf::FilterStats stats;
+      for (int w = 0; w < opt.warmup; ++w) filter.filter(view, &labels, &stats);
+      std::vector<double> times;
+      std::vector<std::string> stage_order;
+      std::map<std::string, std::vector<double>> stage_times;
+      for (int r = 0; r < opt.repeat; ++r) {
+        stats = gf::FilterStats();
+        const auto t0 = std::chrono::steady_clock::now();
+        filter.filter(view, &labels, &stats);
+        const auto t1 = std::chrono::steady_clock::now();
+        times.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+        for (const auto& s : stats.stage_ms) {
+          auto& v = stage_times[s.first];
+          if (v.empty()) stage_order.push_back(s.first);
+          v.push_back(s.second);
+        }
+      }
+      Row row;
+      row.file = file;
+      row.threads = thread_values[ti];
+      row.label = gf::scanStem(file) + (row.threads.empty() ? "" : "@" + row.threads);
+      row.points = view.size();
+      row.median_ms = median(times);
+      row.min_ms = *std::min_element(times.begin(), times.end());
+      row.max_ms = *std::max_element(times.begin(), times.end());
+      for (const auto& name : stage_order) row.stages.emplace_back(name, median(stage_times[name]));
+      rows.push_back(row);
+    }
+  }
+
+  std::string settings;
+  for (const auto& kv : opt.settings) settings += " " + kv.first + "=" + kv.second;
+  std::printf("method %s%s%s; %d timed runs per file after %d warm-up; %u hardware threads\n",
+              opt.method.c_str(), settings.empty() ? "" : ", settings", settings.c_str(),
+              opt.repeat, opt.warmup, std::thread::hardware_concurrency());
+  std::size_t name_w = 4;
+  for (const auto& r : rows) name_w = std::max(name_w, r.file.size());
+  std::printf("%-*s %7s %9s %9s %9s %9s %9s\n", static_cast<int>(name_w), "file", "threads",
+              "points", "median_ms", "min_ms", "max_ms", "Mpts/s");
+  for (const auto& r : rows) {
+    const double mpts = r.median_ms > 0 ? r.points / (r.median_ms * 1e3) : 0.0;
+    std::printf("%-*s %7s %9zu %9.3f %9.3f %9.3f %9.2f\n", static_cast<int>(name_w),
+                r.file.c_str(), r.threads.empty() ? "default" : r.threads.c_str(), r.points,
+                r.median_ms, r.min_ms, r.max_ms, mpts);
+  }
+  for (const auto& t : thread_values) {
+    std::size_t pts = 0;
+    double ms = 0.0;
+    for (const auto& r : rows) {
+      if (r.threads != t) continue;
+      pts += r.points;
+      ms += r.median_ms;
+    }
+    std::printf("%-*s %7s %9zu %9.3f %9s %9s %9.2f   (sum of medians)\n", static_cast<int>(name_w),
+                "all files", t.empty() ? "default" : t.c_str(), pts, ms, "", "",
+                ms > 0 ? pts / (ms * 1e3) : 0.0);
+  }
+
+  // Per-stage medians: one row per stage (union, first-seen order), one column per file.
+  std::vector<std::string> stage_names;
+  for (const auto& r : rows) {
+    for (const auto& s : r.stages) {
+      if (std::find(stage_names.begin(), stage_names.end(), s.first) == stage_names.end()) {
+        stage_names.push_back(s.first);
+      }
+    }
+  }
+  if (stage_names.empty()) {
+    std::printf("\n(the filter reports no stage timings)\n");
+    return 0;
+  }
+  std::size_t stage_w = 5;
+  for (const auto& s : stage_names) stage_w = std::max(stage_w, s.size());
+  std::printf("\nper-stage median ms\n%-*s", static_cast<int>(stage_w), "stage");
+  std::vector<int> col_w;
+  for (const auto& r : rows) {
+    col_w.push_back(static_cast<int>(std::max<std::size_t>(9, r.label.size())));
+    std::printf(" %*s", col_w.back(), r.label.c_str());
+  }
+  std::printf("\n");
+  for (const auto& name : stage_names) {
+    std::printf("%-*s", static_cast<int>(stage_w), name.c_str());
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      const auto& st = rows[i].stages;
+      const auto it = std::find_if(st.begin(), st.end(),
+                                   [&](const std::pair<std::string, double>& s) {
+                                     return s.first == name;
+                                   });
+      if (it == st.end()) {
+        std::printf(" %*s", col_w[i], "-");
+      } else {
+        std::printf(" %*.3f", col_w[i], it->second);
+      }
+    }
+    std::printf("\n");
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(parseArgs(argc, argv));
+  } catch (const UsageError& e) {
+    std::cerr << "ground_filter_benchmark: " << e.what() << "\n(try --help)" << std::endl;
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "ground_filter_benchmark: error: " << e.what() << std::endl;
+    return 1;
+  }
+}

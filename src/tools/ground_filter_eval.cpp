@@ -1,0 +1,310 @@
+// ground_filter_eval: runs a ground filter over scan files and scores it against their ground truth.
+// Contract (other tools parse it): see usage() and the README's "Evaluation tool" section.
+
+#include <algorithm>
+#include <chrono>
+#include <cinttypes>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <iostream>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "ground_filter/ground_filter.h"
+#include "ground_filter/metrics.h"
+#include "ground_filter/scan_io.h"
+
+namespace gf = ground_filter;
+
+namespace {
+
+const char kUsage[] =
+    "usage: ground_filter_eval [--method NAME] [--set NAME=VALUE]... [--json]\n"
+    "                          [--write-labels DIR] [--write-clouds DIR] [--repeat N] PATH...\n"
+    "\n"
+    "Runs a ground filter on every scan and prints per-file and pooled results: points, points\n"
+    "labelled ground, filter time in ms, and where ground truth exists the confusion counts\n"
+    "tp fp tn fn (ground = positive) with accuracy, precision, recall, F1 and IoU.\n"
+    "\n"
+    "PATH                a .bin (KITTI, sibling .label = SemanticKITTI truth), .pcd (a 'label'\n"
+    "                    field = ISPRS truth: 1 ground, 0 not, other = ignored) or .ply file; a\n"
+    "                    directory (all such files in it, sorted); or builtin:lidar[:SEED] /\n"
+    "                    builtin:tls[:SEED] (generated scene with exact truth)\n"
+    "--method NAME       filter method (default voxel)\n"
+    "--set NAME=VALUE    override a filter parameter (repeatable)\n"
+    "--json              print exactly one JSON object instead of the table:\n"
+    "                    {\"files\":[{\"file\",\"points\",\"ground\",\"ms\",\"tp\",\"fp\",\"tn\",\"fn\",\n"
+    "                    \"accuracy\",\"precision\",\"recall\",\"f1\",\"iou\"}...],\"pooled\":{...}}\n"
+    "                    metrics are fractions in [0,1]; null where a file has no labels or a\n"
+    "                    ratio is 0/0\n"
+    "--write-labels DIR  write DIR/<stem>.gnd: one uint8 per input point (1 ground, 0 not)\n"
+    "--write-clouds DIR  write DIR/<stem>_ground.pcd and DIR/<stem>_nonground.pcd (binary, all\n"
+    "                    input fields)\n"
+    "--repeat N          run the filter N times per file and report the median ms (default 1)\n"
+    "--help              this text\n"
+    "\n"
+    "Exit status: 0 ok, 1 a file could not be read/written or its labels do not match, 2 bad\n"
+    "command line, unknown method or invalid parameter.\n";
+
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct Options {
+  std::string method = "voxel";
+  gf::ParamSettings settings;
+  bool json = false;
+  std::string labels_dir;
+  std::string clouds_dir;
+  int repeat = 1;
+  std::vector<std::string> paths;
+};
+
+struct FileResult {
+  std::string file;
+  std::size_t points = 0;
+  std::size_t ground = 0;  // points labelled ground by the filter
+  double ms = 0.0;
+  bool labelled = false;
+  gf::Confusion confusion;
+};
+
+int parsePositive(const std::string& opt, const std::string& v) {
+  char* end = nullptr;
+  const long n = std::strtol(v.c_str(), &end, 10);
+  if (v.empty() || *end != '\0' || n < 1 || n > 1000000) {
+    throw UsageError(opt + " expects a positive integer, got '" + v + "'");
+  }
+  return static_cast<int>(n);
+}
+
+Options parseArgs(int argc, char** argv) {
+  Options o;
+  bool help = false;
+  for (int i = 1; i < argc; ++i) {
+    std::string arg = argv[i];
+    std::string value;
+    bool has_inline = false;
+    if (arg.rfind("--", 0) == 0 && arg.find('=') != std::string::npos) {
+      value = arg.substr(arg.find('=') + 1);
+      arg = arg.substr(0, arg.find('='));
+      has_inline = true;
+    }
+    auto next = [&]() -> std::string {
+      if (has_inline) return value;
+      if (i + 1 >= argc) throw UsageError(arg + " needs a value");
+      return argv[++i];
+    };
+    if (arg == "--help" || arg == "-h") {
+      help = true;
+    } else if (arg == "--json") {
+      o.json = true;
+    } else if (arg == "--method") {
+      o.method = next();
+    } else if (arg == "--set") {
+      const std::string kv = next();
+      const std::size_t eq = kv.find('=');
+      if (eq == std::string::npos || eq == 0) {
+        throw UsageError("--set expects NAME=VALUE, got '" + kv + "'");
+      }
+      o.settings.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
+    } else if (arg == "--write-labels") {
+      o.labels_dir = next();
+    } else if (arg == "--write-clouds") {
+      o.clouds_dir = next();
+    } else if (arg == "--repeat") {
+      o.repeat = parsePositive(arg, next());
+    } else if (arg.size() > 1 && arg[0] == '-' && arg != "-") {
+      throw UsageError("unknown option '" + arg + "'");
+    } else {
+      o.paths.push_back(argv[i]);
+    }
+  }
+  if (help) {
+    std::cout << kUsage;
+    std::exit(0);
+  }
+  if (o.paths.empty()) throw UsageError("no PATH given");
+  return o;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+std::string jsonString(const std::string& s) {
+  std::string out = "\"";
+  for (const char ch : s) {
+    const unsigned char c = static_cast<unsigned char>(ch);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += ch;
+    } else if (c < 0x20) {
+      char buf[8];
+      std::snprintf(buf, sizeof(buf), "\\u%04x", c);
+      out += buf;
+    } else {
+      out += ch;
+    }
+  }
+  return out + "\"";
+}
+
+std::string jsonNumber(double v, int decimals) {
+  if (!std::isfinite(v)) return "null";
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.*f", decimals, v);
+  return buf;
+}
+
+// The keys shared by a file entry and the pooled entry.
+std::string jsonRecord(const std::string& file, std::size_t points, std::size_t ground, double ms,
+                       bool labelled, const gf::Confusion& c) {
+  std::ostringstream os;
+  os << "{\"file\":" << jsonString(file) << ",\"points\":" << points << ",\"ground\":" << ground
+     << ",\"ms\":" << jsonNumber(ms, 4);
+  if (labelled) {
+    const gf::Metrics m = gf::computeMetrics(c);
+    os << ",\"tp\":" << c.tp << ",\"fp\":" << c.fp << ",\"tn\":" << c.tn << ",\"fn\":" << c.fn
+       << ",\"accuracy\":" << jsonNumber(m.accuracy, 6)
+       << ",\"precision\":" << jsonNumber(m.precision, 6)
+       << ",\"recall\":" << jsonNumber(m.recall, 6) << ",\"f1\":" << jsonNumber(m.f1, 6)
+       << ",\"iou\":" << jsonNumber(m.iou, 6);
+  } else {
+    os << ",\"tp\":null,\"fp\":null,\"tn\":null,\"fn\":null,\"accuracy\":null,"
+          "\"precision\":null,\"recall\":null,\"f1\":null,\"iou\":null";
+  }
+  return os.str();
+}
+
+std::string pct(double v) {
+  if (!std::isfinite(v)) return "-";
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.2f", 100.0 * v);
+  return buf;
+}
+
+void printRow(std::size_t name_w, const std::string& name, std::size_t points, std::size_t ground,
+              double ms, bool labelled, const gf::Confusion& c) {
+  std::printf("%-*s %9zu %9zu %9.2f", static_cast<int>(name_w), name.c_str(), points, ground, ms);
+  if (labelled) {
+    const gf::Metrics m = gf::computeMetrics(c);
+    std::printf(" %9" PRIu64 " %8" PRIu64 " %9" PRIu64 " %8" PRIu64 " %7s %7s %7s %7s %7s\n",
+                c.tp, c.fp, c.tn, c.fn, pct(m.accuracy).c_str(), pct(m.precision).c_str(),
+                pct(m.recall).c_str(), pct(m.f1).c_str(), pct(m.iou).c_str());
+  } else {
+    std::printf(" %9s %8s %9s %8s %7s %7s %7s %7s %7s\n", "-", "-", "-", "-", "-", "-", "-", "-",
+                "-");
+  }
+}
+
+int run(const Options& opt) {
+  std::unique_ptr<gf::GroundFilter> filter;
+  try {
+    filter = gf::makeGroundFilter(opt.method, opt.settings);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+
+  std::vector<std::string> files;
+  for (const auto& p : opt.paths) {
+    const std::vector<std::string> found = gf::listScanFiles(p);
+    if (found.empty()) throw std::runtime_error(p + ": no .bin, .pcd or .ply files in directory");
+    files.insert(files.end(), found.begin(), found.end());
+  }
+
+  std::vector<FileResult> results;
+  std::vector<std::uint8_t> labels;
+  for (const auto& file : files) {
+    const gf::Scan scan = gf::loadScan(file);
+    const gf::CloudView view = gf::viewOf(scan.cloud);
+    std::vector<double> times;
+    for (int r = 0; r < opt.repeat; ++r) {
+      const auto t0 = std::chrono::steady_clock::now();
+      filter->filter(view, &labels);
+      const auto t1 = std::chrono::steady_clock::now();
+      times.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+    }
+    if (labels.size() != view.size()) {
+      throw std::runtime_error(file + ": filter returned " + std::to_string(labels.size()) +
+                               " labels for " + std::to_string(view.size()) + " points");
+    }
+    FileResult res;
+    res.file = file;
+    res.points = view.size();
+    res.ground = static_cast<std::size_t>(std::count(labels.begin(), labels.end(), 1));
+    res.ms = median(times);
+    res.labelled = scan.labelled();
+    if (res.labelled) res.confusion = gf::countConfusion(labels, scan.truth);
+    if (!opt.labels_dir.empty()) gf::writeLabels(opt.labels_dir, file, labels);
+    if (!opt.clouds_dir.empty()) gf::writeSplitClouds(opt.clouds_dir, file, scan.cloud, labels);
+    results.push_back(res);
+  }
+
+  gf::Confusion pooled;
+  std::size_t points = 0, ground = 0, labelled_files = 0;
+  double ms = 0.0;
+  for (const auto& r : results) {
+    points += r.points;
+    ground += r.ground;
+    ms += r.ms;
+    if (r.labelled) {
+      pooled.add(r.confusion);
+      ++labelled_files;
+    }
+  }
+
+  if (opt.json) {
+    std::ostringstream os;
+    os << "{\"files\":[";
+    for (std::size_t i = 0; i < results.size(); ++i) {
+      const auto& r = results[i];
+      os << (i ? "," : "") << jsonRecord(r.file, r.points, r.ground, r.ms, r.labelled, r.confusion)
+         << ",\"labelled\":" << (r.labelled ? "true" : "false") << "}";
+    }
+    os << "],\"pooled\":" << jsonRecord("pooled", points, ground, ms, labelled_files > 0, pooled)
+       << ",\"file_count\":" << results.size() << ",\"labelled_files\":" << labelled_files
+       << "},\"method\":" << jsonString(opt.method) << ",\"repeat\":" << opt.repeat << "}";
+    std::cout << os.str() << std::endl;
+    return 0;
+  }
+
+  std::size_t name_w = 6;
+  for (const auto& r : results) name_w = std::max(name_w, r.file.size());
+  std::string settings;
+  for (const auto& kv : opt.settings) settings += " " + kv.first + "=" + kv.second;
+  std::printf("method %s%s%s; ms = filter time per file%s; metrics in %%, ground = positive\n",
+              opt.method.c_str(), settings.empty() ? "" : ", settings", settings.c_str(),
+              opt.repeat > 1 ? (" (median of " + std::to_string(opt.repeat) + " runs)").c_str()
+                             : "");
+  std::printf("%-*s %9s %9s %9s %9s %8s %9s %8s %7s %7s %7s %7s %7s\n", static_cast<int>(name_w),
+              "file", "points", "ground", "ms", "tp", "fp", "tn", "fn", "acc", "prec", "recall",
+              "f1", "iou");
+  for (const auto& r : results) {
+    printRow(name_w, r.file, r.points, r.ground, r.ms, r.labelled, r.confusion);
+  }
+  printRow(name_w, "pooled", points, ground, ms, labelled_files > 0, pooled);
+  std::printf("%zu file(s), %zu labelled; pooled ms = sum over files\n", results.size(),
+              labelled_files);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(parseArgs(argc, argv));
+  } catch (const UsageError& e) {
+    std::cerr << "ground_filter_eval: " << e.what() << "\n(try --help)" << std::endl;
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "ground_filter_eval: error: " << e.what() << std::endl;
+    return 1;
+  }
+}

@@ -1,0 +1,254 @@
+// scene_publisher: streams scans as sensor_msgs/PointCloud2 for the demo and for tests.
+//
+// Source: the built-in procedural street scene (default; the sensor drives forward along the
+// road, so consecutive scans differ) or real scan files (`~input`: a file, a directory of
+// .bin/.pcd/.ply, or builtin:lidar[:SEED] / builtin:tls[:SEED]).
+// Every cloud carries a uint8 field `gt_ground` (1 ground, 0 non-ground, 255 ignored) when ground
+// truth is known, so that demo_monitor can score the filter's outputs (the filter copies every
+// field to its outputs).
+//
+// Topic: ~output (sensor_msgs/PointCloud2).
+// Parameters:
+//   ~input (string, "")          scan file/directory/builtin:...; empty = generated LiDAR scene
+//   ~frame_id (string, velodyne) header frame_id
+//   ~rate (double, 10)           scans per second [Hz]
+//   ~loop (bool, true)           start over after the last file
+//   ~max_scans (int, 0)          stop after this many scans (0 = unlimited)
+//   ~wait_for_subscribers (bool, true)  publish only while ~output has a subscriber
+//   generated scene only:
+//   ~mode (string, lidar)        lidar (64-beam, moving) or tls (tripod sweep, fixed)
+//   ~seed (int, 1)               scene layout seed
+//   ~speed (double, 10)          sensor speed along the road [m/s]
+//   ~tls_points (int, 2000000)   TLS point budget [points] (1 k..5 M)
+//   ~nan_points (int, 0)         NaN points added to each scan (robustness demo) [points]
+#include <pcl_conversions/pcl_conversions.h>
+#include <ros/ros.h>
+#include <sensor_msgs/PointCloud2.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <exception>
+#include <string>
+#include <vector>
+
+#include "ground_filter/scan_io.h"
+#include "ground_filter/scene_generator.h"
+
+namespace {
+
+constexpr std::uint8_t kTruthIgnore = 255;
+constexpr char kTruthField[] = "gt_ground";
+
+// The sensor drives over this stretch of the generated road and then starts over.
+constexpr double kPathStartX = -10.0;
+constexpr double kPathEndX = 40.0;
+
+sensor_msgs::PointField makeField(const std::string& name, std::uint32_t offset,
+                                  std::uint8_t type) {
+  sensor_msgs::PointField f;
+  f.name = name;
+  f.offset = offset;
+  f.datatype = type;
+  f.count = 1;
+  return f;
+}
+
+// Generated scan -> PointCloud2 with x y z intensity (float32), ring (uint16), gt_ground (uint8).
+void toMessage(const ground_filter::GeneratedScan& scan, sensor_msgs::PointCloud2* msg) {
+  constexpr std::uint32_t kStep = 20;  // 19 bytes of fields + 1 padding byte
+  msg->fields = {makeField("x", 0, sensor_msgs::PointField::FLOAT32),
+                 makeField("y", 4, sensor_msgs::PointField::FLOAT32),
+                 makeField("z", 8, sensor_msgs::PointField::FLOAT32),
+                 makeField("intensity", 12, sensor_msgs::PointField::FLOAT32),
+                 makeField("ring", 16, sensor_msgs::PointField::UINT16),
+                 makeField(kTruthField, 18, sensor_msgs::PointField::UINT8)};
+  const std::size_t n = scan.size();
+  msg->height = 1;
+  msg->width = static_cast<std::uint32_t>(n);
+  msg->is_bigendian = false;
+  msg->point_step = kStep;
+  msg->row_step = kStep * msg->width;
+  msg->data.assign(n * kStep, 0);
+  bool dense = true;
+  for (std::size_t i = 0; i < n; ++i) {
+    std::uint8_t* rec = msg->data.data() + i * kStep;
+    std::memcpy(rec, &scan.xyz[3 * i], 3 * sizeof(float));
+    std::memcpy(rec + 12, &scan.intensity[i], sizeof(float));
+    std::memcpy(rec + 16, &scan.ring[i], sizeof(std::uint16_t));
+    rec[18] = scan.truth[i];
+    dense = dense && std::isfinite(scan.xyz[3 * i]) && std::isfinite(scan.xyz[3 * i + 1]) &&
+            std::isfinite(scan.xyz[3 * i + 2]);
+  }
+  msg->is_dense = dense;
+}
+
+// Loaded scan -> PointCloud2 with all its fields, plus gt_ground when it has ground truth.
+void toMessage(ground_filter::Scan* scan, sensor_msgs::PointCloud2* msg) {
+  pcl::PCLPointCloud2& in = scan->cloud;
+  if (scan->labelled()) {
+    for (const auto& f : in.fields) {
+      if (f.name == kTruthField) throw std::runtime_error("already has a gt_ground field");
+    }
+    // Append one byte to every record; rows are repacked without padding.
+    const std::size_t n = scan->size(), old_step = in.point_step, new_step = old_step + 1;
+    std::vector<std::uint8_t> data(n * new_step);
+    for (std::size_t r = 0; r < in.height; ++r) {
+      for (std::size_t c = 0; c < in.width; ++c) {
+        const std::size_t i = r * in.width + c;
+        std::memcpy(&data[i * new_step], &in.data[r * in.row_step + c * old_step], old_step);
+        const std::int8_t t = scan->truth[i];
+        data[i * new_step + old_step] = t < 0 ? kTruthIgnore : static_cast<std::uint8_t>(t);
+      }
+    }
+    pcl::PCLPointField f;
+    f.name = kTruthField;
+    f.offset = static_cast<std::uint32_t>(old_step);
+    f.datatype = pcl::PCLPointField::UINT8;
+    f.count = 1;
+    in.fields.push_back(f);
+    in.point_step = static_cast<std::uint32_t>(new_step);
+    in.row_step = static_cast<std::uint32_t>(new_step * in.width);
+    in.data = std::move(data);
+  }
+  pcl_conversions::moveFromPCL(in, *msg);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "scene_publisher");
+  ros::NodeHandle pnh("~");
+
+  std::string input, frame_id, mode;
+  double rate = 10.0, speed = 10.0;
+  bool loop = true, wait_for_subscribers = true;
+  int max_scans = 0, seed = 1, tls_points = 2000000, nan_points = 0;
+  pnh.param<std::string>("input", input, "");
+  pnh.param<std::string>("frame_id", frame_id, "velodyne");
+  pnh.param<std::string>("mode", mode, "lidar");
+  pnh.param("rate", rate, rate);
+  pnh.param("speed", speed, speed);
+  pnh.param("loop", loop, loop);
+  pnh.param("wait_for_subscribers", wait_for_subscribers, wait_for_subscribers);
+  pnh.param("max_scans", max_scans, max_scans);
+  pnh.param("seed", seed, seed);
+  pnh.param("tls_points", tls_points, tls_points);
+  pnh.param("nan_points", nan_points, nan_points);
+
+  if (!(rate > 0.0 && rate <= 1000.0)) {
+    ROS_FATAL("~rate = %g is out of range (0, 1000] Hz", rate);
+    return 1;
+  }
+  if (max_scans < 0 || seed < 0 || tls_points < 0 || nan_points < 0) {
+    ROS_FATAL("~max_scans, ~seed, ~tls_points and ~nan_points must be >= 0");
+    return 1;
+  }
+  if (mode != "lidar" && mode != "tls") {
+    ROS_FATAL("~mode '%s' is not lidar or tls", mode.c_str());
+    return 1;
+  }
+
+  ground_filter::SceneParams scene;
+  scene.mode = mode == "tls" ? ground_filter::SceneParams::Mode::kTls
+                             : ground_filter::SceneParams::Mode::kLidar64;
+  scene.seed = static_cast<std::uint32_t>(seed);
+  scene.tls_points = static_cast<std::size_t>(tls_points);
+  scene.nan_points = static_cast<std::size_t>(nan_points);
+  try {
+    scene.validate();
+  } catch (const std::exception& e) {
+    ROS_FATAL("scene parameters: %s", e.what());
+    return 1;
+  }
+
+  std::vector<std::string> files;
+  if (!input.empty()) {
+    try {
+      files = ground_filter::listScanFiles(input);
+    } catch (const std::exception& e) {
+      ROS_FATAL("~input: %s", e.what());
+      return 1;
+    }
+    if (files.empty()) {
+      ROS_FATAL("~input '%s' holds no .bin/.pcd/.ply scan", input.c_str());
+      return 1;
+    }
+    ROS_INFO("publishing %zu scan file(s) from %s at %g Hz%s", files.size(), input.c_str(), rate,
+             loop ? " (looping)" : "");
+  } else {
+    ROS_INFO("publishing the generated %s scene (seed %d) at %g Hz",
+             mode == "tls" ? "TLS" : "64-beam LiDAR", seed, rate);
+  }
+
+  ros::Publisher pub = pnh.advertise<sensor_msgs::PointCloud2>("output", 2);
+  if (wait_for_subscribers) {
+    ROS_INFO("waiting for a subscriber on %s", pub.getTopic().c_str());
+  }
+
+  // The tripod does not move: its (large) scan is generated once and re-stamped.
+  sensor_msgs::PointCloud2 tls_cache;
+  bool tls_cached = false;
+
+  ros::Rate loop_rate(rate);
+  std::uint32_t published = 0;
+  std::size_t file_index = 0, failures_in_a_row = 0;
+  while (ros::ok()) {
+    if (wait_for_subscribers && pub.getNumSubscribers() == 0) {
+      ros::WallDuration(0.05).sleep();
+      ros::spinOnce();
+      continue;
+    }
+    auto msg = boost::make_shared<sensor_msgs::PointCloud2>();
+    const ros::WallTime t0 = ros::WallTime::now();
+    std::string what;
+    if (files.empty()) {
+      if (scene.mode == ground_filter::SceneParams::Mode::kTls) {
+        if (!tls_cached) {
+          toMessage(ground_filter::generateScene(scene), &tls_cache);
+          tls_cached = true;
+        }
+        *msg = tls_cache;
+      } else {
+        const double span = kPathEndX - kPathStartX;
+        scene.sensor_x = kPathStartX + std::fmod(published * speed / rate, span);
+        scene.noise_seed = published;
+        toMessage(ground_filter::generateScene(scene), msg.get());
+      }
+      char buf[64];
+      std::snprintf(buf, sizeof(buf), "generated (sensor at x = %.1f m)", scene.sensor_x);
+      what = buf;
+    } else {
+      if (file_index >= files.size()) {
+        if (!loop) break;
+        file_index = 0;
+      }
+      const std::string& path = files[file_index++];
+      try {
+        ground_filter::Scan scan = ground_filter::loadScan(path);
+        toMessage(&scan, msg.get());
+        what = path + (scan.labelled() ? "" : " (no labels)");
+        failures_in_a_row = 0;
+      } catch (const std::exception& e) {
+        ROS_ERROR("skipping %s: %s", path.c_str(), e.what());
+        if (++failures_in_a_row >= files.size()) {
+          ROS_FATAL("no scan of ~input could be read");
+          return 1;
+        }
+        continue;
+      }
+    }
+    msg->header.frame_id = frame_id;
+    msg->header.stamp = ros::Time::now();
+    msg->header.seq = published;
+    pub.publish(sensor_msgs::PointCloud2ConstPtr(msg));
+    ROS_DEBUG("scan %u: %u points, %s, prepared in %.1f ms", published,
+              msg->width * msg->height, what.c_str(), (ros::WallTime::now() - t0).toSec() * 1e3);
+    ++published;
+    if (max_scans > 0 && published >= static_cast<std::uint32_t>(max_scans)) break;
+    ros::spinOnce();
+    loop_rate.sleep();
+  }
+  ROS_INFO("published %u scan(s)", published);
+  return 0;
+}

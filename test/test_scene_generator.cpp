@@ -1,0 +1,207 @@
+// Tests of the procedural scene generator (the demo's default input and a test fixture).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstddef>
+#include <stdexcept>
+
+#include "ground_filter/scene_generator.h"
+
+namespace ground_filter {
+namespace {
+
+struct Counts {
+  std::size_t ground = 0;
+  std::size_t nonground = 0;
+  std::size_t nonfinite = 0;
+  std::size_t nonground_above_1m = 0;      // non-ground points > 1 m above the terrain
+  std::size_t canopy_over_road = 0;        // non-ground > 1.8 m up, above the road surface
+  std::size_t ground_off_surface = 0;      // ground points farther than the tolerance from it
+};
+
+Counts count(const SceneParams& p, const GeneratedScan& s, double tolerance) {
+  Counts c;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const float x = s.xyz[3 * i], y = s.xyz[3 * i + 1], z = s.xyz[3 * i + 2];
+    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) {
+      ++c.nonfinite;
+      continue;
+    }
+    const double dz = z - sceneGroundHeight(p, x, y);
+    if (s.truth[i] == 1) {
+      ++c.ground;
+      if (std::fabs(dz) > tolerance) ++c.ground_off_surface;
+    } else {
+      ++c.nonground;
+      if (dz > 1.0) ++c.nonground_above_1m;
+      // Road between the far lane and the curb (scanner at world y = 0).
+      if (dz > 1.8 && y > 4.0 && y < p.curb_y - 0.2) ++c.canopy_over_road;
+    }
+  }
+  return c;
+}
+
+void expectConsistentSizes(const GeneratedScan& s) {
+  EXPECT_EQ(s.xyz.size(), 3 * s.size());
+  EXPECT_EQ(s.intensity.size(), s.size());
+  EXPECT_EQ(s.ring.size(), s.size());
+  EXPECT_EQ(s.truth.size(), s.size());
+}
+
+TEST(SceneGenerator, LidarIsDeterministicForASeed) {
+  SceneParams p;
+  p.seed = 7;
+  const GeneratedScan a = generateScene(p);
+  const GeneratedScan b = generateScene(p);
+  ASSERT_EQ(a.size(), b.size());
+  EXPECT_EQ(a.xyz, b.xyz);
+  EXPECT_EQ(a.intensity, b.intensity);
+  EXPECT_EQ(a.ring, b.ring);
+  EXPECT_EQ(a.truth, b.truth);
+
+  p.seed = 8;  // another layout
+  const GeneratedScan c = generateScene(p);
+  EXPECT_NE(a.xyz, c.xyz);
+  p.seed = 7;
+  p.noise_seed = 1;  // same layout, other noise
+  const GeneratedScan d = generateScene(p);
+  EXPECT_GT(a.size(), 0u);
+  EXPECT_NE(a.xyz, d.xyz);
+}
+
+TEST(SceneGenerator, LidarScanLooksLikeAnHdl64Frame) {
+  SceneParams p;
+  const GeneratedScan s = generateScene(p);
+  expectConsistentSizes(s);
+  // 64 x 1800 rays; most hit something within 80 m.
+  EXPECT_GT(s.size(), 80000u);
+  EXPECT_LE(s.size(), 64u * 1800u);
+  const Counts c = count(p, s, p.curb_height + 6.0 * p.range_noise_sigma);
+  EXPECT_EQ(c.nonfinite, 0u);
+  const double ground_share = static_cast<double>(c.ground) / s.size();
+  EXPECT_GT(ground_share, 0.30);
+  EXPECT_LT(ground_share, 0.80);
+  EXPECT_EQ(c.ground_off_surface, 0u);
+  EXPECT_GT(c.nonground_above_1m, 1000u);  // walls, poles, trees
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    ASSERT_LT(s.ring[i], 64);
+    ASSERT_GE(s.intensity[i], 0.f);
+    ASSERT_LE(s.intensity[i], 1.f);
+    const double r = std::sqrt(s.xyz[3 * i] * s.xyz[3 * i] + s.xyz[3 * i + 1] * s.xyz[3 * i + 1] +
+                               s.xyz[3 * i + 2] * s.xyz[3 * i + 2]);
+    ASSERT_LT(r, p.lidar_max_range + 1.0);
+  }
+}
+
+TEST(SceneGenerator, GroundTruthFollowsTheTerrainWithoutNoise) {
+  SceneParams p;
+  p.range_noise_sigma = 0.0;
+  p.sensor_x = 12.0;  // on the way to the ramp: the lower level, the ramp and the upper level
+  const GeneratedScan s = generateScene(p);
+  // Exact surface: ground points are on it up to float rounding, except on the curb face.
+  std::size_t on_surface = 0, on_ramp = 0, on_sidewalk = 0;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (s.truth[i] != 1) continue;
+    const double x = s.xyz[3 * i], y = s.xyz[3 * i + 1];
+    const double dz = s.xyz[3 * i + 2] - sceneGroundHeight(p, x, y);
+    ASSERT_LE(std::fabs(dz), p.curb_height + 1e-3) << "ground point " << i;
+    if (std::fabs(dz) < 2e-3) ++on_surface;
+    const double wx = x + p.sensor_x;
+    if (wx > p.ramp_start_x + 1.0 && wx < p.ramp_end_x - 1.0) ++on_ramp;
+    if (y > p.curb_y + 0.5) ++on_sidewalk;
+  }
+  const Counts c = count(p, s, p.curb_height + 1e-3);
+  EXPECT_GT(on_surface, c.ground * 99 / 100);  // only the curb face is off the height function
+  EXPECT_GT(on_ramp, 1000u);
+  EXPECT_GT(on_sidewalk, 1000u);
+  // The canopy of the tree near the scanner overhangs the road.
+  EXPECT_GT(c.canopy_over_road, 0u);
+}
+
+TEST(SceneGenerator, MovingTheScannerChangesTheScanButNotTheWorld) {
+  SceneParams a;
+  SceneParams b = a;
+  b.sensor_x = 5.0;
+  const GeneratedScan sa = generateScene(a);
+  const GeneratedScan sb = generateScene(b);
+  EXPECT_NE(sa.xyz, sb.xyz);
+  // The same world point seen from both poses: the heights differ only by how much the terrain
+  // (and so the scanner, which keeps its height above it) rises between the two poses.
+  const double rise = sceneGroundHeight(a, 5.0, 0.0) - sceneGroundHeight(a, 0.0, 0.0);
+  EXPECT_NEAR(rise, 5.0 * a.slope_x, 1e-9);
+  EXPECT_NEAR(sceneGroundHeight(a, 10.0, 1.0) - sceneGroundHeight(b, 5.0, 1.0), rise, 1e-9);
+  // Sensor height above the terrain below it.
+  EXPECT_NEAR(sceneGroundHeight(a, 0.0, 0.0), -a.sensor_height, 1e-9);
+}
+
+TEST(SceneGenerator, TlsRespectsThePointBudget) {
+  for (std::size_t budget : {20000u, 300000u}) {
+    SceneParams p;
+    p.mode = SceneParams::Mode::kTls;
+    p.tls_points = budget;
+    const GeneratedScan s = generateScene(p);
+    expectConsistentSizes(s);
+    EXPECT_LE(s.size(), budget);
+    EXPECT_GE(s.size(), budget * 9 / 10) << "the ray grid is sized to fill the budget";
+    const Counts c = count(p, s, p.curb_height + 6.0 * p.range_noise_sigma);
+    EXPECT_EQ(c.nonfinite, 0u);
+    EXPECT_EQ(c.ground_off_surface, 0u);
+    const double ground_share = static_cast<double>(c.ground) / s.size();
+    EXPECT_GT(ground_share, 0.30);
+    EXPECT_LT(ground_share, 0.80);
+    EXPECT_GT(c.nonground_above_1m, budget / 20);
+    EXPECT_GT(c.canopy_over_road, 0u);  // the TLS sees the crowns from below
+  }
+}
+
+TEST(SceneGenerator, TlsIsDeterministic) {
+  SceneParams p;
+  p.mode = SceneParams::Mode::kTls;
+  p.tls_points = 50000;
+  const GeneratedScan a = generateScene(p);
+  const GeneratedScan b = generateScene(p);
+  EXPECT_EQ(a.xyz, b.xyz);
+  EXPECT_EQ(a.truth, b.truth);
+}
+
+TEST(SceneGenerator, NanPointsAreInsertedAsNonGround) {
+  SceneParams p;
+  p.beams = 16;
+  p.azimuth_steps = 360;
+  const GeneratedScan clean = generateScene(p);
+  p.nan_points = 25;
+  const GeneratedScan s = generateScene(p);
+  expectConsistentSizes(s);
+  ASSERT_EQ(s.size(), clean.size() + 25);
+  std::size_t nan = 0, ground = 0, clean_ground = 0;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (std::isnan(s.xyz[3 * i])) {
+      ++nan;
+      EXPECT_EQ(s.truth[i], 0);
+    }
+    ground += s.truth[i];
+  }
+  for (std::uint8_t t : clean.truth) clean_ground += t;
+  EXPECT_EQ(nan, 25u);
+  EXPECT_EQ(ground, clean_ground);  // no valid point lost
+  EXPECT_FALSE(std::isnan(s.xyz[0]));  // spread inside the scan, not at its start
+}
+
+TEST(SceneGenerator, InvalidParametersAreRefused) {
+  SceneParams p;
+  p.mode = SceneParams::Mode::kTls;
+  p.tls_points = 6000000;  // over the 5 M budget
+  EXPECT_THROW(generateScene(p), std::invalid_argument);
+  SceneParams q;
+  q.beams = 0;
+  EXPECT_THROW(generateScene(q), std::invalid_argument);
+  SceneParams r;
+  r.ramp_end_x = r.ramp_start_x - 1.0;
+  EXPECT_THROW(generateScene(r), std::invalid_argument);
+  SceneParams s;
+  s.range_noise_sigma = -0.1;
+  EXPECT_THROW(generateScene(s), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace ground_filter
