@@ -13,11 +13,12 @@ GF_APT_PACKAGES=(
   build-essential cmake git pkg-config python3
   catkin ros-core-dev rosbash python3-roslaunch python3-rostest librostest-dev
   python3-catkin-pkg python3-empy python3-nose python3-numpy
-  libnodelet-dev libnodelet-topic-tools-dev libpluginlib-dev
+  libnodelet-dev libnodeletlib-tools libnodelet-topic-tools-dev pluginlib-dev
   libpcl-dev libpcl-ros-dev libpcl-conversions-dev
   libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure
   libtf2-ros-dev libtf2-sensor-msgs-dev python3-tf2-ros
   libdiagnostic-updater-dev librosbag-dev python3-rosbag
+  python3-std-srvs python3-diagnostic-msgs
   libsensor-msgs-dev python3-sensor-msgs
   libeigen3-dev libnanoflann-dev googletest libgtest-dev
   rviz xvfb xauth libgl1-mesa-dri imagemagick

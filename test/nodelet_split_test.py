@@ -169,7 +169,9 @@ class NodeletSplitTest(unittest.TestCase):
         cls.collector = None
         cls.rosout = []
         cls.rosout_lock = threading.Lock()
-        cls.rosout_sub = rospy.Subscriber("/rosout", Log, cls._on_rosout, queue_size=1000)
+        # Both the raw and the aggregated log: either one is enough to see the nodelet's ERRORs.
+        cls.rosout_subs = [rospy.Subscriber(t, Log, cls._on_rosout, queue_size=1000)
+                           for t in ("/rosout", "/rosout_agg")]
         # The nodelet is loaded once its outputs are advertised.
         deadline = time.monotonic() + WAIT_S
         want = cls.filter_name + "/ground"

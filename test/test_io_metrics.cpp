@@ -296,11 +296,11 @@ TEST(Metrics, ComputeByHand) {
   c.tn = 4;
   c.fn = 2;
   const gf::Metrics m = gf::computeMetrics(c);
-  EXPECT_DOUBLE_EQ(m.accuracy, 0.7);       // 7 / 10
-  EXPECT_DOUBLE_EQ(m.precision, 0.75);     // 3 / 4
-  EXPECT_DOUBLE_EQ(m.recall, 0.6);         // 3 / 5
-  EXPECT_DOUBLE_EQ(m.f1, 2.0 / 3.0);       // 2 * 0.75 * 0.6 / 1.35
-  EXPECT_DOUBLE_EQ(m.iou, 0.5);            // 3 / 6
+  EXPECT_DOUBLE_EQ(m.accuracy, 0.7);    // 7 / 10
+  EXPECT_DOUBLE_EQ(m.precision, 0.75);  // 3 / 4
+  EXPECT_DOUBLE_EQ(m.recall, 0.6);      // 3 / 5
+  EXPECT_DOUBLE_EQ(m.f1, 2.0 / 3.0);    // 2 * 0.75 * 0.6 / 1.35
+  EXPECT_DOUBLE_EQ(m.iou, 0.5);         // 3 / 6
   EXPECT_NEAR(m.f1, 2 * m.precision * m.recall / (m.precision + m.recall), 1e-12);
 }
 
@@ -355,17 +355,17 @@ TEST(Metrics, PoolingAddsCounts) {
 // ------------------------------------------------------------------ protocols
 
 TEST(Protocols, SemanticKitti) {
-  EXPECT_EQ(gf::semanticKittiTruth(0, -2.f), -1);   // unlabeled
-  EXPECT_EQ(gf::semanticKittiTruth(1, -2.f), -1);   // outlier
+  EXPECT_EQ(gf::semanticKittiTruth(0, -2.f), -1);  // unlabeled
+  EXPECT_EQ(gf::semanticKittiTruth(1, -2.f), -1);  // outlier
   for (std::uint32_t cls : {40u, 44u, 48u, 49u, 60u, 72u}) {
     EXPECT_EQ(gf::semanticKittiTruth(cls, 5.f), 1) << cls;  // ground classes at any height
   }
-  EXPECT_EQ(gf::semanticKittiTruth(70, -1.30f), 1);   // vegetation below -1.2975 m
-  EXPECT_EQ(gf::semanticKittiTruth(70, -1.29f), 0);   // vegetation above it
+  EXPECT_EQ(gf::semanticKittiTruth(70, -1.30f), 1);  // vegetation below -1.2975 m
+  EXPECT_EQ(gf::semanticKittiTruth(70, -1.29f), 0);  // vegetation above it
   EXPECT_EQ(gf::semanticKittiTruth(70, 0.5f), 0);
-  EXPECT_EQ(gf::semanticKittiTruth(10, -1.7f), 0);    // car
-  EXPECT_EQ(gf::semanticKittiTruth(50, -1.7f), 0);    // building
-  EXPECT_EQ(gf::semanticKittiTruth(71, -1.7f), 0);    // trunk
+  EXPECT_EQ(gf::semanticKittiTruth(10, -1.7f), 0);              // car
+  EXPECT_EQ(gf::semanticKittiTruth(50, -1.7f), 0);              // building
+  EXPECT_EQ(gf::semanticKittiTruth(71, -1.7f), 0);              // trunk
   EXPECT_EQ(gf::semanticKittiTruth((7u << 16) | 40u, 0.f), 1);  // instance id in the high bits
   EXPECT_EQ(gf::semanticKittiTruth((3u << 16) | 1u, 0.f), -1);
   EXPECT_EQ(gf::semanticKittiTruth((3u << 16) | 10u, 0.f), 0);
@@ -384,14 +384,14 @@ TEST(Protocols, Isprs) {
 TEST(LoadScan, KittiBinWithLabels) {
   TempDir tmp;
   const std::vector<KittiPoint> pts = {
-      {1.f, 2.f, -1.7f, 0.25f, 40},               // road -> 1
-      {3.f, -4.f, -1.5f, 0.5f, 70},               // vegetation, low -> 1
-      {3.5f, -4.f, -1.0f, 0.75f, 70},             // vegetation, high -> 0
-      {0.f, 0.f, 0.f, 0.f, 0},                    // unlabeled -> -1
-      {9.f, 9.f, 9.f, 1.f, 1},                    // outlier -> -1
-      {-2.f, 1.f, -0.5f, 0.125f, 10},             // car -> 0
-      {-2.f, 1.f, 2.f, 0.f, (12u << 16) | 48u},   // sidewalk (instance bits) -> 1
-      {5.f, 5.f, -1.8f, 0.f, 72},                 // terrain -> 1
+      {1.f, 2.f, -1.7f, 0.25f, 40},              // road -> 1
+      {3.f, -4.f, -1.5f, 0.5f, 70},              // vegetation, low -> 1
+      {3.5f, -4.f, -1.0f, 0.75f, 70},            // vegetation, high -> 0
+      {0.f, 0.f, 0.f, 0.f, 0},                   // unlabeled -> -1
+      {9.f, 9.f, 9.f, 1.f, 1},                   // outlier -> -1
+      {-2.f, 1.f, -0.5f, 0.125f, 10},            // car -> 0
+      {-2.f, 1.f, 2.f, 0.f, (12u << 16) | 48u},  // sidewalk (instance bits) -> 1
+      {5.f, 5.f, -1.8f, 0.f, 72},                // terrain -> 1
   };
   const std::string bin = tmp / "000007.bin";
   writeKitti(bin, pts, true);
@@ -511,7 +511,11 @@ TEST(LoadScan, PcdWithoutLabelAndBadXyz) {
   EXPECT_THROW(gf::viewOf(gf::loadScan(tmp / "dbl.pcd").cloud), std::runtime_error);
 
   writeText(tmp / "garbage.pcd", "this is not a point cloud\n");
-  EXPECT_THROW(gf::loadScan(tmp / "garbage.pcd"), std::runtime_error);
+  EXPECT_THROW(gf::loadScan(tmp / "garbage.pcd"), std::runtime_error);  // PCL alone crashes here
+  writeText(tmp / "short.pcd",
+            "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 3\nHEIGHT 1\n"
+            "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n1 2 3\n");
+  EXPECT_THROW(gf::loadScan(tmp / "short.pcd"), std::runtime_error);  // fewer points than POINTS
 }
 
 TEST(LoadScan, PlyAscii) {
@@ -528,6 +532,13 @@ TEST(LoadScan, PlyAscii) {
   EXPECT_EQ(v.z(2), 9.f);
   EXPECT_EQ(fieldValue<float>(scan.cloud, "intensity", 1), 0.25f);
   EXPECT_FALSE(scan.labelled());
+
+  writeText(tmp / "garbage.ply", "this is not a point cloud\n");
+  EXPECT_THROW(gf::loadScan(tmp / "garbage.ply"), std::runtime_error);
+  writeText(tmp / "short.ply",
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            "property float z\nend_header\n1 2 3\n");
+  EXPECT_THROW(gf::loadScan(tmp / "short.ply"), std::runtime_error);
 }
 
 // ------------------------------------------------------------------ listing, stems, writers
@@ -569,7 +580,8 @@ TEST(Writers, SplitCloudsKeepEveryField) {
     f.count = 1;
     return f;
   };
-  c.fields = {field("x", 0, pcl::PCLPointField::FLOAT32), field("y", 4, pcl::PCLPointField::FLOAT32),
+  c.fields = {field("x", 0, pcl::PCLPointField::FLOAT32),
+              field("y", 4, pcl::PCLPointField::FLOAT32),
               field("z", 8, pcl::PCLPointField::FLOAT32),
               field("intensity", 16, pcl::PCLPointField::FLOAT32),
               field("ring", 14, pcl::PCLPointField::UINT16)};
@@ -699,9 +711,9 @@ TEST(EvalCli, JsonContract) {
             "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 3\nHEIGHT 1\n"
             "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n1 2 -1.7\n1.1 2 -1.7\n1 2.1 -1.7\n");
 
-  const CommandResult r = runEval("--method voxel --json --write-labels '" + (tmp / "gnd") +
-                                  "' --write-clouds '" + (tmp / "clouds") + "' '" +
-                                  (tmp / "small.bin") + "' '" + (tmp / "plain.pcd") + "'");
+  const CommandResult r =
+      runEval("--method voxel --json --write-labels '" + (tmp / "gnd") + "' --write-clouds '" +
+              (tmp / "clouds") + "' '" + (tmp / "small.bin") + "' '" + (tmp / "plain.pcd") + "'");
   ASSERT_EQ(r.status, 0) << r.out;
   Json doc;
   ASSERT_NO_THROW(doc = JsonParser(r.out).parseDocument()) << r.out;
@@ -709,8 +721,8 @@ TEST(EvalCli, JsonContract) {
   const Json& files = doc.at("files");
   ASSERT_EQ(files.type, Json::kArray);
   ASSERT_EQ(files.arr.size(), 2u);
-  const char* keys[] = {"file", "points", "ms", "tp", "fp", "tn", "fn",
-                        "accuracy", "precision", "recall", "f1", "iou"};
+  const char* keys[] = {"file", "points",   "ms",        "tp",     "fp", "tn",
+                        "fn",   "accuracy", "precision", "recall", "f1", "iou"};
   for (const Json& f : files.arr) {
     for (const char* k : keys) EXPECT_TRUE(f.obj.count(k)) << k;
   }
@@ -739,8 +751,8 @@ TEST(EvalCli, JsonContract) {
 
   const Json& pooled = doc.at("pooled");
   ASSERT_EQ(pooled.type, Json::kObject);
-  for (const char* k : {"points", "ms", "tp", "fp", "tn", "fn", "accuracy", "precision", "recall",
-                        "f1", "iou"}) {
+  for (const char* k :
+       {"points", "ms", "tp", "fp", "tn", "fn", "accuracy", "precision", "recall", "f1", "iou"}) {
     EXPECT_TRUE(pooled.obj.count(k)) << k;
   }
   EXPECT_EQ(pooled.at("points").num, double(pts.size() + 3));
@@ -828,3 +840,9 @@ TEST(EvalCli, ErrorsExitNonZeroWithMessage) {
 }
 
 }  // namespace
+
+// catkin_add_gtest links gtest without gtest_main.
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}

@@ -14,9 +14,9 @@ struct Counts {
   std::size_t ground = 0;
   std::size_t nonground = 0;
   std::size_t nonfinite = 0;
-  std::size_t nonground_above_1m = 0;      // non-ground points > 1 m above the terrain
-  std::size_t canopy_over_road = 0;        // non-ground > 1.8 m up, above the road surface
-  std::size_t ground_off_surface = 0;      // ground points farther than the tolerance from it
+  std::size_t nonground_above_1m = 0;  // non-ground points > 1 m above the terrain
+  std::size_t canopy_over_road = 0;    // non-ground > 1.8 m up, above the road surface
+  std::size_t ground_off_surface = 0;  // ground points farther than the tolerance from it
 };
 
 Counts count(const SceneParams& p, const GeneratedScan& s, double tolerance) {
@@ -183,7 +183,7 @@ TEST(SceneGenerator, NanPointsAreInsertedAsNonGround) {
   }
   for (std::uint8_t t : clean.truth) clean_ground += t;
   EXPECT_EQ(nan, 25u);
-  EXPECT_EQ(ground, clean_ground);  // no valid point lost
+  EXPECT_EQ(ground, clean_ground);     // no valid point lost
   EXPECT_FALSE(std::isnan(s.xyz[0]));  // spread inside the scan, not at its start
 }
 
@@ -205,3 +205,8 @@ TEST(SceneGenerator, InvalidParametersAreRefused) {
 
 }  // namespace
 }  // namespace ground_filter
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}

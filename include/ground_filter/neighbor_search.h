@@ -31,6 +31,11 @@ class NeighborSearch {
   virtual void search(const float* xyz, std::size_t n, int k, NeighborLists* out) = 0;
   /// \brief Backend name ("kdtree", "gpu").
   virtual std::string name() const = 0;
+  /// \brief Backend that ran the last search(); differs from name() after a per-scan fallback
+  ///        (e.g. a CUDA error made that scan run on the kd-tree).
+  virtual std::string lastBackend() const { return name(); }
+  /// \brief Why the last search() did not run on name() (e.g. the CUDA error); empty otherwise.
+  virtual std::string lastNote() const { return std::string(); }
 };
 
 }  // namespace ground_filter

@@ -19,16 +19,15 @@ struct NormalGroundFilterParams {
   int k = 50;                       ///< neighbours per point, itself included [points] (50; 3..256)
   double min_normal_angle = 80.0;   ///< normal-to-horizontal angle window, low end [deg] (80)
   double max_normal_angle = 100.0;  ///< normal-to-horizontal angle window, high end [deg] (100)
-  double min_planarity = 0.0;       ///< flat when (e1 - e0) / e2 >= this, e = eigenvalues [1] (0)
-  double max_curvature = 0.05;      ///< flat when e0 / (e0 + e1 + e2) <= this [1] (0.05)
+  double min_planarity = 0.0;       ///< flat: planarity dominant and >= this (see README) [1] (0)
   bool bayes_vote = true;           ///< naive-Bayes vote over each K neighbourhood [bool] (true)
-  double plane_distance = 0.10;     ///< max point-to-plane distance of a ground point [m] (0.10)
-  bool std_filter = true;           ///< keep only distances within mean +- std_factor * std [bool]
-  double std_factor = 1.0;          ///< width of that band in standard deviations [1] (1.0)
+  double plane_distance = 0.15;     ///< max point-to-plane distance of a ground point [m] (paper 0.10)
+  bool std_filter = false;          ///< also require mean +- std_multiplier * std of distances [bool]
+  double std_multiplier = 1.0;          ///< width of that band in standard deviations [1] (1.0, paper)
   int ransac_iterations = 100;      ///< RANSAC hypotheses per plane, at most [1] (100)
-  bool plane_all_points = false;    ///< plane test also turns non-voted points ground [bool] (false)
+  bool plane_all_points = true;     ///< plane test labels every point, not only voted ones [bool]
   bool local_planes = true;         ///< one plane per tile instead of one for the cloud [bool]
-  double tile_size = 8.0;           ///< tile edge for local planes [m] (8.0)
+  double tile_size = 4.0;           ///< tile edge for local planes [m] (4.0)
   bool use_segments = false;        ///< paper's segments: no neighbours across borders [bool]
   int segment_points = 65536;       ///< points per segment, at most [points] (65536, paper)
   std::string knn_backend = "kdtree";  ///< neighbour search: kdtree | gpu [enum] (kdtree)

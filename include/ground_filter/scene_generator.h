@@ -21,26 +21,26 @@ struct SceneParams {
     kLidar64,  ///< spinning 64-beam LiDAR on a car (HDL-64-like), ~100 k returns
     kTls,      ///< terrestrial laser scanner on a tripod: dense spherical sweep, 1-5 M returns
   };
-  Mode mode = Mode::kLidar64;  ///< scanner model (kLidar64)
-  std::uint32_t seed = 1;      ///< layout (and noise) seed [-] (1)
-  std::uint32_t noise_seed = 0;  ///< extra seed of the range/intensity noise only, e.g. scan index [-] (0)
+  Mode mode = Mode::kLidar64;    ///< scanner model (kLidar64)
+  std::uint32_t seed = 1;        ///< layout (and noise) seed [-] (1)
+  std::uint32_t noise_seed = 0;  ///< extra seed of the noise only, e.g. scan index [-] (0)
 
   // Scanner pose. Output points are in the scanner frame: x forward (along the road), z up.
-  double sensor_x = 0.0;          ///< scanner position along the road (world x) [m] (0)
-  double sensor_y = 0.0;          ///< scanner lateral position (world y; road spans -6..curb_y) [m] (0)
-  double sensor_height = 1.73;    ///< LiDAR height above the ground below it [m] (1.73)
-  double tripod_height = 1.5;     ///< TLS height above the ground below it [m] (1.5)
+  double sensor_x = 0.0;  ///< scanner position along the road (world x) [m] (0)
+  double sensor_y = 0.0;  ///< scanner lateral position (world y; road spans -6..curb_y) [m] (0)
+  double sensor_height = 1.73;  ///< LiDAR height above the ground below it [m] (1.73)
+  double tripod_height = 1.5;   ///< TLS height above the ground below it [m] (1.5)
 
   // Spinning LiDAR (kLidar64).
-  int beams = 64;                    ///< lasers (rings) [-] (64)
-  int azimuth_steps = 1800;          ///< firings per revolution [-] (1800, i.e. 0.2 deg)
-  double vertical_min_deg = -24.8;   ///< lowest beam elevation [deg] (-24.8)
-  double vertical_max_deg = 2.0;     ///< highest beam elevation [deg] (2.0)
-  double lidar_max_range = 80.0;     ///< farther hits give no return [m] (80)
-  double min_range = 1.0;            ///< nearer hits give no return (own vehicle/tripod) [m] (1.0)
+  int beams = 64;                   ///< lasers (rings) [-] (64)
+  int azimuth_steps = 1800;         ///< firings per revolution [-] (1800, i.e. 0.2 deg)
+  double vertical_min_deg = -24.8;  ///< lowest beam elevation [deg] (-24.8)
+  double vertical_max_deg = 2.0;    ///< highest beam elevation [deg] (2.0)
+  double lidar_max_range = 80.0;    ///< farther hits give no return [m] (80)
+  double min_range = 1.0;           ///< nearer hits give no return (own vehicle/tripod) [m] (1.0)
 
   // Terrestrial scanner (kTls).
-  std::size_t tls_points = 2000000;  ///< point budget: returns never exceed it [points] (2 M; 1 k..5 M)
+  std::size_t tls_points = 2000000;      ///< point budget, never exceeded [points] (2 M; 1 k..5 M)
   double tls_min_elevation_deg = -60.0;  ///< lowest ray elevation [deg] (-60)
   double tls_max_elevation_deg = 60.0;   ///< highest ray elevation [deg] (60)
   double tls_max_range = 120.0;          ///< farther hits give no return [m] (120)
@@ -50,14 +50,14 @@ struct SceneParams {
   std::size_t nan_points = 0;       ///< NaN points inserted for robustness demos [points] (0)
 
   // Terrain (world frame; road level z = slope_x * x + slope_y * y + ramp).
-  double slope_x = 0.02;        ///< road slope along x (gentle) [m/m] (0.02)
-  double slope_y = 0.01;        ///< cross slope along y [m/m] (0.01)
-  double curb_y = 6.0;          ///< curb line; sidewalk for y >= curb_y [m] (6.0)
-  double curb_height = 0.15;    ///< curb step up to the sidewalk [m] (0.15)
-  double ramp_start_x = 18.0;   ///< ramp foot (lower level ends) [m] (18)
-  double ramp_end_x = 33.0;     ///< ramp top (upper level starts) [m] (33)
-  double ramp_height = 2.0;     ///< upper level minus lower level [m] (2.0)
-  double scene_extent = 90.0;   ///< objects are placed for |world x| <= this [m] (90)
+  double slope_x = 0.02;       ///< road slope along x (gentle) [m/m] (0.02)
+  double slope_y = 0.01;       ///< cross slope along y [m/m] (0.01)
+  double curb_y = 6.0;         ///< curb line; sidewalk for y >= curb_y [m] (6.0)
+  double curb_height = 0.15;   ///< curb step up to the sidewalk [m] (0.15)
+  double ramp_start_x = 18.0;  ///< ramp foot (lower level ends) [m] (18)
+  double ramp_end_x = 33.0;    ///< ramp top (upper level starts) [m] (33)
+  double ramp_height = 2.0;    ///< upper level minus lower level [m] (2.0)
+  double scene_extent = 90.0;  ///< objects are placed for |world x| <= this [m] (90)
 
   /// \brief Checks every field's range.
   /// \throws std::invalid_argument naming the first bad field, its value and its range.
@@ -66,10 +66,10 @@ struct SceneParams {
 
 /// \brief A generated scan: per-point arrays in scanner order (azimuth column, then elevation).
 struct GeneratedScan {
-  std::vector<float> xyz;             ///< packed x y z [m], scanner frame
-  std::vector<float> intensity;       ///< reflectivity-like value [0, 1]
-  std::vector<std::uint16_t> ring;    ///< beam index (LiDAR) or elevation row (TLS)
-  std::vector<std::uint8_t> truth;    ///< 1 ground, 0 non-ground (NaN points are 0)
+  std::vector<float> xyz;           ///< packed x y z [m], scanner frame
+  std::vector<float> intensity;     ///< reflectivity-like value [0, 1]
+  std::vector<std::uint16_t> ring;  ///< beam index (LiDAR) or elevation row (TLS)
+  std::vector<std::uint8_t> truth;  ///< 1 ground, 0 non-ground (NaN points are 0)
   /// \brief Number of points.
   std::size_t size() const { return truth.size(); }
 };
@@ -82,8 +82,8 @@ struct GeneratedScan {
 GeneratedScan generateScene(const SceneParams& params);
 
 /// \brief Height of the terrain surface below (x, y) of the scanner frame of `params`, in that
-///        frame [m] (the exact surface the ground-truth points were sampled from, before noise;
-///        the sidewalk side is used for y >= curb_y).
+///        frame [m]: the exact surface the ground points were sampled from, before noise (the
+///        sidewalk level from the curb line on, i.e. world y >= curb_y).
 double sceneGroundHeight(const SceneParams& params, double x, double y);
 
 }  // namespace ground_filter

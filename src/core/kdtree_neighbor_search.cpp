@@ -84,6 +84,8 @@ void KdTreeNeighborSearch::search(const float* xyz, std::size_t n, int k, Neighb
     for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
       float* dist = &out->sq_dists[i * kk];
       std::int32_t* row = &out->indices[i * kk];
+      // nanoflann's result set keeps the row sorted by insertion; a heap plus a final sort was
+      // measured slower at K = 50.
       nanoflann::KNNResultSet<float, std::uint32_t, std::uint32_t> result(
           static_cast<std::uint32_t>(found));
       result.init(idx.data(), dist);

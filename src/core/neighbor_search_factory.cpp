@@ -4,13 +4,20 @@
 
 #include "ground_filter/kdtree_neighbor_search.h"
 
+#ifdef GROUND_FILTER_HAVE_CUDA
+#include "ground_filter/cuda_knn.h"
+#include "ground_filter/gpu_neighbor_search.h"
+#endif
+
 namespace ground_filter {
 
 std::vector<std::string> neighborSearchBackends() { return {"kdtree", "gpu"}; }
 
 bool neighborSearchAvailable(const std::string& backend) {
   if (backend == "kdtree") return true;
-  // The CUDA build answers for "gpu" here (GROUND_FILTER_HAVE_CUDA).
+#ifdef GROUND_FILTER_HAVE_CUDA
+  if (backend == "gpu") return CudaKnn::deviceAvailable(nullptr);
+#endif
   return false;
 }
 
@@ -19,8 +26,19 @@ std::unique_ptr<NeighborSearch> makeNeighborSearch(const std::string& backend, i
   if (note) note->clear();
   if (backend == "kdtree") return std::make_unique<KdTreeNeighborSearch>(threads);
   if (backend == "gpu") {
-    // The CUDA build creates its backend here (GROUND_FILTER_HAVE_CUDA).
+#ifdef GROUND_FILTER_HAVE_CUDA
+    std::string why;
+    if (CudaKnn::deviceAvailable(&why)) {
+      try {
+        return std::make_unique<GpuNeighborSearch>(threads);
+      } catch (const std::exception& e) {
+        why = e.what();
+      }
+    }
+    if (note) *note = "GPU backend unavailable: " + why + "; using kdtree";
+#else
     if (note) *note = "GPU backend not available: built without CUDA";
+#endif
     return std::make_unique<KdTreeNeighborSearch>(threads);
   }
   std::string known;

@@ -31,16 +31,14 @@ void NormalGroundFilterParams::set(const std::string& name, const std::string& v
     max_normal_angle = parseDoubleParam(name, value);
   } else if (name == "min_planarity") {
     min_planarity = parseDoubleParam(name, value);
-  } else if (name == "max_curvature") {
-    max_curvature = parseDoubleParam(name, value);
   } else if (name == "bayes_vote") {
     bayes_vote = parseBoolParam(name, value);
   } else if (name == "plane_distance") {
     plane_distance = parseDoubleParam(name, value);
   } else if (name == "std_filter") {
     std_filter = parseBoolParam(name, value);
-  } else if (name == "std_factor") {
-    std_factor = parseDoubleParam(name, value);
+  } else if (name == "std_multiplier") {
+    std_multiplier = parseDoubleParam(name, value);
   } else if (name == "ransac_iterations") {
     ransac_iterations = parseIntParam(name, value);
   } else if (name == "plane_all_points") {
@@ -61,7 +59,7 @@ void NormalGroundFilterParams::set(const std::string& name, const std::string& v
     throw std::invalid_argument(
         "unknown parameter '" + name +
         "' for method normal (known: cell_size, k, min_normal_angle, max_normal_angle, "
-        "min_planarity, max_curvature, bayes_vote, plane_distance, std_filter, std_factor, "
+        "min_planarity, bayes_vote, plane_distance, std_filter, std_multiplier, "
         "ransac_iterations, plane_all_points, local_planes, tile_size, use_segments, "
         "segment_points, knn_backend, threads)");
   }
@@ -75,9 +73,8 @@ void NormalGroundFilterParams::validate() const {
   checkRange("min_normal_angle", min_normal_angle, 0.0, 90.0, "deg");
   checkRange("max_normal_angle", max_normal_angle, 90.0, 180.0, "deg");
   checkRange("min_planarity", min_planarity, 0.0, 1.0, "");
-  checkRange("max_curvature", max_curvature, 0.0, 1.0 / 3.0, "");
   checkRange("plane_distance", plane_distance, 0.001, 10.0, "m");
-  checkRange("std_factor", std_factor, 0.1, 10.0, "");
+  checkRange("std_multiplier", std_multiplier, 0.1, 10.0, "");
   checkRange("ransac_iterations", ransac_iterations, 1, 100000, "");
   checkRange("tile_size", tile_size, 0.5, 100000.0, "m");
   checkRange("segment_points", segment_points, 256, 1 << 26, "points");
@@ -180,7 +177,7 @@ struct Plane {
 
 constexpr std::uint64_t kRansacSeed = 0x67f1a3c5d2b9e481ULL;  // fixed: reproducible output
 constexpr std::size_t kRansacEvalPoints = 2048;  // hypotheses are scored on at most this many
-constexpr std::size_t kMinTilePoints = 20;       // fewer voted points: the tile uses the global plane
+constexpr std::size_t kMinTilePoints = 10;       // fewer voted points: the tile uses the global plane
 
 /// RANSAC plane through the points `idx` of `xyz`, its normal within `max_tilt_cos` of vertical
 /// (|n_z| >= max_tilt_cos), refined by least squares on its inliers.
@@ -266,6 +263,19 @@ Plane fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, in
     best.d = -n.dot(mean);
   }
   return best;
+}
+
+/// Dimensionality features of Demantke et al. from the normalised eigenvalues (sigma_i =
+/// sqrt(lambda_i), sigma_1 >= sigma_2 >= sigma_3): linearity (s1 - s2)/s1, planarity
+/// (s2 - s3)/s1, scattering s3/s1. Flat (paper): planarity is the largest of the three, and at
+/// least `min_planarity`.
+bool isFlat(const PointPca& r, double min_planarity) {
+  const double s1 = std::sqrt(static_cast<double>(r.eigen[2]));
+  const double s2 = std::sqrt(static_cast<double>(r.eigen[1]));
+  const double s3 = std::sqrt(static_cast<double>(r.eigen[0]));
+  if (!(s1 > 0.0)) return false;
+  const double linear = (s1 - s2) / s1, planar = (s2 - s3) / s1, scatter = s3 / s1;
+  return planar >= linear && planar >= scatter && planar >= min_planarity;
 }
 
 }  // namespace
@@ -448,6 +458,14 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     t0 = Clock::now();
     im.search->search(sxyz, len, p.k, &im.lists);
     const double search_ms = msSince(t0);
+    // A backend that could not do this scan (e.g. a CUDA error) ran it on the kd-tree: say so.
+    const std::string search_note = im.search->lastNote();
+    if (!search_note.empty()) {
+      st.backend = im.search->lastBackend();
+      if (st.note.find(search_note) == std::string::npos) {
+        st.note += (st.note.empty() ? "" : "; ") + search_note;
+      }
+    }
     if (kdtree) {
       build_ms += kdtree->lastBuildMs();
       knn_ms += search_ms - kdtree->lastBuildMs();
@@ -460,8 +478,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     std::size_t candidates = 0;
     for (std::size_t i = 0; i < len; ++i) {
       const PointPca& r = im.pca[i];
-      const bool flat = r.valid && r.eigen[0] <= p.max_curvature &&
-                        r.eigen[1] - r.eigen[0] >= p.min_planarity * r.eigen[2];
+      const bool flat = r.valid && isFlat(r, p.min_planarity);
       const bool cand = flat && std::abs(r.normal[2]) >= min_abs_nz;
       im.candidate[b + i] = cand;
       candidates += cand;
@@ -492,6 +509,10 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     }
     vote_ms += msSince(t0);
   }
+  // The backend that really ran (a GPU search may fall back to the kd-tree for one scan).
+  st.backend = im.search->lastBackend();
+  const std::string last_note = im.search->lastNote();
+  if (!last_note.empty()) st.note += (st.note.empty() ? "" : "; ") + last_note;
   if (kdtree) st.stage_ms.emplace_back("kdtree_build", build_ms);
   st.stage_ms.emplace_back("knn", knn_ms);
   st.stage_ms.emplace_back("pca", pca_ms);
@@ -522,15 +543,27 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   }
 
   // Cloud-wide plane: the only one without local planes, the fallback for sparse tiles.
-  std::vector<std::uint32_t> all_voted;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (im.voted[i]) all_voted.push_back(static_cast<std::uint32_t>(i));
-  }
   im.thread_idx.resize(threads);
   im.thread_eval.resize(threads);
-  const Plane global = fitPlaneRansac(im.xyz.data(), all_voted, p.ransac_iterations,
-                                      p.plane_distance, min_abs_nz, kRansacSeed,
-                                      &im.thread_eval[0]);
+  bool need_global = !p.local_planes;
+  for (const auto& tl : im.tiles) {
+    if (need_global) break;
+    std::size_t voted = 0;
+    for (std::size_t j = tl.first; j < tl.second && voted < kMinTilePoints; ++j) {
+      voted += im.voted[im.tile_order[j]];
+    }
+    need_global = voted < kMinTilePoints;
+  }
+  Plane global;
+  if (need_global) {
+    std::vector<std::uint32_t>& all_voted = im.thread_idx[0];
+    all_voted.clear();
+    for (std::size_t i = 0; i < n; ++i) {
+      if (im.voted[i]) all_voted.push_back(static_cast<std::uint32_t>(i));
+    }
+    global = fitPlaneRansac(im.xyz.data(), all_voted, p.ransac_iterations, p.plane_distance,
+                            min_abs_nz, kRansacSeed, &im.thread_eval[0]);
+  }
 
   const int nt = static_cast<int>(std::min<std::size_t>(threads, im.tiles.size()));
 #pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
@@ -566,8 +599,8 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
       if (c > 0) {
         const double mean = s / c;
         const double sd = std::sqrt(std::max(0.0, s2 / c - mean * mean));
-        lo = std::max(lo, mean - p.std_factor * sd);
-        hi = std::min(hi, mean + p.std_factor * sd);
+        lo = std::max(lo, mean - p.std_multiplier * sd);
+        hi = std::min(hi, mean + p.std_multiplier * sd);
       }
     }
     for (std::size_t j = tb; j < te; ++j) {

@@ -129,25 +129,33 @@ Scan loadKittiBin(const std::string& path) {
   return scan;
 }
 
+template <typename T>
+double readAs(const std::uint8_t* p) {
+  T v;
+  std::memcpy(&v, p, sizeof(T));
+  return static_cast<double>(v);
+}
+
 double readNumber(const std::uint8_t* p, std::uint8_t datatype) {
   switch (datatype) {
-#define GF_READ_AS(T)        \
-  {                          \
-    T v;                     \
-    std::memcpy(&v, p, sizeof(T)); \
-    return static_cast<double>(v); \
-  }
-    case pcl::PCLPointField::INT8: GF_READ_AS(std::int8_t)
-    case pcl::PCLPointField::UINT8: GF_READ_AS(std::uint8_t)
-    case pcl::PCLPointField::INT16: GF_READ_AS(std::int16_t)
-    case pcl::PCLPointField::UINT16: GF_READ_AS(std::uint16_t)
-    case pcl::PCLPointField::INT32: GF_READ_AS(std::int32_t)
-    case pcl::PCLPointField::UINT32: GF_READ_AS(std::uint32_t)
-    case pcl::PCLPointField::FLOAT32: GF_READ_AS(float)
-    case pcl::PCLPointField::FLOAT64: GF_READ_AS(double)
-#undef GF_READ_AS
+    case pcl::PCLPointField::INT8:
+      return readAs<std::int8_t>(p);
+    case pcl::PCLPointField::UINT8:
+      return readAs<std::uint8_t>(p);
+    case pcl::PCLPointField::INT16:
+      return readAs<std::int16_t>(p);
+    case pcl::PCLPointField::UINT16:
+      return readAs<std::uint16_t>(p);
+    case pcl::PCLPointField::INT32:
+      return readAs<std::int32_t>(p);
+    case pcl::PCLPointField::UINT32:
+      return readAs<std::uint32_t>(p);
+    case pcl::PCLPointField::FLOAT32:
+      return readAs<float>(p);
+    case pcl::PCLPointField::FLOAT64:
+      return readAs<double>(p);
     default:
-      return std::nan("");
+      return std::nan("");  // unknown type: isprsTruth() maps it to "ignored"
   }
 }
 
@@ -183,7 +191,22 @@ Scan loadPclFile(const std::string& path, bool pcd) {
   scan.path = path;
   int rc = -1;
   try {
+    if (pcd) {
+      // PCL 1.13 accepts a header without FIELDS and then crashes in read(): check it first.
+      pcl::PCDReader reader;
+      pcl::PCLPointCloud2 header;
+      Eigen::Vector4f origin;
+      Eigen::Quaternionf orientation;
+      int version = 0, data_type = 0;
+      unsigned int data_idx = 0;
+      if (reader.readHeader(path, header, origin, orientation, version, data_type, data_idx) < 0 ||
+          header.fields.empty() || header.point_step == 0) {
+        fail(path, "cannot read PCD file: no valid PCD header (FIELDS/SIZE/TYPE missing)");
+      }
+    }
     rc = pcd ? pcl::io::loadPCDFile(path, scan.cloud) : pcl::io::loadPLYFile(path, scan.cloud);
+  } catch (const std::runtime_error&) {
+    throw;
   } catch (const std::exception& e) {
     fail(path, std::string("cannot read ") + (pcd ? "PCD" : "PLY") + " file: " + e.what());
   }
@@ -207,7 +230,8 @@ Scan loadPclFile(const std::string& path, bool pcd) {
 }
 
 std::size_t fieldBytes(const pcl::PCLPointField& f) {
-  return static_cast<std::size_t>(pcl::getFieldSize(f.datatype)) * std::max<std::uint32_t>(f.count, 1);
+  return static_cast<std::size_t>(pcl::getFieldSize(f.datatype)) *
+         std::max<std::uint32_t>(f.count, 1);
 }
 
 void writeBinaryPcd(const std::string& path, const pcl::PCLPointCloud2& cloud) {
@@ -227,7 +251,6 @@ void makeDir(const std::string& dir) {
   if (ec || !fs::is_directory(dir)) fail(dir, "cannot create output directory: " + ec.message());
 }
 
-
 // builtin:lidar[:SEED] / builtin:tls[:SEED]: a generated scene with fields x y z intensity ring.
 Scan loadBuiltinScan(const std::string& path) {
   const std::string spec = path.substr(sizeof(kBuiltinPrefix) - 1);
@@ -239,8 +262,9 @@ Scan loadBuiltinScan(const std::string& path) {
   } else if (mode == "tls") {
     params.mode = SceneParams::Mode::kTls;
   } else {
-    fail(path, "unknown built-in scene '" + mode + "' (expected builtin:lidar[:SEED] or "
-               "builtin:tls[:SEED])");
+    fail(path, "unknown built-in scene '" + mode +
+                   "' (expected builtin:lidar[:SEED] or "
+                   "builtin:tls[:SEED])");
   }
   if (colon != std::string::npos) {
     const std::string seed = spec.substr(colon + 1);
@@ -343,7 +367,8 @@ CloudView viewOf(const pcl::PCLPointCloud2& cloud) {
   const std::size_t n = static_cast<std::size_t>(cloud.width) * cloud.height;
   if (cloud.height > 1 && cloud.row_step != cloud.width * cloud.point_step) {
     throw std::runtime_error("organised cloud with padded rows (row_step " +
-                             std::to_string(cloud.row_step) + " != width x point_step) is not "
+                             std::to_string(cloud.row_step) +
+                             " != width x point_step) is not "
                              "supported");
   }
   const std::size_t need = n * cloud.point_step;
@@ -399,10 +424,9 @@ void splitCloud(const pcl::PCLPointCloud2& cloud, const std::vector<std::uint8_t
     }
     fields.push_back(f);
   }
-  std::sort(fields.begin(), fields.end(),
-            [](const pcl::PCLPointField& a, const pcl::PCLPointField& b) {
-              return a.offset < b.offset;
-            });
+  std::sort(
+      fields.begin(), fields.end(),
+      [](const pcl::PCLPointField& a, const pcl::PCLPointField& b) { return a.offset < b.offset; });
   std::vector<pcl::PCLPointField> out_fields = fields;
   std::uint32_t step = 0;
   for (auto& f : out_fields) {

@@ -54,7 +54,7 @@ enum class Shape : std::uint8_t { kBox, kCylinder, kEllipsoid };
 struct SectorEntry {
   Shape shape;
   std::uint32_t index;
-  double center_az;  // [rad]
+  double center_az;   // [rad]
   double half_width;  // [rad]; >= pi means "all around"
 };
 
@@ -496,8 +496,7 @@ GeneratedScan castPattern(const SceneParams& p, const Scene& scene, const Patter
         blk.xyz.push_back(static_cast<float>(d.x * range));
         blk.xyz.push_back(static_cast<float>(d.y * range));
         blk.xyz.push_back(static_cast<float>(d.z * range));
-        blk.intensity.push_back(
-            std::clamp(hit.reflectivity + intensity_noise(rng), 0.0f, 1.0f));
+        blk.intensity.push_back(std::clamp(hit.reflectivity + intensity_noise(rng), 0.0f, 1.0f));
         blk.ring.push_back(static_cast<std::uint16_t>(r));
         blk.truth.push_back(hit.ground ? 1 : 0);
       }
@@ -616,7 +615,8 @@ GeneratedScan generateScene(const SceneParams& params) {
     const Pattern coarse = tlsPattern(params, std::max(budget / 16.0, 4000.0));
     const double coarse_rays =
         static_cast<double>(coarse.azimuth.size()) * static_cast<double>(coarse.elevation.size());
-    const double coarse_hits = static_cast<double>(castPattern(params, scene, coarse, false).size());
+    const double coarse_hits =
+        static_cast<double>(castPattern(params, scene, coarse, false).size());
     const double ratio = coarse_hits > 0.0 ? coarse_hits / coarse_rays : 1.0;
     const double rays = std::min(0.99 * budget / std::max(ratio, 0.05), 20.0 * budget);
     scan = castPattern(params, scene, tlsPattern(params, rays), true);

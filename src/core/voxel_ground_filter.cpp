@@ -48,7 +48,7 @@ void VoxelGroundFilterParams::set(const std::string& name, const std::string& va
   } else {
     throw std::invalid_argument(
         "unknown voxel parameter '" + name +
-        "' (known: voxel_size, flatness_threshold, min_points_per_voxel, height_margin, "
+        "' (known: voxel_size, flatness_threshold, min_points_per_voxel, height_margin, seed_window, "
         "plane_distance, std_filter, std_multiplier, local_planes, tile_size, max_slope_deg, "
         "majority_vote, threads)");
   }

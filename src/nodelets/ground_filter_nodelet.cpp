@@ -1,15 +1,15 @@
 #include "ground_filter_nodelet.h"
 
+#include <sensor_msgs/PointField.h>
+#include <std_msgs/Float64.h>
+
+#include <boost/make_shared.hpp>
 #include <chrono>
 #include <cmath>
 #include <cstring>
 #include <exception>
 #include <sstream>
 #include <utility>
-
-#include <boost/make_shared.hpp>
-#include <sensor_msgs/PointField.h>
-#include <std_msgs/Float64.h>
 
 namespace ground_filter {
 
@@ -182,8 +182,7 @@ CloudView makeCloudView(const sensor_msgs::PointCloud2& cloud, const CloudLayout
 }
 
 SplitCounts splitPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
-                             std::vector<std::uint8_t>* labels,
-                             sensor_msgs::PointCloud2* ground,
+                             std::vector<std::uint8_t>* labels, sensor_msgs::PointCloud2* ground,
                              sensor_msgs::PointCloud2* nonground) {
   SplitCounts counts;
   const std::size_t step = layout.point_step;
@@ -360,10 +359,11 @@ void GroundFilterNodelet::cloudCallback(const sensor_msgs::PointCloud2ConstPtr& 
 
   const double ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  NODELET_DEBUG("%s: %zu points in, %zu ground, %zu non-ground (%zu NaN/Inf), filter %.2f ms, "
-                "total %.2f ms",
-                methodName().c_str(), layout.points, counts.ground, counts.nonground,
-                counts.invalid, stats.total_ms, ms);
+  NODELET_DEBUG(
+      "%s: %zu points in, %zu ground, %zu non-ground (%zu NaN/Inf), filter %.2f ms, "
+      "total %.2f ms",
+      methodName().c_str(), layout.points, counts.ground, counts.nonground, counts.invalid,
+      stats.total_ms, ms);
   if (pub_time_.getNumSubscribers() > 0) {
     auto t = boost::make_shared<std_msgs::Float64>();
     t->data = ms;

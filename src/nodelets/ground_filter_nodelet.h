@@ -1,6 +1,10 @@
 #ifndef GROUND_FILTER_SRC_NODELETS_GROUND_FILTER_NODELET_H
 #define GROUND_FILTER_SRC_NODELETS_GROUND_FILTER_NODELET_H
 
+#include <nodelet_topic_tools/nodelet_lazy.h>
+#include <ros/ros.h>
+#include <sensor_msgs/PointCloud2.h>
+
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
@@ -9,10 +13,6 @@
 #include <mutex>
 #include <string>
 #include <vector>
-
-#include <nodelet_topic_tools/nodelet_lazy.h>
-#include <ros/ros.h>
-#include <sensor_msgs/PointCloud2.h>
 
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/ground_filter.h"
@@ -34,15 +34,15 @@ enum class CloudRejectReason : int {
 
 /// \brief Where x/y/z sit in a validated PointCloud2 and how its rows are laid out.
 struct CloudLayout {
-  std::size_t x_offset = 0;     ///< byte offset of float32 x inside a record
-  std::size_t y_offset = 4;     ///< byte offset of float32 y
-  std::size_t z_offset = 8;     ///< byte offset of float32 z
-  std::size_t width = 0;        ///< records per row
-  std::size_t height = 0;       ///< rows
-  std::size_t point_step = 0;   ///< bytes per record
-  std::size_t row_step = 0;     ///< bytes per row (>= width * point_step)
-  std::size_t points = 0;       ///< width * height
-  bool contiguous = true;       ///< every record at i * point_step (no padding between rows)
+  std::size_t x_offset = 0;    ///< byte offset of float32 x inside a record
+  std::size_t y_offset = 4;    ///< byte offset of float32 y
+  std::size_t z_offset = 8;    ///< byte offset of float32 z
+  std::size_t width = 0;       ///< records per row
+  std::size_t height = 0;      ///< rows
+  std::size_t point_step = 0;  ///< bytes per record
+  std::size_t row_step = 0;    ///< bytes per row (>= width * point_step)
+  std::size_t points = 0;      ///< width * height
+  bool contiguous = true;      ///< every record at i * point_step (no padding between rows)
 };
 
 /// \brief Checks a PointCloud2 before any byte of it is read.
@@ -76,8 +76,8 @@ struct SplitCounts {
 /// endianness, height 1, and is_dense true unless they hold a NaN/Inf record.
 /// \pre `labels->size() == layout.points`.
 SplitCounts splitPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
-                             std::vector<std::uint8_t>* labels,
-                             sensor_msgs::PointCloud2* ground, sensor_msgs::PointCloud2* nonground);
+                             std::vector<std::uint8_t>* labels, sensor_msgs::PointCloud2* ground,
+                             sensor_msgs::PointCloud2* nonground);
 
 /// \brief Base of the ground filter nodelets: `~input` (sensor_msgs/PointCloud2) is split into
 ///        `~ground` and `~nonground`, subscribed lazily (only while an output has subscribers, or
@@ -107,12 +107,12 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
 
   /// \brief Counters since start (read at any time, from any thread).
   struct Counters {
-    std::atomic<std::uint64_t> clouds_in{0};          ///< clouds received
-    std::atomic<std::uint64_t> clouds_out{0};         ///< clouds split and published
-    std::atomic<std::uint64_t> clouds_rejected{0};    ///< malformed clouds dropped
-    std::atomic<std::uint64_t> clouds_failed{0};      ///< clouds dropped because the filter threw
-    std::atomic<std::uint64_t> invalid_points{0};     ///< NaN/Inf points sent to non-ground
-    std::atomic<std::uint64_t> config_rejected{0};    ///< parameter sets refused by validation
+    std::atomic<std::uint64_t> clouds_in{0};        ///< clouds received
+    std::atomic<std::uint64_t> clouds_out{0};       ///< clouds split and published
+    std::atomic<std::uint64_t> clouds_rejected{0};  ///< malformed clouds dropped
+    std::atomic<std::uint64_t> clouds_failed{0};    ///< clouds dropped because the filter threw
+    std::atomic<std::uint64_t> invalid_points{0};   ///< NaN/Inf points sent to non-ground
+    std::atomic<std::uint64_t> config_rejected{0};  ///< parameter sets refused by validation
   };
 
  protected:

@@ -1,9 +1,8 @@
 #include "voxel_ground_filter_nodelet.h"
 
+#include <pluginlib/class_list_macros.hpp>
 #include <sstream>
 #include <stdexcept>
-
-#include <pluginlib/class_list_macros.hpp>
 
 namespace ground_filter {
 
@@ -13,6 +12,7 @@ VoxelGroundFilterParams voxelParamsFromConfig(const VoxelGroundFilterConfig& con
   p.flatness_threshold = config.flatness_threshold;
   p.min_points_per_voxel = config.min_points_per_voxel;
   p.height_margin = config.height_margin;
+  p.seed_window = config.seed_window;
   p.plane_distance = config.plane_distance;
   p.std_filter = config.std_filter;
   p.std_multiplier = config.std_multiplier;
@@ -29,10 +29,11 @@ std::string describeVoxelParams(const VoxelGroundFilterParams& p) {
   os << std::boolalpha << "voxel_size=" << p.voxel_size
      << " flatness_threshold=" << p.flatness_threshold
      << " min_points_per_voxel=" << p.min_points_per_voxel << " height_margin=" << p.height_margin
-     << " plane_distance=" << p.plane_distance << " std_filter=" << p.std_filter
-     << " std_multiplier=" << p.std_multiplier << " local_planes=" << p.local_planes
-     << " tile_size=" << p.tile_size << " max_slope_deg=" << p.max_slope_deg
-     << " majority_vote=" << p.majority_vote << " threads=" << p.threads;
+     << " seed_window=" << p.seed_window << " plane_distance=" << p.plane_distance
+     << " std_filter=" << p.std_filter << " std_multiplier=" << p.std_multiplier
+     << " local_planes=" << p.local_planes << " tile_size=" << p.tile_size
+     << " max_slope_deg=" << p.max_slope_deg << " majority_vote=" << p.majority_vote
+     << " threads=" << p.threads;
   return os.str();
 }
 

@@ -1,10 +1,10 @@
 #ifndef GROUND_FILTER_SRC_NODELETS_VOXEL_GROUND_FILTER_NODELET_H
 #define GROUND_FILTER_SRC_NODELETS_VOXEL_GROUND_FILTER_NODELET_H
 
+#include <dynamic_reconfigure/server.h>
+
 #include <memory>
 #include <string>
-
-#include <dynamic_reconfigure/server.h>
 
 #include "ground_filter/VoxelGroundFilterConfig.h"
 #include "ground_filter/voxel_ground_filter.h"

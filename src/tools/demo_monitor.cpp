@@ -60,8 +60,7 @@ bool countTruth(const sensor_msgs::PointCloud2& cloud, std::uint64_t* truth_grou
   if (cloud.data.size() < static_cast<std::size_t>(cloud.row_step) * cloud.height) return false;
   for (std::size_t r = 0; r < cloud.height; ++r) {
     for (std::size_t c = 0; c < cloud.width; ++c) {
-      const std::uint8_t v =
-          cloud.data[r * cloud.row_step + c * cloud.point_step + field->offset];
+      const std::uint8_t v = cloud.data[r * cloud.row_step + c * cloud.point_step + field->offset];
       if (v == 1) {
         ++*truth_ground;
       } else if (v == 0) {
@@ -90,7 +89,7 @@ class DemoMonitor {
     last_activity_ = ros::WallTime::now();
     std::printf("[demo_monitor] waiting for %s and %s (max_scans %d)\n",
                 sub_ground_.getTopic().c_str(), sub_nonground_.getTopic().c_str(), max_scans_);
-    std::printf("%5s %6s %8s %8s %10s %9s %9s %8s %8s %8s %8s\n", "scan", "seq", "points",
+    std::printf("%5s %15s %8s %8s %10s %9s %9s %8s %8s %8s %8s\n", "scan", "stamp", "points",
                 "ground", "nonground", "filter_ms", "latency", "acc%", "prec%", "rec%", "F1%");
     std::fflush(stdout);
   }
@@ -118,16 +117,15 @@ class DemoMonitor {
                 timed_scans_ ? formatMs(sum_filter_ms_ / timed_scans_).c_str() : "n/a",
                 sum_latency_ms_ / scans_);
     if (scored_scans_ > 0) {
-      std::printf("[demo_monitor] accuracy over %zu labelled scans: mean F1 %.2f %%; pooled "
-                  "accuracy %.2f %%, precision %.2f %%, recall %.2f %%, F1 %.2f %% "
-                  "(tp %llu fp %llu tn %llu fn %llu, ignored %llu)\n",
-                  scored_scans_, 100.0 * sum_f1_ / scored_scans_, 100.0 * pooled_.accuracy(),
-                  100.0 * pooled_.precision(), 100.0 * pooled_.recall(), 100.0 * pooled_.f1(),
-                  static_cast<unsigned long long>(pooled_.tp),
-                  static_cast<unsigned long long>(pooled_.fp),
-                  static_cast<unsigned long long>(pooled_.tn),
-                  static_cast<unsigned long long>(pooled_.fn),
-                  static_cast<unsigned long long>(pooled_.ignored));
+      std::printf(
+          "[demo_monitor] accuracy over %zu labelled scans: mean F1 %.2f %%; pooled "
+          "accuracy %.2f %%, precision %.2f %%, recall %.2f %%, F1 %.2f %% "
+          "(tp %llu fp %llu tn %llu fn %llu, ignored %llu)\n",
+          scored_scans_, 100.0 * sum_f1_ / scored_scans_, 100.0 * pooled_.accuracy(),
+          100.0 * pooled_.precision(), 100.0 * pooled_.recall(), 100.0 * pooled_.f1(),
+          static_cast<unsigned long long>(pooled_.tp), static_cast<unsigned long long>(pooled_.fp),
+          static_cast<unsigned long long>(pooled_.tn), static_cast<unsigned long long>(pooled_.fn),
+          static_cast<unsigned long long>(pooled_.ignored));
     } else {
       std::printf("[demo_monitor] no scan carried gt_ground labels: accuracy not measured\n");
     }
@@ -140,7 +138,7 @@ class DemoMonitor {
 
   struct Pending {
     ros::WallTime arrival;
-    std::uint32_t seq;
+    double stamp;  // header stamp [s] (seq is rewritten by every roscpp publisher)
     double latency_ms;
     std::size_t ground, nonground;
     Confusion confusion;
@@ -160,7 +158,7 @@ class DemoMonitor {
                     const sensor_msgs::PointCloud2ConstPtr& nonground) {
     Pending p;
     p.arrival = ros::WallTime::now();
-    p.seq = ground->header.seq;
+    p.stamp = ground->header.stamp.toSec();
     p.latency_ms = (ros::Time::now() - ground->header.stamp).toSec() * 1e3;
     p.ground = static_cast<std::size_t>(ground->width) * ground->height;
     p.nonground = static_cast<std::size_t>(nonground->width) * nonground->height;
@@ -171,7 +169,8 @@ class DemoMonitor {
     // An empty output has no way to show its fields: it is fine when the other one has them.
     p.confusion.valid = (ok_g || p.ground == 0) && (ok_n || p.nonground == 0) && (ok_g || ok_n);
     p.confusion.ignored = ign_g + ign_n;
-    if (p.confusion.valid && p.confusion.tp + p.confusion.fp + p.confusion.tn + p.confusion.fn == 0) {
+    if (p.confusion.valid &&
+        p.confusion.tp + p.confusion.fp + p.confusion.tn + p.confusion.fn == 0) {
       p.confusion.valid = false;  // all points ignored
     }
     pending_.push_back(p);
@@ -184,32 +183,42 @@ class DemoMonitor {
     flush(ros::WallTimerEvent());
   }
 
-  // Prints the oldest pairs in order, each with the processing time that arrived within
-  // kMatchS of it (the nodelet publishes both outputs and then the time), or n/a.
+  // Prints the oldest pairs in order, each with its processing time, or n/a. The nodelet
+  // publishes both outputs and then the time, which has no header: for large clouds the small
+  // time message overtakes the clouds, for small ones it comes just after. So a pair takes the
+  // last time that arrived before it (since the previous pair), else the next one within kWaitS.
   void flush(const ros::WallTimerEvent&) {
-    constexpr double kMatchS = 0.05, kWaitS = 0.2;
+    constexpr double kWaitS = 0.2;
     const ros::WallTime now = ros::WallTime::now();
     while (!pending_.empty()) {
       const Pending& p = pending_.front();
-      // Times from before this pair belong to scans the monitor never saw.
-      while (!timings_.empty() && (p.arrival - timings_.front().arrival).toSec() > kMatchS) {
+      // Times that came before the previous pair belong to it or to scans never seen here.
+      while (!timings_.empty() && timings_.front().arrival < previous_pair_arrival_) {
         timings_.pop_front();
       }
-      double ms = -1.0;
-      if (!timings_.empty() && std::abs((timings_.front().arrival - p.arrival).toSec()) <= kMatchS) {
-        ms = timings_.front().ms;
-        timings_.pop_front();
-      } else if ((now - p.arrival).toSec() < kWaitS) {
+      std::size_t pick = timings_.size();
+      for (std::size_t i = 0; i < timings_.size() && timings_[i].arrival <= p.arrival; ++i) {
+        pick = i;
+      }
+      if (pick == timings_.size() && !timings_.empty()) pick = 0;
+      if (pick == timings_.size() && (now - p.arrival).toSec() < kWaitS) {
         break;  // its time may still be on the way
       }
+      double ms = -1.0;
+      if (pick < timings_.size()) {
+        ms = timings_[pick].ms;
+        timings_.erase(timings_.begin(), timings_.begin() + static_cast<long>(pick) + 1);
+      }
+      previous_pair_arrival_ = p.arrival;
       report(p, ms);
       pending_.pop_front();
       if (done_) return;
     }
     if (!done_ && (now - last_activity_).toSec() > timeout_s_) {
-      std::printf("[demo_monitor] ERROR: no filtered scan for %.0f s (is the filter running and "
-                  "its input publishing?)\n",
-                  timeout_s_);
+      std::printf(
+          "[demo_monitor] ERROR: no filtered scan for %.0f s (is the filter running and "
+          "its input publishing?)\n",
+          timeout_s_);
       failed_ = max_scans_ > 0;
       finish();
     }
@@ -224,7 +233,7 @@ class DemoMonitor {
       sum_filter_ms_ += ms;
       ++timed_scans_;
     }
-    std::printf("%5zu %6u %8zu %8zu %10zu %9s %9.1f", scans_, p.seq, points, p.ground,
+    std::printf("%5zu %15.3f %8zu %8zu %10zu %9s %9.1f", scans_, p.stamp, points, p.ground,
                 p.nonground, ms >= 0.0 ? formatMs(ms).c_str() : "n/a", p.latency_ms);
     if (p.confusion.valid) {
       const Confusion& c = p.confusion;
@@ -256,6 +265,7 @@ class DemoMonitor {
   int max_scans_ = 0;
   double timeout_s_ = 60.0;
   ros::WallTime last_activity_;
+  ros::WallTime previous_pair_arrival_;
   std::deque<Pending> pending_;
   std::deque<Timing> timings_;
 

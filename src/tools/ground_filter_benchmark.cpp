@@ -35,7 +35,8 @@ const char kUsage[] =
     "PATH                scan file, directory or builtin:lidar[:SEED] / builtin:tls[:SEED];\n"
     "                    default: DATA/semantickitti/seq00/00000{0,1,2}.bin and\n"
     "                    DATA/unlabelled/os128_000000.pcd with DATA = $GF_DATA_DIR or the\n"
-    "                    build-time default " GF_DEFAULT_DATA_DIR "\n"
+    "                    build-time default " GF_DEFAULT_DATA_DIR
+    "\n"
     "--method NAME       filter method (default voxel)\n"
     "--set NAME=VALUE    override a filter parameter (repeatable)\n"
     "--repeat N          timed runs per file (default 20)\n"
@@ -211,9 +212,9 @@ int run(const Options& opt) {
               "points", "median_ms", "min_ms", "max_ms", "Mpts/s");
   for (const auto& r : rows) {
     const double mpts = r.median_ms > 0 ? r.points / (r.median_ms * 1e3) : 0.0;
-    std::printf("%-*s %7s %9zu %9.3f %9.3f %9.3f %9.2f\n", static_cast<int>(name_w),
-                r.file.c_str(), r.threads.empty() ? "default" : r.threads.c_str(), r.points,
-                r.median_ms, r.min_ms, r.max_ms, mpts);
+    std::printf("%-*s %7s %9zu %9.3f %9.3f %9.3f %9.2f\n", static_cast<int>(name_w), r.file.c_str(),
+                r.threads.empty() ? "default" : r.threads.c_str(), r.points, r.median_ms, r.min_ms,
+                r.max_ms, mpts);
   }
   for (const auto& t : thread_values) {
     std::size_t pts = 0;
@@ -254,10 +255,9 @@ int run(const Options& opt) {
     std::printf("%-*s", static_cast<int>(stage_w), name.c_str());
     for (std::size_t i = 0; i < rows.size(); ++i) {
       const auto& st = rows[i].stages;
-      const auto it = std::find_if(st.begin(), st.end(),
-                                   [&](const std::pair<std::string, double>& s) {
-                                     return s.first == name;
-                                   });
+      const auto it =
+          std::find_if(st.begin(), st.end(),
+                       [&](const std::pair<std::string, double>& s) { return s.first == name; });
       if (it == st.end()) {
         std::printf(" %*s", col_w[i], "-");
       } else {

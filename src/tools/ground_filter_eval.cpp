@@ -1,5 +1,5 @@
-// ground_filter_eval: runs a ground filter over scan files and scores it against their ground truth.
-// Contract (other tools parse it): see usage() and the README's "Evaluation tool" section.
+// ground_filter_eval: runs a ground filter over scan files and scores it against their ground
+// truth. Contract (other tools parse it): see usage() and the README's "Evaluation tool" section.
 
 #include <algorithm>
 #include <chrono>
@@ -37,8 +37,9 @@ const char kUsage[] =
     "--method NAME       filter method (default voxel)\n"
     "--set NAME=VALUE    override a filter parameter (repeatable)\n"
     "--json              print exactly one JSON object instead of the table:\n"
-    "                    {\"files\":[{\"file\",\"points\",\"ground\",\"ms\",\"tp\",\"fp\",\"tn\",\"fn\",\n"
-    "                    \"accuracy\",\"precision\",\"recall\",\"f1\",\"iou\"}...],\"pooled\":{...}}\n"
+    "                    {\"files\":[{\"file\",\"points\",\"ground\",\"ms\",\n"
+    "                    \"tp\",\"fp\",\"tn\",\"fn\",\"accuracy\",\"precision\",\n"
+    "                    \"recall\",\"f1\",\"iou\"}...],\"pooled\":{...}}\n"
     "                    metrics are fractions in [0,1]; null where a file has no labels or a\n"
     "                    ratio is 0/0\n"
     "--write-labels DIR  write DIR/<stem>.gnd: one uint8 per input point (1 ground, 0 not)\n"
@@ -195,8 +196,8 @@ void printRow(std::size_t name_w, const std::string& name, std::size_t points, s
   std::printf("%-*s %9zu %9zu %9.2f", static_cast<int>(name_w), name.c_str(), points, ground, ms);
   if (labelled) {
     const gf::Metrics m = gf::computeMetrics(c);
-    std::printf(" %9" PRIu64 " %8" PRIu64 " %9" PRIu64 " %8" PRIu64 " %7s %7s %7s %7s %7s\n",
-                c.tp, c.fp, c.tn, c.fn, pct(m.accuracy).c_str(), pct(m.precision).c_str(),
+    std::printf(" %9" PRIu64 " %8" PRIu64 " %9" PRIu64 " %8" PRIu64 " %7s %7s %7s %7s %7s\n", c.tp,
+                c.fp, c.tn, c.fn, pct(m.accuracy).c_str(), pct(m.precision).c_str(),
                 pct(m.recall).c_str(), pct(m.f1).c_str(), pct(m.iou).c_str());
   } else {
     std::printf(" %9s %8s %9s %8s %7s %7s %7s %7s %7s\n", "-", "-", "-", "-", "-", "-", "-", "-",
@@ -279,10 +280,10 @@ int run(const Options& opt) {
   for (const auto& r : results) name_w = std::max(name_w, r.file.size());
   std::string settings;
   for (const auto& kv : opt.settings) settings += " " + kv.first + "=" + kv.second;
-  std::printf("method %s%s%s; ms = filter time per file%s; metrics in %%, ground = positive\n",
-              opt.method.c_str(), settings.empty() ? "" : ", settings", settings.c_str(),
-              opt.repeat > 1 ? (" (median of " + std::to_string(opt.repeat) + " runs)").c_str()
-                             : "");
+  std::printf(
+      "method %s%s%s; ms = filter time per file%s; metrics in %%, ground = positive\n",
+      opt.method.c_str(), settings.empty() ? "" : ", settings", settings.c_str(),
+      opt.repeat > 1 ? (" (median of " + std::to_string(opt.repeat) + " runs)").c_str() : "");
   std::printf("%-*s %9s %9s %9s %9s %8s %9s %8s %7s %7s %7s %7s %7s\n", static_cast<int>(name_w),
               "file", "points", "ground", "ms", "tp", "fp", "tn", "fn", "acc", "prec", "recall",
               "f1", "iou");

@@ -240,10 +240,9 @@ int main(int argc, char** argv) {
     }
     msg->header.frame_id = frame_id;
     msg->header.stamp = ros::Time::now();
-    msg->header.seq = published;
     pub.publish(sensor_msgs::PointCloud2ConstPtr(msg));
-    ROS_DEBUG("scan %u: %u points, %s, prepared in %.1f ms", published,
-              msg->width * msg->height, what.c_str(), (ros::WallTime::now() - t0).toSec() * 1e3);
+    ROS_DEBUG("scan %u: %u points, %s, prepared in %.1f ms", published, msg->width * msg->height,
+              what.c_str(), (ros::WallTime::now() - t0).toSec() * 1e3);
     ++published;
     if (max_scans > 0 && published >= static_cast<std::uint32_t>(max_scans)) break;
     ros::spinOnce();

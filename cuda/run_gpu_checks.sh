@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# GPU machine (CUDA + CMake, no ROS/PCL/Eigen): standalone build of the CUDA library, its GPU tests
+# and the benchmark, then ctest and the benchmark table. Needs the carry folder (default .carry):
+#   .carry/googletest  (Debian's /usr/src/googletest)   .carry/eigen3/Eigen  (/usr/include/eigen3)
+#   .carry/nanoflann/nanoflann.hpp                      .carry/data/00000[0-5].bin (KITTI seq 00)
+# Usage: bash cuda/run_gpu_checks.sh [benchmark args, e.g. --variants]
+# Logs go to $OUT (the device tool's output folder) or build-cuda/logs.
+set -uo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+CARRY="${GF_CARRY:-${PWD}/.carry}"
+LOG="${OUT:-${PWD}/build-cuda/logs}"
+mkdir -p "${LOG}"
+{ nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.sm,clocks.max.sm --format=csv
+  nvcc --version | tail -2; cmake --version | head -1; nproc; } > "${LOG}/env.txt" 2>&1
+gen=(); command -v ninja > /dev/null && gen=(-G Ninja)
+cmake -S cuda -B build-cuda "${gen[@]}" -DCMAKE_BUILD_TYPE=Release -DGF_CARRY="${CARRY}" \
+  > "${LOG}/build.log" 2>&1 && cmake --build build-cuda -j "$(nproc)" >> "${LOG}/build.log" 2>&1
+build_rc=$?
+if [ "${build_rc}" != "0" ]; then tail -40 "${LOG}/build.log"; echo "BUILD FAILED"; exit 1; fi
+(cd build-cuda && ctest -V --timeout 300) > "${LOG}/ctest.log" 2>&1
+test_rc=$?
+grep -hE "^\[ +(KITTI|5M|FILTER) +\]|tests passed|FAILED|Failure|mismatch" \
+  "${LOG}/ctest.log" | head -40
+build-cuda/bench_gpu_knn "$@" > "${LOG}/bench.log" 2> "${LOG}/bench.err"
+bench_rc=$?
+cat "${LOG}/bench.log"; tail -5 "${LOG}/bench.err"
+echo "ctest rc=${test_rc} bench rc=${bench_rc}"
+[ "${test_rc}" = "0" ] && [ "${bench_rc}" = "0" ]

@@ -1,0 +1,181 @@
+// GPU tests of the NeighborSearch adapter, the factory and the normal-vector filter on the GPU
+// backend (run on a machine with a CUDA GPU; the CPU-only fallback test is test/test_gpu_fallback).
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "brute_force_knn.h"
+#include "ground_filter/cuda_knn.h"
+#include "ground_filter/gpu_neighbor_search.h"
+#include "ground_filter/kdtree_neighbor_search.h"
+#include "ground_filter/neighbor_search_factory.h"
+#include "ground_filter/normal_ground_filter.h"
+
+namespace gf = ground_filter;
+
+namespace {
+
+std::vector<float> kittiFrame() {
+  auto xyz = gf_test::readKittiBin(std::string(GF_DATA_DIR) + "/000000.bin");
+  EXPECT_GT(xyz.size(), 3u * 100000) << "missing " << GF_DATA_DIR << "/000000.bin";
+  return xyz;
+}
+
+/// Rows of a and b are equal except where a tie at the K-th distance let the kd-tree keep another
+/// point: then distances still agree slot by slot. Returns the number of rows differing in indices.
+std::size_t compareWithKdTree(const gf::NeighborLists& gpu, const gf::NeighborLists& cpu) {
+  EXPECT_EQ(gpu.k, cpu.k);
+  EXPECT_EQ(gpu.points, cpu.points);
+  std::size_t rows_differ = 0;
+  for (std::size_t i = 0; i < gpu.points; ++i) {
+    bool differ = false;
+    for (int j = 0; j < gpu.k; ++j) {
+      const std::size_t e = i * gpu.k + j;
+      EXPECT_EQ(gpu.sq_dists[e], cpu.sq_dists[e]) << "row " << i << " slot " << j;
+      if (gpu.sq_dists[e] != cpu.sq_dists[e]) return gpu.points;
+      differ |= gpu.indices[e] != cpu.indices[e];
+    }
+    rows_differ += differ;
+  }
+  return rows_differ;
+}
+
+class GpuNeighborSearchTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string why;
+    ASSERT_TRUE(gf::CudaKnn::deviceAvailable(&why)) << "these tests need a CUDA GPU: " << why;
+  }
+};
+
+TEST_F(GpuNeighborSearchTest, FactoryGivesTheGpuBackend) {
+  EXPECT_TRUE(gf::neighborSearchAvailable("gpu"));
+  std::string note = "stale";
+  auto s = gf::makeNeighborSearch("gpu", 0, &note);
+  EXPECT_EQ(s->name(), "gpu");
+  EXPECT_TRUE(note.empty()) << note;
+}
+
+TEST_F(GpuNeighborSearchTest, KittiListsEqualTheKdTreesAndBruteForce) {
+  const auto xyz = kittiFrame();
+  const std::size_t n = xyz.size() / 3;
+  gf::GpuNeighborSearch gpu;
+  gf::KdTreeNeighborSearch cpu;
+  gf::NeighborLists a, b;
+  gpu.search(xyz.data(), n, 50, &a);
+  EXPECT_EQ(gpu.lastBackend(), "gpu");
+  EXPECT_TRUE(gpu.lastNote().empty()) << gpu.lastNote();
+  cpu.search(xyz.data(), n, 50, &b);
+  const std::size_t differ = compareWithKdTree(a, b);
+  // Only K-th-distance ties may differ (the GPU keeps the lowest index among them).
+  EXPECT_LT(differ, n / 1000) << differ << " of " << n << " rows differ";
+  std::printf("[ KITTI    ] GPU vs kd-tree: %zu of %zu rows differ in indices (K-th ties only)\n",
+              differ, n);
+  std::string first;
+  EXPECT_EQ(gf_test::compareRows(xyz.data(), n, 50, a.indices.data(), a.sq_dists.data(),
+                                 {0, 1, 1000, 50000, n - 1}, &first),
+            0u)
+      << first;
+}
+
+TEST_F(GpuNeighborSearchTest, CudaFailureFallsBackToKdTreeForThatScan) {
+  const auto xyz = kittiFrame();
+  const std::size_t n = xyz.size() / 3;
+  gf::CudaKnnOptions opt;
+  opt.memory_limit = 1 << 20;  // the GPU cannot take this scan
+  gf::GpuNeighborSearch gpu(0, opt);
+  gf::NeighborLists a, b;
+  gpu.search(xyz.data(), n, 50, &a);
+  EXPECT_EQ(gpu.name(), "gpu");
+  EXPECT_EQ(gpu.lastBackend(), "kdtree");
+  EXPECT_NE(gpu.lastNote().find("cudaErrorMemoryAllocation"), std::string::npos) << gpu.lastNote();
+  gf::KdTreeNeighborSearch cpu;
+  cpu.search(xyz.data(), n, 50, &b);
+  EXPECT_EQ(a.indices, b.indices);
+  EXPECT_EQ(a.sq_dists, b.sq_dists);
+  // The next (small) scan runs on the GPU again.
+  std::vector<float> small(xyz.begin(), xyz.begin() + 3 * 300);
+  gpu.search(small.data(), 300, 8, &a);
+  EXPECT_EQ(gpu.lastBackend(), "gpu");
+  EXPECT_TRUE(gpu.lastNote().empty()) << gpu.lastNote();
+  std::string first;
+  EXPECT_EQ(gf_test::compareRows(small.data(), 300, 8, a.indices.data(), a.sq_dists.data(), {},
+                                 &first),
+            0u)
+      << first;
+}
+
+TEST_F(GpuNeighborSearchTest, KAboveTheGpuLimitRunsOnTheKdTree) {
+  const auto xyz = kittiFrame();
+  std::vector<float> part(xyz.begin(), xyz.begin() + 3 * 20000);
+  gf::GpuNeighborSearch gpu;
+  gf::NeighborLists a;
+  gpu.search(part.data(), 20000, 100, &a);
+  EXPECT_EQ(gpu.lastBackend(), "kdtree");
+  EXPECT_NE(gpu.lastNote().find("k <= 64"), std::string::npos) << gpu.lastNote();
+  EXPECT_EQ(a.k, 100);
+  std::string first;
+  EXPECT_EQ(gf_test::compareRows(part.data(), 20000, 100, a.indices.data(), a.sq_dists.data(),
+                                 {0, 10, 19999}, &first),
+            0u)
+      << first;
+}
+
+TEST_F(GpuNeighborSearchTest, EmptyAndTinyClouds) {
+  gf::GpuNeighborSearch gpu;
+  gf::NeighborLists a;
+  gpu.search(nullptr, 0, 50, &a);
+  EXPECT_EQ(a.points, 0u);
+  EXPECT_TRUE(a.indices.empty());
+  const std::vector<float> three = {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 2.f, 0.f};
+  gpu.search(three.data(), 3, 50, &a);
+  EXPECT_EQ(gpu.lastBackend(), "gpu");
+  ASSERT_EQ(a.indices.size(), 150u);
+  EXPECT_EQ(a.indices[0], 0);
+  EXPECT_EQ(a.indices[1], 1);
+  EXPECT_EQ(a.indices[2], 2);
+  EXPECT_EQ(a.indices[3], -1);
+  EXPECT_EQ(a.sq_dists[3], std::numeric_limits<float>::infinity());
+}
+
+TEST_F(GpuNeighborSearchTest, NormalFilterOnGpuMatchesKdTreeAndCompactsNaN) {
+  auto xyz = kittiFrame();
+  // Every 97th point NaN/Inf: the filter compacts them away before the search.
+  std::size_t invalid = 0;
+  for (std::size_t i = 0; i < xyz.size() / 3; i += 97, ++invalid) {
+    xyz[3 * i + (i % 3)] = (i % 2) ? std::numeric_limits<float>::quiet_NaN()
+                                   : std::numeric_limits<float>::infinity();
+  }
+  const auto cloud = gf::CloudView::packedXyz(xyz.data(), xyz.size() / 3);
+  gf::NormalGroundFilterParams pg, pc;
+  pg.knn_backend = "gpu";
+  pc.knn_backend = "kdtree";
+  gf::NormalGroundFilter fg(pg), fc(pc);
+  EXPECT_EQ(fg.backend(), "gpu");
+  EXPECT_TRUE(fg.backendNote().empty()) << fg.backendNote();
+  std::vector<std::uint8_t> lg, lc;
+  gf::FilterStats sg, sc;
+  fg.filter(cloud, &lg, &sg);
+  fc.filter(cloud, &lc, &sc);
+  EXPECT_EQ(sg.backend, "gpu");
+  EXPECT_TRUE(sg.note.empty()) << sg.note;
+  EXPECT_EQ(sg.invalid_points, invalid);
+  ASSERT_EQ(lg.size(), lc.size());
+  std::size_t differ = 0, ground = 0;
+  for (std::size_t i = 0; i < lg.size(); ++i) {
+    differ += lg[i] != lc[i];
+    ground += lg[i];
+  }
+  EXPECT_GT(ground, lg.size() / 4);
+  EXPECT_LT(differ, lg.size() / 1000) << differ << " labels differ";
+  std::printf("[ FILTER   ] GPU vs kd-tree labels: %zu of %zu differ; ground %zu; GPU total "
+              "%.2f ms, kd-tree total %.2f ms\n",
+              differ, lg.size(), ground, sg.total_ms, sc.total_ms);
+}
+
+}  // namespace

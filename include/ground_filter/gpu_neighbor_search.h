@@ -1,0 +1,48 @@
+#ifndef GROUND_FILTER_GPU_NEIGHBOR_SEARCH_H
+#define GROUND_FILTER_GPU_NEIGHBOR_SEARCH_H
+
+// Only usable when the package is built with CUDA (GROUND_FILTER_HAVE_CUDA); use
+// makeNeighborSearch("gpu", ...) to get it with the kd-tree fallback handled.
+
+#include <cstddef>
+#include <memory>
+#include <string>
+
+#include "ground_filter/cuda_knn.h"
+#include "ground_filter/neighbor_search.h"
+
+namespace ground_filter {
+
+class KdTreeNeighborSearch;
+
+/// \brief NeighborSearch on a CUDA GPU (CudaKnn); a scan the GPU cannot do runs on a kd-tree.
+///
+/// Any CUDA error during a search (or k above CudaKnn::kMaxK) makes that one search run on the CPU
+/// kd-tree instead; lastBackend() and lastNote() then say so and name the error. The next search
+/// tries the GPU again.
+class GpuNeighborSearch : public NeighborSearch {
+ public:
+  /// \brief `threads` CPU threads for the kd-tree fallback (0 = all cores).
+  /// \throws CudaError when no usable CUDA device is there.
+  explicit GpuNeighborSearch(int threads = 0, const CudaKnnOptions& options = CudaKnnOptions());
+  ~GpuNeighborSearch() override;
+
+  void search(const float* xyz, std::size_t n, int k, NeighborLists* out) override;
+  std::string name() const override { return "gpu"; }
+  std::string lastBackend() const override { return last_backend_; }
+  std::string lastNote() const override { return last_note_; }
+
+  /// \brief The CUDA search (timings of the last GPU search, device name).
+  const CudaKnn& cudaKnn() const { return *knn_; }
+
+ private:
+  std::unique_ptr<CudaKnn> knn_;
+  std::unique_ptr<KdTreeNeighborSearch> fallback_;  // created on the first fallback
+  int threads_;
+  std::string last_backend_ = "gpu";
+  std::string last_note_;
+};
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_GPU_NEIGHBOR_SEARCH_H

@@ -1,0 +1,114 @@
+// knn_backend "gpu" where no usable GPU is there (CI): the kd-tree runs instead and the reason is
+// reported. On a machine with a working GPU the same checks assert the GPU path instead.
+
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "ground_filter/kdtree_neighbor_search.h"
+#include "ground_filter/neighbor_search_factory.h"
+#include "ground_filter/normal_ground_filter.h"
+#ifdef GROUND_FILTER_HAVE_CUDA
+#include "ground_filter/cuda_knn.h"
+#include "ground_filter/gpu_neighbor_search.h"
+#endif
+
+namespace gf = ground_filter;
+
+namespace {
+
+/// A noisy ground plane with a few boxes on it.
+std::vector<float> scene(std::size_t n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-20.f, 20.f), box(0.f, 1.5f);
+  std::normal_distribution<float> noise(0.f, 0.01f);
+  std::vector<float> xyz;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i % 5 == 0) {
+      const float cx = 4.f * static_cast<float>(i % 7) - 12.f;
+      xyz.insert(xyz.end(), {cx + box(rng), 3.f + box(rng), -1.7f + box(rng)});
+    } else {
+      xyz.insert(xyz.end(), {u(rng), u(rng), -1.7f + noise(rng)});
+    }
+  }
+  return xyz;
+}
+
+TEST(GpuFallback, GpuChoiceGivesKdTreeListsAndSaysWhy) {
+  const auto xyz = scene(6000, 1);
+  std::string note = "stale";
+  auto search = gf::makeNeighborSearch("gpu", 2, &note);
+  gf::NeighborLists got, ref;
+  search->search(xyz.data(), 6000, 20, &got);
+  gf::KdTreeNeighborSearch kdtree(2);
+  kdtree.search(xyz.data(), 6000, 20, &ref);
+  ASSERT_EQ(got.indices.size(), ref.indices.size());
+  EXPECT_EQ(got.sq_dists, ref.sq_dists);  // same distances slot by slot on either backend
+
+  if (gf::neighborSearchAvailable("gpu")) {  // a machine with a usable GPU
+    EXPECT_EQ(search->name(), "gpu");
+    EXPECT_TRUE(note.empty()) << note;
+    return;
+  }
+  EXPECT_EQ(search->name(), "kdtree");
+  EXPECT_EQ(search->lastBackend(), "kdtree");
+  EXPECT_EQ(got.indices, ref.indices);
+#ifdef GROUND_FILTER_HAVE_CUDA
+  // Built with CUDA, no usable device: the note names the CUDA error.
+  EXPECT_EQ(note.rfind("GPU backend unavailable: cuda", 0), 0u) << note;
+  EXPECT_NE(note.find("; using kdtree"), std::string::npos) << note;
+#else
+  EXPECT_NE(note.find("built without CUDA"), std::string::npos) << note;
+#endif
+}
+
+TEST(GpuFallback, NormalFilterReportsTheBackendThatRan) {
+  const auto xyz = scene(20000, 2);
+  const auto cloud = gf::CloudView::packedXyz(xyz.data(), 20000);
+  gf::NormalGroundFilterParams pg, pc;
+  pg.knn_backend = "gpu";
+  pc.knn_backend = "kdtree";
+  pg.threads = pc.threads = 2;
+  gf::NormalGroundFilter fg(pg), fc(pc);
+  std::vector<std::uint8_t> lg, lc;
+  gf::FilterStats sg, sc;
+  fg.filter(cloud, &lg, &sg);
+  fc.filter(cloud, &lc, &sc);
+  EXPECT_EQ(sg.backend, fg.backend());
+  EXPECT_EQ(sc.backend, "kdtree");
+  EXPECT_TRUE(sc.note.empty()) << sc.note;
+  if (gf::neighborSearchAvailable("gpu")) {
+    EXPECT_EQ(sg.backend, "gpu");
+    return;
+  }
+  EXPECT_EQ(sg.backend, "kdtree");
+  EXPECT_FALSE(sg.note.empty());
+  EXPECT_EQ(sg.note, fg.backendNote());
+  EXPECT_NE(sg.note.find("GPU backend"), std::string::npos) << sg.note;
+  EXPECT_EQ(lg, lc);  // the fallback is the kd-tree: identical labels
+  EXPECT_GT(sg.ground_points, 0u);
+}
+
+#ifdef GROUND_FILTER_HAVE_CUDA
+TEST(GpuFallback, CudaLibraryExplainsMissingDevice) {
+  std::string why;
+  if (gf::CudaKnn::deviceAvailable(&why)) {
+    EXPECT_TRUE(why.empty());
+    EXPECT_NO_THROW(gf::CudaKnn knn);
+    return;
+  }
+  EXPECT_EQ(why.rfind("cuda", 0), 0u) << why;  // a CUDA error name first
+  try {
+    gf::GpuNeighborSearch search;
+    FAIL() << "constructed without a device";
+  } catch (const gf::CudaError& e) {
+    EXPECT_EQ(e.errorName().rfind("cudaError", 0), 0u) << e.errorName();
+    EXPECT_NE(std::string(e.what()).find("no usable CUDA device"), std::string::npos) << e.what();
+  }
+}
+#endif
+
+}  // namespace

@@ -1,0 +1,145 @@
+"""Install space: the package installed into a fresh prefix runs the demo with only that install
+space sourced (run by catkin_add_nosetests after the build).
+
+The workspace build is installed with `cmake --install` into a staging directory (DESTDIR under
+/tmp: nothing is written into the workspace, its install/ folder included), then, in a clean
+environment (`env -i`, only the staged install/setup.bash sourced, a master on a free port),
+`roslaunch ground_filter demo.launch scans:=N` must load the nodelet from the staged prefix
+(checked in the nodelet manager's /proc/PID/maps), print N scans split with counts conserved,
+and end by itself.
+"""
+import json
+import os
+import re
+import shutil
+import signal
+import socket
+import subprocess
+import tempfile
+import threading
+import time
+import unittest
+
+CONFIG = "gf_install_test.json"  # written by CMakeLists.txt next to where this test runs
+SCANS = 5
+TIMEOUT_S = 120
+
+
+def free_port():
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+class InstallSpaceTest(unittest.TestCase):
+
+    @classmethod
+    def setUpClass(cls):
+        if not os.path.exists(CONFIG):
+            raise RuntimeError("%s not found in %s: run this test through catkin (CMakeLists.txt "
+                               "writes it)" % (CONFIG, os.getcwd()))
+        with open(CONFIG) as f:
+            cfg = json.load(f)
+        cls.build_dir = cfg["build_dir"]
+        cls.prefix = cfg["install_prefix"]
+        cls.stage = tempfile.mkdtemp(prefix="gf_install_test_")
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.stage, ignore_errors=True)
+
+    def test_demo_from_install_space(self):
+        t0 = time.monotonic()
+        env = dict(os.environ, DESTDIR=self.stage)
+        p = subprocess.run(["cmake", "--install", self.build_dir], env=env,
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                           universal_newlines=True)
+        self.assertEqual(p.returncode, 0, "cmake --install failed:\n" + p.stdout[-4000:])
+        install = os.path.join(self.stage, self.prefix.lstrip("/"))
+        for rel in ("setup.bash", "lib/libground_filter_nodelets.so",
+                    "lib/ground_filter/scene_publisher", "lib/ground_filter/demo_monitor",
+                    "share/ground_filter/package.xml", "share/ground_filter/nodelet_plugins.xml",
+                    "share/ground_filter/launch/demo.launch",
+                    "share/ground_filter/rviz/ground_filter.rviz",
+                    "include/ground_filter/ground_filter.h"):
+            self.assertTrue(os.path.exists(os.path.join(install, rel)), "not installed: " + rel)
+        install_s = time.monotonic() - t0
+
+        home = os.path.join(self.stage, "home")
+        os.makedirs(home)
+        port = free_port()
+        # A clean environment: nothing of the build or devel space, only the install space.
+        clean = {"PATH": "/usr/bin:/bin", "HOME": home, "ROS_HOME": os.path.join(home, ".ros"),
+                 "ROS_MASTER_URI": "http://localhost:%d" % port, "LANG": "C.UTF-8"}
+        script = (
+            "set -e; source '%s/setup.bash'; "
+            "echo PKG=$(rospack find ground_filter); "
+            "echo PLUGIN=$(rospack plugins --attrib=plugin nodelet | grep '^ground_filter '); "
+            "exec roslaunch -p %d ground_filter demo.launch scans:=%d rate:=5"
+            % (install, port, SCANS))
+        launch = subprocess.Popen(["env", "-i"] + ["%s=%s" % kv for kv in clean.items()] +
+                                  ["bash", "-c", script], stdout=subprocess.PIPE,
+                                  stderr=subprocess.STDOUT, universal_newlines=True,
+                                  start_new_session=True)
+        lines, maps_lib, manager_pid = [], None, None
+        reader = threading.Thread(target=lambda: lines.extend(launch.stdout), daemon=True)
+        reader.start()
+        deadline = time.monotonic() + TIMEOUT_S
+        try:
+            while launch.poll() is None and time.monotonic() < deadline:
+                text = "".join(lines)
+                if manager_pid is None:
+                    m = re.search(r"process\[ground_filter_manager-\d+\]: started with pid "
+                                  r"\[(\d+)\]", text)
+                    manager_pid = int(m.group(1)) if m else None
+                if manager_pid and maps_lib is None and "[demo_monitor]" in text:
+                    maps_lib = self.loaded_library(manager_pid)
+                time.sleep(0.1)
+        finally:
+            if launch.poll() is None:
+                os.killpg(launch.pid, signal.SIGINT)
+                try:
+                    launch.wait(timeout=20)
+                except subprocess.TimeoutExpired:
+                    os.killpg(launch.pid, signal.SIGKILL)
+            launch.wait()
+            reader.join(timeout=5)
+        out = "".join(lines)
+        tail = "\n" + out[-6000:]
+        self.assertLess(time.monotonic(), deadline, "demo did not end within %d s" % TIMEOUT_S +
+                        tail)
+
+        self.assertIn("PKG=%s/share/ground_filter" % install, out, tail)
+        self.assertIn("%s/share/ground_filter/nodelet_plugins.xml" % install, out, tail)
+        self.assertIsNotNone(maps_lib, "nodelet library not found in the manager's maps" + tail)
+        self.assertTrue(os.path.realpath(maps_lib).startswith(os.path.realpath(install) + "/lib/"),
+                        "nodelet loaded from %s, not from the install space" % maps_lib)
+        rows = re.findall(r"^\s*(\d+)\s+[\d.]+\s+(\d+)\s+(\d+)\s+(\d+)\s", out, re.M)
+        self.assertEqual(len(rows), SCANS, "expected %d scan lines" % SCANS + tail)
+        for _, points, ground, nonground in rows:
+            self.assertEqual(int(ground) + int(nonground), int(points), tail)
+            self.assertGreater(int(ground), 0, tail)
+            self.assertGreater(int(nonground), 0, tail)
+        self.assertIn("[demo_monitor] summary: %d scans" % SCANS, out, tail)
+        print("install %.1f s into %s; demo from the install space: %d scans, nodelet library %s"
+              % (install_s, install, len(rows), maps_lib))
+
+    @staticmethod
+    def loaded_library(pid):
+        """Path of libground_filter_nodelets.so mapped by process `pid` (None if not yet)."""
+        for _ in range(50):
+            try:
+                with open("/proc/%d/maps" % pid) as f:
+                    for line in f:
+                        if line.rstrip().endswith("/libground_filter_nodelets.so"):
+                            return line.split()[-1]
+            except OSError:
+                return None
+            time.sleep(0.1)
+        return None
+
+
+if __name__ == "__main__":
+    unittest.main()

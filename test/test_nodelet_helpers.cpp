@@ -1,0 +1,361 @@
+// Unit tests of the nodelet plumbing without a ROS graph: PointCloud2 validation, the zero-copy
+// view, the zero-loss split, and the agreement of cfg/VoxelGroundFilter.cfg with
+// VoxelGroundFilterParams.
+#include <dynamic_reconfigure/Config.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <boost/any.hpp>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "../src/nodelets/ground_filter_nodelet.h"
+#include "../src/nodelets/voxel_ground_filter_nodelet.h"
+
+namespace gf = ground_filter;
+using sensor_msgs::PointCloud2;
+using sensor_msgs::PointField;
+
+namespace {
+
+PointField field(const std::string& name, std::uint32_t offset, std::uint8_t type,
+                 std::uint32_t count = 1) {
+  PointField f;
+  f.name = name;
+  f.offset = offset;
+  f.datatype = type;
+  f.count = count;
+  return f;
+}
+
+// Records of 24 bytes: intensity f32 @0, z @4, x @8, y @12, ring u16 @16, 6 bytes padding.
+// Point i has x = i, y = 2i, z = 3i, intensity = 100 + i, ring = i, padding = i.
+PointCloud2 makeCloud(std::uint32_t width, std::uint32_t height = 1, std::uint32_t row_pad = 0) {
+  PointCloud2 c;
+  c.header.frame_id = "velodyne";
+  c.header.stamp.sec = 42;
+  c.width = width;
+  c.height = height;
+  c.fields = {field("intensity", 0, PointField::FLOAT32), field("z", 4, PointField::FLOAT32),
+              field("x", 8, PointField::FLOAT32), field("y", 12, PointField::FLOAT32),
+              field("ring", 16, PointField::UINT16)};
+  c.point_step = 24;
+  c.row_step = width * c.point_step + row_pad;
+  c.data.assign(std::size_t{c.row_step} * height, 0xEE);
+  for (std::uint32_t r = 0, i = 0; r < height; ++r) {
+    for (std::uint32_t col = 0; col < width; ++col, ++i) {
+      std::uint8_t* rec = c.data.data() + std::size_t{r} * c.row_step + col * c.point_step;
+      const float v[4] = {100.0f + i, 3.0f * i, 1.0f * i, 2.0f * i};
+      std::memcpy(rec, v, sizeof(v));
+      const std::uint16_t ring = static_cast<std::uint16_t>(i);
+      std::memcpy(rec + 16, &ring, 2);
+      std::memset(rec + 18, static_cast<int>(i & 0xFF), 6);
+    }
+  }
+  c.is_dense = true;
+  return c;
+}
+
+const std::uint8_t* record(const PointCloud2& c, std::size_t i) {
+  return c.data.data() + (i / c.width) * c.row_step + (i % c.width) * c.point_step;
+}
+
+void setFloat(PointCloud2* c, std::size_t i, std::size_t offset, float v) {
+  std::memcpy(const_cast<std::uint8_t*>(record(*c, i)) + offset, &v, sizeof(v));
+}
+
+gf::CloudRejectReason check(const PointCloud2& c, std::string* why = nullptr) {
+  gf::CloudLayout layout;
+  std::string message;
+  const auto r = gf::checkPointCloud2(c, &layout, &message);
+  if (why) *why = message;
+  return r;
+}
+
+}  // namespace
+
+// ------------------------------------------------------------------------------ validation
+
+TEST(CheckPointCloud2, AcceptsAnyFieldOrderAndFindsOffsets) {
+  const PointCloud2 c = makeCloud(10);
+  gf::CloudLayout layout;
+  std::string why;
+  ASSERT_EQ(gf::checkPointCloud2(c, &layout, &why), gf::CloudRejectReason::kNone) << why;
+  EXPECT_EQ(layout.x_offset, 8u);
+  EXPECT_EQ(layout.y_offset, 12u);
+  EXPECT_EQ(layout.z_offset, 4u);
+  EXPECT_EQ(layout.points, 10u);
+  EXPECT_TRUE(layout.contiguous);
+}
+
+TEST(CheckPointCloud2, EmptyCloudsAreValid) {
+  EXPECT_EQ(check(makeCloud(0, 1)), gf::CloudRejectReason::kNone);
+  EXPECT_EQ(check(makeCloud(0, 0)), gf::CloudRejectReason::kNone);
+  EXPECT_EQ(check(makeCloud(5, 0)), gf::CloudRejectReason::kNone);
+}
+
+TEST(CheckPointCloud2, MissingField) {
+  PointCloud2 c = makeCloud(4);
+  c.fields.erase(c.fields.begin() + 1);  // z
+  std::string why;
+  EXPECT_EQ(check(c, &why), gf::CloudRejectReason::kMissingField);
+  EXPECT_NE(why.find("no field 'z'"), std::string::npos) << why;
+  EXPECT_EQ(check(PointCloud2()), gf::CloudRejectReason::kMissingField);
+}
+
+TEST(CheckPointCloud2, WrongTypeOrCount) {
+  PointCloud2 c = makeCloud(4);
+  c.fields[2].datatype = PointField::FLOAT64;  // x
+  std::string why;
+  EXPECT_EQ(check(c, &why), gf::CloudRejectReason::kFieldType);
+  EXPECT_NE(why.find("field 'x'"), std::string::npos) << why;
+
+  c = makeCloud(4);
+  c.fields[3].count = 2;  // y
+  EXPECT_EQ(check(c, &why), gf::CloudRejectReason::kFieldCount);
+  c.fields[3].count = 0;
+  EXPECT_EQ(check(c), gf::CloudRejectReason::kFieldCount);
+
+  c = makeCloud(4);
+  c.fields[4].datatype = 42;  // ring: unknown type
+  EXPECT_EQ(check(c, &why), gf::CloudRejectReason::kFieldType);
+  EXPECT_NE(why.find("ring"), std::string::npos) << why;
+}
+
+TEST(CheckPointCloud2, FieldPastPointStep) {
+  PointCloud2 c = makeCloud(4);
+  c.point_step = 16;  // ring @16 no longer fits; keep sizes consistent otherwise
+  c.row_step = 4 * 16;
+  c.data.resize(c.row_step);
+  std::string why;
+  EXPECT_EQ(check(c, &why), gf::CloudRejectReason::kFieldExtent);
+  EXPECT_NE(why.find("ring"), std::string::npos) << why;
+
+  c = makeCloud(4);
+  c.fields.push_back(field("normal", 16, PointField::FLOAT32, 3));  // 16 + 12 > 24
+  EXPECT_EQ(check(c), gf::CloudRejectReason::kFieldExtent);
+
+  c = makeCloud(4);
+  c.fields[2].offset = 22;  // x overlapping the end of the record
+  EXPECT_EQ(check(c), gf::CloudRejectReason::kFieldExtent);
+}
+
+TEST(CheckPointCloud2, RowStepAndDataSize) {
+  PointCloud2 c = makeCloud(4, 2);
+  c.row_step -= 1;
+  c.data.resize(std::size_t{c.row_step} * c.height);
+  EXPECT_EQ(check(c), gf::CloudRejectReason::kRowStep);
+
+  c = makeCloud(4, 2);
+  c.data.pop_back();
+  std::string why;
+  EXPECT_EQ(check(c, &why), gf::CloudRejectReason::kDataSize);
+  EXPECT_NE(why.find("data size"), std::string::npos) << why;
+
+  c = makeCloud(4, 2);
+  c.data.push_back(0);
+  EXPECT_EQ(check(c), gf::CloudRejectReason::kDataSize);
+
+  // width * point_step overflowing 32 bits must not wrap around.
+  c = makeCloud(0, 1);
+  c.width = 0x10000000u;
+  c.row_step = 0;
+  EXPECT_EQ(check(c), gf::CloudRejectReason::kRowStep);
+}
+
+TEST(CheckPointCloud2, BigEndianRejected) {
+  PointCloud2 c = makeCloud(4);
+  c.is_bigendian = true;
+  EXPECT_EQ(check(c), gf::CloudRejectReason::kBigEndian);
+}
+
+// ------------------------------------------------------------------------------ view
+
+TEST(MakeCloudView, ContiguousAndPaddedRows) {
+  for (std::uint32_t pad : {0u, 8u}) {
+    const PointCloud2 c = makeCloud(5, 3, pad);
+    gf::CloudLayout layout;
+    ASSERT_EQ(gf::checkPointCloud2(c, &layout, nullptr), gf::CloudRejectReason::kNone);
+    EXPECT_EQ(layout.contiguous, pad == 0);
+    std::vector<float> scratch;
+    const gf::CloudView v = gf::makeCloudView(c, layout, &scratch);
+    ASSERT_EQ(v.size(), 15u);
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      EXPECT_EQ(v.x(i), 1.0f * i);
+      EXPECT_EQ(v.y(i), 2.0f * i);
+      EXPECT_EQ(v.z(i), 3.0f * i);
+    }
+    EXPECT_EQ(scratch.empty(), pad == 0);  // zero-copy unless rows are padded
+  }
+}
+
+// ------------------------------------------------------------------------------ split
+
+TEST(SplitPointCloud2, EveryRecordOnceInOrderNaNToNonGround) {
+  for (std::uint32_t pad : {0u, 8u}) {
+    PointCloud2 c = makeCloud(6, 2, pad);
+    setFloat(&c, 3, 8, std::numeric_limits<float>::quiet_NaN());  // x of point 3
+    setFloat(&c, 7, 4, std::numeric_limits<float>::infinity());   // z of point 7
+    c.is_dense = false;
+    gf::CloudLayout layout;
+    ASSERT_EQ(gf::checkPointCloud2(c, &layout, nullptr), gf::CloudRejectReason::kNone);
+    // A buggy filter calling the NaN/Inf points ground, and a label value of 2.
+    std::vector<std::uint8_t> labels = {1, 0, 1, 1, 0, 0, 1, 1, 0, 1, 2, 0};
+    PointCloud2 g, ng;
+    const gf::SplitCounts n = gf::splitPointCloud2(c, layout, &labels, &g, &ng);
+    EXPECT_EQ(n.invalid, 2u);
+    const std::vector<std::size_t> want_g = {0, 2, 6, 9, 10}, want_ng = {1, 3, 4, 5, 7, 8, 11};
+    EXPECT_EQ(n.ground, want_g.size());
+    EXPECT_EQ(n.nonground, want_ng.size());
+    for (const auto* out : {&g, &ng}) {
+      EXPECT_EQ(out->header.frame_id, "velodyne");
+      EXPECT_EQ(out->header.stamp.sec, 42u);
+      EXPECT_EQ(out->fields.size(), c.fields.size());
+      EXPECT_EQ(out->point_step, c.point_step);
+      EXPECT_EQ(out->height, 1u);
+      EXPECT_EQ(out->row_step, out->width * out->point_step);
+      EXPECT_EQ(out->data.size(), out->row_step);
+    }
+    ASSERT_EQ(g.width, want_g.size());
+    ASSERT_EQ(ng.width, want_ng.size());
+    for (std::size_t k = 0; k < want_g.size(); ++k) {
+      EXPECT_EQ(std::memcmp(g.data.data() + k * 24, record(c, want_g[k]), 24), 0) << k;
+    }
+    for (std::size_t k = 0; k < want_ng.size(); ++k) {
+      EXPECT_EQ(std::memcmp(ng.data.data() + k * 24, record(c, want_ng[k]), 24), 0) << k;
+    }
+    EXPECT_TRUE(g.is_dense);
+    EXPECT_FALSE(ng.is_dense);
+    EXPECT_EQ(labels[3], gf::kNonGround);
+    EXPECT_EQ(labels[10], gf::kGround);
+  }
+}
+
+TEST(SplitPointCloud2, EmptyCloudGivesTwoEmptyClouds) {
+  const PointCloud2 c = makeCloud(0);
+  gf::CloudLayout layout;
+  ASSERT_EQ(gf::checkPointCloud2(c, &layout, nullptr), gf::CloudRejectReason::kNone);
+  std::vector<std::uint8_t> labels;
+  PointCloud2 g, ng;
+  const gf::SplitCounts n = gf::splitPointCloud2(c, layout, &labels, &g, &ng);
+  EXPECT_EQ(n.ground + n.nonground, 0u);
+  EXPECT_EQ(g.width, 0u);
+  EXPECT_EQ(ng.width, 0u);
+  EXPECT_TRUE(g.data.empty());
+  EXPECT_EQ(g.fields.size(), c.fields.size());
+  EXPECT_TRUE(ng.is_dense);
+}
+
+// ------------------------------------------------------------------------------ cfg <-> Params
+
+namespace {
+
+std::string valueText(const gf::VoxelGroundFilterConfig::AbstractParamDescription& d,
+                      const gf::VoxelGroundFilterConfig& config) {
+  boost::any v;
+  d.getValue(config, v);
+  std::ostringstream os;
+  os.precision(17);
+  if (d.type == "double")
+    os << boost::any_cast<double>(v);
+  else if (d.type == "int")
+    os << boost::any_cast<int>(v);
+  else if (d.type == "bool")
+    os << (boost::any_cast<bool>(v) ? "true" : "false");
+  else
+    os << boost::any_cast<std::string>(v);
+  return os.str();
+}
+
+// `base` with only parameter `d` taken from `from`.
+gf::VoxelGroundFilterConfig withOne(const gf::VoxelGroundFilterConfig::AbstractParamDescription& d,
+                                    const gf::VoxelGroundFilterConfig& base,
+                                    const gf::VoxelGroundFilterConfig& from) {
+  dynamic_reconfigure::Config msg;
+  d.toMessage(msg, from);
+  gf::VoxelGroundFilterConfig out = base;
+  d.fromMessage(msg, out);
+  return out;
+}
+
+}  // namespace
+
+// The names VoxelGroundFilterParams::set() knows (listed in its "unknown parameter" message).
+std::vector<std::string> knownVoxelParamNames() {
+  std::vector<std::string> names;
+  try {
+    gf::VoxelGroundFilterParams().set("no_such_parameter", "0");
+  } catch (const std::invalid_argument& e) {
+    const std::string text = e.what();
+    const auto begin = text.find("known: ");
+    const auto end = text.find(')', begin);
+    if (begin == std::string::npos || end == std::string::npos) return names;
+    std::istringstream list(text.substr(begin + 7, end - begin - 7));
+    std::string name;
+    while (std::getline(list, name, ',')) {
+      name.erase(0, name.find_first_not_of(' '));
+      names.push_back(name);
+    }
+  }
+  return names;
+}
+
+// Every Params field (as named by set()) has a cfg parameter, and the other way round.
+TEST(VoxelCfg, SameParameterNamesAsParams) {
+  std::vector<std::string> cfg_names;
+  for (const auto& d : gf::VoxelGroundFilterConfig::__getParamDescriptions__()) {
+    cfg_names.push_back(d->name);
+  }
+  std::vector<std::string> params_names = knownVoxelParamNames();
+  ASSERT_FALSE(params_names.empty()) << "could not read the names from set()'s error message";
+  std::sort(cfg_names.begin(), cfg_names.end());
+  std::sort(params_names.begin(), params_names.end());
+  EXPECT_EQ(cfg_names, params_names) << "cfg/VoxelGroundFilter.cfg is out of sync with "
+                                        "VoxelGroundFilterParams";
+}
+
+TEST(VoxelCfg, DefaultsAreTheLibraryDefaults) {
+  const auto params = gf::voxelParamsFromConfig(gf::VoxelGroundFilterConfig::__getDefault__());
+  EXPECT_EQ(gf::describeVoxelParams(params),
+            gf::describeVoxelParams(gf::VoxelGroundFilterParams()));
+}
+
+// Each cfg parameter is a Params field of the same name, mapped to it, and every value the cfg
+// range allows for it (min, max; others at default) passes Params::validate().
+TEST(VoxelCfg, EveryParameterMapsToItsFieldAndItsRangeValidates) {
+  const auto& defaults = gf::VoxelGroundFilterConfig::__getDefault__();
+  const auto& descriptions = gf::VoxelGroundFilterConfig::__getParamDescriptions__();
+  ASSERT_FALSE(descriptions.empty());
+  for (const auto& d : descriptions) {
+    for (const auto* bound :
+         {&gf::VoxelGroundFilterConfig::__getMin__(), &gf::VoxelGroundFilterConfig::__getMax__()}) {
+      const gf::VoxelGroundFilterConfig config = withOne(*d, defaults, *bound);
+      const auto mapped = gf::voxelParamsFromConfig(config);
+      gf::VoxelGroundFilterParams by_name;
+      ASSERT_NO_THROW(by_name.set(d->name, valueText(*d, config)))
+          << "cfg parameter '" << d->name << "' is not a VoxelGroundFilterParams field";
+      EXPECT_EQ(gf::describeVoxelParams(mapped), gf::describeVoxelParams(by_name))
+          << "cfg parameter '" << d->name << "' not mapped onto its field";
+      if (d->name == "tile_size" || d->name == "voxel_size") continue;  // cross-field rule below
+      EXPECT_NO_THROW(mapped.validate()) << d->name << " = " << valueText(*d, config);
+    }
+  }
+  // tile_size >= 2 * voxel_size: the extremes that satisfy it validate.
+  gf::VoxelGroundFilterConfig c = defaults;
+  c.voxel_size = gf::VoxelGroundFilterConfig::__getMin__().voxel_size;
+  c.tile_size = gf::VoxelGroundFilterConfig::__getMin__().tile_size;
+  EXPECT_NO_THROW(gf::voxelParamsFromConfig(c).validate());
+  c.voxel_size = gf::VoxelGroundFilterConfig::__getMax__().voxel_size;
+  c.tile_size = gf::VoxelGroundFilterConfig::__getMax__().tile_size;
+  EXPECT_NO_THROW(gf::voxelParamsFromConfig(c).validate());
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}

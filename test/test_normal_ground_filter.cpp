@@ -1,0 +1,553 @@
+// Normal-vector ground filter: known answers on synthetic clouds, neighbour search against brute
+// force, PCA against hand-computed covariances, and an F1 floor on real SemanticKITTI frames.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "ground_filter/ground_filter.h"
+#include "ground_filter/kdtree_neighbor_search.h"
+#include "ground_filter/metrics.h"
+#include "ground_filter/neighbor_search_factory.h"
+#include "ground_filter/normal_ground_filter.h"
+#include "ground_filter/scan_io.h"
+#include "ground_filter/scene_generator.h"
+
+namespace gf = ground_filter;
+
+namespace {
+
+// Pooled F1 of the defaults on SemanticKITTI seq00 frames 0-2 (measured 0.9602, README "normal"),
+// minus one point.
+constexpr double kNormalF1Floor = 0.950;
+
+using Cloud = std::vector<float>;  // packed x y z
+
+void add(Cloud* c, double x, double y, double z) {
+  c->push_back(static_cast<float>(x));
+  c->push_back(static_cast<float>(y));
+  c->push_back(static_cast<float>(z));
+}
+
+/// Square grid of side `side` [m] at `step` spacing on z = z0 + slope_x * x, with Gaussian noise.
+Cloud plane(double side, double step, double z0, double slope_x = 0.0, double noise = 0.0,
+            unsigned seed = 1) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n(0.0, noise > 0.0 ? noise : 1.0);
+  Cloud c;
+  const int cells = static_cast<int>(std::round(side / step));
+  for (int i = 0; i < cells; ++i) {
+    for (int j = 0; j < cells; ++j) {
+      const double x = -side / 2 + (i + 0.5) * step, y = -side / 2 + (j + 0.5) * step;
+      add(&c, x, y, z0 + slope_x * x + (noise > 0.0 ? n(rng) : 0.0));
+    }
+  }
+  return c;
+}
+
+std::vector<std::uint8_t> run(const Cloud& c, const gf::NormalGroundFilterParams& p = {},
+                              gf::FilterStats* stats = nullptr) {
+  gf::NormalGroundFilter f(p);
+  std::vector<std::uint8_t> labels;
+  f.filter(gf::CloudView::packedXyz(c.data(), c.size() / 3), &labels, stats);
+  EXPECT_EQ(labels.size(), c.size() / 3);
+  return labels;
+}
+
+double groundShare(const std::vector<std::uint8_t>& labels, std::size_t begin = 0,
+                   std::size_t end = std::numeric_limits<std::size_t>::max()) {
+  end = std::min(end, labels.size());
+  if (end <= begin) return 0.0;
+  std::size_t g = 0;
+  for (std::size_t i = begin; i < end; ++i) g += labels[i] == gf::kGround;
+  return static_cast<double>(g) / static_cast<double>(end - begin);
+}
+
+}  // namespace
+
+// ------------------------------------------------------------------------ known answers
+
+TEST(NormalGroundFilter, FlatPlaneIsGround) {
+  const Cloud c = plane(8.0, 0.1, -1.73);
+  gf::FilterStats st;
+  const auto labels = run(c, {}, &st);
+  EXPECT_EQ(groundShare(labels), 1.0);
+  EXPECT_EQ(st.ground_points, labels.size());
+  EXPECT_EQ(st.invalid_points, 0u);
+  EXPECT_EQ(st.backend, "kdtree");
+}
+
+TEST(NormalGroundFilter, PlaneTilted15DegreesDependsOnTheAngleWindow) {
+  const Cloud c = plane(8.0, 0.1, -1.73, std::tan(15.0 * M_PI / 180.0));
+  // Default window 80..100 deg (normal within 10 deg of vertical): a 15 deg slope is not ground.
+  EXPECT_EQ(groundShare(run(c)), 0.0);
+  // Window 70..110 deg (20 deg from vertical): all of it is ground.
+  gf::NormalGroundFilterParams wide;
+  wide.min_normal_angle = 70.0;
+  wide.max_normal_angle = 110.0;
+  EXPECT_EQ(groundShare(run(c, wide)), 1.0);
+  // An asymmetric window acts through its narrower side (a PCA normal has no sign).
+  gf::NormalGroundFilterParams asym;
+  asym.min_normal_angle = 70.0;
+  asym.max_normal_angle = 100.0;
+  EXPECT_EQ(groundShare(run(c, asym)), 0.0);
+}
+
+TEST(NormalGroundFilter, VerticalWallIsNotGround) {
+  Cloud c;
+  for (int i = 0; i < 80; ++i) {
+    for (int j = 0; j < 30; ++j) add(&c, 5.0, -4.0 + 0.1 * i, -1.7 + 0.1 * j);
+  }
+  EXPECT_EQ(groundShare(run(c)), 0.0);
+}
+
+TEST(NormalGroundFilter, PlaneWithBoxSeparatesBoxFromGround) {
+  Cloud c = plane(12.0, 0.1, 0.0);
+  const std::size_t ground_n = c.size() / 3;
+  // A 1.5 x 1.5 x 1 m box (four sides and a flat roof) standing on the plane.
+  std::vector<double> height;
+  auto addBox = [&](double x, double y, double z) {
+    add(&c, x, y, z);
+    height.push_back(z);
+  };
+  for (int i = 0; i <= 15; ++i) {
+    for (int j = 1; j <= 10; ++j) {
+      const double s = 1.0 + 0.1 * i, z = 0.1 * j;
+      addBox(s, 1.0, z);
+      addBox(s, 2.5, z);
+      addBox(1.0, s, z);
+      addBox(2.5, s, z);
+    }
+    for (int j = 0; j <= 15; ++j) addBox(1.0 + 0.1 * i, 1.0 + 0.1 * j, 1.0);
+  }
+  const auto labels = run(c);
+  EXPECT_GE(groundShare(labels, 0, ground_n), 0.995);
+  for (std::size_t b = 0; b < height.size(); ++b) {
+    // Box points more than the plane distance (0.15 m) above the ground are never ground.
+    if (height[b] > 0.2) EXPECT_EQ(labels[ground_n + b], gf::kNonGround) << "box point " << b;
+  }
+}
+
+TEST(NormalGroundFilter, NoisyPlaneIsGround) {
+  const Cloud c = plane(10.0, 0.1, -1.73, 0.0, 0.02, 7);  // 2 cm sigma, like a HDL-64
+  EXPECT_GE(groundShare(run(c)), 0.99);
+}
+
+TEST(NormalGroundFilter, CloudSmallerThanK) {
+  // 30 points on a plane, K = 50: every neighbourhood is the whole cloud; a plane still fits.
+  const Cloud c = plane(0.6, 0.1, -1.0);
+  ASSERT_EQ(c.size() / 3, 36u);
+  EXPECT_EQ(groundShare(run(c)), 1.0);
+  // Two points: no normal, no plane, nothing is ground, nothing crashes.
+  Cloud two;
+  add(&two, 0, 0, 0);
+  add(&two, 1, 0, 0);
+  EXPECT_EQ(groundShare(run(two)), 0.0);
+  Cloud one;
+  add(&one, 0, 0, 0);
+  EXPECT_EQ(groundShare(run(one)), 0.0);
+  // Segments smaller than K in segment mode.
+  gf::NormalGroundFilterParams seg;
+  seg.use_segments = true;
+  seg.segment_points = 256;
+  seg.k = 256;
+  EXPECT_EQ(groundShare(run(plane(6.0, 0.1, -1.0), seg)), 1.0);
+}
+
+TEST(NormalGroundFilter, DuplicatePoints) {
+  // Every point of a plane three times: still ground.
+  const Cloud base = plane(6.0, 0.1, -1.73);
+  Cloud c;
+  for (int rep = 0; rep < 3; ++rep) c.insert(c.end(), base.begin(), base.end());
+  EXPECT_EQ(groundShare(run(c)), 1.0);
+  // 200 copies of one point: no spread, no normal, not ground.
+  Cloud same;
+  for (int i = 0; i < 200; ++i) add(&same, 3.0, 4.0, -1.7);
+  EXPECT_EQ(groundShare(run(same)), 0.0);
+}
+
+TEST(NormalGroundFilter, CollinearPointsAreNotGround) {
+  Cloud line;
+  for (int i = 0; i < 300; ++i) add(&line, -15.0 + 0.1 * i, 2.0, -1.7);
+  EXPECT_EQ(groundShare(run(line)), 0.0);
+}
+
+TEST(NormalGroundFilter, NanAndInfPointsAreNonGroundAndCounted) {
+  Cloud c = plane(6.0, 0.1, -1.73);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  const std::size_t valid = c.size() / 3;
+  add(&c, nan, 0, 0);
+  add(&c, 0, inf, 0);
+  add(&c, 0, 0, -inf);
+  gf::FilterStats st;
+  const auto labels = run(c, {}, &st);
+  EXPECT_EQ(st.input_points, valid + 3);
+  EXPECT_EQ(st.invalid_points, 3u);
+  EXPECT_EQ(groundShare(labels, 0, valid), 1.0);
+  for (std::size_t i = valid; i < valid + 3; ++i) EXPECT_EQ(labels[i], gf::kNonGround);
+  // All-NaN cloud.
+  Cloud bad;
+  for (int i = 0; i < 100; ++i) add(&bad, nan, nan, nan);
+  EXPECT_EQ(groundShare(run(bad, {}, &st)), 0.0);
+  EXPECT_EQ(st.invalid_points, 100u);
+}
+
+TEST(NormalGroundFilter, EmptyCloud) {
+  gf::NormalGroundFilter f;
+  std::vector<std::uint8_t> labels(5, 1);
+  gf::FilterStats st;
+  f.filter(gf::CloudView(), &labels, &st);
+  EXPECT_TRUE(labels.empty());
+  EXPECT_EQ(st.input_points, 0u);
+  EXPECT_EQ(st.ground_points, 0u);
+}
+
+TEST(NormalGroundFilter, StridedViewMatchesPacked) {
+  const Cloud c = plane(6.0, 0.1, -1.73, 0.0, 0.01, 3);
+  const std::size_t n = c.size() / 3;
+  // Records of x y z intensity ring(padded): 20 bytes, x/y/z at 0/4/8.
+  std::vector<float> rec(5 * n);
+  for (std::size_t i = 0; i < n; ++i) {
+    std::copy_n(&c[3 * i], 3, &rec[5 * i]);
+    rec[5 * i + 3] = 0.5f;
+    rec[5 * i + 4] = 7.f;
+  }
+  gf::NormalGroundFilter f;
+  std::vector<std::uint8_t> a, b;
+  f.filter(gf::CloudView(rec.data(), n, 20), &a);
+  f.filter(gf::CloudView::packedXyz(c.data(), n), &b);
+  EXPECT_EQ(a, b);
+}
+
+TEST(NormalGroundFilter, SameLabelsForAnyThreadCountAndRepeatedCalls) {
+  gf::SceneParams sp;
+  sp.seed = 3;
+  const gf::GeneratedScan scan = gf::generateScene(sp);
+  const gf::CloudView view = gf::CloudView::packedXyz(scan.xyz.data(), scan.size());
+  std::vector<std::vector<std::uint8_t>> results;
+  for (bool segments : {false, true}) {
+    for (int threads : {1, 2, 3}) {
+      gf::NormalGroundFilterParams p;
+      p.threads = threads;
+      p.use_segments = segments;
+      p.segment_points = 20000;
+      gf::NormalGroundFilter f(p);
+      std::vector<std::uint8_t> first, second;
+      f.filter(view, &first);
+      f.filter(view, &second);  // scratch reuse must not change anything
+      EXPECT_EQ(first, second);
+      if (threads > 1) EXPECT_EQ(first, results.back()) << "threads " << threads;
+      results.push_back(first);
+    }
+  }
+  // The generated scene's exact truth: the defaults separate it well.
+  gf::Confusion c = gf::countConfusion(results[0], std::vector<std::int8_t>(
+                                                       scan.truth.begin(), scan.truth.end()));
+  const gf::Metrics m = gf::computeMetrics(c);
+  RecordProperty("generated_scene_f1", std::to_string(m.f1));
+  EXPECT_GE(m.f1, 0.97);  // measured 0.982 (seed 3), minus about one point
+}
+
+TEST(NormalGroundFilter, GpuRequestRunsAndReportsTheBackendUsed) {
+  const Cloud c = plane(6.0, 0.1, -1.73, 0.0, 0.01, 5);
+  gf::NormalGroundFilterParams p;
+  p.knn_backend = "gpu";
+  gf::NormalGroundFilter f(p);
+  std::vector<std::uint8_t> labels;
+  gf::FilterStats st;
+  f.filter(gf::CloudView::packedXyz(c.data(), c.size() / 3), &labels, &st);
+  EXPECT_EQ(labels, run(c));  // same neighbours, same labels
+  if (!gf::neighborSearchAvailable("gpu")) {
+    EXPECT_EQ(f.backend(), "kdtree");
+    EXPECT_EQ(st.backend, "kdtree");
+    EXPECT_NE(st.note.find("GPU backend"), std::string::npos) << st.note;
+    EXPECT_EQ(st.note, f.backendNote());
+  }
+}
+
+TEST(NormalGroundFilter, FactoryAndParameterValidation) {
+  auto f = gf::makeGroundFilter("normal", {{"k", "30"}, {"knn_backend", "kdtree"}});
+  EXPECT_EQ(f->name(), "normal");
+  const auto methods = gf::groundFilterMethods();
+  EXPECT_NE(std::find(methods.begin(), methods.end(), "normal"), methods.end());
+
+  auto refused = [](const gf::ParamSettings& s, const std::string& name) {
+    try {
+      gf::makeGroundFilter("normal", s);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what()).find(name) != std::string::npos;
+    }
+    return false;
+  };
+  EXPECT_TRUE(refused({{"k", "2"}}, "'k'"));
+  EXPECT_TRUE(refused({{"k", "257"}}, "'k'"));
+  EXPECT_TRUE(refused({{"k", "ten"}}, "'k'"));
+  EXPECT_TRUE(refused({{"min_normal_angle", "95"}}, "min_normal_angle"));
+  EXPECT_TRUE(refused({{"min_normal_angle", "-1"}}, "min_normal_angle"));
+  EXPECT_TRUE(refused({{"max_normal_angle", "85"}}, "max_normal_angle"));
+  EXPECT_TRUE(refused({{"max_normal_angle", "181"}}, "max_normal_angle"));
+  EXPECT_TRUE(refused({{"cell_size", "0"}}, "cell_size"));
+  EXPECT_TRUE(refused({{"cell_size", "-0.1"}}, "cell_size"));
+  EXPECT_TRUE(refused({{"plane_distance", "0"}}, "plane_distance"));
+  EXPECT_TRUE(refused({{"segment_points", "10"}}, "segment_points"));
+  EXPECT_TRUE(refused({{"knn_backend", "cuda"}}, "knn_backend"));
+  EXPECT_TRUE(refused({{"bayes_vote", "maybe"}}, "bayes_vote"));
+  EXPECT_TRUE(refused({{"no_such_param", "1"}}, "no_such_param"));
+  // The limits themselves are accepted: a window of 90 deg on either side, or just vertical.
+  EXPECT_NO_THROW(gf::makeGroundFilter("normal", {{"min_normal_angle", "0"},
+                                                  {"max_normal_angle", "180"}}));
+  EXPECT_NO_THROW(gf::makeGroundFilter("normal", {{"min_normal_angle", "90"},
+                                                  {"max_normal_angle", "90"}}));
+  EXPECT_NO_THROW(gf::makeGroundFilter("normal", {{"k", "3"}}));
+  EXPECT_NO_THROW(gf::makeGroundFilter("normal", {{"k", "256"}}));
+}
+
+// ------------------------------------------------------------------------ neighbour search
+
+namespace {
+
+/// Squared distance computed like nanoflann's L2_Simple_Adaptor (float, x then y then z).
+float sqDist(const Cloud& c, std::size_t a, std::size_t b) {
+  float r = 0.f;
+  for (int d = 0; d < 3; ++d) {
+    const float diff = c[3 * a + d] - c[3 * b + d];
+    r += diff * diff;
+  }
+  return r;
+}
+
+/// Checks `lists` against brute force: same distances slot by slot, the same set of neighbours
+/// strictly inside the K-th distance, the rest at exactly the K-th distance (ties).
+void expectMatchesBruteForce(const Cloud& c, int k, const gf::NeighborLists& lists) {
+  const std::size_t n = c.size() / 3;
+  ASSERT_EQ(lists.k, k);
+  ASSERT_EQ(lists.points, n);
+  ASSERT_EQ(lists.indices.size(), n * k);
+  ASSERT_EQ(lists.sq_dists.size(), n * k);
+  const std::size_t found = std::min<std::size_t>(k, n);
+  std::vector<std::pair<float, std::int32_t>> all(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t j = 0; j < n; ++j) all[j] = {sqDist(c, i, j), static_cast<std::int32_t>(j)};
+    std::sort(all.begin(), all.end());
+    const std::int32_t* row = &lists.indices[i * k];
+    const float* dist = &lists.sq_dists[i * k];
+    const float kth = all[found - 1].first;
+    std::vector<std::int32_t> inside_ref, inside_got;
+    for (std::size_t j = 0; j < found; ++j) {
+      ASSERT_EQ(dist[j], all[j].first) << "point " << i << " slot " << j;
+      ASSERT_GE(row[j], 0);
+      ASSERT_LT(static_cast<std::size_t>(row[j]), n);
+      EXPECT_EQ(dist[j], sqDist(c, i, row[j]));  // the index really is at that distance
+      if (all[j].first < kth) inside_ref.push_back(all[j].second);
+      if (dist[j] < kth) inside_got.push_back(row[j]);
+    }
+    std::sort(inside_ref.begin(), inside_ref.end());
+    std::sort(inside_got.begin(), inside_got.end());
+    EXPECT_EQ(inside_got, inside_ref) << "point " << i;
+    std::vector<std::int32_t> uniq(row, row + found);
+    std::sort(uniq.begin(), uniq.end());
+    EXPECT_EQ(std::unique(uniq.begin(), uniq.end()), uniq.end()) << "repeated index, point " << i;
+    for (std::size_t j = found; j < static_cast<std::size_t>(k); ++j) {
+      EXPECT_EQ(row[j], -1);
+      EXPECT_TRUE(std::isinf(dist[j]));
+    }
+    // Itself first (distance 0); among exact duplicates the lowest index comes first.
+    EXPECT_EQ(dist[0], 0.f);
+    EXPECT_EQ(row[0], all[0].second);
+  }
+}
+
+Cloud randomCloud(std::size_t n, unsigned seed, bool clustered) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-10.f, 10.f), small(-0.3f, 0.3f);
+  Cloud c;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (clustered && i % 3 == 0 && i > 0) {
+      // Near (or exactly on, every 9th) an earlier point: dense spots and duplicates.
+      const std::size_t j = rng() % i;
+      const bool dup = i % 9 == 0;
+      add(&c, c[3 * j] + (dup ? 0.f : small(rng)), c[3 * j + 1] + (dup ? 0.f : small(rng)),
+          c[3 * j + 2] + (dup ? 0.f : small(rng)));
+    } else {
+      add(&c, u(rng), u(rng), 0.2f * u(rng));
+    }
+  }
+  return c;
+}
+
+}  // namespace
+
+TEST(KdTreeNeighborSearch, MatchesBruteForceOnRandomClouds) {
+  gf::KdTreeNeighborSearch search(2);
+  gf::NeighborLists lists;
+  for (unsigned seed : {1u, 2u}) {
+    for (bool clustered : {false, true}) {
+      const Cloud c = randomCloud(1500, seed, clustered);
+      for (int k : {1, 8, 50}) {
+        search.search(c.data(), c.size() / 3, k, &lists);
+        SCOPED_TRACE("seed " + std::to_string(seed) + " clustered " +
+                     std::to_string(clustered) + " k " + std::to_string(k));
+        expectMatchesBruteForce(c, k, lists);
+      }
+    }
+  }
+}
+
+TEST(KdTreeNeighborSearch, GridWithTiesMatchesBruteForce) {
+  // A regular grid: many neighbours at exactly the same distance.
+  Cloud c;
+  for (int i = 0; i < 12; ++i) {
+    for (int j = 0; j < 12; ++j) {
+      for (int l = 0; l < 3; ++l) add(&c, 0.5 * i, 0.5 * j, 0.5 * l);
+    }
+  }
+  gf::KdTreeNeighborSearch search(1);
+  gf::NeighborLists lists;
+  search.search(c.data(), c.size() / 3, 27, &lists);
+  expectMatchesBruteForce(c, 27, lists);
+}
+
+TEST(KdTreeNeighborSearch, CloudSmallerThanKIsPadded) {
+  const Cloud c = randomCloud(20, 9, true);
+  gf::KdTreeNeighborSearch search(2);
+  gf::NeighborLists lists;
+  search.search(c.data(), 20, 50, &lists);
+  expectMatchesBruteForce(c, 50, lists);
+  search.search(c.data(), 0, 50, &lists);
+  EXPECT_EQ(lists.points, 0u);
+  EXPECT_TRUE(lists.indices.empty());
+}
+
+TEST(KdTreeNeighborSearch, SameListsForAnyThreadCount) {
+  const Cloud c = randomCloud(20000, 4, true);
+  gf::NeighborLists one, two;
+  gf::KdTreeNeighborSearch(1).search(c.data(), c.size() / 3, 50, &one);
+  gf::KdTreeNeighborSearch(2).search(c.data(), c.size() / 3, 50, &two);
+  EXPECT_EQ(one.indices, two.indices);
+  EXPECT_EQ(one.sq_dists, two.sq_dists);
+}
+
+TEST(NeighborSearchFactory, BackendsAndUnknownName) {
+  std::string note = "stale";
+  auto kd = gf::makeNeighborSearch("kdtree", 1, &note);
+  EXPECT_EQ(kd->name(), "kdtree");
+  EXPECT_TRUE(note.empty());
+  EXPECT_THROW(gf::makeNeighborSearch("octree", 1, &note), std::invalid_argument);
+  EXPECT_TRUE(gf::neighborSearchAvailable("kdtree"));
+}
+
+// ------------------------------------------------------------------------ PCA
+
+namespace {
+
+gf::NeighborLists oneRow(int k, std::vector<std::int32_t> idx) {
+  gf::NeighborLists l;
+  l.k = k;
+  l.points = 1;
+  idx.resize(k, -1);
+  l.indices = idx;
+  l.sq_dists.assign(k, 0.f);
+  return l;
+}
+
+}  // namespace
+
+TEST(NeighborhoodPca, MatchesHandComputedCovariance) {
+  // Rectangle 2 m x 1 m in z = 0, offset to 80 m like a far KITTI point.
+  for (double off : {0.0, 80.0}) {
+    Cloud c;
+    add(&c, off + 0, off + 0, -1.7);
+    add(&c, off + 2, off + 0, -1.7);
+    add(&c, off + 0, off + 1, -1.7);
+    add(&c, off + 2, off + 1, -1.7);
+    // Mean (1, 0.5); covariance diag(1, 0.25, 0) -> eigenvalues 0, 0.25, 1 (sum 1.25).
+    std::vector<gf::PointPca> out;
+    gf::computeNeighborhoodPca(c.data(), oneRow(6, {0, 1, 2, 3}), 1, &out);
+    ASSERT_EQ(out.size(), 1u);
+    ASSERT_TRUE(out[0].valid);
+    EXPECT_NEAR(out[0].eigen[0], 0.0, 1e-6);
+    EXPECT_NEAR(out[0].eigen[1], 0.25 / 1.25, 1e-6);
+    EXPECT_NEAR(out[0].eigen[2], 1.0 / 1.25, 1e-6);
+    EXPECT_NEAR(std::abs(out[0].normal[2]), 1.0, 1e-6);
+  }
+  // Tilted: points (0,0,0), (1,0,1), (0,1,0), (1,1,1): plane z = x, normal (-1,0,1)/sqrt 2.
+  // Centred covariance: [[.25,0,.25],[0,.25,0],[.25,0,.25]] -> eigenvalues 0, .25, .5.
+  Cloud t;
+  add(&t, 0, 0, 0);
+  add(&t, 1, 0, 1);
+  add(&t, 0, 1, 0);
+  add(&t, 1, 1, 1);
+  std::vector<gf::PointPca> out;
+  gf::computeNeighborhoodPca(t.data(), oneRow(4, {0, 1, 2, 3}), 1, &out);
+  ASSERT_TRUE(out[0].valid);
+  EXPECT_NEAR(out[0].eigen[0], 0.0, 1e-6);
+  EXPECT_NEAR(out[0].eigen[1], 1.0 / 3.0, 1e-6);
+  EXPECT_NEAR(out[0].eigen[2], 2.0 / 3.0, 1e-6);
+  EXPECT_NEAR(std::abs(out[0].normal[0]), std::sqrt(0.5), 1e-6);
+  EXPECT_NEAR(std::abs(out[0].normal[1]), 0.0, 1e-6);
+  EXPECT_NEAR(std::abs(out[0].normal[2]), std::sqrt(0.5), 1e-6);
+  EXPECT_LT(out[0].normal[0] * out[0].normal[2], 0.f);  // (-1, 0, 1) up to sign
+}
+
+TEST(NeighborhoodPca, DegenerateNeighbourhoodsAreInvalid) {
+  Cloud c;
+  add(&c, 1, 1, 1);
+  add(&c, 1, 1, 1);
+  add(&c, 1, 1, 1);
+  add(&c, 2, 1, 1);
+  std::vector<gf::PointPca> out;
+  gf::computeNeighborhoodPca(c.data(), oneRow(5, {0, 1}), 1, &out);  // fewer than 3
+  EXPECT_FALSE(out[0].valid);
+  gf::computeNeighborhoodPca(c.data(), oneRow(5, {0, 1, 2}), 1, &out);  // no spread
+  EXPECT_FALSE(out[0].valid);
+  gf::computeNeighborhoodPca(c.data(), oneRow(5, {0, 1, 2, 3}), 1, &out);  // a line: valid
+  EXPECT_TRUE(out[0].valid);
+  EXPECT_NEAR(out[0].eigen[2], 1.0, 1e-6);  // all spread along one axis
+}
+
+TEST(NeighborhoodPca, SameForAnyThreadCount) {
+  const Cloud c = randomCloud(30000, 11, true);
+  gf::NeighborLists lists;
+  gf::KdTreeNeighborSearch(2).search(c.data(), c.size() / 3, 50, &lists);
+  std::vector<gf::PointPca> one, two;
+  gf::computeNeighborhoodPca(c.data(), lists, 1, &one);
+  gf::computeNeighborhoodPca(c.data(), lists, 2, &two);
+  ASSERT_EQ(one.size(), two.size());
+  for (std::size_t i = 0; i < one.size(); ++i) {
+    ASSERT_EQ(one[i].valid, two[i].valid);
+    for (int d = 0; d < 3; ++d) {
+      ASSERT_EQ(one[i].normal[d], two[i].normal[d]) << i;
+      ASSERT_EQ(one[i].eigen[d], two[i].eigen[d]) << i;
+    }
+  }
+}
+
+// ------------------------------------------------------------------------ real data
+
+TEST(NormalGroundFilterKitti, PooledF1AboveFloor) {
+  const std::string dir = std::string(GF_DATA_DIR) + "/semantickitti/seq00/";
+  gf::NormalGroundFilter f;
+  gf::Confusion pooled;
+  for (const char* frame : {"000000", "000001", "000002"}) {
+    const gf::Scan scan = gf::loadScan(dir + frame + ".bin");
+    ASSERT_TRUE(scan.labelled()) << "no labels for " << frame << " in " << dir;
+    std::vector<std::uint8_t> labels;
+    f.filter(gf::viewOf(scan.cloud), &labels);
+    pooled.add(gf::countConfusion(labels, scan.truth));
+  }
+  const gf::Metrics m = gf::computeMetrics(pooled);
+  RecordProperty("pooled_f1", std::to_string(m.f1));
+  RecordProperty("pooled_precision", std::to_string(m.precision));
+  RecordProperty("pooled_recall", std::to_string(m.recall));
+  // Floor = measured pooled F1 with the defaults minus one point (README, "normal").
+  EXPECT_GE(m.f1, kNormalF1Floor);
+}
