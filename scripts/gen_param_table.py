@@ -134,7 +134,7 @@ def _cell(text):
 
 def table_for(gen, cfg_rel):
     package, _, name = gen.generated
-    lines = ["### `%s/%s`" % (package, name), "",
+    lines = ["#### `%s/%s`" % (package, name), "",
              "From `%s` (dynamic_reconfigure; also settable as private parameters at start)." %
              cfg_rel, "",
              "| Parameter | Type | Default | Min | Max | Description |",

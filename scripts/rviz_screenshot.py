@@ -119,9 +119,9 @@ def main(argv=None):
         return 1
     print("screenshot PNG: %s" % os.path.abspath(a.out))
     if a.small:
-        # Palette PNG of the 3D view area, small enough for the repository.
-        subprocess.run(["convert", shot, "-resize", "960x", "-colors", "64", "-strip",
-                        "png8:" + a.small], check=True)
+        # The rviz window (1200x800 at 0,0 in rviz/ground_filter.rviz) as a small palette PNG.
+        subprocess.run(["convert", shot, "-crop", "1200x800+0+0", "+repage", "-resize", "900x",
+                        "-colors", "48", "-strip", "png8:" + a.small], check=True)
         print("reduced copy: %s (%d bytes)" % (a.small, os.path.getsize(a.small)))
     shutil.rmtree(work, ignore_errors=True)
     return 0

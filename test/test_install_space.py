@@ -72,7 +72,8 @@ class InstallSpaceTest(unittest.TestCase):
         port = free_port()
         # A clean environment: nothing of the build or devel space, only the install space.
         clean = {"PATH": "/usr/bin:/bin", "HOME": home, "ROS_HOME": os.path.join(home, ".ros"),
-                 "ROS_MASTER_URI": "http://localhost:%d" % port, "LANG": "C.UTF-8"}
+                 "ROS_MASTER_URI": "http://localhost:%d" % port, "LANG": "C.UTF-8",
+                 "PYTHONUNBUFFERED": "1"}  # roslaunch's "started with pid" lines as they come
         script = (
             "set -e; source '%s/setup.bash'; "
             "echo PKG=$(rospack find ground_filter); "
@@ -94,9 +95,9 @@ class InstallSpaceTest(unittest.TestCase):
                     m = re.search(r"process\[ground_filter_manager-\d+\]: started with pid "
                                   r"\[(\d+)\]", text)
                     manager_pid = int(m.group(1)) if m else None
-                if manager_pid and maps_lib is None and "[demo_monitor]" in text:
+                if manager_pid and maps_lib is None:
                     maps_lib = self.loaded_library(manager_pid)
-                time.sleep(0.1)
+                time.sleep(0.05)
         finally:
             if launch.poll() is None:
                 os.killpg(launch.pid, signal.SIGINT)
@@ -129,15 +130,13 @@ class InstallSpaceTest(unittest.TestCase):
     @staticmethod
     def loaded_library(pid):
         """Path of libground_filter_nodelets.so mapped by process `pid` (None if not yet)."""
-        for _ in range(50):
-            try:
-                with open("/proc/%d/maps" % pid) as f:
-                    for line in f:
-                        if line.rstrip().endswith("/libground_filter_nodelets.so"):
-                            return line.split()[-1]
-            except OSError:
-                return None
-            time.sleep(0.1)
+        try:
+            with open("/proc/%d/maps" % pid) as f:
+                for line in f:
+                    if line.rstrip().endswith("/libground_filter_nodelets.so"):
+                        return line.split()[-1]
+        except OSError:
+            pass
         return None
 
 

@@ -201,6 +201,19 @@ TEST(NormalGroundFilter, NanAndInfPointsAreNonGroundAndCounted) {
   EXPECT_EQ(st.invalid_points, 100u);
 }
 
+TEST(NormalGroundFilter, FarApartAndHugeCoordinates) {
+  // Two patches 1000 km apart (the ordering grid coarsens, tiles stay separate) and a far
+  // outlier at 1e30 m: no overflow, both patches ground, the outlier not.
+  Cloud c = plane(4.0, 0.1, -1.7);
+  const std::size_t half = c.size() / 3;
+  for (std::size_t i = 0; i < half; ++i)
+    add(&c, c[3 * i] + 1.0e6, c[3 * i + 1] - 1.0e6, c[3 * i + 2]);
+  add(&c, 1.0e30, -1.0e30, 0.0);
+  const auto labels = run(c);
+  EXPECT_EQ(groundShare(labels, 0, 2 * half), 1.0);
+  EXPECT_EQ(labels[2 * half], gf::kNonGround);
+}
+
 TEST(NormalGroundFilter, EmptyCloud) {
   gf::NormalGroundFilter f;
   std::vector<std::uint8_t> labels(5, 1);
@@ -250,8 +263,8 @@ TEST(NormalGroundFilter, SameLabelsForAnyThreadCountAndRepeatedCalls) {
     }
   }
   // The generated scene's exact truth: the defaults separate it well.
-  gf::Confusion c = gf::countConfusion(results[0], std::vector<std::int8_t>(
-                                                       scan.truth.begin(), scan.truth.end()));
+  gf::Confusion c = gf::countConfusion(
+      results[0], std::vector<std::int8_t>(scan.truth.begin(), scan.truth.end()));
   const gf::Metrics m = gf::computeMetrics(c);
   RecordProperty("generated_scene_f1", std::to_string(m.f1));
   EXPECT_GE(m.f1, 0.97);  // measured 0.982 (seed 3), minus about one point
@@ -303,10 +316,10 @@ TEST(NormalGroundFilter, FactoryAndParameterValidation) {
   EXPECT_TRUE(refused({{"bayes_vote", "maybe"}}, "bayes_vote"));
   EXPECT_TRUE(refused({{"no_such_param", "1"}}, "no_such_param"));
   // The limits themselves are accepted: a window of 90 deg on either side, or just vertical.
-  EXPECT_NO_THROW(gf::makeGroundFilter("normal", {{"min_normal_angle", "0"},
-                                                  {"max_normal_angle", "180"}}));
-  EXPECT_NO_THROW(gf::makeGroundFilter("normal", {{"min_normal_angle", "90"},
-                                                  {"max_normal_angle", "90"}}));
+  EXPECT_NO_THROW(
+      gf::makeGroundFilter("normal", {{"min_normal_angle", "0"}, {"max_normal_angle", "180"}}));
+  EXPECT_NO_THROW(
+      gf::makeGroundFilter("normal", {{"min_normal_angle", "90"}, {"max_normal_angle", "90"}}));
   EXPECT_NO_THROW(gf::makeGroundFilter("normal", {{"k", "3"}}));
   EXPECT_NO_THROW(gf::makeGroundFilter("normal", {{"k", "256"}}));
 }
@@ -394,8 +407,8 @@ TEST(KdTreeNeighborSearch, MatchesBruteForceOnRandomClouds) {
       const Cloud c = randomCloud(1500, seed, clustered);
       for (int k : {1, 8, 50}) {
         search.search(c.data(), c.size() / 3, k, &lists);
-        SCOPED_TRACE("seed " + std::to_string(seed) + " clustered " +
-                     std::to_string(clustered) + " k " + std::to_string(k));
+        SCOPED_TRACE("seed " + std::to_string(seed) + " clustered " + std::to_string(clustered) +
+                     " k " + std::to_string(k));
         expectMatchesBruteForce(c, k, lists);
       }
     }

@@ -31,7 +31,7 @@ def tables(block):
     """{class name: {param: (type, default, min, max)}} parsed back from the Markdown."""
     out, current = {}, None
     for line in block.splitlines():
-        m = re.match(r"^### `[^/]+/(\w+)`", line)
+        m = re.match(r"^#+ `[^/]+/(\w+)`", line)
         if m:
             current = out.setdefault(m.group(1), {})
             continue
@@ -51,8 +51,12 @@ class ParamTableTest(unittest.TestCase):
     def test_check_detects_drift(self):
         with open(os.path.join(ROOT, "README.md")) as f:
             text = f.read()
-        drifted = re.sub(r"(\| `\w+` \| \w+ \| )([^|]*)( \|)", r"\g<1>12345\3", text, count=1)
-        self.assertNotEqual(drifted, text, "no table row found in README.md")
+        b = text.index(gen_param_table.BEGIN)
+        e = text.index(gen_param_table.END)
+        block = re.sub(r"(\| `\w+` \| \w+ \| )([^|]*)( \|)", r"\g<1>12345\3", text[b:e],
+                       count=1)
+        drifted = text[:b] + block + text[e:]
+        self.assertNotEqual(drifted, text, "no generated table row found in README.md")
         with tempfile.NamedTemporaryFile("w", suffix=".md", delete=False) as f:
             f.write(drifted)
         try:

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "ground_filter/cuda_knn.h"
+#include "ground_filter/gpu_neighbor_search.h"
 #include "ground_filter/kdtree_neighbor_search.h"
 #include "ground_filter/normal_ground_filter.h"
 
@@ -147,7 +148,7 @@ int main(int argc, char** argv) {
 
   struct Row {
     std::string size;
-    double gpu_up, gpu_grid, gpu_query, gpu_down, gpu_total, cpu_total, cpu_build;
+    double gpu_up, gpu_grid, gpu_query, gpu_total, gpu_device_only, cpu_total, cpu_build;
     std::size_t rows_differ;
   };
   struct FRow {
@@ -157,6 +158,7 @@ int main(int argc, char** argv) {
     std::string note;
   };
   std::vector<Row> knn_rows;
+  std::vector<std::string> stage_lines;
   std::vector<FRow> filter_rows;
   std::vector<std::string> variant_lines;
 
@@ -170,7 +172,7 @@ int main(int argc, char** argv) {
     gf::CudaKnn gpu;
     std::vector<std::int32_t> gidx(n * k);
     std::vector<float> gd2(n * k);
-    std::vector<double> up, grid, query, down, total;
+    std::vector<double> up, grid, query, total, dev_only;
     gpu.search(xyz.data(), n, k, gidx.data(), gd2.data());  // warm-up
     for (int i = 0; i < std::max(r, 3); ++i) {
       gpu.search(xyz.data(), n, k, gidx.data(), gd2.data());
@@ -178,8 +180,15 @@ int main(int argc, char** argv) {
       up.push_back(t.upload_ms);
       grid.push_back(t.grid_ms);
       query.push_back(t.query_ms);
-      down.push_back(t.download_ms);
       total.push_back(t.total_ms);
+    }
+    {  // lists left on the device (what the filter does)
+      gf::CudaKnn dev;
+      dev.search(xyz.data(), n, k, nullptr, nullptr);
+      for (int i = 0; i < std::max(r, 3); ++i) {
+        dev.search(xyz.data(), n, k, nullptr, nullptr);
+        dev_only.push_back(dev.lastTimings().total_ms);
+      }
     }
     gf::KdTreeNeighborSearch cpu(0);
     gf::NeighborLists cl;
@@ -197,43 +206,85 @@ int main(int argc, char** argv) {
         }
       }
     }
-    knn_rows.push_back({sizeLabel(n), median(up), median(grid), median(query), median(down),
-                        median(total), cpu_ms, median(build), differ});
+    knn_rows.push_back({sizeLabel(n), median(up), median(grid), median(query), median(total),
+                        median(dev_only), cpu_ms, median(build), differ});
 
     if (variants) {
-      for (bool pinned : {true, false}) {
-        for (int mp : {0, 6, 25, 50}) {
+      for (bool sorted : {true, false}) {
+        for (int mp : {0, 6, 25}) {
           gf::CudaKnnOptions o;
-          o.pinned_staging = pinned;
+          o.sort_cells = sorted;
           o.level_min_points = mp;
           gf::CudaKnn v(o);
-          std::vector<double> tq, tt, td;
+          std::vector<double> tq, tt;
           v.search(xyz.data(), n, k, gidx.data(), gd2.data());
           for (int i = 0; i < std::max(r, 3); ++i) {
             v.search(xyz.data(), n, k, gidx.data(), gd2.data());
             tq.push_back(v.lastTimings().query_ms);
-            td.push_back(v.lastTimings().download_ms);
             tt.push_back(v.lastTimings().total_ms);
           }
-          char line[256];
-          std::snprintf(line, sizeof line, "| %s | %s | %s | %.2f | %.2f | %.2f |",
-                        sizeLabel(n).c_str(), pinned ? "pinned" : "pageable",
-                        mp == 0 ? "auto (K/4)" : std::to_string(mp).c_str(), median(tq), median(td),
-                        median(tt));
+          o.collect_stats = true;
+          gf::CudaKnn cs(o);
+          cs.search(xyz.data(), n, k, nullptr, nullptr);
+          const auto& t = cs.lastTimings();
+          char line[400];
+          std::snprintf(line, sizeof line,
+                        "| %s | %s | %s | %.2f | %.2f | %.0f | %.0f | %.2f | %.2f | %.0f | %.0f |",
+                        sizeLabel(n).c_str(), sorted ? "nearest first" : "raster",
+                        mp == 0 ? "auto (K/4)" : std::to_string(mp).c_str(), median(tq), median(tt),
+                        t.candidates_per_query, t.insertions_per_query, t.shells_per_query,
+                        t.levels_per_query, t.mean_query_cycles, t.max_query_cycles);
           variant_lines.push_back(line);
         }
       }
-      // Without distances (indices only).
-      std::vector<double> tt;
-      gpu.search(xyz.data(), n, k, gidx.data(), nullptr);
-      for (int i = 0; i < std::max(r, 3); ++i) {
-        gpu.search(xyz.data(), n, k, gidx.data(), nullptr);
-        tt.push_back(gpu.lastTimings().total_ms);
+      for (int chunks : {1, 4, 16}) {
+        gf::CudaKnnOptions o;
+        o.download_chunks = chunks;
+        gf::CudaKnn v(o);
+        std::vector<double> tq, tt;
+        v.search(xyz.data(), n, k, gidx.data(), gd2.data());
+        for (int i = 0; i < std::max(r, 3); ++i) {
+          v.search(xyz.data(), n, k, gidx.data(), gd2.data());
+          tq.push_back(v.lastTimings().query_ms);
+          tt.push_back(v.lastTimings().total_ms);
+        }
+        char line[200];
+        std::snprintf(line, sizeof line, "| %s | %d download chunks | auto | %.2f | %.2f | | | | | | |",
+                      sizeLabel(n).c_str(), chunks, median(tq), median(tt));
+        variant_lines.push_back(line);
       }
-      char line[256];
-      std::snprintf(line, sizeof line, "| %s | pinned, indices only | auto (K/4) | - | - | %.2f |",
-                    sizeLabel(n).c_str(), median(tt));
-      variant_lines.push_back(line);
+    }
+    {  // the filter's GPU calls: search with lists kept on the device, PCA, vote counts
+      gf::GpuNeighborSearch gs;
+      gs.keepListsOnDevice(true);
+      gf::NeighborLists lists;
+      std::vector<gf::PointPca> pca;
+      std::vector<std::uint8_t> flags(n);
+      for (std::size_t i = 0; i < n; ++i) flags[i] = (i * 2654435761u) % 3 == 0;
+      std::vector<std::uint16_t> fl(n), sz(n);
+      std::vector<double> ts, tp, tpk, tc;
+      for (int i = 0; i <= std::max(r, 3); ++i) {
+        auto t0 = Clock::now();
+        gs.search(xyz.data(), n, k, &lists);
+        const double a = msSince(t0);
+        t0 = Clock::now();
+        gs.neighborhoodPca(&pca);
+        const double b = msSince(t0);
+        const double bk = gs.cudaKnn().lastTimings().pca_ms;
+        t0 = Clock::now();
+        gs.countFlaggedNeighbors(flags.data(), fl.data(), sz.data());
+        const double c = msSince(t0);
+        if (i == 0) continue;  // warm-up
+        ts.push_back(a);
+        tp.push_back(b);
+        tpk.push_back(bk);
+        tc.push_back(c);
+      }
+      char line[300];
+      std::snprintf(line, sizeof line, "| %s | %.2f | %.2f | %.2f | %.2f | %.2f |",
+                    sizeLabel(n).c_str(), median(ts), median(tpk), median(tp), median(tc),
+                    median(ts) + median(tp) + median(tc));
+      stage_lines.push_back(line);
     }
     gidx.clear();
     gidx.shrink_to_fit();
@@ -273,13 +324,14 @@ int main(int argc, char** argv) {
   }
 
   std::printf("K-nearest neighbours, K = %d (ms)\n\n", k);
-  std::printf("| points | GPU upload | GPU grid | GPU query | GPU download | GPU total | kd-tree "
-              "(%d threads) | of which build | speed-up | rows differing (K-th ties) |\n",
+  std::printf("| points | GPU upload | GPU grid | GPU query + download | GPU total | GPU, lists "
+              "kept on device | kd-tree (%d threads) | of which build | speed-up | rows differing "
+              "|\n",
               cores);
   std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
   for (const auto& r : knn_rows) {
-    std::printf("| %s | %.2f | %.2f | %.2f | %.2f | **%.2f** | %.1f | %.1f | **%.0fx** | %zu |\n",
-                r.size.c_str(), r.gpu_up, r.gpu_grid, r.gpu_query, r.gpu_down, r.gpu_total,
+    std::printf("| %s | %.2f | %.2f | %.2f | **%.2f** | %.2f | %.1f | %.1f | **%.0fx** | %zu |\n",
+                r.size.c_str(), r.gpu_up, r.gpu_grid, r.gpu_query, r.gpu_total, r.gpu_device_only,
                 r.cpu_total, r.cpu_build, r.cpu_total / r.gpu_total, r.rows_differ);
   }
   std::printf("\nWhole normal-vector filter (ms)\n\n");
@@ -292,9 +344,16 @@ int main(int argc, char** argv) {
                 r.cpu_knn, r.cpu_pca, r.cpu_rest, r.cpu_total / r.gpu_total, r.labels_differ,
                 r.note.c_str());
   }
+  std::printf("\nGPU calls of the filter (ms): search with lists kept on the device, PCA (kernel + "
+              "download; and with conversion to PointPca), vote counts (flags up, counts down)\n\n"
+              "| points | search | PCA kernel + download | PCA call | vote counts | sum |\n"
+              "|---|---|---|---|---|---|\n");
+  for (const auto& l : stage_lines) std::printf("%s\n", l.c_str());
   if (!variant_lines.empty()) {
-    std::printf("\nGPU KNN variants (ms)\n\n| points | host copies | level_min_points | query | "
-                "download | total |\n|---|---|---|---|---|---|\n");
+    std::printf("\nGPU KNN variants (ms; work per query from a run with counters)\n\n| points | "
+                "cell order | level_min_points | query + download | total | candidates | "
+                "insertions | shells | levels | mean cycles | max cycles |\n"
+                "|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (const auto& l : variant_lines) std::printf("%s\n", l.c_str());
   }
   return 0;

@@ -1,16 +1,19 @@
 // Exact K-nearest-neighbour search on the GPU over a hashed multi-level uniform grid.
 //
-// Pipeline of one search() (one stream, two host synchronisations):
+// One search() (two streams: kernels, and downloads that overlap them):
 //   upload -> bounds -> Morton keys (21 bits per axis over the bounding cube) -> radix sort ->
-//   per-point "first level at which this point starts a new cell" + histogram -> [sync: level
-//   choice on the host] -> one hash table per level (cell key -> first point, count) ->
-//   one warp per query point -> [sync] download.
+//   per-point "coarsest level at which this point starts a new cell" + histogram -> [sync: level
+//   choice on the host] -> one hash table per level (cell key -> first point, count) -> one warp
+//   per query, in chunks of Morton-ordered rows -> each chunk downloads while the next computes,
+//   and the host scatters its rows to their original places.
 // Sorting along the Morton curve makes every cell of every power-of-two level a contiguous range
-// of the sorted points, so a single sort serves all levels.
+// of the sorted points, so a single sort serves all levels. The lists stay on the device for
+// neighborhoodPca() and countFlaggedNeighbors().
 
 #include "ground_filter/cuda_knn.h"
 
 #include <cuda_runtime.h>
+#include <omp.h>
 
 #include <algorithm>
 #include <chrono>
@@ -20,7 +23,6 @@
 #include <limits>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <vector>
 
 namespace ground_filter {
@@ -289,6 +291,10 @@ __global__ void closeCellsKernel(const __grid_constant__ GridDesc g,
 
 // ------------------------------------------------------------------ the query kernel
 
+/// Per-query work counters (CudaKnnOptions::collect_stats).
+enum Stat { kStatCandidates, kStatInsertions, kStatShells, kStatLevels, kStatMaxCycles,
+            kStatCycles, kStatCount };
+
 /// The warp's sorted top-K list: lane l holds slots l and l + 32.
 struct WarpList {
   float dlo, dhi;
@@ -342,33 +348,79 @@ __device__ inline void warpInsert(WarpList& w, float d, int id, int lane, int k)
   }
 }
 
-/// One warp per query (queries in Morton order for locality). kTwoHalves: k > 32.
-template <bool kTwoHalves>
+/// Bitonic sort of one (key, cell) pair per lane by increasing key, across the warp.
+__device__ inline void warpSortCells(float& key, uint2& cell, int lane) {
+  const unsigned full = 0xffffffffu;
+  for (int size = 2; size <= 32; size <<= 1) {
+    for (int stride = size >> 1; stride > 0; stride >>= 1) {
+      const float ok = __shfl_xor_sync(full, key, stride);
+      const unsigned ox = __shfl_xor_sync(full, cell.x, stride);
+      const unsigned oy = __shfl_xor_sync(full, cell.y, stride);
+      const bool ascending = (lane & size) == 0 || size == 32;
+      const bool lower = (lane & stride) == 0;
+      if (lower == ascending ? ok < key : ok > key) {
+        key = ok;
+        cell = make_uint2(ox, oy);
+      }
+    }
+  }
+}
+
+/// One warp per query; queries [base, end) of the Morton-sorted points; row s of the output holds
+/// the list of sorted point s (original indices). kTwoHalves: k > 32. kSortCells: visit the cells
+/// of each batch nearest first (the K-th distance shrinks sooner, fewer insertions).
+template <bool kTwoHalves, bool kSortCells>
 __global__ void __launch_bounds__(kQueryBlock) knnKernel(
     const __grid_constant__ GridDesc g, const float4* __restrict__ pts,
-    const unsigned long long* __restrict__ tkeys, const uint2* __restrict__ tvals, int n, int k,
-    std::int32_t* __restrict__ out_idx, float* __restrict__ out_d2) {
+    const unsigned long long* __restrict__ tkeys, const uint2* __restrict__ tvals, int n,
+    int base, int end, int k, std::int32_t* __restrict__ out_idx, float* __restrict__ out_d2,
+    unsigned long long* __restrict__ stats) {
   const unsigned full = 0xffffffffu;
   const int lane = threadIdx.x & 31;
-  const long long qi = (static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x) >> 5;
-  if (qi >= n) return;  // uniform per warp
+  const long long qi =
+      base + ((static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x) >> 5);
+  if (qi >= end) return;  // uniform per warp
+  const long long t_start = stats ? clock64() : 0;
+  unsigned int n_cand = 0, n_ins = 0, n_shell = 0, n_lev = 0;
   const float4 q = pts[qi];
   const std::uint32_t qx = quantize(q.x, g.ox, g.inv), qy = quantize(q.y, g.oy, g.inv),
                       qz = quantize(q.z, g.oz, g.inv);
 
-  // Level: the finest whose own cell holds >= min_points points (lanes test one level each).
-  bool ok = false;
+  // Upper bound `lim` of the K-th squared distance: the k points around q in Morton order (any k
+  // points bound it). Candidates and cells beyond it are skipped from the start.
+  float lim = INFINITY;
+  if (n >= k) {
+    const long long w0 = min(max(qi - k / 2, 0ll), static_cast<long long>(n - k));
+    float dmax = 0.f;
+    if (lane < k) {
+      const float4 p = pts[w0 + lane];
+      dmax = sqDist(p.x, p.y, p.z, q.x, q.y, q.z);
+    }
+    if (lane + 32 < k) {
+      const float4 p = pts[w0 + lane + 32];
+      dmax = fmaxf(dmax, sqDist(p.x, p.y, p.z, q.x, q.y, q.z));
+    }
+    for (int o = 16; o > 0; o >>= 1) dmax = fmaxf(dmax, __shfl_xor_sync(full, dmax, o));
+    lim = dmax;
+  }
+  // Level: the finest whose own cell holds >= min_points points, or, if finer, the finest whose
+  // cells are at least half the bound's radius (then the k window points lie within 2 shells).
+  // The second rule keeps isolated points from landing on a coarse level whose shells hold a
+  // large part of the cloud. Lanes test one level each.
+  bool ok = false, ok_r = false;
   if (lane < g.nlev) {
     const LevelDesc& lv = g.lv[lane];
     const int s = kCoordBits - lv.bits;
     const uint2 c = lookupCell(tkeys, tvals, lv, morton(qx >> s, qy >> s, qz >> s));
     ok = static_cast<int>(c.y) >= g.min_points;
+    ok_r = 2.f * lv.cell >= sqrtf(lim);
   }
-  const unsigned okm = __ballot_sync(full, ok);
-  int li = okm ? __ffs(okm) - 1 : g.nlev - 1;
+  const unsigned okm = __ballot_sync(full, ok), okr = __ballot_sync(full, ok_r);
+  int li = min(okm ? __ffs(okm) - 1 : g.nlev - 1, okr ? __ffs(okr) - 1 : g.nlev - 1);
 
   WarpList w;
   for (;;) {  // one pass per level tried; a pass that starves moves to the next coarser level
+    ++n_lev;
     const LevelDesc& lv = g.lv[li];
     const int shift = kCoordBits - lv.bits;
     const int cx = static_cast<int>(qx >> shift), cy = static_cast<int>(qy >> shift),
@@ -377,18 +429,21 @@ __global__ void __launch_bounds__(kQueryBlock) knnKernel(
     const float cs = lv.cell, eps = g.eps;
     // Cell index of coordinate v clamped to [-2, last + 2] (no int overflow for huge radii).
     auto cellOf = [&](float v, float o) {
-      return static_cast<int>(fminf(fmaxf(floorf((v - o) / cs), -2.f), static_cast<float>(last + 2)));
+      return static_cast<int>(
+          fminf(fmaxf(floorf((v - o) / cs), -2.f), static_cast<float>(last + 2)));
     };
     w.dlo = w.dhi = w.kd = INFINITY;
     w.ilo = w.ihi = w.ki = kEmptyIndex;
     bool restart = false;
 
     for (int r = 0;; ++r) {
+      ++n_shell;
       int x0 = max(cx - r, 0), x1 = min(cx + r, last);
       int y0 = max(cy - r, 0), y1 = min(cy + r, last);
       int z0 = max(cz - r, 0), z1 = min(cz + r, last);
-      if (w.ki != kEmptyIndex) {  // only cells that can hold a point within the K-th distance
-        const float rad = sqrtf(w.kd) + eps;
+      const float reach = fminf(w.kd, lim);  // squared distance a useful point can have
+      if (reach < INFINITY) {  // only cells that can hold a point within it
+        const float rad = sqrtf(reach) + eps;
         x0 = max(x0, cellOf(q.x - rad, g.ox) - 1);
         x1 = min(x1, cellOf(q.x + rad, g.ox) + 1);
         y0 = max(y0, cellOf(q.y - rad, g.oy) - 1);
@@ -398,27 +453,30 @@ __global__ void __launch_bounds__(kQueryBlock) knnKernel(
       }
       const int nx = x1 - x0 + 1, ny = y1 - y0 + 1, nz = z1 - z0 + 1;
       const int total = (nx > 0 && ny > 0 && nz > 0) ? nx * ny * nz : 0;
-      for (int base = 0; base < total; base += kWarp) {
+      for (int cbase = 0; cbase < total; cbase += kWarp) {
         // Each lane looks up one cell of the shell.
         uint2 cell = make_uint2(0u, 0u);
-        const int t = base + lane;
+        float key = INFINITY;
+        const int t = cbase + lane;
         if (t < total) {
           const int ix = x0 + t % nx, iy = y0 + (t / nx) % ny, iz = z0 + t / (nx * ny);
           const int cheb = max(max(abs(ix - cx), abs(iy - cy)), abs(iz - cz));
-          bool visit = cheb == r;
-          if (visit && w.ki != kEmptyIndex) {
+          if (cheb == r) {
             const float lx = g.ox + ix * cs, ly = g.oy + iy * cs, lz = g.oz + iz * cs;
             const float ex = fmaxf(fmaxf(lx - q.x, q.x - (lx + cs)) - eps, 0.f);
             const float ey = fmaxf(fmaxf(ly - q.y, q.y - (ly + cs)) - eps, 0.f);
             const float ez = fmaxf(fmaxf(lz - q.z, q.z - (lz + cs)) - eps, 0.f);
-            visit = ex * ex + ey * ey + ez * ez <= w.kd;
-          }
-          if (visit) {
-            cell = lookupCell(tkeys, tvals, lv,
-                              morton(static_cast<std::uint32_t>(ix), static_cast<std::uint32_t>(iy),
-                                     static_cast<std::uint32_t>(iz)));
+            const float box = ex * ex + ey * ey + ez * ez;
+            if (box <= fminf(w.kd, lim)) {
+              cell = lookupCell(
+                  tkeys, tvals, lv,
+                  morton(static_cast<std::uint32_t>(ix), static_cast<std::uint32_t>(iy),
+                         static_cast<std::uint32_t>(iz)));
+              if (cell.y) key = box;
+            }
           }
         }
+        if (kSortCells) warpSortCells(key, cell, lane);
         // Concatenate the cells' point ranges across the warp.
         unsigned int incl = cell.y;
         for (int o = 1; o < kWarp; o <<= 1) {
@@ -427,6 +485,7 @@ __global__ void __launch_bounds__(kQueryBlock) knnKernel(
         }
         const unsigned int excl = incl - cell.y;
         const unsigned int count = __shfl_sync(full, incl, 31);
+        n_cand += count;
         for (unsigned int cb = 0; cb < count; cb += kWarp) {
           const unsigned int gpos = cb + lane;
           int owner = 0;  // first lane whose inclusive sum exceeds gpos
@@ -444,14 +503,16 @@ __global__ void __launch_bounds__(kQueryBlock) knnKernel(
             d = sqDist(p.x, p.y, p.z, q.x, q.y, q.z);
             id = __float_as_int(p.w);
           }
-          unsigned m = __ballot_sync(full, valid && pairLess(d, id, w.kd, w.ki));
+          const bool useful = valid && d <= lim;
+          unsigned m = __ballot_sync(full, useful && pairLess(d, id, w.kd, w.ki));
           while (m) {
             const int src = __ffs(m) - 1;
             const float dd = __shfl_sync(full, d, src);
             const int ii = __shfl_sync(full, id, src);
             warpInsert<kTwoHalves>(w, dd, ii, lane, k);
+            ++n_ins;
             m &= ~(1u << src);
-            m &= __ballot_sync(full, valid && pairLess(d, id, w.kd, w.ki));
+            m &= __ballot_sync(full, useful && pairLess(d, id, w.kd, w.ki));
           }
         }
       }
@@ -477,7 +538,7 @@ __global__ void __launch_bounds__(kQueryBlock) knnKernel(
     ++li;
   }
 
-  const std::size_t row = static_cast<std::size_t>(__float_as_int(q.w)) * k;
+  const std::size_t row = static_cast<std::size_t>(qi) * k;
   if (lane < k) {
     out_idx[row + lane] = w.ilo == kEmptyIndex ? -1 : w.ilo;
     if (out_d2) out_d2[row + lane] = w.ilo == kEmptyIndex ? INFINITY : w.dlo;
@@ -486,6 +547,221 @@ __global__ void __launch_bounds__(kQueryBlock) knnKernel(
     out_idx[row + lane + 32] = w.ihi == kEmptyIndex ? -1 : w.ihi;
     if (out_d2) out_d2[row + lane + 32] = w.ihi == kEmptyIndex ? INFINITY : w.dhi;
   }
+  if (stats && lane == 0) {
+    const unsigned long long cyc = static_cast<unsigned long long>(clock64() - t_start);
+    atomicAdd(&stats[kStatCandidates], n_cand);
+    atomicAdd(&stats[kStatInsertions], n_ins);
+    atomicAdd(&stats[kStatShells], n_shell);
+    atomicAdd(&stats[kStatLevels], n_lev);
+    atomicMax(&stats[kStatMaxCycles], cyc);
+    atomicAdd(&stats[kStatCycles], cyc);
+  }
+}
+
+// ------------------------------------------------------------------ neighbourhood PCA
+// Mirrors the core's computeNeighborhoodPca(): mean relative to the query point and centred
+// covariance in double, then Eigen's closed-form 3x3 solver (SelfAdjointEigenSolver::computeDirect,
+// Eigen 3.4) step by step, so both give the same normal and eigenvalues up to rounding (the
+// library is built without FMA contraction; sqrt/atan2/cos/sin differ in the last bits at most).
+
+constexpr double kDblEps = 2.220446049250313e-16;  // NumTraits<double>::epsilon()
+
+__device__ inline void cross3(const double a[3], const double b[3], double c[3]) {
+  c[0] = a[1] * b[2] - a[2] * b[1];
+  c[1] = a[2] * b[0] - a[0] * b[2];
+  c[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+__device__ inline double sqNorm3(const double a[3]) { return a[0] * a[0] + a[1] * a[1] + a[2] * a[2]; }
+
+/// Eigen's extract_kernel: unit vector spanning the kernel of the rank-2 matrix `m`.
+__device__ inline void extractKernel(const double m[3][3], double res[3], double rep[3]) {
+  int i0 = 0;
+  double best = fabs(m[0][0]);
+  if (fabs(m[1][1]) > best) {
+    i0 = 1;
+    best = fabs(m[1][1]);
+  }
+  if (fabs(m[2][2]) > best) i0 = 2;
+  const int i1 = (i0 + 1) % 3, i2 = (i0 + 2) % 3;
+  for (int r = 0; r < 3; ++r) rep[r] = m[r][i0];
+  const double a[3] = {m[0][i1], m[1][i1], m[2][i1]}, b[3] = {m[0][i2], m[1][i2], m[2][i2]};
+  double c0[3], c1[3];
+  cross3(rep, a, c0);
+  cross3(rep, b, c1);
+  const double n0 = sqNorm3(c0), n1 = sqNorm3(c1);
+  if (n0 > n1) {
+    const double s = sqrt(n0);
+    for (int r = 0; r < 3; ++r) res[r] = c0[r] / s;
+  } else {
+    const double s = sqrt(n1);
+    for (int r = 0; r < 3; ++r) res[r] = c1[r] / s;
+  }
+}
+
+/// Eigen's computeDirect for a symmetric 3x3 matrix: ascending eigenvalues and the eigenvector of
+/// the smallest one (column 0).
+__device__ void eigenDirect3(const double a[3][3], double ev[3], double v0[3]) {
+  const double shift = (a[0][0] + a[1][1] + a[2][2]) / 3.0;
+  double s[3][3];
+  double scale = 0.0;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) {
+      s[r][c] = a[r][c] - (r == c ? shift : 0.0);
+      scale = fmax(scale, fabs(s[r][c]));
+    }
+  }
+  if (scale > 0.0) {
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) s[r][c] /= scale;
+    }
+  }
+  // computeRoots
+  {
+    const double inv3 = 1.0 / 3.0, sqrt3 = sqrt(3.0);
+    const double c0 = s[0][0] * s[1][1] * s[2][2] + 2.0 * s[1][0] * s[2][0] * s[2][1] -
+                      s[0][0] * s[2][1] * s[2][1] - s[1][1] * s[2][0] * s[2][0] -
+                      s[2][2] * s[1][0] * s[1][0];
+    const double c1 = s[0][0] * s[1][1] - s[1][0] * s[1][0] + s[0][0] * s[2][2] -
+                      s[2][0] * s[2][0] + s[1][1] * s[2][2] - s[2][1] * s[2][1];
+    const double c2 = s[0][0] + s[1][1] + s[2][2];
+    const double c2_over_3 = c2 * inv3;
+    double a_over_3 = (c2 * c2_over_3 - c1) * inv3;
+    a_over_3 = a_over_3 > 0.0 ? a_over_3 : 0.0;
+    const double half_b = 0.5 * (c0 + c2_over_3 * (2.0 * c2_over_3 * c2_over_3 - c1));
+    double qq = a_over_3 * a_over_3 * a_over_3 - half_b * half_b;
+    qq = qq > 0.0 ? qq : 0.0;
+    const double rho = sqrt(a_over_3);
+    const double theta = atan2(sqrt(qq), half_b) * inv3;
+    const double cos_t = cos(theta), sin_t = sin(theta);
+    ev[0] = c2_over_3 - rho * (cos_t + sqrt3 * sin_t);
+    ev[1] = c2_over_3 - rho * (cos_t - sqrt3 * sin_t);
+    ev[2] = c2_over_3 + 2.0 * rho * cos_t;
+  }
+  if (ev[2] - ev[0] <= kDblEps) {
+    v0[0] = 1.0;
+    v0[1] = v0[2] = 0.0;
+  } else {
+    double d0 = ev[2] - ev[1];
+    const double d1 = ev[1] - ev[0];
+    int k = 0, l = 2;
+    if (d0 > d1) {
+      k = 2;
+      l = 0;
+      d0 = d1;
+    }
+    double tmp[3][3];
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) tmp[r][c] = s[r][c] - (r == c ? ev[k] : 0.0);
+    }
+    double vk[3], vl[3];
+    extractKernel(tmp, vk, vl);
+    if (k == 0) {
+      for (int r = 0; r < 3; ++r) v0[r] = vk[r];
+    } else {
+      if (d0 <= 2.0 * kDblEps * d1) {
+        const double dot = vk[0] * vl[0] + vk[1] * vl[1] + vk[2] * vl[2];
+        for (int r = 0; r < 3; ++r) vl[r] -= dot * vl[r];  // sic (Eigen 3.4)
+        const double z = sqNorm3(vl);
+        if (z > 0.0) {
+          const double sz = sqrt(z);
+          for (int r = 0; r < 3; ++r) vl[r] /= sz;
+        }
+      } else {
+        for (int r = 0; r < 3; ++r) {
+          for (int c = 0; c < 3; ++c) tmp[r][c] = s[r][c] - (r == c ? ev[l] : 0.0);
+        }
+        double dummy[3];
+        extractKernel(tmp, vl, dummy);
+      }
+      for (int r = 0; r < 3; ++r) v0[r] = vl[r];
+    }
+  }
+  for (int r = 0; r < 3; ++r) {
+    ev[r] *= scale;
+    ev[r] += shift;
+  }
+}
+
+/// PCA of sorted row s, written at the point's original index: normal (3), eigenvalues ascending
+/// divided by their sum (3), valid.
+__global__ void pcaKernel(const float* __restrict__ xyz, const float4* __restrict__ pts,
+                          const std::int32_t* __restrict__ rows, int n, int k,
+                          float* __restrict__ normals, float* __restrict__ eigen,
+                          std::uint8_t* __restrict__ valid) {
+  const int s = blockIdx.x * blockDim.x + threadIdx.x;
+  if (s >= n) return;
+  const float4 qp = pts[s];
+  const int orig = __float_as_int(qp.w);
+  const std::int32_t* row = rows + static_cast<std::size_t>(s) * k;
+  const double ox = qp.x, oy = qp.y, oz = qp.z;
+  double mx = 0.0, my = 0.0, mz = 0.0;
+  int m = 0;
+  for (; m < k; ++m) {
+    const int j = row[m];
+    if (j < 0) break;
+    mx += static_cast<double>(xyz[3 * j]) - ox;
+    my += static_cast<double>(xyz[3 * j + 1]) - oy;
+    mz += static_cast<double>(xyz[3 * j + 2]) - oz;
+  }
+  bool ok = false;
+  double nv[3] = {0.0, 0.0, 0.0}, ev[3] = {0.0, 0.0, 0.0};
+  if (m >= 3) {
+    mx /= m;
+    my /= m;
+    mz /= m;
+    double cxx = 0, cxy = 0, cxz = 0, cyy = 0, cyz = 0, czz = 0;
+    for (int j = 0; j < m; ++j) {
+      const int p = row[j];
+      const double dx = static_cast<double>(xyz[3 * p]) - ox - mx;
+      const double dy = static_cast<double>(xyz[3 * p + 1]) - oy - my;
+      const double dz = static_cast<double>(xyz[3 * p + 2]) - oz - mz;
+      cxx += dx * dx;
+      cxy += dx * dy;
+      cxz += dx * dz;
+      cyy += dy * dy;
+      cyz += dy * dz;
+      czz += dz * dz;
+    }
+    const double trace = cxx + cyy + czz;
+    if (trace > 1e-12 * m) {
+      const double dm = m;
+      const double cov[3][3] = {{cxx / dm, cxy / dm, cxz / dm},
+                                {cxy / dm, cyy / dm, cyz / dm},
+                                {cxz / dm, cyz / dm, czz / dm}};
+      eigenDirect3(cov, ev, nv);
+      for (int r = 0; r < 3; ++r) ev[r] = ev[r] < 0.0 ? 0.0 : ev[r];  // cwiseMax(0)
+      const double sum = ev[0] + ev[1] + ev[2];
+      if (sum > 0.0) {
+        for (int r = 0; r < 3; ++r) ev[r] /= sum;
+        ok = isfinite(nv[0]) && isfinite(nv[1]) && isfinite(nv[2]);
+      }
+    }
+  }
+  for (int r = 0; r < 3; ++r) {
+    normals[3 * static_cast<std::size_t>(orig) + r] = ok ? static_cast<float>(nv[r]) : 0.f;
+    eigen[3 * static_cast<std::size_t>(orig) + r] = ok ? static_cast<float>(ev[r]) : 0.f;
+  }
+  valid[orig] = ok;
+}
+
+/// For sorted row s: neighbours whose flag is set, and valid neighbours; at the original index.
+__global__ void countKernel(const float4* __restrict__ pts, const std::int32_t* __restrict__ rows,
+                            int n, int k, const std::uint8_t* __restrict__ flags,
+                            std::uint16_t* __restrict__ flagged,
+                            std::uint16_t* __restrict__ neighbors) {
+  const int s = blockIdx.x * blockDim.x + threadIdx.x;
+  if (s >= n) return;
+  const std::int32_t* row = rows + static_cast<std::size_t>(s) * k;
+  int m = 0, u = 0;
+  for (; m < k; ++m) {
+    const int j = row[m];
+    if (j < 0) break;
+    u += flags[j] != 0;
+  }
+  const int orig = __float_as_int(pts[s].w);
+  flagged[orig] = static_cast<std::uint16_t>(u);
+  neighbors[orig] = static_cast<std::uint16_t>(m);
 }
 
 /// Start-up probe: proves that this build's device code runs on the device.
@@ -545,29 +821,26 @@ struct PinnedBuffer {
     GF_CUDA_CHECK(cudaMallocHost(&ptr, want));
     bytes = want;
   }
+  template <class T>
+  T* as() const {
+    return static_cast<T*>(ptr);
+  }
 };
 
-/// memcpy split over a few threads (a single core copies far slower than PCIe delivers).
+/// memcpy over all cores for large blocks (one core copies far slower than PCIe delivers).
 void parallelCopy(void* dst, const void* src, std::size_t bytes) {
-  const std::size_t kMinPerThread = 4u << 20;
-  const unsigned hw = std::max(1u, std::thread::hardware_concurrency());
-  const unsigned threads =
-      static_cast<unsigned>(std::min<std::size_t>(std::min(hw, 16u), bytes / kMinPerThread + 1));
-  if (threads <= 1) {
+  constexpr std::size_t kSlice = 1u << 20;
+  if (bytes < 2 * kSlice) {
     std::memcpy(dst, src, bytes);
     return;
   }
-  std::vector<std::thread> pool;
-  const std::size_t chunk = (bytes + threads - 1) / threads;
-  for (unsigned t = 0; t < threads; ++t) {
-    const std::size_t b = t * chunk;
-    if (b >= bytes) break;
-    const std::size_t len = std::min(chunk, bytes - b);
-    pool.emplace_back([=] {
-      std::memcpy(static_cast<char*>(dst) + b, static_cast<const char*>(src) + b, len);
-    });
+  const std::int64_t slices = static_cast<std::int64_t>((bytes + kSlice - 1) / kSlice);
+#pragma omp parallel for schedule(static)
+  for (std::int64_t s = 0; s < slices; ++s) {
+    const std::size_t b = static_cast<std::size_t>(s) * kSlice;
+    std::memcpy(static_cast<char*>(dst) + b, static_cast<const char*>(src) + b,
+                std::min(kSlice, bytes - b));
   }
-  for (auto& th : pool) th.join();
 }
 
 }  // namespace
@@ -575,15 +848,23 @@ void parallelCopy(void* dst, const void* src, std::size_t bytes) {
 // ------------------------------------------------------------------ CudaKnn
 
 struct CudaKnn::Impl {
+  static constexpr int kMaxChunks = 16;
   CudaKnnOptions opt;
-  cudaStream_t stream = nullptr;
+  cudaStream_t stream = nullptr;  // all kernels
+  cudaStream_t copy = nullptr;    // result downloads, overlapping the next query chunk
+  cudaEvent_t kernel_done[kMaxChunks] = {};
+  cudaEvent_t copy_done[kMaxChunks] = {};
+  cudaEvent_t order_done = nullptr;
   std::string device_name;
   std::size_t device_bytes = 0;
   CudaKnnTimings timings;
+  // The lists of the last search, kept on the device (rows in Morton order).
+  std::size_t list_n = 0;
+  int list_k = 0;
 
   DeviceBuffer xyz, keys_a, keys_b, vals_a, vals_b, start_level, sorted, sort_temp, small,
-      table_keys, table_vals, out_idx, out_d2;
-  PinnedBuffer h_small, h_xyz, h_idx, h_d2;
+      table_keys, table_vals, out_idx, out_d2, pca, flags, counts;
+  PinnedBuffer h_small, h_xyz, h_idx, h_d2, h_order, h_pca, h_flags, h_counts;
 
   /// Device bytes still allowed: the explicit limit, or 90 % of what is free now.
   std::size_t allowance() const {
@@ -607,6 +888,13 @@ struct CudaKnn::Impl {
       throw CudaError("cudaErrorMemoryAllocation", os.str());
     }
     buf.ensure(need, &device_bytes);
+  }
+
+  void requireLists(const char* what) const {
+    if (list_n == 0) {
+      throw std::logic_error(std::string("CudaKnn::") + what +
+                             ": no neighbour lists on the device (no successful search yet)");
+    }
   }
 };
 
@@ -647,7 +935,9 @@ bool CudaKnn::deviceAvailable(std::string* why, int device) {
   if (err == cudaSuccess) {
     probeKernel<<<1, 1>>>(d_probe);
     err = cudaGetLastError();
-    if (err == cudaSuccess) err = cudaMemcpy(&h_probe, d_probe, sizeof(int), cudaMemcpyDeviceToHost);
+    if (err == cudaSuccess) {
+      err = cudaMemcpy(&h_probe, d_probe, sizeof(int), cudaMemcpyDeviceToHost);
+    }
     cudaFree(d_probe);
   }
   if (err == cudaSuccess && h_probe != 42) err = cudaErrorUnknown;
@@ -673,13 +963,26 @@ CudaKnn::CudaKnn(const CudaKnnOptions& options) : impl_(std::make_unique<Impl>()
   GF_CUDA_CHECK(cudaGetDeviceProperties(&prop, options.device));
   im.device_name = prop.name;
   GF_CUDA_CHECK(cudaStreamCreateWithFlags(&im.stream, cudaStreamNonBlocking));
+  GF_CUDA_CHECK(cudaStreamCreateWithFlags(&im.copy, cudaStreamNonBlocking));
+  for (int c = 0; c < Impl::kMaxChunks; ++c) {
+    GF_CUDA_CHECK(cudaEventCreateWithFlags(&im.kernel_done[c], cudaEventDisableTiming));
+    GF_CUDA_CHECK(cudaEventCreateWithFlags(&im.copy_done[c], cudaEventDisableTiming));
+  }
+  GF_CUDA_CHECK(cudaEventCreateWithFlags(&im.order_done, cudaEventDisableTiming));
 }
 
 CudaKnn::~CudaKnn() {
-  if (impl_ && impl_->stream) {
-    cudaStreamSynchronize(impl_->stream);
-    cudaStreamDestroy(impl_->stream);
+  if (!impl_) return;
+  Impl& im = *impl_;
+  if (im.stream) cudaStreamSynchronize(im.stream);
+  if (im.copy) cudaStreamSynchronize(im.copy);
+  for (int c = 0; c < Impl::kMaxChunks; ++c) {
+    if (im.kernel_done[c]) cudaEventDestroy(im.kernel_done[c]);
+    if (im.copy_done[c]) cudaEventDestroy(im.copy_done[c]);
   }
+  if (im.order_done) cudaEventDestroy(im.order_done);
+  if (im.stream) cudaStreamDestroy(im.stream);
+  if (im.copy) cudaStreamDestroy(im.copy);
 }
 
 const CudaKnnTimings& CudaKnn::lastTimings() const { return impl_->timings; }
@@ -691,6 +994,7 @@ void CudaKnn::search(const float* xyz, std::size_t n_in, int k, std::int32_t* in
                      float* sq_dists) {
   Impl& im = *impl_;
   im.timings = CudaKnnTimings();
+  im.list_n = 0;
   const auto t_start = std::chrono::steady_clock::now();
   if (k < 1 || k > kMaxK) {
     throw std::invalid_argument("CudaKnn::search: k = " + std::to_string(k) +
@@ -701,8 +1005,9 @@ void CudaKnn::search(const float* xyz, std::size_t n_in, int k, std::int32_t* in
                                 " points exceed the 2^31 - 1 that int32 indices address");
   }
   if (n_in == 0) return;
-  if (!xyz || !indices) throw std::invalid_argument("CudaKnn::search: null xyz or indices");
+  if (!xyz) throw std::invalid_argument("CudaKnn::search: null xyz");
   const int n = static_cast<int>(n_in);
+  const bool download = indices != nullptr;
   GF_CUDA_CHECK(cudaSetDevice(im.opt.device));
   cudaStream_t st = im.stream;
 
@@ -723,26 +1028,26 @@ void CudaKnn::search(const float* xyz, std::size_t n_in, int k, std::int32_t* in
   im.grow(im.start_level, n_in, "the cell starts");
   im.grow(im.sorted, n_in * sizeof(float4), "the sorted points");
   im.grow(im.sort_temp, sort_temp_bytes, "the sort scratch");
-  const std::size_t small_bytes = 64 + 32 * sizeof(unsigned int);  // bounds, frame, histogram
+  const std::size_t small_bytes = 64 + 32 * sizeof(unsigned int) +
+                                  kStatCount * sizeof(unsigned long long);
   im.grow(im.small, small_bytes, "the bounds");
   im.grow(im.out_idx, rows * sizeof(std::int32_t), "the neighbour indices");
   if (sq_dists) im.grow(im.out_d2, rows * sizeof(float), "the neighbour distances");
   im.h_small.ensure(small_bytes);
 
-  int* d_bounds = im.small.as<int>();                               // 7 ints
-  float* d_frame = reinterpret_cast<float*>(im.small.as<char>() + 32);  // 5 floats
-  unsigned int* d_hist = reinterpret_cast<unsigned int*>(im.small.as<char>() + 64);
+  char* d_small = im.small.as<char>();
+  int* d_bounds = reinterpret_cast<int*>(d_small);                  // 7 ints
+  float* d_frame = reinterpret_cast<float*>(d_small + 32);          // 5 floats
+  unsigned int* d_hist = reinterpret_cast<unsigned int*>(d_small + 64);
+  unsigned long long* d_stats =
+      reinterpret_cast<unsigned long long*>(d_small + 64 + 32 * sizeof(unsigned int));
 
   // ---- upload
   auto t0 = std::chrono::steady_clock::now();
   const std::size_t in_bytes = n_in * 3 * sizeof(float);
-  if (im.opt.pinned_staging) {
-    im.h_xyz.ensure(in_bytes);
-    parallelCopy(im.h_xyz.ptr, xyz, in_bytes);
-    GF_CUDA_CHECK(cudaMemcpyAsync(im.xyz.ptr, im.h_xyz.ptr, in_bytes, cudaMemcpyHostToDevice, st));
-  } else {
-    GF_CUDA_CHECK(cudaMemcpyAsync(im.xyz.ptr, xyz, in_bytes, cudaMemcpyHostToDevice, st));
-  }
+  im.h_xyz.ensure(in_bytes);
+  parallelCopy(im.h_xyz.ptr, xyz, in_bytes);
+  GF_CUDA_CHECK(cudaMemcpyAsync(im.xyz.ptr, im.h_xyz.ptr, in_bytes, cudaMemcpyHostToDevice, st));
   GF_CUDA_CHECK(cudaStreamSynchronize(st));
   im.timings.upload_ms = msSince(t0);
 
@@ -766,21 +1071,29 @@ void CudaKnn::search(const float* xyz, std::size_t n_in, int k, std::int32_t* in
                                                 3 * kCoordBits, st));
   const unsigned long long* d_keys = kb.Current();
   const unsigned int* d_order = vb.Current();
-  GF_CUDA_CHECK(cudaMemsetAsync(d_hist, 0, 32 * sizeof(unsigned int), st));
+  GF_CUDA_CHECK(cudaMemsetAsync(d_hist, 0, 32 * sizeof(unsigned int) +
+                                               kStatCount * sizeof(unsigned long long), st));
   cellStartLevelKernel<<<blocksFor(n_in, 256), 256, 0, st>>>(
       d_keys, n, im.start_level.as<unsigned char>(), d_hist);
   GF_CUDA_CHECK_LAUNCH();
   gatherKernel<<<blocksFor(n_in, 256), 256, 0, st>>>(d_xyz, d_order, n, im.sorted.as<float4>());
   GF_CUDA_CHECK_LAUNCH();
+  if (download) {  // the row order (sorted -> original) for the host-side scatter
+    im.h_order.ensure(n_in * sizeof(unsigned int));
+    GF_CUDA_CHECK(cudaEventRecord(im.order_done, st));
+    GF_CUDA_CHECK(cudaStreamWaitEvent(im.copy, im.order_done, 0));
+    GF_CUDA_CHECK(cudaMemcpyAsync(im.h_order.ptr, d_order, n_in * sizeof(unsigned int),
+                                  cudaMemcpyDeviceToHost, im.copy));
+  }
   GF_CUDA_CHECK(cudaMemcpyAsync(im.h_small.ptr, im.small.ptr, small_bytes, cudaMemcpyDeviceToHost,
                                 st));
   GF_CUDA_CHECK(cudaStreamSynchronize(st));
 
-  const int* h_bounds = static_cast<const int*>(im.h_small.ptr);
-  const float* h_frame = reinterpret_cast<const float*>(static_cast<char*>(im.h_small.ptr) + 32);
-  const unsigned int* h_hist =
-      reinterpret_cast<const unsigned int*>(static_cast<char*>(im.h_small.ptr) + 64);
+  const int* h_bounds = im.h_small.as<int>();
+  const float* h_frame = reinterpret_cast<const float*>(im.h_small.as<char>() + 32);
+  const unsigned int* h_hist = reinterpret_cast<const unsigned int*>(im.h_small.as<char>() + 64);
   if (h_bounds[6] > 0) {
+    GF_CUDA_CHECK(cudaStreamSynchronize(im.copy));
     throw std::invalid_argument("CudaKnn::search: " + std::to_string(h_bounds[6]) + " of " +
                                 std::to_string(n) +
                                 " points have NaN/Inf coordinates; remove them first");
@@ -815,17 +1128,18 @@ void CudaKnn::search(const float* xyz, std::size_t n_in, int k, std::int32_t* in
   g.min_points = im.opt.level_min_points > 0 ? im.opt.level_min_points : min_pts_auto;
 
   // Tables for levels finest..0; under a memory limit, drop the finest levels first.
+  auto log2Cap = [&](int b) {
+    unsigned int l2 = 5;
+    while ((std::size_t(1) << l2) < 2 * cells[b]) ++l2;
+    return l2;
+  };
   auto tableSlots = [&](int fin) {
     std::size_t s = 0;
-    for (int b = fin; b >= 0; --b) {
-      unsigned int l2 = 5;
-      while ((std::size_t(1) << l2) < 2 * cells[b]) ++l2;
-      s += std::size_t(1) << l2;
-    }
+    for (int b = fin; b >= 0; --b) s += std::size_t(1) << log2Cap(b);
     return s;
   };
   const std::size_t slot_bytes = sizeof(unsigned long long) + sizeof(uint2);
-  std::size_t allow = im.allowance() + im.table_keys.bytes + im.table_vals.bytes;
+  const std::size_t allow = im.allowance() + im.table_keys.bytes + im.table_vals.bytes;
   while (finest > 0 && tableSlots(finest) * slot_bytes * 9 / 8 > allow) --finest;
   g.nlev = finest + 1;
   std::size_t off = 0;
@@ -834,11 +1148,9 @@ void CudaKnn::search(const float* xyz, std::size_t n_in, int k, std::int32_t* in
     LevelDesc& lv = g.lv[l];
     lv.bits = b;
     lv.cell = edge / static_cast<float>(1u << b);
-    unsigned int l2 = 5;
-    while ((std::size_t(1) << l2) < 2 * cells[b]) ++l2;
-    lv.log2cap = l2;
+    lv.log2cap = log2Cap(b);
     lv.table_off = off;
-    off += std::size_t(1) << l2;
+    off += std::size_t(1) << lv.log2cap;
   }
   im.grow(im.table_keys, off * sizeof(unsigned long long), "the grid cell tables");
   im.grow(im.table_vals, off * sizeof(uint2), "the grid cell tables");
@@ -856,46 +1168,144 @@ void CudaKnn::search(const float* xyz, std::size_t n_in, int k, std::int32_t* in
   im.timings.levels = g.nlev;
   im.timings.finest_bits = finest;
 
-  // ---- queries
+  // ---- queries in chunks of Morton-ordered rows; each chunk's rows download while the next
+  //      chunk computes, and the host scatters them to their original rows meanwhile.
   t0 = std::chrono::steady_clock::now();
-  const std::size_t threads = n_in * kWarp;
-  const unsigned int blocks = blocksFor(threads, kQueryBlock);
+  const int auto_chunks = std::max(1, std::min(Impl::kMaxChunks, (n + 32767) / 32768));
+  const int chunks =
+      !download ? 1
+                : (im.opt.download_chunks > 0 ? std::min(im.opt.download_chunks, Impl::kMaxChunks)
+                                              : auto_chunks);
+  const int per_chunk = (n + chunks - 1) / chunks;
+  std::int32_t* d_idx = im.out_idx.as<std::int32_t>();
   float* d_d2 = sq_dists ? im.out_d2.as<float>() : nullptr;
-  if (k > 32) {
-    knnKernel<true><<<blocks, kQueryBlock, 0, st>>>(g, im.sorted.as<float4>(), d_tkeys, d_tvals,
-                                                     n, k, im.out_idx.as<std::int32_t>(), d_d2);
-  } else {
-    knnKernel<false><<<blocks, kQueryBlock, 0, st>>>(g, im.sorted.as<float4>(), d_tkeys, d_tvals,
-                                                      n, k, im.out_idx.as<std::int32_t>(), d_d2);
+  unsigned long long* stats = im.opt.collect_stats ? d_stats : nullptr;
+  if (download) {
+    im.h_idx.ensure(rows * sizeof(std::int32_t));
+    if (sq_dists) im.h_d2.ensure(rows * sizeof(float));
   }
-  GF_CUDA_CHECK_LAUNCH();
+  for (int c = 0; c < chunks; ++c) {
+    const int b = c * per_chunk, e = std::min(n, b + per_chunk);
+    if (b >= e) break;
+    const unsigned int blocks = blocksFor(static_cast<std::size_t>(e - b) * kWarp, kQueryBlock);
+    if (k > 32) {
+      if (im.opt.sort_cells) {
+        knnKernel<true, true><<<blocks, kQueryBlock, 0, st>>>(g, im.sorted.as<float4>(), d_tkeys,
+                                                               d_tvals, n, b, e, k, d_idx, d_d2, stats);
+      } else {
+        knnKernel<true, false><<<blocks, kQueryBlock, 0, st>>>(
+            g, im.sorted.as<float4>(), d_tkeys, d_tvals, n, b, e, k, d_idx, d_d2, stats);
+      }
+    } else {
+      if (im.opt.sort_cells) {
+        knnKernel<false, true><<<blocks, kQueryBlock, 0, st>>>(
+            g, im.sorted.as<float4>(), d_tkeys, d_tvals, n, b, e, k, d_idx, d_d2, stats);
+      } else {
+        knnKernel<false, false><<<blocks, kQueryBlock, 0, st>>>(
+            g, im.sorted.as<float4>(), d_tkeys, d_tvals, n, b, e, k, d_idx, d_d2, stats);
+      }
+    }
+    GF_CUDA_CHECK_LAUNCH();
+    if (download) {
+      const std::size_t r0 = static_cast<std::size_t>(b) * k, nr = static_cast<std::size_t>(e - b) * k;
+      GF_CUDA_CHECK(cudaEventRecord(im.kernel_done[c], st));
+      GF_CUDA_CHECK(cudaStreamWaitEvent(im.copy, im.kernel_done[c], 0));
+      GF_CUDA_CHECK(cudaMemcpyAsync(im.h_idx.as<std::int32_t>() + r0, d_idx + r0,
+                                    nr * sizeof(std::int32_t), cudaMemcpyDeviceToHost, im.copy));
+      if (sq_dists) {
+        GF_CUDA_CHECK(cudaMemcpyAsync(im.h_d2.as<float>() + r0, d_d2 + r0, nr * sizeof(float),
+                                      cudaMemcpyDeviceToHost, im.copy));
+      }
+      GF_CUDA_CHECK(cudaEventRecord(im.copy_done[c], im.copy));
+    }
+  }
+  if (download) {
+    const unsigned int* order = im.h_order.as<unsigned int>();
+    const std::int32_t* h_idx = im.h_idx.as<std::int32_t>();
+    const float* h_d2 = sq_dists ? im.h_d2.as<float>() : nullptr;
+    const std::size_t row_i = static_cast<std::size_t>(k) * sizeof(std::int32_t);
+    const std::size_t row_f = static_cast<std::size_t>(k) * sizeof(float);
+    for (int c = 0; c < chunks; ++c) {
+      const int b = c * per_chunk, e = std::min(n, b + per_chunk);
+      if (b >= e) break;
+      GF_CUDA_CHECK(cudaEventSynchronize(im.copy_done[c]));
+#pragma omp parallel for schedule(static) if (e - b > 4096)
+      for (int s = b; s < e; ++s) {
+        const std::size_t dst = static_cast<std::size_t>(order[s]) * k;
+        std::memcpy(indices + dst, h_idx + static_cast<std::size_t>(s) * k, row_i);
+        if (h_d2) std::memcpy(sq_dists + dst, h_d2 + static_cast<std::size_t>(s) * k, row_f);
+      }
+    }
+  }
   GF_CUDA_CHECK(cudaStreamSynchronize(st));
-  im.timings.query_ms = msSince(t0);
-
-  // ---- download
-  t0 = std::chrono::steady_clock::now();
-  const std::size_t idx_bytes = rows * sizeof(std::int32_t), d2_bytes = rows * sizeof(float);
-  if (im.opt.pinned_staging) {
-    im.h_idx.ensure(idx_bytes);
-    if (sq_dists) im.h_d2.ensure(d2_bytes);
-    GF_CUDA_CHECK(cudaMemcpyAsync(im.h_idx.ptr, im.out_idx.ptr, idx_bytes, cudaMemcpyDeviceToHost,
-                                  st));
-    if (sq_dists) {
-      GF_CUDA_CHECK(
-          cudaMemcpyAsync(im.h_d2.ptr, im.out_d2.ptr, d2_bytes, cudaMemcpyDeviceToHost, st));
-    }
-    GF_CUDA_CHECK(cudaStreamSynchronize(st));
-    parallelCopy(indices, im.h_idx.ptr, idx_bytes);
-    if (sq_dists) parallelCopy(sq_dists, im.h_d2.ptr, d2_bytes);
-  } else {
-    GF_CUDA_CHECK(cudaMemcpyAsync(indices, im.out_idx.ptr, idx_bytes, cudaMemcpyDeviceToHost, st));
-    if (sq_dists) {
-      GF_CUDA_CHECK(cudaMemcpyAsync(sq_dists, im.out_d2.ptr, d2_bytes, cudaMemcpyDeviceToHost, st));
-    }
-    GF_CUDA_CHECK(cudaStreamSynchronize(st));
+  GF_CUDA_CHECK(cudaStreamSynchronize(im.copy));
+  im.timings.query_ms = msSince(t0);  // with the overlapped download and scatter
+  im.list_n = n_in;
+  im.list_k = k;
+  if (stats) {
+    unsigned long long h[kStatCount];
+    GF_CUDA_CHECK(cudaMemcpy(h, d_stats, sizeof h, cudaMemcpyDeviceToHost));
+    im.timings.candidates_per_query = static_cast<double>(h[kStatCandidates]) / n;
+    im.timings.insertions_per_query = static_cast<double>(h[kStatInsertions]) / n;
+    im.timings.shells_per_query = static_cast<double>(h[kStatShells]) / n;
+    im.timings.levels_per_query = static_cast<double>(h[kStatLevels]) / n;
+    im.timings.mean_query_cycles = static_cast<double>(h[kStatCycles]) / n;
+    im.timings.max_query_cycles = static_cast<double>(h[kStatMaxCycles]);
   }
-  im.timings.download_ms = msSince(t0);
   im.timings.total_ms = msSince(t_start);
 }
+
+void CudaKnn::neighborhoodPca(float* normals, float* eigenvalues, std::uint8_t* valid) {
+  Impl& im = *impl_;
+  im.requireLists("neighborhoodPca");
+  const auto t0 = std::chrono::steady_clock::now();
+  GF_CUDA_CHECK(cudaSetDevice(im.opt.device));
+  const std::size_t n = im.list_n;
+  const std::size_t bytes = n * (6 * sizeof(float) + 1);
+  im.grow(im.pca, bytes, "the PCA results");
+  im.h_pca.ensure(bytes);
+  float* d_normals = im.pca.as<float>();
+  float* d_eigen = d_normals + 3 * n;
+  std::uint8_t* d_valid = reinterpret_cast<std::uint8_t*>(d_eigen + 3 * n);
+  pcaKernel<<<blocksFor(n, 128), 128, 0, im.stream>>>(
+      im.xyz.as<float>(), im.sorted.as<float4>(), im.out_idx.as<std::int32_t>(),
+      static_cast<int>(n), im.list_k, d_normals, d_eigen, d_valid);
+  GF_CUDA_CHECK_LAUNCH();
+  GF_CUDA_CHECK(cudaMemcpyAsync(im.h_pca.ptr, im.pca.ptr, bytes, cudaMemcpyDeviceToHost, im.stream));
+  GF_CUDA_CHECK(cudaStreamSynchronize(im.stream));
+  const float* h = im.h_pca.as<float>();
+  parallelCopy(normals, h, 3 * n * sizeof(float));
+  parallelCopy(eigenvalues, h + 3 * n, 3 * n * sizeof(float));
+  std::memcpy(valid, h + 6 * n, n);
+  im.timings.pca_ms = msSince(t0);
+}
+
+void CudaKnn::countFlaggedNeighbors(const std::uint8_t* flags, std::uint16_t* flagged,
+                                    std::uint16_t* neighbors) {
+  Impl& im = *impl_;
+  im.requireLists("countFlaggedNeighbors");
+  const auto t0 = std::chrono::steady_clock::now();
+  GF_CUDA_CHECK(cudaSetDevice(im.opt.device));
+  const std::size_t n = im.list_n;
+  im.grow(im.flags, n, "the point flags");
+  im.grow(im.counts, 2 * n * sizeof(std::uint16_t), "the neighbour counts");
+  im.h_flags.ensure(n);
+  im.h_counts.ensure(2 * n * sizeof(std::uint16_t));
+  parallelCopy(im.h_flags.ptr, flags, n);
+  GF_CUDA_CHECK(cudaMemcpyAsync(im.flags.ptr, im.h_flags.ptr, n, cudaMemcpyHostToDevice, im.stream));
+  std::uint16_t* d_counts = im.counts.as<std::uint16_t>();
+  countKernel<<<blocksFor(n, 256), 256, 0, im.stream>>>(
+      im.sorted.as<float4>(), im.out_idx.as<std::int32_t>(), static_cast<int>(n), im.list_k,
+      im.flags.as<std::uint8_t>(), d_counts, d_counts + n);
+  GF_CUDA_CHECK_LAUNCH();
+  GF_CUDA_CHECK(cudaMemcpyAsync(im.h_counts.ptr, d_counts, 2 * n * sizeof(std::uint16_t),
+                                cudaMemcpyDeviceToHost, im.stream));
+  GF_CUDA_CHECK(cudaStreamSynchronize(im.stream));
+  parallelCopy(flagged, im.h_counts.ptr, n * sizeof(std::uint16_t));
+  parallelCopy(neighbors, im.h_counts.as<std::uint16_t>() + n, n * sizeof(std::uint16_t));
+  im.timings.count_ms = msSince(t0);
+}
+
+std::size_t CudaKnn::listPoints() const { return impl_->list_n; }
 
 }  // namespace ground_filter

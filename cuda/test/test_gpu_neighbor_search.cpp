@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -141,6 +142,96 @@ TEST_F(GpuNeighborSearchTest, EmptyAndTinyClouds) {
   EXPECT_EQ(a.indices[2], 2);
   EXPECT_EQ(a.indices[3], -1);
   EXPECT_EQ(a.sq_dists[3], std::numeric_limits<float>::infinity());
+}
+
+TEST_F(GpuNeighborSearchTest, ListsOnDeviceGiveTheCpuPcaAndCounts) {
+  const auto xyz = kittiFrame();
+  const std::size_t n = xyz.size() / 3;
+  gf::GpuNeighborSearch gpu;
+  EXPECT_TRUE(gpu.keepListsOnDevice(true));
+  gf::NeighborLists dev, host;
+  gpu.search(xyz.data(), n, 50, &dev);
+  EXPECT_EQ(gpu.lastBackend(), "gpu");
+  EXPECT_EQ(dev.points, n);
+  EXPECT_TRUE(dev.indices.empty());  // nothing came back
+  std::vector<gf::PointPca> pg, pc;
+  ASSERT_TRUE(gpu.neighborhoodPca(&pg));
+  gf::KdTreeNeighborSearch cpu;
+  cpu.search(xyz.data(), n, 50, &host);
+  gf::computeNeighborhoodPca(xyz.data(), host, 0, &pc);
+  ASSERT_EQ(pg.size(), n);
+  std::size_t valid_differ = 0, bit_equal = 0, far = 0, valid = 0;
+  double max_eig = 0.0, max_angle = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (pg[i].valid != pc[i].valid) {
+      ++valid_differ;
+      continue;
+    }
+    if (!pg[i].valid) continue;
+    ++valid;
+    bool same = true;
+    const double a[3] = {pg[i].normal[0], pg[i].normal[1], pg[i].normal[2]};
+    const double b[3] = {pc[i].normal[0], pc[i].normal[1], pc[i].normal[2]};
+    for (int c = 0; c < 3; ++c) {
+      same &= pg[i].normal[c] == pc[i].normal[c] && pg[i].eigen[c] == pc[i].eigen[c];
+      max_eig = std::max(max_eig, std::abs(double(pg[i].eigen[c]) - pc[i].eigen[c]));
+    }
+    bit_equal += same;
+    // Angle between the (sign-free) normals; atan2 of |a x b| and |a . b| stays exact near 0.
+    const double cx = a[1] * b[2] - a[2] * b[1], cy = a[2] * b[0] - a[0] * b[2],
+                 cz = a[0] * b[1] - a[1] * b[0];
+    const double angle = std::atan2(std::sqrt(cx * cx + cy * cy + cz * cz),
+                                    std::abs(a[0] * b[0] + a[1] * b[1] + a[2] * b[2]));
+    max_angle = std::max(max_angle, angle);
+    far += angle > 1e-4;
+  }
+  EXPECT_EQ(valid_differ, 0u);
+  EXPECT_LT(max_eig, 1e-5);
+  EXPECT_LT(far, n / 10000 + 1) << "normals more than 1e-4 rad apart";
+  std::printf("[ PCA      ] GPU vs CPU on KITTI: %zu valid, %zu bit-identical, max |d eigen| %.2e, "
+              "max normal angle %.2e rad\n",
+              valid, bit_equal, max_eig, max_angle);
+
+  std::vector<std::uint8_t> flags(n);
+  for (std::size_t i = 0; i < n; ++i) flags[i] = (i * 2654435761u) % 5 < 2;
+  std::vector<std::uint16_t> flagged(n), size(n);
+  ASSERT_TRUE(gpu.countFlaggedNeighbors(flags.data(), flagged.data(), size.data()));
+  std::size_t bad = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    int u = 0, m = 0;
+    for (; m < 50 && host.indices[i * 50 + m] >= 0; ++m) u += flags[host.indices[i * 50 + m]];
+    bad += flagged[i] != u || size[i] != m;
+  }
+  EXPECT_EQ(bad, 0u);
+}
+
+TEST_F(GpuNeighborSearchTest, CudaFailureAfterTheSearchRedoesTheScanOnTheKdTree) {
+  const auto xyz = kittiFrame();
+  const std::size_t n = xyz.size() / 3;
+  gf::GpuNeighborSearch probe;
+  probe.keepListsOnDevice(true);
+  gf::NeighborLists lists;
+  probe.search(xyz.data(), n, 50, &lists);
+  // Room for the search, none for the PCA results.
+  gf::CudaKnnOptions opt;
+  opt.memory_limit = probe.cudaKnn().deviceBytes() + 1024;
+  gf::GpuNeighborSearch gpu(0, opt);
+  gpu.keepListsOnDevice(true);
+  gpu.search(xyz.data(), n, 50, &lists);
+  EXPECT_EQ(gpu.lastBackend(), "gpu") << gpu.lastNote();
+  EXPECT_TRUE(lists.indices.empty());
+  std::vector<gf::PointPca> pca;
+  EXPECT_FALSE(gpu.neighborhoodPca(&pca));
+  EXPECT_EQ(gpu.lastBackend(), "kdtree");
+  EXPECT_NE(gpu.lastNote().find("GPU PCA failed (cudaErrorMemoryAllocation"), std::string::npos)
+      << gpu.lastNote();
+  gf::NeighborLists ref;
+  gf::KdTreeNeighborSearch cpu;
+  cpu.search(xyz.data(), n, 50, &ref);
+  EXPECT_EQ(lists.indices, ref.indices);  // the scan's lists are now on the host
+  std::vector<std::uint16_t> a(n), b(n);
+  std::vector<std::uint8_t> flags(n, 1);
+  EXPECT_FALSE(gpu.countFlaggedNeighbors(flags.data(), a.data(), b.data()));
 }
 
 TEST_F(GpuNeighborSearchTest, NormalFilterOnGpuMatchesKdTreeAndCompactsNaN) {

@@ -28,21 +28,31 @@ class CudaError : public std::runtime_error {
 
 /// \brief Options of a CudaKnn instance.
 struct CudaKnnOptions {
-  int device = 0;                 ///< CUDA device ordinal [index] (0)
-  std::size_t memory_limit = 0;   ///< device bytes this instance may hold, 0 = 90 % of free [B] (0)
-  int level_min_points = 0;       ///< grid level choice: own cell holds >= this many, 0 = K/4 [pts]
-  bool pinned_staging = true;     ///< copy results through pinned host buffers [bool] (true)
+  int device = 0;                ///< CUDA device ordinal [index] (0)
+  std::size_t memory_limit = 0;  ///< device bytes this instance may hold, 0 = 90 % of free [B] (0)
+  int level_min_points = 0;      ///< grid level choice: own cell holds >= this many, 0 = K/4 [pts]
+  bool sort_cells = true;        ///< visit each batch of cells nearest first [bool] (true)
+  bool collect_stats = false;    ///< count per-query work in CudaKnnTimings (slower) [bool] (false)
+  int download_chunks = 0;       ///< query/download pipeline depth, 0 = auto (<= 16) [chunks] (0)
 };
 
-/// \brief Wall times of the last CudaKnn::search (host clock, stream synchronised) [ms].
+/// \brief Wall times of the last CudaKnn calls (host clock, streams synchronised) [ms], and the
+///        per-query work counters when CudaKnnOptions::collect_stats is set.
 struct CudaKnnTimings {
   double upload_ms = 0.0;    ///< host -> device copy of the points
   double grid_ms = 0.0;      ///< bounds, Morton sort, cell tables
-  double query_ms = 0.0;     ///< the K-nearest-neighbour kernel
-  double download_ms = 0.0;  ///< device -> host copy of the lists
-  double total_ms = 0.0;     ///< the whole call
+  double query_ms = 0.0;     ///< the query kernel, with the overlapped download of the lists
+  double total_ms = 0.0;     ///< the whole search()
+  double pca_ms = 0.0;       ///< the last neighborhoodPca(), downloads included
+  double count_ms = 0.0;     ///< the last countFlaggedNeighbors(), copies included
   int levels = 0;            ///< grid levels built (finest has 2^finest_bits cells per axis)
   int finest_bits = 0;       ///< log2 of cells per axis of the finest level
+  double candidates_per_query = 0.0;  ///< points whose distance was computed (collect_stats)
+  double insertions_per_query = 0.0;  ///< list insertions (collect_stats)
+  double shells_per_query = 0.0;      ///< shells of cells visited (collect_stats)
+  double levels_per_query = 0.0;      ///< grid levels tried (collect_stats)
+  double mean_query_cycles = 0.0;     ///< SM clock cycles per query, mean (collect_stats)
+  double max_query_cycles = 0.0;      ///< the slowest query's cycles (collect_stats)
 };
 
 /// \brief Exact K-nearest-neighbour search on a CUDA GPU over a whole cloud at once.
@@ -53,7 +63,8 @@ struct CudaKnnTimings {
 /// farther than the current K-th distance, until no unvisited cell can hold a closer point. Rows
 /// are ordered by (squared distance, index), so the lists equal a brute-force search's with ties
 /// broken by lower index. Device and pinned buffers persist and grow only when a cloud is larger
-/// than before; all work runs on one stream of this instance. Not thread-safe: one per thread.
+/// than before; kernels run on one stream of this instance, downloads on a second one so they
+/// overlap the queries. Not thread-safe: one per thread.
 class CudaKnn {
  public:
   /// \brief Largest supported K.
@@ -74,12 +85,30 @@ class CudaKnn {
   ///        points among all of them.
   ///
   /// Writes `n * k` entries to `indices` and, when not null, `sq_dists` (row i at i * k, increasing
-  /// distance; -1 / +inf padding when n < k). Points must be finite.
+  /// (distance, index); -1 / +inf padding when n < k). With `indices` null nothing is downloaded:
+  /// the lists stay on the device for neighborhoodPca() and countFlaggedNeighbors(). Points must
+  /// be finite.
   /// \throws std::invalid_argument for k outside [1, kMaxK], n >= 2^31 or a NaN/Inf point.
   /// \throws CudaError for any CUDA failure or when the memory limit is too small.
   void search(const float* xyz, std::size_t n, int k, std::int32_t* indices, float* sq_dists);
 
-  /// \brief Timings of the last search().
+  /// \brief PCA of every neighbourhood of the last search(), on the device, as the core's
+  ///        computeNeighborhoodPca() does it (double precision, Eigen's closed-form solver):
+  ///        `normals` (3 per point, unit eigenvector of the smallest eigenvalue), `eigenvalues`
+  ///        (3 per point, ascending, divided by their sum), `valid` (1 per point; 0 with zeros
+  ///        when fewer than 3 neighbours or no spread). Arrays hold n entries per component.
+  /// \throws std::logic_error without a successful search(); CudaError on a CUDA failure.
+  void neighborhoodPca(float* normals, float* eigenvalues, std::uint8_t* valid);
+
+  /// \brief For every point of the last search(): `flagged[i]` = its neighbours j with
+  ///        `flags[j] != 0`, `neighbors[i]` = its valid neighbours (n entries each).
+  /// \throws std::logic_error without a successful search(); CudaError on a CUDA failure.
+  void countFlaggedNeighbors(const std::uint8_t* flags, std::uint16_t* flagged,
+                             std::uint16_t* neighbors);
+
+  /// \brief Points of the lists kept on the device (0 when none).
+  std::size_t listPoints() const;
+  /// \brief Timings of the last calls.
   const CudaKnnTimings& lastTimings() const;
   /// \brief Device name, e.g. "NVIDIA H200".
   std::string deviceName() const;

@@ -8,6 +8,8 @@
 
 namespace ground_filter {
 
+struct PointPca;  // normal_ground_filter.h
+
 /// \brief K-nearest-neighbour lists of every point of a packed xyz cloud (the point itself
 ///        included, at distance 0).
 ///
@@ -36,6 +38,26 @@ class NeighborSearch {
   virtual std::string lastBackend() const { return name(); }
   /// \brief Why the last search() did not run on name() (e.g. the CUDA error); empty otherwise.
   virtual std::string lastNote() const { return std::string(); }
+
+  // Optional work on the lists where they were computed (GPU memory), so they need not come back
+  // to the host. A backend without it keeps the defaults (lists always on the host).
+
+  /// \brief Asks the backend to keep the lists of later search() calls on its device when it can;
+  ///        search() then fills `k` and `points` but may leave `indices`/`sq_dists` empty, and
+  ///        neighborhoodPca()/countFlaggedNeighbors() work on the kept lists. Whenever one of
+  ///        those returns false, the last search()'s lists are in its `out` on the host instead.
+  /// \return whether the backend keeps lists on a device.
+  virtual bool keepListsOnDevice(bool /*keep*/) { return false; }
+  /// \brief PCA of every neighbourhood of the last search(), as computeNeighborhoodPca()
+  ///        (normal_ground_filter.h) computes it; false when the lists are on the host.
+  virtual bool neighborhoodPca(std::vector<PointPca>* /*out*/) { return false; }
+  /// \brief For every point i of the last search(): `flagged[i]` = its neighbours j with
+  ///        `flags[j] != 0`, `neighbors[i]` = its valid neighbours; false when the lists are on
+  ///        the host.
+  virtual bool countFlaggedNeighbors(const std::uint8_t* /*flags*/, std::uint16_t* /*flagged*/,
+                                     std::uint16_t* /*neighbors*/) {
+    return false;
+  }
 };
 
 }  // namespace ground_filter

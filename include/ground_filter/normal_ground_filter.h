@@ -21,17 +21,17 @@ struct NormalGroundFilterParams {
   double max_normal_angle = 100.0;  ///< normal-to-horizontal angle window, high end [deg] (100)
   double min_planarity = 0.0;       ///< flat: planarity dominant and >= this (see README) [1] (0)
   bool bayes_vote = true;           ///< naive-Bayes vote over each K neighbourhood [bool] (true)
-  double plane_distance = 0.15;     ///< max point-to-plane distance of a ground point [m] (paper 0.10)
-  bool std_filter = false;          ///< also require mean +- std_multiplier * std of distances [bool]
-  double std_multiplier = 1.0;          ///< width of that band in standard deviations [1] (1.0, paper)
-  int ransac_iterations = 100;      ///< RANSAC hypotheses per plane, at most [1] (100)
-  bool plane_all_points = true;     ///< plane test labels every point, not only voted ones [bool]
-  bool local_planes = true;         ///< one plane per tile instead of one for the cloud [bool]
-  double tile_size = 4.0;           ///< tile edge for local planes [m] (4.0)
-  bool use_segments = false;        ///< paper's segments: no neighbours across borders [bool]
-  int segment_points = 65536;       ///< points per segment, at most [points] (65536, paper)
+  double plane_distance = 0.15;  ///< max point-to-plane distance of a ground point [m] (paper 0.10)
+  bool std_filter = false;       ///< also require mean +- std_multiplier * std of distances [bool]
+  double std_multiplier = 1.0;   ///< width of that band in standard deviations [1] (1.0, paper)
+  int ransac_iterations = 100;   ///< RANSAC hypotheses per plane, at most [1] (100)
+  bool plane_all_points = true;  ///< plane test labels every point, not only voted ones [bool]
+  bool local_planes = true;      ///< one plane per tile instead of one for the cloud [bool]
+  double tile_size = 4.0;        ///< tile edge for local planes [m] (4.0)
+  bool use_segments = false;     ///< paper's segments: no neighbours across borders [bool]
+  int segment_points = 65536;    ///< points per segment, at most [points] (65536, paper)
   std::string knn_backend = "kdtree";  ///< neighbour search: kdtree | gpu [enum] (kdtree)
-  int threads = 0;                  ///< worker threads, 0 = all cores [threads] (0)
+  int threads = 0;                     ///< worker threads, 0 = all cores [threads] (0)
 
   /// \brief Sets one field from text (CLI `--set NAME=VALUE`).
   /// \throws std::invalid_argument for an unknown name or a malformed value.

@@ -64,8 +64,9 @@ void KdTreeNeighborSearch::search(const float* xyz, std::size_t n, int k, Neighb
   im.cloud.xyz = xyz;
   im.cloud.n = n;
   if (!im.tree) {
-    im.tree = std::make_unique<Tree>(3, im.cloud, nanoflann::KDTreeSingleIndexAdaptorParams(
-                                                      static_cast<std::size_t>(leaf_size_)));
+    im.tree = std::make_unique<Tree>(
+        3, im.cloud,
+        nanoflann::KDTreeSingleIndexAdaptorParams(static_cast<std::size_t>(leaf_size_)));
   } else {
     im.tree->buildIndex();  // reuses the tree object; re-reads size and points from im.cloud
   }

@@ -78,7 +78,7 @@ void NormalGroundFilterParams::validate() const {
   checkRange("ransac_iterations", ransac_iterations, 1, 100000, "");
   checkRange("tile_size", tile_size, 0.5, 100000.0, "m");
   checkRange("segment_points", segment_points, 256, 1 << 26, "points");
-  checkRange("threads", threads, 0, 1024, "threads");
+  checkRange("threads", threads, 0, 256, "threads");
   const auto backends = neighborSearchBackends();
   if (std::find(backends.begin(), backends.end(), knn_backend) == backends.end()) {
     std::string known;
@@ -170,14 +170,14 @@ struct Plane {
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();
   bool valid = false;
   double distance(const float* p) const {
-    return n.x() * (p[0] - origin.x()) + n.y() * (p[1] - origin.y()) +
-           n.z() * (p[2] - origin.z()) + d;
+    return n.x() * (p[0] - origin.x()) + n.y() * (p[1] - origin.y()) + n.z() * (p[2] - origin.z()) +
+           d;
   }
 };
 
 constexpr std::uint64_t kRansacSeed = 0x67f1a3c5d2b9e481ULL;  // fixed: reproducible output
 constexpr std::size_t kRansacEvalPoints = 2048;  // hypotheses are scored on at most this many
-constexpr std::size_t kMinTilePoints = 10;       // fewer voted points: the tile uses the global plane
+constexpr std::size_t kMinTilePoints = 10;  // fewer voted points: the tile uses the global plane
 
 /// RANSAC plane through the points `idx` of `xyz`, its normal within `max_tilt_cos` of vertical
 /// (|n_z| >= max_tilt_cos), refined by least squares on its inliers.
@@ -191,8 +191,7 @@ Plane fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, in
   best.origin = Eigen::Vector3d(o[0], o[1], o[2]);
   auto point = [&](std::uint32_t i) {
     const float* p = xyz + 3 * static_cast<std::size_t>(i);
-    return Eigen::Vector3d(p[0] - best.origin.x(), p[1] - best.origin.y(),
-                           p[2] - best.origin.z());
+    return Eigen::Vector3d(p[0] - best.origin.x(), p[1] - best.origin.y(), p[2] - best.origin.z());
   };
   // Score on an evenly strided subset of large sets (deterministic, keeps big tiles cheap).
   std::vector<std::uint32_t>& eval = *eval_scratch;
@@ -352,6 +351,7 @@ struct NormalGroundFilter::Impl {
   std::vector<std::uint64_t> keys;
   std::vector<std::uint32_t> order, sort_scratch;
   std::vector<std::uint8_t> candidate, voted, ground;
+  std::vector<std::uint16_t> vote_flagged, vote_size;         // per-point counts from a GPU backend
   std::vector<std::pair<std::size_t, std::size_t>> segments;  // [begin, end) in sorted order
   std::vector<std::pair<std::size_t, std::size_t>> tiles;     // [begin, end) in tile_order
   std::vector<std::uint32_t> tile_order;
@@ -362,6 +362,8 @@ NormalGroundFilter::NormalGroundFilter(const NormalGroundFilterParams& params)
     : params_(params), impl_(std::make_unique<Impl>()) {
   params_.validate();
   impl_->search = makeNeighborSearch(params_.knn_backend, params_.threads, &backend_note_);
+  // A GPU backend keeps the lists in GPU memory; PCA and vote counts below then run there.
+  impl_->search->keepListsOnDevice(true);
 }
 
 NormalGroundFilter::~NormalGroundFilter() = default;
@@ -458,14 +460,6 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     t0 = Clock::now();
     im.search->search(sxyz, len, p.k, &im.lists);
     const double search_ms = msSince(t0);
-    // A backend that could not do this scan (e.g. a CUDA error) ran it on the kd-tree: say so.
-    const std::string search_note = im.search->lastNote();
-    if (!search_note.empty()) {
-      st.backend = im.search->lastBackend();
-      if (st.note.find(search_note) == std::string::npos) {
-        st.note += (st.note.empty() ? "" : "; ") + search_note;
-      }
-    }
     if (kdtree) {
       build_ms += kdtree->lastBuildMs();
       knn_ms += search_ms - kdtree->lastBuildMs();
@@ -474,7 +468,9 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     }
 
     t0 = Clock::now();
-    computeNeighborhoodPca(sxyz, im.lists, threads, &im.pca);
+    if (!im.search->neighborhoodPca(&im.pca)) {
+      computeNeighborhoodPca(sxyz, im.lists, threads, &im.pca);
+    }
     std::size_t candidates = 0;
     for (std::size_t i = 0; i < len; ++i) {
       const PointPca& r = im.pca[i];
@@ -497,12 +493,23 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
       const std::uint8_t* cand = im.candidate.data() + b;
       std::uint8_t* voted = im.voted.data() + b;
       const int nt = static_cast<int>(std::min<std::size_t>(threads, len / 4096 + 1));
+      im.vote_flagged.resize(len);
+      im.vote_size.resize(len);
+      if (im.search->countFlaggedNeighbors(cand, im.vote_flagged.data(), im.vote_size.data())) {
+        // u and m counted where the lists are (GPU); same rule as below.
 #pragma omp parallel for num_threads(nt) schedule(static, 4096)
-      for (std::int64_t i = 0; i < static_cast<std::int64_t>(len); ++i) {
-        const std::int32_t* row = &im.lists.indices[static_cast<std::size_t>(i) * k];
-        int m = 0, u = 0;
-        for (; m < k && row[m] >= 0; ++m) u += cand[row[m]];
-        voted[i] = U * u > V * (m - u);
+        for (std::int64_t i = 0; i < static_cast<std::int64_t>(len); ++i) {
+          const int u = im.vote_flagged[i], m = im.vote_size[i];
+          voted[i] = U * u > V * (m - u);
+        }
+      } else {
+#pragma omp parallel for num_threads(nt) schedule(static, 4096)
+        for (std::int64_t i = 0; i < static_cast<std::int64_t>(len); ++i) {
+          const std::int32_t* row = &im.lists.indices[static_cast<std::size_t>(i) * k];
+          int m = 0, u = 0;
+          for (; m < k && row[m] >= 0; ++m) u += cand[row[m]];
+          voted[i] = U * u > V * (m - u);
+        }
       }
     } else {
       std::copy_n(im.candidate.data() + b, len, im.voted.data() + b);

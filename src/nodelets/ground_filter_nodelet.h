@@ -1,10 +1,14 @@
 #ifndef GROUND_FILTER_SRC_NODELETS_GROUND_FILTER_NODELET_H
 #define GROUND_FILTER_SRC_NODELETS_GROUND_FILTER_NODELET_H
 
+#include <diagnostic_updater/diagnostic_updater.h>
 #include <nodelet_topic_tools/nodelet_lazy.h>
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
 
+#include <Eigen/Geometry>
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
@@ -79,6 +83,32 @@ SplitCounts splitPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayo
                              std::vector<std::uint8_t>* labels, sensor_msgs::PointCloud2* ground,
                              sensor_msgs::PointCloud2* nonground);
 
+/// \brief A CloudView of the cloud's x/y/z mapped through `transform` (e.g. sensor -> gravity
+///        frame), packed into `scratch`; NaN/Inf points stay non-finite. Only the view moves: the
+///        cloud itself (and so every output record) is left as it is.
+CloudView makeTransformedCloudView(const sensor_msgs::PointCloud2& cloud, const CloudLayout& layout,
+                                   const Eigen::Isometry3d& transform, std::vector<float>* scratch);
+
+/// \brief Checks that `len` bytes are one serialized sensor_msgs/PointCloud2: every length field
+///        fits in the buffer and the message ends exactly at its end (so deserialising it can
+///        neither overrun nor allocate a size read from garbage).
+/// \param why set to the first problem found when it returns false.
+bool checkSerializedPointCloud2(const std::uint8_t* buf, std::uint32_t len, std::string* why);
+
+/// \brief Name of the per-point label field of the `~labeled` output.
+constexpr char kLabelFieldName[] = "ground";
+
+/// \brief The input cloud with a uint8 field `ground` (1 ground, 0 non-ground) per record.
+///
+/// Width, height, header and every input field are kept; row padding is dropped. Without a
+/// `ground` field in the input, it is appended after the input record (point_step grows to the
+/// next multiple of 4); an input uint8 `ground` field (count 1) is overwritten in place.
+/// \return false, with `why` set, when the input has a `ground` field of another type.
+/// \pre `labels.size() == layout.points` (labels as normalised by splitPointCloud2()).
+bool makeLabeledCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
+                      const std::vector<std::uint8_t>& labels, sensor_msgs::PointCloud2* out,
+                      std::string* why);
+
 /// \brief Base of the ground filter nodelets: `~input` (sensor_msgs/PointCloud2) is split into
 ///        `~ground` and `~nonground`, subscribed lazily (only while an output has subscribers, or
 ///        always with `~lazy: false`).
@@ -89,14 +119,25 @@ SplitCounts splitPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayo
 /// setFilterFactory(). Clouds are processed with a private filter object (scratch buffers are
 /// kept between clouds), rebuilt when the factory changed.
 ///
-/// Extension points for later features: leaves or this class may advertise more lazy outputs with
-/// advertise<>() in onInitFilter() (e.g. a labelled cloud), and makeCloudView()'s packed scratch
-/// is where a cloud transformed into a gravity frame would go.
+/// Leaves may advertise more lazy outputs with advertise<>() in onInitFilter().
 ///
 /// Private parameters (read once at start): `~queue_size` (int, default 3) of the input
-/// subscription; `~lazy` (bool, default true) from NodeletLazy.
-/// Extra output: `~processing_time_ms` (std_msgs/Float64, callback entry to publish of both
-/// outputs; published only while it has subscribers; not watched by the lazy subscription).
+/// subscription; `~lazy` (bool, default true) from NodeletLazy; `~gravity_frame` (string,
+/// default "": off) frame whose z axis points up: each cloud is classified after a tf2 transform
+/// into it (outputs keep the input frame, header and records); `~tf_timeout` (double, default
+/// 0.1 s, wall time) wait for that transform before the cloud is dropped and counted;
+/// `~diagnostic_period` (double, default 1 s) of the /diagnostics status.
+/// Extra outputs: `~labeled` (lazy; the input cloud plus a uint8 `ground` field, see
+/// makeLabeledCloud()); `~processing_time_ms` (std_msgs/Float64, callback entry to publish of
+/// the outputs; published only while it has subscribers; not watched by the lazy subscription).
+/// Diagnostics (diagnostic_updater, /diagnostics, status "NODELET_NAME: METHOD ground filter"):
+/// input/output rate, processing time mean/max, drop counts by reason, NaN/Inf points, backend
+/// fallbacks and the backend in use; WARN while clouds are dropped or the stream is irregular.
+///
+/// Bad streams never stop the nodelet: input messages whose bytes are no PointCloud2 (e.g. a bag
+/// holding other messages on the cloud topic) are dropped before any allocation; a frame_id
+/// that changes or a stamp that goes back (a bag loop) is processed as usual; each gives a
+/// throttled warning and is counted.
 class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
  public:
   /// \brief Builds a new filter object from an already validated parameter set.
@@ -107,12 +148,17 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
 
   /// \brief Counters since start (read at any time, from any thread).
   struct Counters {
-    std::atomic<std::uint64_t> clouds_in{0};        ///< clouds received
-    std::atomic<std::uint64_t> clouds_out{0};       ///< clouds split and published
-    std::atomic<std::uint64_t> clouds_rejected{0};  ///< malformed clouds dropped
-    std::atomic<std::uint64_t> clouds_failed{0};    ///< clouds dropped because the filter threw
-    std::atomic<std::uint64_t> invalid_points{0};   ///< NaN/Inf points sent to non-ground
-    std::atomic<std::uint64_t> config_rejected{0};  ///< parameter sets refused by validation
+    std::atomic<std::uint64_t> clouds_in{0};            ///< clouds received
+    std::atomic<std::uint64_t> clouds_out{0};           ///< clouds split and published
+    std::atomic<std::uint64_t> clouds_rejected{0};      ///< malformed clouds dropped
+    std::atomic<std::uint64_t> clouds_failed{0};        ///< clouds dropped because the filter threw
+    std::atomic<std::uint64_t> invalid_points{0};       ///< NaN/Inf points sent to non-ground
+    std::atomic<std::uint64_t> config_rejected{0};      ///< parameter sets refused by validation
+    std::atomic<std::uint64_t> clouds_no_transform{0};  ///< dropped: no transform to gravity frame
+    std::atomic<std::uint64_t> not_cloud{0};  ///< input messages that are no PointCloud2, dropped
+    std::atomic<std::uint64_t> frame_changes{0};  ///< clouds whose frame_id differs from the last
+    std::atomic<std::uint64_t> stamps_backwards{0};  ///< clouds stamped before the previous one
+    std::atomic<std::uint64_t> fallbacks{0};         ///< clouds with a FilterStats::note (fallback)
   };
 
  protected:
@@ -149,12 +195,54 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
 
   void cloudCallback(const sensor_msgs::PointCloud2ConstPtr& msg);
   void logRejected(CloudRejectReason reason, const std::string& message);
+  // Stream problems with their own WARN throttle (wall time, per nodelet instance).
+  enum StreamWarning : int {
+    kNoTransform = 0,
+    kNotCloud,
+    kFrameChange,
+    kStampBack,
+    kLabeled,
+    kStreamWarningCount
+  };
+  // True when a warning of this kind may be logged now (at most one per kStreamLogPeriodS).
+  bool warnNow(StreamWarning kind);
+  // Counts and warns about frame_id changes and stamps going back between consecutive clouds.
+  void checkStream(const std_msgs::Header& header);
+  // Transform gravity_frame_ <- header.frame_id at header.stamp, waiting up to tf_timeout_.
+  bool lookupGravityTransform(const std_msgs::Header& header, Eigen::Isometry3d* transform,
+                              std::string* error);
+  // An input message that is no PointCloud2 (see the subscription helper in the .cpp).
+  void onNotCloud(const std::string& what, const std::string& publisher);
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
 
   ros::Subscriber sub_input_;
   ros::Publisher pub_ground_;
   ros::Publisher pub_nonground_;
   ros::Publisher pub_time_;
+  ros::Publisher pub_labeled_;
   int queue_size_ = 3;
+
+  std::string gravity_frame_;  // empty: classify in the input frame
+  double tf_timeout_ = 0.1;    // [s] wall time
+  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
+  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+
+  std::mutex stream_mutex_;  // guards the last frame/stamp seen
+  std::string last_frame_id_;
+  ros::Time last_stamp_;
+  bool have_last_ = false;
+
+  std::unique_ptr<diagnostic_updater::Updater> updater_;
+  ros::WallTimer diagnostic_timer_;
+  std::mutex diag_mutex_;  // guards the window below (reset at every diagnostic update)
+  double window_ms_sum_ = 0.0;
+  double window_ms_max_ = 0.0;
+  std::uint64_t window_clouds_ = 0;
+  std::string backend_;        // FilterStats::backend of the last cloud
+  std::string fallback_note_;  // last non-empty FilterStats::note
+  ros::WallTime last_diagnose_;
+  // Counter values at the previous diagnostic update: in, out, then the drop and stream reasons.
+  std::uint64_t last_counts_[8] = {};
 
   std::mutex config_mutex_;  // guards config_
   std::shared_ptr<const FilterConfig> config_;
@@ -170,6 +258,7 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   std::mutex log_mutex_;  // guards the per-reason throttle below
   ros::WallTime last_reject_log_[static_cast<int>(CloudRejectReason::kCount)];
   std::uint64_t suppressed_rejects_[static_cast<int>(CloudRejectReason::kCount)] = {};
+  ros::WallTime last_stream_warning_[kStreamWarningCount];
 
   Counters counters_;
 };

@@ -155,7 +155,8 @@ int largeMode(const std::vector<std::string>& paths, std::size_t points, int rep
   xyz.reserve(3 * points);
   for (std::size_t copy = 0; xyz.size() / 3 < points; ++copy) {
     const std::vector<float>& f = frames[copy % frames.size()];
-    const float ox = 200.f * static_cast<float>(copy % 8), oy = 200.f * static_cast<float>(copy / 8);
+    const float ox = 200.f * static_cast<float>(copy % 8),
+                oy = 200.f * static_cast<float>(copy / 8);
     for (std::size_t i = 0; i + 2 < f.size() && xyz.size() / 3 < points; i += 3) {
       xyz.insert(xyz.end(), {f[i] + ox, f[i + 1] + oy, f[i + 2]});
     }

@@ -1,0 +1,366 @@
+#!/usr/bin/env python3
+"""rostest: tf2 gravity frame, ~labeled output, diagnostics and bad streams of the filter nodelets
+(see ros_extras.test for the nodelets under test)."""
+import math
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import unittest
+
+import numpy as np
+import rosbag
+import rosgraph
+import rospkg
+import rospy
+import rostest
+import tf2_ros
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import TransformStamped
+from rosgraph_msgs.msg import Log
+from sensor_msgs.msg import PointCloud2, PointField
+from std_msgs.msg import String
+
+PKG = "ground_filter"
+WAIT_S = 60.0
+TILT_DEG = 20.0
+
+REC = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4"), ("idx", "<u4")])
+LABELED = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4"),
+                    ("idx", "<u4"), ("ground", "u1"), ("pad", "V3")])
+
+
+def make_cloud(rec, frame_id, stamp):
+    msg = PointCloud2()
+    msg.header.frame_id = frame_id
+    msg.header.stamp = stamp
+    msg.height, msg.width = 1, rec.shape[0]
+    msg.fields = [PointField(name=n, offset=REC.fields[n][1],
+                             datatype=PointField.UINT32 if n == "idx" else PointField.FLOAT32,
+                             count=1) for n in REC.names]
+    msg.is_bigendian = False
+    msg.point_step = REC.itemsize
+    msg.row_step = REC.itemsize * rec.shape[0]
+    msg.data = rec.tobytes()
+    msg.is_dense = True
+    return msg
+
+
+def rot_y(deg):
+    a = math.radians(deg)
+    return np.array([[math.cos(a), 0, math.sin(a)], [0, 1, 0], [-math.sin(a), 0, math.cos(a)]])
+
+
+class Outputs(object):
+    """Messages of some output topics, keyed by (topic, stamp in ns)."""
+
+    def __init__(self, topics):
+        self.lock = threading.Lock()
+        self.got = {}
+        self.subs = [rospy.Subscriber(t, PointCloud2, self._cb, callback_args=t, queue_size=50)
+                     for t in topics]
+
+    def _cb(self, msg, topic):
+        with self.lock:
+            self.got[(topic, msg.header.stamp.to_nsec())] = msg
+
+    def get(self, topic, stamp):
+        with self.lock:
+            return self.got.get((topic, stamp.to_nsec()))
+
+    def count(self, topic):
+        with self.lock:
+            return sum(1 for t, _ in self.got if t == topic)
+
+    def close(self):
+        for s in self.subs:
+            s.unregister()
+
+
+class RosExtrasTest(unittest.TestCase):
+
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node("ros_extras_test")
+        raw = np.fromfile(rospy.get_param("~data_file"), dtype="<f4").reshape(-1, 4)
+        cls.rec = np.zeros(raw.shape[0], dtype=REC)
+        for i, n in enumerate(("x", "y", "z", "intensity")):
+            cls.rec[n] = raw[:, i]
+        cls.rec["idx"] = np.arange(raw.shape[0], dtype=np.uint32)
+        # The tilted sensor sees p_t = R^T p; base_link <- velodyne_tilted is R.
+        r = rot_y(TILT_DEG)
+        xyz = np.stack([cls.rec["x"], cls.rec["y"], cls.rec["z"]], axis=1).astype(np.float64)
+        tilted = xyz @ r  # row vectors: (R^T p)^T = p^T R
+        cls.tilted = cls.rec.copy()
+        for i, n in enumerate(("x", "y", "z")):
+            cls.tilted[n] = tilted[:, i].astype(np.float32)
+
+        cls.tf = tf2_ros.StaticTransformBroadcaster()
+        t = TransformStamped()
+        t.header.stamp = rospy.Time.now()
+        t.header.frame_id = "base_link"
+        t.child_frame_id = "velodyne_tilted"
+        half = math.radians(TILT_DEG) / 2
+        t.transform.rotation.y = math.sin(half)
+        t.transform.rotation.w = math.cos(half)
+        t.transform.translation.z = 1.73
+        cls.tf.sendTransform(t)
+
+        cls.lock = threading.Lock()
+        cls.diag = {}
+        cls.rosout = []
+        rospy.Subscriber("/diagnostics", DiagnosticArray, cls._on_diag, queue_size=50)
+        # /rosout itself: rostest starts no rosout node, so nothing is aggregated.
+        rospy.Subscriber("/rosout", Log, cls._on_log, queue_size=500)
+        cls.pubs = {n: rospy.Publisher("/gf_extras/" + n, PointCloud2, queue_size=20)
+                    for n in ("flat", "tilted", "notf")}
+        cls.stamp_counter = 0
+
+    @classmethod
+    def _on_diag(cls, msg):
+        with cls.lock:
+            for st in msg.status:
+                cls.diag[st.name.split(":")[0]] = st
+
+    @classmethod
+    def _on_log(cls, msg):
+        with cls.lock:
+            cls.rosout.append(msg)
+
+    @classmethod
+    def next_stamp(cls):
+        cls.stamp_counter += 1
+        return rospy.Time(500 + cls.stamp_counter, 0)
+
+    def wait_for(self, predicate, what, timeout=WAIT_S):
+        deadline = time.monotonic() + timeout
+        while not predicate():
+            if time.monotonic() > deadline or rospy.is_shutdown():
+                self.fail("timed out after %.0f s: %s" % (timeout, what))
+            time.sleep(0.05)
+
+    def status(self, name):
+        with self.lock:
+            return self.diag.get(name)
+
+    def value(self, name, key):
+        st = self.status(name)
+        if st is None:
+            return None
+        for kv in st.values:
+            if kv.key == key:
+                return kv.value
+        return None
+
+    def number(self, name, key):
+        v = self.value(name, key)
+        try:
+            return float(v)
+        except (TypeError, ValueError):
+            return None
+
+    def logged(self, level, text):
+        with self.lock:
+            return any(m.level >= level and text in m.msg for m in self.rosout)
+
+    def input_subscribed(self, topic):
+        _, subs, _ = rosgraph.Master("/ros_extras_test").getSystemState()
+        return any(t == topic and "/gf_extras_manager" in nodes for t, nodes in subs)
+
+    def connect(self, pub, n=1):
+        self.wait_for(lambda: pub.get_num_connections() >= n,
+                      "no subscriber on " + pub.resolved_name)
+
+    # ----------------------------------------------------------------------------------- tests
+
+    def test_0_labeled_alone_starts_lazy_filter(self):
+        """~labeled is one of the lazy outputs: a subscriber to it alone starts the input."""
+        time.sleep(1.0)
+        self.assertFalse(self.input_subscribed("/gf_extras/flat"),
+                         "flat_filter subscribed its input with no output subscriber")
+        sub = rospy.Subscriber("/flat_filter/labeled", PointCloud2, lambda m: None)
+        self.wait_for(lambda: self.input_subscribed("/gf_extras/flat"),
+                      "a ~labeled subscriber did not start the input subscription")
+        sub.unregister()
+        self.wait_for(lambda: not self.input_subscribed("/gf_extras/flat"),
+                      "input kept after the last ~labeled subscriber left")
+
+    def test_gravity_frame_tilted_kitti(self):
+        """A 20-degree tilted sensor with its static transform gives the labels of the
+        untilted frame (>= 99 %); outputs stay in the tilted frame with the input records."""
+        topics = ["/flat_filter/labeled", "/tilted_filter/labeled", "/tilted_filter/ground",
+                  "/tilted_filter/nonground"]
+        out = Outputs(topics)
+        try:
+            self.connect(self.pubs["flat"])
+            self.connect(self.pubs["tilted"])
+            stamp = self.next_stamp()
+            self.pubs["flat"].publish(make_cloud(self.rec, "velodyne", stamp))
+            self.pubs["tilted"].publish(make_cloud(self.tilted, "velodyne_tilted", stamp))
+            self.wait_for(lambda: all(out.get(t, stamp) for t in topics), "outputs of " +
+                          str(topics))
+            flat = np.frombuffer(out.get(topics[0], stamp).data, dtype=LABELED)
+            tilt_msg = out.get(topics[1], stamp)
+            tilt = np.frombuffer(tilt_msg.data, dtype=LABELED)
+            n = self.rec.shape[0]
+            self.assertEqual(flat.shape[0], n)
+            self.assertEqual(tilt.shape[0], n)
+            a = np.zeros(n, np.uint8)
+            b = np.zeros(n, np.uint8)
+            a[flat["idx"]] = flat["ground"]
+            b[tilt["idx"]] = tilt["ground"]
+            agreement = float(np.mean(a == b))
+
+            # Outputs keep the tilted frame, the stamp and the (untransformed) input records.
+            self.assertEqual(tilt_msg.header.frame_id, "velodyne_tilted")
+            for name in ("x", "y", "z", "intensity", "idx"):
+                np.testing.assert_array_equal(tilt[name], self.tilted[name])
+            g = out.get(topics[2], stamp)
+            ng = out.get(topics[3], stamp)
+            for m in (g, ng):
+                self.assertEqual(m.header.frame_id, "velodyne_tilted")
+                self.assertEqual(m.header.stamp, stamp)
+            self.assertEqual(g.width + ng.width, n)
+            self.assertEqual(g.width, int(b.sum()), "~labeled disagrees with ~ground")
+            gi = np.frombuffer(g.data, dtype=REC)["idx"]
+            self.assertTrue(np.all(b[gi] == 1))
+
+            # Control: the tilted frame classified without the gravity frame.
+            stamp2 = self.next_stamp()
+            self.pubs["flat"].publish(make_cloud(self.tilted, "velodyne_tilted", stamp2))
+            self.wait_for(lambda: out.get(topics[0], stamp2), "control output")
+            ctl = np.frombuffer(out.get(topics[0], stamp2).data, dtype=LABELED)
+            c = np.zeros(n, np.uint8)
+            c[ctl["idx"]] = ctl["ground"]
+            control = float(np.mean(a == c))
+            rospy.loginfo("gravity frame: %d points, ground %d (untilted) / %d (tilted, "
+                          "base_link): agreement %.3f %%; tilted without gravity_frame: %.3f %%",
+                          n, int(a.sum()), int(b.sum()), 100 * agreement, 100 * control)
+            self.assertGreaterEqual(agreement, 0.99)
+        finally:
+            out.close()
+
+    def test_gravity_frame_never_arrives(self):
+        """No transform to the gravity frame: clouds dropped and counted, WARN, nodelet not stuck
+        (each cloud waits tf_timeout = 0.05 s at most)."""
+        out = Outputs(["/notf_filter/ground", "/notf_filter/nonground"])
+        try:
+            self.connect(self.pubs["notf"])
+            small = self.rec[:20000]
+            for batch in (1, 2):
+                for _ in range(5):
+                    self.pubs["notf"].publish(make_cloud(small, "velodyne", self.next_stamp()))
+                    time.sleep(0.1)
+                self.wait_for(lambda b=batch: self.number(
+                    "notf_filter", "dropped: no transform") == 5 * b,
+                    "diagnostics: %d clouds dropped for want of a transform" % (5 * batch),
+                    timeout=20.0)
+            st = self.status("notf_filter")
+            self.assertEqual(self.number("notf_filter", "clouds out"), 0)
+            self.assertEqual(self.value("notf_filter", "gravity frame"), "frame_nobody_publishes")
+            self.wait_for(lambda: self.status("notf_filter").level == DiagnosticStatus.WARN,
+                          "diagnostics not WARN while clouds are dropped", timeout=10.0)
+            self.wait_for(lambda: self.logged(Log.WARN, "no transform from 'velodyne' to gravity "
+                                                        "frame 'frame_nobody_publishes'"),
+                          "no WARN naming the missing transform", timeout=10.0)
+            self.assertEqual(out.count("/notf_filter/ground"), 0)
+            rospy.loginfo("notf_filter: %s", st.message)
+        finally:
+            out.close()
+
+    def test_diagnostics_report(self):
+        """Rates, processing time, counts and backend on /diagnostics while clouds stream."""
+        out = Outputs(["/flat_filter/ground"])
+        try:
+            self.connect(self.pubs["flat"])
+            small = self.rec[:30000]
+            for _ in range(15):
+                self.pubs["flat"].publish(make_cloud(small, "velodyne", self.next_stamp()))
+                time.sleep(0.1)
+            self.wait_for(lambda: (self.number("flat_filter", "input rate [Hz]") or 0) > 1.0 and
+                          self.number("flat_filter", "processing time max [ms]") is not None,
+                          "a diagnostic update with clouds flowing")
+            name = "flat_filter"
+            for key in ("method", "backend", "gravity frame", "input rate [Hz]",
+                        "output rate [Hz]", "processing time mean [ms]",
+                        "processing time max [ms]", "clouds in", "clouds out", "dropped",
+                        "dropped: malformed", "dropped: no transform", "dropped: not PointCloud2",
+                        "dropped: filter failed", "invalid points (NaN/Inf)", "fallbacks",
+                        "frame_id changes", "stamps going back"):
+                self.assertIsNotNone(self.value(name, key), "diagnostics lack '%s'" % key)
+            self.assertEqual(self.value(name, "method"), rospy.get_param("~method"))
+            self.assertGreater(self.number(name, "processing time max [ms]"), 0.0)
+            self.assertGreaterEqual(self.number(name, "processing time max [ms]"),
+                                    self.number(name, "processing time mean [ms]"))
+            self.wait_for(lambda: self.number(name, "clouds out") >= 15, "clouds out >= 15")
+            self.assertEqual(self.number(name, "dropped"), 0)
+            st = self.status(name)
+            rospy.loginfo("flat_filter diagnostics: level %d '%s' %s", st.level, st.message,
+                          {kv.key: kv.value for kv in st.values})
+        finally:
+            out.close()
+
+    def test_bad_bag_other_messages_frame_changes_loop(self):
+        """A looped bag with std_msgs/String messages on the cloud topic and two frame_ids:
+        strings dropped and counted, frame changes and stamps going back counted, every cloud
+        split with counts conserved, the nodelet alive afterwards."""
+        tmp = tempfile.mkdtemp(prefix="gf_extras_")
+        bag_path = os.path.join(tmp, "mixed.bag")
+        small = self.rec[:20000]
+        with rosbag.Bag(bag_path, "w") as bag:
+            for i, frame in enumerate(["velodyne", None, "velodyne_b", None, "velodyne"]):
+                t = rospy.Time(10, 0) + rospy.Duration(0.1 * i)
+                if frame is None:  # rosbag's Python writer files it under the cloud connection
+                    bag.write("/gf_extras/bag", String(data="not a cloud %d" % i), t)
+                else:
+                    bag.write("/gf_extras/bag", make_cloud(small, frame, t), t)
+        out = Outputs(["/bag_filter/ground", "/bag_filter/nonground"])
+        player = None
+        try:
+            self.wait_for(lambda: self.input_subscribed("/gf_extras/bag"), "bag_filter input")
+            player = subprocess.Popen(["rosbag", "play", "-q", "-l", "-d", "0.5", bag_path],
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT,
+                                      start_new_session=True)
+            name = "bag_filter"
+            self.wait_for(lambda: (self.number(name, "dropped: not PointCloud2") or 0) >= 4 and
+                          (self.number(name, "stamps going back") or 0) >= 1 and
+                          (self.number(name, "frame_id changes") or 0) >= 2 and
+                          (self.number(name, "clouds out") or 0) >= 6,
+                          "bag_filter diagnostics counting the bad stream")
+        finally:
+            if player is not None and player.poll() is None:
+                os.killpg(player.pid, signal.SIGINT)
+                player.wait(timeout=20)
+            os.remove(bag_path)
+            os.rmdir(tmp)
+        try:
+            self.assertEqual(self.number(name, "dropped: malformed"), 0)
+            with out.lock:
+                keys = sorted({s for _, s in out.got})
+                for s in keys:
+                    g = out.got.get(("/bag_filter/ground", s))
+                    ng = out.got.get(("/bag_filter/nonground", s))
+                    if g is not None and ng is not None:
+                        self.assertEqual(g.width + ng.width, small.shape[0])
+                        self.assertEqual(g.header.frame_id, ng.header.frame_id)
+            for text in ("dropped a message on /gf_extras/bag", "input frame_id changed",
+                         "input stamp went back"):
+                self.wait_for(lambda t=text: self.logged(Log.WARN, t), "no WARN '%s'" % text,
+                              timeout=10.0)
+            # Still alive: a good cloud published now comes out split.
+            pub = rospy.Publisher("/gf_extras/bag", PointCloud2, queue_size=2)
+            self.connect(pub)
+            stamp = self.next_stamp()
+            pub.publish(make_cloud(small, "velodyne", stamp))
+            self.wait_for(lambda: out.get("/bag_filter/ground", stamp) and
+                          out.get("/bag_filter/nonground", stamp), "a cloud after the bad bag")
+            rospy.loginfo("bag_filter: %s", self.status(name).message)
+        finally:
+            out.close()
+
+
+if __name__ == "__main__":
+    rostest.rosrun(PKG, "ros_extras", RosExtrasTest, sys.argv)

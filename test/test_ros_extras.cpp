@@ -1,0 +1,199 @@
+// Unit tests of the nodelet base's ROS extras without a ROS graph: the check of serialized
+// PointCloud2 bytes (bad messages on the input), the `~labeled` cloud and the view of a cloud
+// transformed into a gravity frame.
+#include <gtest/gtest.h>
+#include <ros/serialization.h>
+#include <std_msgs/String.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "../src/nodelets/ground_filter_nodelet.h"
+
+namespace gf = ground_filter;
+using sensor_msgs::PointCloud2;
+using sensor_msgs::PointField;
+
+namespace {
+
+PointField field(const std::string& name, std::uint32_t offset, std::uint8_t type) {
+  PointField f;
+  f.name = name;
+  f.offset = offset;
+  f.datatype = type;
+  f.count = 1;
+  return f;
+}
+
+// 20-byte records: x y z intensity (float32) and id (uint32) = i; rows padded by `row_pad`.
+PointCloud2 makeCloud(std::uint32_t width, std::uint32_t height = 1, std::uint32_t row_pad = 0) {
+  PointCloud2 c;
+  c.header.frame_id = "velodyne";
+  c.header.stamp.sec = 7;
+  c.width = width;
+  c.height = height;
+  c.fields = {field("x", 0, PointField::FLOAT32), field("y", 4, PointField::FLOAT32),
+              field("z", 8, PointField::FLOAT32), field("intensity", 12, PointField::FLOAT32),
+              field("id", 16, PointField::UINT32)};
+  c.point_step = 20;
+  c.row_step = width * c.point_step + row_pad;
+  c.data.assign(std::size_t{c.row_step} * height, 0xAB);
+  for (std::uint32_t r = 0, i = 0; r < height; ++r) {
+    for (std::uint32_t col = 0; col < width; ++col, ++i) {
+      std::uint8_t* rec = c.data.data() + std::size_t{r} * c.row_step + col * c.point_step;
+      const float v[4] = {1.0f * i, -2.0f * i, 0.5f * i, 10.0f + i};
+      std::memcpy(rec, v, sizeof(v));
+      std::memcpy(rec + 16, &i, 4);
+    }
+  }
+  c.is_dense = true;
+  return c;
+}
+
+gf::CloudLayout layoutOf(const PointCloud2& c) {
+  gf::CloudLayout layout;
+  std::string why;
+  EXPECT_EQ(gf::checkPointCloud2(c, &layout, &why), gf::CloudRejectReason::kNone) << why;
+  return layout;
+}
+
+template <typename M>
+std::vector<std::uint8_t> serialize(const M& msg) {
+  std::vector<std::uint8_t> buf(ros::serialization::serializationLength(msg));
+  ros::serialization::OStream stream(buf.data(), static_cast<std::uint32_t>(buf.size()));
+  ros::serialization::serialize(stream, msg);
+  return buf;
+}
+
+bool checkBytes(const std::vector<std::uint8_t>& b, std::string* why = nullptr) {
+  std::string w;
+  const bool ok =
+      gf::checkSerializedPointCloud2(b.data(), static_cast<std::uint32_t>(b.size()), &w);
+  if (why) *why = w;
+  return ok;
+}
+
+void putU32(std::vector<std::uint8_t>* b, std::size_t pos, std::uint32_t v) {
+  std::memcpy(b->data() + pos, &v, 4);
+}
+
+}  // namespace
+
+TEST(CheckSerializedPointCloud2, AcceptsRealMessages) {
+  EXPECT_TRUE(checkBytes(serialize(makeCloud(100, 2, 8))));
+  EXPECT_TRUE(checkBytes(serialize(PointCloud2())));  // empty cloud, no fields
+}
+
+TEST(CheckSerializedPointCloud2, RejectsOtherMessagesAndDamage) {
+  const auto good = serialize(makeCloud(10));
+  std::string why;
+  // A std_msgs/String on the cloud topic (how a bag with mixed types replays).
+  std_msgs::String s;
+  s.data = "not a cloud";
+  EXPECT_FALSE(checkBytes(serialize(s), &why));
+  EXPECT_FALSE(why.empty());
+  // One byte short, one byte too many, nothing at all.
+  EXPECT_FALSE(checkBytes(std::vector<std::uint8_t>(good.begin(), good.end() - 1), &why));
+  auto longer = good;
+  longer.push_back(0);
+  EXPECT_FALSE(checkBytes(longer, &why));
+  EXPECT_NE(why.find("left over"), std::string::npos) << why;
+  EXPECT_FALSE(checkBytes({}));
+}
+
+TEST(CheckSerializedPointCloud2, HugeLengthsAreRejectedBeforeAnyAllocation) {
+  const PointCloud2 c = makeCloud(10);
+  const auto good = serialize(c);
+  // Layout: seq(4) stamp(8) frame_id(4 + n) height(4) width(4) field count(4) ...
+  const std::size_t fields_pos = 12 + 4 + c.header.frame_id.size() + 8;
+  auto bad = good;
+  putU32(&bad, fields_pos, 0x7FFFFFFF);
+  std::string why;
+  EXPECT_FALSE(checkBytes(bad, &why));
+  EXPECT_NE(why.find("field count"), std::string::npos) << why;
+  // A data length beyond the buffer: it sits 4 + data bytes + 1 (is_dense) before the end.
+  bad = good;
+  putU32(&bad, good.size() - 1 - c.data.size() - 4, 0xFFFFFFF0u);
+  EXPECT_FALSE(checkBytes(bad, &why));
+  EXPECT_NE(why.find("data"), std::string::npos) << why;
+  bad = good;
+  putU32(&bad, 12, 0xFFFFFFFFu);  // frame_id length
+  EXPECT_FALSE(checkBytes(bad, &why));
+}
+
+TEST(MakeLabeledCloud, AppendsAlignedUint8FieldAndDropsRowPadding) {
+  const PointCloud2 in = makeCloud(5, 3, 12);
+  const gf::CloudLayout layout = layoutOf(in);
+  std::vector<std::uint8_t> labels(15);
+  for (std::size_t i = 0; i < labels.size(); ++i) labels[i] = (i % 3 == 0) ? gf::kGround : 0;
+  PointCloud2 out;
+  std::string why;
+  ASSERT_TRUE(gf::makeLabeledCloud(in, layout, labels, &out, &why)) << why;
+  EXPECT_EQ(out.header.frame_id, in.header.frame_id);
+  EXPECT_EQ(out.header.stamp, in.header.stamp);
+  EXPECT_EQ(out.width, 5u);
+  EXPECT_EQ(out.height, 3u);
+  EXPECT_EQ(out.point_step, 24u);  // 20 + 1, rounded up to a multiple of 4
+  EXPECT_EQ(out.row_step, 5u * 24u);
+  ASSERT_EQ(out.data.size(), 15u * 24u);
+  ASSERT_EQ(out.fields.size(), in.fields.size() + 1);
+  const PointField& g = out.fields.back();
+  EXPECT_EQ(g.name, "ground");
+  EXPECT_EQ(g.offset, 20u);
+  EXPECT_EQ(g.datatype, PointField::UINT8);
+  EXPECT_EQ(g.count, 1u);
+  for (std::size_t i = 0; i < 15; ++i) {
+    const std::uint8_t* src = in.data.data() + (i / 5) * in.row_step + (i % 5) * 20;
+    const std::uint8_t* dst = out.data.data() + i * 24;
+    EXPECT_EQ(std::memcmp(src, dst, 20), 0) << "record " << i;
+    EXPECT_EQ(dst[20], i % 3 == 0 ? 1 : 0) << "record " << i;
+  }
+}
+
+TEST(MakeLabeledCloud, ReusesExistingUint8GroundFieldRefusesOtherTypes) {
+  PointCloud2 in = makeCloud(4);
+  in.fields.push_back(field("ground", 19, PointField::UINT8));  // top byte of id: free here
+  const gf::CloudLayout layout = layoutOf(in);
+  const std::vector<std::uint8_t> labels = {1, 0, 1, 0};
+  PointCloud2 out;
+  ASSERT_TRUE(gf::makeLabeledCloud(in, layout, labels, &out, nullptr));
+  EXPECT_EQ(out.point_step, in.point_step);
+  EXPECT_EQ(out.fields.size(), in.fields.size());
+  for (std::size_t i = 0; i < 4; ++i) EXPECT_EQ(out.data[i * 20 + 19], labels[i]);
+
+  in.fields.back().datatype = PointField::FLOAT32;
+  in.fields.back().offset = 12;
+  std::string why;
+  EXPECT_FALSE(gf::makeLabeledCloud(in, layoutOf(in), labels, &out, &why));
+  EXPECT_NE(why.find("ground"), std::string::npos) << why;
+}
+
+TEST(MakeTransformedCloudView, RotatesAndTranslatesKeepsNaN) {
+  PointCloud2 in = makeCloud(3, 2, 4);  // padded rows: the transform reads row by row
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::memcpy(in.data.data() + in.row_step + 20 + 4, &nan, 4);  // point 4: y = NaN
+  const gf::CloudLayout layout = layoutOf(in);
+  // 90 degrees about z, then +10 in z: (x, y, z) -> (-y, x, z + 10).
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  t.translation() = Eigen::Vector3d(0, 0, 10);
+  std::vector<float> scratch;
+  const gf::CloudView v = gf::makeTransformedCloudView(in, layout, t, &scratch);
+  ASSERT_EQ(v.size(), 6u);
+  for (std::size_t i = 0; i < 6; ++i) {
+    if (i == 4) {
+      EXPECT_FALSE(v.isValid(i));
+      continue;
+    }
+    EXPECT_NEAR(v.x(i), 2.0f * i, 1e-5) << i;  // -y = 2i
+    EXPECT_NEAR(v.y(i), 1.0f * i, 1e-5) << i;  // x = i
+    EXPECT_NEAR(v.z(i), 0.5f * i + 10.0f, 1e-5) << i;
+  }
+  // The cloud itself is untouched (outputs are copied from it).
+  float x1;
+  std::memcpy(&x1, in.data.data() + 20, 4);
+  EXPECT_EQ(x1, 1.0f);
+}
