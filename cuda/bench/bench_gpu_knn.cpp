@@ -6,6 +6,7 @@
 // Times are wall-clock medians after one warm-up call, host<->device copies included. Prints one
 // markdown table per part.
 
+#include <cuda_runtime.h>
 #include <omp.h>
 
 #include <algorithm>
@@ -13,6 +14,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <functional>
 #include <map>
@@ -82,8 +84,10 @@ std::vector<float> replicate(const std::vector<std::vector<float>>& frames, std:
 
 std::string sizeLabel(std::size_t n) {
   char b[32];
-  if (n >= 1000000) std::snprintf(b, sizeof b, "%.1f M", n / 1e6);
-  else std::snprintf(b, sizeof b, "%.0f k", n / 1e3);
+  if (n >= 1000000)
+    std::snprintf(b, sizeof b, "%.1f M", n / 1e6);
+  else
+    std::snprintf(b, sizeof b, "%.0f k", n / 1e3);
   return b;
 }
 
@@ -142,9 +146,10 @@ int main(int argc, char** argv) {
   const int k = 50;
   const int cores = omp_get_num_procs();
   gf::CudaKnn probe;
-  std::printf("device: %s; CPU: %d cores (kd-tree and filter use all); K = %d; median of %d runs "
-              "after a warm-up\n\n",
-              probe.deviceName().c_str(), cores, k, reps);
+  std::printf(
+      "device: %s; CPU: %d cores (kd-tree and filter use all); K = %d; median of %d runs "
+      "after a warm-up\n\n",
+      probe.deviceName().c_str(), cores, k, reps);
 
   struct Row {
     std::string size;
@@ -157,6 +162,37 @@ int main(int argc, char** argv) {
     std::size_t labels_differ;
     std::string note;
   };
+  if (variants) {  // copy bandwidths on this machine, 64 MiB blocks
+    const std::size_t bytes = 64u << 20;
+    void* d = nullptr;
+    void* h = nullptr;
+    if (cudaMalloc(&d, bytes) == cudaSuccess && cudaMallocHost(&h, bytes) == cudaSuccess) {
+      std::vector<char> user(bytes, 1);
+      cudaMemset(d, 7, bytes);
+      const double d2h_pinned =
+          timeMedian(5, [&] { cudaMemcpy(h, d, bytes, cudaMemcpyDeviceToHost); });
+      const double h2d_pinned =
+          timeMedian(5, [&] { cudaMemcpy(d, h, bytes, cudaMemcpyHostToDevice); });
+      const double d2h_pageable =
+          timeMedian(5, [&] { cudaMemcpy(user.data(), d, bytes, cudaMemcpyDeviceToHost); });
+      const double host_copy = timeMedian(5, [&] {
+#pragma omp parallel for schedule(static)
+        for (int s = 0; s < 64; ++s) {
+          std::memcpy(user.data() + (std::size_t(s) << 20),
+                      static_cast<char*>(h) + (std::size_t(s) << 20), std::size_t(1) << 20);
+        }
+      });
+      const double host_copy1 = timeMedian(5, [&] { std::memcpy(user.data(), h, bytes); });
+      auto gbs = [&](double ms) { return bytes / ms / 1e6; };
+      std::printf(
+          "copy bandwidth (GB/s, 64 MiB): D2H pinned %.1f, H2D pinned %.1f, D2H pageable "
+          "%.1f, host memcpy pinned->pageable %.1f (%d threads), %.1f (1 thread)\n\n",
+          gbs(d2h_pinned), gbs(h2d_pinned), gbs(d2h_pageable), gbs(host_copy), cores,
+          gbs(host_copy1));
+    }
+    cudaFree(d);
+    cudaFreeHost(h);
+  }
   std::vector<Row> knn_rows;
   std::vector<std::string> stage_lines;
   std::vector<FRow> filter_rows;
@@ -235,6 +271,9 @@ int main(int argc, char** argv) {
                         t.candidates_per_query, t.insertions_per_query, t.shells_per_query,
                         t.levels_per_query, t.mean_query_cycles, t.max_query_cycles);
           variant_lines.push_back(line);
+          if (sorted && mp == 0) {
+            variant_lines.push_back("|  | " + t.detail + " | | | | | | | | | |");
+          }
         }
       }
       for (int chunks : {1, 4, 16}) {
@@ -249,7 +288,8 @@ int main(int argc, char** argv) {
           tt.push_back(v.lastTimings().total_ms);
         }
         char line[200];
-        std::snprintf(line, sizeof line, "| %s | %d download chunks | auto | %.2f | %.2f | | | | | | |",
+        std::snprintf(line, sizeof line,
+                      "| %s | %d download chunks | auto | %.2f | %.2f | | | | | | |",
                       sizeLabel(n).c_str(), chunks, median(tq), median(tt));
         variant_lines.push_back(line);
       }
@@ -314,8 +354,8 @@ int main(int argc, char** argv) {
     std::size_t ldiff = 0;
     for (std::size_t i = 0; i < n; ++i) ldiff += lg[i] != lc[i];
     const double gk = median(g_knn), gp = median(g_pca), ck = median(c_knn), cp = median(c_pca);
-    filter_rows.push_back({sizeLabel(n), g_ms, gk, gp, g_ms - gk - gp, c_ms, ck, cp,
-                           c_ms - ck - cp, ldiff, sg.backend + (sg.note.empty() ? "" : ": " + sg.note)});
+    filter_rows.push_back({sizeLabel(n), g_ms, gk, gp, g_ms - gk - gp, c_ms, ck, cp, c_ms - ck - cp,
+                           ldiff, sg.backend + (sg.note.empty() ? "" : ": " + sg.note)});
     std::fprintf(stderr, "  gpu filter stages:");
     for (const auto& s : sg.stage_ms) std::fprintf(stderr, " %s %.2f", s.first.c_str(), s.second);
     std::fprintf(stderr, "\n  cpu filter stages:");
@@ -324,10 +364,11 @@ int main(int argc, char** argv) {
   }
 
   std::printf("K-nearest neighbours, K = %d (ms)\n\n", k);
-  std::printf("| points | GPU upload | GPU grid | GPU query + download | GPU total | GPU, lists "
-              "kept on device | kd-tree (%d threads) | of which build | speed-up | rows differing "
-              "|\n",
-              cores);
+  std::printf(
+      "| points | GPU upload | GPU grid | GPU query + download | GPU total | GPU, lists "
+      "kept on device | kd-tree (%d threads) | of which build | speed-up | rows differing "
+      "|\n",
+      cores);
   std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
   for (const auto& r : knn_rows) {
     std::printf("| %s | %.2f | %.2f | %.2f | **%.2f** | %.2f | %.1f | %.1f | **%.0fx** | %zu |\n",
@@ -335,25 +376,28 @@ int main(int argc, char** argv) {
                 r.cpu_total, r.cpu_build, r.cpu_total / r.gpu_total, r.rows_differ);
   }
   std::printf("\nWhole normal-vector filter (ms)\n\n");
-  std::printf("| points | GPU total | GPU knn | GPU pca | GPU rest | kd-tree total | kd-tree knn "
-              "| kd-tree pca | kd-tree rest | speed-up | labels differing | backend |\n");
+  std::printf(
+      "| points | GPU total | GPU knn | GPU pca | GPU rest | kd-tree total | kd-tree knn "
+      "| kd-tree pca | kd-tree rest | speed-up | labels differing | backend |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const auto& r : filter_rows) {
-    std::printf("| %s | **%.1f** | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1fx | %zu | %s |\n",
-                r.size.c_str(), r.gpu_total, r.gpu_knn, r.gpu_pca, r.gpu_rest, r.cpu_total,
-                r.cpu_knn, r.cpu_pca, r.cpu_rest, r.cpu_total / r.gpu_total, r.labels_differ,
-                r.note.c_str());
+    std::printf(
+        "| %s | **%.1f** | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1fx | %zu | %s |\n",
+        r.size.c_str(), r.gpu_total, r.gpu_knn, r.gpu_pca, r.gpu_rest, r.cpu_total, r.cpu_knn,
+        r.cpu_pca, r.cpu_rest, r.cpu_total / r.gpu_total, r.labels_differ, r.note.c_str());
   }
-  std::printf("\nGPU calls of the filter (ms): search with lists kept on the device, PCA (kernel + "
-              "download; and with conversion to PointPca), vote counts (flags up, counts down)\n\n"
-              "| points | search | PCA kernel + download | PCA call | vote counts | sum |\n"
-              "|---|---|---|---|---|---|\n");
+  std::printf(
+      "\nGPU calls of the filter (ms): search with lists kept on the device, PCA (kernel + "
+      "download; and with conversion to PointPca), vote counts (flags up, counts down)\n\n"
+      "| points | search | PCA kernel + download | PCA call | vote counts | sum |\n"
+      "|---|---|---|---|---|---|\n");
   for (const auto& l : stage_lines) std::printf("%s\n", l.c_str());
   if (!variant_lines.empty()) {
-    std::printf("\nGPU KNN variants (ms; work per query from a run with counters)\n\n| points | "
-                "cell order | level_min_points | query + download | total | candidates | "
-                "insertions | shells | levels | mean cycles | max cycles |\n"
-                "|---|---|---|---|---|---|---|---|---|---|---|\n");
+    std::printf(
+        "\nGPU KNN variants (ms; work per query from a run with counters)\n\n| points | "
+        "cell order | level_min_points | query + download | total | candidates | "
+        "insertions | shells | levels | mean cycles | max cycles |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (const auto& l : variant_lines) std::printf("%s\n", l.c_str());
   }
   return 0;

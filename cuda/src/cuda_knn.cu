@@ -10,8 +10,6 @@
 // of the sorted points, so a single sort serves all levels. The lists stay on the device for
 // neighborhoodPca() and countFlaggedNeighbors().
 
-#include "ground_filter/cuda_knn.h"
-
 #include <cuda_runtime.h>
 #include <omp.h>
 
@@ -25,6 +23,8 @@
 #include <string>
 #include <vector>
 
+#include "ground_filter/cuda_knn.h"
+
 namespace ground_filter {
 
 namespace {
@@ -33,8 +33,8 @@ namespace {
 void checkCuda(cudaError_t err, const char* call, const char* file, int line) {
   if (err == cudaSuccess) return;
   std::ostringstream os;
-  os << "CUDA error " << cudaGetErrorName(err) << " (" << cudaGetErrorString(err) << ") in "
-     << call << " at " << file << ":" << line;
+  os << "CUDA error " << cudaGetErrorName(err) << " (" << cudaGetErrorString(err) << ") in " << call
+     << " at " << file << ":" << line;
   throw CudaError(cudaGetErrorName(err), os.str());
 }
 
@@ -54,14 +54,21 @@ constexpr unsigned long long kEmptyKey = ~0ull;
 constexpr int kEmptyIndex = 0x7fffffff;  // sorts after every real index
 constexpr int kWarp = 32;
 constexpr int kQueryBlock = 128;  // 4 queries (warps) per block
+// Register budget of the query kernel: 8 blocks (32 warps) per SM fit without spills; 12 blocks
+// (40 registers, some spills) measured no faster on an H200.
+constexpr int kQueryBlocksPerSm = 8;
 constexpr int kStarveShells = 2;  // shells searched before a starving query moves a level up
+// A query may use a level as fine as (bound radius) / kBoundCells: finer cells waste less on
+// cells that straddle the bound's ball (isolated points next to dense regions), at the cost of
+// more cell lookups.
+constexpr float kBoundCells = 4.f;
 
 /// One grid level: a hash table from Morton cell key to (first sorted point, point count).
 struct LevelDesc {
-  int bits;                       // 2^bits cells per axis
-  float cell;                     // cell edge [m]
-  unsigned int log2cap;           // table capacity = 2^log2cap slots
-  unsigned long long table_off;   // first slot of this level in the shared slot arrays
+  int bits;                      // 2^bits cells per axis
+  float cell;                    // cell edge [m]
+  unsigned int log2cap;          // table capacity = 2^log2cap slots
+  unsigned long long table_off;  // first slot of this level in the shared slot arrays
 };
 
 /// Everything a query needs about the grid; passed by value (__grid_constant__).
@@ -148,9 +155,12 @@ __host__ __device__ inline float orderedToFloat(int i) {
 
 /// Bounds scratch: [0..2] min xyz, [3..5] max xyz (ordered ints), [6] non-finite point count.
 __global__ void initBoundsKernel(int* b) {
-  if (threadIdx.x < 3) b[threadIdx.x] = 0x7fffffff;
-  else if (threadIdx.x < 6) b[threadIdx.x] = static_cast<int>(0x80000000u);
-  else if (threadIdx.x == 6) b[6] = 0;
+  if (threadIdx.x < 3)
+    b[threadIdx.x] = 0x7fffffff;
+  else if (threadIdx.x < 6)
+    b[threadIdx.x] = static_cast<int>(0x80000000u);
+  else if (threadIdx.x == 6)
+    b[6] = 0;
 }
 
 __global__ void boundsKernel(const float* __restrict__ xyz, int n, int* b) {
@@ -191,8 +201,10 @@ __global__ void frameKernel(const int* b, float* frame) {
   for (int a = 0; a < 3; ++a) {
     lo[a] = orderedToFloat(b[a]);
     const float hi = orderedToFloat(b[3 + a]);
-    if (!(lo[a] <= hi)) lo[a] = 0.f;  // no finite point at all
-    else ext = fmaxf(ext, hi - lo[a]);
+    if (!(lo[a] <= hi))
+      lo[a] = 0.f;  // no finite point at all
+    else
+      ext = fmaxf(ext, hi - lo[a]);
   }
   // A little over the extent so the maximum quantizes inside the grid; 1 m for a single point.
   const float edge = ext > 1e-20f ? ext * 1.0001f : 1.f;
@@ -240,8 +252,8 @@ __global__ void gatherKernel(const float* __restrict__ xyz, const unsigned int* 
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i >= n) return;
   const unsigned int j = order[i];
-  sorted[i] = make_float4(xyz[3 * j], xyz[3 * j + 1], xyz[3 * j + 2],
-                          __int_as_float(static_cast<int>(j)));
+  sorted[i] =
+      make_float4(xyz[3 * j], xyz[3 * j + 1], xyz[3 * j + 2], __int_as_float(static_cast<int>(j)));
 }
 
 /// Inserts every cell of every level: thread i inserts the cells that start at sorted point i.
@@ -285,15 +297,32 @@ __global__ void closeCellsKernel(const __grid_constant__ GridDesc g,
     const unsigned int mask = (1u << lv.log2cap) - 1u;
     unsigned int h = hashSlot(ck, lv.log2cap);
     while (table_keys[lv.table_off + h] != ck) h = (h + 1u) & mask;
-    table_vals[lv.table_off + h].y = static_cast<unsigned int>(i + 1) - table_vals[lv.table_off + h].x;
+    table_vals[lv.table_off + h].y =
+        static_cast<unsigned int>(i + 1) - table_vals[lv.table_off + h].x;
   }
 }
 
 // ------------------------------------------------------------------ the query kernel
 
 /// Per-query work counters (CudaKnnOptions::collect_stats).
-enum Stat { kStatCandidates, kStatInsertions, kStatShells, kStatLevels, kStatMaxCycles,
-            kStatCycles, kStatCount };
+enum Stat {
+  kStatCandidates,
+  kStatInsertions,
+  kStatShells,
+  kStatLevels,
+  kStatMaxCycles,
+  kStatCycles,
+  kStatOver100k,
+  kStatOver1M,
+  kStatSlowCand,
+  kStatSlowIns,
+  kStatSlowShells,
+  kStatSlowLevels,
+  kStatSlowBits,
+  kStatSlowLim,
+  kStatSlowKd,
+  kStatCount
+};
 
 /// The warp's sorted top-K list: lane l holds slots l and l + 32.
 struct WarpList {
@@ -366,15 +395,48 @@ __device__ inline void warpSortCells(float& key, uint2& cell, int lane) {
   }
 }
 
+/// Largest squared distance from q to the k points of sorted positions [w0, w0 + k), warp-wide.
+__device__ inline float windowMax(const float4* __restrict__ pts, long long w0, int k,
+                                  const float4& q, int lane) {
+  float dmax = 0.f;
+  if (lane < k) {
+    const float4 p = pts[w0 + lane];
+    dmax = sqDist(p.x, p.y, p.z, q.x, q.y, q.z);
+  }
+  if (lane + 32 < k) {
+    const float4 p = pts[w0 + lane + 32];
+    dmax = fmaxf(dmax, sqDist(p.x, p.y, p.z, q.x, q.y, q.z));
+  }
+  for (int o = 16; o > 0; o >>= 1) dmax = fmaxf(dmax, __shfl_xor_sync(0xffffffffu, dmax, o));
+  return dmax;
+}
+
+/// Bitonic sort of one (distance, index) pair per lane by increasing (distance, index).
+__device__ inline void warpSortPairs(float& d, int& id, int lane) {
+  const unsigned full = 0xffffffffu;
+  for (int size = 2; size <= 32; size <<= 1) {
+    for (int stride = size >> 1; stride > 0; stride >>= 1) {
+      const float od = __shfl_xor_sync(full, d, stride);
+      const int oi = __shfl_xor_sync(full, id, stride);
+      const bool ascending = (lane & size) == 0 || size == 32;
+      const bool lower = (lane & stride) == 0;
+      if (lower == ascending ? pairLess(od, oi, d, id) : pairLess(d, id, od, oi)) {
+        d = od;
+        id = oi;
+      }
+    }
+  }
+}
+
 /// One warp per query; queries [base, end) of the Morton-sorted points; row s of the output holds
 /// the list of sorted point s (original indices). kTwoHalves: k > 32. kSortCells: visit the cells
 /// of each batch nearest first (the K-th distance shrinks sooner, fewer insertions).
 template <bool kTwoHalves, bool kSortCells>
-__global__ void __launch_bounds__(kQueryBlock) knnKernel(
-    const __grid_constant__ GridDesc g, const float4* __restrict__ pts,
-    const unsigned long long* __restrict__ tkeys, const uint2* __restrict__ tvals, int n,
-    int base, int end, int k, std::int32_t* __restrict__ out_idx, float* __restrict__ out_d2,
-    unsigned long long* __restrict__ stats) {
+__global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
+    knnKernel(const __grid_constant__ GridDesc g, const float4* __restrict__ pts,
+              const unsigned long long* __restrict__ tkeys, const uint2* __restrict__ tvals, int n,
+              int base, int end, int k, std::int32_t* __restrict__ out_idx,
+              float* __restrict__ out_d2, unsigned long long* __restrict__ stats) {
   const unsigned full = 0xffffffffu;
   const int lane = threadIdx.x & 31;
   const long long qi =
@@ -386,25 +448,18 @@ __global__ void __launch_bounds__(kQueryBlock) knnKernel(
   const std::uint32_t qx = quantize(q.x, g.ox, g.inv), qy = quantize(q.y, g.oy, g.inv),
                       qz = quantize(q.z, g.oz, g.inv);
 
-  // Upper bound `lim` of the K-th squared distance: the k points around q in Morton order (any k
-  // points bound it). Candidates and cells beyond it are skipped from the start.
+  // Upper bound `lim` of the K-th squared distance: any k points bound it. Here the k points
+  // before q and the k points from q on in Morton order, whichever is closer: where the curve
+  // jumps far on one side of q, the other side still gives a tight bound. Candidates and cells
+  // beyond the bound are skipped from the start.
   float lim = INFINITY;
   if (n >= k) {
-    const long long w0 = min(max(qi - k / 2, 0ll), static_cast<long long>(n - k));
-    float dmax = 0.f;
-    if (lane < k) {
-      const float4 p = pts[w0 + lane];
-      dmax = sqDist(p.x, p.y, p.z, q.x, q.y, q.z);
-    }
-    if (lane + 32 < k) {
-      const float4 p = pts[w0 + lane + 32];
-      dmax = fmaxf(dmax, sqDist(p.x, p.y, p.z, q.x, q.y, q.z));
-    }
-    for (int o = 16; o > 0; o >>= 1) dmax = fmaxf(dmax, __shfl_xor_sync(full, dmax, o));
-    lim = dmax;
+    const long long lo = max(qi - k + 1, 0ll), hi = min(qi, static_cast<long long>(n - k));
+    lim = fminf(windowMax(pts, lo, k, q, lane), windowMax(pts, hi, k, q, lane));
   }
   // Level: the finest whose own cell holds >= min_points points, or, if finer, the finest whose
-  // cells are at least half the bound's radius (then the k window points lie within 2 shells).
+  // cells are at least the bound's radius / kBoundCells (the k window points then lie within
+  // kBoundCells + 1 shells).
   // The second rule keeps isolated points from landing on a coarse level whose shells hold a
   // large part of the cloud. Lanes test one level each.
   bool ok = false, ok_r = false;
@@ -413,7 +468,7 @@ __global__ void __launch_bounds__(kQueryBlock) knnKernel(
     const int s = kCoordBits - lv.bits;
     const uint2 c = lookupCell(tkeys, tvals, lv, morton(qx >> s, qy >> s, qz >> s));
     ok = static_cast<int>(c.y) >= g.min_points;
-    ok_r = 2.f * lv.cell >= sqrtf(lim);
+    ok_r = kBoundCells * lv.cell >= sqrtf(lim);
   }
   const unsigned okm = __ballot_sync(full, ok), okr = __ballot_sync(full, ok_r);
   int li = min(okm ? __ffs(okm) - 1 : g.nlev - 1, okr ? __ffs(okr) - 1 : g.nlev - 1);
@@ -442,7 +497,7 @@ __global__ void __launch_bounds__(kQueryBlock) knnKernel(
       int y0 = max(cy - r, 0), y1 = min(cy + r, last);
       int z0 = max(cz - r, 0), z1 = min(cz + r, last);
       const float reach = fminf(w.kd, lim);  // squared distance a useful point can have
-      if (reach < INFINITY) {  // only cells that can hold a point within it
+      if (reach < INFINITY) {                // only cells that can hold a point within it
         const float rad = sqrtf(reach) + eps;
         x0 = max(x0, cellOf(q.x - rad, g.ox) - 1);
         x1 = min(x1, cellOf(q.x + rad, g.ox) + 1);
@@ -468,10 +523,10 @@ __global__ void __launch_bounds__(kQueryBlock) knnKernel(
             const float ez = fmaxf(fmaxf(lz - q.z, q.z - (lz + cs)) - eps, 0.f);
             const float box = ex * ex + ey * ey + ez * ez;
             if (box <= fminf(w.kd, lim)) {
-              cell = lookupCell(
-                  tkeys, tvals, lv,
-                  morton(static_cast<std::uint32_t>(ix), static_cast<std::uint32_t>(iy),
-                         static_cast<std::uint32_t>(iz)));
+              cell =
+                  lookupCell(tkeys, tvals, lv,
+                             morton(static_cast<std::uint32_t>(ix), static_cast<std::uint32_t>(iy),
+                                    static_cast<std::uint32_t>(iz)));
               if (cell.y) key = box;
             }
           }
@@ -505,6 +560,19 @@ __global__ void __launch_bounds__(kQueryBlock) knnKernel(
           }
           const bool useful = valid && d <= lim;
           unsigned m = __ballot_sync(full, useful && pairLess(d, id, w.kd, w.ki));
+          if (__popc(m) > 1 && __shfl_sync(full, w.ilo, 0) == kEmptyIndex) {
+            // Empty list: the batch, sorted, becomes the list (saves one insertion per point).
+            float sd = useful ? d : INFINITY;
+            int si = useful ? id : kEmptyIndex;
+            warpSortPairs(sd, si, lane);
+            w.dlo = sd;
+            w.ilo = si;
+            const int kl = (k - 1) & 31;
+            w.kd = (!kTwoHalves || k <= 32) ? __shfl_sync(full, w.dlo, kl) : INFINITY;
+            w.ki = (!kTwoHalves || k <= 32) ? __shfl_sync(full, w.ilo, kl) : kEmptyIndex;
+            n_ins += __popc(m);
+            m = 0;
+          }
           while (m) {
             const int src = __ffs(m) - 1;
             const float dd = __shfl_sync(full, d, src);
@@ -527,9 +595,11 @@ __global__ void __launch_bounds__(kQueryBlock) knnKernel(
       if (bound == INFINITY) break;  // the block covers the whole grid
       bound -= eps;
       if (w.ki != kEmptyIndex && bound > 0.f && w.kd <= bound * bound) break;
-      // Still short of k points two shells out: this level is too fine around q (an isolated
-      // point); start again one level coarser rather than walking many empty shells.
-      if (w.ki == kEmptyIndex && r >= kStarveShells && li + 1 < g.nlev) {
+      // Still short of k points two shells out while the bound's ball needs many more shells:
+      // this level is too fine around q; start again one level coarser rather than walking many
+      // empty shells.
+      if (w.ki == kEmptyIndex && r >= kStarveShells && !(sqrtf(lim) <= (kBoundCells + 1) * cs) &&
+          li + 1 < g.nlev) {
         restart = true;
         break;
       }
@@ -553,8 +623,18 @@ __global__ void __launch_bounds__(kQueryBlock) knnKernel(
     atomicAdd(&stats[kStatInsertions], n_ins);
     atomicAdd(&stats[kStatShells], n_shell);
     atomicAdd(&stats[kStatLevels], n_lev);
-    atomicMax(&stats[kStatMaxCycles], cyc);
     atomicAdd(&stats[kStatCycles], cyc);
+    if (cyc > 100000) atomicAdd(&stats[kStatOver100k], 1ull);
+    if (cyc > 1000000) atomicAdd(&stats[kStatOver1M], 1ull);
+    if (atomicMax(&stats[kStatMaxCycles], cyc) < cyc) {  // the slowest so far (racy: diagnostics)
+      stats[kStatSlowCand] = n_cand;
+      stats[kStatSlowIns] = n_ins;
+      stats[kStatSlowShells] = n_shell;
+      stats[kStatSlowLevels] = n_lev;
+      stats[kStatSlowBits] = g.lv[li].bits;
+      stats[kStatSlowLim] = __float_as_uint(lim);
+      stats[kStatSlowKd] = __float_as_uint(w.kd);
+    }
   }
 }
 
@@ -572,7 +652,9 @@ __device__ inline void cross3(const double a[3], const double b[3], double c[3])
   c[2] = a[0] * b[1] - a[1] * b[0];
 }
 
-__device__ inline double sqNorm3(const double a[3]) { return a[0] * a[0] + a[1] * a[1] + a[2] * a[2]; }
+__device__ inline double sqNorm3(const double a[3]) {
+  return a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
+}
 
 /// Eigen's extract_kernel: unit vector spanning the kernel of the rank-2 matrix `m`.
 __device__ inline void extractKernel(const double m[3][3], double res[3], double rep[3]) {
@@ -1028,16 +1110,16 @@ void CudaKnn::search(const float* xyz, std::size_t n_in, int k, std::int32_t* in
   im.grow(im.start_level, n_in, "the cell starts");
   im.grow(im.sorted, n_in * sizeof(float4), "the sorted points");
   im.grow(im.sort_temp, sort_temp_bytes, "the sort scratch");
-  const std::size_t small_bytes = 64 + 32 * sizeof(unsigned int) +
-                                  kStatCount * sizeof(unsigned long long);
+  const std::size_t small_bytes =
+      64 + 32 * sizeof(unsigned int) + kStatCount * sizeof(unsigned long long);
   im.grow(im.small, small_bytes, "the bounds");
   im.grow(im.out_idx, rows * sizeof(std::int32_t), "the neighbour indices");
   if (sq_dists) im.grow(im.out_d2, rows * sizeof(float), "the neighbour distances");
   im.h_small.ensure(small_bytes);
 
   char* d_small = im.small.as<char>();
-  int* d_bounds = reinterpret_cast<int*>(d_small);                  // 7 ints
-  float* d_frame = reinterpret_cast<float*>(d_small + 32);          // 5 floats
+  int* d_bounds = reinterpret_cast<int*>(d_small);          // 7 ints
+  float* d_frame = reinterpret_cast<float*>(d_small + 32);  // 5 floats
   unsigned int* d_hist = reinterpret_cast<unsigned int*>(d_small + 64);
   unsigned long long* d_stats =
       reinterpret_cast<unsigned long long*>(d_small + 64 + 32 * sizeof(unsigned int));
@@ -1071,8 +1153,8 @@ void CudaKnn::search(const float* xyz, std::size_t n_in, int k, std::int32_t* in
                                                 3 * kCoordBits, st));
   const unsigned long long* d_keys = kb.Current();
   const unsigned int* d_order = vb.Current();
-  GF_CUDA_CHECK(cudaMemsetAsync(d_hist, 0, 32 * sizeof(unsigned int) +
-                                               kStatCount * sizeof(unsigned long long), st));
+  GF_CUDA_CHECK(cudaMemsetAsync(
+      d_hist, 0, 32 * sizeof(unsigned int) + kStatCount * sizeof(unsigned long long), st));
   cellStartLevelKernel<<<blocksFor(n_in, 256), 256, 0, st>>>(
       d_keys, n, im.start_level.as<unsigned char>(), d_hist);
   GF_CUDA_CHECK_LAUNCH();
@@ -1085,8 +1167,8 @@ void CudaKnn::search(const float* xyz, std::size_t n_in, int k, std::int32_t* in
     GF_CUDA_CHECK(cudaMemcpyAsync(im.h_order.ptr, d_order, n_in * sizeof(unsigned int),
                                   cudaMemcpyDeviceToHost, im.copy));
   }
-  GF_CUDA_CHECK(cudaMemcpyAsync(im.h_small.ptr, im.small.ptr, small_bytes, cudaMemcpyDeviceToHost,
-                                st));
+  GF_CUDA_CHECK(
+      cudaMemcpyAsync(im.h_small.ptr, im.small.ptr, small_bytes, cudaMemcpyDeviceToHost, st));
   GF_CUDA_CHECK(cudaStreamSynchronize(st));
 
   const int* h_bounds = im.h_small.as<int>();
@@ -1188,26 +1270,28 @@ void CudaKnn::search(const float* xyz, std::size_t n_in, int k, std::int32_t* in
     const int b = c * per_chunk, e = std::min(n, b + per_chunk);
     if (b >= e) break;
     const unsigned int blocks = blocksFor(static_cast<std::size_t>(e - b) * kWarp, kQueryBlock);
-    if (k > 32) {
-      if (im.opt.sort_cells) {
-        knnKernel<true, true><<<blocks, kQueryBlock, 0, st>>>(g, im.sorted.as<float4>(), d_tkeys,
-                                                               d_tvals, n, b, e, k, d_idx, d_d2, stats);
-      } else {
-        knnKernel<true, false><<<blocks, kQueryBlock, 0, st>>>(
-            g, im.sorted.as<float4>(), d_tkeys, d_tvals, n, b, e, k, d_idx, d_d2, stats);
-      }
+    const float4* d_pts = im.sorted.as<float4>();
+    // Variants: k > 32 (two list halves), cells nearest first.
+    const bool two = k > 32;
+#define GF_KNN_LAUNCH(TWO, SORT) \
+  knnKernel<TWO, SORT>           \
+      <<<blocks, kQueryBlock, 0, st>>>(g, d_pts, d_tkeys, d_tvals, n, b, e, k, d_idx, d_d2, stats)
+    if (im.opt.sort_cells) {
+      if (two)
+        GF_KNN_LAUNCH(true, true);
+      else
+        GF_KNN_LAUNCH(false, true);
     } else {
-      if (im.opt.sort_cells) {
-        knnKernel<false, true><<<blocks, kQueryBlock, 0, st>>>(
-            g, im.sorted.as<float4>(), d_tkeys, d_tvals, n, b, e, k, d_idx, d_d2, stats);
-      } else {
-        knnKernel<false, false><<<blocks, kQueryBlock, 0, st>>>(
-            g, im.sorted.as<float4>(), d_tkeys, d_tvals, n, b, e, k, d_idx, d_d2, stats);
-      }
+      if (two)
+        GF_KNN_LAUNCH(true, false);
+      else
+        GF_KNN_LAUNCH(false, false);
     }
+#undef GF_KNN_LAUNCH
     GF_CUDA_CHECK_LAUNCH();
     if (download) {
-      const std::size_t r0 = static_cast<std::size_t>(b) * k, nr = static_cast<std::size_t>(e - b) * k;
+      const std::size_t r0 = static_cast<std::size_t>(b) * k,
+                        nr = static_cast<std::size_t>(e - b) * k;
       GF_CUDA_CHECK(cudaEventRecord(im.kernel_done[c], st));
       GF_CUDA_CHECK(cudaStreamWaitEvent(im.copy, im.kernel_done[c], 0));
       GF_CUDA_CHECK(cudaMemcpyAsync(im.h_idx.as<std::int32_t>() + r0, d_idx + r0,
@@ -1251,6 +1335,21 @@ void CudaKnn::search(const float* xyz, std::size_t n_in, int k, std::int32_t* in
     im.timings.levels_per_query = static_cast<double>(h[kStatLevels]) / n;
     im.timings.mean_query_cycles = static_cast<double>(h[kStatCycles]) / n;
     im.timings.max_query_cycles = static_cast<double>(h[kStatMaxCycles]);
+    auto asFloat = [](unsigned long long v) {
+      const unsigned int b = static_cast<unsigned int>(v);
+      float f;
+      std::memcpy(&f, &b, sizeof f);
+      return f;
+    };
+    std::ostringstream os;
+    os << h[kStatOver100k] << " queries > 1e5 cycles, " << h[kStatOver1M]
+       << " > 1e6; slowest: " << h[kStatSlowCand] << " candidates, " << h[kStatSlowIns]
+       << " insertions, " << h[kStatSlowShells] << " shells, " << h[kStatSlowLevels]
+       << " levels, last level 2^" << h[kStatSlowBits] << " cells/axis (cell "
+       << edge / static_cast<float>(1u << h[kStatSlowBits]) << " m), bound "
+       << std::sqrt(asFloat(h[kStatSlowLim])) << " m, K-th distance "
+       << std::sqrt(asFloat(h[kStatSlowKd])) << " m";
+    im.timings.detail = os.str();
   }
   im.timings.total_ms = msSince(t_start);
 }
@@ -1271,7 +1370,8 @@ void CudaKnn::neighborhoodPca(float* normals, float* eigenvalues, std::uint8_t* 
       im.xyz.as<float>(), im.sorted.as<float4>(), im.out_idx.as<std::int32_t>(),
       static_cast<int>(n), im.list_k, d_normals, d_eigen, d_valid);
   GF_CUDA_CHECK_LAUNCH();
-  GF_CUDA_CHECK(cudaMemcpyAsync(im.h_pca.ptr, im.pca.ptr, bytes, cudaMemcpyDeviceToHost, im.stream));
+  GF_CUDA_CHECK(
+      cudaMemcpyAsync(im.h_pca.ptr, im.pca.ptr, bytes, cudaMemcpyDeviceToHost, im.stream));
   GF_CUDA_CHECK(cudaStreamSynchronize(im.stream));
   const float* h = im.h_pca.as<float>();
   parallelCopy(normals, h, 3 * n * sizeof(float));
@@ -1292,7 +1392,8 @@ void CudaKnn::countFlaggedNeighbors(const std::uint8_t* flags, std::uint16_t* fl
   im.h_flags.ensure(n);
   im.h_counts.ensure(2 * n * sizeof(std::uint16_t));
   parallelCopy(im.h_flags.ptr, flags, n);
-  GF_CUDA_CHECK(cudaMemcpyAsync(im.flags.ptr, im.h_flags.ptr, n, cudaMemcpyHostToDevice, im.stream));
+  GF_CUDA_CHECK(
+      cudaMemcpyAsync(im.flags.ptr, im.h_flags.ptr, n, cudaMemcpyHostToDevice, im.stream));
   std::uint16_t* d_counts = im.counts.as<std::uint16_t>();
   countKernel<<<blocksFor(n, 256), 256, 0, im.stream>>>(
       im.sorted.as<float4>(), im.out_idx.as<std::int32_t>(), static_cast<int>(n), im.list_k,

@@ -22,7 +22,8 @@ std::string compareRow(const float* xyz, std::size_t n, std::size_t q, int k,
 /// \brief Compares the rows `queries` (all rows when empty) in parallel; returns the number of
 ///        mismatching rows and the first mismatch's description in `first`.
 std::size_t compareRows(const float* xyz, std::size_t n, int k, const std::int32_t* idx,
-                        const float* d2, const std::vector<std::size_t>& queries, std::string* first);
+                        const float* d2, const std::vector<std::size_t>& queries,
+                        std::string* first);
 
 /// \brief Reads a KITTI .bin (x y z intensity float32 records) into packed xyz; empty if missing.
 std::vector<float> readKittiBin(const std::string& path);

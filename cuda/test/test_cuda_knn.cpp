@@ -49,8 +49,8 @@ void expectExact(const std::vector<float>& xyz, int k, const Lists& l, std::size
     queries.push_back(n - 1);
   }
   std::string first;
-  const std::size_t bad = gf_test::compareRows(xyz.data(), n, k, l.idx.data(), l.d2.data(),
-                                               queries, &first);
+  const std::size_t bad =
+      gf_test::compareRows(xyz.data(), n, k, l.idx.data(), l.d2.data(), queries, &first);
   EXPECT_EQ(bad, 0u) << "n = " << n << ", k = " << k << "; first mismatch: " << first;
 }
 
@@ -84,8 +84,8 @@ std::vector<float> lidarLikeCloud(std::size_t n, unsigned seed) {
       const float cx = -40.f + 8.f * c, cy = 15.f - 3.f * c;
       xyz.insert(xyz.end(), {cx + blob(rng), cy + blob(rng), blob(rng)});
     } else {  // isolated outliers
-      xyz.insert(xyz.end(), {-100.f + 200.f * u01(rng), -100.f + 200.f * u01(rng),
-                             -5.f + 30.f * u01(rng)});
+      xyz.insert(xyz.end(),
+                 {-100.f + 200.f * u01(rng), -100.f + 200.f * u01(rng), -5.f + 30.f * u01(rng)});
     }
   }
   return xyz;
@@ -146,9 +146,10 @@ TEST_F(CudaKnnTest, KittiFrameMatchesBruteForce) {
   EXPECT_EQ(unsorted, 0u);
   EXPECT_EQ(no_self, 0u);
   const auto& t = knn.lastTimings();
-  std::printf("[ KITTI    ] n = %zu, K = 50 (first call): upload %.2f ms, grid %.2f ms (%d levels, "
-              "finest 2^%d), query + download %.2f ms, total %.2f ms\n",
-              n, t.upload_ms, t.grid_ms, t.levels, t.finest_bits, t.query_ms, t.total_ms);
+  std::printf(
+      "[ KITTI    ] n = %zu, K = 50 (first call): upload %.2f ms, grid %.2f ms (%d levels, "
+      "finest 2^%d), query + download %.2f ms, total %.2f ms\n",
+      n, t.upload_ms, t.grid_ms, t.levels, t.finest_bits, t.query_ms, t.total_ms);
 }
 
 TEST_F(CudaKnnTest, DuplicatesMatchBruteForce) {
@@ -163,8 +164,10 @@ TEST_F(CudaKnnTest, DuplicatesMatchBruteForce) {
   std::shuffle(order.begin(), order.end(), rng);
   std::vector<float> xyz;
   for (std::size_t id : order) {
-    if (id == 3000) xyz.insert(xyz.end(), {1.f, 2.f, 0.5f});
-    else xyz.insert(xyz.end(), base.begin() + 3 * id, base.begin() + 3 * id + 3);
+    if (id == 3000)
+      xyz.insert(xyz.end(), {1.f, 2.f, 0.5f});
+    else
+      xyz.insert(xyz.end(), base.begin() + 3 * id, base.begin() + 3 * id + 3);
   }
   for (int k : {1, 16, 50, 64}) expectExact(xyz, k, run(knn, xyz, k));
 }
@@ -229,7 +232,8 @@ TEST_F(CudaKnnTest, KilometreWideCloud) {
   const auto c = uniformCloud(40, 0.2f, 0.2f, 0.2f, 13);
   const auto s = uniformCloud(2000, 5000.f, 5000.f, 100.f, 14);
   xyz.insert(xyz.end(), a.begin(), a.end());
-  for (std::size_t i = 0; i < b.size(); i += 3) xyz.insert(xyz.end(), {b[i] + 5000.f, b[i + 1], b[i + 2]});
+  for (std::size_t i = 0; i < b.size(); i += 3)
+    xyz.insert(xyz.end(), {b[i] + 5000.f, b[i + 1], b[i + 2]});
   for (std::size_t i = 0; i < c.size(); i += 3) {
     xyz.insert(xyz.end(), {c[i] + 10000.f, c[i + 1] - 3000.f, c[i + 2]});
   }
@@ -268,10 +272,11 @@ TEST_F(CudaKnnTest, FiveMillionPoints) {
   for (std::size_t i = 0; i < l.idx.size(); ++i) unwritten += l.idx[i] < 0 || l.d2[i] < 0.f;
   EXPECT_EQ(unwritten, 0u);
   const auto& t = knn.lastTimings();
-  std::printf("[ 5M       ] n = %zu, K = 50 (first call): upload %.2f ms, grid %.2f ms (%d "
-              "levels), query + download %.2f ms, total %.2f ms, device %.0f MiB\n",
-              xyz.size() / 3, t.upload_ms, t.grid_ms, t.levels, t.query_ms, t.total_ms,
-              knn.deviceBytes() / 1048576.0);
+  std::printf(
+      "[ 5M       ] n = %zu, K = 50 (first call): upload %.2f ms, grid %.2f ms (%d "
+      "levels), query + download %.2f ms, total %.2f ms, device %.0f MiB\n",
+      xyz.size() / 3, t.upload_ms, t.grid_ms, t.levels, t.query_ms, t.total_ms,
+      knn.deviceBytes() / 1048576.0);
 }
 
 TEST_F(CudaKnnTest, NonFiniteInputIsRejectedAndInstanceStaysUsable) {
@@ -393,9 +398,9 @@ TEST_F(CudaKnnTest, ListsKeptOnDeviceFeedTheCounts) {
   dev.neighborhoodPca(normals.data(), eigen.data(), valid.data());
   for (int i = 0; i < 7; ++i) {
     ASSERT_TRUE(valid[i]);
-    const float len = std::sqrt(normals[3 * i] * normals[3 * i] +
-                                normals[3 * i + 1] * normals[3 * i + 1] +
-                                normals[3 * i + 2] * normals[3 * i + 2]);
+    const float len =
+        std::sqrt(normals[3 * i] * normals[3 * i] + normals[3 * i + 1] * normals[3 * i + 1] +
+                  normals[3 * i + 2] * normals[3 * i + 2]);
     EXPECT_NEAR(len, 1.f, 1e-5f);
     EXPECT_NEAR(eigen[3 * i] + eigen[3 * i + 1] + eigen[3 * i + 2], 1.f, 1e-5f);
   }

@@ -105,9 +105,9 @@ TEST_F(GpuNeighborSearchTest, CudaFailureFallsBackToKdTreeForThatScan) {
   EXPECT_EQ(gpu.lastBackend(), "gpu");
   EXPECT_TRUE(gpu.lastNote().empty()) << gpu.lastNote();
   std::string first;
-  EXPECT_EQ(gf_test::compareRows(small.data(), 300, 8, a.indices.data(), a.sq_dists.data(), {},
-                                 &first),
-            0u)
+  EXPECT_EQ(
+      gf_test::compareRows(small.data(), 300, 8, a.indices.data(), a.sq_dists.data(), {}, &first),
+      0u)
       << first;
 }
 
@@ -188,9 +188,10 @@ TEST_F(GpuNeighborSearchTest, ListsOnDeviceGiveTheCpuPcaAndCounts) {
   EXPECT_EQ(valid_differ, 0u);
   EXPECT_LT(max_eig, 1e-5);
   EXPECT_LT(far, n / 10000 + 1) << "normals more than 1e-4 rad apart";
-  std::printf("[ PCA      ] GPU vs CPU on KITTI: %zu valid, %zu bit-identical, max |d eigen| %.2e, "
-              "max normal angle %.2e rad\n",
-              valid, bit_equal, max_eig, max_angle);
+  std::printf(
+      "[ PCA      ] GPU vs CPU on KITTI: %zu valid, %zu bit-identical, max |d eigen| %.2e, "
+      "max normal angle %.2e rad\n",
+      valid, bit_equal, max_eig, max_angle);
 
   std::vector<std::uint8_t> flags(n);
   for (std::size_t i = 0; i < n; ++i) flags[i] = (i * 2654435761u) % 5 < 2;
@@ -239,8 +240,8 @@ TEST_F(GpuNeighborSearchTest, NormalFilterOnGpuMatchesKdTreeAndCompactsNaN) {
   // Every 97th point NaN/Inf: the filter compacts them away before the search.
   std::size_t invalid = 0;
   for (std::size_t i = 0; i < xyz.size() / 3; i += 97, ++invalid) {
-    xyz[3 * i + (i % 3)] = (i % 2) ? std::numeric_limits<float>::quiet_NaN()
-                                   : std::numeric_limits<float>::infinity();
+    xyz[3 * i + (i % 3)] =
+        (i % 2) ? std::numeric_limits<float>::quiet_NaN() : std::numeric_limits<float>::infinity();
   }
   const auto cloud = gf::CloudView::packedXyz(xyz.data(), xyz.size() / 3);
   gf::NormalGroundFilterParams pg, pc;
@@ -264,9 +265,10 @@ TEST_F(GpuNeighborSearchTest, NormalFilterOnGpuMatchesKdTreeAndCompactsNaN) {
   }
   EXPECT_GT(ground, lg.size() / 4);
   EXPECT_LT(differ, lg.size() / 1000) << differ << " labels differ";
-  std::printf("[ FILTER   ] GPU vs kd-tree labels: %zu of %zu differ; ground %zu; GPU total "
-              "%.2f ms, kd-tree total %.2f ms\n",
-              differ, lg.size(), ground, sg.total_ms, sc.total_ms);
+  std::printf(
+      "[ FILTER   ] GPU vs kd-tree labels: %zu of %zu differ; ground %zu; GPU total "
+      "%.2f ms, kd-tree total %.2f ms\n",
+      differ, lg.size(), ground, sg.total_ms, sc.total_ms);
 }
 
 }  // namespace

@@ -39,28 +39,30 @@ struct CudaKnnOptions {
 /// \brief Wall times of the last CudaKnn calls (host clock, streams synchronised) [ms], and the
 ///        per-query work counters when CudaKnnOptions::collect_stats is set.
 struct CudaKnnTimings {
-  double upload_ms = 0.0;    ///< host -> device copy of the points
-  double grid_ms = 0.0;      ///< bounds, Morton sort, cell tables
-  double query_ms = 0.0;     ///< the query kernel, with the overlapped download of the lists
-  double total_ms = 0.0;     ///< the whole search()
-  double pca_ms = 0.0;       ///< the last neighborhoodPca(), downloads included
-  double count_ms = 0.0;     ///< the last countFlaggedNeighbors(), copies included
-  int levels = 0;            ///< grid levels built (finest has 2^finest_bits cells per axis)
-  int finest_bits = 0;       ///< log2 of cells per axis of the finest level
+  double upload_ms = 0.0;  ///< host -> device copy of the points
+  double grid_ms = 0.0;    ///< bounds, Morton sort, cell tables
+  double query_ms = 0.0;   ///< the query kernel, with the overlapped download of the lists
+  double total_ms = 0.0;   ///< the whole search()
+  double pca_ms = 0.0;     ///< the last neighborhoodPca(), downloads included
+  double count_ms = 0.0;   ///< the last countFlaggedNeighbors(), copies included
+  int levels = 0;          ///< grid levels built (finest has 2^finest_bits cells per axis)
+  int finest_bits = 0;     ///< log2 of cells per axis of the finest level
   double candidates_per_query = 0.0;  ///< points whose distance was computed (collect_stats)
   double insertions_per_query = 0.0;  ///< list insertions (collect_stats)
   double shells_per_query = 0.0;      ///< shells of cells visited (collect_stats)
   double levels_per_query = 0.0;      ///< grid levels tried (collect_stats)
   double mean_query_cycles = 0.0;     ///< SM clock cycles per query, mean (collect_stats)
   double max_query_cycles = 0.0;      ///< the slowest query's cycles (collect_stats)
+  std::string detail;                 ///< slow-query summary (collect_stats)
 };
 
 /// \brief Exact K-nearest-neighbour search on a CUDA GPU over a whole cloud at once.
 ///
 /// Points are sorted along a Morton curve; each power-of-two grid level over the bounding cube is a
-/// hashed cell list (memory O(points), independent of the cloud's extent). Each query picks the
-/// finest level whose own cell holds enough points, then visits shells of cells, skipping cells
-/// farther than the current K-th distance, until no unvisited cell can hold a closer point. Rows
+/// hashed cell list (memory O(points), independent of the cloud's extent). One warp per query
+/// bounds its K-th distance by the K points before and after it on the curve, picks a level from
+/// that bound and its own cell's count, then visits shells of cells, skipping cells farther than
+/// the bound or the current K-th distance, until no unvisited cell can hold a closer point. Rows
 /// are ordered by (squared distance, index), so the lists equal a brute-force search's with ties
 /// broken by lower index. Device and pinned buffers persist and grow only when a cloud is larger
 /// than before; kernels run on one stream of this instance, downloads on a second one so they

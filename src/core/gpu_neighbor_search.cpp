@@ -38,8 +38,8 @@ void GpuNeighborSearch::search(const float* xyz, std::size_t n, int k, NeighborL
   last_k_ = k;
   last_out_ = out;
   if (k > CudaKnn::kMaxK) {
-    last_note_ = "GPU backend supports k <= " + std::to_string(CudaKnn::kMaxK) + ", k = " +
-                 std::to_string(k) + "; using kdtree";
+    last_note_ = "GPU backend supports k <= " + std::to_string(CudaKnn::kMaxK) +
+                 ", k = " + std::to_string(k) + "; using kdtree";
   } else if (k <= 0 || n == 0) {
     out->k = std::max(k, 0);
     out->points = n;
