@@ -339,6 +339,22 @@ class NodeletSplitTest(unittest.TestCase):
         self.assertFalse(nonground.is_dense)
         self.assertTrue(ground.is_dense)
 
+    def test_far_outliers_cloud_still_split(self):
+        """Points 10,000 km away (wider than a voxel grid can index): the cloud still comes out
+        whole, split, the outliers non-ground; the filter may refuse it (all non-ground)."""
+        col = self.subscribe_outputs()
+        rec = self.kitti_records[:20000].copy()
+        rec["x"][[5, 500]] = np.float32(1.0e7)
+        rec["y"][[5, 500]] = np.float32(-1.0e7)
+        stamp = self.next_stamp()
+        cloud = make_cloud(rec, stamp)
+        self.pub.publish(cloud)
+        ground, nonground = col.wait_pairs([stamp])[stamp.to_nsec()]
+        self.assert_split(cloud, ground, nonground)
+        ng_times = set(rows_of(nonground)[:, 0:8].copy().view("<f8").ravel().tolist())
+        for t in rec["time"][[5, 500]].tolist():
+            self.assertIn(t, ng_times, "a far outlier is not in ~nonground")
+
     def test_organised_cloud_with_row_padding(self):
         """height > 1 with row_step > width * point_step: padding skipped, records kept."""
         col = self.subscribe_outputs()

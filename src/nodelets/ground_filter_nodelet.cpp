@@ -653,18 +653,22 @@ void GroundFilterNodelet::cloudCallback(const sensor_msgs::PointCloud2ConstPtr& 
                                  : makeCloudView(*msg, layout, &xyz_scratch_);
       filter_->filter(view, &labels_, &stats);
     } catch (const std::exception& e) {
-      ++counters_.clouds_failed;
+      // Lose nothing: the cloud still goes out, every point as non-ground.
+      ++counters_.filter_errors;
       filter_.reset();  // rebuilt from scratch for the next cloud
-      NODELET_ERROR_THROTTLE(kRejectLogPeriodS, "%s filter failed on a %zu-point cloud: %s",
+      labels_.assign(layout.points, kNonGround);
+      NODELET_ERROR_THROTTLE(kRejectLogPeriodS,
+                             "%s filter failed on a %zu-point cloud (published as all "
+                             "non-ground): %s",
                              methodName().c_str(), layout.points, e.what());
-      return;
     }
     if (labels_.size() != layout.points) {
-      ++counters_.clouds_failed;
+      ++counters_.filter_errors;
       NODELET_ERROR_THROTTLE(kRejectLogPeriodS,
-                             "%s filter returned %zu labels for %zu points; cloud dropped",
+                             "%s filter returned %zu labels for %zu points; published as all "
+                             "non-ground",
                              methodName().c_str(), labels_.size(), layout.points);
-      return;
+      labels_.assign(layout.points, kNonGround);
     }
     counts = splitPointCloud2(*msg, layout, &labels_, ground.get(), nonground.get());
     if (want_labeled) {
@@ -683,7 +687,16 @@ void GroundFilterNodelet::cloudCallback(const sensor_msgs::PointCloud2ConstPtr& 
   if (labeled) pub_labeled_.publish(sensor_msgs::PointCloud2ConstPtr(labeled));
   ++counters_.clouds_out;
   counters_.invalid_points += counts.invalid;
-  if (!stats.note.empty()) ++counters_.fallbacks;
+  if (!stats.note.empty()) {
+    ++counters_.fallbacks;
+    // A new reason (no device, a CUDA error) is logged at once; a repeated one once a minute.
+    if (stats.note != logged_note_) {
+      NODELET_WARN("%s: %s", methodName().c_str(), stats.note.c_str());
+      logged_note_ = stats.note;
+    } else {
+      NODELET_WARN_THROTTLE(60.0, "%s: %s", methodName().c_str(), stats.note.c_str());
+    }
+  }
 
   const double ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -789,6 +802,8 @@ void GroundFilterNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& 
     status.add(std::string("dropped: ") + kDropNames[i], static_cast<ull>(counts[2 + i]));
   }
   status.add("invalid points (NaN/Inf)", static_cast<ull>(counters_.invalid_points.load()));
+  status.add("filter errors (published as non-ground)",
+             static_cast<ull>(counters_.filter_errors.load()));
   status.add("fallbacks", static_cast<ull>(counters_.fallbacks.load()));
   status.add("last fallback", note.empty() ? std::string("none") : note);
   for (int i = 0; i < 2; ++i) {

@@ -151,7 +151,8 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
     std::atomic<std::uint64_t> clouds_in{0};            ///< clouds received
     std::atomic<std::uint64_t> clouds_out{0};           ///< clouds split and published
     std::atomic<std::uint64_t> clouds_rejected{0};      ///< malformed clouds dropped
-    std::atomic<std::uint64_t> clouds_failed{0};        ///< clouds dropped because the filter threw
+    std::atomic<std::uint64_t> clouds_failed{0};        ///< clouds dropped: no filter configured
+    std::atomic<std::uint64_t> filter_errors{0};  ///< filter threw: published all non-ground
     std::atomic<std::uint64_t> invalid_points{0};       ///< NaN/Inf points sent to non-ground
     std::atomic<std::uint64_t> config_rejected{0};      ///< parameter sets refused by validation
     std::atomic<std::uint64_t> clouds_no_transform{0};  ///< dropped: no transform to gravity frame
@@ -240,6 +241,7 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   std::uint64_t window_clouds_ = 0;
   std::string backend_;        // FilterStats::backend of the last cloud
   std::string fallback_note_;  // last non-empty FilterStats::note
+  std::string logged_note_;    // last backend note written to the log (cloud thread only)
   ros::WallTime last_diagnose_;
   // Counter values at the previous diagnostic update: in, out, then the drop and stream reasons.
   std::uint64_t last_counts_[8] = {};
