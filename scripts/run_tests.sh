@@ -7,6 +7,8 @@ gf_install_deps
 gf_build
 cd "${GF_WS}"
 rm -rf "${GF_WS}/build/test_results"
+# Test binaries build in parallel; the tests themselves run one at a time (rostests share CPUs).
+catkin_make tests -j"$(nproc 2>/dev/null || echo 2)"
 set +e
 catkin_make run_tests -j1 2>&1 | tee "${GF_WS}/run_tests.log"
 build_rc=${PIPESTATUS[0]}

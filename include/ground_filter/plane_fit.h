@@ -21,8 +21,25 @@ struct Plane {
 ///        first point to keep far-away coordinates exact) and fits a least-squares plane.
 class PlaneAccumulator {
  public:
-  /// \brief Adds one point with weight w.
-  void add(double x, double y, double z, double w = 1.0);
+  /// \brief Adds one point with weight w (inline: called per point in hot loops).
+  void add(double x, double y, double z, double w = 1.0) {
+    if (!has_ref_) {
+      ref_ = Eigen::Vector3d(x, y, z);
+      has_ref_ = true;
+    }
+    const double qx = x - ref_.x(), qy = y - ref_.y(), qz = z - ref_.z();
+    w_ += w;
+    s_.x() += w * qx;
+    s_.y() += w * qy;
+    s_.z() += w * qz;
+    // Upper triangle only; fit() mirrors it.
+    ss_(0, 0) += w * qx * qx;
+    ss_(0, 1) += w * qx * qy;
+    ss_(0, 2) += w * qx * qz;
+    ss_(1, 1) += w * qy * qy;
+    ss_(1, 2) += w * qy * qz;
+    ss_(2, 2) += w * qz * qz;
+  }
   /// \brief Adds all points of another accumulator.
   void merge(const PlaneAccumulator& other);
   /// \brief Sum of weights added.
@@ -37,7 +54,7 @@ class PlaneAccumulator {
   Eigen::Vector3d ref_ = Eigen::Vector3d::Zero();
   double w_ = 0.0;
   Eigen::Vector3d s_ = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d ss_ = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d ss_ = Eigen::Matrix3d::Zero();  // second moments, upper triangle valid
 };
 
 }  // namespace ground_filter

@@ -12,20 +12,22 @@
 namespace ground_filter {
 
 /// \brief Parameters of the voxel method (Diaz et al., section 2.3.2). One line per field:
-///        meaning [unit] (default; paper value when it differs).
+///        meaning [unit] (default; paper value when it differs). README, "Voxel method", says
+///        what each step does with them and gives the measurements behind every default that
+///        differs from the paper (paper: plane_distance 0.10, std_filter on, one global plane).
 struct VoxelGroundFilterParams {
   double voxel_size = 0.10;          ///< voxel edge length [m] (0.10, paper)
-  double flatness_threshold = 0.04;  ///< a voxel is flat when max z - min z < this [m] (0.04)
+  double flatness_threshold = 0.04;  ///< flat voxel: max z - min z below this [m] (0.04)
   int min_points_per_voxel = 2;      ///< voxels with fewer points are never flat [points] (2)
-  double height_margin = 1.0;        ///< global plane: flat voxels above mean flat height + this are dropped [m] (1.0)
-  double seed_window = 0.5;          ///< local planes: seeds within this of the predicted tile plane [m] (0.5)
-  double plane_distance = 0.10;      ///< max point-to-plane distance of a ground point [m] (0.10)
-  bool std_filter = false;           ///< also require |distance - mean| <= std_multiplier * std [bool] (false; paper: true)
-  double std_multiplier = 1.0;       ///< width of the mean +- std band in standard deviations [-] (1.0)
-  bool local_planes = true;          ///< one plane per tile instead of one for the scan [bool] (true)
-  double tile_size = 8.0;            ///< tile edge for local planes [m] (8.0)
-  double max_slope_deg = 30.0;       ///< steeper tile planes are rejected, the neighbour's is kept [deg] (30)
-  bool majority_vote = true;         ///< final 26-neighbourhood majority vote per voxel [bool] (true)
+  double height_margin = 1.0;        ///< global: cut over mean flat z; local: seed depth [m] (1.0)
+  double seed_window = 0.2;          ///< local: seeds at most this above the prediction [m] (0.2)
+  double plane_distance = 0.15;      ///< max |distance| of a ground point to its plane [m] (0.15)
+  bool std_filter = false;           ///< mean +- k std band test too [bool] (false; paper on)
+  double std_multiplier = 1.0;       ///< k of that band, in standard deviations [1] (1.0)
+  bool local_planes = true;          ///< grown cell planes, not one plane [bool] (true; paper off)
+  double tile_size = 1.0;            ///< cell edge of the local model, >= 2 voxel_size [m] (1.0)
+  double max_slope_deg = 30.0;       ///< steeper cell / global planes are rejected [deg] (30)
+  bool majority_vote = true;         ///< final 26-neighbourhood vote per voxel [bool] (true)
   int threads = 1;                   ///< worker threads, 0 = all cores [threads] (1)
 
   /// \brief Sets one field from text (CLI `--set NAME=VALUE`).
@@ -38,6 +40,10 @@ struct VoxelGroundFilterParams {
 
 /// \brief Voxel-based ground filter: flat voxels, height filter, 26-adjacency region growing,
 ///        plane fit(s), distance filter and a final 26-neighbourhood majority vote.
+///
+/// With `local_planes` (default) the single plane of the paper becomes a ground model of
+/// `tile_size` cells grown outwards from the largest flat segment, each cell fitted to the
+/// lowest voxels of its columns near the prediction of its neighbours (README, "Voxel method").
 class VoxelGroundFilter : public GroundFilter {
  public:
   /// \brief Validates and stores `params`.
@@ -45,6 +51,8 @@ class VoxelGroundFilter : public GroundFilter {
   explicit VoxelGroundFilter(const VoxelGroundFilterParams& params = VoxelGroundFilterParams());
   ~VoxelGroundFilter() override;
 
+  /// \brief Labels every point (NaN/Inf points are non-ground and never used).
+  /// \throws std::runtime_error when the cloud spans more than 2^21 voxels along an axis.
   void filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
               FilterStats* stats = nullptr) override;
   std::string name() const override { return "voxel"; }

@@ -4,17 +4,6 @@
 
 namespace ground_filter {
 
-void PlaneAccumulator::add(double x, double y, double z, double w) {
-  if (!has_ref_) {
-    ref_ = Eigen::Vector3d(x, y, z);
-    has_ref_ = true;
-  }
-  const Eigen::Vector3d q = Eigen::Vector3d(x, y, z) - ref_;
-  w_ += w;
-  s_ += w * q;
-  ss_ += w * q * q.transpose();
-}
-
 void PlaneAccumulator::merge(const PlaneAccumulator& other) {
   if (other.w_ <= 0.0) return;
   if (!has_ref_) {
@@ -32,7 +21,11 @@ void PlaneAccumulator::merge(const PlaneAccumulator& other) {
 bool PlaneAccumulator::fit(Plane* plane, Eigen::Vector3d* eigenvalues) const {
   if (w_ < 3.0) return false;
   const Eigen::Vector3d mean = s_ / w_;
-  const Eigen::Matrix3d cov = ss_ / w_ - mean * mean.transpose();
+  Eigen::Matrix3d ss = ss_;
+  ss(1, 0) = ss(0, 1);
+  ss(2, 0) = ss(0, 2);
+  ss(2, 1) = ss(1, 2);
+  const Eigen::Matrix3d cov = ss / w_ - mean * mean.transpose();
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
   es.computeDirect(cov);
   const Eigen::Vector3d ev = es.eigenvalues();  // ascending
