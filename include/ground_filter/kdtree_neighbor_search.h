@@ -9,18 +9,21 @@
 
 namespace ground_filter {
 
-/// \brief CPU K-nearest-neighbour search: a nanoflann kd-tree over the cloud, queries in
-///        parallel (OpenMP), exact results.
+/// \brief CPU K-nearest-neighbour search: an own kd-tree over the cloud (built in parallel),
+///        queries in parallel (OpenMP) with AVX-512 when the CPU has it, exact results.
 ///
-/// Ties at equal distance are ordered by lower point index first inside a row; which of several
-/// points at exactly the K-th distance is kept is unspecified (but the same for any thread
-/// count). The tree and scratch memory are kept between calls.
+/// Each row is the K smallest (squared distance, point index) pairs in that order: ties at equal
+/// distance keep the lower point index, so the lists are unique and the same for any thread
+/// count and with or without AVX-512. Squared distances are float `(dx*dx + dy*dy) + dz*dz`
+/// without fused multiply-adds. The tree and scratch memory are kept between calls.
 class KdTreeNeighborSearch : public NeighborSearch {
  public:
-  /// \brief `threads` query threads (0 = all cores); `leaf_size` points per kd-tree leaf.
-  explicit KdTreeNeighborSearch(int threads = 0, int leaf_size = 16);
+  /// \brief `threads` build and query threads (0 = all cores); `leaf_size` most points per
+  ///        kd-tree leaf.
+  explicit KdTreeNeighborSearch(int threads = 0, int leaf_size = 64);
   ~KdTreeNeighborSearch() override;
 
+  /// \brief See NeighborSearch::search(); throws std::invalid_argument above 2^31 - 1 points.
   void search(const float* xyz, std::size_t n, int k, NeighborLists* out) override;
   std::string name() const override { return "kdtree"; }
 
@@ -28,12 +31,18 @@ class KdTreeNeighborSearch : public NeighborSearch {
   double lastBuildMs() const { return build_ms_; }
   /// \brief Wall time of the queries in the last search() [ms].
   double lastQueryMs() const { return query_ms_; }
+  /// \brief Whether search() uses the AVX-512 code (default: when the CPU has it).
+  bool usesAvx512() const { return use_avx512_; }
+  /// \brief Turns the AVX-512 code off (portable code, same lists) or back on where the CPU
+  ///        has it; for tests and benchmarks.
+  void setUseAvx512(bool use);
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
   int threads_;
   int leaf_size_;
+  bool use_avx512_;
   double build_ms_ = 0.0;
   double query_ms_ = 0.0;
 };

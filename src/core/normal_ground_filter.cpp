@@ -292,37 +292,33 @@ void computeNeighborhoodPca(const float* xyz, const NeighborLists& lists, int th
     const std::int32_t* row = &lists.indices[static_cast<std::size_t>(i) * k];
     PointPca& r = (*out)[i];
     r = PointPca();
-    // Pass 1: mean, relative to the query point (keeps magnitudes small at 80 m ranges).
+    // One pass over the neighbours: sums of their offsets from the query point and of the
+    // offsets' products, in double. The offsets are small (a neighbourhood, not 80 m ranges), so
+    // centring afterwards loses nothing measurable and the neighbours are read only once.
     const double ox = xyz[3 * i], oy = xyz[3 * i + 1], oz = xyz[3 * i + 2];
-    double mx = 0.0, my = 0.0, mz = 0.0;
+    double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
     int m = 0;
     for (; m < k && row[m] >= 0; ++m) {
       const float* p = xyz + 3 * static_cast<std::size_t>(row[m]);
-      mx += p[0] - ox;
-      my += p[1] - oy;
-      mz += p[2] - oz;
+      const double dx = p[0] - ox, dy = p[1] - oy, dz = p[2] - oz;
+      sx += dx;
+      sy += dy;
+      sz += dz;
+      sxx += dx * dx;
+      sxy += dx * dy;
+      sxz += dx * dz;
+      syy += dy * dy;
+      syz += dy * dz;
+      szz += dz * dz;
     }
     if (m < 3) continue;
-    mx /= m;
-    my /= m;
-    mz /= m;
-    // Pass 2: centred covariance, accumulated in double.
-    double cxx = 0, cxy = 0, cxz = 0, cyy = 0, cyz = 0, czz = 0;
-    for (int j = 0; j < m; ++j) {
-      const float* p = xyz + 3 * static_cast<std::size_t>(row[j]);
-      const double dx = p[0] - ox - mx, dy = p[1] - oy - my, dz = p[2] - oz - mz;
-      cxx += dx * dx;
-      cxy += dx * dy;
-      cxz += dx * dz;
-      cyy += dy * dy;
-      cyz += dy * dz;
-      czz += dz * dz;
-    }
+    const double inv = 1.0 / m, mx = sx * inv, my = sy * inv, mz = sz * inv;
+    const double cxx = sxx * inv - mx * mx, cxy = sxy * inv - mx * my, cxz = sxz * inv - mx * mz,
+                 cyy = syy * inv - my * my, cyz = syz * inv - my * mz, czz = szz * inv - mz * mz;
     const double trace = cxx + cyy + czz;
-    if (!(trace > 1e-12 * m)) continue;  // all neighbours (nearly) the same point
+    if (!(trace > 1e-12)) continue;  // all neighbours (nearly) the same point
     Eigen::Matrix3d cov;
     cov << cxx, cxy, cxz, cxy, cyy, cyz, cxz, cyz, czz;
-    cov /= m;
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
     es.computeDirect(cov);
     Eigen::Vector3d ev = es.eigenvalues().cwiseMax(0.0);  // ascending; rounding can go < 0

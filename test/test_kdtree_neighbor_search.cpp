@@ -1,0 +1,250 @@
+// KdTreeNeighborSearch: exact lists against brute force (every row is the K smallest (squared
+// distance, index) pairs, so the expected lists are unique), for the portable code and the
+// AVX-512 code where the CPU has it; and against nanoflann on a real KITTI frame.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#define NANOFLANN_FIRST_MATCH
+#include <nanoflann.hpp>
+
+#include "ground_filter/cloud_view.h"
+#include "ground_filter/kdtree_neighbor_search.h"
+#include "ground_filter/scan_io.h"
+
+namespace gf = ground_filter;
+
+namespace {
+
+using Cloud = std::vector<float>;  // packed x y z
+
+/// Squared distance as the search computes it: float, (dx*dx + dy*dy) + dz*dz.
+float sqDist(const Cloud& c, std::size_t a, std::size_t b) {
+  const float dx = c[3 * a] - c[3 * b], dy = c[3 * a + 1] - c[3 * b + 1],
+              dz = c[3 * a + 2] - c[3 * b + 2];
+  return dx * dx + dy * dy + dz * dz;
+}
+
+/// The expected lists: for every point the K smallest (squared distance, index), then padding.
+gf::NeighborLists bruteForce(const Cloud& c, int k) {
+  const std::size_t n = c.size() / 3;
+  gf::NeighborLists l;
+  l.k = k;
+  l.points = n;
+  l.indices.assign(n * k, -1);
+  l.sq_dists.assign(n * k, std::numeric_limits<float>::infinity());
+  std::vector<std::pair<float, std::int32_t>> all(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t j = 0; j < n; ++j) all[j] = {sqDist(c, i, j), static_cast<std::int32_t>(j)};
+    const std::size_t found = std::min<std::size_t>(k, n);
+    std::partial_sort(all.begin(), all.begin() + found, all.end());
+    for (std::size_t j = 0; j < found; ++j) {
+      l.sq_dists[i * k + j] = all[j].first;
+      l.indices[i * k + j] = all[j].second;
+    }
+  }
+  return l;
+}
+
+/// Which code paths this CPU can run: the portable one always, AVX-512 where available.
+std::vector<bool> codePaths() {
+  gf::KdTreeNeighborSearch probe(1);
+  return probe.usesAvx512() ? std::vector<bool>{false, true} : std::vector<bool>{false};
+}
+
+void expectSameLists(const gf::NeighborLists& want, const gf::NeighborLists& got) {
+  ASSERT_EQ(got.k, want.k);
+  ASSERT_EQ(got.points, want.points);
+  ASSERT_EQ(got.indices.size(), want.indices.size());
+  ASSERT_EQ(got.sq_dists.size(), want.sq_dists.size());
+  std::size_t bad_rows = 0;
+  for (std::size_t i = 0; i < want.points; ++i) {
+    const std::size_t b = i * want.k, e = b + want.k;
+    const bool same =
+        std::equal(want.indices.begin() + b, want.indices.begin() + e, got.indices.begin() + b) &&
+        std::memcmp(&want.sq_dists[b], &got.sq_dists[b], sizeof(float) * want.k) == 0;
+    if (!same && bad_rows++ < 3) ADD_FAILURE() << "row " << i << " differs";
+  }
+  EXPECT_EQ(bad_rows, 0u);
+}
+
+/// Uniform points in a flat box, or with clusters near earlier points and exact duplicates.
+Cloud randomCloud(std::size_t n, unsigned seed, bool clustered) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-10.f, 10.f), small(-0.2f, 0.2f);
+  Cloud c;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (clustered && i % 3 == 0 && i > 0) {
+      const std::size_t j = rng() % i;
+      const bool dup = i % 9 == 0;
+      c.insert(c.end(),
+               {c[3 * j] + (dup ? 0.f : small(rng)), c[3 * j + 1] + (dup ? 0.f : small(rng)),
+                c[3 * j + 2] + (dup ? 0.f : small(rng))});
+    } else {
+      c.insert(c.end(), {u(rng), u(rng), 0.2f * u(rng)});
+    }
+  }
+  return c;
+}
+
+/// nanoflann dataset adaptor (the reference exact search on a real scan).
+struct NanoflannCloud {
+  const Cloud* c;
+  std::size_t kdtree_get_point_count() const { return c->size() / 3; }
+  float kdtree_get_pt(std::uint32_t i, std::size_t d) const { return (*c)[3 * i + d]; }
+  template <class B>
+  bool kdtree_get_bbox(B& /*bb*/) const {
+    return false;
+  }
+};
+using NanoflannTree = nanoflann::KDTreeSingleIndexAdaptor<
+    nanoflann::L2_Simple_Adaptor<float, NanoflannCloud, float, std::uint32_t>, NanoflannCloud, 3,
+    std::uint32_t>;
+
+}  // namespace
+
+TEST(KdTreeNeighborSearchExact, RandomCloudsEveryK) {
+  // K up to 64, 128 and 256 use different AVX-512 list sizes; 300 only the portable code.
+  for (bool avx512 : codePaths()) {
+    gf::KdTreeNeighborSearch search(2, 16);
+    search.setUseAvx512(avx512);
+    ASSERT_EQ(search.usesAvx512(), avx512);
+    gf::NeighborLists got;
+    for (bool clustered : {false, true}) {
+      const Cloud c = randomCloud(1200, clustered ? 7u : 3u, clustered);
+      for (int k : {1, 2, 8, 50, 64, 65, 128, 129, 256, 300}) {
+        SCOPED_TRACE("avx512 " + std::to_string(avx512) + " clustered " +
+                     std::to_string(clustered) + " k " + std::to_string(k));
+        search.search(c.data(), c.size() / 3, k, &got);
+        expectSameLists(bruteForce(c, k), got);
+      }
+    }
+  }
+}
+
+TEST(KdTreeNeighborSearchExact, ManyCoincidentPoints) {
+  // A lidar's no-return points all at the origin (more than a leaf and more than K), some points
+  // on top of each other elsewhere, and scattered points around.
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-3.f, 3.f);
+  Cloud c;
+  for (int i = 0; i < 1500; ++i) {
+    if (i % 3 == 0) {
+      c.insert(c.end(), {0.f, 0.f, 0.f});
+    } else if (i % 7 == 0) {
+      c.insert(c.end(), {1.f, 2.f, -0.5f});
+    } else {
+      c.insert(c.end(), {u(rng), u(rng), u(rng)});
+    }
+  }
+  for (bool avx512 : codePaths()) {
+    for (int leaf : {4, 32}) {
+      gf::KdTreeNeighborSearch search(2, leaf);
+      search.setUseAvx512(avx512);
+      gf::NeighborLists got;
+      for (int k : {10, 50, 200}) {
+        SCOPED_TRACE("avx512 " + std::to_string(avx512) + " leaf " + std::to_string(leaf) + " k " +
+                     std::to_string(k));
+        search.search(c.data(), c.size() / 3, k, &got);
+        expectSameLists(bruteForce(c, k), got);
+      }
+    }
+  }
+}
+
+TEST(KdTreeNeighborSearchExact, RegularGridTiesAndLine) {
+  // Many neighbours at exactly the same distance: the lower index must win every tie.
+  Cloud grid, line;
+  for (int i = 0; i < 10; ++i) {
+    for (int j = 0; j < 10; ++j) {
+      for (int l = 0; l < 4; ++l) grid.insert(grid.end(), {0.5f * i, 0.5f * j, 0.5f * l});
+    }
+  }
+  for (int i = 0; i < 300; ++i) line.insert(line.end(), {0.1f * (i % 150), 2.f, 1.f});  // doubled
+  for (bool avx512 : codePaths()) {
+    gf::KdTreeNeighborSearch search(1, 8);
+    search.setUseAvx512(avx512);
+    gf::NeighborLists got;
+    for (const Cloud* c : {&grid, &line}) {
+      for (int k : {7, 27, 50}) {
+        SCOPED_TRACE("avx512 " + std::to_string(avx512) + " k " + std::to_string(k));
+        search.search(c->data(), c->size() / 3, k, &got);
+        expectSameLists(bruteForce(*c, k), got);
+      }
+    }
+  }
+}
+
+TEST(KdTreeNeighborSearchExact, SmallClouds) {
+  for (bool avx512 : codePaths()) {
+    gf::KdTreeNeighborSearch search(2);
+    search.setUseAvx512(avx512);
+    gf::NeighborLists got;
+    for (std::size_t n : {1u, 2u, 49u, 50u, 51u}) {
+      const Cloud c = randomCloud(n, 5, true);
+      SCOPED_TRACE("avx512 " + std::to_string(avx512) + " n " + std::to_string(n));
+      search.search(c.data(), n, 50, &got);
+      expectSameLists(bruteForce(c, 50), got);
+    }
+  }
+}
+
+TEST(KdTreeNeighborSearchExact, KittiFrameMatchesNanoflann) {
+  // A real scan (124 k points, K = 50): distances identical to nanoflann's exact search, the
+  // neighbour sets identical up to ties at the K-th distance, both code paths identical.
+  const gf::Scan scan = gf::loadScan(std::string(GF_DATA_DIR) + "/semantickitti/seq00/000000.bin");
+  const gf::CloudView view = gf::viewOf(scan.cloud);
+  Cloud c;
+  for (std::size_t i = 0; i < view.size(); ++i) {
+    float x, y, z;
+    if (view.get(i, &x, &y, &z)) c.insert(c.end(), {x, y, z});
+  }
+  const std::size_t n = c.size() / 3;
+  ASSERT_GT(n, 100000u);
+  constexpr int k = 50;
+
+  const NanoflannCloud adaptor{&c};
+  NanoflannTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  std::vector<std::uint32_t> ref_idx(n * k);
+  std::vector<float> ref_dist(n * k);
+#pragma omp parallel for schedule(dynamic, 1024)
+  for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
+    nanoflann::KNNResultSet<float, std::uint32_t, std::uint32_t> result(k);
+    result.init(&ref_idx[i * k], &ref_dist[i * k]);
+    tree.findNeighbors(result, &c[3 * i], nanoflann::SearchParams());
+  }
+
+  std::vector<gf::NeighborLists> lists;
+  for (bool avx512 : codePaths()) {
+    gf::KdTreeNeighborSearch search(0);
+    search.setUseAvx512(avx512);
+    lists.emplace_back();
+    search.search(c.data(), n, k, &lists.back());
+  }
+  const gf::NeighborLists& got = lists.front();
+  std::size_t dist_rows = 0, set_rows = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const float* rd = &ref_dist[i * k];
+    dist_rows += std::memcmp(rd, &got.sq_dists[i * k], sizeof(float) * k) != 0;
+    const float kth = rd[k - 1];
+    std::vector<std::int32_t> a, b;
+    for (int j = 0; j < k; ++j) {
+      if (rd[j] < kth) a.push_back(static_cast<std::int32_t>(ref_idx[i * k + j]));
+      if (got.sq_dists[i * k + j] < kth) b.push_back(got.indices[i * k + j]);
+    }
+    std::sort(a.begin(), a.end());
+    std::sort(b.begin(), b.end());
+    set_rows += a != b;
+  }
+  EXPECT_EQ(dist_rows, 0u) << "rows whose distances differ from nanoflann's";
+  EXPECT_EQ(set_rows, 0u) << "rows whose neighbours (inside the K-th distance) differ";
+  for (std::size_t p = 1; p < lists.size(); ++p) expectSameLists(lists.front(), lists[p]);
+}
