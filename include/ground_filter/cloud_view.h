@@ -11,7 +11,8 @@ namespace ground_filter {
 /// \brief Read-only, non-owning view of float32 x/y/z inside an array of point records.
 ///
 /// Points are `stride` bytes apart; x, y and z are float32 at the given byte offsets inside a
-/// record. A `sensor_msgs/PointCloud2` buffer or a packed `float[3*n]` can be viewed without copying.
+/// record. A `sensor_msgs/PointCloud2` buffer or a packed `float[3*n]` can be viewed without
+/// copying.
 class CloudView {
  public:
   CloudView() = default;

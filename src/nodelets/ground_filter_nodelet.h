@@ -152,7 +152,7 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
     std::atomic<std::uint64_t> clouds_out{0};           ///< clouds split and published
     std::atomic<std::uint64_t> clouds_rejected{0};      ///< malformed clouds dropped
     std::atomic<std::uint64_t> clouds_failed{0};        ///< clouds dropped: no filter configured
-    std::atomic<std::uint64_t> filter_errors{0};  ///< filter threw: published all non-ground
+    std::atomic<std::uint64_t> filter_errors{0};        ///< filter threw: published all non-ground
     std::atomic<std::uint64_t> invalid_points{0};       ///< NaN/Inf points sent to non-ground
     std::atomic<std::uint64_t> config_rejected{0};      ///< parameter sets refused by validation
     std::atomic<std::uint64_t> clouds_no_transform{0};  ///< dropped: no transform to gravity frame

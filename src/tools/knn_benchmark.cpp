@@ -1,6 +1,6 @@
-// ground_filter_knn_benchmark: K-nearest neighbours of every point of a scan with nanoflann (the
-// core's KdTreeNeighborSearch) and with PCL's KdTreeFLANN, same points, same K; and the whole
-// normal-vector filter on a large cloud made of KITTI frames shifted in x/y.
+// ground_filter_knn_benchmark: K-nearest neighbours of every point of a scan with the core's
+// kd-tree backend (KdTreeNeighborSearch) and with PCL's KdTreeFLANN, same points, same K; and the
+// whole normal-vector filter on a large cloud made of KITTI frames shifted in x/y.
 
 #include <omp.h>
 #include <pcl/kdtree/kdtree_flann.h>
@@ -36,7 +36,8 @@ const char kUsage[] =
     "       ground_filter_knn_benchmark --large POINTS [--repeat N] [--set NAME=VALUE]... "
     "[SCAN...]\n"
     "\n"
-    "Default mode: K nearest neighbours (itself included) of every point of SCAN with nanoflann\n"
+    "Default mode: K nearest neighbours (itself included) of every point of SCAN with the core "
+    "kd-tree\n"
     "(KdTreeNeighborSearch) and PCL KdTreeFLANN (nearestKSearch per point, OpenMP); prints the\n"
     "median build / query / total ms and checks both give the same distances.\n"
     "--large: a cloud of POINTS points from the SCANs (KITTI frames) repeated with x/y offsets of\n"
@@ -90,7 +91,7 @@ int knnMode(const std::string& path, int k, int repeat, const std::vector<int>& 
   }
 
   for (int threads : thread_list) {
-    // nanoflann through the core's backend.
+    // the core kd-tree backend (KdTreeNeighborSearch).
     gf::KdTreeNeighborSearch nano(threads);
     gf::NeighborLists lists;
     std::vector<double> build, query, total;
@@ -103,7 +104,7 @@ int knnMode(const std::string& path, int k, int repeat, const std::vector<int>& 
     }
     double nano_sum = 0.0;
     for (float d : lists.sq_dists) nano_sum += std::isfinite(d) ? d : 0.0;
-    std::printf("%-22s %7d %10.1f %10.1f %10.1f %14.3f\n", "nanoflann (kdtree)", threads,
+    std::printf("%-22s %7d %10.1f %10.1f %10.1f %14.3f\n", "kdtree (own, exact)", threads,
                 median(build), median(query), median(total), nano_sum);
 
     // PCL KdTreeFLANN: build = setInputCloud, queries in parallel like the core does.
@@ -139,7 +140,7 @@ int knnMode(const std::string& path, int k, int repeat, const std::vector<int>& 
     std::printf("%-22s %7d %10.1f %10.1f %10.1f %14.3f\n", "PCL KdTreeFLANN", threads,
                 median(build), median(query), median(total), pcl_sum);
     if (std::abs(pcl_sum - nano_sum) > 1e-4 * std::max(1.0, nano_sum)) {
-      std::fprintf(stderr, "distance sums differ: nanoflann %.6f, PCL %.6f\n", nano_sum, pcl_sum);
+      std::fprintf(stderr, "distance sums differ: kdtree %.6f, PCL %.6f\n", nano_sum, pcl_sum);
       return 1;
     }
   }
