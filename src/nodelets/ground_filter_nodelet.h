@@ -2,6 +2,7 @@
 #define GROUND_FILTER_SRC_NODELETS_GROUND_FILTER_NODELET_H
 
 #include <diagnostic_updater/diagnostic_updater.h>
+#include <dynamic_reconfigure/server.h>
 #include <nodelet_topic_tools/nodelet_lazy.h>
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
@@ -15,6 +16,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -263,6 +265,53 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   ros::WallTime last_stream_warning_[kStreamWarningCount];
 
   Counters counters_;
+};
+
+/// \brief A leaf's parameter plumbing, shared by every filter nodelet: a dynamic_reconfigure
+///        server of `Config` whose accepted sets become `Filter(Params)`. A set that passes the
+///        .cfg ranges but not `Params::validate()` is refused: the last good set stays in use and
+///        is reported back to the client (the .cfg defaults when the first set is refused).
+template <typename Config, typename Params, typename Filter>
+class ReconfigurableFilterNodelet : public GroundFilterNodelet {
+ protected:
+  /// \brief Maps every cfg field onto the params struct (no validation).
+  virtual Params paramsFromConfig(const Config& config) const = 0;
+  /// \brief One log line "name=value ..." of all parameters.
+  virtual std::string describeParams(const Params& params) const = 0;
+  /// \brief Called with every accepted set before it is installed (e.g. a backend warning).
+  virtual void onParamsAccepted(const Params& /*params*/) {}
+
+  void onInitFilter() override {
+    server_ = std::make_unique<dynamic_reconfigure::Server<Config>>(*pnh_);
+    // The server calls back at once with the parameter-server values: that installs the filter.
+    server_->setCallback([this](Config& config, uint32_t level) { reconfigure(config, level); });
+  }
+
+ private:
+  void reconfigure(Config& config, uint32_t /*level*/) {
+    Params params = paramsFromConfig(config);
+    try {
+      params.validate();
+    } catch (const std::invalid_argument& e) {
+      reportRejectedConfig(e.what());
+      // The server publishes `config` after this returns: show what is really in use.
+      if (have_good_) {
+        config = last_good_;
+        return;
+      }
+      config = Config::__getDefault__();  // the .cfg defaults are the library's
+      params = paramsFromConfig(config);
+    }
+    last_good_ = config;
+    have_good_ = true;
+    onParamsAccepted(params);
+    setFilterFactory([params]() { return std::make_unique<Filter>(params); },
+                     describeParams(params));
+  }
+
+  std::unique_ptr<dynamic_reconfigure::Server<Config>> server_;
+  Config last_good_;  // reported back when a new set is refused
+  bool have_good_ = false;
 };
 
 }  // namespace ground_filter

@@ -2,7 +2,6 @@
 
 #include <pluginlib/class_list_macros.hpp>
 #include <sstream>
-#include <stdexcept>
 
 #include "ground_filter/neighbor_search_factory.h"
 
@@ -44,33 +43,7 @@ std::string describeNormalParams(const NormalGroundFilterParams& p) {
   return os.str();
 }
 
-NormalGroundFilterNodelet::NormalGroundFilterNodelet() = default;
-NormalGroundFilterNodelet::~NormalGroundFilterNodelet() = default;
-
-void NormalGroundFilterNodelet::onInitFilter() {
-  server_ = std::make_unique<dynamic_reconfigure::Server<NormalGroundFilterConfig>>(*pnh_);
-  // The server calls back at once with the parameter-server values: that installs the filter.
-  server_->setCallback(
-      [this](NormalGroundFilterConfig& config, uint32_t level) { reconfigure(config, level); });
-}
-
-void NormalGroundFilterNodelet::reconfigure(NormalGroundFilterConfig& config, uint32_t /*level*/) {
-  NormalGroundFilterParams params = normalParamsFromConfig(config);
-  try {
-    params.validate();
-  } catch (const std::invalid_argument& e) {
-    reportRejectedConfig(e.what());
-    // The server publishes `config` after this returns: show what is really in use.
-    if (have_good_) {
-      config = last_good_;
-      return;
-    }
-    // Refused at start: run with the .cfg defaults (the same as the library's).
-    config = NormalGroundFilterConfig::__getDefault__();
-    params = normalParamsFromConfig(config);
-  }
-  last_good_ = config;
-  have_good_ = true;
+void NormalGroundFilterNodelet::onParamsAccepted(const NormalGroundFilterParams& params) {
   // A backend this build or machine cannot run falls back to the kd-tree: say so once per
   // selection, not per cloud.
   if (params.knn_backend != warned_backend_) {
@@ -83,8 +56,6 @@ void NormalGroundFilterNodelet::reconfigure(NormalGroundFilterConfig& config, ui
       warned_backend_ = params.knn_backend;
     }
   }
-  setFilterFactory([params]() { return std::make_unique<NormalGroundFilter>(params); },
-                   describeNormalParams(params));
 }
 
 }  // namespace ground_filter

@@ -2,7 +2,6 @@
 
 #include <pluginlib/class_list_macros.hpp>
 #include <sstream>
-#include <stdexcept>
 
 namespace ground_filter {
 
@@ -35,37 +34,6 @@ std::string describeVoxelParams(const VoxelGroundFilterParams& p) {
      << " max_slope_deg=" << p.max_slope_deg << " majority_vote=" << p.majority_vote
      << " threads=" << p.threads;
   return os.str();
-}
-
-VoxelGroundFilterNodelet::VoxelGroundFilterNodelet() = default;
-VoxelGroundFilterNodelet::~VoxelGroundFilterNodelet() = default;
-
-void VoxelGroundFilterNodelet::onInitFilter() {
-  server_ = std::make_unique<dynamic_reconfigure::Server<VoxelGroundFilterConfig>>(*pnh_);
-  // The server calls back at once with the parameter-server values: that installs the filter.
-  server_->setCallback(
-      [this](VoxelGroundFilterConfig& config, uint32_t level) { reconfigure(config, level); });
-}
-
-void VoxelGroundFilterNodelet::reconfigure(VoxelGroundFilterConfig& config, uint32_t /*level*/) {
-  VoxelGroundFilterParams params = voxelParamsFromConfig(config);
-  try {
-    params.validate();
-  } catch (const std::invalid_argument& e) {
-    reportRejectedConfig(e.what());
-    // The server publishes `config` after this returns: show what is really in use.
-    if (have_good_) {
-      config = last_good_;
-      return;
-    }
-    // Refused at start: run with the .cfg defaults (the same as the library's).
-    config = VoxelGroundFilterConfig::__getDefault__();
-    params = voxelParamsFromConfig(config);
-  }
-  last_good_ = config;
-  have_good_ = true;
-  setFilterFactory([params]() { return std::make_unique<VoxelGroundFilter>(params); },
-                   describeVoxelParams(params));
 }
 
 }  // namespace ground_filter

@@ -1,9 +1,6 @@
 #ifndef GROUND_FILTER_SRC_NODELETS_VOXEL_GROUND_FILTER_NODELET_H
 #define GROUND_FILTER_SRC_NODELETS_VOXEL_GROUND_FILTER_NODELET_H
 
-#include <dynamic_reconfigure/server.h>
-
-#include <memory>
 #include <string>
 
 #include "ground_filter/VoxelGroundFilterConfig.h"
@@ -20,21 +17,17 @@ std::string describeVoxelParams(const VoxelGroundFilterParams& params);
 
 /// \brief Nodelet `ground_filter/VoxelGroundFilter`: the voxel method on GroundFilterNodelet,
 ///        parameters from cfg/VoxelGroundFilter.cfg through dynamic_reconfigure.
-class VoxelGroundFilterNodelet : public GroundFilterNodelet {
- public:
-  VoxelGroundFilterNodelet();
-  ~VoxelGroundFilterNodelet() override;
-
+class VoxelGroundFilterNodelet
+    : public ReconfigurableFilterNodelet<VoxelGroundFilterConfig, VoxelGroundFilterParams,
+                                         VoxelGroundFilter> {
  protected:
-  void onInitFilter() override;
   std::string methodName() const override { return "voxel"; }
-
- private:
-  void reconfigure(VoxelGroundFilterConfig& config, uint32_t level);
-
-  std::unique_ptr<dynamic_reconfigure::Server<VoxelGroundFilterConfig>> server_;
-  VoxelGroundFilterConfig last_good_;  // reported back when a new set is refused
-  bool have_good_ = false;
+  VoxelGroundFilterParams paramsFromConfig(const VoxelGroundFilterConfig& config) const override {
+    return voxelParamsFromConfig(config);
+  }
+  std::string describeParams(const VoxelGroundFilterParams& params) const override {
+    return describeVoxelParams(params);
+  }
 };
 
 }  // namespace ground_filter
