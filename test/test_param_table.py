@@ -1,8 +1,11 @@
-"""README parameter tables vs cfg/*.cfg (run by catkin_add_nosetests after the build).
+"""README parameter tables vs cfg/*.cfg, and the README/docs structure (run by
+catkin_add_nosetests after the build).
 
 Fails when README.md drifts from the .cfg files (fix: scripts/gen_param_table.py), and checks
 the generator itself against what catkin generated from the same .cfg files
 (devel: ground_filter.cfg.<Name>Config), so a table that looks right but is wrong also fails.
+ReadmeDocsTest: the README keeps the two commands verbatim and stays short, and every relative
+link (file and #anchor) in README.md and docs/*.md resolves.
 """
 import glob
 import importlib
@@ -117,6 +120,97 @@ class ParamTableTest(unittest.TestCase):
                         self.assertAlmostEqual(float(cell), float(want),
                                                msg="%s.%s %s" % (name, pname, key),
                                                delta=1e-6 * max(1.0, abs(float(want))))
+
+
+# Linked from the README before they land from another branch; checked like any file once present.
+PENDING_DOCS = {"docs/install.md"}
+README_MAX_LINES = 210  # issue 8: "at most ~200 lines"; details belong in docs/
+LINK = re.compile(r"(?<!!)\[[^\]]*\]\(([^)\s]+)\)|!\[[^\]]*\]\(([^)\s]+)\)")
+
+
+def github_anchor(heading):
+    """The id GitHub gives a Markdown heading: lower case, punctuation dropped, spaces -> '-'."""
+    text = heading.strip().lower().replace("`", "").replace("*", "")
+    text = re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", text)  # a link in a heading keeps its text
+    return re.sub(r"[^\w\- ]", "", text, flags=re.UNICODE).replace(" ", "-")
+
+
+def anchors(path):
+    """Anchors of every heading of a Markdown file (headings inside code blocks excluded)."""
+    out, fence = set(), False
+    with open(path) as f:
+        for line in f:
+            if line.startswith("```"):
+                fence = not fence
+            m = None if fence else re.match(r"^#{1,6} (.*?)\s*#*\s*$", line)
+            if m:
+                out.add(github_anchor(m.group(1)))
+    return out
+
+
+def broken_links(md_files, root=ROOT, pending=()):
+    """'file: target (why)' for every relative link whose file or #anchor does not exist."""
+    broken = []
+    for md in md_files:
+        with open(md) as f:
+            text = re.sub(r"```.*?```", "", f.read(), flags=re.S)  # no links in code blocks
+        for m in LINK.finditer(text):
+            target = m.group(1) or m.group(2)
+            if re.match(r"^[a-z]+:", target):
+                continue  # http(s), mailto: not checked here
+            path, _, anchor = target.partition("#")
+            dest = os.path.normpath(os.path.join(os.path.dirname(md), path)) if path else md
+            where = os.path.relpath(md, root)
+            if not os.path.exists(dest):
+                if os.path.relpath(dest, root) not in pending:
+                    broken.append("%s: %s (no such file)" % (where, target))
+                continue
+            if anchor and dest.endswith(".md") and anchor not in anchors(dest):
+                broken.append("%s: %s (no such heading)" % (where, target))
+    return broken
+
+
+class ReadmeDocsTest(unittest.TestCase):
+
+    def test_readme_two_commands_verbatim_and_short(self):
+        with open(os.path.join(ROOT, "README.md")) as f:
+            lines = f.read().splitlines()
+        for cmd in ("bash scripts/demo.sh", "bash scripts/run_tests.sh"):
+            self.assertTrue(any(l.split("#")[0].strip() == cmd for l in lines),
+                            "README.md lost the command line: " + cmd)
+        with open(os.path.join(ROOT, ".ci", "run")) as f:
+            self.assertIn("bash scripts/run_tests.sh", f.read().splitlines(),
+                          ".ci/run must call the README's test command verbatim")
+        self.assertLessEqual(len(lines), README_MAX_LINES,
+                             "README.md has %d lines; move details to docs/" % len(lines))
+
+    def test_relative_links_resolve(self):
+        files = [os.path.join(ROOT, "README.md")]
+        files += sorted(glob.glob(os.path.join(ROOT, "docs", "*.md")))
+        self.assertGreater(len(files), 1, "no docs/*.md found")
+        broken = broken_links(files, pending=PENDING_DOCS)
+        self.assertEqual(broken, [], "broken links:\n" + "\n".join(broken))
+
+    def test_link_checker_finds_broken_links(self):
+        self.assertEqual(github_anchor("Gravity frame (tilted sensors)"),
+                         "gravity-frame-tilted-sensors")
+        self.assertEqual(github_anchor("`ground_filter_eval` (accuracy)"),
+                         "ground_filter_eval-accuracy")
+        d = tempfile.mkdtemp()
+        try:
+            with open(os.path.join(d, "b.md"), "w") as f:
+                f.write("# B\n\n## Real heading\n\n```\n## Not a heading\n```\n")
+            with open(os.path.join(d, "a.md"), "w") as f:
+                f.write("[ok](b.md#real-heading) [bad anchor](b.md#not-a-heading) "
+                        "[no file](c.md) [pending](p.md) [web](https://example.org/x#y)\n"
+                        "```\n[in code](nowhere.md)\n```\n")
+            broken = broken_links([os.path.join(d, "a.md")], root=d, pending={"p.md"})
+            self.assertEqual(broken, ["a.md: b.md#not-a-heading (no such heading)",
+                                      "a.md: c.md (no such file)"])
+        finally:
+            for name in os.listdir(d):
+                os.remove(os.path.join(d, name))
+            os.rmdir(d)
 
 
 if __name__ == "__main__":
