@@ -7,6 +7,7 @@
 // Parameters:
 //   ~max_scans (int, 0)       print the summary and shut down after this many scans (0 = never)
 //   ~timeout (double, 60)     give up (exit code 1) when no scan arrives for this long [s]
+// Exit status: 0 only when scans were received (and max_scans reached, when given).
 #include <message_filters/subscriber.h>
 #include <message_filters/sync_policies/exact_time.h>
 #include <message_filters/synchronizer.h>
@@ -94,8 +95,9 @@ class DemoMonitor {
     std::fflush(stdout);
   }
 
-  /// Exit status: 0 unless the monitor gave up waiting for the requested scans.
-  int status() const { return failed_ ? 1 : 0; }
+  /// Exit status: 0 when scans were received and the monitor did not give up waiting for the
+  /// requested ones (scripts/demo.sh exits with it).
+  int status() const { return failed_ || scans_ == 0 ? 1 : 0; }
 
   /// Prints the summary if it was not printed yet (e.g. after Ctrl-C).
   void finishOnExit() {
