@@ -53,8 +53,7 @@ class InstallSpaceTest(unittest.TestCase):
         self.assertEqual(p.returncode, 0, "cmake --install failed:\n" + p.stdout[-4000:])
         install = os.path.join(self.stage, self.prefix.lstrip("/"))
         for rel in ("setup.bash", "lib/libground_filter_nodelets.so",
-                    "lib/ground_filter/make_bag.py", "lib/ground_filter/rviz_screenshot.py",
-                    "lib/ground_filter/ros_launch_helpers.py",
+                    "lib/ground_filter/make_bag.py",
                     "lib/ground_filter/scene_publisher", "lib/ground_filter/demo_monitor",
                     "share/ground_filter/package.xml", "share/ground_filter/nodelet_plugins.xml",
                     "share/ground_filter/launch/demo.launch",
