@@ -26,7 +26,7 @@ gf_check_focal_like() {
   nano_line="$(grep -m1 "ground_filter: nanoflann not found" "${log}")"
   if [[ "${cuda_line}" == *"OFF (CMake "*" is older than 99"* && -n "${nano_line}" ]]; then
     python3 "${GF_JUNIT}" "${results}/ci-focal_like_build.xml" focal_like configure_build passed \
-      "${cuda_line# *-- }; ${nano_line# *-- }"
+      "${cuda_line#-- }; ${nano_line#-- }"
   else
     python3 "${GF_JUNIT}" "${results}/ci-focal_like_build.xml" focal_like configure_build failed \
       "expected the cuda/ guard's reason and 'nanoflann not found', got: '${cuda_line}' '${nano_line}'"
