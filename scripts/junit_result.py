@@ -3,7 +3,7 @@
 tests that cannot run here, e.g. a rostest without its data) are counted by catkin_test_results
 and scripts/test_summary.py: skipped is counted as skipped, never as passed.
 
-Usage: junit_result.py RESULT.xml SUITE CASE passed|failed|skipped MESSAGE
+Usage: junit_result.py RESULT.xml SUITE CASE passed|failed|skipped MESSAGE...
 """
 import os
 import sys
@@ -31,11 +31,13 @@ def write_result(path, suite, case, status, message):
 
 
 def main(argv):
-    if len(argv) != 6:
+    if len(argv) < 6:
         print(__doc__, file=sys.stderr)
         return 2
-    write_result(*argv[1:])
-    print("%s %s.%s: %s" % (argv[4].upper(), argv[2], argv[3], argv[5]))
+    # The message may arrive split into words (catkin's run_tests.py runs a shell command line).
+    message = " ".join(argv[5:])
+    write_result(argv[1], argv[2], argv[3], argv[4], message)
+    print("%s %s.%s: %s" % (argv[4].upper(), argv[2], argv[3], message))
     return 0
 
 
