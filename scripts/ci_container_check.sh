@@ -29,8 +29,9 @@ fi
 timeout 180 bash "${GF_ROOT}/scripts/demo.sh" scans:=3 rate:=5 >"${log}" 2>&1
 rc=$?
 if [ "${rc}" = "0" ] && grep -q "\[demo_monitor\] summary: 3 scans" "${log}" \
-   && grep -q "ROS_HOSTNAME=gf-unresolvable.invalid does not resolve" "${log}"; then
-  report demo_sh passed "demo.sh: 3 scans, exit 0, ROS_HOSTNAME overridden"
+   && grep -q "ROS_HOSTNAME=gf-unresolvable.invalid does not resolve" "${log}" \
+   && ! grep -q "REQUIRED process" "${log}"; then
+  report demo_sh passed "demo.sh: 3 scans, exit 0, clean end, ROS_HOSTNAME overridden"
 else
   report demo_sh failed "demo.sh exit ${rc}: $(tail -n 5 "${log}" | tr '\n' ' ')"
 fi
@@ -44,13 +45,17 @@ p = h.roslaunch(["ground_filter", "demo.launch", "scans:=3", "rate:=5"], port=h.
 deadline = time.monotonic() + 120
 while p.running() and time.monotonic() < deadline:
     time.sleep(0.2)
+ended_alone = not p.running()
 rc = p.stop()
+if not ended_alone:
+    rc = 1  # it had to be stopped
 print(p.output())
 print("HELPER_RC=%d" % rc)
 PY
 if grep -q "\[demo_monitor\] summary: 3 scans" "${log}" \
-   && grep -q "ROS_HOSTNAME=gf-unresolvable.invalid does not resolve" "${log}"; then
-  report python_helpers passed "ros_launch_helpers.roslaunch: demo ran 3 scans, ROS_HOSTNAME overridden"
+   && grep -q "ROS_HOSTNAME=gf-unresolvable.invalid does not resolve" "${log}" \
+   && grep -q "HELPER_RC=0" "${log}" && ! grep -q "REQUIRED process" "${log}"; then
+  report python_helpers passed "ros_launch_helpers.roslaunch: demo.launch ran 3 scans and ended by itself (exit 0, no REQUIRED message), ROS_HOSTNAME overridden"
 else
   report python_helpers failed "$(tail -n 5 "${log}" | tr '\n' ' ')"
 fi

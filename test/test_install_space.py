@@ -114,6 +114,10 @@ class InstallSpaceTest(unittest.TestCase):
             self.assertGreater(int(ground), 0, tail)
             self.assertGreater(int(nonground), 0, tail)
         self.assertIn("[demo_monitor] summary: %d scans" % SCANS, out, tail)
+        # The monitor stops the launch itself (~shutdown_launch): no red REQUIRED message.
+        self.assertIn("[demo_monitor] done: stopping the launch", out, tail)
+        self.assertNotIn("REQUIRED process", out, tail)
+        self.assertEqual(launch.proc.returncode, 0, "roslaunch exit status" + tail)
         print("install %.1f s into %s; demo from the install space: %d scans, nodelet library %s"
               % (install_s, install, len(rows), maps_lib))
 
