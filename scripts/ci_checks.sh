@@ -85,3 +85,43 @@ gf_check_container() {
       "no result lines: $(echo "${out}" | tail -n 10)"
   fi
 }
+
+# The CUDA architecture default (cmake/gf_cuda.cmake) for toolkits and CMake versions this machine
+# does not have: a fake JetPack 5 nvcc (CUDA 11.4, up to sm_87), an nvcc without
+# --list-gpu-arch, CMake 3.20 (list) and 3.25 (all-major). Script mode, about a second.
+gf_check_cuda_archs() {
+  local results="$1" dir out expected
+  dir="$(mktemp -d /tmp/gf_cuda_archs_XXXXXX)"
+  cat >"${dir}/nvcc_jetpack5" <<'SH'
+#!/bin/sh
+case "$1" in
+  --version) echo "Cuda compilation tools, release 11.4, V11.4.315" ;;
+  --list-gpu-arch) printf 'compute_53\ncompute_62\ncompute_72\ncompute_75\ncompute_80\ncompute_86\ncompute_87\n' ;;
+  *) exit 1 ;;
+esac
+SH
+  printf '#!/bin/sh\n[ "$1" = --version ] && echo "Cuda compilation tools, release 10.2, V10.2.89" && exit 0\nexit 1\n' \
+    >"${dir}/nvcc_old"
+  chmod +x "${dir}/nvcc_jetpack5" "${dir}/nvcc_old"
+  cat >"${dir}/t.cmake" <<EOF2
+include("${GF_ROOT}/cmake/gf_cuda.cmake")
+set(CMAKE_VERSION 3.20.0)
+gf_cuda_default_architectures("${dir}/nvcc_jetpack5" a)
+gf_cuda_default_architectures("${dir}/nvcc_old" b)
+gf_nvcc_version("${dir}/nvcc_jetpack5" va)
+gf_nvcc_version("${dir}/nvcc_old" vb)
+set(CMAKE_VERSION 3.25.1)
+gf_cuda_default_architectures("${dir}/nvcc_jetpack5" c)
+message("RESULT|\${a}|\${b}|\${va}|\${vb}|\${c}")
+EOF2
+  out="$(cmake -P "${dir}/t.cmake" 2>&1 | grep '^RESULT|')"
+  expected="RESULT|72-real;75-real;80-real;86-real;87|72-real;75-real;80-real;86-real;87-real;89-real;90|11.4|10.2|all-major"
+  rm -rf "${dir}"
+  if [ "${out}" = "${expected}" ]; then
+    python3 "${GF_JUNIT}" "${results}/ci-cuda_archs.xml" cuda_guard default_architectures passed \
+      "JetPack 5 nvcc + CMake 3.20: 72-real;75-real;80-real;86-real;87; no --list-gpu-arch: full list; CMake >= 3.23: all-major"
+  else
+    python3 "${GF_JUNIT}" "${results}/ci-cuda_archs.xml" cuda_guard default_architectures failed \
+      "got '${out}', expected '${expected}'"
+  fi
+}

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs every test (gtest for the core, rostest for the nodelets, launch file checks), then the
 # packaging checks of scripts/ci_checks.sh (focal-like build without nanoflann and with the cuda/
-# guard forced, C++14 headers, an unresolvable hostname). Installs missing packages, builds in
+# guard forced, C++14 headers, CUDA architecture defaults, an unresolvable hostname). Installs missing packages, builds in
 # .ws/, exits non-zero on any failure, ends with a summary line (skipped counted apart).
 # GF_CI_EXTRA=0 leaves the packaging checks out.
 set -euo pipefail
@@ -20,6 +20,7 @@ catkin_make run_tests -j1 2>&1 | tee "${GF_WS}/run_tests.log"
 build_rc=${PIPESTATUS[0]}
 if [ "${GF_CI_EXTRA:-1}" != "0" ]; then
   gf_check_focal_like "${results}/ground_filter"
+  gf_check_cuda_archs "${results}/ground_filter"
   gf_check_container "${results}/ground_filter"
 fi
 python3 "${GF_ROOT}/scripts/test_summary.py" "${results}"
