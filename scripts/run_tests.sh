@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Runs every test (gtest for the core, rostest for the nodelets, launch file checks), then the
-# packaging checks of scripts/ci_checks.sh (focal-like build without nanoflann and with the cuda/
-# guard forced, C++14 headers, CUDA architecture defaults, an unresolvable hostname). Installs missing packages, builds in
-# .ws/, exits non-zero on any failure, ends with a summary line (skipped counted apart).
+# packaging checks of scripts/ci_checks.sh (focal-like build without nanoflann and with the
+# cuda/ guard forced, C++14 headers, CUDA architecture defaults, an unresolvable hostname).
+# Installs missing packages, builds in .ws/, exits non-zero on any failure, ends with a summary
+# line (skipped counted apart).
 # GF_CI_EXTRA=0 leaves the packaging checks out.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
