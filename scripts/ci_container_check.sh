@@ -11,7 +11,8 @@ source "${GF_WS:-${GF_ROOT}/.ws}/devel/setup.bash"
 set -u
 export ROS_HOSTNAME=gf-unresolvable.invalid
 unset ROS_IP ROS_MASTER_URI
-export ROS_HOME="$(mktemp -d /tmp/gf_container_check_XXXXXX)"
+ROS_HOME="$(mktemp -d /tmp/gf_container_check_XXXXXX)"
+export ROS_HOME
 log="${ROS_HOME}/out.log"
 report() { echo "CHECK $1 $2 $3"; }
 
