@@ -19,10 +19,13 @@ catkin_make tests -j"$(nproc 2>/dev/null || echo 2)"
 set +e
 catkin_make run_tests -j1 2>&1 | tee "${GF_WS}/run_tests.log"
 build_rc=${PIPESTATUS[0]}
+echo "[ci] catkin tests done after ${SECONDS} s"
 if [ "${GF_CI_EXTRA:-1}" != "0" ]; then
-  gf_check_focal_like "${results}/ground_filter"
-  gf_check_cuda_archs "${results}/ground_filter"
-  gf_check_container "${results}/ground_filter"
+  for step in gf_check_focal_like gf_check_cuda_archs gf_check_container; do
+    t0=${SECONDS}
+    "${step}" "${results}/ground_filter"
+    echo "[ci] ${step}: $((SECONDS - t0)) s"
+  done
 fi
 python3 "${GF_ROOT}/scripts/test_summary.py" "${results}"
 summary_rc=$?
