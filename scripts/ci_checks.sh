@@ -13,7 +13,8 @@ gf_check_focal_like() {
   ln -sfn "${GF_ROOT}" "${ws}/src/ground_filter"
   log="${ws}/focal_like.log"
   echo "[ci] focal-like: configure without nanoflann, cuda/ guard forced; build core + kd-tree test"
-  if ! (cd "${ws}" && catkin_make -DCMAKE_BUILD_TYPE=Release \
+  # --force-cmake: configure every time, so its status lines are in this log.
+  if ! (cd "${ws}" && catkin_make --force-cmake -DCMAKE_BUILD_TYPE=Release \
           -DCMAKE_DISABLE_FIND_PACKAGE_nanoflann=ON -DGF_CUDA_MIN_CMAKE=99 \
           ground_filter_core test_kdtree_neighbor_search -j"$(nproc 2>/dev/null || echo 2)") \
         >"${log}" 2>&1; then
