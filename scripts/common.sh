@@ -24,7 +24,7 @@ GF_APT_PACKAGES=(
   libsensor-msgs-dev python3-sensor-msgs
   libeigen3-dev googletest libgtest-dev
 )
-# Tests and the rviz view only (GF_NO_TEST_DEPS=1 skips them: 50 packages fewer on a minimal
+# Tests and the rviz view only (GF_NO_TEST_DEPS=1 skips them: 51 packages fewer on a minimal
 # root). nanoflann: the optional reference of one kd-tree test.
 GF_APT_TEST_PACKAGES=(libnanoflann-dev rviz xvfb xauth libgl1-mesa-dri imagemagick)
 if [ "${GF_NO_TEST_DEPS:-0}" != "1" ]; then
