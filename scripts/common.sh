@@ -9,6 +9,8 @@ export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
 GF_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 GF_WS="${GF_WS:-${GF_ROOT}/.ws}"
 
+# Debian 12 packages. openjdk (11 of the ~1000 packages on a minimal root) comes from libpcl-dev
+# -> libvtk9-dev (Depends: default-jdk); PCL's headers are needed, so it stays (docs/install.md).
 GF_APT_PACKAGES=(
   build-essential cmake git pkg-config python3
   catkin ros-core-dev rosbash python3-roslaunch python3-rostest librostest-dev
@@ -20,9 +22,42 @@ GF_APT_PACKAGES=(
   libdiagnostic-updater-dev librosbag-dev python3-rosbag
   python3-std-srvs python3-diagnostic-msgs
   libsensor-msgs-dev python3-sensor-msgs
-  libeigen3-dev libnanoflann-dev googletest libgtest-dev
-  rviz xvfb xauth libgl1-mesa-dri imagemagick
+  libeigen3-dev googletest libgtest-dev
 )
+# Tests and the rviz view only (GF_NO_TEST_DEPS=1 skips them: 51 packages fewer on a minimal
+# root). nanoflann: the optional reference of one kd-tree test.
+GF_APT_TEST_PACKAGES=(libnanoflann-dev rviz xvfb xauth libgl1-mesa-dri imagemagick)
+if [ "${GF_NO_TEST_DEPS:-0}" != "1" ]; then
+  GF_APT_PACKAGES+=("${GF_APT_TEST_PACKAGES[@]}")
+fi
+
+# ROS on this machine only, also where the hostname does not resolve (containers): keeps the
+# caller's ROS_HOSTNAME / ROS_IP / ROS_MASTER_URI when they resolve, else uses loopback.
+# (Python: scripts/ros_launch_helpers.py loopback_env.)
+gf_resolves() { getent ahosts "$1" >/dev/null 2>&1; }
+gf_ros_env() {
+  if [ -n "${ROS_HOSTNAME:-}" ] && ! gf_resolves "${ROS_HOSTNAME}"; then
+    echo "[ground_filter] ROS_HOSTNAME=${ROS_HOSTNAME} does not resolve: using localhost" >&2
+    unset ROS_HOSTNAME
+  fi
+  if [ -z "${ROS_HOSTNAME:-}" ] && [ -n "${ROS_IP:-}" ] && ! gf_resolves "${ROS_IP}"; then
+    echo "[ground_filter] ROS_IP=${ROS_IP} is not an address: using localhost" >&2
+    unset ROS_IP
+  fi
+  if [ -z "${ROS_HOSTNAME:-}" ] && [ -z "${ROS_IP:-}" ]; then
+    export ROS_HOSTNAME=localhost
+  fi
+  local uri_host="${ROS_MASTER_URI:-}"
+  uri_host="${uri_host#*://}"
+  uri_host="${uri_host%%/*}"
+  uri_host="${uri_host%:*}"
+  if [ -z "${uri_host}" ] || ! gf_resolves "${uri_host}"; then
+    if [ -n "${ROS_MASTER_URI:-}" ]; then
+      echo "[ground_filter] ROS_MASTER_URI=${ROS_MASTER_URI} does not resolve: using localhost" >&2
+    fi
+    export ROS_MASTER_URI=http://localhost:11311
+  fi
+}
 
 gf_install_deps() {
   local missing=()

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The README's main command: installs what is missing, builds, and runs launch/demo.launch
-# (generated LiDAR scene -> voxel ground filter nodelet -> per-scan report). It ends by itself
-# after `scans` scans (default 30). Arguments are roslaunch args, e.g.
+# (generated LiDAR scene -> voxel ground filter nodelet) with demo_monitor printing one line per
+# scan. It ends by itself after `scans` scans (default 30) and exits 0 only when scans were
+# received. Arguments are roslaunch args, e.g.
 #   bash scripts/demo.sh input:=../shared/data/semantickitti/seq00 scans:=12
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
@@ -9,6 +10,7 @@ source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 # roslaunch runs nodes in ~/.ros: make a relative input path absolute while the caller's
 # directory is still the current one.
 args=()
+scans=30
 for a in "$@"; do
   case "${a}" in
     input:=?*)
@@ -18,10 +20,43 @@ for a in "$@"; do
       fi
       args+=("input:=${path}")
       ;;
+    scans:=*) scans="${a#scans:=}" ;;
     *) args+=("${a}") ;;
   esac
 done
 
 gf_install_deps
 gf_build
-exec roslaunch ground_filter demo.launch "${args[@]+"${args[@]}"}"
+gf_ros_env  # loopback unless the caller's ROS_HOSTNAME / ROS_MASTER_URI resolve
+
+# The monitor runs here, not as a required node of the launch: when it has printed its summary
+# the launch is stopped cleanly (no "REQUIRED process has died"), and its status is ours.
+roslaunch ground_filter demo.launch monitor:=false "${args[@]+"${args[@]}"}" &
+launch_pid=$!
+rosrun ground_filter demo_monitor ~ground:=/ground_filter/ground \
+  ~nonground:=/ground_filter/nonground ~processing_time_ms:=/ground_filter/processing_time_ms \
+  _max_scans:="${scans}" &
+monitor_pid=$!
+stop() { kill -TERM "$@" 2>/dev/null || true; }
+trap 'stop "${monitor_pid}"; stop "${launch_pid}"' INT TERM
+status=1
+while :; do
+  if ! kill -0 "${monitor_pid}" 2>/dev/null; then
+    set +e
+    wait "${monitor_pid}"
+    status=$?
+    set -e
+    break
+  fi
+  if ! kill -0 "${launch_pid}" 2>/dev/null; then
+    echo "[demo] roslaunch ended before the monitor (see its output above)" >&2
+    stop "${monitor_pid}"
+    wait "${monitor_pid}" 2>/dev/null || true
+    break
+  fi
+  sleep 0.2
+done
+stop "${launch_pid}"
+wait "${launch_pid}" 2>/dev/null || true
+echo "[demo] done (exit status ${status})"
+exit "${status}"

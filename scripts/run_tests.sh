@@ -1,18 +1,33 @@
 #!/usr/bin/env bash
-# Runs every test (gtest for the core, rostest for the nodelets, launch file checks).
-# Installs missing packages, builds in .ws/, exits non-zero on any failure, ends with a summary line.
+# Runs every test (gtest for the core, rostest for the nodelets, launch file checks), then the
+# packaging checks of scripts/ci_checks.sh (focal-like build without nanoflann and with the
+# cuda/ guard forced, C++14 headers, CUDA architecture defaults, an unresolvable hostname).
+# Installs missing packages, builds in .ws/, exits non-zero on any failure, ends with a summary
+# line (skipped counted apart).
+# GF_CI_EXTRA=0 leaves the packaging checks out.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+source "${GF_ROOT}/scripts/ci_checks.sh"
 gf_install_deps
+gf_ros_env  # ROS on loopback unless the caller's ROS_HOSTNAME / ROS_MASTER_URI resolve
 gf_build
 cd "${GF_WS}"
-rm -rf "${GF_WS}/build/test_results"
+results="${GF_WS}/build/test_results"
+rm -rf "${results}"
 # Test binaries build in parallel; the tests themselves run one at a time (rostests share CPUs).
 catkin_make tests -j"$(nproc 2>/dev/null || echo 2)"
 set +e
 catkin_make run_tests -j1 2>&1 | tee "${GF_WS}/run_tests.log"
 build_rc=${PIPESTATUS[0]}
-python3 "${GF_ROOT}/scripts/test_summary.py" "${GF_WS}/build/test_results"
+echo "[ci] catkin tests done after ${SECONDS} s"
+if [ "${GF_CI_EXTRA:-1}" != "0" ]; then
+  for step in gf_check_focal_like gf_check_cuda_archs gf_check_container; do
+    t0=${SECONDS}
+    "${step}" "${results}/ground_filter"
+    echo "[ci] ${step}: $((SECONDS - t0)) s"
+  done
+fi
+python3 "${GF_ROOT}/scripts/test_summary.py" "${results}"
 summary_rc=$?
 set -e
 if [ "${build_rc}" != "0" ]; then

@@ -13,15 +13,15 @@ import argparse
 import os
 import re
 import shutil
-import signal
-import socket
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.realpath(__file__)))
+from ros_launch_helpers import free_port, roslaunch  # noqa: E402
 
 
 def colour_counts(png):
@@ -41,14 +41,6 @@ def colour_counts(png):
     return green, red
 
 
-def free_port():
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -66,22 +58,19 @@ def main(argv=None):
         print("rviz_screenshot.py: no DISPLAY (run it under xvfb-run)", file=sys.stderr)
         return 1
 
-    port = free_port()
-    env = dict(os.environ, ROS_MASTER_URI="http://localhost:%d" % port,
-               LIBGL_ALWAYS_SOFTWARE="1")
     work = tempfile.mkdtemp(prefix="gf_rviz_")
+    env = dict(os.environ, LIBGL_ALWAYS_SOFTWARE="1")
     env.setdefault("ROS_HOME", os.path.join(work, "ros"))
-    cmd = ["roslaunch", "-p", str(port), "ground_filter", "demo.launch", "gui:=true",
-           "scans:=0"] + a.launch_args
-    launch = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                              universal_newlines=True, start_new_session=True)
-    lines = []
-    threading.Thread(target=lambda: lines.extend(launch.stdout), daemon=True).start()
+    # A private master on a free port, reachable through loopback even without a resolvable
+    # hostname (containers).
+    launch = roslaunch(["ground_filter", "demo.launch", "gui:=true", "scans:=0"] + a.launch_args,
+                       port=free_port(), env=env)
+    lines = launch.lines
     shot = os.path.join(work, "shot.png")
     found, counts, shots = False, (0, 0), 0
     deadline = time.monotonic() + a.timeout
     try:
-        while time.monotonic() < deadline and launch.poll() is None:
+        while time.monotonic() < deadline and launch.running():
             time.sleep(2.0)
             # Scans flowing through the filter (demo_monitor lines) before looking at the screen.
             if len(re.findall(r"^\s*\d+\s+[\d.]+\s+\d+\s+\d+\s+\d+\s", "".join(lines),
@@ -100,13 +89,7 @@ def main(argv=None):
                 found = min(counts) >= a.min_pixels
                 break
     finally:
-        if launch.poll() is None:
-            os.killpg(launch.pid, signal.SIGINT)
-            try:
-                launch.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                os.killpg(launch.pid, signal.SIGKILL)
-                launch.wait()
+        launch.stop()
     if os.path.exists(shot):
         os.makedirs(os.path.dirname(os.path.abspath(a.out)), exist_ok=True)
         shutil.copyfile(shot, a.out)

@@ -12,25 +12,19 @@ import json
 import os
 import re
 import shutil
-import signal
-import socket
 import subprocess
+import sys
 import tempfile
-import threading
 import time
 import unittest
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.realpath(__file__))),
+                                "scripts"))
+from ros_launch_helpers import Process, free_port, loopback_env  # noqa: E402
 
 CONFIG = "gf_install_test.json"  # written by CMakeLists.txt next to where this test runs
 SCANS = 5
 TIMEOUT_S = 120
-
-
-def free_port():
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 class InstallSpaceTest(unittest.TestCase):
@@ -59,6 +53,7 @@ class InstallSpaceTest(unittest.TestCase):
         self.assertEqual(p.returncode, 0, "cmake --install failed:\n" + p.stdout[-4000:])
         install = os.path.join(self.stage, self.prefix.lstrip("/"))
         for rel in ("setup.bash", "lib/libground_filter_nodelets.so",
+                    "lib/ground_filter/make_bag.py",
                     "lib/ground_filter/scene_publisher", "lib/ground_filter/demo_monitor",
                     "share/ground_filter/package.xml", "share/ground_filter/nodelet_plugins.xml",
                     "share/ground_filter/launch/demo.launch",
@@ -71,25 +66,26 @@ class InstallSpaceTest(unittest.TestCase):
         os.makedirs(home)
         port = free_port()
         # A clean environment: nothing of the build or devel space, only the install space.
+        # ROS_HOSTNAME/ROS_IP: the caller's when they resolve, else loopback (containers).
+        ros = loopback_env(master_port=port)
         clean = {"PATH": "/usr/bin:/bin", "HOME": home, "ROS_HOME": os.path.join(home, ".ros"),
-                 "ROS_MASTER_URI": "http://localhost:%d" % port, "LANG": "C.UTF-8",
+                 "ROS_MASTER_URI": ros["ROS_MASTER_URI"], "LANG": "C.UTF-8",
                  "PYTHONUNBUFFERED": "1"}  # roslaunch's "started with pid" lines as they come
+        clean.update({k: ros[k] for k in ("ROS_HOSTNAME", "ROS_IP") if k in ros})
         script = (
             "set -e; source '%s/setup.bash'; "
             "echo PKG=$(rospack find ground_filter); "
             "echo PLUGIN=$(rospack plugins --attrib=plugin nodelet | grep '^ground_filter '); "
+            # The Python tools are installed too (catkin_install_python).
+            "echo MAKE_BAG=$(rosrun ground_filter make_bag.py --help | head -n 1); "
             "exec roslaunch -p %d ground_filter demo.launch scans:=%d rate:=5"
             % (install, port, SCANS))
-        launch = subprocess.Popen(["env", "-i"] + ["%s=%s" % kv for kv in clean.items()] +
-                                  ["bash", "-c", script], stdout=subprocess.PIPE,
-                                  stderr=subprocess.STDOUT, universal_newlines=True,
-                                  start_new_session=True)
-        lines, maps_lib, manager_pid = [], None, None
-        reader = threading.Thread(target=lambda: lines.extend(launch.stdout), daemon=True)
-        reader.start()
+        launch = Process(["env", "-i"] + ["%s=%s" % kv for kv in clean.items()] +
+                         ["bash", "-c", script])
+        lines, maps_lib, manager_pid = launch.lines, None, None
         deadline = time.monotonic() + TIMEOUT_S
         try:
-            while launch.poll() is None and time.monotonic() < deadline:
+            while launch.running() and time.monotonic() < deadline:
                 text = "".join(lines)
                 if manager_pid is None:
                     m = re.search(r"process\[ground_filter_manager-\d+\]: started with pid "
@@ -99,21 +95,15 @@ class InstallSpaceTest(unittest.TestCase):
                     maps_lib = self.loaded_library(manager_pid)
                 time.sleep(0.05)
         finally:
-            if launch.poll() is None:
-                os.killpg(launch.pid, signal.SIGINT)
-                try:
-                    launch.wait(timeout=20)
-                except subprocess.TimeoutExpired:
-                    os.killpg(launch.pid, signal.SIGKILL)
-            launch.wait()
-            reader.join(timeout=5)
-        out = "".join(lines)
+            launch.stop()
+        out = launch.output()
         tail = "\n" + out[-6000:]
         self.assertLess(time.monotonic(), deadline, "demo did not end within %d s" % TIMEOUT_S +
                         tail)
 
         self.assertIn("PKG=%s/share/ground_filter" % install, out, tail)
         self.assertIn("%s/share/ground_filter/nodelet_plugins.xml" % install, out, tail)
+        self.assertRegex(out, r"MAKE_BAG=usage: make_bag\.py", "rosrun make_bag.py failed" + tail)
         self.assertIsNotNone(maps_lib, "nodelet library not found in the manager's maps" + tail)
         self.assertTrue(os.path.realpath(maps_lib).startswith(os.path.realpath(install) + "/lib/"),
                         "nodelet loaded from %s, not from the install space" % maps_lib)
@@ -124,6 +114,10 @@ class InstallSpaceTest(unittest.TestCase):
             self.assertGreater(int(ground), 0, tail)
             self.assertGreater(int(nonground), 0, tail)
         self.assertIn("[demo_monitor] summary: %d scans" % SCANS, out, tail)
+        # The monitor stops the launch itself (~shutdown_launch): no red REQUIRED message.
+        self.assertIn("[demo_monitor] done: stopping the launch", out, tail)
+        self.assertNotIn("REQUIRED process", out, tail)
+        self.assertEqual(launch.proc.returncode, 0, "roslaunch exit status" + tail)
         print("install %.1f s into %s; demo from the install space: %d scans, nodelet library %s"
               % (install_s, install, len(rows), maps_lib))
 

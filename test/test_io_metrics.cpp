@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "gf_test_data.h"
 #include "ground_filter/metrics.h"
 #include "ground_filter/scan_io.h"
 
@@ -637,6 +638,7 @@ TEST(Writers, SplitCloudsKeepEveryField) {
 // ------------------------------------------------------------------ real data
 
 TEST(RealData, SemanticKittiGroundShares) {
+  GF_SKIP_WITHOUT_DATA(dataDir() + "/semantickitti/seq00");
   const struct {
     const char* file;
     double share;
@@ -656,6 +658,7 @@ TEST(RealData, SemanticKittiGroundShares) {
 }
 
 TEST(RealData, KittiFrameCountsByClass) {
+  GF_SKIP_WITHOUT_DATA(dataDir() + "/semantickitti/seq00/000000.bin");
   // 000000: 124,668 points; the count of ignored points is what the protocol leaves out.
   const gf::Scan scan = gf::loadScan(dataDir() + "/semantickitti/seq00/000000.bin");
   EXPECT_EQ(scan.size(), 124668u);
@@ -665,6 +668,7 @@ TEST(RealData, KittiFrameCountsByClass) {
 }
 
 TEST(RealData, IsprsSamp11) {
+  GF_SKIP_WITHOUT_DATA(dataDir() + "/isprs/samp11.pcd");
   const gf::Scan scan = gf::loadScan(dataDir() + "/isprs/samp11.pcd");
   EXPECT_EQ(scan.size(), 38010u);
   ASSERT_TRUE(scan.labelled());
@@ -673,6 +677,7 @@ TEST(RealData, IsprsSamp11) {
 }
 
 TEST(RealData, Os128Organised) {
+  GF_SKIP_WITHOUT_DATA(dataDir() + "/unlabelled/os128_000000.pcd");
   const gf::Scan scan = gf::loadScan(dataDir() + "/unlabelled/os128_000000.pcd");
   EXPECT_EQ(scan.cloud.height, 128u);
   EXPECT_EQ(scan.cloud.width, 1875u);

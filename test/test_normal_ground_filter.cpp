@@ -13,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "gf_test_data.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/kdtree_neighbor_search.h"
 #include "ground_filter/metrics.h"
@@ -548,6 +549,7 @@ TEST(NeighborhoodPca, SameForAnyThreadCount) {
 
 TEST(NormalGroundFilterKitti, PooledF1AboveFloor) {
   const std::string dir = std::string(GF_DATA_DIR) + "/semantickitti/seq00/";
+  GF_SKIP_WITHOUT_DATA(dir);
   gf::NormalGroundFilter f;
   gf::Confusion pooled;
   for (const char* frame : {"000000", "000001", "000002"}) {

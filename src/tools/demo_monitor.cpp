@@ -7,18 +7,27 @@
 // Parameters:
 //   ~max_scans (int, 0)       print the summary and shut down after this many scans (0 = never)
 //   ~timeout (double, 60)     give up (exit code 1) when no scan arrives for this long [s]
+//   ~shutdown_launch (bool, false)  when done, stop the roslaunch that started this node (its
+//                             parent process, SIGINT = Ctrl-C) instead of exiting alone, so a
+//                             launch with this required node ends without "REQUIRED process
+//                             has died"; exits by itself if not stopped within 15 s.
+// Exit status: 0 only when scans were received (and max_scans reached, when given).
 #include <message_filters/subscriber.h>
 #include <message_filters/sync_policies/exact_time.h>
 #include <message_filters/synchronizer.h>
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
+#include <signal.h>
 #include <std_msgs/Float64.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <deque>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -75,11 +84,19 @@ bool countTruth(const sensor_msgs::PointCloud2& cloud, std::uint64_t* truth_grou
   return true;
 }
 
+// True when process `pid` runs roslaunch (its command line names it).
+bool isRoslaunch(pid_t pid) {
+  std::ifstream f("/proc/" + std::to_string(pid) + "/cmdline", std::ios::binary);
+  const std::string cmdline((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  return cmdline.find("roslaunch") != std::string::npos;
+}
+
 class DemoMonitor {
  public:
   DemoMonitor() : pnh_("~"), sync_(Policy(10), sub_ground_, sub_nonground_) {
     pnh_.param("max_scans", max_scans_, 0);
     pnh_.param("timeout", timeout_s_, 60.0);
+    pnh_.param("shutdown_launch", shutdown_launch_, false);
     sub_ground_.subscribe(pnh_, "ground", 5);
     sub_nonground_.subscribe(pnh_, "nonground", 5);
     sync_.registerCallback(&DemoMonitor::pairCallback, this);
@@ -94,8 +111,9 @@ class DemoMonitor {
     std::fflush(stdout);
   }
 
-  /// Exit status: 0 unless the monitor gave up waiting for the requested scans.
-  int status() const { return failed_ ? 1 : 0; }
+  /// Exit status: 0 when scans were received and the monitor did not give up waiting for the
+  /// requested ones (scripts/demo.sh exits with it).
+  int status() const { return failed_ || scans_ == 0 ? 1 : 0; }
 
   /// Prints the summary if it was not printed yet (e.g. after Ctrl-C).
   void finishOnExit() {
@@ -156,6 +174,7 @@ class DemoMonitor {
 
   void pairCallback(const sensor_msgs::PointCloud2ConstPtr& ground,
                     const sensor_msgs::PointCloud2ConstPtr& nonground) {
+    if (done_) return;  // waiting for roslaunch to stop us: no more lines
     Pending p;
     p.arrival = ros::WallTime::now();
     p.stamp = ground->header.stamp.toSec();
@@ -190,6 +209,10 @@ class DemoMonitor {
   void flush(const ros::WallTimerEvent&) {
     constexpr double kWaitS = 0.2;
     const ros::WallTime now = ros::WallTime::now();
+    if (done_) {
+      if (!launch_stop_deadline_.isZero() && now > launch_stop_deadline_) ros::shutdown();
+      return;
+    }
     while (!pending_.empty()) {
       const Pending& p = pending_.front();
       // Times that came before the previous pair belong to it or to scans never seen here.
@@ -253,6 +276,14 @@ class DemoMonitor {
     if (done_) return;
     done_ = true;
     printSummary();
+    const pid_t parent = getppid();
+    if (shutdown_launch_ && parent > 1 && isRoslaunch(parent) && ::kill(parent, SIGINT) == 0) {
+      // roslaunch stops every node (this one too) and ends cleanly; exit alone if it does not.
+      std::printf("[demo_monitor] done: stopping the launch\n");
+      std::fflush(stdout);
+      launch_stop_deadline_ = ros::WallTime::now() + ros::WallDuration(15.0);
+      return;
+    }
     ros::shutdown();
   }
 
@@ -275,6 +306,8 @@ class DemoMonitor {
   Confusion pooled_;
   bool done_ = false;
   bool failed_ = false;
+  bool shutdown_launch_ = false;
+  ros::WallTime launch_stop_deadline_;  // zero until the launch was asked to stop
 };
 
 }  // namespace
