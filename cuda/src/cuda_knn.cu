@@ -211,8 +211,8 @@ void CudaKnn::Impl::searchOnDevice(const float* d_xyz, int n, int k, std::int32_
   // ---- bounds, keys, sort, cell-start levels
   auto t0 = std::chrono::steady_clock::now();
   launchBoundsAndFrame(d_xyz, n, d_bounds, d_frame, st);
-  launchMorton(d_xyz, n, d_frame, im.keys_a.as<unsigned long long>(),
-               im.vals_a.as<unsigned int>(), st);
+  launchMorton(d_xyz, n, d_frame, im.keys_a.as<unsigned long long>(), im.vals_a.as<unsigned int>(),
+               st);
   cub::DoubleBuffer<unsigned long long> kb(im.keys_a.as<unsigned long long>(),
                                            im.keys_b.as<unsigned long long>());
   cub::DoubleBuffer<unsigned int> vb(im.vals_a.as<unsigned int>(), im.vals_b.as<unsigned int>());
@@ -409,8 +409,8 @@ void CudaKnn::neighborhoodPca(float* normals, float* eigenvalues, std::uint8_t* 
   float* d_normals = im.pca.as<float>();
   float* d_eigen = d_normals + 3 * n;
   std::uint8_t* d_valid = reinterpret_cast<std::uint8_t*>(d_eigen + 3 * n);
-  launchPca(im.list_xyz, im.sorted.as<float4>(), im.out_idx.as<std::int32_t>(),
-            static_cast<int>(n), im.list_k, d_normals, d_eigen, d_valid, im.stream);
+  launchPca(im.list_xyz, im.sorted.as<float4>(), im.out_idx.as<std::int32_t>(), static_cast<int>(n),
+            im.list_k, d_normals, d_eigen, d_valid, im.stream);
   GF_CUDA_CHECK(
       cudaMemcpyAsync(im.h_pca.ptr, im.pca.ptr, bytes, cudaMemcpyDeviceToHost, im.stream));
   GF_CUDA_CHECK(cudaStreamSynchronize(im.stream));

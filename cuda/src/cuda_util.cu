@@ -1,5 +1,3 @@
-#include "cuda_util.cuh"
-
 #include <omp.h>
 
 #include <algorithm>
@@ -7,6 +5,7 @@
 #include <cstring>
 #include <sstream>
 
+#include "cuda_util.cuh"
 #include "ground_filter/cuda_knn.h"
 
 namespace ground_filter {

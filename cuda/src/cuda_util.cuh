@@ -17,8 +17,7 @@ void checkCuda(cudaError_t err, const char* call, const char* file, int line);
 }  // namespace cuda_impl
 }  // namespace ground_filter
 
-#define GF_CUDA_CHECK(call) \
-  ::ground_filter::cuda_impl::checkCuda((call), #call, __FILE__, __LINE__)
+#define GF_CUDA_CHECK(call) ::ground_filter::cuda_impl::checkCuda((call), #call, __FILE__, __LINE__)
 // After a kernel launch: launch-configuration errors (asynchronous faults surface at the next
 // synchronising call, which is checked too).
 #define GF_CUDA_CHECK_LAUNCH() GF_CUDA_CHECK(cudaGetLastError())

@@ -1,9 +1,8 @@
 // Construction of the KNN grid: bounds, Morton keys, cell starts, hashed cell tables.
-#include "knn_grid.cuh"
-
 #include <algorithm>
 
 #include "cuda_util.cuh"
+#include "knn_grid.cuh"
 
 namespace ground_filter {
 namespace cuda_impl {

@@ -1,7 +1,6 @@
 // PCA and vote-count kernels over the KNN lists kept on the device.
-#include "knn_pca.cuh"
-
 #include "cuda_util.cuh"
+#include "knn_pca.cuh"
 
 namespace ground_filter {
 namespace cuda_impl {
@@ -18,8 +17,8 @@ __global__ void pcaKernel(const float* __restrict__ xyz, const float4* __restric
   const float4 qp = pts[s];
   const std::size_t orig = static_cast<std::size_t>(__float_as_int(qp.w));
   float nv[3], ev[3];
-  const bool ok = neighborhoodPcaOf(xyz, rows + static_cast<std::size_t>(s) * k, k, qp.x, qp.y,
-                                    qp.z, nv, ev);
+  const bool ok =
+      neighborhoodPcaOf(xyz, rows + static_cast<std::size_t>(s) * k, k, qp.x, qp.y, qp.z, nv, ev);
   for (int r = 0; r < 3; ++r) {
     normals[3 * orig + r] = nv[r];
     eigen[3 * orig + r] = ev[r];
@@ -46,7 +45,6 @@ __global__ void countKernel(const float4* __restrict__ pts, const std::int32_t* 
   neighbors[orig] = static_cast<std::uint16_t>(m);
 }
 
-
 }  // namespace
 
 void launchPca(const float* xyz, const float4* pts, const std::int32_t* rows, int n, int k,
@@ -56,8 +54,8 @@ void launchPca(const float* xyz, const float4* pts, const std::int32_t* rows, in
 }
 
 void launchCountFlagged(const float4* pts, const std::int32_t* rows, int n, int k,
-                        const std::uint8_t* flags, std::uint16_t* flagged,
-                        std::uint16_t* neighbors, cudaStream_t st) {
+                        const std::uint8_t* flags, std::uint16_t* flagged, std::uint16_t* neighbors,
+                        cudaStream_t st) {
   countKernel<<<blocksFor(n, 256), 256, 0, st>>>(pts, rows, n, k, flags, flagged, neighbors);
   GF_CUDA_CHECK_LAUNCH();
 }

@@ -136,7 +136,6 @@ __device__ inline void eigenDirect3(const double a[3][3], double ev[3], double v
   }
 }
 
-
 /// PCA of one neighbourhood: `row` holds up to k original indices into packed `xyz` (-1 ends
 /// it), (ox, oy, oz) is the query point. Returns false (outputs zero) when fewer than 3
 /// neighbours or no spread; else the unit normal (smallest eigenvalue's eigenvector) and the
@@ -189,8 +188,8 @@ void launchPca(const float* xyz, const float4* pts, const std::int32_t* rows, in
                float* normals, float* eigen, std::uint8_t* valid, cudaStream_t st);
 /// For every row: neighbours whose flag is set and valid neighbours, at the original index.
 void launchCountFlagged(const float4* pts, const std::int32_t* rows, int n, int k,
-                        const std::uint8_t* flags, std::uint16_t* flagged,
-                        std::uint16_t* neighbors, cudaStream_t st);
+                        const std::uint8_t* flags, std::uint16_t* flagged, std::uint16_t* neighbors,
+                        cudaStream_t st);
 
 }  // namespace cuda_impl
 }  // namespace ground_filter

@@ -1,7 +1,6 @@
 // The KNN query kernel: one warp per query over the hashed grid levels.
-#include "knn_query.cuh"
-
 #include "cuda_util.cuh"
+#include "knn_query.cuh"
 
 namespace ground_filter {
 namespace cuda_impl {
@@ -331,9 +330,9 @@ void launchKnnQuery(const GridDesc& g, const float4* pts, const unsigned long lo
   if (end <= base) return;
   const unsigned int blocks = blocksFor(static_cast<std::size_t>(end - base) * kWarp, kQueryBlock);
   // Variants: k > 32 (two list halves), cells nearest first.
-#define GF_KNN_LAUNCH(TWO, SORT) \
-  knnKernel<TWO, SORT>           \
-      <<<blocks, kQueryBlock, 0, st>>>(g, pts, tkeys, tvals, n, base, end, k, out_idx, out_d2, stats)
+#define GF_KNN_LAUNCH(TWO, SORT)                                                              \
+  knnKernel<TWO, SORT><<<blocks, kQueryBlock, 0, st>>>(g, pts, tkeys, tvals, n, base, end, k, \
+                                                       out_idx, out_d2, stats)
   const bool two = k > 32;
   if (sort_cells) {
     if (two)
