@@ -58,7 +58,8 @@ struct CudaNormalPipeline::Impl {
   cudaEvent_t ev[kEvents] = {};
   CudaNormalTimings timings;
   DeviceBuffer in, flags, pos, raw_xyz, raw_src, keys_a, keys_b, vals_a, vals_b, xyz, src, cand,
-      voted, vflags, vpos, gflags, gpos, tile_begin, vlist, glist, planes, labels, counters, temp;
+      voted, vflags, vpos, gflags, gpos, tile_begin, vlist, glist, planes, refine, labels, counters,
+      temp;
   PinnedBuffer h_in, h_small, h_labels;
 };
 
@@ -137,6 +138,7 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   im.grow(pl.glist, n_in * u32, "the tile lists");
   im.grow(pl.labels, n_in, "the labels");
   im.grow(pl.counters, 64, "the counters");
+  im.grow(pl.refine, refinePartialBytes(), "the plane sums");
   im.grow(pl.temp, temp_bytes, "the sort/scan scratch");
   pl.h_in.ensure(3 * n_in * sizeof(float));
   pl.h_small.ensure(64);
@@ -146,7 +148,7 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   auto t0 = std::chrono::steady_clock::now();
   float* h_in = pl.h_in.as<float>();
   const std::int64_t nn = static_cast<std::int64_t>(n_in);
-#pragma omp parallel for schedule(static) if (nn > 65536)
+#pragma omp parallel for schedule(static) if (nn > (1 << 20))  // waking threads costs more below
   for (std::int64_t i = 0; i < nn; ++i) {
     h_in[3 * i] = cloud.x(static_cast<std::size_t>(i));
     h_in[3 * i + 1] = cloud.y(static_cast<std::size_t>(i));
@@ -228,6 +230,7 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   unsigned int* d_ground_count = d_counters + 5;
   unsigned int* d_work_planes = d_counters + 6;
   unsigned int* d_work_classify = d_counters + 7;
+  unsigned int* d_need_global = d_counters + 8;
   const float4* d_pts = im.sorted.as<float4>();
   const std::int32_t* d_rows = im.out_idx.as<std::int32_t>();
   std::uint8_t* d_cand = pl.cand.as<std::uint8_t>();
@@ -281,7 +284,8 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   const int plane_blocks = static_cast<int>(std::min<std::uint64_t>(tiles_max + 1, 8ull * pl.sms));
   launchPlanes(d_xyz, d_tkeys, pl.tile_begin.as<unsigned int>(), d_ntiles,
                pl.vpos.as<unsigned int>(), pl.vlist.as<unsigned int>(), pl.glist.as<unsigned int>(),
-               d_gcount, gp, d_planes, d_work_planes, plane_blocks, st);
+               d_gcount, gp, d_planes, d_work_planes, d_need_global, pl.refine.as<double>(),
+               tiles_max, plane_blocks, st);
   std::uint8_t* d_labels = pl.labels.as<std::uint8_t>();
   GF_CUDA_CHECK(cudaMemsetAsync(d_labels, 0, n_in, st));
   const int classify_blocks = static_cast<int>(std::min<std::uint64_t>(tiles_max, 8ull * pl.sms));

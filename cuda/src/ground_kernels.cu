@@ -16,7 +16,9 @@ constexpr int kPlaneThreads = 128;
 constexpr unsigned int kEvalMax = 2048;                       // CPU: kRansacEvalPoints
 constexpr unsigned int kMinTilePoints = 10;                   // CPU: kMinTilePoints
 constexpr std::uint64_t kRansacSeed = 0x67f1a3c5d2b9e481ULL;  // CPU: kRansacSeed
-constexpr int kChunk = 256;  // points staged per step of a serial least-squares sum
+constexpr int kChunk = 256;               // points staged per step of a serial least-squares sum
+constexpr int kPlaneNeedsRefinement = 2;  // PlaneDev::valid of a hypothesis awaiting refinement
+constexpr int kRefineBlocks = 264;        // blocks of the grid-wide refinement
 
 /// CPU: spreadBits of normal_ground_filter.cpp (32 bits over the even bits of 64).
 __device__ inline std::uint64_t spread32(std::uint64_t v) {
@@ -253,8 +255,8 @@ __device__ inline void offsetOf(const float* __restrict__ xyz, unsigned int i, c
 /// CPU: fitPlaneRansac, one block per plane; the result is valid in thread 0.
 __device__ void fitPlaneBlock(const float* __restrict__ xyz, const unsigned int* __restrict__ idx,
                               unsigned int m, const GroundParamsDev& p, std::uint64_t seed,
-                              float* evp, double* stage, unsigned int* red, double* shd,
-                              PlaneDev* out) {
+                              bool hypotheses_only, float* evp, double* stage, unsigned int* red,
+                              double* shd, PlaneDev* out) {
   const int tid = threadIdx.x, bd = blockDim.x;
   PlaneDev best;
   best.n[0] = best.n[1] = 0.0;
@@ -324,6 +326,15 @@ __device__ void fitPlaneBlock(const float* __restrict__ xyz, const unsigned int*
     }
   }
   if (best_count < 3) {
+    if (tid == 0) *out = best;
+    return;
+  }
+  if (hypotheses_only) {  // refined by the grid-wide kernels (globalRefine*)
+    best.n[0] = best_n[0];
+    best.n[1] = best_n[1];
+    best.n[2] = best_n[2];
+    best.d = best_d;
+    best.valid = kPlaneNeedsRefinement;
     if (tid == 0) *out = best;
     return;
   }
@@ -485,25 +496,15 @@ __global__ void __launch_bounds__(kPlaneThreads)
                  const unsigned int* __restrict__ tile_begin, const unsigned int* ntiles_dev,
                  const unsigned int* __restrict__ vpos, const unsigned int* __restrict__ vlist,
                  const unsigned int* __restrict__ glist, const unsigned int* gcount,
-                 const GroundParamsDev p, PlaneDev* planes, unsigned int* work) {
+                 const unsigned int* need_global_dev, const GroundParamsDev p, PlaneDev* planes,
+                 unsigned int* work) {
   __shared__ float evp[3 * kEvalMax];
   __shared__ double stage[7 * kChunk];
   __shared__ unsigned int red[32];
   __shared__ double shd[4];
   __shared__ unsigned int item_s;
-  __shared__ int need_global_s;
   const unsigned int ntiles = *ntiles_dev;
-  // The cloud-wide plane is needed without local planes or when a tile has too few votes.
-  if (threadIdx.x == 0) need_global_s = !p.local_planes;
-  __syncthreads();
-  if (p.local_planes) {
-    int any = 0;
-    for (unsigned int t = threadIdx.x; t < ntiles; t += blockDim.x) {
-      any |= vpos[tile_begin[t + 1]] - vpos[tile_begin[t]] < kMinTilePoints;
-    }
-    if (__syncthreads_or(any) && threadIdx.x == 0) need_global_s = 1;
-  }
-  __syncthreads();
+  const bool need_global = !p.local_planes || *need_global_dev;
   for (;;) {
     if (threadIdx.x == 0) item_s = atomicAdd(work, 1u);
     __syncthreads();
@@ -512,8 +513,10 @@ __global__ void __launch_bounds__(kPlaneThreads)
     if (item > ntiles) break;
     PlaneDev plane;
     if (item == 0) {
-      if (need_global_s) {
-        fitPlaneBlock(xyz, glist, *gcount, p, kRansacSeed, evp, stage, red, shd, &plane);
+      if (need_global) {
+        const unsigned int m = *gcount;
+        fitPlaneBlock(xyz, glist, m, p, kRansacSeed, m > kSerialRefineMax, evp, stage, red, shd,
+                      &plane);
       } else {
         plane.valid = 0;
       }
@@ -522,12 +525,137 @@ __global__ void __launch_bounds__(kPlaneThreads)
       const unsigned int m = vpos[e] - vpos[b];
       if (p.local_planes && m >= kMinTilePoints) {
         const std::uint64_t seed = kRansacSeed ^ (keys[b] * 0x9e3779b97f4a7c15ULL);
-        fitPlaneBlock(xyz, vlist + vpos[b], m, p, seed, evp, stage, red, shd, &plane);
+        fitPlaneBlock(xyz, vlist + vpos[b], m, p, seed, false, evp, stage, red, shd, &plane);
       } else {
         plane.valid = 0;
       }
     }
     if (threadIdx.x == 0) planes[item] = plane;
+  }
+}
+
+/// need_global = some tile has fewer than kMinTilePoints voted points (CPU: need_global).
+__global__ void needGlobalKernel(const unsigned int* __restrict__ tile_begin,
+                                 const unsigned int* ntiles_dev,
+                                 const unsigned int* __restrict__ vpos, unsigned int* need_global) {
+  const unsigned int t = blockIdx.x * blockDim.x + threadIdx.x;
+  const bool few =
+      t < *ntiles_dev && vpos[tile_begin[t + 1]] - vpos[tile_begin[t]] < kMinTilePoints;
+  if (__syncthreads_or(few) && threadIdx.x == 0) *need_global = 1;
+}
+
+/// Fixed-order block sum of `v[0..c)` per thread (thread t's values at sh[t * c + i]); result in
+/// thread 0's `v`.
+template <int C>
+__device__ inline void blockSumFixed(double (&v)[C], double* sh) {
+  __syncthreads();
+  for (int i = 0; i < C; ++i) sh[threadIdx.x * C + i] = v[i];
+  __syncthreads();
+  for (int half = blockDim.x / 2; half > 0; half >>= 1) {
+    if (threadIdx.x < half) {
+      for (int i = 0; i < C; ++i) sh[threadIdx.x * C + i] += sh[(threadIdx.x + half) * C + i];
+    }
+    __syncthreads();
+  }
+  for (int i = 0; i < C; ++i) v[i] = sh[i];
+}
+
+/// Grid-wide least-squares refinement of a large cloud-wide plane (planes[0].valid ==
+/// kPlaneNeedsRefinement): pass 0 sums the inliers per block, pass 1 their centred products
+/// (the mean from all blocks' sums, added in block order), pass 2 (one block) finishes the plane.
+/// Every sum has a fixed order, so the result is deterministic.
+__global__ void __launch_bounds__(kThreads)
+    globalRefineKernel(int pass, const float* __restrict__ xyz,
+                       const unsigned int* __restrict__ glist, const unsigned int* gcount,
+                       const GroundParamsDev p, PlaneDev* planes, double* partial) {
+  __shared__ double sh[kThreads * 6];
+  const PlaneDev pl = planes[0];
+  if (pl.valid != kPlaneNeedsRefinement) return;
+  const unsigned int m = *gcount;
+  const unsigned int per = (m + gridDim.x - 1) / gridDim.x;
+  const double thr = p.plane_distance;
+  double mu[3] = {0.0, 0.0, 0.0};
+  double inliers = 0.0;
+  if (pass >= 1) {  // the mean, from the pass-0 partials in block order
+    for (int b = 0; b < kRefineBlocks; ++b) {
+      mu[0] += partial[4 * b];
+      mu[1] += partial[4 * b + 1];
+      mu[2] += partial[4 * b + 2];
+      inliers += partial[4 * b + 3];
+    }
+    if (inliers >= 3.0) {
+      mu[0] /= inliers;
+      mu[1] /= inliers;
+      mu[2] /= inliers;
+    }
+  }
+  if (pass == 2) {
+    if (threadIdx.x != 0) return;
+    PlaneDev out = pl;
+    out.valid = 1;
+    if (inliers >= 3.0) {
+      double cov[6] = {0, 0, 0, 0, 0, 0};
+      const double* part = partial + 4 * kRefineBlocks;
+      for (int b = 0; b < kRefineBlocks; ++b) {
+        for (int c = 0; c < 6; ++c) cov[c] += part[6 * b + c];
+      }
+      const double a[3][3] = {
+          {cov[0], cov[1], cov[2]}, {cov[1], cov[3], cov[4]}, {cov[2], cov[4], cov[5]}};
+      double ev[3], nv[3];
+      eigenDirect3(a, ev, nv);
+      if (dot3(nv, pl.n) < 0.0) {
+        nv[0] = -nv[0];
+        nv[1] = -nv[1];
+        nv[2] = -nv[2];
+      }
+      if (isfinite(nv[0]) && fabs(nv[2]) >= p.min_abs_nz) {
+        out.n[0] = nv[0];
+        out.n[1] = nv[1];
+        out.n[2] = nv[2];
+        out.d = -dot3(nv, mu);
+      }
+    }
+    planes[0] = out;
+    return;
+  }
+  const unsigned int b0 = blockIdx.x * per, b1 = min(m, b0 + per);
+  if (pass == 0) {
+    double v[4] = {0.0, 0.0, 0.0, 0.0};
+    for (unsigned int t = b0 + threadIdx.x; t < b1; t += blockDim.x) {
+      double q[3];
+      offsetOf(xyz, glist[t], pl.o, q);
+      if (fabs(dot3(pl.n, q) + pl.d) <= thr) {
+        v[0] += q[0];
+        v[1] += q[1];
+        v[2] += q[2];
+        v[3] += 1.0;
+      }
+    }
+    blockSumFixed(v, sh);
+    if (threadIdx.x == 0) {
+      for (int c = 0; c < 4; ++c) partial[4 * blockIdx.x + c] = v[c];
+    }
+    return;
+  }
+  double v[6] = {0, 0, 0, 0, 0, 0};
+  if (inliers >= 3.0) {
+    for (unsigned int t = b0 + threadIdx.x; t < b1; t += blockDim.x) {
+      double q[3];
+      offsetOf(xyz, glist[t], pl.o, q);
+      if (fabs(dot3(pl.n, q) + pl.d) <= thr) {
+        const double r[3] = {q[0] - mu[0], q[1] - mu[1], q[2] - mu[2]};
+        v[0] += r[0] * r[0];
+        v[1] += r[0] * r[1];
+        v[2] += r[0] * r[2];
+        v[3] += r[1] * r[1];
+        v[4] += r[1] * r[2];
+        v[5] += r[2] * r[2];
+      }
+    }
+  }
+  blockSumFixed(v, sh);
+  if (threadIdx.x == 0) {
+    for (int c = 0; c < 6; ++c) partial[4 * kRefineBlocks + 6 * blockIdx.x + c] = v[c];
   }
 }
 
@@ -677,11 +805,24 @@ void launchPlanes(const float* xyz, const unsigned long long* sorted_keys,
                   const unsigned int* tile_begin, const unsigned int* ntiles,
                   const unsigned int* vpos, const unsigned int* vlist, const unsigned int* glist,
                   const unsigned int* gcount, const GroundParamsDev& p, PlaneDev* planes,
-                  unsigned int* work, int blocks, cudaStream_t st) {
+                  unsigned int* work, unsigned int* need_global, double* partial,
+                  std::size_t tiles_max, int blocks, cudaStream_t st) {
+  if (p.local_planes) {
+    needGlobalKernel<<<blocksFor(tiles_max, kThreads), kThreads, 0, st>>>(tile_begin, ntiles, vpos,
+                                                                          need_global);
+    GF_CUDA_CHECK_LAUNCH();
+  }
   planesKernel<<<blocks, kPlaneThreads, 0, st>>>(xyz, sorted_keys, tile_begin, ntiles, vpos, vlist,
-                                                 glist, gcount, p, planes, work);
+                                                 glist, gcount, need_global, p, planes, work);
   GF_CUDA_CHECK_LAUNCH();
+  for (int pass = 0; pass < 3; ++pass) {
+    globalRefineKernel<<<pass == 2 ? 1 : kRefineBlocks, kThreads, 0, st>>>(pass, xyz, glist, gcount,
+                                                                           p, planes, partial);
+    GF_CUDA_CHECK_LAUNCH();
+  }
 }
+
+std::size_t refinePartialBytes() { return sizeof(double) * 10 * kRefineBlocks; }
 
 void launchClassify(const float* xyz, const unsigned int* src, const unsigned int* order,
                     const std::uint8_t* voted, const unsigned int* tile_begin,

@@ -8,6 +8,7 @@
 
 #include <cuda_runtime.h>
 
+#include <cstddef>
 #include <cstdint>
 
 namespace ground_filter {
@@ -36,9 +37,9 @@ struct PlaneDev {
 };
 
 /// Planes of at most this many voted points have their least-squares sums added in the CPU's
-/// order (one thread, bit-identical); larger ones (the cloud-wide plane of very large clouds)
-/// use a fixed-order parallel sum (deterministic, may differ from the CPU in the last bits).
-constexpr unsigned int kSerialRefineMax = 1u << 17;
+/// order (one thread, bit-identical); larger ones (big tiles, the cloud-wide plane) use
+/// fixed-order parallel sums (deterministic; may differ from the CPU's sums in the last bits).
+constexpr unsigned int kSerialRefineMax = 4096;
 
 /// flags[i] = point i of the packed input is finite (i < n); flags[n] = 0.
 void launchFiniteFlags(const float* in, int n, unsigned int* flags, cudaStream_t st);
@@ -76,12 +77,16 @@ void launchTileLists(const unsigned int* heads, const unsigned int* tile_idx,
                      const unsigned int* gpos, int n, unsigned int* tile_begin, unsigned int* vlist,
                      unsigned int* glist, cudaStream_t st);
 /// RANSAC planes: item 0 the cloud-wide plane (when a tile has < 10 voted points or without
-/// local planes), item 1 + t tile t. `work` is a zeroed counter.
+/// local planes; refined grid-wide when large), item 1 + t tile t. `work` and `need_global` are
+/// zeroed counters, `partial` holds refinePartialBytes(); `tiles_max` bounds the tile count.
 void launchPlanes(const float* xyz, const unsigned long long* sorted_keys,
                   const unsigned int* tile_begin, const unsigned int* ntiles,
                   const unsigned int* vpos, const unsigned int* vlist, const unsigned int* glist,
                   const unsigned int* gcount, const GroundParamsDev& p, PlaneDev* planes,
-                  unsigned int* work, int blocks, cudaStream_t st);
+                  unsigned int* work, unsigned int* need_global, double* partial,
+                  std::size_t tiles_max, int blocks, cudaStream_t st);
+/// Bytes of the per-block partial sums of the grid-wide plane refinement.
+std::size_t refinePartialBytes();
 /// Distance test per tile: labels[src[i]] = 1 for ground; ground_count += them. `work` zeroed.
 void launchClassify(const float* xyz, const unsigned int* src, const unsigned int* order,
                     const std::uint8_t* voted, const unsigned int* tile_begin,
