@@ -148,7 +148,7 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   auto t0 = std::chrono::steady_clock::now();
   float* h_in = pl.h_in.as<float>();
   const std::int64_t nn = static_cast<std::int64_t>(n_in);
-#pragma omp parallel for schedule(static) if (nn > (1 << 20))  // waking threads costs more below
+#pragma omp parallel for schedule(static) if (nn > (1 << 18))  // waking threads costs more below
   for (std::int64_t i = 0; i < nn; ++i) {
     h_in[3 * i] = cloud.x(static_cast<std::size_t>(i));
     h_in[3 * i + 1] = cloud.y(static_cast<std::size_t>(i));
