@@ -21,6 +21,7 @@
 #include <cmath>
 #include <cstring>
 #include <cub/device/device_radix_sort.cuh>
+#include <cub/device/device_scan.cuh>
 #include <limits>
 #include <sstream>
 #include <string>
@@ -186,6 +187,11 @@ void CudaKnn::Impl::searchOnDevice(const float* d_xyz, int n, int k, std::int32_
     cub::DoubleBuffer<unsigned int> vb(nullptr, nullptr);
     GF_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(nullptr, sort_temp_bytes, kb, vb, n, 0,
                                                   3 * kCoordBits, st));
+    std::size_t scan_bytes = 0;
+    GF_CUDA_CHECK(cub::DeviceScan::InclusiveSum(nullptr, scan_bytes,
+                                                static_cast<unsigned int*>(nullptr),
+                                                static_cast<unsigned int*>(nullptr), n, st));
+    sort_temp_bytes = std::max(sort_temp_bytes, scan_bytes);
   }
   im.grow(im.keys_a, n_in * sizeof(unsigned long long), "the Morton keys");
   im.grow(im.keys_b, n_in * sizeof(unsigned long long), "the Morton keys");
@@ -194,6 +200,8 @@ void CudaKnn::Impl::searchOnDevice(const float* d_xyz, int n, int k, std::int32_
   im.grow(im.start_level, n_in, "the cell starts");
   im.grow(im.sorted, n_in * sizeof(float4), "the sorted points");
   im.grow(im.sort_temp, sort_temp_bytes, "the sort scratch");
+  im.grow(im.run_id, n_in * sizeof(unsigned int), "the key runs");
+  im.grow(im.run_end, n_in * sizeof(unsigned int), "the key runs");
   const std::size_t small_bytes =
       64 + 32 * sizeof(unsigned int) + kStatCount * sizeof(unsigned long long);
   im.grow(im.small, small_bytes, "the bounds");
@@ -225,6 +233,15 @@ void CudaKnn::Impl::searchOnDevice(const float* d_xyz, int n, int k, std::int32_
       d_hist, 0, 32 * sizeof(unsigned int) + kStatCount * sizeof(unsigned long long), st));
   launchCellStartLevel(d_keys, n, im.start_level.as<unsigned char>(), d_hist, st);
   launchGather(d_xyz, d_order, n, im.sorted.as<float4>(), st);
+  {  // runs of equal keys (their indices ascend): the query skips the rest of a useless run
+    unsigned int* d_run_id = im.run_id.as<unsigned int>();
+    unsigned int* d_run_end = im.run_end.as<unsigned int>();
+    launchRunHeads(im.start_level.as<unsigned char>(), n, d_run_end, st);  // heads, for the scan
+    std::size_t scan_bytes = im.sort_temp.bytes;
+    GF_CUDA_CHECK(
+        cub::DeviceScan::InclusiveSum(im.sort_temp.ptr, scan_bytes, d_run_end, d_run_id, n, st));
+    launchRunEnds(im.start_level.as<unsigned char>(), d_run_id, n, d_run_end, st);
+  }
   if (download) {  // the row order (sorted -> original) for the host-side scatter
     im.h_order.ensure(n_in * sizeof(unsigned int));
     GF_CUDA_CHECK(cudaEventRecord(im.order_done, st));
@@ -329,8 +346,9 @@ void CudaKnn::Impl::searchOnDevice(const float* d_xyz, int n, int k, std::int32_
   for (int c = 0; c < chunks; ++c) {
     const int b = c * per_chunk, e = std::min(n, b + per_chunk);
     if (b >= e) break;
-    launchKnnQuery(g, im.sorted.as<float4>(), d_tkeys, d_tvals, n, b, e, k, im.opt.sort_cells,
-                   d_idx, d_d2, stats, st);
+    launchKnnQuery(g, im.sorted.as<float4>(), d_tkeys, d_tvals, im.run_id.as<unsigned int>(),
+                   im.run_end.as<unsigned int>(), n, b, e, k, im.opt.sort_cells, d_idx, d_d2, stats,
+                   st);
     if (download) {
       const std::size_t r0 = static_cast<std::size_t>(b) * k,
                         nr = static_cast<std::size_t>(e - b) * k;

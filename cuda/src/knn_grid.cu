@@ -157,7 +157,34 @@ __global__ void closeCellsKernel(const __grid_constant__ GridDesc g,
         static_cast<unsigned int>(i + 1) - table_vals[lv.table_off + h].x;
   }
 }
+/// heads[i] = sorted point i starts a run of equal keys.
+__global__ void runHeadsKernel(const unsigned char* __restrict__ start_level, int n,
+                               unsigned int* heads) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < n) heads[i] = start_level[i] != kMaxLevels;
+}
+
+/// run_end[run_id[i] - 1] = i + 1 for the last point i of each run.
+__global__ void runEndsKernel(const unsigned char* __restrict__ start_level,
+                              const unsigned int* __restrict__ run_id, int n,
+                              unsigned int* run_end) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= n) return;
+  if (i + 1 == n || start_level[i + 1] != kMaxLevels) run_end[run_id[i] - 1] = i + 1;
+}
+
 }  // namespace
+
+void launchRunHeads(const unsigned char* start_level, int n, unsigned int* heads, cudaStream_t st) {
+  runHeadsKernel<<<blocksFor(n, 256), 256, 0, st>>>(start_level, n, heads);
+  GF_CUDA_CHECK_LAUNCH();
+}
+
+void launchRunEnds(const unsigned char* start_level, const unsigned int* run_id, int n,
+                   unsigned int* run_end, cudaStream_t st) {
+  runEndsKernel<<<blocksFor(n, 256), 256, 0, st>>>(start_level, run_id, n, run_end);
+  GF_CUDA_CHECK_LAUNCH();
+}
 
 void launchBoundsAndFrame(const float* xyz, int n, int* bounds, float* frame, cudaStream_t st) {
   initBoundsKernel<<<1, 32, 0, st>>>(bounds);

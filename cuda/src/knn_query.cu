@@ -118,6 +118,7 @@ template <bool kTwoHalves, bool kSortCells>
 __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
     knnKernel(const __grid_constant__ GridDesc g, const float4* __restrict__ pts,
               const unsigned long long* __restrict__ tkeys, const uint2* __restrict__ tvals, int n,
+              const unsigned int* __restrict__ run_id, const unsigned int* __restrict__ run_end,
               int base, int end, int k, std::int32_t* __restrict__ out_idx,
               float* __restrict__ out_d2, unsigned long long* __restrict__ stats) {
   const unsigned full = 0xffffffffu;
@@ -236,8 +237,9 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
           float d = INFINITY;
           int id = kEmptyIndex;
           const bool valid = gpos < count;
+          const unsigned int spos = ostart + (gpos - oexcl);  // sorted position (valid lanes)
           if (valid) {
-            const float4 p = pts[ostart + (gpos - oexcl)];
+            const float4 p = pts[spos];
             d = sqDist(p.x, p.y, p.z, q.x, q.y, q.z);
             id = __float_as_int(p.w);
           }
@@ -264,6 +266,16 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
             ++n_ins;
             m &= ~(1u << src);
             m &= __ballot_sync(full, useful && pairLess(d, id, w.kd, w.ki));
+          }
+          // Exact skip inside runs of equal keys (e.g. thousands of identical no-return points):
+          // with the list full at K-th distance 0 only (0, index < ki) can still enter, and a
+          // run's indices ascend (stable sort), so once a member's index exceeds ki the rest of
+          // its run cannot enter either.
+          if (w.kd == 0.f && w.ki != kEmptyIndex) {
+            const int last = min(kWarp - 1, static_cast<int>(count - cb) - 1);
+            const int id_last = __shfl_sync(full, id, last);
+            const unsigned int pos_last = __shfl_sync(full, spos, last);
+            if (id_last > w.ki) cb += run_end[run_id[pos_last] - 1] - pos_last - 1;
           }
         }
       }
@@ -324,15 +336,15 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
 }  // namespace
 
 void launchKnnQuery(const GridDesc& g, const float4* pts, const unsigned long long* tkeys,
-                    const uint2* tvals, int n, int base, int end, int k, bool sort_cells,
-                    std::int32_t* out_idx, float* out_d2, unsigned long long* stats,
-                    cudaStream_t st) {
+                    const uint2* tvals, const unsigned int* run_id, const unsigned int* run_end,
+                    int n, int base, int end, int k, bool sort_cells, std::int32_t* out_idx,
+                    float* out_d2, unsigned long long* stats, cudaStream_t st) {
   if (end <= base) return;
   const unsigned int blocks = blocksFor(static_cast<std::size_t>(end - base) * kWarp, kQueryBlock);
   // Variants: k > 32 (two list halves), cells nearest first.
-#define GF_KNN_LAUNCH(TWO, SORT)                                                              \
-  knnKernel<TWO, SORT><<<blocks, kQueryBlock, 0, st>>>(g, pts, tkeys, tvals, n, base, end, k, \
-                                                       out_idx, out_d2, stats)
+#define GF_KNN_LAUNCH(TWO, SORT)                                                                 \
+  knnKernel<TWO, SORT><<<blocks, kQueryBlock, 0, st>>>(g, pts, tkeys, tvals, n, run_id, run_end, \
+                                                       base, end, k, out_idx, out_d2, stats)
   const bool two = k > 32;
   if (sort_cells) {
     if (two)
