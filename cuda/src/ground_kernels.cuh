@@ -39,7 +39,7 @@ struct PlaneDev {
 /// Planes of at most this many voted points have their least-squares sums added in the CPU's
 /// order (one thread, bit-identical); larger ones (big tiles, the cloud-wide plane) use
 /// fixed-order parallel sums (deterministic; may differ from the CPU's sums in the last bits).
-constexpr unsigned int kSerialRefineMax = 16384;
+constexpr unsigned int kSerialRefineMax = 4096;
 
 /// flags[i] = point i of the packed input is finite (i < n); flags[n] = 0.
 void launchFiniteFlags(const float* in, int n, unsigned int* flags, cudaStream_t st);
