@@ -3,7 +3,8 @@
 # and the benchmark, then ctest and the benchmark table. Needs the carry folder (default .carry):
 #   .carry/googletest  (Debian's /usr/src/googletest)   .carry/eigen3/Eigen  (/usr/include/eigen3)
 #   .carry/nanoflann/nanoflann.hpp                      .carry/data/00000[0-5].bin (KITTI seq 00)
-# Usage: bash cuda/run_gpu_checks.sh [benchmark args, e.g. --variants]
+#   .carry/data/os128_000000.bin (optional: the Ouster frame as KITTI-style x y z 0 records)
+# Usage: [GF_CMAKE_ARGS="-DGF_CUDA_ARCHS=90"] bash cuda/run_gpu_checks.sh [benchmark args]
 # Logs go to $OUT (the device tool's output folder) or build-cuda/logs.
 set -uo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
@@ -13,7 +14,8 @@ mkdir -p "${LOG}"
 { nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.sm,clocks.max.sm --format=csv
   nvcc --version | tail -2; cmake --version | head -1; nproc; } > "${LOG}/env.txt" 2>&1
 gen=(); command -v ninja > /dev/null && gen=(-G Ninja)
-cmake -S cuda -B build-cuda "${gen[@]}" -DCMAKE_BUILD_TYPE=Release -DGF_CARRY="${CARRY}" \
+# shellcheck disable=SC2086  # GF_CMAKE_ARGS: several words on purpose
+cmake -S cuda -B build-cuda "${gen[@]}" -DCMAKE_BUILD_TYPE=Release -DGF_CARRY="${CARRY}" ${GF_CMAKE_ARGS:-} \
   > "${LOG}/build.log" 2>&1 && cmake --build build-cuda -j "$(nproc)" >> "${LOG}/build.log" 2>&1
 build_rc=$?
 if [ "${build_rc}" != "0" ]; then tail -40 "${LOG}/build.log"; echo "BUILD FAILED"; exit 1; fi

@@ -3,13 +3,16 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdint>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "ground_filter/kdtree_neighbor_search.h"
 #include "ground_filter/neighbor_search_factory.h"
+#include "ground_filter/normal_filter_pipeline.h"
 #include "ground_filter/normal_ground_filter.h"
 #ifdef GROUND_FILTER_HAVE_CUDA
 #include "ground_filter/cuda_knn.h"
@@ -90,6 +93,52 @@ TEST(GpuFallback, NormalFilterReportsTheBackendThatRan) {
   EXPECT_NE(sg.note.find("GPU backend"), std::string::npos) << sg.note;
   EXPECT_EQ(lg, lc);  // the fallback is the kd-tree: identical labels
   EXPECT_GT(sg.ground_points, 0u);
+}
+
+/// A kd-tree backend that also offers the whole-filter hook: declines, or labels every point
+/// ground (to show whose labels the filter returns).
+class HookedKdTree : public gf::KdTreeNeighborSearch, public gf::NormalFilterPipeline {
+ public:
+  HookedKdTree(bool accept, int* calls)
+      : gf::KdTreeNeighborSearch(2), accept_(accept), calls_(calls) {}
+  bool runNormalFilter(const gf::CloudView& cloud, const gf::NormalGroundFilterParams&,
+                       std::vector<std::uint8_t>* labels, gf::FilterStats* stats) override {
+    ++*calls_;
+    if (!accept_) return false;
+    labels->assign(cloud.size(), gf::kGround);
+    stats->ground_points = cloud.size();
+    stats->backend = "hook";
+    return true;
+  }
+
+ private:
+  bool accept_;
+  int* calls_;
+};
+
+TEST(GpuFallback, WholeFilterHookDeclinesOrReplacesTheSteps) {
+  const auto xyz = scene(8000, 3);
+  const auto cloud = gf::CloudView::packedXyz(xyz.data(), 8000);
+  gf::NormalGroundFilterParams p;
+  p.threads = 2;
+  gf::NormalGroundFilter plain(p);
+  std::vector<std::uint8_t> ref, got;
+  gf::FilterStats st;
+  plain.filter(cloud, &ref, &st);
+  int calls = 0;
+  gf::NormalGroundFilter declined(p, std::make_unique<HookedKdTree>(false, &calls));
+  declined.filter(cloud, &got, &st);
+  EXPECT_EQ(calls, 1);
+  EXPECT_EQ(got, ref);  // declined: the usual steps on the same backend
+  EXPECT_EQ(st.backend, "kdtree");
+  gf::NormalGroundFilter taken(p, std::make_unique<HookedKdTree>(true, &calls));
+  taken.filter(cloud, &got, &st);
+  EXPECT_EQ(calls, 2);
+  EXPECT_EQ(st.backend, "hook");
+  EXPECT_EQ(st.input_points, 8000u);
+  ASSERT_EQ(got.size(), 8000u);
+  EXPECT_EQ(std::count(got.begin(), got.end(), gf::kGround), 8000);
+  EXPECT_THROW(gf::NormalGroundFilter(p, nullptr), std::invalid_argument);
 }
 
 #ifdef GROUND_FILTER_HAVE_CUDA

@@ -1,10 +1,15 @@
-// Benchmark: K-nearest neighbours (K = 50) and the whole normal-vector filter, CUDA grid vs the
-// nanoflann kd-tree on all CPU cores, on KITTI frames replicated with x/y offsets.
+// Benchmark: K-nearest neighbours (K = 50), CUDA grid vs the kd-tree on all CPU cores, and the
+// whole normal-vector filter side by side: kd-tree backend on 2 threads, on all cores, and the
+// GPU pipeline (knn_backend gpu), per stage, on a KITTI frame, an Ouster OS-128 frame and KITTI
+// frames replicated with x/y offsets.
 //
-//   bench_gpu_knn [--data DIR] [--sizes 124000,1000000,5000000] [--reps N] [--variants]
+//   bench_gpu_knn [--data DIR] [--sizes 0,1000000,5000000] [--reps N] [--filter-reps N]
+//                 [--variants]
 //
-// Times are wall-clock medians after one warm-up call, host<->device copies included. Prints one
-// markdown table per part.
+// KNN times are wall-clock medians after one warm-up call, host<->device copies included. Filter
+// times: the three configurations run in turn (A, B, C, A, B, C, ...) and each column is the
+// median of its calls (>= 15 per size up to 1 M points, --filter-reps); the GPU's total is wall
+// time from host xyz in to host labels out. Prints one markdown table per part.
 
 #include <cuda_runtime.h>
 #include <omp.h>
@@ -18,6 +23,7 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -98,12 +104,84 @@ double stage(const gf::FilterStats& s, const std::string& name) {
   return 0.0;
 }
 
+struct FilterCol {
+  std::string name;
+  int runs = 0;
+  double total = 0, sort = 0, knn = 0, pca = 0, vote = 0, plane = 0, pack = 0, up = 0, down = 0;
+};
+
+struct FilterRow {
+  std::string size;
+  FilterCol col[3];  // CPU 2 threads, CPU all cores, GPU
+  std::size_t differ = 0;
+  std::string note;
+};
+
+std::string fmt(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.2f", v);
+  return b;
+}
+
+/// The whole filter on `xyz`: kd-tree backend on 2 threads, on all cores, and the GPU, `reps`
+/// rounds in turn after one warm-up call each; medians per column and stage.
+FilterRow benchFilter(const std::string& label, const std::vector<float>& xyz, int reps) {
+  const std::size_t n = xyz.size() / 3;
+  std::fprintf(stderr, "filter %s ...\n", label.c_str());
+  const auto cloud = gf::CloudView::packedXyz(xyz.data(), n);
+  gf::NormalGroundFilterParams p2, pa, pg;
+  p2.threads = 2;
+  pg.knn_backend = "gpu";
+  std::unique_ptr<gf::NormalGroundFilter> f[3] = {std::make_unique<gf::NormalGroundFilter>(p2),
+                                                  std::make_unique<gf::NormalGroundFilter>(pa),
+                                                  std::make_unique<gf::NormalGroundFilter>(pg)};
+  const char* names[3] = {"CPU kd-tree, 2 threads", "CPU kd-tree, all cores", "GPU"};
+  std::vector<std::uint8_t> labels[3];
+  gf::FilterStats st;
+  std::vector<double> t[3][9];
+  FilterRow row;
+  row.size = label;
+  for (int c = 0; c < 3; ++c) f[c]->filter(cloud, &labels[c], &st);  // warm-up
+  for (int r = 0; r < reps; ++r) {
+    for (int c = 0; c < 3; ++c) {
+      f[c]->filter(cloud, &labels[c], &st);
+      t[c][0].push_back(st.total_ms);
+      t[c][1].push_back(stage(st, "sort"));
+      t[c][2].push_back(stage(st, "knn") + stage(st, "kdtree_build"));
+      t[c][3].push_back(stage(st, "pca"));
+      t[c][4].push_back(stage(st, "vote"));
+      t[c][5].push_back(stage(st, "plane"));
+      t[c][6].push_back(stage(st, "pack"));
+      t[c][7].push_back(stage(st, "upload"));
+      t[c][8].push_back(stage(st, "download"));
+      if (c == 2 && st.backend != "gpu") row.note = st.backend + ": " + st.note;
+    }
+  }
+  for (int c = 0; c < 3; ++c) {
+    FilterCol& col = row.col[c];
+    col.name = names[c];
+    col.runs = reps;
+    col.total = median(t[c][0]);
+    col.sort = median(t[c][1]);
+    col.knn = median(t[c][2]);
+    col.pca = median(t[c][3]);
+    col.vote = median(t[c][4]);
+    col.plane = median(t[c][5]);
+    col.pack = median(t[c][6]);
+    col.up = median(t[c][7]);
+    col.down = median(t[c][8]);
+  }
+  for (std::size_t i = 0; i < n; ++i) row.differ += labels[2][i] != labels[1][i];
+  return row;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   std::string data = GF_DATA_DIR;
   std::vector<std::size_t> sizes = {0, 1000000, 5000000};  // 0 = one KITTI frame as is
   int reps = 5;
+  int freps = 15;
   bool variants = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -111,6 +189,8 @@ int main(int argc, char** argv) {
       data = argv[++i];
     } else if (a == "--reps" && i + 1 < argc) {
       reps = std::max(1, std::atoi(argv[++i]));
+    } else if (a == "--filter-reps" && i + 1 < argc) {
+      freps = std::max(1, std::atoi(argv[++i]));
     } else if (a == "--variants") {
       variants = true;
     } else if (a == "--sizes" && i + 1 < argc) {
@@ -122,8 +202,10 @@ int main(int argc, char** argv) {
         p = q + 1;
       }
     } else {
-      std::fprintf(stderr, "usage: %s [--data DIR] [--sizes N,N,..] [--reps N] [--variants]\n",
-                   argv[0]);
+      std::fprintf(
+          stderr,
+          "usage: %s [--data DIR] [--sizes N,N,..] [--reps N] [--filter-reps N] [--variants]\n",
+          argv[0]);
       return 2;
     }
   }
@@ -138,6 +220,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "no KITTI frames (000000.bin ...) in %s\n", data.c_str());
     return 1;
   }
+  const std::vector<float> os128 = readKittiBin(data + "/os128_000000.bin");  // converted PCD
   std::string why;
   if (!gf::CudaKnn::deviceAvailable(&why)) {
     std::fprintf(stderr, "no usable CUDA device: %s\n", why.c_str());
@@ -155,12 +238,6 @@ int main(int argc, char** argv) {
     std::string size;
     double gpu_up, gpu_grid, gpu_query, gpu_total, gpu_device_only, cpu_total, cpu_build;
     std::size_t rows_differ;
-  };
-  struct FRow {
-    std::string size;
-    double gpu_total, gpu_knn, gpu_pca, gpu_rest, cpu_total, cpu_knn, cpu_pca, cpu_rest;
-    std::size_t labels_differ;
-    std::string note;
   };
   if (variants) {  // copy bandwidths on this machine, 64 MiB blocks
     const std::size_t bytes = 64u << 20;
@@ -194,8 +271,7 @@ int main(int argc, char** argv) {
     cudaFreeHost(h);
   }
   std::vector<Row> knn_rows;
-  std::vector<std::string> stage_lines;
-  std::vector<FRow> filter_rows;
+  std::vector<FilterRow> filter_rows;
   std::vector<std::string> variant_lines;
 
   for (std::size_t want : sizes) {
@@ -294,73 +370,18 @@ int main(int argc, char** argv) {
         variant_lines.push_back(line);
       }
     }
-    {  // the filter's GPU calls: search with lists kept on the device, PCA, vote counts
-      gf::GpuNeighborSearch gs;
-      gs.keepListsOnDevice(true);
-      gf::NeighborLists lists;
-      std::vector<gf::PointPca> pca;
-      std::vector<std::uint8_t> flags(n);
-      for (std::size_t i = 0; i < n; ++i) flags[i] = (i * 2654435761u) % 3 == 0;
-      std::vector<std::uint16_t> fl(n), sz(n);
-      std::vector<double> ts, tp, tpk, tc;
-      for (int i = 0; i <= std::max(r, 3); ++i) {
-        auto t0 = Clock::now();
-        gs.search(xyz.data(), n, k, &lists);
-        const double a = msSince(t0);
-        t0 = Clock::now();
-        gs.neighborhoodPca(&pca);
-        const double b = msSince(t0);
-        const double bk = gs.cudaKnn().lastTimings().pca_ms;
-        t0 = Clock::now();
-        gs.countFlaggedNeighbors(flags.data(), fl.data(), sz.data());
-        const double c = msSince(t0);
-        if (i == 0) continue;  // warm-up
-        ts.push_back(a);
-        tp.push_back(b);
-        tpk.push_back(bk);
-        tc.push_back(c);
-      }
-      char line[300];
-      std::snprintf(line, sizeof line, "| %s | %.2f | %.2f | %.2f | %.2f | %.2f |",
-                    sizeLabel(n).c_str(), median(ts), median(tpk), median(tp), median(tc),
-                    median(ts) + median(tp) + median(tc));
-      stage_lines.push_back(line);
-    }
     gidx.clear();
     gidx.shrink_to_fit();
     gd2.clear();
     gd2.shrink_to_fit();
     cl = gf::NeighborLists();
 
-    // ---- whole normal-vector filter
-    const auto cloud = gf::CloudView::packedXyz(xyz.data(), n);
-    gf::NormalGroundFilterParams pg, pc;
-    pg.knn_backend = "gpu";
-    pc.knn_backend = "kdtree";
-    gf::NormalGroundFilter fg(pg), fc(pc);
-    std::vector<std::uint8_t> lg, lc;
-    gf::FilterStats sg, sc;
-    std::vector<double> g_knn, g_pca, c_knn, c_pca;
-    const double g_ms = timeMedian(r, [&] {
-      fg.filter(cloud, &lg, &sg);
-      g_knn.push_back(stage(sg, "knn"));
-      g_pca.push_back(stage(sg, "pca"));
-    });
-    const double c_ms = timeMedian(r, [&] {
-      fc.filter(cloud, &lc, &sc);
-      c_knn.push_back(stage(sc, "knn") + stage(sc, "kdtree_build"));
-      c_pca.push_back(stage(sc, "pca"));
-    });
-    std::size_t ldiff = 0;
-    for (std::size_t i = 0; i < n; ++i) ldiff += lg[i] != lc[i];
-    const double gk = median(g_knn), gp = median(g_pca), ck = median(c_knn), cp = median(c_pca);
-    filter_rows.push_back({sizeLabel(n), g_ms, gk, gp, g_ms - gk - gp, c_ms, ck, cp, c_ms - ck - cp,
-                           ldiff, sg.backend + (sg.note.empty() ? "" : ": " + sg.note)});
-    std::fprintf(stderr, "  gpu filter stages:");
-    for (const auto& s : sg.stage_ms) std::fprintf(stderr, " %s %.2f", s.first.c_str(), s.second);
-    std::fprintf(stderr, "\n  cpu filter stages:");
-    for (const auto& s : sc.stage_ms) std::fprintf(stderr, " %s %.2f", s.first.c_str(), s.second);
-    std::fprintf(stderr, "\n");
+    // ---- whole normal-vector filter: CPU 2 threads, CPU all cores, GPU, in turn
+    filter_rows.push_back(
+        benchFilter(sizeLabel(n), xyz, n > 2000000 ? std::max(3, freps / 3) : freps));
+  }
+  if (!os128.empty()) {
+    filter_rows.push_back(benchFilter("OS-128 (240 k)", os128, freps));
   }
 
   std::printf("K-nearest neighbours, K = %d (ms)\n\n", k);
@@ -375,23 +396,25 @@ int main(int argc, char** argv) {
                 r.size.c_str(), r.gpu_up, r.gpu_grid, r.gpu_query, r.gpu_total, r.gpu_device_only,
                 r.cpu_total, r.cpu_build, r.cpu_total / r.gpu_total, r.rows_differ);
   }
-  std::printf("\nWhole normal-vector filter (ms)\n\n");
   std::printf(
-      "| points | GPU total | GPU knn | GPU pca | GPU rest | kd-tree total | kd-tree knn "
-      "| kd-tree pca | kd-tree rest | speed-up | labels differing | backend |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+      "\nWhole normal-vector filter (ms, medians; the three configurations run in turn in one "
+      "run). Stages: sort = NaN compaction + grid-column order; knn = kd-tree build + queries "
+      "(CPU) or grid + queries (GPU); GPU io = host packing / upload / labels download\n\n");
+  std::printf(
+      "| points | backend | runs | total | sort | knn | pca | vote | plane | GPU io | labels "
+      "differing from CPU (all cores) | speed-up vs CPU all cores |\n"
+      "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const auto& r : filter_rows) {
-    std::printf(
-        "| %s | **%.1f** | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1fx | %zu | %s |\n",
-        r.size.c_str(), r.gpu_total, r.gpu_knn, r.gpu_pca, r.gpu_rest, r.cpu_total, r.cpu_knn,
-        r.cpu_pca, r.cpu_rest, r.cpu_total / r.gpu_total, r.labels_differ, r.note.c_str());
+    for (int c = 0; c < 3; ++c) {
+      const FilterCol& f = r.col[c];
+      std::printf(
+          "| %s | %s | %d | **%.2f** | %.2f | %.2f | %.2f | %.2f | %.2f | %s | %s | %.1fx |\n",
+          r.size.c_str(), f.name.c_str(), f.runs, f.total, f.sort, f.knn, f.pca, f.vote, f.plane,
+          c == 2 ? (fmt(f.pack) + " / " + fmt(f.up) + " / " + fmt(f.down)).c_str() : "",
+          c == 2 ? std::to_string(r.differ).c_str() : "", r.col[1].total / f.total);
+    }
+    if (!r.note.empty()) std::printf("|  | note: %s | | | | | | | | | | |\n", r.note.c_str());
   }
-  std::printf(
-      "\nGPU calls of the filter (ms): search with lists kept on the device, PCA (kernel + "
-      "download; and with conversion to PointPca), vote counts (flags up, counts down)\n\n"
-      "| points | search | PCA kernel + download | PCA call | vote counts | sum |\n"
-      "|---|---|---|---|---|---|\n");
-  for (const auto& l : stage_lines) std::printf("%s\n", l.c_str());
   if (!variant_lines.empty()) {
     std::printf(
         "\nGPU KNN variants (ms; work per query from a run with counters)\n\n| points | "

@@ -68,6 +68,8 @@ struct CudaKnnTimings {
 /// than before; kernels run on one stream of this instance, downloads on a second one so they
 /// overlap the queries. Not thread-safe: one per thread.
 class CudaKnn {
+  friend class CudaNormalPipeline;  // runs the search on points already on the device
+
  public:
   /// \brief Largest supported K.
   static constexpr int kMaxK = 64;

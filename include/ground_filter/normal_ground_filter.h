@@ -50,6 +50,11 @@ class NormalGroundFilter : public GroundFilter {
   ///        without CUDA falls back to the kd-tree, reported in FilterStats::note).
   /// \throws std::invalid_argument when params.validate() fails.
   explicit NormalGroundFilter(const NormalGroundFilterParams& params = NormalGroundFilterParams());
+  /// \brief As above with the neighbour backend given instead of made from params.knn_backend
+  ///        (tests, custom backends; e.g. a GpuNeighborSearch with a device-memory limit).
+  /// \throws std::invalid_argument when params.validate() fails or `search` is null.
+  NormalGroundFilter(const NormalGroundFilterParams& params,
+                     std::unique_ptr<NeighborSearch> search);
   ~NormalGroundFilter() override;
 
   void filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,

@@ -1,6 +1,7 @@
 #include "ground_filter/gpu_neighbor_search.h"
 
 #include <algorithm>
+#include <cmath>
 #include <exception>
 #include <string>
 
@@ -20,7 +21,9 @@ std::string describe(const std::exception& e) {
 }  // namespace
 
 GpuNeighborSearch::GpuNeighborSearch(int threads, const CudaKnnOptions& options)
-    : knn_(std::make_unique<CudaKnn>(options)), threads_(threads) {}
+    : pipeline_(std::make_unique<CudaNormalPipeline>(options)),
+      knn_(&pipeline_->knn()),
+      threads_(threads) {}
 
 GpuNeighborSearch::~GpuNeighborSearch() = default;
 
@@ -29,7 +32,59 @@ bool GpuNeighborSearch::keepListsOnDevice(bool keep) {
   return keep;
 }
 
+bool GpuNeighborSearch::runNormalFilter(const CloudView& cloud,
+                                        const NormalGroundFilterParams& params,
+                                        std::vector<std::uint8_t>* labels, FilterStats* stats) {
+  host_scan_ = false;
+  if (params.use_segments || params.k > CudaKnn::kMaxK) return false;
+  CudaNormalParams cp;
+  cp.k = params.k;
+  cp.cell_size = params.cell_size;
+  // As NormalGroundFilter::filter(): the tilt allowed by the normal-angle window.
+  const double max_tilt_deg =
+      std::min(90.0 - params.min_normal_angle, params.max_normal_angle - 90.0);
+  cp.min_abs_nz = std::cos(max_tilt_deg * M_PI / 180.0);
+  cp.min_planarity = params.min_planarity;
+  cp.bayes_vote = params.bayes_vote;
+  cp.plane_distance = params.plane_distance;
+  cp.std_filter = params.std_filter;
+  cp.std_multiplier = params.std_multiplier;
+  cp.ransac_iterations = params.ransac_iterations;
+  cp.plane_all_points = params.plane_all_points;
+  cp.local_planes = params.local_planes;
+  cp.tile_size = params.tile_size;
+  lists_on_device_ = false;
+  try {
+    labels->resize(cloud.size());
+    pipeline_->run(cloud, cp, labels->data());
+  } catch (const std::exception& e) {
+    // This scan goes on the host: the filter's next search() runs the kd-tree.
+    last_backend_ = "kdtree";
+    last_note_ = "GPU filter failed (" + describe(e) + "); using kdtree";
+    host_scan_ = true;
+    return false;
+  }
+  last_backend_ = "gpu";
+  last_note_.clear();
+  const CudaNormalTimings& t = pipeline_->lastTimings();
+  stats->invalid_points = cloud.size() - t.valid_points;
+  stats->ground_points = t.ground_points;
+  stats->backend = "gpu";
+  stats->stage_ms = {{"pack", t.pack_ms},   {"upload", t.upload_ms},    {"sort", t.sort_ms},
+                     {"knn", t.knn_ms},     {"pca", t.pca_ms},          {"vote", t.vote_ms},
+                     {"plane", t.plane_ms}, {"download", t.download_ms}};
+  return true;
+}
+
 void GpuNeighborSearch::search(const float* xyz, std::size_t n, int k, NeighborLists* out) {
+  if (host_scan_) {  // the whole-filter run of this scan failed: keep its note, use the kd-tree
+    host_scan_ = false;
+    lists_on_device_ = false;
+    if (!fallback_) fallback_ = std::make_unique<KdTreeNeighborSearch>(threads_);
+    fallback_->search(xyz, n, k, out);
+    last_backend_ = fallback_->name();
+    return;
+  }
   last_backend_ = "gpu";
   last_note_.clear();
   lists_on_device_ = false;

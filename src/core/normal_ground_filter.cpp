@@ -14,6 +14,7 @@
 
 #include "ground_filter/kdtree_neighbor_search.h"
 #include "ground_filter/neighbor_search_factory.h"
+#include "ground_filter/normal_filter_pipeline.h"
 #include "ground_filter/param_parse.h"
 
 namespace ground_filter {
@@ -362,6 +363,15 @@ NormalGroundFilter::NormalGroundFilter(const NormalGroundFilterParams& params)
   impl_->search->keepListsOnDevice(true);
 }
 
+NormalGroundFilter::NormalGroundFilter(const NormalGroundFilterParams& params,
+                                       std::unique_ptr<NeighborSearch> search)
+    : params_(params), impl_(std::make_unique<Impl>()) {
+  params_.validate();
+  if (!search) throw std::invalid_argument("NormalGroundFilter: null neighbour backend");
+  impl_->search = std::move(search);
+  impl_->search->keepListsOnDevice(true);
+}
+
 NormalGroundFilter::~NormalGroundFilter() = default;
 
 std::string NormalGroundFilter::backend() const { return impl_->search->name(); }
@@ -379,6 +389,16 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   st.backend = im.search->name();
   st.note = backend_note_;
   labels->assign(cloud.size(), kNonGround);
+
+  // ---- whole-filter hook (GPU): a backend that runs the whole filter on its device gets the
+  //      scan first; false = it cannot (segments, k, device fault) and the steps below run.
+  if (auto* whole = dynamic_cast<NormalFilterPipeline*>(im.search.get())) {
+    if (whole->runNormalFilter(cloud, p, labels, &st)) {
+      st.total_ms = msSince(t_start);
+      return;
+    }
+  }
+  // ---- end of the whole-filter hook
 
   // 1. Compact the finite points and order them by x/y grid column (Morton order of the cells):
   //    neighbouring points end up close in memory and segments are compact blocks of columns.

@@ -1,0 +1,14 @@
+# Sources of the ROS/PCL-free core library (ground_filter_core), relative to the package root.
+# Included by the top-level CMakeLists.txt and by cuda/CMakeLists.txt (standalone GPU build), so
+# the list exists once. The CUDA adapter (src/core/gpu_neighbor_search.cpp) is added where CUDA is.
+set(GF_CORE_SOURCES
+  src/core/param_parse.cpp
+  src/core/plane_fit.cpp
+  src/core/voxel_ground_filter.cpp
+  src/core/filter_factory.cpp
+  src/core/metrics.cpp
+  src/core/scene_generator.cpp
+  src/core/normal_ground_filter.cpp
+  src/core/kdtree_neighbor_search.cpp
+  src/core/neighbor_search_factory.cpp
+)

@@ -1,0 +1,365 @@
+// The KNN query kernel: one warp per query over the hashed grid levels.
+#include "cuda_util.cuh"
+#include "knn_query.cuh"
+
+namespace ground_filter {
+namespace cuda_impl {
+
+namespace {
+
+/// The warp's sorted top-K list: lane l holds slots l and l + 32.
+struct WarpList {
+  float dlo, dhi;
+  int ilo, ihi;
+  float kd;  // K-th slot (broadcast)
+  int ki;
+};
+
+template <bool kTwoHalves>
+__device__ inline void warpInsert(WarpList& w, float d, int id, int lane, int k) {
+  const unsigned full = 0xffffffffu;
+  int pos = __popc(__ballot_sync(full, pairLess(w.dlo, w.ilo, d, id)));
+  float phi = 0.f;
+  int pihi = 0;
+  if (kTwoHalves) {
+    pos += __popc(__ballot_sync(full, pairLess(w.dhi, w.ihi, d, id)));
+    const float last_d = __shfl_sync(full, w.dlo, 31);
+    const int last_i = __shfl_sync(full, w.ilo, 31);
+    phi = __shfl_up_sync(full, w.dhi, 1);
+    pihi = __shfl_up_sync(full, w.ihi, 1);
+    if (lane == 0) {
+      phi = last_d;
+      pihi = last_i;
+    }
+  }
+  const float plo = __shfl_up_sync(full, w.dlo, 1);
+  const int pilo = __shfl_up_sync(full, w.ilo, 1);
+  if (lane > pos) {
+    w.dlo = plo;
+    w.ilo = pilo;
+  } else if (lane == pos) {
+    w.dlo = d;
+    w.ilo = id;
+  }
+  if (kTwoHalves) {
+    if (lane + 32 > pos) {
+      w.dhi = phi;
+      w.ihi = pihi;
+    } else if (lane + 32 == pos) {
+      w.dhi = d;
+      w.ihi = id;
+    }
+  }
+  const int kl = (k - 1) & 31;
+  if (!kTwoHalves || k <= 32) {
+    w.kd = __shfl_sync(full, w.dlo, kl);
+    w.ki = __shfl_sync(full, w.ilo, kl);
+  } else {
+    w.kd = __shfl_sync(full, w.dhi, kl);
+    w.ki = __shfl_sync(full, w.ihi, kl);
+  }
+}
+
+/// Bitonic sort of one (key, cell) pair per lane by increasing key, across the warp.
+__device__ inline void warpSortCells(float& key, uint2& cell, int lane) {
+  const unsigned full = 0xffffffffu;
+  for (int size = 2; size <= 32; size <<= 1) {
+    for (int stride = size >> 1; stride > 0; stride >>= 1) {
+      const float ok = __shfl_xor_sync(full, key, stride);
+      const unsigned ox = __shfl_xor_sync(full, cell.x, stride);
+      const unsigned oy = __shfl_xor_sync(full, cell.y, stride);
+      const bool ascending = (lane & size) == 0 || size == 32;
+      const bool lower = (lane & stride) == 0;
+      if (lower == ascending ? ok < key : ok > key) {
+        key = ok;
+        cell = make_uint2(ox, oy);
+      }
+    }
+  }
+}
+
+/// Largest squared distance from q to the k points of sorted positions [w0, w0 + k), warp-wide.
+__device__ inline float windowMax(const float4* __restrict__ pts, long long w0, int k,
+                                  const float4& q, int lane) {
+  float dmax = 0.f;
+  if (lane < k) {
+    const float4 p = pts[w0 + lane];
+    dmax = sqDist(p.x, p.y, p.z, q.x, q.y, q.z);
+  }
+  if (lane + 32 < k) {
+    const float4 p = pts[w0 + lane + 32];
+    dmax = fmaxf(dmax, sqDist(p.x, p.y, p.z, q.x, q.y, q.z));
+  }
+  for (int o = 16; o > 0; o >>= 1) dmax = fmaxf(dmax, __shfl_xor_sync(0xffffffffu, dmax, o));
+  return dmax;
+}
+
+/// Bitonic sort of one (distance, index) pair per lane by increasing (distance, index).
+__device__ inline void warpSortPairs(float& d, int& id, int lane) {
+  const unsigned full = 0xffffffffu;
+  for (int size = 2; size <= 32; size <<= 1) {
+    for (int stride = size >> 1; stride > 0; stride >>= 1) {
+      const float od = __shfl_xor_sync(full, d, stride);
+      const int oi = __shfl_xor_sync(full, id, stride);
+      const bool ascending = (lane & size) == 0 || size == 32;
+      const bool lower = (lane & stride) == 0;
+      if (lower == ascending ? pairLess(od, oi, d, id) : pairLess(d, id, od, oi)) {
+        d = od;
+        id = oi;
+      }
+    }
+  }
+}
+
+/// One warp per query; queries [base, end) of the Morton-sorted points; row s of the output holds
+/// the list of sorted point s (original indices). kTwoHalves: k > 32. kSortCells: visit the cells
+/// of each batch nearest first (the K-th distance shrinks sooner, fewer insertions).
+template <bool kTwoHalves, bool kSortCells>
+__global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
+    knnKernel(const __grid_constant__ GridDesc g, const float4* __restrict__ pts,
+              const unsigned long long* __restrict__ tkeys, const uint2* __restrict__ tvals, int n,
+              const unsigned int* __restrict__ run_id, const unsigned int* __restrict__ run_end,
+              int base, int end, int k, std::int32_t* __restrict__ out_idx,
+              float* __restrict__ out_d2, unsigned long long* __restrict__ stats) {
+  const unsigned full = 0xffffffffu;
+  const int lane = threadIdx.x & 31;
+  const long long qi =
+      base + ((static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x) >> 5);
+  if (qi >= end) return;  // uniform per warp
+  const long long t_start = stats ? clock64() : 0;
+  unsigned int n_cand = 0, n_ins = 0, n_shell = 0, n_lev = 0;
+  const float4 q = pts[qi];
+  const std::uint32_t qx = quantize(q.x, g.ox, g.inv), qy = quantize(q.y, g.oy, g.inv),
+                      qz = quantize(q.z, g.oz, g.inv);
+
+  // Upper bound `lim` of the K-th squared distance: any k points bound it. Here the k points
+  // before q and the k points from q on in Morton order, whichever is closer: where the curve
+  // jumps far on one side of q, the other side still gives a tight bound. Candidates and cells
+  // beyond the bound are skipped from the start.
+  float lim = INFINITY;
+  if (n >= k) {
+    const long long lo = max(qi - k + 1, 0ll), hi = min(qi, static_cast<long long>(n - k));
+    lim = fminf(windowMax(pts, lo, k, q, lane), windowMax(pts, hi, k, q, lane));
+  }
+  // Level: the finest whose own cell holds >= min_points points, or, if finer, the finest whose
+  // cells are at least the bound's radius / kBoundCells (the k window points then lie within
+  // kBoundCells + 1 shells).
+  // The second rule keeps isolated points from landing on a coarse level whose shells hold a
+  // large part of the cloud. Lanes test one level each.
+  bool ok = false, ok_r = false;
+  if (lane < g.nlev) {
+    const LevelDesc& lv = g.lv[lane];
+    const int s = kCoordBits - lv.bits;
+    const uint2 c = lookupCell(tkeys, tvals, lv, morton(qx >> s, qy >> s, qz >> s));
+    ok = static_cast<int>(c.y) >= g.min_points;
+    ok_r = kBoundCells * lv.cell >= sqrtf(lim);
+  }
+  const unsigned okm = __ballot_sync(full, ok), okr = __ballot_sync(full, ok_r);
+  int li = min(okm ? __ffs(okm) - 1 : g.nlev - 1, okr ? __ffs(okr) - 1 : g.nlev - 1);
+
+  WarpList w;
+  for (;;) {  // one pass per level tried; a pass that starves moves to the next coarser level
+    ++n_lev;
+    const LevelDesc& lv = g.lv[li];
+    const int shift = kCoordBits - lv.bits;
+    const int cx = static_cast<int>(qx >> shift), cy = static_cast<int>(qy >> shift),
+              cz = static_cast<int>(qz >> shift);
+    const int last = (1 << lv.bits) - 1;
+    const float cs = lv.cell, eps = g.eps;
+    // Cell index of coordinate v clamped to [-2, last + 2] (no int overflow for huge radii).
+    auto cellOf = [&](float v, float o) {
+      return static_cast<int>(
+          fminf(fmaxf(floorf((v - o) / cs), -2.f), static_cast<float>(last + 2)));
+    };
+    w.dlo = w.dhi = w.kd = INFINITY;
+    w.ilo = w.ihi = w.ki = kEmptyIndex;
+    bool restart = false;
+
+    for (int r = 0;; ++r) {
+      ++n_shell;
+      int x0 = max(cx - r, 0), x1 = min(cx + r, last);
+      int y0 = max(cy - r, 0), y1 = min(cy + r, last);
+      int z0 = max(cz - r, 0), z1 = min(cz + r, last);
+      const float reach = fminf(w.kd, lim);  // squared distance a useful point can have
+      if (reach < INFINITY) {                // only cells that can hold a point within it
+        const float rad = sqrtf(reach) + eps;
+        x0 = max(x0, cellOf(q.x - rad, g.ox) - 1);
+        x1 = min(x1, cellOf(q.x + rad, g.ox) + 1);
+        y0 = max(y0, cellOf(q.y - rad, g.oy) - 1);
+        y1 = min(y1, cellOf(q.y + rad, g.oy) + 1);
+        z0 = max(z0, cellOf(q.z - rad, g.oz) - 1);
+        z1 = min(z1, cellOf(q.z + rad, g.oz) + 1);
+      }
+      const int nx = x1 - x0 + 1, ny = y1 - y0 + 1, nz = z1 - z0 + 1;
+      const int total = (nx > 0 && ny > 0 && nz > 0) ? nx * ny * nz : 0;
+      for (int cbase = 0; cbase < total; cbase += kWarp) {
+        // Each lane looks up one cell of the shell.
+        uint2 cell = make_uint2(0u, 0u);
+        float key = INFINITY;
+        const int t = cbase + lane;
+        if (t < total) {
+          const int ix = x0 + t % nx, iy = y0 + (t / nx) % ny, iz = z0 + t / (nx * ny);
+          const int cheb = max(max(abs(ix - cx), abs(iy - cy)), abs(iz - cz));
+          if (cheb == r) {
+            const float lx = g.ox + ix * cs, ly = g.oy + iy * cs, lz = g.oz + iz * cs;
+            const float ex = fmaxf(fmaxf(lx - q.x, q.x - (lx + cs)) - eps, 0.f);
+            const float ey = fmaxf(fmaxf(ly - q.y, q.y - (ly + cs)) - eps, 0.f);
+            const float ez = fmaxf(fmaxf(lz - q.z, q.z - (lz + cs)) - eps, 0.f);
+            const float box = ex * ex + ey * ey + ez * ez;
+            if (box <= fminf(w.kd, lim)) {
+              cell =
+                  lookupCell(tkeys, tvals, lv,
+                             morton(static_cast<std::uint32_t>(ix), static_cast<std::uint32_t>(iy),
+                                    static_cast<std::uint32_t>(iz)));
+              if (cell.y) key = box;
+            }
+          }
+        }
+        if (kSortCells) warpSortCells(key, cell, lane);
+        // Concatenate the cells' point ranges across the warp.
+        unsigned int incl = cell.y;
+        for (int o = 1; o < kWarp; o <<= 1) {
+          const unsigned int v = __shfl_up_sync(full, incl, o);
+          if (lane >= o) incl += v;
+        }
+        const unsigned int excl = incl - cell.y;
+        const unsigned int count = __shfl_sync(full, incl, 31);
+        n_cand += count;
+        for (unsigned int cb = 0; cb < count; cb += kWarp) {
+          const unsigned int gpos = cb + lane;
+          int owner = 0;  // first lane whose inclusive sum exceeds gpos
+          for (int step = 16; step > 0; step >>= 1) {
+            const unsigned int v = __shfl_sync(full, incl, owner + step - 1);
+            if (v <= gpos) owner += step;
+          }
+          const unsigned int ostart = __shfl_sync(full, cell.x, owner);
+          const unsigned int oexcl = __shfl_sync(full, excl, owner);
+          float d = INFINITY;
+          int id = kEmptyIndex;
+          const bool valid = gpos < count;
+          const unsigned int spos = ostart + (gpos - oexcl);  // sorted position (valid lanes)
+          if (valid) {
+            const float4 p = pts[spos];
+            d = sqDist(p.x, p.y, p.z, q.x, q.y, q.z);
+            id = __float_as_int(p.w);
+          }
+          const bool useful = valid && d <= lim;
+          unsigned m = __ballot_sync(full, useful && pairLess(d, id, w.kd, w.ki));
+          if (__popc(m) > 1 && __shfl_sync(full, w.ilo, 0) == kEmptyIndex) {
+            // Empty list: the batch, sorted, becomes the list (saves one insertion per point).
+            float sd = useful ? d : INFINITY;
+            int si = useful ? id : kEmptyIndex;
+            warpSortPairs(sd, si, lane);
+            w.dlo = sd;
+            w.ilo = si;
+            const int kl = (k - 1) & 31;
+            w.kd = (!kTwoHalves || k <= 32) ? __shfl_sync(full, w.dlo, kl) : INFINITY;
+            w.ki = (!kTwoHalves || k <= 32) ? __shfl_sync(full, w.ilo, kl) : kEmptyIndex;
+            n_ins += __popc(m);
+            m = 0;
+          }
+          while (m) {
+            const int src = __ffs(m) - 1;
+            const float dd = __shfl_sync(full, d, src);
+            const int ii = __shfl_sync(full, id, src);
+            warpInsert<kTwoHalves>(w, dd, ii, lane, k);
+            ++n_ins;
+            m &= ~(1u << src);
+            m &= __ballot_sync(full, useful && pairLess(d, id, w.kd, w.ki));
+          }
+          // Exact skip inside runs of equal keys (e.g. thousands of identical no-return points):
+          // with the list full at K-th distance 0 only (0, index < ki) can still enter, and a
+          // run's indices ascend (stable sort), so once a member's index exceeds ki the rest of
+          // its run cannot enter either.
+          if (w.kd == 0.f && w.ki != kEmptyIndex) {
+            const int last = min(kWarp - 1, static_cast<int>(count - cb) - 1);
+            const int id_last = __shfl_sync(full, id, last);
+            const unsigned int pos_last = __shfl_sync(full, spos, last);
+            if (id_last > w.ki) cb += run_end[run_id[pos_last] - 1] - pos_last - 1;
+          }
+        }
+      }
+      // Distance from q to the outside of the visited block of cells (grid edges excluded).
+      float bound = INFINITY;
+      if (cx - r > 0) bound = fminf(bound, q.x - (g.ox + (cx - r) * cs));
+      if (cx + r < last) bound = fminf(bound, g.ox + (cx + r + 1) * cs - q.x);
+      if (cy - r > 0) bound = fminf(bound, q.y - (g.oy + (cy - r) * cs));
+      if (cy + r < last) bound = fminf(bound, g.oy + (cy + r + 1) * cs - q.y);
+      if (cz - r > 0) bound = fminf(bound, q.z - (g.oz + (cz - r) * cs));
+      if (cz + r < last) bound = fminf(bound, g.oz + (cz + r + 1) * cs - q.z);
+      if (bound == INFINITY) break;  // the block covers the whole grid
+      bound -= eps;
+      if (w.ki != kEmptyIndex && bound > 0.f && w.kd <= bound * bound) break;
+      // Still short of k points two shells out while the bound's ball needs many more shells:
+      // this level is too fine around q; start again one level coarser rather than walking many
+      // empty shells.
+      if (w.ki == kEmptyIndex && r >= kStarveShells && !(sqrtf(lim) <= (kBoundCells + 1) * cs) &&
+          li + 1 < g.nlev) {
+        restart = true;
+        break;
+      }
+    }
+    if (!restart) break;
+    ++li;
+  }
+
+  const std::size_t row = static_cast<std::size_t>(qi) * k;
+  if (lane < k) {
+    out_idx[row + lane] = w.ilo == kEmptyIndex ? -1 : w.ilo;
+    if (out_d2) out_d2[row + lane] = w.ilo == kEmptyIndex ? INFINITY : w.dlo;
+  }
+  if (kTwoHalves && lane + 32 < k) {
+    out_idx[row + lane + 32] = w.ihi == kEmptyIndex ? -1 : w.ihi;
+    if (out_d2) out_d2[row + lane + 32] = w.ihi == kEmptyIndex ? INFINITY : w.dhi;
+  }
+  if (stats && lane == 0) {
+    const unsigned long long cyc = static_cast<unsigned long long>(clock64() - t_start);
+    atomicAdd(&stats[kStatCandidates], n_cand);
+    atomicAdd(&stats[kStatInsertions], n_ins);
+    atomicAdd(&stats[kStatShells], n_shell);
+    atomicAdd(&stats[kStatLevels], n_lev);
+    atomicAdd(&stats[kStatCycles], cyc);
+    if (cyc > 100000) atomicAdd(&stats[kStatOver100k], 1ull);
+    if (cyc > 1000000) atomicAdd(&stats[kStatOver1M], 1ull);
+    if (atomicMax(&stats[kStatMaxCycles], cyc) < cyc) {  // the slowest so far (racy: diagnostics)
+      stats[kStatSlowCand] = n_cand;
+      stats[kStatSlowIns] = n_ins;
+      stats[kStatSlowShells] = n_shell;
+      stats[kStatSlowLevels] = n_lev;
+      stats[kStatSlowBits] = g.lv[li].bits;
+      stats[kStatSlowLim] = __float_as_uint(lim);
+      stats[kStatSlowKd] = __float_as_uint(w.kd);
+    }
+  }
+}
+
+}  // namespace
+
+void launchKnnQuery(const GridDesc& g, const float4* pts, const unsigned long long* tkeys,
+                    const uint2* tvals, const unsigned int* run_id, const unsigned int* run_end,
+                    int n, int base, int end, int k, bool sort_cells, std::int32_t* out_idx,
+                    float* out_d2, unsigned long long* stats, cudaStream_t st) {
+  if (end <= base) return;
+  const unsigned int blocks = blocksFor(static_cast<std::size_t>(end - base) * kWarp, kQueryBlock);
+  // Variants: k > 32 (two list halves), cells nearest first.
+#define GF_KNN_LAUNCH(TWO, SORT)                                                                 \
+  knnKernel<TWO, SORT><<<blocks, kQueryBlock, 0, st>>>(g, pts, tkeys, tvals, n, run_id, run_end, \
+                                                       base, end, k, out_idx, out_d2, stats)
+  const bool two = k > 32;
+  if (sort_cells) {
+    if (two)
+      GF_KNN_LAUNCH(true, true);
+    else
+      GF_KNN_LAUNCH(false, true);
+  } else {
+    if (two)
+      GF_KNN_LAUNCH(true, false);
+    else
+      GF_KNN_LAUNCH(false, false);
+  }
+#undef GF_KNN_LAUNCH
+  GF_CUDA_CHECK_LAUNCH();
+}
+
+}  // namespace cuda_impl
+}  // namespace ground_filter

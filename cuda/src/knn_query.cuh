@@ -1,0 +1,46 @@
+// Private: the KNN query kernel's launcher and its work counters.
+#ifndef GROUND_FILTER_CUDA_SRC_KNN_QUERY_CUH
+#define GROUND_FILTER_CUDA_SRC_KNN_QUERY_CUH
+
+#include <cuda_runtime.h>
+
+#include <cstdint>
+
+#include "knn_grid.cuh"
+
+namespace ground_filter {
+namespace cuda_impl {
+
+/// Per-query work counters (CudaKnnOptions::collect_stats).
+enum Stat {
+  kStatCandidates,
+  kStatInsertions,
+  kStatShells,
+  kStatLevels,
+  kStatMaxCycles,
+  kStatCycles,
+  kStatOver100k,
+  kStatOver1M,
+  kStatSlowCand,
+  kStatSlowIns,
+  kStatSlowShells,
+  kStatSlowLevels,
+  kStatSlowBits,
+  kStatSlowLim,
+  kStatSlowKd,
+  kStatCount
+};
+
+/// One warp per query for sorted points [base, end): row s of `out_idx` (and `out_d2` when not
+/// null) gets the k nearest original indices of sorted point s. `run_id` / `run_end`: run of
+/// equal keys of each sorted point (1-based) and each run's end (launchRuns). `stats`
+/// (kStatCount counters) may be null.
+void launchKnnQuery(const GridDesc& g, const float4* pts, const unsigned long long* tkeys,
+                    const uint2* tvals, const unsigned int* run_id, const unsigned int* run_end,
+                    int n, int base, int end, int k, bool sort_cells, std::int32_t* out_idx,
+                    float* out_d2, unsigned long long* stats, cudaStream_t st);
+
+}  // namespace cuda_impl
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_CUDA_SRC_KNN_QUERY_CUH

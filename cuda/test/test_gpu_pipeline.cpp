@@ -1,0 +1,274 @@
+// GPU tests of the whole normal-vector filter on the device (CudaNormalPipeline behind
+// knn_backend gpu): labels against the kd-tree backend on KITTI / Ouster frames, 1 M and 5 M
+// points, bad input, device memory across 1,000 scans, out-of-memory fallback.
+
+#include <cuda_runtime.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "brute_force_knn.h"
+#include "ground_filter/cuda_knn.h"
+#include "ground_filter/cuda_normal_pipeline.h"
+#include "ground_filter/gpu_neighbor_search.h"
+#include "ground_filter/normal_ground_filter.h"
+
+namespace gf = ground_filter;
+
+namespace {
+
+std::vector<float> frame(const std::string& name) {
+  return gf_test::readKittiBin(std::string(GF_DATA_DIR) + "/" + name);
+}
+
+/// `n` points: KITTI frames 0..5 cycled, copy t shifted by 200 m steps on a 7-wide x/y grid.
+std::vector<float> replicated(std::size_t n) {
+  std::vector<std::vector<float>> frames;
+  for (int f = 0; f < 6; ++f) {
+    char name[32];
+    std::snprintf(name, sizeof name, "%06d.bin", f);
+    auto xyz = frame(name);
+    if (!xyz.empty()) frames.push_back(std::move(xyz));
+  }
+  std::vector<float> xyz;
+  if (frames.empty()) return xyz;
+  xyz.reserve(3 * n);
+  for (int t = 0; xyz.size() < 3 * n; ++t) {
+    const auto& f = frames[t % frames.size()];
+    const float ox = 200.f * static_cast<float>(t % 7), oy = 200.f * static_cast<float>(t / 7);
+    for (std::size_t i = 0; i < f.size() / 3 && xyz.size() < 3 * n; ++i) {
+      xyz.insert(xyz.end(), {f[3 * i] + ox, f[3 * i + 1] + oy, f[3 * i + 2]});
+    }
+  }
+  return xyz;
+}
+
+struct Compared {
+  std::size_t differ = 0, ground_gpu = 0, ground_cpu = 0;
+  gf::FilterStats sg, sc;
+};
+
+/// Runs the GPU and kd-tree backends on `xyz` with `p` (backend overridden).
+Compared compare(const std::vector<float>& xyz, gf::NormalGroundFilterParams p,
+                 std::vector<std::uint8_t>* lg_out = nullptr) {
+  const std::size_t n = xyz.size() / 3;
+  const auto cloud = gf::CloudView::packedXyz(xyz.data(), n);
+  gf::NormalGroundFilterParams pg = p, pc = p;
+  pg.knn_backend = "gpu";
+  pc.knn_backend = "kdtree";
+  gf::NormalGroundFilter fg(pg), fc(pc);
+  std::vector<std::uint8_t> lg, lc;
+  Compared r;
+  fg.filter(cloud, &lg, &r.sg);
+  fc.filter(cloud, &lc, &r.sc);
+  EXPECT_EQ(lg.size(), n);
+  EXPECT_EQ(lc.size(), n);
+  for (std::size_t i = 0; i < n && i < lg.size() && i < lc.size(); ++i) {
+    r.differ += lg[i] != lc[i];
+    r.ground_gpu += lg[i] == gf::kGround;
+    r.ground_cpu += lc[i] == gf::kGround;
+  }
+  if (lg_out) *lg_out = lg;
+  return r;
+}
+
+class GpuPipelineTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string why;
+    ASSERT_TRUE(gf::CudaKnn::deviceAvailable(&why)) << "these tests need a CUDA GPU: " << why;
+  }
+};
+
+TEST_F(GpuPipelineTest, DevFramesGiveTheKdTreeLabels) {
+  std::size_t total = 0, differ = 0;
+  for (const char* name : {"000000.bin", "000001.bin", "000002.bin", "000003.bin", "000004.bin",
+                           "000005.bin", "os128_000000.bin"}) {
+    const auto xyz = frame(name);
+    if (xyz.empty()) {
+      ADD_FAILURE() << "missing " << GF_DATA_DIR << "/" << name;
+      continue;
+    }
+    const Compared c = compare(xyz, gf::NormalGroundFilterParams());
+    EXPECT_EQ(c.sg.backend, "gpu") << c.sg.note;
+    EXPECT_EQ(c.sg.ground_points, c.ground_gpu);
+    EXPECT_EQ(c.sg.invalid_points, c.sc.invalid_points);
+    EXPECT_GT(c.ground_cpu, xyz.size() / 3 / 10);
+    std::printf("[ FILTER   ] %s: %zu points, %zu labels differ; ground GPU %zu, CPU %zu\n", name,
+                xyz.size() / 3, c.differ, c.ground_gpu, c.ground_cpu);
+    total += xyz.size() / 3;
+    differ += c.differ;
+  }
+  EXPECT_LE(differ * 10000, total) << differ << " of " << total << " labels differ";
+}
+
+TEST_F(GpuPipelineTest, FilterOptionsGiveTheKdTreeLabels) {
+  const auto xyz = frame("000001.bin");
+  ASSERT_FALSE(xyz.empty());
+  struct Case {
+    const char* what;
+    gf::NormalGroundFilterParams p;
+  };
+  std::vector<Case> cases(5);
+  cases[0].what = "one plane";
+  cases[0].p.local_planes = false;
+  cases[1].what = "std band";
+  cases[1].p.std_filter = true;
+  cases[2].what = "no vote, voted points only";
+  cases[2].p.bayes_vote = false;
+  cases[2].p.plane_all_points = false;
+  cases[3].what = "k 20, planarity 0.3, tile 10 m";
+  cases[3].p.k = 20;
+  cases[3].p.min_planarity = 0.3;
+  cases[3].p.tile_size = 10.0;
+  cases[4].what = "k 64, 20 iterations";
+  cases[4].p.k = 64;
+  cases[4].p.ransac_iterations = 20;
+  for (const auto& cs : cases) {
+    const Compared c = compare(xyz, cs.p);
+    EXPECT_EQ(c.sg.backend, "gpu") << cs.what << ": " << c.sg.note;
+    EXPECT_LE(c.differ * 10000, xyz.size() / 3) << cs.what << ": " << c.differ << " differ";
+    std::printf("[ FILTER   ] %s: %zu labels differ; ground GPU %zu, CPU %zu\n", cs.what, c.differ,
+                c.ground_gpu, c.ground_cpu);
+  }
+}
+
+TEST_F(GpuPipelineTest, LargeCloudsGiveTheKdTreeLabels) {
+  for (std::size_t n : {std::size_t(1000000), std::size_t(5000000)}) {
+    const auto xyz = replicated(n);
+    ASSERT_EQ(xyz.size(), 3 * n);
+    const Compared c = compare(xyz, gf::NormalGroundFilterParams());
+    EXPECT_EQ(c.sg.backend, "gpu") << c.sg.note;
+    EXPECT_LE(c.differ * 10000, n) << c.differ << " labels differ";
+    std::printf(
+        "[ 5M       ] %zu points: %zu labels differ; ground GPU %zu, CPU %zu; GPU %.1f ms, "
+        "kd-tree %.1f ms\n",
+        n, c.differ, c.ground_gpu, c.ground_cpu, c.sg.total_ms, c.sc.total_ms);
+  }
+}
+
+TEST_F(GpuPipelineTest, BadInputGivesTheKdTreeLabels) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  const auto kitti = frame("000000.bin");
+  ASSERT_FALSE(kitti.empty());
+  std::vector<std::pair<std::string, std::vector<float>>> clouds;
+  for (std::size_t m : {1, 2, 3, 10, 49, 50, 51}) {  // fewer points than K and around it
+    clouds.emplace_back("first " + std::to_string(m) + " points",
+                        std::vector<float>(kitti.begin(), kitti.begin() + 3 * m));
+  }
+  clouds.emplace_back("one point 1000 times", std::vector<float>());
+  for (int i = 0; i < 1000; ++i) clouds.back().second.insert(clouds.back().second.end(), {1, 2, 3});
+  clouds.emplace_back("5 points 400 times each", std::vector<float>());
+  for (int i = 0; i < 2000; ++i) {
+    const float x = static_cast<float>(i % 5);
+    clouds.back().second.insert(clouds.back().second.end(),
+                                {x, static_cast<float>((i % 5) * (i % 5) % 3), -1.7f});
+  }
+  clouds.emplace_back("a KITTI frame twice", kitti);
+  clouds.back().second.insert(clouds.back().second.end(), kitti.begin(), kitti.end());
+  clouds.emplace_back("all NaN", std::vector<float>(3000, nan));
+  clouds.emplace_back("NaN and Inf mixed in", kitti);
+  for (std::size_t i = 0; i < kitti.size() / 3; i += 7) {
+    clouds.back().second[3 * i + i % 3] = (i % 2) ? nan : ((i % 4) ? inf : -inf);
+  }
+  clouds.emplace_back("a line of points", std::vector<float>());
+  for (int i = 0; i < 5000; ++i) {
+    clouds.back().second.insert(clouds.back().second.end(), {0.01f * i, 0.f, 0.f});
+  }
+  clouds.emplace_back("huge coordinates", std::vector<float>());
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1e15f, 1e15f);
+  for (int i = 0; i < 3000; ++i) {
+    clouds.back().second.insert(clouds.back().second.end(), {u(rng), u(rng), u(rng)});
+  }
+  for (const auto& c : clouds) {
+    const Compared r = compare(c.second, gf::NormalGroundFilterParams());
+    EXPECT_EQ(r.differ, 0u) << c.first;
+    EXPECT_EQ(r.sg.backend, "gpu") << c.first << ": " << r.sg.note;
+    EXPECT_EQ(r.sg.invalid_points, r.sc.invalid_points) << c.first;
+    EXPECT_EQ(r.sg.ground_points, r.sc.ground_points) << c.first;
+  }
+  // Empty cloud.
+  gf::NormalGroundFilterParams p;
+  p.knn_backend = "gpu";
+  gf::NormalGroundFilter f(p);
+  std::vector<std::uint8_t> labels(5, 9);
+  f.filter(gf::CloudView(), &labels);
+  EXPECT_TRUE(labels.empty());
+}
+
+TEST_F(GpuPipelineTest, NoDeviceMemoryGrowthOver1000Scans) {
+  const auto kitti = frame("000000.bin");
+  ASSERT_FALSE(kitti.empty());
+  const std::size_t n_max = kitti.size() / 3;
+  gf::NormalGroundFilterParams p;
+  p.knn_backend = "gpu";
+  gf::NormalGroundFilter f(p);
+  std::vector<std::uint8_t> labels;
+  gf::FilterStats st;
+  f.filter(gf::CloudView::packedXyz(kitti.data(), n_max), &labels, &st);  // largest first
+  ASSERT_EQ(st.backend, "gpu") << st.note;
+  ASSERT_EQ(cudaDeviceSynchronize(), cudaSuccess);
+  std::size_t free0 = 0, free1 = 0, total = 0;
+  ASSERT_EQ(cudaMemGetInfo(&free0, &total), cudaSuccess);
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<std::size_t> size(0, n_max);
+  std::size_t on_gpu = 0;
+  for (int s = 0; s < 1000; ++s) {
+    const std::size_t m = size(rng);
+    const std::size_t off = (n_max - m) / 2;
+    f.filter(gf::CloudView::packedXyz(kitti.data() + 3 * off, m), &labels, &st);
+    on_gpu += st.backend == "gpu";
+    ASSERT_EQ(labels.size(), m);
+  }
+  ASSERT_EQ(cudaDeviceSynchronize(), cudaSuccess);
+  ASSERT_EQ(cudaMemGetInfo(&free1, &total), cudaSuccess);
+  EXPECT_EQ(on_gpu, 1000u);
+  EXPECT_EQ(free1, free0) << "device memory free before " << free0 << ", after " << free1;
+  std::printf("[ FILTER   ] 1000 scans of 0..%zu points: device free %zu -> %zu bytes\n", n_max,
+              free0, free1);
+}
+
+TEST_F(GpuPipelineTest, OutOfMemoryFallsBackToTheKdTreeForThatScan) {
+  const auto xyz = frame("000000.bin");
+  ASSERT_FALSE(xyz.empty());
+  const auto cloud = gf::CloudView::packedXyz(xyz.data(), xyz.size() / 3);
+  gf::CudaKnnOptions opt;
+  opt.memory_limit = 1 << 20;  // the pipeline cannot take this scan
+  gf::NormalGroundFilterParams p;
+  p.knn_backend = "gpu";
+  gf::NormalGroundFilter fg(p, std::make_unique<gf::GpuNeighborSearch>(0, opt));
+  p.knn_backend = "kdtree";
+  gf::NormalGroundFilter fc(p);
+  std::vector<std::uint8_t> lg, lc;
+  gf::FilterStats sg, sc;
+  for (int scan = 0; scan < 2; ++scan) {  // every scan tries the GPU again, and falls back again
+    fg.filter(cloud, &lg, &sg);
+    EXPECT_EQ(sg.backend, "kdtree");
+    EXPECT_NE(sg.note.find("GPU filter failed (cudaErrorMemoryAllocation"), std::string::npos)
+        << sg.note;
+    EXPECT_EQ(sg.note.find("GPU filter failed", 1), std::string::npos) << "one reason: " << sg.note;
+  }
+  fc.filter(cloud, &lc, &sc);
+  EXPECT_EQ(lg, lc);
+  EXPECT_EQ(sg.ground_points, sc.ground_points);
+  // The pipeline itself reports the error as a CudaError.
+  gf::CudaNormalPipeline pipeline(opt);
+  std::vector<std::uint8_t> labels(xyz.size() / 3);
+  try {
+    pipeline.run(cloud, gf::CudaNormalParams(), labels.data());
+    FAIL() << "ran within 1 MiB";
+  } catch (const gf::CudaError& e) {
+    EXPECT_EQ(e.errorName(), "cudaErrorMemoryAllocation");
+  }
+}
+
+}  // namespace
