@@ -12,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "ground_filter/neighborhood_pca.h"
+
 #if defined(__GNUC__) && defined(__x86_64__)
 #include <immintrin.h>
 #define GF_KNN_HAVE_AVX512 1
@@ -703,6 +705,24 @@ KdTreeNeighborSearch::~KdTreeNeighborSearch() = default;
 void KdTreeNeighborSearch::setUseAvx512(bool use) { use_avx512_ = use && cpuHasAvx512(); }
 
 void KdTreeNeighborSearch::search(const float* xyz, std::size_t n, int k, NeighborLists* out) {
+  run(xyz, n, k, out, nullptr);
+}
+
+bool KdTreeNeighborSearch::searchWithPca(const float* xyz, std::size_t n, int k,
+                                         NeighborLists* out, std::vector<PointPca>* pca) {
+  run(xyz, n, k, out, pca);
+  return true;
+}
+
+std::vector<std::pair<std::string, double>> KdTreeNeighborSearch::lastStageMs() const {
+  std::vector<std::pair<std::string, double>> st = {{"kdtree_build", build_ms_},
+                                                    {"knn", query_ms_}};
+  if (with_pca_) st.emplace_back("pca", pca_ms_);
+  return st;
+}
+
+void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborLists* out,
+                               std::vector<PointPca>* pca) {
   if (n > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
     throw std::invalid_argument("KdTreeNeighborSearch: " + std::to_string(n) +
                                 " points, more than the int32 neighbour indices can address");
@@ -713,11 +733,21 @@ void KdTreeNeighborSearch::search(const float* xyz, std::size_t n, int k, Neighb
   out->points = n;
   out->indices.resize(n * kk);
   out->sq_dists.resize(n * kk);
-  build_ms_ = query_ms_ = 0.0;
-  if (n == 0 || kk == 0) return;
+  build_ms_ = query_ms_ = pca_ms_ = 0.0;
+  with_pca_ = pca != nullptr;
+  if (pca) pca->resize(n);
+  if (n == 0 || kk == 0) {
+    if (pca) std::fill(pca->begin(), pca->end(), PointPca());
+    return;
+  }
   if (n < kk) {  // every row holds the whole cloud
     bruteForce(xyz, n, static_cast<int>(kk), out);
     query_ms_ = msSince(t0);
+    if (pca) {
+      const auto t1 = Clock::now();
+      computeNeighborhoodPca(xyz, *out, 1, pca);
+      pca_ms_ = msSince(t1);
+    }
     return;
   }
 
@@ -728,23 +758,40 @@ void KdTreeNeighborSearch::search(const float* xyz, std::size_t n, int k, Neighb
   build_ms_ = msSince(t0);
 
   const auto t1 = Clock::now();
-  // Chunks of consecutive tree positions; each chunk's first query starts unbounded.
+  // Chunks of consecutive tree positions; each chunk's first query starts unbounded. With PCA,
+  // each chunk's lists are used right after they are written, while they are in cache.
   constexpr std::size_t kChunk = 1024;
   const std::int64_t chunks = static_cast<std::int64_t>((n + kChunk - 1) / kChunk);
   const bool avx512 = use_avx512_ && kk <= kMaxAvx512K;
-#pragma omp parallel for num_threads(threads) schedule(dynamic, 1)
+  double knn_cpu = 0.0, pca_cpu = 0.0;  // summed over threads, to split the wall time
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 1) reduction(+ : knn_cpu, pca_cpu)
   for (std::int64_t c = 0; c < chunks; ++c) {
     const std::size_t pb = static_cast<std::size_t>(c) * kChunk, pe = std::min(n, pb + kChunk);
+    const auto tq = Clock::now();
 #if GF_KNN_HAVE_AVX512
     if (avx512) {
       queryRangeAvx512(im, pb, pe, static_cast<int>(kk), out->indices.data(), out->sq_dists.data());
-      continue;
+    } else {
+      queryRangeScalar(im, pb, pe, static_cast<int>(kk), out->indices.data(),
+                       out->sq_dists.data());
     }
-#endif
+#else
     queryRangeScalar(im, pb, pe, static_cast<int>(kk), out->indices.data(), out->sq_dists.data());
+#endif
+    if (pca) {
+      const auto tp = Clock::now();
+      knn_cpu += std::chrono::duration<double, std::milli>(tp - tq).count();
+      computeRowsPca(xyz, out->indices.data(), static_cast<int>(kk), im.pidx.data() + pb, pe - pb,
+                     pca->data());
+      pca_cpu += msSince(tp);
+    }
   }
   (void)avx512;
-  query_ms_ = msSince(t1);
+  const double wall = msSince(t1);
+  // Fused: the parts' shares of the thread time, applied to the wall time.
+  const double share = pca && knn_cpu + pca_cpu > 0.0 ? pca_cpu / (knn_cpu + pca_cpu) : 0.0;
+  pca_ms_ = wall * share;
+  query_ms_ = wall - pca_ms_;
 }
 
 }  // namespace ground_filter

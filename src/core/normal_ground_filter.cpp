@@ -12,7 +12,6 @@
 #include <limits>
 #include <stdexcept>
 
-#include "ground_filter/kdtree_neighbor_search.h"
 #include "ground_filter/neighbor_search_factory.h"
 #include "ground_filter/param_parse.h"
 
@@ -279,62 +278,6 @@ bool isFlat(const PointPca& r, double min_planarity) {
 
 }  // namespace
 
-// ------------------------------------------------------------------------------------ PCA
-
-void computeNeighborhoodPca(const float* xyz, const NeighborLists& lists, int threads,
-                            std::vector<PointPca>* out) {
-  const std::size_t n = lists.points;
-  const int k = lists.k;
-  out->resize(n);
-  const int nt = static_cast<int>(std::min<std::size_t>(resolveThreads(threads), n / 1024 + 1));
-#pragma omp parallel for num_threads(nt) schedule(static, 2048)
-  for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
-    const std::int32_t* row = &lists.indices[static_cast<std::size_t>(i) * k];
-    PointPca& r = (*out)[i];
-    r = PointPca();
-    // One pass over the neighbours: sums of their offsets from the query point and of the
-    // offsets' products, in double. The offsets are small (a neighbourhood, not 80 m ranges), so
-    // centring afterwards loses nothing measurable and the neighbours are read only once.
-    const double ox = xyz[3 * i], oy = xyz[3 * i + 1], oz = xyz[3 * i + 2];
-    double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
-    int m = 0;
-    for (; m < k && row[m] >= 0; ++m) {
-      const float* p = xyz + 3 * static_cast<std::size_t>(row[m]);
-      const double dx = p[0] - ox, dy = p[1] - oy, dz = p[2] - oz;
-      sx += dx;
-      sy += dy;
-      sz += dz;
-      sxx += dx * dx;
-      sxy += dx * dy;
-      sxz += dx * dz;
-      syy += dy * dy;
-      syz += dy * dz;
-      szz += dz * dz;
-    }
-    if (m < 3) continue;
-    const double inv = 1.0 / m, mx = sx * inv, my = sy * inv, mz = sz * inv;
-    const double cxx = sxx * inv - mx * mx, cxy = sxy * inv - mx * my, cxz = sxz * inv - mx * mz,
-                 cyy = syy * inv - my * my, cyz = syz * inv - my * mz, czz = szz * inv - mz * mz;
-    const double trace = cxx + cyy + czz;
-    if (!(trace > 1e-12)) continue;  // all neighbours (nearly) the same point
-    Eigen::Matrix3d cov;
-    cov << cxx, cxy, cxz, cxy, cyy, cyz, cxz, cyz, czz;
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-    es.computeDirect(cov);
-    Eigen::Vector3d ev = es.eigenvalues().cwiseMax(0.0);  // ascending; rounding can go < 0
-    const double sum = ev.sum();
-    if (!(sum > 0.0)) continue;
-    ev /= sum;
-    const Eigen::Vector3d nv = es.eigenvectors().col(0);
-    if (!nv.allFinite()) continue;
-    for (int c = 0; c < 3; ++c) {
-      r.normal[c] = static_cast<float>(nv[c]);
-      r.eigen[c] = static_cast<float>(ev[c]);
-    }
-    r.valid = true;
-  }
-}
-
 // ------------------------------------------------------------------------------------ filter
 
 struct NormalGroundFilter::Impl {
@@ -448,23 +391,31 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   const double min_abs_nz = std::cos(max_tilt_deg * M_PI / 180.0);
   im.candidate.assign(n, 0);
   im.voted.assign(n, 0);
-  double build_ms = 0.0, knn_ms = 0.0, pca_ms = 0.0, vote_ms = 0.0;
-  auto* kdtree = dynamic_cast<KdTreeNeighborSearch*>(im.search.get());
+  // Stage times by name, summed over segments, in first-seen order.
+  std::vector<std::pair<std::string, double>> search_ms;
+  auto addMs = [&search_ms](const std::string& name, double ms) {
+    for (auto& e : search_ms) {
+      if (e.first == name) {
+        e.second += ms;
+        return;
+      }
+    }
+    search_ms.emplace_back(name, ms);
+  };
+  double vote_ms = 0.0;
   for (const auto& sg : im.segments) {
     const std::size_t b = sg.first, len = sg.second - sg.first;
     const float* sxyz = im.xyz.data() + 3 * b;
     t0 = Clock::now();
-    im.search->search(sxyz, len, p.k, &im.lists);
-    const double search_ms = msSince(t0);
-    if (kdtree) {
-      build_ms += kdtree->lastBuildMs();
-      knn_ms += search_ms - kdtree->lastBuildMs();
-    } else {
-      knn_ms += search_ms;
-    }
+    bool have_pca = im.search->searchWithPca(sxyz, len, p.k, &im.lists, &im.pca);
+    if (!have_pca) im.search->search(sxyz, len, p.k, &im.lists);
+    const double search_wall = msSince(t0);
+    const auto parts = im.search->lastStageMs();
+    for (const auto& e : parts) addMs(e.first, e.second);
+    if (parts.empty()) addMs("knn", search_wall);
 
     t0 = Clock::now();
-    if (!im.search->neighborhoodPca(&im.pca)) {
+    if (!have_pca && !im.search->neighborhoodPca(&im.pca)) {
       computeNeighborhoodPca(sxyz, im.lists, threads, &im.pca);
     }
     std::size_t candidates = 0;
@@ -475,7 +426,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
       im.candidate[b + i] = cand;
       candidates += cand;
     }
-    pca_ms += msSince(t0);
+    addMs("pca", msSince(t0));
 
     // Naive-Bayes vote (paper): classes U (candidates) and V (the rest) of this neighbourhood
     // set, priors P(U) = U/N and P(V) = V/N; likelihood of a point's neighbourhood under U is the
@@ -516,9 +467,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   st.backend = im.search->lastBackend();
   const std::string last_note = im.search->lastNote();
   if (!last_note.empty()) st.note += (st.note.empty() ? "" : "; ") + last_note;
-  if (kdtree) st.stage_ms.emplace_back("kdtree_build", build_ms);
-  st.stage_ms.emplace_back("knn", knn_ms);
-  st.stage_ms.emplace_back("pca", pca_ms);
+  for (const auto& e : search_ms) st.stage_ms.push_back(e);
   st.stage_ms.emplace_back("vote", vote_ms);
 
   // 5. Plane(s) through the voted points: RANSAC per x/y tile (or one for the cloud), then the
