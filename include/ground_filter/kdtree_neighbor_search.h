@@ -48,8 +48,7 @@ class KdTreeNeighborSearch : public NeighborSearch {
 
  private:
   struct Impl;
-  void run(const float* xyz, std::size_t n, int k, NeighborLists* out,
-           std::vector<PointPca>* pca);
+  void run(const float* xyz, std::size_t n, int k, NeighborLists* out, std::vector<PointPca>* pca);
   std::unique_ptr<Impl> impl_;
   int threads_;
   int leaf_size_;

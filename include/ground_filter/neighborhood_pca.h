@@ -25,8 +25,8 @@ void computeNeighborhoodPca(const float* xyz, const NeighborLists& lists, int th
 /// \brief The same PCA for the rows `rows[0..count)` only, on the calling thread: row r of the
 ///        `k`-wide `indices` goes to `out[r]`. Bit-identical to computeNeighborhoodPca() (the
 ///        AVX-512 path adds in the same order, without fused multiply-adds).
-void computeRowsPca(const float* xyz, const std::int32_t* indices, int k,
-                    const std::uint32_t* rows, std::size_t count, PointPca* out);
+void computeRowsPca(const float* xyz, const std::int32_t* indices, int k, const std::uint32_t* rows,
+                    std::size_t count, PointPca* out);
 
 }  // namespace ground_filter
 

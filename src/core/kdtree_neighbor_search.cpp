@@ -708,8 +708,8 @@ void KdTreeNeighborSearch::search(const float* xyz, std::size_t n, int k, Neighb
   run(xyz, n, k, out, nullptr);
 }
 
-bool KdTreeNeighborSearch::searchWithPca(const float* xyz, std::size_t n, int k,
-                                         NeighborLists* out, std::vector<PointPca>* pca) {
+bool KdTreeNeighborSearch::searchWithPca(const float* xyz, std::size_t n, int k, NeighborLists* out,
+                                         std::vector<PointPca>* pca) {
   run(xyz, n, k, out, pca);
   return true;
 }
@@ -772,8 +772,7 @@ void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborL
     if (avx512) {
       queryRangeAvx512(im, pb, pe, static_cast<int>(kk), out->indices.data(), out->sq_dists.data());
     } else {
-      queryRangeScalar(im, pb, pe, static_cast<int>(kk), out->indices.data(),
-                       out->sq_dists.data());
+      queryRangeScalar(im, pb, pe, static_cast<int>(kk), out->indices.data(), out->sq_dists.data());
     }
 #else
     queryRangeScalar(im, pb, pe, static_cast<int>(kk), out->indices.data(), out->sq_dists.data());

@@ -195,8 +195,8 @@ void pcaRows(const float* xyz, const std::int32_t* indices, int k, const std::ui
 
 }  // namespace
 
-void computeRowsPca(const float* xyz, const std::int32_t* indices, int k,
-                    const std::uint32_t* rows, std::size_t count, PointPca* out) {
+void computeRowsPca(const float* xyz, const std::int32_t* indices, int k, const std::uint32_t* rows,
+                    std::size_t count, PointPca* out) {
   pcaRows(xyz, indices, k, rows, 0, count, out);
 }
 
