@@ -3,6 +3,7 @@
 
 #include "neighborhoods.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace ground_filter {
@@ -36,7 +37,9 @@ std::size_t NeighborhoodStage::run(NeighborSearch* search, const float* xyz, std
     computeNeighborhoodPca(xyz, lists_, threads, &pca_);
   }
   std::size_t candidates = 0;
-  for (std::size_t i = 0; i < len; ++i) {
+  const int nt = static_cast<int>(std::min<std::size_t>(threads, len / 8192 + 1));
+#pragma omp parallel for num_threads(nt) schedule(static) reduction(+ : candidates)
+  for (std::int64_t i = 0; i < static_cast<std::int64_t>(len); ++i) {
     const PointPca& r = pca_[i];
     const bool flat = r.valid && isFlat(r, min_planarity);
     const bool cand = flat && std::abs(r.normal[2]) >= min_abs_nz;

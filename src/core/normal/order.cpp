@@ -27,22 +27,23 @@ std::uint64_t spreadBits(std::uint64_t v) {
 
 std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_segments,
                             int segment_points) {
-  raw_xyz_.clear();
-  raw_source_.clear();
+  const std::size_t total = cloud.size();
+  raw_xyz_.resize(3 * total);
+  raw_source_.resize(total);
   double min_x = std::numeric_limits<double>::infinity(), min_y = min_x;
   double max_x = -min_x, max_y = -min_x;
-  for (std::size_t i = 0; i < cloud.size(); ++i) {
-    float x, y, z;
-    if (!cloud.get(i, &x, &y, &z)) continue;
-    raw_xyz_.push_back(x);
-    raw_xyz_.push_back(y);
-    raw_xyz_.push_back(z);
-    raw_source_.push_back(static_cast<std::uint32_t>(i));
-    min_x = std::min<double>(min_x, x);
-    min_y = std::min<double>(min_y, y);
-    max_x = std::max<double>(max_x, x);
-    max_y = std::max<double>(max_y, y);
+  std::size_t valid = 0;
+  for (std::size_t i = 0; i < total; ++i) {
+    float* o = &raw_xyz_[3 * valid];
+    if (!cloud.get(i, o, o + 1, o + 2)) continue;
+    raw_source_[valid++] = static_cast<std::uint32_t>(i);
+    min_x = std::min<double>(min_x, o[0]);
+    min_y = std::min<double>(min_y, o[1]);
+    max_x = std::max<double>(max_x, o[0]);
+    max_y = std::max<double>(max_y, o[1]);
   }
+  raw_xyz_.resize(3 * valid);
+  raw_source_.resize(valid);
   extent_ = Extent{min_x, min_y, max_x, max_y};
   const std::size_t n = raw_source_.size();
   xyz_.resize(3 * n);
