@@ -23,8 +23,8 @@ void computeNeighborhoodPca(const float* xyz, const NeighborLists& lists, int th
                             std::vector<PointPca>* out);
 
 /// \brief The same PCA for the rows `rows[0..count)` only, on the calling thread: row r of the
-///        `k`-wide `indices` goes to `out[r]`. Bit-identical to computeNeighborhoodPca() (the
-///        AVX-512 path adds in the same order, without fused multiply-adds).
+///        `k`-wide `indices` (neighbours of point r) goes to `out[r]`; same bits as
+///        computeNeighborhoodPca().
 void computeRowsPca(const float* xyz, const std::int32_t* indices, int k, const std::uint32_t* rows,
                     std::size_t count, PointPca* out);
 
