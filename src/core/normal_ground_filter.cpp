@@ -130,7 +130,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
 
   // 1. Valid points in grid-column order, cut into segments.
   auto t0 = Clock::now();
-  const std::size_t n = im.order.run(cloud, p.cell_size, p.use_segments, p.segment_points);
+  const std::size_t n = im.order.run(cloud, p.cell_size, p.use_segments, p.segment_points, threads);
   st.invalid_points = cloud.size() - n;
   st.stage_ms.emplace_back("sort", msSince(t0));
   if (n == 0) {

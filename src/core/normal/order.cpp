@@ -26,7 +26,7 @@ std::uint64_t spreadBits(std::uint64_t v) {
 }  // namespace
 
 std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_segments,
-                            int segment_points) {
+                            int segment_points, int threads) {
   const std::size_t total = cloud.size();
   raw_xyz_.resize(3 * total);
   raw_source_.resize(total);
@@ -53,13 +53,16 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
   // Coarsen the ordering grid for very wide clouds so cell indices fit in 32 bits.
   const double cell = std::max(cell_size, extent_.size() / 4.0e9);
   keys_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
+  const int nt = static_cast<int>(std::min<std::size_t>(threads, n / 16384 + 1));
+#pragma omp parallel for num_threads(nt) schedule(static)
+  for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
     const std::uint32_t cx = cellIndex(raw_xyz_[3 * i], min_x, 1.0 / cell);
     const std::uint32_t cy = cellIndex(raw_xyz_[3 * i + 1], min_y, 1.0 / cell);
     keys_[i] = spreadBits(cx) | (spreadBits(cy) << 1);
   }
   radixSortByKey(keys_, &order_, &sort_scratch_);
-  for (std::size_t j = 0; j < n; ++j) {
+#pragma omp parallel for num_threads(nt) schedule(static)
+  for (std::int64_t j = 0; j < static_cast<std::int64_t>(n); ++j) {
     const std::uint32_t s = order_[j];
     std::copy_n(&raw_xyz_[3 * static_cast<std::size_t>(s)], 3, &xyz_[3 * j]);
     source_[j] = raw_source_[s];

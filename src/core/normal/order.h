@@ -25,9 +25,11 @@ struct Extent {
 class OrderStage {
  public:
   /// \brief Orders the valid points of `cloud` on a `cell_size` grid; with `use_segments`, cuts
-  ///        them into segments of at most `segment_points` (else one segment).
+  ///        them into segments of at most `segment_points` (else one segment); `threads` for the
+  ///        per-point loops.
   /// \return the number of valid points.
-  std::size_t run(const CloudView& cloud, double cell_size, bool use_segments, int segment_points);
+  std::size_t run(const CloudView& cloud, double cell_size, bool use_segments, int segment_points,
+                  int threads);
 
   /// \brief Valid points, packed x y z, in column order.
   const std::vector<float>& xyz() const { return xyz_; }

@@ -128,7 +128,9 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
   keys_.resize(n);
   if (p.local_planes) {
     const double tile = std::max(p.tile_size, extent.size() / 4.0e9);
-    for (std::size_t i = 0; i < n; ++i) {
+    const int nt = static_cast<int>(std::min<std::size_t>(threads, n / 16384 + 1));
+#pragma omp parallel for num_threads(nt) schedule(static)
+    for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
       const std::uint32_t tx = cellIndex(xyz[3 * i], extent.min_x, 1.0 / tile);
       const std::uint32_t ty = cellIndex(xyz[3 * i + 1], extent.min_y, 1.0 / tile);
       keys_[i] = (static_cast<std::uint64_t>(tx) << 32) | ty;
