@@ -12,15 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "avx512_common.h"
 #include "ground_filter/neighborhood_pca.h"
-
-#if defined(__GNUC__) && defined(__x86_64__)
-#include <immintrin.h>
-#define GF_KNN_HAVE_AVX512 1
-#define GF_KNN_TARGET_AVX512 __attribute__((target("avx512f")))
-#else
-#define GF_KNN_HAVE_AVX512 0
-#endif
 
 #if defined(__GNUC__)
 #define GF_KNN_ALWAYS_INLINE inline __attribute__((always_inline))
@@ -368,7 +361,7 @@ GF_KNN_ALWAYS_INLINE void queryRange(const Tree& t, std::size_t pb, std::size_t 
   }
 }
 
-#if GF_KNN_HAVE_AVX512
+#if GF_HAVE_AVX512
 
 // GCC's intrinsics start some results from _mm512_undefined_*(), which -Wmaybe-uninitialized
 // reports at every inlined use (a known false positive).
@@ -376,25 +369,17 @@ GF_KNN_ALWAYS_INLINE void queryRange(const Tree& t, std::size_t pb, std::size_t 
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #pragma GCC diagnostic ignored "-Wuninitialized"
 
-/// Keeps the compiler from fusing a product into a later addition (FMA rounds differently).
-GF_KNN_TARGET_AVX512 inline __m512 opaque(__m512 v) {
-  asm("" : "+v"(v));
-  return v;
-}
-GF_KNN_TARGET_AVX512 inline __m128 opaque(__m128 v) {
-  asm("" : "+v"(v));
-  return v;
-}
+using simd::opaque;
 
 // Bitonic network on R zmm registers of 8 uint64 keys each, ascending.
 
-GF_KNN_TARGET_AVX512 inline __m512i reverseLanes(__m512i v) {
+GF_TARGET_AVX512 inline __m512i reverseLanes(__m512i v) {
   return _mm512_permutexvar_epi64(_mm512_set_epi64(0, 1, 2, 3, 4, 5, 6, 7), v);
 }
 
 /// Compare-exchange of every lane with lane ^ M; lanes with bit H set keep the larger key.
 template <int M, int H>
-GF_KNN_TARGET_AVX512 inline __m512i laneStep(__m512i v) {
+GF_TARGET_AVX512 inline __m512i laneStep(__m512i v) {
   const __m512i idx = _mm512_set_epi64(7 ^ M, 6 ^ M, 5 ^ M, 4 ^ M, 3 ^ M, 2 ^ M, 1 ^ M, 0 ^ M);
   const __m512i p = _mm512_permutexvar_epi64(idx, v);
   constexpr __mmask8 kHigh = H == 1 ? 0xAA : H == 2 ? 0xCC : 0xF0;
@@ -402,13 +387,13 @@ GF_KNN_TARGET_AVX512 inline __m512i laneStep(__m512i v) {
 }
 
 /// Sorts each register's lanes given that they form a bitonic sequence.
-GF_KNN_TARGET_AVX512 inline __m512i laneMerge(__m512i v) {
+GF_TARGET_AVX512 inline __m512i laneMerge(__m512i v) {
   return laneStep<1, 1>(laneStep<2, 2>(laneStep<4, 4>(v)));
 }
 
 /// Sorts the bitonic sequence v[0..R) (register-level half-cleaners, then lanes).
 template <int R>
-GF_KNN_TARGET_AVX512 inline void bitonicMerge(__m512i* v) {
+GF_TARGET_AVX512 inline void bitonicMerge(__m512i* v) {
   for (int s = R / 2; s >= 1; s /= 2) {
     for (int i = 0; i < R; ++i) {
       if (i & s) continue;
@@ -420,7 +405,7 @@ GF_KNN_TARGET_AVX512 inline void bitonicMerge(__m512i* v) {
   for (int i = 0; i < R; ++i) v[i] = laneMerge(v[i]);
 }
 
-GF_KNN_TARGET_AVX512 inline void compareExchange(__m512i* a, __m512i* b) {
+GF_TARGET_AVX512 inline void compareExchange(__m512i* a, __m512i* b) {
   const __m512i lo = _mm512_min_epu64(*a, *b);
   *b = _mm512_max_epu64(*a, *b);
   *a = lo;
@@ -428,7 +413,7 @@ GF_KNN_TARGET_AVX512 inline void compareExchange(__m512i* a, __m512i* b) {
 
 /// Sorts each of 8 registers: an 8-input sorting network across the registers (every lane
 /// position sorted), then an 8 x 8 transpose.
-GF_KNN_TARGET_AVX512 inline void sortRegisters8(__m512i* v) {
+GF_TARGET_AVX512 inline void sortRegisters8(__m512i* v) {
   // The optimal 19-comparator network for 8 inputs (Knuth, TAOCP 5.3.4).
   compareExchange(&v[0], &v[2]);
   compareExchange(&v[1], &v[3]);
@@ -472,7 +457,7 @@ GF_KNN_TARGET_AVX512 inline void sortRegisters8(__m512i* v) {
 
 /// Sorts the 8R keys of v ascending.
 template <int R>
-GF_KNN_TARGET_AVX512 inline void bitonicSort(__m512i* v) {
+GF_TARGET_AVX512 inline void bitonicSort(__m512i* v) {
   if (R % 8 == 0) {
     for (int i = 0; i < R; i += 8) sortRegisters8(v + i);
   } else {
@@ -508,7 +493,7 @@ class TopKAvx512 {
  public:
   static constexpr int kSlots = 8 * R;
 
-  GF_KNN_TARGET_AVX512 void init(int k, float bound) {
+  GF_TARGET_AVX512 void init(int k, float bound) {
     k_ = k;
     pending_ = 0;
     thr_ = bound;
@@ -516,7 +501,7 @@ class TopKAvx512 {
   }
   float threshold() const { return thr_; }
 
-  GF_KNN_TARGET_AVX512 static float boxDist(const Node& nd, const float* q) {
+  GF_TARGET_AVX512 static float boxDist(const Node& nd, const float* q) {
     const __m128 q4 = _mm_load_ps(q);  // q[3] = 0, like the boxes' padding
     const __m128 lo = _mm_load_ps(nd.lo), hi = _mm_load_ps(nd.hi);
     const __m128 t =
@@ -526,7 +511,7 @@ class TopKAvx512 {
            _mm_cvtss_f32(_mm_shuffle_ps(t2, t2, 2));
   }
 
-  GF_KNN_TARGET_AVX512 void scan(const Tree& t, const Node& nd, const float* q) {
+  GF_TARGET_AVX512 void scan(const Tree& t, const Node& nd, const float* q) {
     const std::uint32_t b = nd.begin;
     int m = static_cast<int>(nd.scan_end - b);
     const float *x = t.px.data() + b, *y = t.py.data() + b, *z = t.pz.data() + b;
@@ -569,13 +554,13 @@ class TopKAvx512 {
     }
   }
 
-  GF_KNN_TARGET_AVX512 void finish() {
+  GF_TARGET_AVX512 void finish() {
     if (pending_ > 0 || empty_) flush();
   }
   bool complete() const { return top_[k_ - 1] != kNoKey; }
   std::uint64_t key(int j) const { return top_[j]; }
 
-  GF_KNN_TARGET_AVX512 void write(std::int32_t* idx, float* dist) const {
+  GF_TARGET_AVX512 void write(std::int32_t* idx, float* dist) const {
     const __m512i lo_sel =
         _mm512_set_epi32(30, 28, 26, 24, 22, 20, 18, 16, 14, 12, 10, 8, 6, 4, 2, 0);
     const __m512i hi_sel =
@@ -590,7 +575,7 @@ class TopKAvx512 {
 
  private:
   /// Sorts the pending candidates and merges them into the top list.
-  GF_KNN_TARGET_AVX512 void flush() {
+  GF_TARGET_AVX512 void flush() {
     __m512i c[R];
     const __m512i none = _mm512_set1_epi64(-1);
     for (int r = 0; r < R; ++r) {
@@ -638,8 +623,8 @@ class TopKAvx512 {
   bool empty_ = true;
 };
 
-GF_KNN_TARGET_AVX512 void queryRangeAvx512(const Tree& t, std::size_t pb, std::size_t pe, int k,
-                                           std::int32_t* out_idx, float* out_dist) {
+GF_TARGET_AVX512 void queryRangeAvx512(const Tree& t, std::size_t pb, std::size_t pe, int k,
+                                       std::int32_t* out_idx, float* out_dist) {
   if (k <= 64) {
     TopKAvx512<8> set;
     queryRange(t, pb, pe, k, &set, out_idx, out_dist);
@@ -654,13 +639,13 @@ GF_KNN_TARGET_AVX512 void queryRangeAvx512(const Tree& t, std::size_t pb, std::s
 
 #pragma GCC diagnostic pop
 
-bool cpuHasAvx512() { return __builtin_cpu_supports("avx512f"); }
+bool cpuHasAvx512() { return simd::cpuHasAvx512(); }
 
 #else
 
 bool cpuHasAvx512() { return false; }
 
-#endif  // GF_KNN_HAVE_AVX512
+#endif  // GF_HAVE_AVX512
 
 void queryRangeScalar(const Tree& t, std::size_t pb, std::size_t pe, int k, std::int32_t* out_idx,
                       float* out_dist) {
@@ -768,7 +753,7 @@ void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborL
   for (std::int64_t c = 0; c < chunks; ++c) {
     const std::size_t pb = static_cast<std::size_t>(c) * kChunk, pe = std::min(n, pb + kChunk);
     const auto tq = Clock::now();
-#if GF_KNN_HAVE_AVX512
+#if GF_HAVE_AVX512
     if (avx512) {
       queryRangeAvx512(im, pb, pe, static_cast<int>(kk), out->indices.data(), out->sq_dists.data());
     } else {

@@ -12,13 +12,7 @@
 #include <algorithm>
 #include <cstdint>
 
-#if defined(__GNUC__) && defined(__x86_64__)
-#include <immintrin.h>
-#define GF_PCA_HAVE_AVX512 1
-#define GF_PCA_TARGET_AVX512 __attribute__((target("avx512f")))
-#else
-#define GF_PCA_HAVE_AVX512 0
-#endif
+#include "../avx512_common.h"
 
 namespace ground_filter {
 
@@ -53,22 +47,18 @@ inline void sumsScalar(const float* xyz, const std::int32_t* row, int k, std::si
   *s = Moments{sx, sy, sz, sxx, sxy, sxz, syy, syz, szz, m};
 }
 
-#if GF_PCA_HAVE_AVX512
+#if GF_HAVE_AVX512
 
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #pragma GCC diagnostic ignored "-Wuninitialized"
 
-/// Keeps the compiler from fusing the products into the following additions.
-GF_PCA_TARGET_AVX512 inline __m512d opaque(__m512d v) {
-  asm("" : "+v"(v));
-  return v;
-}
+using simd::opaque;
 
 /// sumsScalar() of a full row (k valid entries): lanes [sx sy sz - - - - -] and
 /// [sxx sxy sxz syy syz szz - -], each lane added to in neighbour order.
-GF_PCA_TARGET_AVX512 void sumsAvx512(const float* xyz, const std::int32_t* row, int k,
-                                     std::size_t query, Moments* s) {
+GF_TARGET_AVX512 void sumsAvx512(const float* xyz, const std::int32_t* row, int k,
+                                 std::size_t query, Moments* s) {
   const __mmask16 three = 0x7;
   const __m512d o = _mm512_cvtps_pd(_mm256_castps128_ps256(
       _mm_castsi128_ps(_mm512_castsi512_si128(_mm512_maskz_loadu_epi32(three, xyz + 3 * query)))));
@@ -94,7 +84,7 @@ GF_PCA_TARGET_AVX512 void sumsAvx512(const float* xyz, const std::int32_t* row, 
 #pragma GCC diagnostic pop
 
 bool haveAvx512() {
-  static const bool has = __builtin_cpu_supports("avx512f");
+  static const bool has = simd::cpuHasAvx512();
   return has;
 }
 
@@ -102,7 +92,7 @@ bool haveAvx512() {
 
 bool haveAvx512() { return false; }
 
-#endif  // GF_PCA_HAVE_AVX512
+#endif  // GF_HAVE_AVX512
 
 /// Covariance from the sums, then Eigen's closed-form solver.
 inline void finish(const Moments& s, PointPca* out) {
@@ -136,7 +126,7 @@ inline void finish(const Moments& s, PointPca* out) {
 inline void pcaOne(const float* xyz, const std::int32_t* row, int k, std::size_t query, bool avx512,
                    PointPca* out) {
   Moments s;
-#if GF_PCA_HAVE_AVX512
+#if GF_HAVE_AVX512
   if (avx512 && row[k - 1] >= 0) {  // a full row (rows end at their first -1)
     sumsAvx512(xyz, row, k, query, &s);
   } else {
