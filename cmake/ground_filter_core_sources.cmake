@@ -9,6 +9,12 @@ set(GF_CORE_SOURCES
   src/core/metrics.cpp
   src/core/scene_generator.cpp
   src/core/normal_ground_filter.cpp
+  src/core/normal/order.cpp
+  src/core/normal/neighborhoods.cpp
+  src/core/normal/neighborhood_pca.cpp
+  src/core/normal/vote.cpp
+  src/core/normal/plane.cpp
+  src/core/normal/classify.cpp
   src/core/kdtree_neighbor_search.cpp
   src/core/neighbor_search_factory.cpp
 )

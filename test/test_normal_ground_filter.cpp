@@ -545,6 +545,102 @@ TEST(NeighborhoodPca, SameForAnyThreadCount) {
   }
 }
 
+namespace {
+
+/// Every field of two PCA results bit for bit.
+void expectSamePca(const std::vector<gf::PointPca>& a, const std::vector<gf::PointPca>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    ASSERT_EQ(a[i].valid, b[i].valid) << i;
+    for (int d = 0; d < 3; ++d) {
+      ASSERT_EQ(a[i].normal[d], b[i].normal[d]) << i;
+      ASSERT_EQ(a[i].eigen[d], b[i].eigen[d]) << i;
+    }
+  }
+}
+
+}  // namespace
+
+TEST(NeighborhoodPca, FullRowsSameBitsAsPaddedRows) {
+  // A full row takes the AVX-512 sums where the CPU has them, a row ending in -1 the scalar
+  // loop: the same neighbours must give the same bits either way.
+  const Cloud c = randomCloud(4000, 21, true);
+  const int k = 50;
+  gf::NeighborLists full;
+  gf::KdTreeNeighborSearch(2).search(c.data(), c.size() / 3, k, &full);
+  gf::NeighborLists padded;
+  padded.k = k + 1;
+  padded.points = full.points;
+  for (std::size_t i = 0; i < full.points; ++i) {
+    padded.indices.insert(padded.indices.end(), full.indices.begin() + i * k,
+                          full.indices.begin() + (i + 1) * k);
+    padded.indices.push_back(-1);
+  }
+  padded.sq_dists.assign(padded.indices.size(), 0.f);
+  std::vector<gf::PointPca> a, b;
+  gf::computeNeighborhoodPca(c.data(), full, 1, &a);
+  gf::computeNeighborhoodPca(c.data(), padded, 1, &b);
+  std::size_t valid = 0;
+  for (const auto& r : a) valid += r.valid;
+  EXPECT_GT(valid, a.size() / 2);
+  expectSamePca(a, b);
+}
+
+TEST(NeighborhoodPca, RowsPcaMatchesWholeCloud) {
+  const Cloud c = randomCloud(5000, 22, true);
+  gf::NeighborLists lists;
+  gf::KdTreeNeighborSearch(1).search(c.data(), c.size() / 3, 20, &lists);
+  std::vector<gf::PointPca> whole, rows(lists.points);
+  gf::computeNeighborhoodPca(c.data(), lists, 2, &whole);
+  std::vector<std::uint32_t> order(lists.points);
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = static_cast<std::uint32_t>(i);
+  std::shuffle(order.begin(), order.end(), std::mt19937(5));
+  // Two calls on disjoint halves, in shuffled order.
+  const std::size_t half = order.size() / 2;
+  gf::computeRowsPca(c.data(), lists.indices.data(), lists.k, order.data(), half, rows.data());
+  gf::computeRowsPca(c.data(), lists.indices.data(), lists.k, order.data() + half,
+                     order.size() - half, rows.data());
+  expectSamePca(whole, rows);
+}
+
+TEST(KdTreeNeighborSearch, SearchWithPcaMatchesSearchThenPca) {
+  for (std::size_t n : {std::size_t{0}, std::size_t{20}, std::size_t{30000}}) {
+    for (int threads : {1, 2}) {
+      SCOPED_TRACE("n " + std::to_string(n) + " threads " + std::to_string(threads));
+      const Cloud c = randomCloud(n, 31, true);
+      gf::KdTreeNeighborSearch search(threads);
+      gf::NeighborLists sep, fused;
+      std::vector<gf::PointPca> pca_sep, pca_fused;
+      search.search(c.data(), n, 50, &sep);
+      gf::computeNeighborhoodPca(c.data(), sep, threads, &pca_sep);
+      EXPECT_EQ(search.lastStageMs().size(), 2u);  // kdtree_build, knn
+      ASSERT_TRUE(search.searchWithPca(c.data(), n, 50, &fused, &pca_fused));
+      EXPECT_EQ(sep.indices, fused.indices);
+      EXPECT_EQ(sep.sq_dists, fused.sq_dists);
+      expectSamePca(pca_sep, pca_fused);
+      const auto parts = search.lastStageMs();
+      ASSERT_EQ(parts.size(), 3u);
+      EXPECT_EQ(parts[0].first, "kdtree_build");
+      EXPECT_EQ(parts[1].first, "knn");
+      EXPECT_EQ(parts[2].first, "pca");
+      for (const auto& e : parts) EXPECT_GE(e.second, 0.0) << e.first;
+    }
+  }
+}
+
+TEST(NormalGroundFilter, StageTimesNameEveryStage) {
+  // The kd-tree's build/query/PCA split comes through NeighborSearch::lastStageMs().
+  gf::FilterStats st;
+  run(plane(6.0, 0.1, -1.73), {}, &st);
+  std::vector<std::string> names;
+  for (const auto& e : st.stage_ms) {
+    names.push_back(e.first);
+    EXPECT_GE(e.second, 0.0) << e.first;
+  }
+  const std::vector<std::string> expected = {"sort", "kdtree_build", "knn", "pca", "vote", "plane"};
+  EXPECT_EQ(names, expected);
+}
+
 // ------------------------------------------------------------------------ real data
 
 TEST(NormalGroundFilterKitti, PooledF1AboveFloor) {

@@ -4,6 +4,8 @@
 #include <cstddef>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "ground_filter/neighbor_search.h"
 
@@ -26,10 +28,17 @@ class KdTreeNeighborSearch : public NeighborSearch {
   /// \brief See NeighborSearch::search(); throws std::invalid_argument above 2^31 - 1 points.
   void search(const float* xyz, std::size_t n, int k, NeighborLists* out) override;
   std::string name() const override { return "kdtree"; }
+  /// \brief Queries and PCA interleaved chunk by chunk (same results as search() followed by
+  ///        computeNeighborhoodPca()); always true.
+  bool searchWithPca(const float* xyz, std::size_t n, int k, NeighborLists* out,
+                     std::vector<PointPca>* pca) override;
+  /// \brief {"kdtree_build", "knn"} and, after searchWithPca(), "pca": the query wall time
+  ///        split by the threads' time in each part.
+  std::vector<std::pair<std::string, double>> lastStageMs() const override;
 
   /// \brief Wall time of the tree build in the last search() [ms].
   double lastBuildMs() const { return build_ms_; }
-  /// \brief Wall time of the queries in the last search() [ms].
+  /// \brief Wall time of the queries in the last search() [ms] (without the PCA part).
   double lastQueryMs() const { return query_ms_; }
   /// \brief Whether search() uses the AVX-512 code (default: when the CPU has it).
   bool usesAvx512() const { return use_avx512_; }
@@ -39,12 +48,15 @@ class KdTreeNeighborSearch : public NeighborSearch {
 
  private:
   struct Impl;
+  void run(const float* xyz, std::size_t n, int k, NeighborLists* out, std::vector<PointPca>* pca);
   std::unique_ptr<Impl> impl_;
   int threads_;
   int leaf_size_;
   bool use_avx512_;
   double build_ms_ = 0.0;
   double query_ms_ = 0.0;
+  double pca_ms_ = 0.0;
+  bool with_pca_ = false;
 };
 
 }  // namespace ground_filter

@@ -4,11 +4,12 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace ground_filter {
 
-struct PointPca;  // normal_ground_filter.h
+struct PointPca;  // neighborhood_pca.h
 
 /// \brief K-nearest-neighbour lists of every point of a packed xyz cloud (the point itself
 ///        included, at distance 0).
@@ -38,6 +39,20 @@ class NeighborSearch {
   virtual std::string lastBackend() const { return name(); }
   /// \brief Why the last search() did not run on name() (e.g. the CUDA error); empty otherwise.
   virtual std::string lastNote() const { return std::string(); }
+  /// \brief Named parts of the last search()/searchWithPca() call and their wall times [ms], in
+  ///        order (e.g. {"kdtree_build", 6.0}, {"knn", 30.0}); empty when the backend does not
+  ///        time its parts (the caller then times the whole call).
+  virtual std::vector<std::pair<std::string, double>> lastStageMs() const { return {}; }
+
+  /// \brief search() and the PCA of every list (as computeNeighborhoodPca() in
+  ///        neighborhood_pca.h computes it, bit for bit) in one go, so a backend can work on each
+  ///        list while it is still in cache; `out` holds the lists afterwards as after search().
+  /// \return false when the backend does not do this (nothing done: call search() and
+  ///        neighborhoodPca()/computeNeighborhoodPca() instead).
+  virtual bool searchWithPca(const float* /*xyz*/, std::size_t /*n*/, int /*k*/,
+                             NeighborLists* /*out*/, std::vector<PointPca>* /*pca*/) {
+    return false;
+  }
 
   // Optional work on the lists where they were computed (GPU memory), so they need not come back
   // to the host. A backend without it keeps the defaults (lists always on the host).
@@ -49,7 +64,7 @@ class NeighborSearch {
   /// \return whether the backend keeps lists on a device.
   virtual bool keepListsOnDevice(bool /*keep*/) { return false; }
   /// \brief PCA of every neighbourhood of the last search(), as computeNeighborhoodPca()
-  ///        (normal_ground_filter.h) computes it; false when the lists are on the host.
+  ///        (neighborhood_pca.h) computes it; false when the lists are on the host.
   virtual bool neighborhoodPca(std::vector<PointPca>* /*out*/) { return false; }
   /// \brief For every point i of the last search(): `flagged[i]` = its neighbours j with
   ///        `flags[j] != 0`, `neighbors[i]` = its valid neighbours; false when the lists are on

@@ -9,6 +9,7 @@
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/neighbor_search.h"
+#include "ground_filter/neighborhood_pca.h"  // PointPca, computeNeighborhoodPca (were here)
 
 namespace ground_filter {
 
@@ -74,19 +75,6 @@ class NormalGroundFilter : public GroundFilter {
   std::string backend_note_;
   std::unique_ptr<Impl> impl_;  // neighbour backend and scratch buffers reused between calls
 };
-
-/// \brief Per-point PCA of a K neighbourhood, as the filter computes it.
-struct PointPca {
-  float normal[3] = {0.f, 0.f, 0.f};  ///< unit eigenvector of the smallest eigenvalue (sign free)
-  float eigen[3] = {0.f, 0.f, 0.f};   ///< eigenvalues ascending, divided by their sum (0 if none)
-  bool valid = false;                 ///< false when fewer than 3 neighbours or zero spread
-};
-
-/// \brief PCA of the centred covariance of every row of `lists` over packed `xyz`, in double,
-///        with Eigen's closed-form 3x3 solver; `threads` 0 = all cores. Same result for any
-///        thread count.
-void computeNeighborhoodPca(const float* xyz, const NeighborLists& lists, int threads,
-                            std::vector<PointPca>* out);
 
 }  // namespace ground_filter
 

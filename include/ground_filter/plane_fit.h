@@ -6,14 +6,19 @@
 
 namespace ground_filter {
 
-/// \brief Plane n . p + d = 0 with a unit normal pointing up (n.z >= 0).
+/// \brief Plane n . (p - origin) + d = 0 with a unit normal; the one plane type of the package.
+///
+/// PlaneAccumulator::fit() gives n.z >= 0 and origin 0; the normal filter's RANSAC keeps a point
+/// of the cloud as origin (offsets stay small for far-away coordinates) and n's sign as fitted.
 struct Plane {
-  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  ///< unit normal, n.z >= 0
-  double d = 0.0;                                     ///< offset [m]
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  ///< unit normal
+  double d = 0.0;                                     ///< offset relative to `origin` [m]
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();   ///< reference point [m]
 
-  /// \brief Signed distance of (x, y, z) [m], positive above the plane.
+  /// \brief Signed distance of (x, y, z) [m], positive on the normal's side.
   double distance(double x, double y, double z) const {
-    return normal.x() * x + normal.y() * y + normal.z() * z + d;
+    return normal.x() * (x - origin.x()) + normal.y() * (y - origin.y()) +
+           normal.z() * (z - origin.z()) + d;
   }
 };
 

@@ -6,7 +6,7 @@
 #include <string>
 
 #include "ground_filter/kdtree_neighbor_search.h"
-#include "ground_filter/normal_ground_filter.h"
+#include "ground_filter/neighborhood_pca.h"
 
 namespace ground_filter {
 

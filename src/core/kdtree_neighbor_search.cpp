@@ -12,13 +12,8 @@
 #include <string>
 #include <vector>
 
-#if defined(__GNUC__) && defined(__x86_64__)
-#include <immintrin.h>
-#define GF_KNN_HAVE_AVX512 1
-#define GF_KNN_TARGET_AVX512 __attribute__((target("avx512f")))
-#else
-#define GF_KNN_HAVE_AVX512 0
-#endif
+#include "avx512_common.h"
+#include "ground_filter/neighborhood_pca.h"
 
 #if defined(__GNUC__)
 #define GF_KNN_ALWAYS_INLINE inline __attribute__((always_inline))
@@ -366,7 +361,7 @@ GF_KNN_ALWAYS_INLINE void queryRange(const Tree& t, std::size_t pb, std::size_t 
   }
 }
 
-#if GF_KNN_HAVE_AVX512
+#if GF_HAVE_AVX512
 
 // GCC's intrinsics start some results from _mm512_undefined_*(), which -Wmaybe-uninitialized
 // reports at every inlined use (a known false positive).
@@ -374,25 +369,17 @@ GF_KNN_ALWAYS_INLINE void queryRange(const Tree& t, std::size_t pb, std::size_t 
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #pragma GCC diagnostic ignored "-Wuninitialized"
 
-/// Keeps the compiler from fusing a product into a later addition (FMA rounds differently).
-GF_KNN_TARGET_AVX512 inline __m512 opaque(__m512 v) {
-  asm("" : "+v"(v));
-  return v;
-}
-GF_KNN_TARGET_AVX512 inline __m128 opaque(__m128 v) {
-  asm("" : "+v"(v));
-  return v;
-}
+using simd::opaque;
 
 // Bitonic network on R zmm registers of 8 uint64 keys each, ascending.
 
-GF_KNN_TARGET_AVX512 inline __m512i reverseLanes(__m512i v) {
+GF_TARGET_AVX512 inline __m512i reverseLanes(__m512i v) {
   return _mm512_permutexvar_epi64(_mm512_set_epi64(0, 1, 2, 3, 4, 5, 6, 7), v);
 }
 
 /// Compare-exchange of every lane with lane ^ M; lanes with bit H set keep the larger key.
 template <int M, int H>
-GF_KNN_TARGET_AVX512 inline __m512i laneStep(__m512i v) {
+GF_TARGET_AVX512 inline __m512i laneStep(__m512i v) {
   const __m512i idx = _mm512_set_epi64(7 ^ M, 6 ^ M, 5 ^ M, 4 ^ M, 3 ^ M, 2 ^ M, 1 ^ M, 0 ^ M);
   const __m512i p = _mm512_permutexvar_epi64(idx, v);
   constexpr __mmask8 kHigh = H == 1 ? 0xAA : H == 2 ? 0xCC : 0xF0;
@@ -400,13 +387,13 @@ GF_KNN_TARGET_AVX512 inline __m512i laneStep(__m512i v) {
 }
 
 /// Sorts each register's lanes given that they form a bitonic sequence.
-GF_KNN_TARGET_AVX512 inline __m512i laneMerge(__m512i v) {
+GF_TARGET_AVX512 inline __m512i laneMerge(__m512i v) {
   return laneStep<1, 1>(laneStep<2, 2>(laneStep<4, 4>(v)));
 }
 
 /// Sorts the bitonic sequence v[0..R) (register-level half-cleaners, then lanes).
 template <int R>
-GF_KNN_TARGET_AVX512 inline void bitonicMerge(__m512i* v) {
+GF_TARGET_AVX512 inline void bitonicMerge(__m512i* v) {
   for (int s = R / 2; s >= 1; s /= 2) {
     for (int i = 0; i < R; ++i) {
       if (i & s) continue;
@@ -418,7 +405,7 @@ GF_KNN_TARGET_AVX512 inline void bitonicMerge(__m512i* v) {
   for (int i = 0; i < R; ++i) v[i] = laneMerge(v[i]);
 }
 
-GF_KNN_TARGET_AVX512 inline void compareExchange(__m512i* a, __m512i* b) {
+GF_TARGET_AVX512 inline void compareExchange(__m512i* a, __m512i* b) {
   const __m512i lo = _mm512_min_epu64(*a, *b);
   *b = _mm512_max_epu64(*a, *b);
   *a = lo;
@@ -426,7 +413,7 @@ GF_KNN_TARGET_AVX512 inline void compareExchange(__m512i* a, __m512i* b) {
 
 /// Sorts each of 8 registers: an 8-input sorting network across the registers (every lane
 /// position sorted), then an 8 x 8 transpose.
-GF_KNN_TARGET_AVX512 inline void sortRegisters8(__m512i* v) {
+GF_TARGET_AVX512 inline void sortRegisters8(__m512i* v) {
   // The optimal 19-comparator network for 8 inputs (Knuth, TAOCP 5.3.4).
   compareExchange(&v[0], &v[2]);
   compareExchange(&v[1], &v[3]);
@@ -470,7 +457,7 @@ GF_KNN_TARGET_AVX512 inline void sortRegisters8(__m512i* v) {
 
 /// Sorts the 8R keys of v ascending.
 template <int R>
-GF_KNN_TARGET_AVX512 inline void bitonicSort(__m512i* v) {
+GF_TARGET_AVX512 inline void bitonicSort(__m512i* v) {
   if (R % 8 == 0) {
     for (int i = 0; i < R; i += 8) sortRegisters8(v + i);
   } else {
@@ -506,7 +493,7 @@ class TopKAvx512 {
  public:
   static constexpr int kSlots = 8 * R;
 
-  GF_KNN_TARGET_AVX512 void init(int k, float bound) {
+  GF_TARGET_AVX512 void init(int k, float bound) {
     k_ = k;
     pending_ = 0;
     thr_ = bound;
@@ -514,7 +501,7 @@ class TopKAvx512 {
   }
   float threshold() const { return thr_; }
 
-  GF_KNN_TARGET_AVX512 static float boxDist(const Node& nd, const float* q) {
+  GF_TARGET_AVX512 static float boxDist(const Node& nd, const float* q) {
     const __m128 q4 = _mm_load_ps(q);  // q[3] = 0, like the boxes' padding
     const __m128 lo = _mm_load_ps(nd.lo), hi = _mm_load_ps(nd.hi);
     const __m128 t =
@@ -524,7 +511,7 @@ class TopKAvx512 {
            _mm_cvtss_f32(_mm_shuffle_ps(t2, t2, 2));
   }
 
-  GF_KNN_TARGET_AVX512 void scan(const Tree& t, const Node& nd, const float* q) {
+  GF_TARGET_AVX512 void scan(const Tree& t, const Node& nd, const float* q) {
     const std::uint32_t b = nd.begin;
     int m = static_cast<int>(nd.scan_end - b);
     const float *x = t.px.data() + b, *y = t.py.data() + b, *z = t.pz.data() + b;
@@ -548,7 +535,7 @@ class TopKAvx512 {
           _mm512_add_ps(_mm512_add_ps(opaque(_mm512_mul_ps(dx, dx)), opaque(_mm512_mul_ps(dy, dy))),
                         opaque(_mm512_mul_ps(dz, dz)));
       const __mmask16 keep = _mm512_mask_cmp_ps_mask(in, d, _mm512_set1_ps(thr_), _CMP_LE_OQ);
-      if (!keep) continue;
+      // No branch on `keep`: a candidate is found in about one block in four, unpredictably.
       // Compress in a register, then a plain store (compress-to-memory is slow on some CPUs).
       _mm512_storeu_si512(cand_d_ + pending_,
                           _mm512_maskz_compress_epi32(keep, _mm512_castps_si512(d)));
@@ -567,13 +554,13 @@ class TopKAvx512 {
     }
   }
 
-  GF_KNN_TARGET_AVX512 void finish() {
+  GF_TARGET_AVX512 void finish() {
     if (pending_ > 0 || empty_) flush();
   }
   bool complete() const { return top_[k_ - 1] != kNoKey; }
   std::uint64_t key(int j) const { return top_[j]; }
 
-  GF_KNN_TARGET_AVX512 void write(std::int32_t* idx, float* dist) const {
+  GF_TARGET_AVX512 void write(std::int32_t* idx, float* dist) const {
     const __m512i lo_sel =
         _mm512_set_epi32(30, 28, 26, 24, 22, 20, 18, 16, 14, 12, 10, 8, 6, 4, 2, 0);
     const __m512i hi_sel =
@@ -588,7 +575,7 @@ class TopKAvx512 {
 
  private:
   /// Sorts the pending candidates and merges them into the top list.
-  GF_KNN_TARGET_AVX512 void flush() {
+  GF_TARGET_AVX512 void flush() {
     __m512i c[R];
     const __m512i none = _mm512_set1_epi64(-1);
     for (int r = 0; r < R; ++r) {
@@ -636,8 +623,8 @@ class TopKAvx512 {
   bool empty_ = true;
 };
 
-GF_KNN_TARGET_AVX512 void queryRangeAvx512(const Tree& t, std::size_t pb, std::size_t pe, int k,
-                                           std::int32_t* out_idx, float* out_dist) {
+GF_TARGET_AVX512 void queryRangeAvx512(const Tree& t, std::size_t pb, std::size_t pe, int k,
+                                       std::int32_t* out_idx, float* out_dist) {
   if (k <= 64) {
     TopKAvx512<8> set;
     queryRange(t, pb, pe, k, &set, out_idx, out_dist);
@@ -652,13 +639,13 @@ GF_KNN_TARGET_AVX512 void queryRangeAvx512(const Tree& t, std::size_t pb, std::s
 
 #pragma GCC diagnostic pop
 
-bool cpuHasAvx512() { return __builtin_cpu_supports("avx512f"); }
+bool cpuHasAvx512() { return simd::cpuHasAvx512(); }
 
 #else
 
 bool cpuHasAvx512() { return false; }
 
-#endif  // GF_KNN_HAVE_AVX512
+#endif  // GF_HAVE_AVX512
 
 void queryRangeScalar(const Tree& t, std::size_t pb, std::size_t pe, int k, std::int32_t* out_idx,
                       float* out_dist) {
@@ -703,6 +690,24 @@ KdTreeNeighborSearch::~KdTreeNeighborSearch() = default;
 void KdTreeNeighborSearch::setUseAvx512(bool use) { use_avx512_ = use && cpuHasAvx512(); }
 
 void KdTreeNeighborSearch::search(const float* xyz, std::size_t n, int k, NeighborLists* out) {
+  run(xyz, n, k, out, nullptr);
+}
+
+bool KdTreeNeighborSearch::searchWithPca(const float* xyz, std::size_t n, int k, NeighborLists* out,
+                                         std::vector<PointPca>* pca) {
+  run(xyz, n, k, out, pca);
+  return true;
+}
+
+std::vector<std::pair<std::string, double>> KdTreeNeighborSearch::lastStageMs() const {
+  std::vector<std::pair<std::string, double>> st = {{"kdtree_build", build_ms_},
+                                                    {"knn", query_ms_}};
+  if (with_pca_) st.emplace_back("pca", pca_ms_);
+  return st;
+}
+
+void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborLists* out,
+                               std::vector<PointPca>* pca) {
   if (n > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
     throw std::invalid_argument("KdTreeNeighborSearch: " + std::to_string(n) +
                                 " points, more than the int32 neighbour indices can address");
@@ -713,11 +718,21 @@ void KdTreeNeighborSearch::search(const float* xyz, std::size_t n, int k, Neighb
   out->points = n;
   out->indices.resize(n * kk);
   out->sq_dists.resize(n * kk);
-  build_ms_ = query_ms_ = 0.0;
-  if (n == 0 || kk == 0) return;
+  build_ms_ = query_ms_ = pca_ms_ = 0.0;
+  with_pca_ = pca != nullptr;
+  if (pca) pca->resize(n);
+  if (n == 0 || kk == 0) {
+    if (pca) std::fill(pca->begin(), pca->end(), PointPca());
+    return;
+  }
   if (n < kk) {  // every row holds the whole cloud
     bruteForce(xyz, n, static_cast<int>(kk), out);
     query_ms_ = msSince(t0);
+    if (pca) {
+      const auto t1 = Clock::now();
+      computeNeighborhoodPca(xyz, *out, 1, pca);
+      pca_ms_ = msSince(t1);
+    }
     return;
   }
 
@@ -728,23 +743,39 @@ void KdTreeNeighborSearch::search(const float* xyz, std::size_t n, int k, Neighb
   build_ms_ = msSince(t0);
 
   const auto t1 = Clock::now();
-  // Chunks of consecutive tree positions; each chunk's first query starts unbounded.
+  // Chunks of consecutive tree positions; each chunk's first query starts unbounded. With PCA,
+  // each chunk's lists are used right after they are written, while they are in cache.
   constexpr std::size_t kChunk = 1024;
   const std::int64_t chunks = static_cast<std::int64_t>((n + kChunk - 1) / kChunk);
   const bool avx512 = use_avx512_ && kk <= kMaxAvx512K;
-#pragma omp parallel for num_threads(threads) schedule(dynamic, 1)
+  double knn_cpu = 0.0, pca_cpu = 0.0;  // summed over threads, to split the wall time
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 1) reduction(+ : knn_cpu, pca_cpu)
   for (std::int64_t c = 0; c < chunks; ++c) {
     const std::size_t pb = static_cast<std::size_t>(c) * kChunk, pe = std::min(n, pb + kChunk);
-#if GF_KNN_HAVE_AVX512
+    const auto tq = Clock::now();
+#if GF_HAVE_AVX512
     if (avx512) {
       queryRangeAvx512(im, pb, pe, static_cast<int>(kk), out->indices.data(), out->sq_dists.data());
-      continue;
+    } else {
+      queryRangeScalar(im, pb, pe, static_cast<int>(kk), out->indices.data(), out->sq_dists.data());
     }
-#endif
+#else
     queryRangeScalar(im, pb, pe, static_cast<int>(kk), out->indices.data(), out->sq_dists.data());
+#endif
+    if (pca) {
+      const auto tp = Clock::now();
+      knn_cpu += std::chrono::duration<double, std::milli>(tp - tq).count();
+      computeRowsPca(xyz, out->indices.data(), static_cast<int>(kk), im.pidx.data() + pb, pe - pb,
+                     pca->data());
+      pca_cpu += msSince(tp);
+    }
   }
   (void)avx512;
-  query_ms_ = msSince(t1);
+  const double wall = msSince(t1);
+  // Fused: the parts' shares of the thread time, applied to the wall time.
+  const double share = pca && knn_cpu + pca_cpu > 0.0 ? pca_cpu / (knn_cpu + pca_cpu) : 0.0;
+  pca_ms_ = wall * share;
+  query_ms_ = wall - pca_ms_;
 }
 
 }  // namespace ground_filter

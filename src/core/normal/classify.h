@@ -1,0 +1,20 @@
+#ifndef GROUND_FILTER_SRC_CORE_NORMAL_CLASSIFY_H
+#define GROUND_FILTER_SRC_CORE_NORMAL_CLASSIFY_H
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace ground_filter {
+namespace normal {
+
+/// \brief Stage 6: kGround at input index source[j] for every ordered point j with ground[j];
+///        every other entry of `labels` is left as it is (kNonGround).
+/// \return the number of ground points.
+std::size_t classify(const std::vector<std::uint8_t>& ground,
+                     const std::vector<std::uint32_t>& source, std::vector<std::uint8_t>* labels);
+
+}  // namespace normal
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_CORE_NORMAL_CLASSIFY_H

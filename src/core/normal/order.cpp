@@ -1,0 +1,91 @@
+// Stage 1 of the normal filter: compaction of the finite points, grid-column (Morton) order,
+// segments.
+
+#include "order.h"
+
+#include <limits>
+
+#include "radix_sort.h"
+
+namespace ground_filter {
+namespace normal {
+
+namespace {
+
+/// Spreads the 32 bits of v over the even bits of a 64-bit word (Morton interleave).
+std::uint64_t spreadBits(std::uint64_t v) {
+  v &= 0xffffffffULL;
+  v = (v | (v << 16)) & 0x0000ffff0000ffffULL;
+  v = (v | (v << 8)) & 0x00ff00ff00ff00ffULL;
+  v = (v | (v << 4)) & 0x0f0f0f0f0f0f0f0fULL;
+  v = (v | (v << 2)) & 0x3333333333333333ULL;
+  v = (v | (v << 1)) & 0x5555555555555555ULL;
+  return v;
+}
+
+}  // namespace
+
+std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_segments,
+                            int segment_points, int threads) {
+  const std::size_t total = cloud.size();
+  raw_xyz_.resize(3 * total);
+  raw_source_.resize(total);
+  double min_x = std::numeric_limits<double>::infinity(), min_y = min_x;
+  double max_x = -min_x, max_y = -min_x;
+  std::size_t valid = 0;
+  for (std::size_t i = 0; i < total; ++i) {
+    float* o = &raw_xyz_[3 * valid];
+    if (!cloud.get(i, o, o + 1, o + 2)) continue;
+    raw_source_[valid++] = static_cast<std::uint32_t>(i);
+    min_x = std::min<double>(min_x, o[0]);
+    min_y = std::min<double>(min_y, o[1]);
+    max_x = std::max<double>(max_x, o[0]);
+    max_y = std::max<double>(max_y, o[1]);
+  }
+  raw_xyz_.resize(3 * valid);
+  raw_source_.resize(valid);
+  extent_ = Extent{min_x, min_y, max_x, max_y};
+  const std::size_t n = raw_source_.size();
+  xyz_.resize(3 * n);
+  source_.resize(n);
+  segments_.clear();
+  if (n == 0) return 0;
+  // Coarsen the ordering grid for very wide clouds so cell indices fit in 32 bits.
+  const double cell = std::max(cell_size, extent_.size() / 4.0e9);
+  keys_.resize(n);
+  const int nt = static_cast<int>(std::min<std::size_t>(threads, n / 16384 + 1));
+#pragma omp parallel for num_threads(nt) schedule(static)
+  for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
+    const std::uint32_t cx = cellIndex(raw_xyz_[3 * i], min_x, 1.0 / cell);
+    const std::uint32_t cy = cellIndex(raw_xyz_[3 * i + 1], min_y, 1.0 / cell);
+    keys_[i] = spreadBits(cx) | (spreadBits(cy) << 1);
+  }
+  radixSortByKey(keys_, &order_, &sort_scratch_);
+#pragma omp parallel for num_threads(nt) schedule(static)
+  for (std::int64_t j = 0; j < static_cast<std::int64_t>(n); ++j) {
+    const std::uint32_t s = order_[j];
+    std::copy_n(&raw_xyz_[3 * static_cast<std::size_t>(s)], 3, &xyz_[3 * j]);
+    source_[j] = raw_source_[s];
+  }
+  // Segments of at most segment_points, cut at column borders (whole cloud when disabled).
+  if (use_segments) {
+    const std::size_t seg = static_cast<std::size_t>(segment_points);
+    std::size_t begin = 0;
+    while (begin < n) {
+      std::size_t end = std::min(n, begin + seg);
+      if (end < n) {
+        std::size_t cut = end;
+        while (cut > begin + 1 && keys_[order_[cut - 1]] == keys_[order_[cut]]) --cut;
+        if (cut > begin + 1) end = cut;  // else one column is larger than a segment: split it
+      }
+      segments_.emplace_back(begin, end);
+      begin = end;
+    }
+  } else {
+    segments_.emplace_back(0, n);
+  }
+  return n;
+}
+
+}  // namespace normal
+}  // namespace ground_filter

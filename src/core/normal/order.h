@@ -1,0 +1,55 @@
+#ifndef GROUND_FILTER_SRC_CORE_NORMAL_ORDER_H
+#define GROUND_FILTER_SRC_CORE_NORMAL_ORDER_H
+
+#include <algorithm>
+#include <cstddef>
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "ground_filter/cloud_view.h"
+
+namespace ground_filter {
+namespace normal {
+
+/// \brief x/y bounding box of the valid points.
+struct Extent {
+  double min_x = 0.0, min_y = 0.0, max_x = 0.0, max_y = 0.0;
+  /// \brief Larger side of the box [m].
+  double size() const { return std::max(max_x - min_x, max_y - min_y); }
+};
+
+/// \brief Stage 1 ("sort"): the finite points compacted and ordered by x/y grid column (Morton
+///        order of the cells), so neighbouring points are close in memory, then cut into
+///        segments of whole columns.
+class OrderStage {
+ public:
+  /// \brief Orders the valid points of `cloud` on a `cell_size` grid; with `use_segments`, cuts
+  ///        them into segments of at most `segment_points` (else one segment); `threads` for the
+  ///        per-point loops.
+  /// \return the number of valid points.
+  std::size_t run(const CloudView& cloud, double cell_size, bool use_segments, int segment_points,
+                  int threads);
+
+  /// \brief Valid points, packed x y z, in column order.
+  const std::vector<float>& xyz() const { return xyz_; }
+  /// \brief Input index of each ordered point.
+  const std::vector<std::uint32_t>& source() const { return source_; }
+  /// \brief Segments [begin, end) in column order.
+  const std::vector<std::pair<std::size_t, std::size_t>>& segments() const { return segments_; }
+  /// \brief Bounding box of the valid points.
+  const Extent& extent() const { return extent_; }
+
+ private:
+  std::vector<float> raw_xyz_, xyz_;
+  std::vector<std::uint32_t> raw_source_, source_;
+  std::vector<std::uint64_t> keys_;
+  std::vector<std::uint32_t> order_, sort_scratch_;
+  std::vector<std::pair<std::size_t, std::size_t>> segments_;
+  Extent extent_;
+};
+
+}  // namespace normal
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_CORE_NORMAL_ORDER_H

@@ -1,0 +1,226 @@
+// Stage 5 of the normal filter: RANSAC plane(s) through the voted points and the distance test.
+
+#include "plane.h"
+
+#include <omp.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+
+#include "radix_sort.h"
+
+namespace ground_filter {
+namespace normal {
+
+namespace {
+
+/// Small deterministic generator (splitmix64): same sequence on every platform and library.
+struct SplitMix64 {
+  std::uint64_t state;
+  explicit SplitMix64(std::uint64_t seed) : state(seed) {}
+  std::uint64_t next() {
+    std::uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+  }
+  std::size_t below(std::size_t n) { return static_cast<std::size_t>(next() % n); }
+};
+
+constexpr std::uint64_t kRansacSeed = 0x67f1a3c5d2b9e481ULL;  // fixed: reproducible output
+constexpr std::size_t kRansacEvalPoints = 2048;  // hypotheses are scored on at most this many
+constexpr std::size_t kMinTilePoints = 10;  // fewer voted points: the tile uses the global plane
+
+double distanceOf(const Plane& plane, const float* p) { return plane.distance(p[0], p[1], p[2]); }
+
+}  // namespace
+
+bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int iterations,
+                    double threshold, double max_tilt_cos, std::uint64_t seed,
+                    std::vector<std::uint32_t>* eval_scratch, Plane* plane) {
+  Plane best;
+  const std::size_t m = idx.size();
+  if (m < 3) return false;
+  const float* o = xyz + 3 * static_cast<std::size_t>(idx[0]);
+  best.origin = Eigen::Vector3d(o[0], o[1], o[2]);
+  auto point = [&](std::uint32_t i) {
+    const float* p = xyz + 3 * static_cast<std::size_t>(i);
+    return Eigen::Vector3d(p[0] - best.origin.x(), p[1] - best.origin.y(), p[2] - best.origin.z());
+  };
+  // Score on an evenly strided subset of large sets (deterministic, keeps big tiles cheap).
+  std::vector<std::uint32_t>& eval = *eval_scratch;
+  eval.clear();
+  const std::size_t stride = (m + kRansacEvalPoints - 1) / kRansacEvalPoints;
+  for (std::size_t i = 0; i < m; i += stride) eval.push_back(idx[i]);
+
+  SplitMix64 rng(seed);
+  std::size_t best_count = 0;
+  Eigen::Vector3d best_n = Eigen::Vector3d::UnitZ();
+  double best_d = 0.0;
+  double needed = iterations;
+  for (int it = 0; it < iterations && it < needed; ++it) {
+    const std::size_t a = rng.below(m), b = rng.below(m), c = rng.below(m);
+    if (a == b || a == c || b == c) continue;
+    const Eigen::Vector3d pa = point(idx[a]);
+    Eigen::Vector3d nrm = (point(idx[b]) - pa).cross(point(idx[c]) - pa);
+    const double len = nrm.norm();
+    if (!(len > 1e-9)) continue;  // collinear or duplicate sample
+    nrm /= len;
+    if (std::abs(nrm.z()) < max_tilt_cos) continue;
+    const double d = -nrm.dot(pa);
+    std::size_t count = 0;
+    for (std::uint32_t i : eval) {
+      if (std::abs(nrm.dot(point(i)) + d) <= threshold) ++count;
+    }
+    if (count > best_count) {
+      best_count = count;
+      best_n = nrm;
+      best_d = d;
+      // Adaptive stop: enough hypotheses for 99 % confidence at this inlier ratio.
+      const double w = static_cast<double>(count) / static_cast<double>(eval.size());
+      const double fail = 1.0 - w * w * w;
+      needed = fail <= 0.0 ? 0.0 : std::ceil(std::log(0.01) / std::log(fail));
+    }
+  }
+  if (best_count < 3) return false;
+
+  // Least-squares refinement on all inliers (centred covariance, smallest eigenvector).
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  std::size_t inliers = 0;
+  for (std::uint32_t i : idx) {
+    const Eigen::Vector3d p = point(i);
+    if (std::abs(best_n.dot(p) + best_d) <= threshold) {
+      mean += p;
+      ++inliers;
+    }
+  }
+  best.normal = best_n;
+  best.d = best_d;
+  *plane = best;
+  if (inliers < 3) return true;
+  mean /= static_cast<double>(inliers);
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (std::uint32_t i : idx) {
+    const Eigen::Vector3d p = point(i);
+    if (std::abs(best_n.dot(p) + best_d) <= threshold) {
+      const Eigen::Vector3d q = p - mean;
+      cov.noalias() += q * q.transpose();
+    }
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+  es.computeDirect(cov);
+  Eigen::Vector3d n = es.eigenvectors().col(0);
+  if (n.dot(best_n) < 0.0) n = -n;
+  if (std::isfinite(n.x()) && std::abs(n.z()) >= max_tilt_cos) {
+    plane->normal = n;
+    plane->d = -n.dot(mean);
+  }
+  return true;
+}
+
+void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
+                     const Extent& extent, const NormalGroundFilterParams& p, double min_abs_nz,
+                     int threads, std::vector<std::uint8_t>* ground_out) {
+  const std::size_t n = voted.size();
+  std::vector<std::uint8_t>& ground = *ground_out;
+  ground.assign(n, 0);
+  keys_.resize(n);
+  if (p.local_planes) {
+    const double tile = std::max(p.tile_size, extent.size() / 4.0e9);
+    const int nt = static_cast<int>(std::min<std::size_t>(threads, n / 16384 + 1));
+#pragma omp parallel for num_threads(nt) schedule(static)
+    for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
+      const std::uint32_t tx = cellIndex(xyz[3 * i], extent.min_x, 1.0 / tile);
+      const std::uint32_t ty = cellIndex(xyz[3 * i + 1], extent.min_y, 1.0 / tile);
+      keys_[i] = (static_cast<std::uint64_t>(tx) << 32) | ty;
+    }
+  } else {
+    std::fill(keys_.begin(), keys_.end(), 0);
+  }
+  radixSortByKey(keys_, &tile_order_, &sort_scratch_);
+  tiles_.clear();
+  for (std::size_t b = 0; b < n;) {
+    std::size_t e = b + 1;
+    while (e < n && keys_[tile_order_[e]] == keys_[tile_order_[b]]) ++e;
+    tiles_.emplace_back(b, e);
+    b = e;
+  }
+
+  // Cloud-wide plane: the only one without local planes, the fallback for sparse tiles.
+  thread_idx_.resize(threads);
+  thread_eval_.resize(threads);
+  bool need_global = !p.local_planes;
+  for (const auto& tl : tiles_) {
+    if (need_global) break;
+    std::size_t count = 0;
+    for (std::size_t j = tl.first; j < tl.second && count < kMinTilePoints; ++j) {
+      count += voted[tile_order_[j]];
+    }
+    need_global = count < kMinTilePoints;
+  }
+  Plane global;
+  bool global_valid = false;
+  if (need_global) {
+    std::vector<std::uint32_t>& all_voted = thread_idx_[0];
+    all_voted.clear();
+    for (std::size_t i = 0; i < n; ++i) {
+      if (voted[i]) all_voted.push_back(static_cast<std::uint32_t>(i));
+    }
+    global_valid = fitPlaneRansac(xyz.data(), all_voted, p.ransac_iterations, p.plane_distance,
+                                  min_abs_nz, kRansacSeed, &thread_eval_[0], &global);
+  }
+
+  const int nt = static_cast<int>(std::min<std::size_t>(threads, tiles_.size()));
+#pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
+  for (std::int64_t t = 0; t < static_cast<std::int64_t>(tiles_.size()); ++t) {
+    const int tid = omp_get_thread_num();
+    std::vector<std::uint32_t>& tv = thread_idx_[tid];
+    const std::size_t tb = tiles_[t].first, te = tiles_[t].second;
+    tv.clear();
+    for (std::size_t j = tb; j < te; ++j) {
+      if (voted[tile_order_[j]]) tv.push_back(tile_order_[j]);
+    }
+    Plane plane = global;
+    bool valid = global_valid;
+    if (p.local_planes && tv.size() >= kMinTilePoints) {
+      const std::uint64_t seed = kRansacSeed ^ (keys_[tile_order_[tb]] * 0x9e3779b97f4a7c15ULL);
+      Plane fit;
+      if (fitPlaneRansac(xyz.data(), tv, p.ransac_iterations, p.plane_distance, min_abs_nz, seed,
+                         &thread_eval_[tid], &fit)) {
+        plane = fit;
+        valid = true;
+      }
+    }
+    if (!valid) continue;
+    // Band of the voted points' signed distances within the threshold.
+    double lo = -p.plane_distance, hi = p.plane_distance;
+    if (p.std_filter) {
+      double s = 0.0, s2 = 0.0;
+      std::size_t c = 0;
+      for (std::uint32_t i : tv) {
+        const double d = distanceOf(plane, &xyz[3 * static_cast<std::size_t>(i)]);
+        if (std::abs(d) <= p.plane_distance) {
+          s += d;
+          s2 += d * d;
+          ++c;
+        }
+      }
+      if (c > 0) {
+        const double mean = s / c;
+        const double sd = std::sqrt(std::max(0.0, s2 / c - mean * mean));
+        lo = std::max(lo, mean - p.std_multiplier * sd);
+        hi = std::min(hi, mean + p.std_multiplier * sd);
+      }
+    }
+    for (std::size_t j = tb; j < te; ++j) {
+      const std::uint32_t i = tile_order_[j];
+      if (!voted[i] && !p.plane_all_points) continue;
+      const double d = distanceOf(plane, &xyz[3 * static_cast<std::size_t>(i)]);
+      ground[i] = d >= lo && d <= hi;
+    }
+  }
+}
+
+}  // namespace normal
+}  // namespace ground_filter

@@ -1,0 +1,43 @@
+#ifndef GROUND_FILTER_SRC_CORE_NORMAL_PLANE_H
+#define GROUND_FILTER_SRC_CORE_NORMAL_PLANE_H
+
+#include <cstddef>
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "ground_filter/normal_ground_filter.h"
+#include "ground_filter/plane_fit.h"
+#include "order.h"
+
+namespace ground_filter {
+namespace normal {
+
+/// \brief RANSAC plane through the points `idx` of packed `xyz`, its normal within
+///        `max_tilt_cos` of vertical (|n_z| >= max_tilt_cos), refined by least squares on its
+///        inliers; scored on at most 2048 evenly strided points; `seed` fixes the samples.
+/// \return false when no plane was found (fewer than 3 points or no hypothesis).
+bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int iterations,
+                    double threshold, double max_tilt_cos, std::uint64_t seed,
+                    std::vector<std::uint32_t>* eval_scratch, Plane* plane);
+
+/// \brief Stage 5 ("plane"): RANSAC plane per x/y tile (or one for the cloud) through the voted
+///        points, then the distance test (and the mean +- std band) that decides ground.
+class PlaneStage {
+ public:
+  /// \brief ground[i] for the `voted.size()` packed points `xyz` inside `extent`.
+  void run(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
+           const Extent& extent, const NormalGroundFilterParams& p, double min_abs_nz, int threads,
+           std::vector<std::uint8_t>* ground);
+
+ private:
+  std::vector<std::uint64_t> keys_;
+  std::vector<std::uint32_t> tile_order_, sort_scratch_;
+  std::vector<std::pair<std::size_t, std::size_t>> tiles_;  // [begin, end) in tile_order_
+  std::vector<std::vector<std::uint32_t>> thread_idx_, thread_eval_;
+};
+
+}  // namespace normal
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_CORE_NORMAL_PLANE_H

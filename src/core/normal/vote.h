@@ -1,0 +1,29 @@
+#ifndef GROUND_FILTER_SRC_CORE_NORMAL_VOTE_H
+#define GROUND_FILTER_SRC_CORE_NORMAL_VOTE_H
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "ground_filter/neighbor_search.h"
+
+namespace ground_filter {
+namespace normal {
+
+/// \brief Stage 4 ("vote"): naive-Bayes vote of each point's neighbourhood over the candidates.
+class VoteStage {
+ public:
+  /// \brief voted[i] for the `len` points of a segment from their lists (`lists`, or the lists
+  ///        `search` keeps on its device) and the `candidates` flagged in `candidate`; without
+  ///        `bayes` the candidates are copied.
+  void run(NeighborSearch* search, const NeighborLists& lists, const std::uint8_t* candidate,
+           std::size_t len, std::size_t candidates, bool bayes, int threads, std::uint8_t* voted);
+
+ private:
+  std::vector<std::uint16_t> flagged_, size_;  // per-point counts from a GPU backend
+};
+
+}  // namespace normal
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_CORE_NORMAL_VOTE_H
