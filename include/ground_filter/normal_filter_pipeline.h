@@ -9,7 +9,7 @@
 namespace ground_filter {
 
 struct FilterStats;               // ground_filter.h
-struct NormalGroundFilterParams;  // normal_ground_filter.h
+struct NormalGroundFilterParams;  // normal_ground_filter_params.h
 
 /// \brief Optional second interface of a NeighborSearch backend that can run the whole
 ///        normal-vector filter where its lists live (the GPU backend).

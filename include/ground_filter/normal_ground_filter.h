@@ -10,37 +10,9 @@
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/neighbor_search.h"
 #include "ground_filter/neighborhood_pca.h"  // PointPca, computeNeighborhoodPca (were here)
+#include "ground_filter/normal_ground_filter_params.h"
 
 namespace ground_filter {
-
-/// \brief Parameters of the normal-vector method (Diaz et al., section 2.3.1). One line per field:
-///        meaning [unit] (default; paper value when it differs).
-struct NormalGroundFilterParams {
-  double cell_size = 0.10;          ///< x/y grid cell ordering points into columns [m] (0.10)
-  int k = 50;                       ///< neighbours per point, itself included [points] (50; 3..256)
-  double min_normal_angle = 80.0;   ///< normal-to-horizontal angle window, low end [deg] (80)
-  double max_normal_angle = 100.0;  ///< normal-to-horizontal angle window, high end [deg] (100)
-  double min_planarity = 0.0;       ///< flat: planarity dominant and >= this (see README) [1] (0)
-  bool bayes_vote = true;           ///< naive-Bayes vote over each K neighbourhood [bool] (true)
-  double plane_distance = 0.15;  ///< max point-to-plane distance of a ground point [m] (paper 0.10)
-  bool std_filter = false;       ///< also require mean +- std_multiplier * std of distances [bool]
-  double std_multiplier = 1.0;   ///< width of that band in standard deviations [1] (1.0, paper)
-  int ransac_iterations = 100;   ///< RANSAC hypotheses per plane, at most [1] (100)
-  bool plane_all_points = true;  ///< plane test labels every point, not only voted ones [bool]
-  bool local_planes = true;      ///< one plane per tile instead of one for the cloud [bool]
-  double tile_size = 4.0;        ///< tile edge for local planes [m] (4.0)
-  bool use_segments = false;     ///< paper's segments: no neighbours across borders [bool]
-  int segment_points = 65536;    ///< points per segment, at most [points] (65536, paper)
-  std::string knn_backend = "kdtree";  ///< neighbour search: kdtree | gpu [enum] (kdtree)
-  int threads = 0;                     ///< worker threads, 0 = all cores [threads] (0)
-
-  /// \brief Sets one field from text (CLI `--set NAME=VALUE`).
-  /// \throws std::invalid_argument for an unknown name or a malformed value.
-  void set(const std::string& name, const std::string& value);
-  /// \brief Checks every field's range.
-  /// \throws std::invalid_argument naming the first bad field, its value and its range.
-  void validate() const;
-};
 
 /// \brief Normal-vector ground filter: K nearest neighbours, PCA normal and flatness per point,
 ///        ground candidates by normal angle, naive-Bayes neighbourhood vote, RANSAC plane(s) and

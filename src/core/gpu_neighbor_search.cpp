@@ -5,8 +5,10 @@
 #include <exception>
 #include <string>
 
+#include "ground_filter/ground_filter.h"
 #include "ground_filter/kdtree_neighbor_search.h"
 #include "ground_filter/neighborhood_pca.h"
+#include "ground_filter/normal_ground_filter_params.h"
 
 namespace ground_filter {
 
