@@ -49,7 +49,14 @@ def key(name):
 
 
 def cpp_includes(rel):
-    return {m for m in re.findall(r'#include\s*[<"]([A-Za-z0-9_]+)/', read(rel))}
+    """Top-level folder of each #include; quoted includes found next to the file are our own."""
+    here = os.path.dirname(os.path.join(ROOT, rel))
+    names = set()
+    for quote, path in re.findall(r'#include\s*([<"])([A-Za-z0-9_]+/[^">]*)[">]', read(rel)):
+        if quote == '"' and os.path.exists(os.path.join(here, path)):
+            continue
+        names.add(path.split("/", 1)[0])
+    return names
 
 
 def is_stdlib(module):
