@@ -4,7 +4,7 @@
 #   .carry/googletest  (Debian's /usr/src/googletest)   .carry/eigen3/Eigen  (/usr/include/eigen3)
 #   .carry/nanoflann/nanoflann.hpp                      .carry/data/00000[0-5].bin (KITTI seq 00)
 #   .carry/data/os128_000000.bin (optional: the Ouster frame as KITTI-style x y z 0 records)
-# Usage: [GF_CMAKE_ARGS="-DGF_CUDA_ARCHS=90"] bash cuda/run_gpu_checks.sh [benchmark args]
+# Usage: [GF_CMAKE_ARGS="-DCMAKE_CUDA_ARCHITECTURES=90"] bash cuda/run_gpu_checks.sh [benchmark args]
 # Logs go to $OUT (the device tool's output folder) or build-cuda/logs.
 set -uo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
