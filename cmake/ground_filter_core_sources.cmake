@@ -5,10 +5,12 @@ set(GF_CORE_SOURCES
   src/core/param_parse.cpp
   src/core/plane_fit.cpp
   src/core/voxel_ground_filter.cpp
+  src/core/voxel_ground_filter_params.cpp
   src/core/filter_factory.cpp
   src/core/metrics.cpp
   src/core/scene_generator.cpp
   src/core/normal_ground_filter.cpp
+  src/core/normal_ground_filter_params.cpp
   src/core/normal/order.cpp
   src/core/normal/neighborhoods.cpp
   src/core/normal/neighborhood_pca.cpp

@@ -3,6 +3,8 @@
 
 #include <string>
 
+#include "ground_filter/param_table.h"
+
 namespace ground_filter {
 
 /// \brief Parameters of the normal-vector method (Diaz et al., section 2.3.1). One line per field:
@@ -32,6 +34,11 @@ struct NormalGroundFilterParams {
   /// \brief Checks every field's range.
   /// \throws std::invalid_argument naming the first bad field, its value and its range.
   void validate() const;
+  /// \brief "name=value ..." of every parameter (log line).
+  std::string describe() const;
+  /// \brief The parameter table (name, member, range, unit) behind set(), validate() and
+  ///        describe(); cfg/NormalGroundFilter.cfg must agree with it.
+  static const ParamTable<NormalGroundFilterParams>& table();
 };
 
 }  // namespace ground_filter

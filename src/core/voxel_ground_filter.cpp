@@ -15,60 +15,6 @@
 
 namespace ground_filter {
 
-// ------------------------------------------------------------------------------------ params
-
-void VoxelGroundFilterParams::set(const std::string& name, const std::string& value) {
-  if (name == "voxel_size") {
-    voxel_size = parseDoubleParam(name, value);
-  } else if (name == "flatness_threshold") {
-    flatness_threshold = parseDoubleParam(name, value);
-  } else if (name == "min_points_per_voxel") {
-    min_points_per_voxel = parseIntParam(name, value);
-  } else if (name == "height_margin") {
-    height_margin = parseDoubleParam(name, value);
-  } else if (name == "seed_window") {
-    seed_window = parseDoubleParam(name, value);
-  } else if (name == "plane_distance") {
-    plane_distance = parseDoubleParam(name, value);
-  } else if (name == "std_filter") {
-    std_filter = parseBoolParam(name, value);
-  } else if (name == "std_multiplier") {
-    std_multiplier = parseDoubleParam(name, value);
-  } else if (name == "local_planes") {
-    local_planes = parseBoolParam(name, value);
-  } else if (name == "tile_size") {
-    tile_size = parseDoubleParam(name, value);
-  } else if (name == "max_slope_deg") {
-    max_slope_deg = parseDoubleParam(name, value);
-  } else if (name == "majority_vote") {
-    majority_vote = parseBoolParam(name, value);
-  } else if (name == "threads") {
-    threads = parseIntParam(name, value);
-  } else {
-    throw std::invalid_argument(
-        "unknown voxel parameter '" + name +
-        "' (known: voxel_size, flatness_threshold, min_points_per_voxel, height_margin, "
-        "seed_window, plane_distance, std_filter, std_multiplier, local_planes, tile_size, "
-        "max_slope_deg, majority_vote, threads)");
-  }
-}
-
-void VoxelGroundFilterParams::validate() const {
-  checkRange("voxel_size", voxel_size, 0.005, 10.0, "m");
-  checkRange("flatness_threshold", flatness_threshold, 0.0001, 10.0, "m");
-  checkRange("min_points_per_voxel", min_points_per_voxel, 1, 1000, "points");
-  checkRange("height_margin", height_margin, 0.01, 100.0, "m");
-  checkRange("seed_window", seed_window, 0.01, 100.0, "m");
-  checkRange("plane_distance", plane_distance, 0.001, 10.0, "m");
-  checkRange("std_multiplier", std_multiplier, 0.1, 10.0, "");
-  checkRange("tile_size", tile_size, 0.01, 1000.0, "m");
-  checkRange("max_slope_deg", max_slope_deg, 0.0, 89.0, "deg");
-  checkRange("threads", threads, 0, 256, "threads");
-  if (tile_size < 2.0 * voxel_size) {
-    throw std::invalid_argument("parameter 'tile_size' must be at least 2 * voxel_size");
-  }
-}
-
 // ------------------------------------------------------------------------------------ impl
 
 namespace {

@@ -1,0 +1,44 @@
+#ifndef GROUND_FILTER_VOXEL_GROUND_FILTER_PARAMS_H
+#define GROUND_FILTER_VOXEL_GROUND_FILTER_PARAMS_H
+
+#include <string>
+
+#include "ground_filter/param_table.h"
+
+namespace ground_filter {
+
+/// \brief Parameters of the voxel method (Diaz et al., section 2.3.2). One line per field:
+///        meaning [unit] (default; paper value when it differs). README, "Voxel method", says
+///        what each step does with them and gives the measurements behind every default that
+///        differs from the paper (paper: plane_distance 0.10, std_filter on, one global plane).
+struct VoxelGroundFilterParams {
+  double voxel_size = 0.10;          ///< voxel edge length [m] (0.10, paper)
+  double flatness_threshold = 0.04;  ///< flat voxel: max z - min z below this [m] (0.04)
+  int min_points_per_voxel = 2;      ///< voxels with fewer points are never flat [points] (2)
+  double height_margin = 1.0;        ///< global: cut over mean flat z; local: seed depth [m] (1.0)
+  double seed_window = 0.2;          ///< local: seeds at most this above the prediction [m] (0.2)
+  double plane_distance = 0.15;      ///< max |distance| of a ground point to its plane [m] (0.15)
+  bool std_filter = false;           ///< mean +- k std band test too [bool] (false; paper on)
+  double std_multiplier = 1.0;       ///< k of that band, in standard deviations [1] (1.0)
+  bool local_planes = true;          ///< grown cell planes, not one plane [bool] (true; paper off)
+  double tile_size = 1.0;            ///< cell edge of the local model, >= 2 voxel_size [m] (1.0)
+  double max_slope_deg = 30.0;       ///< steeper cell / global planes are rejected [deg] (30)
+  bool majority_vote = true;         ///< final 26-neighbourhood vote per voxel [bool] (true)
+  int threads = 1;                   ///< worker threads, 0 = all cores [threads] (1)
+
+  /// \brief Sets one field from text (CLI `--set NAME=VALUE`).
+  /// \throws std::invalid_argument for an unknown name or a malformed value.
+  void set(const std::string& name, const std::string& value);
+  /// \brief Checks every field's range.
+  /// \throws std::invalid_argument naming the first bad field, its value and its range.
+  void validate() const;
+  /// \brief "name=value ..." of every parameter (log line).
+  std::string describe() const;
+  /// \brief The parameter table (name, member, range, unit) behind set(), validate() and
+  ///        describe(); cfg/VoxelGroundFilter.cfg must agree with it.
+  static const ParamTable<VoxelGroundFilterParams>& table();
+};
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_VOXEL_GROUND_FILTER_PARAMS_H

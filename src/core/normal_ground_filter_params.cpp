@@ -1,0 +1,56 @@
+#include "ground_filter/normal_ground_filter_params.h"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+#include "ground_filter/neighbor_search_factory.h"
+
+namespace ground_filter {
+
+// The one list of the normal-vector method's parameters; cfg/NormalGroundFilter.cfg must agree
+// (test_param_tables checks names, ranges, units and defaults).
+const ParamTable<NormalGroundFilterParams>& NormalGroundFilterParams::table() {
+  using P = NormalGroundFilterParams;
+  static const ParamTable<P> rows = {
+      {"knn_backend", &P::knn_backend, 0, 0, "enum", "kdtree (CPU) | gpu (whole filter on CUDA)"},
+      {"k", &P::k, 3, 256, "points", "neighbours per point, the point itself included"},
+      {"cell_size", &P::cell_size, 0.001, 1000.0, "m", "x/y grid cell ordering points"},
+      {"min_normal_angle", &P::min_normal_angle, 0.0, 90.0, "deg", "normal window, low end"},
+      {"max_normal_angle", &P::max_normal_angle, 90.0, 180.0, "deg", "normal window, high end"},
+      {"min_planarity", &P::min_planarity, 0.0, 1.0, "", "candidates at least this planar"},
+      {"bayes_vote", &P::bayes_vote, 0, 0, "bool", "naive-Bayes vote over each neighbourhood"},
+      {"plane_distance", &P::plane_distance, 0.001, 10.0, "m", "max distance to the plane"},
+      {"std_filter", &P::std_filter, 0, 0, "bool", "also the mean +- k std distance band"},
+      {"std_multiplier", &P::std_multiplier, 0.1, 10.0, "", "k of that band"},
+      {"ransac_iterations", &P::ransac_iterations, 1, 100000, "", "RANSAC hypotheses, at most"},
+      {"plane_all_points", &P::plane_all_points, 0, 0, "bool", "plane test labels every point"},
+      {"local_planes", &P::local_planes, 0, 0, "bool", "one plane per tile"},
+      {"tile_size", &P::tile_size, 0.5, 100000.0, "m", "tile edge for local planes"},
+      {"use_segments", &P::use_segments, 0, 0, "bool", "paper's segments of grid columns"},
+      {"segment_points", &P::segment_points, 256, 1 << 26, "points", "points per segment"},
+      {"threads", &P::threads, 0, 256, "threads", "worker threads, 0 = all cores"},
+  };
+  return rows;
+}
+
+void NormalGroundFilterParams::set(const std::string& name, const std::string& value) {
+  setParam(table(), "normal", name, value, this);
+}
+
+void NormalGroundFilterParams::validate() const {
+  // The angle window must contain the vertical (90 deg) and reach at most 90 deg from it: the
+  // table's ranges say exactly that.
+  checkParamRanges(table(), *this);
+  const auto backends = neighborSearchBackends();
+  if (std::find(backends.begin(), backends.end(), knn_backend) == backends.end()) {
+    std::string known;
+    for (const auto& b : backends) known += (known.empty() ? "" : ", ") + b;
+    throw std::invalid_argument("parameter 'knn_backend' = '" + knn_backend +
+                                "' is not one of: " + known);
+  }
+}
+
+std::string NormalGroundFilterParams::describe() const { return describeParams(table(), *this); }
+
+}  // namespace ground_filter

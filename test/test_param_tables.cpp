@@ -1,0 +1,134 @@
+// Drift test: each filter's parameter table (the one list behind set(), validate() and the log
+// line) against the dynamic_reconfigure description generated from cfg/*.cfg — names, types,
+// ranges, units and defaults.
+#include <gtest/gtest.h>
+
+#include <boost/any.hpp>
+#include <set>
+#include <string>
+#include <type_traits>
+#include <variant>
+
+#include "ground_filter/NormalGroundFilterConfig.h"
+#include "ground_filter/VoxelGroundFilterConfig.h"
+#include "ground_filter/normal_ground_filter_params.h"
+#include "ground_filter/voxel_ground_filter_params.h"
+
+namespace gf = ground_filter;
+
+namespace {
+
+// cfg parameters that belong to the nodelet, not to a filter's params struct.
+const std::set<std::string> kNodeletOnly = {"max_range"};
+
+double asDouble(const boost::any& v) {
+  if (v.type() == typeid(double)) return boost::any_cast<double>(v);
+  if (v.type() == typeid(int)) return boost::any_cast<int>(v);
+  ADD_FAILURE() << "not a number";
+  return 0.0;
+}
+
+template <class Config, class Params>
+void expectTableMatchesCfg(const char* cfg_file) {
+  const auto& table = Params::table();
+  const Params defaults;
+  std::set<std::string> rows;
+  for (const auto& spec : table) rows.insert(spec.name);
+  for (const auto& d : Config::__getParamDescriptions__()) {
+    SCOPED_TRACE(std::string(cfg_file) + ": " + d->name);
+    if (kNodeletOnly.count(d->name)) continue;
+    EXPECT_TRUE(rows.count(d->name)) << "in the .cfg but not in " << typeid(Params).name();
+  }
+  for (const auto& spec : table) {
+    SCOPED_TRACE(std::string(cfg_file) + ": " + spec.name);
+    const typename Config::AbstractParamDescription* desc = nullptr;
+    for (const auto& d : Config::__getParamDescriptions__()) {
+      if (d->name == spec.name) desc = d.get();
+    }
+    ASSERT_NE(desc, nullptr) << "in the table but not in the .cfg";
+    boost::any def, lo, hi;
+    desc->getValue(Config::__getDefault__(), def);
+    desc->getValue(Config::__getMin__(), lo);
+    desc->getValue(Config::__getMax__(), hi);
+    std::visit(
+        [&](auto member) {
+          using T = std::decay_t<decltype(defaults.*member)>;
+          if constexpr (std::is_same_v<T, double> || std::is_same_v<T, int>) {
+            EXPECT_EQ(desc->type, (std::is_same_v<T, double> ? "double" : "int"));
+            EXPECT_DOUBLE_EQ(asDouble(def), static_cast<double>(defaults.*member)) << "default";
+            EXPECT_DOUBLE_EQ(asDouble(lo), spec.min) << "min";
+            EXPECT_DOUBLE_EQ(asDouble(hi), spec.max) << "max";
+            // The unit in the table is the one the .cfg description states in brackets.
+            const std::string unit = *spec.unit ? spec.unit : "-";
+            EXPECT_NE(desc->description.find("[" + unit + "]"), std::string::npos)
+                << "description lacks [" << unit << "]: " << desc->description;
+          } else if constexpr (std::is_same_v<T, bool>) {
+            EXPECT_EQ(desc->type, "bool");
+            EXPECT_EQ(boost::any_cast<bool>(def), defaults.*member) << "default";
+          } else {
+            EXPECT_EQ(desc->type, "str");
+            EXPECT_EQ(boost::any_cast<std::string>(def), defaults.*member) << "default";
+          }
+        },
+        spec.member);
+  }
+}
+
+// Every value the table allows at each end passes validate(); just outside it fails.
+template <class Params>
+void expectRangesEnforced() {
+  for (const auto& spec : Params::table()) {
+    std::visit(
+        [&](auto member) {
+          using T = std::decay_t<decltype(Params().*member)>;
+          if constexpr (std::is_same_v<T, double> || std::is_same_v<T, int>) {
+            SCOPED_TRACE(spec.name);
+            Params p;
+            p.*member = static_cast<T>(spec.max);
+            if (std::string(spec.name) == "voxel_size") p.tile_size = 1000.0;  // tile >= 2 voxels
+            EXPECT_NO_THROW(p.validate());
+            p.*member = static_cast<T>(spec.max + (std::is_same_v<T, int> ? 1 : spec.max * 1e-6));
+            EXPECT_THROW(p.validate(), std::invalid_argument);
+            Params q;
+            q.*member = static_cast<T>(spec.min - (std::is_same_v<T, int> ? 1 : 1e-9));
+            EXPECT_THROW(q.validate(), std::invalid_argument);
+          }
+        },
+        spec.member);
+  }
+}
+
+}  // namespace
+
+TEST(ParamTables, VoxelTableMatchesCfg) {
+  expectTableMatchesCfg<gf::VoxelGroundFilterConfig, gf::VoxelGroundFilterParams>(
+      "VoxelGroundFilter.cfg");
+}
+
+TEST(ParamTables, NormalTableMatchesCfg) {
+  expectTableMatchesCfg<gf::NormalGroundFilterConfig, gf::NormalGroundFilterParams>(
+      "NormalGroundFilter.cfg");
+}
+
+TEST(ParamTables, VoxelRangesEnforced) { expectRangesEnforced<gf::VoxelGroundFilterParams>(); }
+
+TEST(ParamTables, NormalRangesEnforced) { expectRangesEnforced<gf::NormalGroundFilterParams>(); }
+
+TEST(ParamTables, SetWritesTheFieldAndDescribeShowsIt) {
+  gf::VoxelGroundFilterParams v;
+  v.set("plane_distance", "0.25");
+  v.set("majority_vote", "off");
+  EXPECT_DOUBLE_EQ(v.plane_distance, 0.25);
+  EXPECT_FALSE(v.majority_vote);
+  EXPECT_NE(v.describe().find("plane_distance=0.25"), std::string::npos) << v.describe();
+  EXPECT_NE(v.describe().find("majority_vote=false"), std::string::npos) << v.describe();
+  gf::NormalGroundFilterParams n;
+  n.set("knn_backend", "gpu");
+  n.set("k", "20");
+  EXPECT_EQ(n.knn_backend, "gpu");
+  EXPECT_EQ(n.k, 20);
+  EXPECT_THROW(n.set("no_such", "1"), std::invalid_argument);
+  EXPECT_THROW(n.set("k", "many"), std::invalid_argument);
+  n.knn_backend = "cpu";
+  EXPECT_THROW(n.validate(), std::invalid_argument);
+}
