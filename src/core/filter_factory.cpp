@@ -2,11 +2,13 @@
 
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/normal_ground_filter.h"
+#include "ground_filter/paper_normalisation.h"
+#include "ground_filter/param_parse.h"
 #include "ground_filter/voxel_ground_filter.h"
 
 namespace ground_filter {
 
-std::vector<std::string> groundFilterMethods() { return {"voxel", "normal"}; }
+std::vector<std::string> groundFilterMethods() { return {"voxel", "normal", "voxel_paper"}; }
 
 std::unique_ptr<GroundFilter> makeGroundFilter(const std::string& method,
                                                const ParamSettings& settings) {
@@ -19,6 +21,20 @@ std::unique_ptr<GroundFilter> makeGroundFilter(const std::string& method,
     NormalGroundFilterParams params;
     for (const auto& kv : settings) params.set(kv.first, kv.second);
     return std::make_unique<NormalGroundFilter>(params);
+  }
+  if (method == "voxel_paper") {
+    // The paper's literal voxel parameters on logistic z-score coordinates (README, "Voxel
+    // method", fidelity); settings override them, plus segment_points (65,536).
+    VoxelGroundFilterParams params = paperVoxelParams();
+    int segment_points = 65536;
+    for (const auto& kv : settings) {
+      if (kv.first == "segment_points") {
+        segment_points = parseIntParam(kv.first, kv.second);
+      } else {
+        params.set(kv.first, kv.second);
+      }
+    }
+    return std::make_unique<PaperNormalisedVoxelFilter>(params, segment_points);
   }
   std::string known;
   for (const auto& m : groundFilterMethods()) known += (known.empty() ? "" : ", ") + m;
