@@ -490,11 +490,18 @@ class Scene {
     auto above = [&](double t) {
       return origin_.z + t * d.z - worldGroundHeight(p_, origin_.x + t * d.x, origin_.y + t * d.y);
     };
+    // The natural terrains are never steeper than kMaxGrade (kerb steps only rise, so a long
+    // step cannot jump over them): a ray h above the terrain cannot reach it within
+    // h / (kMaxGrade |d_xy| + max(0, -d_z)).
+    constexpr double kMaxGrade = 0.5;
+    const double climb = kMaxGrade * std::hypot(d.x, d.y) + std::max(0.0, -d.z);
     double t0 = t_min;
-    if (!(t_max > t0) || above(t0) <= 0.0) return kNoHit;
+    double h0 = above(t0);
+    if (!(t_max > t0) || h0 <= 0.0) return kNoHit;
     while (t0 < t_max) {
-      const double t1 = std::min(t0 + 0.04 + 0.008 * t0, t_max);
-      if (above(t1) <= 0.0) {
+      const double t1 = std::min(t0 + std::max(0.04 + 0.008 * t0, h0 / climb), t_max);
+      const double h1 = above(t1);
+      if (h1 <= 0.0) {
         double lo = t0, hi = t1;
         for (int it = 0; it < 40; ++it) {
           const double mid = 0.5 * (lo + hi);
@@ -503,6 +510,7 @@ class Scene {
         return hi;
       }
       t0 = t1;
+      h0 = h1;
     }
     return kNoHit;
   }
