@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Precision / recall / F1 per dev group for each method, one markdown table (README/docs
 # "Accuracy"). Needs a build (bash -c 'source scripts/common.sh; gf_build').
-#   bash scripts/eval_all.sh                       # voxel, normal and voxel_paper, every group
-#   METHODS="voxel normal" bash scripts/eval_all.sh
+#   bash scripts/eval_all.sh        # voxel, normal, normal + vehicle_lidar_normal preset,
+#                                   # voxel_paper; every group
+#   METHODS="voxel normal@vehicle_lidar_normal" bash scripts/eval_all.sh   # METHOD[@PRESET]
 #   bash scripts/eval_all.sh --set plane_distance=0.2   # extra eval arguments for every run
 # Groups: SemanticKITTI seq00 0-2 (labelled), RELLIS-3D off-road frame, ISPRS 8 tiles and the two
 # airborne tiles (defaults and the airborne preset: config/airborne.yaml for voxel,
@@ -14,7 +15,7 @@ export PATH="/usr/bin:/bin:${PATH}"
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 DATA="${GF_DATA_DIR:-${ROOT}/../shared/data}"
 EVAL="${GF_EVAL:-${ROOT}/.ws/devel/lib/ground_filter/ground_filter_eval}"
-METHODS="${METHODS:-voxel normal voxel_paper}"
+METHODS="${METHODS:-voxel normal normal@vehicle_lidar_normal voxel_paper}"
 [ -x "${EVAL}" ] || { echo "eval_all.sh: ${EVAL} not built" >&2; exit 1; }
 
 K="${DATA}/semantickitti/seq00"
@@ -35,11 +36,14 @@ trap 'rm -rf "${TMP}"' EXIT
 i=0
 while IFS='|' read -r name extra paths; do
   [ -n "${name}" ] || continue
-  for m in ${METHODS}; do
-    args="${extra}"
+  for token in ${METHODS}; do
+    # METHOD or METHOD@PRESET (= --params config/PRESET.yaml on every group).
+    m="${token%%@*}"
+    args=""
+    [[ "${token}" == *@* ]] && args="--params ${ROOT}/config/${token#*@}.yaml"
     if [[ "${extra}" == preset:* ]]; then
       preset="${extra#preset:}"
-      case "${m}" in
+      case "${token}" in
         voxel) args="--params ${ROOT}/config/${preset}.yaml" ;;
         normal) args="--params ${ROOT}/config/${preset}_normal.yaml" ;;
         *) continue ;;
@@ -50,7 +54,7 @@ while IFS='|' read -r name extra paths; do
     if ! "${EVAL}" --json --method "${m}" ${args} "$@" ${paths} > "${TMP}/${i}.json" 2> "${TMP}/${i}.err"; then
       echo "{\"error\": $(python3 -c 'import json,sys; print(json.dumps(open(sys.argv[1]).read().strip()))' "${TMP}/${i}.err")}" > "${TMP}/${i}.json"
     fi
-    printf '%s\t%s\t%s\n' "${name}" "${m}" "${TMP}/${i}.json" >> "${TMP}/index.tsv"
+    printf '%s\t%s\t%s\n' "${name}" "${token}" "${TMP}/${i}.json" >> "${TMP}/index.tsv"
   done
 done <<< "${GROUPS_DEF}"
 

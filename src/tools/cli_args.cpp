@@ -39,6 +39,32 @@ std::string ArgCursor::value() {
   return argv_[++i_];
 }
 
+bool FilterArgs::consume(ArgCursor* args) {
+  const std::string& opt = args->option();
+  if (opt == "--method") {
+    method = args->value();
+  } else if (opt == "--set") {
+    from_set.push_back(parseSetting(args->value()));
+  } else if (opt == "--params") {
+    const std::string path = args->value();
+    try {
+      const ParamSettings s = loadParamsFile(path);
+      from_file.insert(from_file.end(), s.begin(), s.end());
+    } catch (const std::runtime_error& e) {
+      throw UsageError(e.what());
+    }
+  } else {
+    return false;
+  }
+  return true;
+}
+
+ParamSettings FilterArgs::settings() const {
+  ParamSettings s = from_file;
+  s.insert(s.end(), from_set.begin(), from_set.end());
+  return s;
+}
+
 std::pair<std::string, std::string> parseSetting(const std::string& kv) {
   const std::size_t eq = kv.find('=');
   if (eq == std::string::npos || eq == 0) {

@@ -43,6 +43,21 @@ class ArgCursor {
   bool has_inline_ = false;
 };
 
+/// \brief The filter options every tool shares: `--method NAME`, `--params FILE` and
+///        `--set NAME=VALUE` (a `--set` overrides the file whatever their order).
+struct FilterArgs {
+  std::string method = "voxel";  ///< --method (default voxel)
+  ParamSettings from_file;       ///< --params, in file order
+  ParamSettings from_set;        ///< --set, in command-line order
+
+  /// \brief Takes the cursor's current option when it is one of the three.
+  /// \returns false when it is another option.
+  /// \throws UsageError for a bad value or an unreadable/malformed parameter file.
+  bool consume(ArgCursor* args);
+  /// \brief The file's settings followed by the --set ones.
+  ParamSettings settings() const;
+};
+
 /// \brief Splits `NAME=VALUE` of `--set`.
 /// \throws UsageError when there is no '=' or NAME is empty.
 std::pair<std::string, std::string> parseSetting(const std::string& kv);

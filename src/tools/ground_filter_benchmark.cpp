@@ -62,25 +62,15 @@ struct Options {
 
 Options parseArgs(int argc, char** argv) {
   Options o;
-  gf::ParamSettings from_file, from_set;
+  cli::FilterArgs filter_args;
   cli::ArgCursor args(argc, argv);
   while (args.next()) {
     const std::string& arg = args.option();
     if (arg == "--help" || arg == "-h") {
       std::cout << kUsage;
       std::exit(0);
-    } else if (arg == "--method") {
-      o.method = args.value();
-    } else if (arg == "--params") {
-      const std::string path = args.value();
-      try {
-        const gf::ParamSettings s = cli::loadParamsFile(path);
-        from_file.insert(from_file.end(), s.begin(), s.end());
-      } catch (const std::runtime_error& e) {
-        throw UsageError(e.what());
-      }
-    } else if (arg == "--set") {
-      from_set.push_back(cli::parseSetting(args.value()));
+    } else if (filter_args.consume(&args)) {
+      continue;
     } else if (arg == "--repeat") {
       o.repeat = cli::parseIntOption(arg, args.value(), 1, 1000000);
     } else if (arg == "--warmup") {
@@ -101,8 +91,8 @@ Options parseArgs(int argc, char** argv) {
       o.paths.push_back(args.raw());
     }
   }
-  o.settings = from_file;
-  o.settings.insert(o.settings.end(), from_set.begin(), from_set.end());
+  o.method = filter_args.method;
+  o.settings = filter_args.settings();
   if (o.paths.empty()) {
     const char* env = std::getenv("GF_DATA_DIR");
     const std::string data = env && *env ? env : GF_DEFAULT_DATA_DIR;

@@ -83,7 +83,7 @@ struct FileResult {
 Options parseArgs(int argc, char** argv) {
   Options o;
   bool help = false;
-  gf::ParamSettings from_file, from_set;
+  cli::FilterArgs filter_args;
   cli::ArgCursor args(argc, argv);
   while (args.next()) {
     const std::string& arg = args.option();
@@ -93,18 +93,8 @@ Options parseArgs(int argc, char** argv) {
       o.json = true;
     } else if (arg == "--classes") {
       o.classes = true;
-    } else if (arg == "--method") {
-      o.method = args.value();
-    } else if (arg == "--params") {
-      const std::string path = args.value();
-      try {
-        const gf::ParamSettings s = cli::loadParamsFile(path);
-        from_file.insert(from_file.end(), s.begin(), s.end());
-      } catch (const std::runtime_error& e) {
-        throw UsageError(e.what());
-      }
-    } else if (arg == "--set") {
-      from_set.push_back(cli::parseSetting(args.value()));
+    } else if (filter_args.consume(&args)) {
+      continue;
     } else if (arg == "--write-labels") {
       o.labels_dir = args.value();
     } else if (arg == "--write-clouds") {
@@ -122,8 +112,8 @@ Options parseArgs(int argc, char** argv) {
     std::exit(0);
   }
   if (o.paths.empty()) throw UsageError("no PATH given");
-  o.settings = from_file;
-  o.settings.insert(o.settings.end(), from_set.begin(), from_set.end());
+  o.method = filter_args.method;
+  o.settings = filter_args.settings();
   return o;
 }
 
