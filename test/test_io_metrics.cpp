@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <sys/wait.h>
 
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -939,6 +940,29 @@ std::string readAll(const std::string& path) {
   return std::string(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
 }
 
+// Top-level arguments of the `gen.add("NAME", ...)` call in a dynamic_reconfigure .cfg text;
+// empty when there is none. Strings (which may hold commas and parentheses) are kept whole.
+std::vector<std::string> cfgAddArguments(const std::string& cfg, const std::string& name) {
+  const std::string head = "gen.add(\"" + name + "\"";
+  const std::size_t at = cfg.find(head);
+  if (at == std::string::npos) return {};
+  std::vector<std::string> args(1);
+  bool quoted = false;
+  int depth = 0;
+  for (std::size_t i = at + 8; i < cfg.size(); ++i) {
+    const char c = cfg[i];
+    if (c == '"') quoted = !quoted;
+    if (!quoted && c == '(') ++depth;
+    if (!quoted && c == ')' && depth-- == 0) break;
+    if (!quoted && depth == 0 && c == ',') {
+      args.emplace_back();
+    } else if (!std::isspace(static_cast<unsigned char>(c)) || quoted) {
+      args.back() += c;
+    }
+  }
+  return args;
+}
+
 // Every preset: each key is a parameter of its method (the core refuses unknown names and bad
 // values) and of the nodelet's cfg (so params_file:= sets it), and the three scan types exist.
 TEST(Presets, EveryConfigLoadsIntoItsMethod) {
@@ -961,8 +985,15 @@ TEST(Presets, EveryConfigLoadsIntoItsMethod) {
         readAll(cfg_dir + (normal ? "/NormalGroundFilter.cfg" : "/VoxelGroundFilter.cfg")) +
         readAll(cfg_dir + "/ground_filter_common.py");
     for (const auto& kv : settings) {
-      EXPECT_NE(cfg.find("gen.add(\"" + kv.first + "\""), std::string::npos)
-          << stem << ": " << kv.first << " is not a nodelet parameter";
+      // name, type, level, description, default[, min, max]: the nodelet clamps to [min, max].
+      const std::vector<std::string> args = cfgAddArguments(cfg, kv.first);
+      ASSERT_GE(args.size(), 5u) << stem << ": " << kv.first << " is not a nodelet parameter";
+      if ((args[1] == "double_t" || args[1] == "int_t") && args.size() >= 7) {
+        const double v = std::stod(kv.second);
+        EXPECT_GE(v, std::stod(args[5])) << stem << ": " << kv.first;
+        EXPECT_LE(v, std::stod(args[6])) << stem << ": " << kv.first;
+        if (args[1] == "int_t") EXPECT_EQ(kv.second.find('.'), std::string::npos) << kv.first;
+      }
     }
   }
   EXPECT_GE(files, 3u);
