@@ -1021,10 +1021,10 @@ TEST(PaperNormalisation, LogisticZScorePerAxis) {
 }
 
 TEST(PaperNormalisation, FilterContractAndSegments) {
-  // A flat 40 x 40 plane with a NaN point; two segments of 800 points.
+  // A flat 2 m x 2 m plane (5 cm spacing) with a NaN point; two segments of 800 points.
   std::vector<float> xyz;
   for (int i = 0; i < 40; ++i) {
-    for (int j = 0; j < 40; ++j) xyz.insert(xyz.end(), {0.1f * i, 0.1f * j, -1.7f});
+    for (int j = 0; j < 40; ++j) xyz.insert(xyz.end(), {0.05f * i, 0.05f * j, -1.7f});
   }
   xyz[3 * 5] = std::numeric_limits<float>::quiet_NaN();
   const gf::CloudView view = gf::CloudView::packedXyz(xyz.data(), 1600);
@@ -1040,6 +1040,17 @@ TEST(PaperNormalisation, FilterContractAndSegments) {
   for (const auto l : labels) ground += l == gf::kGround;
   EXPECT_EQ(ground, st.ground_points);
   EXPECT_GT(ground, 800u);  // a plane stays mostly ground after the mapping
+  // Without the mapping the metric plane is ground too, and the same pipeline runs.
+  auto raw = gf::makeGroundFilter("voxel_paper", {{"paper_normalisation", "false"}});
+  std::vector<std::uint8_t> raw_labels;
+  raw->filter(view, &raw_labels);
+  ASSERT_EQ(raw_labels.size(), 1600u);
+  EXPECT_EQ(raw_labels[5], gf::kNonGround);
+  std::size_t raw_ground = 0;
+  for (const auto l : raw_labels) raw_ground += l == gf::kGround;
+  EXPECT_GT(raw_ground, 800u);
+  EXPECT_THROW(gf::makeGroundFilter("voxel_paper", {{"paper_normalisation", "maybe"}}),
+               std::invalid_argument);
   EXPECT_THROW(gf::makeGroundFilter("voxel_paper", {{"segment_points", "2"}}),
                std::invalid_argument);
   EXPECT_THROW(gf::makeGroundFilter("voxel_paper", {{"k", "5"}}), std::invalid_argument);

@@ -19,21 +19,25 @@ VoxelGroundFilterParams paperVoxelParams();
 /// \brief The authors' normalisation (MATLAB `standart.m`): each coordinate v of the valid
 ///        points of input indices [begin, end) becomes 1 / (1 + exp(-(v - mean) / std)), mean
 ///        and sample std (n - 1) over those points, per axis; an axis without spread maps to 0.5.
-///        Appends the mapped points to `xyz` (packed x y z) and their input indices to `index`.
+///        Appends the mapped points to `xyz` (packed x y z) and their input indices to `index`;
+///        with `normalise` false the points are appended unmapped.
 void paperNormaliseSegment(const CloudView& cloud, std::size_t begin, std::size_t end,
-                           std::vector<float>* xyz, std::vector<std::size_t>* index);
+                           std::vector<float>* xyz, std::vector<std::size_t>* index,
+                           bool normalise = true);
 
 /// \brief Voxel filter on the paper's normalised coordinates (`voxel_paper`): the input is cut
 ///        into consecutive segments of `segment_points` points in input order (MainVoxel.m:
 ///        65,536), every segment is mapped by paperNormaliseSegment() and filtered on its own
 ///        by a VoxelGroundFilter with `params` (default paperVoxelParams(), whose lengths are
-///        then in normalised units). Same output contract as every GroundFilter.
+///        then in normalised units). With `normalise` false the segments keep their metric
+///        coordinates (the same pipeline without the mapping, for comparison). Same output
+///        contract as every GroundFilter.
 class PaperNormalisedVoxelFilter : public GroundFilter {
  public:
   /// \brief Stores the parameters.
   /// \throws std::invalid_argument when params.validate() fails or segment_points < 3.
   explicit PaperNormalisedVoxelFilter(const VoxelGroundFilterParams& params = paperVoxelParams(),
-                                      int segment_points = 65536);
+                                      int segment_points = 65536, bool normalise = true);
 
   void filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
               FilterStats* stats = nullptr) override;
@@ -42,6 +46,7 @@ class PaperNormalisedVoxelFilter : public GroundFilter {
  private:
   VoxelGroundFilter voxel_;
   std::size_t segment_points_;
+  bool normalise_;
   std::vector<float> xyz_;          // normalised points of one segment
   std::vector<std::size_t> index_;  // their input indices
   std::vector<std::uint8_t> segment_labels_;

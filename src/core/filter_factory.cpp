@@ -24,17 +24,21 @@ std::unique_ptr<GroundFilter> makeGroundFilter(const std::string& method,
   }
   if (method == "voxel_paper") {
     // The paper's literal voxel parameters on logistic z-score coordinates (README, "Voxel
-    // method", fidelity); settings override them, plus segment_points (65,536).
+    // method", fidelity); settings override them, plus segment_points (65,536) and
+    // paper_normalisation (true; false = the same segments in metric coordinates).
     VoxelGroundFilterParams params = paperVoxelParams();
     int segment_points = 65536;
+    bool normalise = true;
     for (const auto& kv : settings) {
       if (kv.first == "segment_points") {
         segment_points = parseIntParam(kv.first, kv.second);
+      } else if (kv.first == "paper_normalisation") {
+        normalise = parseBoolParam(kv.first, kv.second);
       } else {
         params.set(kv.first, kv.second);
       }
     }
-    return std::make_unique<PaperNormalisedVoxelFilter>(params, segment_points);
+    return std::make_unique<PaperNormalisedVoxelFilter>(params, segment_points, normalise);
   }
   std::string known;
   for (const auto& m : groundFilterMethods()) known += (known.empty() ? "" : ", ") + m;

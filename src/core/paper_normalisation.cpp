@@ -20,7 +20,8 @@ VoxelGroundFilterParams paperVoxelParams() {
 }
 
 void paperNormaliseSegment(const CloudView& cloud, std::size_t begin, std::size_t end,
-                           std::vector<float>* xyz, std::vector<std::size_t>* index) {
+                           std::vector<float>* xyz, std::vector<std::size_t>* index,
+                           bool normalise) {
   end = std::min(end, cloud.size());
   const std::size_t first = index->size();
   double sum[3] = {0, 0, 0};
@@ -46,6 +47,10 @@ void paperNormaliseSegment(const CloudView& cloud, std::size_t begin, std::size_
     float p[3];
     cloud.get((*index)[j], &p[0], &p[1], &p[2]);
     for (int k = 0; k < 3; ++k) {
+      if (!normalise) {
+        xyz->push_back(p[k]);
+        continue;
+      }
       const double v = sd[k] > 0.0 ? 1.0 / (1.0 + std::exp(-(p[k] - mean[k]) / sd[k])) : 0.5;
       xyz->push_back(static_cast<float>(v));
     }
@@ -53,8 +58,10 @@ void paperNormaliseSegment(const CloudView& cloud, std::size_t begin, std::size_
 }
 
 PaperNormalisedVoxelFilter::PaperNormalisedVoxelFilter(const VoxelGroundFilterParams& params,
-                                                       int segment_points)
-    : voxel_(params), segment_points_(static_cast<std::size_t>(std::max(segment_points, 0))) {
+                                                       int segment_points, bool normalise)
+    : voxel_(params),
+      segment_points_(static_cast<std::size_t>(std::max(segment_points, 0))),
+      normalise_(normalise) {
   if (segment_points < 3) {
     throw std::invalid_argument("segment_points = " + std::to_string(segment_points) +
                                 " is out of range [3, 2147483647] points");
@@ -71,7 +78,7 @@ void PaperNormalisedVoxelFilter::filter(const CloudView& cloud, std::vector<std:
   for (std::size_t begin = 0; begin < n; begin += segment_points_) {
     xyz_.clear();
     index_.clear();
-    paperNormaliseSegment(cloud, begin, begin + segment_points_, &xyz_, &index_);
+    paperNormaliseSegment(cloud, begin, begin + segment_points_, &xyz_, &index_, normalise_);
     st.invalid_points += std::min(segment_points_, n - begin) - index_.size();
     if (index_.empty()) continue;
     voxel_.filter(CloudView::packedXyz(xyz_.data(), index_.size()), &segment_labels_);

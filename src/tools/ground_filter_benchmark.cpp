@@ -28,19 +28,19 @@ namespace {
 
 const char kUsage[] =
     "usage: ground_filter_benchmark [--method NAME] [--params FILE] [--set NAME=VALUE]...\n"
-    "                               [--repeat N]\n"
-    "                               [--warmup N] [--threads N[,N...]] [PATH...]\n"
+    "                               [--repeat N] [--warmup N] [--threads N[,N...]] [PATH...]\n"
     "\n"
     "Times GroundFilter::filter() on each scan (the core only: loading is not timed) and prints\n"
     "median / min / max ms per frame, million points per second (from the median) and the\n"
     "median of every stage the filter reports.\n"
     "\n"
-    "PATH                scan file, directory or builtin:lidar[:SEED] / builtin:tls[:SEED];\n"
+    "PATH                scan file, directory or builtin:KIND[:SEED] (lidar, tls, verge,\n"
+    "                    offroad, trail);\n"
     "                    default: DATA/semantickitti/seq00/00000{0,1,2}.bin and\n"
     "                    DATA/unlabelled/os128_000000.pcd with DATA = $GF_DATA_DIR or the\n"
     "                    build-time default " GF_DEFAULT_DATA_DIR
     "\n"
-    "--method NAME       filter method (default voxel)\n"
+    "--method NAME       filter method: voxel (default), normal, voxel_paper\n"
     "--params FILE       parameters from a flat YAML file (config/*.yaml, 'name: value')\n"
     "--set NAME=VALUE    override a filter parameter (repeatable; after --params)\n"
     "--repeat N          timed runs per file (default 20)\n"
