@@ -463,8 +463,12 @@ class Scene {
         const double x = ux(rng), y = lawn_y(rng);
         bush(x, y);
       }
+      // Oncoming lane (y = 2.6) ahead, the scanner's lane (y = 0) behind it; no car closer to
+      // the scanner's own vehicle than a real one could be.
       for (double x = -e + car_gap(rng); x < e; x += car_gap(rng)) {
-        addCar(rng, x, x > 0 ? 2.0 : -2.0);
+        const double y = x > p_.sensor_x ? 2.6 : 0.0;
+        if (std::fabs(x - p_.sensor_x) < (y > 0.0 ? 3.0 : 8.0)) continue;
+        addCar(rng, x, y);
       }
       std::uniform_real_distribution<double> tree_gap(10.0, 25.0);
       for (double x = -e + tree_gap(rng); x < e; x += tree_gap(rng)) addTree(rng, x, 13.0);
