@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <map>
 #include <stdexcept>
+#include <string>
 
 #include "ground_filter/scene_generator.h"
 
@@ -283,6 +284,26 @@ TEST(SceneGenerator, VergeSlopesAwayFromTheRoadAndTrailIsHilly) {
     hi = std::max(hi, z);
   }
   EXPECT_GT(hi - lo, 2.0);  // metres of relief within 40 m
+}
+
+TEST(SceneGenerator, BuiltinKindsNameTheirSceneAndScanner) {
+  EXPECT_EQ(builtinSceneKinds().size(), 5u);
+  for (const std::string& kind : builtinSceneKinds()) {
+    EXPECT_NO_THROW(builtinSceneParams(kind).validate()) << kind;
+  }
+  EXPECT_EQ(builtinSceneParams("tls").mode, SceneParams::Mode::kTls);
+  EXPECT_EQ(builtinSceneParams("verge").layout, SceneParams::Layout::kVerge);
+  const SceneParams ouster = builtinSceneParams("trail");
+  EXPECT_EQ(ouster.layout, SceneParams::Layout::kTrail);
+  EXPECT_TRUE(ouster.uniform_beams);
+  EXPECT_EQ(ouster.azimuth_steps, 2048);
+  EXPECT_EQ(builtinSceneParams("offroad").layout, SceneParams::Layout::kOffroad);
+  try {
+    builtinSceneParams("moon");
+    ADD_FAILURE() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("trail"), std::string::npos) << e.what();
+  }
 }
 
 TEST(SceneGenerator, InvalidParametersAreRefused) {

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "ground_filter/cloud_view.h"
+#include "ground_filter/scene_generator.h"
 
 namespace ground_filter {
 
@@ -40,16 +41,13 @@ struct Scan {
 /// - `*.pcd`, `*.ply`: read through PCL with all fields. A PCD field named `label` is ground truth
 ///   under the ISPRS protocol (isprsTruth()); PLY labels are not interpreted.
 /// - `builtin:KIND[:SEED]`: a generated scene with exact truth and classes (fields x y z
-///   intensity ring); KIND is one of builtinSceneKinds(): `lidar` (street, HDL-64), `tls`
-///   (street, tripod scanner), `verge` (grass verge and sloped lawns beside a road, HDL-64),
-///   `offroad` (grassland with bushes and undergrowth, Ouster OS1-64), `trail` (hilly dirt trail,
-///   Ouster OS1-64).
+///   intensity ring); KIND is one of builtinSceneKinds() (scene_generator.h): `lidar` (street,
+///   HDL-64), `tls` (street, tripod scanner), `verge` (grass verge and sloped lawns beside a road,
+///   HDL-64), `offroad` (grassland with bushes and undergrowth, Ouster OS1-64), `trail` (hilly dirt
+///   trail, Ouster OS1-64).
 /// \throws std::runtime_error naming the file for a missing/unreadable/malformed file, an unknown
 ///         extension or a label count that does not match the points.
 Scan loadScan(const std::string& path);
-
-/// \brief The KIND names loadScan() accepts in `builtin:KIND[:SEED]`.
-std::vector<std::string> builtinSceneKinds();
 
 /// \brief Short SemanticKITTI class name ("road", "vegetation", ...); "class N" when unknown.
 std::string semanticKittiClassName(std::uint16_t cls);

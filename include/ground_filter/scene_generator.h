@@ -3,6 +3,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace ground_filter {
@@ -105,6 +106,16 @@ struct GeneratedScan {
   /// \brief Number of points.
   std::size_t size() const { return truth.size(); }
 };
+
+/// \brief Scene and scanner of a named built-in scene (`builtin:KIND[:SEED]` of the tools):
+///        `lidar` (street, HDL-64), `tls` (street, tripod scanner), `verge` (grass verge and
+///        sloped lawns beside a road, HDL-64), `offroad` (grassland with bushes and undergrowth,
+///        Ouster OS1-64 1.3 m up), `trail` (hilly dirt trail, Ouster OS1-64 1.3 m up).
+/// \throws std::invalid_argument naming the known kinds for any other name.
+SceneParams builtinSceneParams(const std::string& kind);
+
+/// \brief The kinds builtinSceneParams() knows, in the order above.
+std::vector<std::string> builtinSceneKinds();
 
 /// \brief Ray-casts the procedural scene with the scanner of `params.mode`.
 ///

@@ -259,25 +259,10 @@ Scan loadBuiltinScan(const std::string& path) {
   const std::size_t colon = spec.find(':');
   const std::string mode = spec.substr(0, colon);
   SceneParams params;
-  if (mode == "lidar") {
-    params.mode = SceneParams::Mode::kLidar64;
-  } else if (mode == "tls") {
-    params.mode = SceneParams::Mode::kTls;
-  } else if (mode == "verge") {
-    params.layout = SceneParams::Layout::kVerge;
-  } else if (mode == "offroad" || mode == "trail") {
-    // Ouster OS1-64 on a small off-road vehicle, as in RELLIS-3D.
-    params.layout = mode == "offroad" ? SceneParams::Layout::kOffroad : SceneParams::Layout::kTrail;
-    params.uniform_beams = true;
-    params.vertical_min_deg = -16.6;
-    params.vertical_max_deg = 16.6;
-    params.azimuth_steps = 2048;
-    params.sensor_height = 1.3;
-  } else {
-    std::string known;
-    for (const auto& k : builtinSceneKinds()) known += (known.empty() ? "" : ", ") + k;
-    fail(path, "unknown built-in scene '" + mode + "' (expected builtin:KIND[:SEED], KIND one of " +
-                   known + ")");
+  try {
+    params = builtinSceneParams(mode);
+  } catch (const std::invalid_argument& e) {
+    fail(path, std::string(e.what()) + "; expected builtin:KIND[:SEED]");
   }
   if (colon != std::string::npos) {
     const std::string seed = spec.substr(colon + 1);
@@ -346,10 +331,6 @@ std::int8_t semanticKittiTruth(std::uint32_t raw_label, float z) {
     default:
       return 0;
   }
-}
-
-std::vector<std::string> builtinSceneKinds() {
-  return {"lidar", "tls", "verge", "offroad", "trail"};
 }
 
 std::string semanticKittiClassName(std::uint16_t cls) {

@@ -842,6 +842,34 @@ void SceneParams::validate() const {
   checkRange("grass_roughness", grass_roughness, 0.0, 1.0, "m");
 }
 
+std::vector<std::string> builtinSceneKinds() {
+  return {"lidar", "tls", "verge", "offroad", "trail"};
+}
+
+SceneParams builtinSceneParams(const std::string& kind) {
+  SceneParams params;
+  if (kind == "lidar") {
+    params.mode = SceneParams::Mode::kLidar64;
+  } else if (kind == "tls") {
+    params.mode = SceneParams::Mode::kTls;
+  } else if (kind == "verge") {
+    params.layout = SceneParams::Layout::kVerge;
+  } else if (kind == "offroad" || kind == "trail") {
+    // Ouster OS1-64 on a small off-road vehicle, as in RELLIS-3D.
+    params.layout = kind == "offroad" ? SceneParams::Layout::kOffroad : SceneParams::Layout::kTrail;
+    params.uniform_beams = true;
+    params.vertical_min_deg = -16.6;
+    params.vertical_max_deg = 16.6;
+    params.azimuth_steps = 2048;
+    params.sensor_height = 1.3;
+  } else {
+    std::string known;
+    for (const auto& k : builtinSceneKinds()) known += (known.empty() ? "" : ", ") + k;
+    throw std::invalid_argument("unknown built-in scene '" + kind + "' (known: " + known + ")");
+  }
+  return params;
+}
+
 GeneratedScan generateScene(const SceneParams& params) {
   params.validate();
   const Scene scene(params);
