@@ -9,6 +9,7 @@ set(GF_CORE_SOURCES
   src/core/filter_factory.cpp
   src/core/metrics.cpp
   src/core/scene_generator.cpp
+  src/core/paper_normalisation.cpp
   src/core/normal_ground_filter.cpp
   src/core/normal_ground_filter_params.cpp
   src/core/normal/order.cpp

@@ -6,20 +6,26 @@
 #include <stdlib.h>
 #include <sys/wait.h>
 
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <limits>
 #include <map>
 #include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "cli_args.h"
+#include "ground_filter/ground_filter.h"
 #include "gf_test_data.h"
 #include "ground_filter/metrics.h"
+#include "ground_filter/paper_normalisation.h"
 #include "ground_filter/scan_io.h"
 
 namespace gf = ground_filter;
@@ -842,6 +848,243 @@ TEST(EvalCli, ErrorsExitNonZeroWithMessage) {
   r = runEval("--help", true);
   EXPECT_EQ(r.status, 0);
   EXPECT_NE(r.out.find("--write-labels"), std::string::npos);
+}
+
+// ------------------------------------------------------------------ per-class counts
+
+TEST(Metrics, ClassCountsByHand) {
+  const std::vector<std::uint8_t> labels = {1, 0, 1, 1, 0, 1, 1};
+  const std::vector<std::int8_t> truth = {1, 1, 1, 0, 0, -1, 1};
+  const std::vector<std::uint16_t> cls = {40, 40, 70, 70, 50, 40, 40};
+  std::vector<gf::ClassCount> table;
+  gf::addClassCounts(labels, truth, cls, &table);
+  ASSERT_EQ(table.size(), 4u);  // (40, g) (50, ng) (70, ng) (70, g); the ignored point left out
+  EXPECT_EQ(table[0].cls, 40);
+  EXPECT_EQ(table[0].truth, 1);
+  EXPECT_EQ(table[0].points, 3u);
+  EXPECT_EQ(table[0].labelled_ground, 2u);
+  EXPECT_EQ(table[1].cls, 50);
+  EXPECT_EQ(table[1].labelled_ground, 0u);
+  EXPECT_EQ(table[2].cls, 70);
+  EXPECT_EQ(table[2].truth, 0);
+  EXPECT_EQ(table[2].labelled_ground, 1u);
+  EXPECT_EQ(table[3].cls, 70);
+  EXPECT_EQ(table[3].truth, 1);
+  gf::addClassCounts(labels, truth, cls, &table);  // pooling: same groups, doubled
+  ASSERT_EQ(table.size(), 4u);
+  EXPECT_EQ(table[0].points, 6u);
+  EXPECT_EQ(table[0].labelled_ground, 4u);
+  EXPECT_THROW(gf::addClassCounts(labels, truth, {40}, &table), std::invalid_argument);
+  EXPECT_EQ(gf::semanticKittiClassName(72), "terrain");
+  EXPECT_EQ(gf::semanticKittiClassName(999), "class 999");
+}
+
+TEST(LoadScan, KittiClassesKept) {
+  TempDir tmp;
+  const std::vector<KittiPoint> pts = smallScene();
+  writeKitti(tmp / "c.bin", pts, true);
+  const gf::Scan scan = gf::loadScan(tmp / "c.bin");
+  ASSERT_EQ(scan.semantic.size(), pts.size());
+  for (std::size_t i = 0; i < pts.size(); ++i) ASSERT_EQ(scan.semantic[i], pts[i].label & 0xFFFF);
+  writeKitti(tmp / "d.bin", pts, false);
+  EXPECT_TRUE(gf::loadScan(tmp / "d.bin").semantic.empty());
+}
+
+TEST(Builtin, FailureModeScenesHaveClassesAndTruth) {
+  for (const char* kind : {"verge", "offroad", "trail"}) {
+    const std::string path = std::string("builtin:") + kind + ":2";
+    const gf::Scan s = gf::loadScan(path);
+    ASSERT_GT(s.size(), 20000u) << path;
+    ASSERT_EQ(s.semantic.size(), s.size()) << path;
+    ASSERT_EQ(s.truth.size(), s.size()) << path;
+    std::size_t vegetation = 0, terrain = 0;
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      if (s.semantic[i] == 70) {
+        ++vegetation;
+        ASSERT_EQ(s.truth[i], 0) << path;  // bushes: never ground, any height
+      }
+      if (s.semantic[i] == 72) {
+        ++terrain;
+        ASSERT_EQ(s.truth[i], 1) << path;
+      }
+    }
+    EXPECT_GT(vegetation, 1000u) << path;
+    EXPECT_GT(terrain, 5000u) << path;
+  }
+  const std::vector<std::string> kinds = gf::builtinSceneKinds();
+  EXPECT_EQ(kinds.size(), 5u);
+  try {
+    gf::loadScan("builtin:moon");
+    ADD_FAILURE() << "no exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("offroad"), std::string::npos) << e.what();
+  }
+}
+
+// ------------------------------------------------------------------ parameter files, presets
+
+TEST(ParamsFile, FlatYamlOnly) {
+  TempDir tmp;
+  writeText(tmp / "ok.yaml",
+            "# comment\n\nvoxel_size: 0.2   # trailing comment\nstd_filter: \"true\"\n"
+            "tile_size:2\n");
+  const gf::ParamSettings s = gf::cli::loadParamsFile(tmp / "ok.yaml");
+  ASSERT_EQ(s.size(), 3u);
+  EXPECT_EQ(s[0], std::make_pair(std::string("voxel_size"), std::string("0.2")));
+  EXPECT_EQ(s[1], std::make_pair(std::string("std_filter"), std::string("true")));
+  EXPECT_EQ(s[2], std::make_pair(std::string("tile_size"), std::string("2")));
+  for (const char* bad : {"a:\n  b: 1\n", "a: [1, 2]\n", "a: 1\na: 2\n", "just text\n", "a:\n"}) {
+    writeText(tmp / "bad.yaml", bad);
+    EXPECT_THROW(gf::cli::loadParamsFile(tmp / "bad.yaml"), std::runtime_error) << bad;
+  }
+  EXPECT_THROW(gf::cli::loadParamsFile(tmp / "missing.yaml"), std::runtime_error);
+}
+
+std::string readAll(const std::string& path) {
+  std::ifstream f(path);
+  return std::string(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+}
+
+// Top-level arguments of the `gen.add("NAME", ...)` call in a dynamic_reconfigure .cfg text;
+// empty when there is none. Strings (which may hold commas and parentheses) are kept whole.
+std::vector<std::string> cfgAddArguments(const std::string& cfg, const std::string& name) {
+  const std::string head = "gen.add(\"" + name + "\"";
+  const std::size_t at = cfg.find(head);
+  if (at == std::string::npos) return {};
+  std::vector<std::string> args(1);
+  bool quoted = false;
+  int depth = 0;
+  for (std::size_t i = at + 8; i < cfg.size(); ++i) {
+    const char c = cfg[i];
+    if (c == '"') quoted = !quoted;
+    if (!quoted && c == '(') ++depth;
+    if (!quoted && c == ')' && depth-- == 0) break;
+    if (!quoted && depth == 0 && c == ',') {
+      args.emplace_back();
+    } else if (!std::isspace(static_cast<unsigned char>(c)) || quoted) {
+      args.back() += c;
+    }
+  }
+  return args;
+}
+
+// Every preset: each key is a parameter of its method (the core refuses unknown names and bad
+// values) and of the nodelet's cfg (so params_file:= sets it), and the three scan types exist.
+TEST(Presets, EveryConfigLoadsIntoItsMethod) {
+  const std::string dir = GF_CONFIG_DIR;
+  const std::string cfg_dir = dir + "/../cfg";
+  std::size_t files = 0;
+  for (const char* required : {"vehicle_lidar.yaml", "tls.yaml", "airborne.yaml"}) {
+    EXPECT_TRUE(fs::exists(dir + "/" + required)) << required;
+  }
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    if (entry.path().extension() != ".yaml") continue;
+    ++files;
+    const std::string stem = entry.path().stem().string();
+    const bool normal = stem.size() > 7 && stem.substr(stem.size() - 7) == "_normal";
+    const std::string method = normal ? "normal" : "voxel";
+    const gf::ParamSettings settings = gf::cli::loadParamsFile(entry.path().string());
+    EXPECT_GE(settings.size(), 3u) << stem;
+    EXPECT_NO_THROW(gf::makeGroundFilter(method, settings)) << stem;
+    const std::string cfg =
+        readAll(cfg_dir + (normal ? "/NormalGroundFilter.cfg" : "/VoxelGroundFilter.cfg")) +
+        readAll(cfg_dir + "/ground_filter_common.py");
+    for (const auto& kv : settings) {
+      // name, type, level, description, default[, min, max]: the nodelet clamps to [min, max].
+      const std::vector<std::string> args = cfgAddArguments(cfg, kv.first);
+      ASSERT_GE(args.size(), 5u) << stem << ": " << kv.first << " is not a nodelet parameter";
+      if ((args[1] == "double_t" || args[1] == "int_t") && args.size() >= 7) {
+        const double v = std::stod(kv.second);
+        EXPECT_GE(v, std::stod(args[5])) << stem << ": " << kv.first;
+        EXPECT_LE(v, std::stod(args[6])) << stem << ": " << kv.first;
+        if (args[1] == "int_t") EXPECT_EQ(kv.second.find('.'), std::string::npos) << kv.first;
+      }
+    }
+  }
+  EXPECT_GE(files, 3u);
+}
+
+// ------------------------------------------------------------------ paper normalisation
+
+TEST(PaperNormalisation, LogisticZScorePerAxis) {
+  // x: 1 2 3 (mean 2, sample std 1); y constant (no spread: 0.5); z: 0 0 3 (mean 1, std sqrt 3).
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const std::vector<float> xyz = {1, 5, 0, nan, 0, 0, 2, 5, 0, 3, 5, 3};
+  const gf::CloudView view = gf::CloudView::packedXyz(xyz.data(), 4);
+  std::vector<float> out;
+  std::vector<std::size_t> index;
+  gf::paperNormaliseSegment(view, 0, 4, &out, &index);
+  ASSERT_EQ(index, (std::vector<std::size_t>{0, 2, 3}));  // the NaN point is skipped
+  ASSERT_EQ(out.size(), 9u);
+  auto logistic = [](double v) { return 1.0 / (1.0 + std::exp(-v)); };
+  EXPECT_NEAR(out[0], logistic(-1.0), 1e-6);
+  EXPECT_NEAR(out[3], 0.5, 1e-6);
+  EXPECT_NEAR(out[6], logistic(1.0), 1e-6);
+  for (int j = 0; j < 3; ++j) EXPECT_NEAR(out[3 * j + 1], 0.5, 1e-6);
+  EXPECT_NEAR(out[2], logistic(-1.0 / std::sqrt(3.0)), 1e-6);
+  EXPECT_NEAR(out[8], logistic(2.0 / std::sqrt(3.0)), 1e-6);
+}
+
+TEST(PaperNormalisation, FilterContractAndSegments) {
+  // A flat 2 m x 2 m plane (5 cm spacing) with a NaN point; two segments of 800 points.
+  std::vector<float> xyz;
+  for (int i = 0; i < 40; ++i) {
+    for (int j = 0; j < 40; ++j) xyz.insert(xyz.end(), {0.05f * i, 0.05f * j, -1.7f});
+  }
+  xyz[3 * 5] = std::numeric_limits<float>::quiet_NaN();
+  const gf::CloudView view = gf::CloudView::packedXyz(xyz.data(), 1600);
+  auto f = gf::makeGroundFilter("voxel_paper", {{"segment_points", "800"}});
+  EXPECT_EQ(f->name(), "voxel_paper");
+  std::vector<std::uint8_t> labels;
+  gf::FilterStats st;
+  f->filter(view, &labels, &st);
+  ASSERT_EQ(labels.size(), 1600u);
+  EXPECT_EQ(labels[5], gf::kNonGround);
+  EXPECT_EQ(st.invalid_points, 1u);
+  std::size_t ground = 0;
+  for (const auto l : labels) ground += l == gf::kGround;
+  EXPECT_EQ(ground, st.ground_points);
+  EXPECT_GT(ground, 800u);  // a plane stays mostly ground after the mapping
+  // Without the mapping the metric plane is ground too, and the same pipeline runs.
+  auto raw = gf::makeGroundFilter("voxel_paper", {{"paper_normalisation", "false"}});
+  std::vector<std::uint8_t> raw_labels;
+  raw->filter(view, &raw_labels);
+  ASSERT_EQ(raw_labels.size(), 1600u);
+  EXPECT_EQ(raw_labels[5], gf::kNonGround);
+  std::size_t raw_ground = 0;
+  for (const auto l : raw_labels) raw_ground += l == gf::kGround;
+  EXPECT_GT(raw_ground, 800u);
+  EXPECT_THROW(gf::makeGroundFilter("voxel_paper", {{"paper_normalisation", "maybe"}}),
+               std::invalid_argument);
+  EXPECT_THROW(gf::makeGroundFilter("voxel_paper", {{"segment_points", "2"}}),
+               std::invalid_argument);
+  EXPECT_THROW(gf::makeGroundFilter("voxel_paper", {{"k", "5"}}), std::invalid_argument);
+}
+
+TEST(EvalCli, ClassesParamsFileAndPaperMethod) {
+  TempDir tmp;
+  writeKitti(tmp / "small.bin", smallScene(), true);
+  writeText(tmp / "p.yaml", "plane_distance: 0.2\n");
+  CommandResult r =
+      runEval("--json --classes --params '" + (tmp / "p.yaml") + "' '" + (tmp / "small.bin") + "'");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const Json doc = JsonParser(r.out).parseDocument();
+  const Json& classes = doc.at("classes");
+  ASSERT_EQ(classes.type, Json::kArray);
+  ASSERT_EQ(classes.arr.size(), 2u);  // road (ground) and building (non-ground)
+  EXPECT_EQ(classes.arr[0].at("class").num, 40.0);
+  EXPECT_EQ(classes.arr[0].at("name").str, "road");
+  EXPECT_EQ(classes.arr[0].at("truth").num, 1.0);
+  EXPECT_EQ(classes.arr[0].at("points").num, 400.0);
+  EXPECT_EQ(classes.arr[0].at("labelled_ground").num, doc.at("pooled").at("tp").num);
+  EXPECT_EQ(classes.arr[1].at("points").num, 125.0);
+  writeText(tmp / "bad.yaml", "no_such_parameter: 1\n");
+  r = runEval("--params '" + (tmp / "bad.yaml") + "' '" + (tmp / "small.bin") + "'", true);
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.out.find("no_such_parameter"), std::string::npos) << r.out;
+  r = runEval("--method voxel_paper --json '" + (tmp / "small.bin") + "'");
+  EXPECT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(JsonParser(r.out).parseDocument().at("method").str, "voxel_paper");
 }
 
 }  // namespace

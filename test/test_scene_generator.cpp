@@ -1,9 +1,12 @@
 // Tests of the procedural scene generator (the demo's default input and a test fixture).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <map>
 #include <stdexcept>
+#include <string>
 
 #include "ground_filter/scene_generator.h"
 
@@ -187,6 +190,122 @@ TEST(SceneGenerator, NanPointsAreInsertedAsNonGround) {
   EXPECT_FALSE(std::isnan(s.xyz[0]));  // spread inside the scan, not at its start
 }
 
+TEST(SceneGenerator, StreetClassesMatchTheTruth) {
+  SceneParams p;
+  p.beams = 32;
+  p.azimuth_steps = 900;
+  const GeneratedScan s = generateScene(p);
+  ASSERT_EQ(s.semantic.size(), s.size());
+  std::size_t road = 0;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const bool ground_class = s.semantic[i] == kClassRoad || s.semantic[i] == kClassSidewalk;
+    ASSERT_EQ(s.truth[i] == 1, ground_class) << "point " << i << " class " << s.semantic[i];
+    road += s.semantic[i] == kClassRoad;
+  }
+  EXPECT_GT(road, s.size() / 5);
+}
+
+// The failure-mode layouts: exact truth (ground = the height field up to range noise and
+// grass roughness; classes match the truth), bushes and undergrowth close to the ground.
+struct LayoutCase {
+  SceneParams::Layout layout;
+  std::uint16_t must_have[3];
+};
+
+class NaturalLayout : public testing::TestWithParam<LayoutCase> {};
+
+TEST_P(NaturalLayout, TruthIsExactAndTheFailureModesArePresent) {
+  SceneParams p;
+  p.layout = GetParam().layout;
+  p.uniform_beams = true;
+  p.vertical_min_deg = -16.6;
+  p.vertical_max_deg = 16.6;
+  p.azimuth_steps = 1024;
+  p.sensor_height = 1.3;
+  p.range_noise_sigma = 0.0;  // only the grass roughness moves ground points off the surface
+  const GeneratedScan s = generateScene(p);
+  expectConsistentSizes(s);
+  ASSERT_EQ(s.semantic.size(), s.size());
+  ASSERT_GT(s.size(), 20000u);
+  std::map<std::uint16_t, std::size_t> per_class;
+  std::size_t ground = 0, rough = 0, low_vegetation = 0;
+  double max_grass_dz = 0.0;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const std::uint16_t c = s.semantic[i];
+    ++per_class[c];
+    const bool ground_class =
+        c == kClassRoad || c == kClassSidewalk || c == kClassOtherGround || c == kClassTerrain;
+    ASSERT_EQ(s.truth[i] == 1, ground_class) << "point " << i << " class " << c;
+    const double dz = s.xyz[3 * i + 2] - sceneGroundHeight(p, s.xyz[3 * i], s.xyz[3 * i + 1]);
+    if (s.truth[i] == 1) {
+      ++ground;
+      // Kerb face (kVerge) and roughness; nothing else leaves the surface.
+      const double tol = c == kClassSidewalk ? 0.13 : p.grass_roughness + 1e-3;
+      ASSERT_LE(std::fabs(dz), tol) << "ground point " << i << " class " << c;
+      if (c == kClassTerrain) {
+        max_grass_dz = std::max(max_grass_dz, std::fabs(dz));
+        rough += std::fabs(dz) > 0.02;
+      }
+    } else if (c == kClassVegetation && dz < 1.0) {
+      ++low_vegetation;  // bushes and undergrowth: non-ground at any height
+    }
+  }
+  for (std::uint16_t c : GetParam().must_have) EXPECT_GT(per_class[c], 500u) << "class " << c;
+  EXPECT_GT(ground, s.size() / 4);
+  EXPECT_GT(max_grass_dz, 0.8 * p.grass_roughness);  // the grass is noisy ...
+  EXPECT_GT(rough, per_class[kClassTerrain] / 4);    // ... everywhere
+  EXPECT_GT(low_vegetation, 1000u);
+  EXPECT_EQ(generateScene(p).xyz, s.xyz);  // deterministic
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Layouts, NaturalLayout,
+    testing::Values(LayoutCase{SceneParams::Layout::kVerge,
+                               {kClassRoad, kClassSidewalk, kClassTerrain}},
+                    LayoutCase{SceneParams::Layout::kOffroad,
+                               {kClassTerrain, kClassOtherGround, kClassVegetation}},
+                    LayoutCase{SceneParams::Layout::kTrail,
+                               {kClassTerrain, kClassOtherGround, kClassVegetation}}));
+
+TEST(SceneGenerator, VergeSlopesAwayFromTheRoadAndTrailIsHilly) {
+  SceneParams v;
+  v.layout = SceneParams::Layout::kVerge;
+  // Across the verge (world y 4 -> 7.5) the ground falls by 0.6-1.1 m; the far lawn rises.
+  const double fall = sceneGroundHeight(v, 0.0, 4.0) - sceneGroundHeight(v, 0.0, 7.5);
+  EXPECT_GT(fall, 0.5);
+  EXPECT_LT(fall, 1.2);
+  EXPECT_GT(sceneGroundHeight(v, 0.0, -14.0), sceneGroundHeight(v, 0.0, -6.0) + 0.8);
+  SceneParams t;
+  t.layout = SceneParams::Layout::kTrail;
+  double lo = 1e9, hi = -1e9;
+  for (double x = -40.0; x <= 40.0; x += 1.0) {
+    const double z = sceneGroundHeight(t, x, 0.0);
+    lo = std::min(lo, z);
+    hi = std::max(hi, z);
+  }
+  EXPECT_GT(hi - lo, 2.0);  // metres of relief within 40 m
+}
+
+TEST(SceneGenerator, BuiltinKindsNameTheirSceneAndScanner) {
+  EXPECT_EQ(builtinSceneKinds().size(), 5u);
+  for (const std::string& kind : builtinSceneKinds()) {
+    EXPECT_NO_THROW(builtinSceneParams(kind).validate()) << kind;
+  }
+  EXPECT_EQ(builtinSceneParams("tls").mode, SceneParams::Mode::kTls);
+  EXPECT_EQ(builtinSceneParams("verge").layout, SceneParams::Layout::kVerge);
+  const SceneParams ouster = builtinSceneParams("trail");
+  EXPECT_EQ(ouster.layout, SceneParams::Layout::kTrail);
+  EXPECT_TRUE(ouster.uniform_beams);
+  EXPECT_EQ(ouster.azimuth_steps, 2048);
+  EXPECT_EQ(builtinSceneParams("offroad").layout, SceneParams::Layout::kOffroad);
+  try {
+    builtinSceneParams("moon");
+    ADD_FAILURE() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("trail"), std::string::npos) << e.what();
+  }
+}
+
 TEST(SceneGenerator, InvalidParametersAreRefused) {
   SceneParams p;
   p.mode = SceneParams::Mode::kTls;
@@ -201,6 +320,9 @@ TEST(SceneGenerator, InvalidParametersAreRefused) {
   SceneParams s;
   s.range_noise_sigma = -0.1;
   EXPECT_THROW(generateScene(s), std::invalid_argument);
+  SceneParams g;
+  g.grass_roughness = -0.01;
+  EXPECT_THROW(generateScene(g), std::invalid_argument);
 }
 
 }  // namespace

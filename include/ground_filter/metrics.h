@@ -51,6 +51,21 @@ struct Metrics {
 /// \brief Computes the Metrics of `c` (NaN for each ratio with a zero denominator).
 Metrics computeMetrics(const Confusion& c);
 
+/// \brief Points of one (class, truth) group of a labelled scan and how many of them a filter
+///        labelled ground: the recall of a ground class, the false-positive share of another.
+struct ClassCount {
+  std::uint16_t cls = 0;              ///< semantic class id (e.g. SemanticKITTI)
+  std::int8_t truth = 0;              ///< 1 ground, 0 non-ground under the scan's protocol
+  std::uint64_t points = 0;           ///< counted points of this group
+  std::uint64_t labelled_ground = 0;  ///< of them, labelled ground by the filter
+};
+
+/// \brief Adds per (class, truth) counts of one scan to `table`, which stays sorted by class
+///        and then truth (ignored points are left out, as in countConfusion).
+/// \throws std::invalid_argument when the three vectors differ in size.
+void addClassCounts(const std::vector<std::uint8_t>& labels, const std::vector<std::int8_t>& truth,
+                    const std::vector<std::uint16_t>& semantic, std::vector<ClassCount>* table);
+
 }  // namespace ground_filter
 
 #endif  // GROUND_FILTER_METRICS_H

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "ground_filter/cloud_view.h"
+#include "ground_filter/scene_generator.h"
 
 namespace ground_filter {
 
@@ -21,7 +22,10 @@ constexpr double kKittiVegetationGroundZ = -1.2975;
 struct Scan {
   pcl::PCLPointCloud2 cloud;       ///< every field of the input, little-endian records
   std::vector<std::int8_t> truth;  ///< per point 1 ground, 0 non-ground, -1 ignored; empty = none
-  std::string path;                ///< where it came from (file path or builtin:...)
+  /// Per point SemanticKITTI class (low 16 bits of a .label; the generator's classes for
+  /// builtin: scenes); empty when the source has no classes.
+  std::vector<std::uint16_t> semantic;
+  std::string path;  ///< where it came from (file path or builtin:...)
 
   /// \brief Number of point records (width x height).
   std::size_t size() const { return static_cast<std::size_t>(cloud.width) * cloud.height; }
@@ -36,11 +40,17 @@ struct Scan {
 ///   truth with semanticKittiTruth().
 /// - `*.pcd`, `*.ply`: read through PCL with all fields. A PCD field named `label` is ground truth
 ///   under the ISPRS protocol (isprsTruth()); PLY labels are not interpreted.
-/// - `builtin:lidar[:SEED]`, `builtin:tls[:SEED]`: a generated scene with exact truth (fields
-///   x y z intensity ring).
+/// - `builtin:KIND[:SEED]`: a generated scene with exact truth and classes (fields x y z
+///   intensity ring); KIND is one of builtinSceneKinds() (scene_generator.h): `lidar` (street,
+///   HDL-64), `tls` (street, tripod scanner), `verge` (grass verge and sloped lawns beside a road,
+///   HDL-64), `offroad` (grassland with bushes and undergrowth, Ouster OS1-64), `trail` (hilly dirt
+///   trail, Ouster OS1-64).
 /// \throws std::runtime_error naming the file for a missing/unreadable/malformed file, an unknown
 ///         extension or a label count that does not match the points.
 Scan loadScan(const std::string& path);
+
+/// \brief Short SemanticKITTI class name ("road", "vegetation", ...); "class N" when unknown.
+std::string semanticKittiClassName(std::uint16_t cls);
 
 /// \brief Scan files of `path_or_dir`: a file or `builtin:...` is returned as is; a directory
 ///        gives its `.bin`/`.pcd`/`.ply` files (not recursive), sorted by name.

@@ -3,6 +3,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace ground_filter {
@@ -10,20 +11,32 @@ namespace ground_filter {
 /// \brief Parameters of the procedural street scene and of the simulated scanner. One line per
 ///        field: meaning [unit] (default).
 ///
-/// World: a road along +x with a gentle slope, a curb up to a sidewalk at y = curb_y, a ramp
-/// joining two terrain levels (ramp_start_x .. ramp_end_x), buildings, cars, poles and trees whose
-/// canopies overhang the ground. The terrain (road, verge, curb face, sidewalk, ramp) is ground;
-/// everything else is not. The layout of objects depends on `seed` only; the range noise on
-/// `seed` and `noise_seed`; the scanner position on `sensor_x`.
+/// World (`layout`): kStreet is a road along +x with a gentle slope, a curb up to a sidewalk at
+/// y = curb_y, a ramp joining two terrain levels (ramp_start_x .. ramp_end_x), buildings, cars,
+/// poles and trees whose canopies overhang the ground. The other layouts reproduce failure modes
+/// of real scans (README, "Generated scenes"): grass verges and lawns sloping beside a road,
+/// rolling off-road grassland with bushes and undergrowth, a hilly dirt trail. The terrain (road,
+/// curb face, sidewalk, ramp, grass, dirt) is ground; everything else (bushes and undergrowth of
+/// any height included) is not. The layout of objects depends on `seed` only; the range noise
+/// on `seed` and `noise_seed`; the scanner position on `sensor_x`.
 struct SceneParams {
   /// \brief Scanner model.
   enum class Mode {
     kLidar64,  ///< spinning 64-beam LiDAR on a car (HDL-64-like), ~100 k returns
     kTls,      ///< terrestrial laser scanner on a tripod: dense spherical sweep, 1-5 M returns
   };
-  Mode mode = Mode::kLidar64;    ///< scanner model (kLidar64)
-  std::uint32_t seed = 1;        ///< layout (and noise) seed [-] (1)
-  std::uint32_t noise_seed = 0;  ///< extra seed of the noise only, e.g. scan index [-] (0)
+  /// \brief World layout.
+  enum class Layout {
+    kStreet,   ///< road, curb, sidewalk, ramp, buildings, cars, poles, trees
+    kVerge,    ///< road with a grass verge sloping away on one side and a kerb, sidewalk and a
+               ///< lawn rising away on the other; bushes, trees, cars, poles
+    kOffroad,  ///< rolling grassland with a dirt track, bushes 0.3-1 m, undergrowth, trees
+    kTrail,    ///< hilly terrain (slopes up to ~25 %) with a winding dirt trail, grass, bushes
+  };
+  Mode mode = Mode::kLidar64;       ///< scanner model (kLidar64)
+  Layout layout = Layout::kStreet;  ///< world layout (kStreet)
+  std::uint32_t seed = 1;           ///< layout (and noise) seed [-] (1)
+  std::uint32_t noise_seed = 0;     ///< extra seed of the noise only, e.g. scan index [-] (0)
 
   // Scanner pose. Output points are in the scanner frame: x forward (along the road), z up.
   double sensor_x = 0.0;  ///< scanner position along the road (world x) [m] (0)
@@ -38,6 +51,7 @@ struct SceneParams {
   double vertical_max_deg = 2.0;    ///< highest beam elevation [deg] (2.0)
   double lidar_max_range = 80.0;    ///< farther hits give no return [m] (80)
   double min_range = 1.0;           ///< nearer hits give no return (own vehicle/tripod) [m] (1.0)
+  bool uniform_beams = false;  ///< beams evenly spread (Ouster) instead of HDL-64's split (false)
 
   // Terrestrial scanner (kTls).
   std::size_t tls_points = 2000000;      ///< point budget, never exceeded [points] (2 M; 1 k..5 M)
@@ -48,6 +62,9 @@ struct SceneParams {
   // Sensor model.
   double range_noise_sigma = 0.02;  ///< Gaussian range noise, standard deviation [m] (0.02)
   std::size_t nan_points = 0;       ///< NaN points inserted for robustness demos [points] (0)
+  /// Half-range of the uniform vertical noise of grass returns (blades, tufts) [m] (0.05);
+  /// dirt gets a fifth of it, roads and sidewalks none. Only the non-street layouts have grass.
+  double grass_roughness = 0.05;
 
   // Terrain (world frame; road level z = slope_x * x + slope_y * y + ramp).
   double slope_x = 0.02;       ///< road slope along x (gentle) [m/m] (0.02)
@@ -64,15 +81,41 @@ struct SceneParams {
   void validate() const;
 };
 
+/// \brief SemanticKITTI class ids the generator writes to GeneratedScan::semantic.
+enum SceneClass : std::uint16_t {
+  kClassUnlabelled = 0,    ///< NaN points
+  kClassCar = 10,          ///< car bodies and cabins
+  kClassRoad = 40,         ///< road (asphalt)
+  kClassSidewalk = 48,     ///< sidewalk and curb face
+  kClassOtherGround = 49,  ///< dirt track or trail
+  kClassBuilding = 50,     ///< buildings
+  kClassVegetation = 70,   ///< tree crowns, bushes, undergrowth (never ground in the truth)
+  kClassTrunk = 71,        ///< tree trunks
+  kClassTerrain = 72,      ///< grass verges, lawns, grassland (ground, rough)
+  kClassPole = 80,         ///< poles
+};
+
 /// \brief A generated scan: per-point arrays in scanner order (azimuth column, then elevation).
 struct GeneratedScan {
   std::vector<float> xyz;           ///< packed x y z [m], scanner frame
   std::vector<float> intensity;     ///< reflectivity-like value [0, 1]
   std::vector<std::uint16_t> ring;  ///< beam index (LiDAR) or elevation row (TLS)
   std::vector<std::uint8_t> truth;  ///< 1 ground, 0 non-ground (NaN points are 0)
+  /// SemanticKITTI class of each point (kClass* below; NaN points kClassUnlabelled).
+  std::vector<std::uint16_t> semantic;
   /// \brief Number of points.
   std::size_t size() const { return truth.size(); }
 };
+
+/// \brief Scene and scanner of a named built-in scene (`builtin:KIND[:SEED]` of the tools):
+///        `lidar` (street, HDL-64), `tls` (street, tripod scanner), `verge` (grass verge and
+///        sloped lawns beside a road, HDL-64), `offroad` (grassland with bushes and undergrowth,
+///        Ouster OS1-64 1.3 m up), `trail` (hilly dirt trail, Ouster OS1-64 1.3 m up).
+/// \throws std::invalid_argument naming the known kinds for any other name.
+SceneParams builtinSceneParams(const std::string& kind);
+
+/// \brief The kinds builtinSceneParams() knows, in the order above.
+std::vector<std::string> builtinSceneKinds();
 
 /// \brief Ray-casts the procedural scene with the scanner of `params.mode`.
 ///
@@ -82,8 +125,9 @@ struct GeneratedScan {
 GeneratedScan generateScene(const SceneParams& params);
 
 /// \brief Height of the terrain surface below (x, y) of the scanner frame of `params`, in that
-///        frame [m]: the exact surface the ground points were sampled from, before noise (the
-///        sidewalk level from the curb line on, i.e. world y >= curb_y).
+///        frame [m]: the exact surface the ground points were sampled from, before range noise
+///        and grass roughness (kStreet: the sidewalk level from the curb line on, i.e. world
+///        y >= curb_y).
 double sceneGroundHeight(const SceneParams& params, double x, double y);
 
 }  // namespace ground_filter

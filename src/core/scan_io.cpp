@@ -121,10 +121,12 @@ Scan loadKittiBin(const std::string& path) {
   }
   const CloudView view = viewOf(c);
   scan.truth.resize(n);
+  scan.semantic.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     std::uint32_t raw;
     std::memcpy(&raw, label_bytes.data() + 4 * i, sizeof(raw));  // little-endian host
     scan.truth[i] = semanticKittiTruth(raw, view.z(i));
+    scan.semantic[i] = static_cast<std::uint16_t>(raw & 0xFFFFu);
   }
   return scan;
 }
@@ -257,14 +259,10 @@ Scan loadBuiltinScan(const std::string& path) {
   const std::size_t colon = spec.find(':');
   const std::string mode = spec.substr(0, colon);
   SceneParams params;
-  if (mode == "lidar") {
-    params.mode = SceneParams::Mode::kLidar64;
-  } else if (mode == "tls") {
-    params.mode = SceneParams::Mode::kTls;
-  } else {
-    fail(path, "unknown built-in scene '" + mode +
-                   "' (expected builtin:lidar[:SEED] or "
-                   "builtin:tls[:SEED])");
+  try {
+    params = builtinSceneParams(mode);
+  } catch (const std::invalid_argument& e) {
+    fail(path, std::string(e.what()) + "; expected builtin:KIND[:SEED]");
   }
   if (colon != std::string::npos) {
     const std::string seed = spec.substr(colon + 1);
@@ -283,7 +281,8 @@ Scan loadBuiltinScan(const std::string& path) {
     fail(path, std::string("scene generator failed: ") + e.what());
   }
   const std::size_t n = gen.size();
-  if (gen.xyz.size() != 3 * n || gen.intensity.size() != n || gen.ring.size() != n) {
+  if (gen.xyz.size() != 3 * n || gen.intensity.size() != n || gen.ring.size() != n ||
+      gen.semantic.size() != n) {
     fail(path, "scene generator returned inconsistent array sizes");
   }
   Scan scan;
@@ -309,6 +308,7 @@ Scan loadBuiltinScan(const std::string& path) {
   }
   c.is_dense = allFinite(c);
   scan.truth.assign(gen.truth.begin(), gen.truth.end());  // 1 ground, 0 non-ground
+  scan.semantic = std::move(gen.semantic);
   return scan;
 }
 
@@ -330,6 +330,65 @@ std::int8_t semanticKittiTruth(std::uint32_t raw_label, float z) {
       return static_cast<double>(z) < kKittiVegetationGroundZ ? 1 : 0;
     default:
       return 0;
+  }
+}
+
+std::string semanticKittiClassName(std::uint16_t cls) {
+  switch (cls) {
+    case 0:
+      return "unlabeled";
+    case 1:
+      return "outlier";
+    case 10:
+      return "car";
+    case 11:
+      return "bicycle";
+    case 13:
+      return "bus";
+    case 15:
+      return "motorcycle";
+    case 16:
+      return "on-rails";
+    case 18:
+      return "truck";
+    case 20:
+      return "other-vehicle";
+    case 30:
+      return "person";
+    case 31:
+      return "bicyclist";
+    case 32:
+      return "motorcyclist";
+    case 40:
+      return "road";
+    case 44:
+      return "parking";
+    case 48:
+      return "sidewalk";
+    case 49:
+      return "other-ground";
+    case 50:
+      return "building";
+    case 51:
+      return "fence";
+    case 52:
+      return "other-structure";
+    case 60:
+      return "lane-marking";
+    case 70:
+      return "vegetation";
+    case 71:
+      return "trunk";
+    case 72:
+      return "terrain";
+    case 80:
+      return "pole";
+    case 81:
+      return "traffic-sign";
+    case 99:
+      return "other-object";
+    default:
+      return "class " + std::to_string(cls);
   }
 }
 

@@ -33,18 +33,21 @@ struct Vec3 {
 struct Box {
   Vec3 lo, hi;
   float reflectivity;
+  std::uint16_t cls;
 };
 
 // Vertical cylinder between z0 and z1 (poles, trunks).
 struct Cylinder {
   double cx, cy, r, z0, z1;
   float reflectivity;
+  std::uint16_t cls;
 };
 
 // Axis-aligned ellipsoid (tree crowns).
 struct Ellipsoid {
   Vec3 c, r;
   float reflectivity;
+  std::uint16_t cls;
 };
 
 enum class Shape : std::uint8_t { kBox, kCylinder, kEllipsoid };
@@ -63,13 +66,20 @@ struct TerrainPatch {
   double a, b, c;
   double x0, x1, y0, y1;
   float reflectivity;
+  std::uint16_t cls;
 };
 
 struct Hit {
   double t = kNoHit;
   float reflectivity = 0.f;
   bool ground = false;
+  std::uint16_t cls = kClassUnlabelled;
+  float roughness = 0.f;  // half-range of the vertical noise of this surface [m]
 };
+
+constexpr float kGrassReflectivity = 0.25f;
+constexpr float kDirtReflectivity = 0.30f;
+constexpr float kBushReflectivity = 0.35f;
 
 double rampOffset(const SceneParams& p, double x) {
   if (x <= p.ramp_start_x) return 0.0;
@@ -81,8 +91,84 @@ double roadHeight(const SceneParams& p, double x, double y) {
   return p.slope_x * x + p.slope_y * y + rampOffset(p, x);
 }
 
+// A per-seed phase in [0, 2 pi) for term k of the natural terrains (splitmix64 of seed and k).
+double phase(const SceneParams& p, std::uint64_t k) {
+  std::uint64_t z = (static_cast<std::uint64_t>(p.seed) << 8) + k + 0x9E3779B97F4A7C15ull;
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  z ^= z >> 31;
+  return 2.0 * kPi * static_cast<double>(z >> 11) * (1.0 / 9007199254740992.0);
+}
+
+// kVerge: road |y| <= 4 with 2 % camber; y > 4 a grass verge falling away at 17-33 % for
+// 3.5 m, then a lawn rising at 6 %; y < -4 a 0.12 m kerb, a 2 m sidewalk and a lawn rising at
+// 13-23 % for 8 m, then level.
+constexpr double kVergeRoadHalfWidth = 4.0;
+constexpr double kVergeSidewalkEnd = -6.0;
+
+double vergeHeight(const SceneParams& p, double x, double y) {
+  const double road = p.slope_x * x;
+  const double edge = road - 0.02 * kVergeRoadHalfWidth;
+  if (y > kVergeRoadHalfWidth) {
+    const double s = 0.25 * (1.0 + 0.3 * std::sin(x / 13.0 + phase(p, 0)));
+    const double yy = y - kVergeRoadHalfWidth;
+    return edge - s * std::min(yy, 3.5) + 0.06 * std::max(yy - 3.5, 0.0);
+  }
+  if (y < -kVergeRoadHalfWidth) {
+    const double walk = edge + 0.12;
+    if (y >= kVergeSidewalkEnd) return walk;
+    const double s = 0.18 * (1.0 + 0.3 * std::sin(x / 17.0 + phase(p, 1)));
+    return walk + s * std::min(kVergeSidewalkEnd - y, 8.0);
+  }
+  return road - 0.02 * std::fabs(y);
+}
+
+// kOffroad: rolling grassland, slopes mostly under 20 %.
+double offroadHeight(const SceneParams& p, double x, double y) {
+  return 0.6 * std::sin(x / 8.0 + phase(p, 0)) * std::cos(y / 10.0 + phase(p, 1)) +
+         0.4 * std::sin((x + 1.7 * y) / 15.0 + phase(p, 2)) +
+         0.15 * std::sin((2.0 * x - y) / 4.5 + phase(p, 3)) + p.slope_x * x;
+}
+
+// Centre line of the dirt track (kOffroad) or trail (kTrail), through y = 0 at x = 0.
+double trackCentre(const SceneParams& p, double x) {
+  if (p.layout == SceneParams::Layout::kTrail) {
+    return 4.0 * (std::sin(x / 25.0 + phase(p, 4)) - std::sin(phase(p, 4)));
+  }
+  return 1.5 * (std::sin(x / 12.0 + phase(p, 4)) - std::sin(phase(p, 4)));
+}
+
+constexpr double kTrackHalfWidth = 1.3;
+
+// kTrail: hills of a few metres, slopes up to about 25 %.
+double trailHeight(const SceneParams& p, double x, double y) {
+  return 2.2 * std::sin(x / 24.0 + phase(p, 0)) +
+         1.3 * std::cos(y / 15.0 + x / 40.0 + phase(p, 1)) +
+         0.45 * std::sin((x - y) / 8.0 + phase(p, 2));
+}
+
 double worldGroundHeight(const SceneParams& p, double x, double y) {
+  switch (p.layout) {
+    case SceneParams::Layout::kVerge:
+      return vergeHeight(p, x, y);
+    case SceneParams::Layout::kOffroad:
+      return offroadHeight(p, x, y);
+    case SceneParams::Layout::kTrail:
+      return trailHeight(p, x, y);
+    case SceneParams::Layout::kStreet:
+      break;
+  }
   return roadHeight(p, x, y) + (y >= p.curb_y ? p.curb_height : 0.0);
+}
+
+// Surface class of the non-street terrains at (x, y) (world frame).
+std::uint16_t naturalClass(const SceneParams& p, double x, double y) {
+  if (p.layout == SceneParams::Layout::kVerge) {
+    if (std::fabs(y) <= kVergeRoadHalfWidth) return kClassRoad;
+    if (y < -kVergeRoadHalfWidth && y >= kVergeSidewalkEnd) return kClassSidewalk;
+    return kClassTerrain;
+  }
+  return std::fabs(y - trackCentre(p, x)) < kTrackHalfWidth ? kClassOtherGround : kClassTerrain;
 }
 
 Vec3 scannerOrigin(const SceneParams& p) {
@@ -105,8 +191,12 @@ double minGroundOver(const SceneParams& p, double x0, double x1, double y0, doub
 class Scene {
  public:
   explicit Scene(const SceneParams& p) : p_(p), origin_(scannerOrigin(p)) {
-    buildTerrain();
-    buildLayout();
+    if (p.layout == SceneParams::Layout::kStreet) {
+      buildTerrain();
+      buildLayout();
+    } else {
+      buildNaturalLayout();
+    }
     buildSectors();
   }
 
@@ -140,18 +230,18 @@ class Scene {
       const double hx = origin_.x + t * d.x;
       const double hy = origin_.y + t * d.y;
       if (hx < tp.x0 || hx >= tp.x1 || hy < tp.y0 || hy >= tp.y1) continue;
-      best = {t, tp.reflectivity, true};
+      best = {t, tp.reflectivity, true, tp.cls};
       any = true;
     }
     // Vertical curb face between road and sidewalk.
-    if (d.y != 0.0) {
+    if (d.y != 0.0 && p_.layout == SceneParams::Layout::kStreet) {
       const double t = (p_.curb_y - origin_.y) / d.y;
       if (t > t_min && t <= best.t) {
         const double hx = origin_.x + t * d.x;
         const double hz = origin_.z + t * d.z;
         const double base = roadHeight(p_, hx, p_.curb_y);
         if (hz >= base && hz <= base + p_.curb_height) {
-          best = {t, kSidewalkReflectivity, true};
+          best = {t, kSidewalkReflectivity, true, kClassSidewalk};
           any = true;
         }
       }
@@ -159,22 +249,43 @@ class Scene {
     for (const SectorEntry* e : objects) {
       double t = kNoHit;
       float refl = 0.f;
+      std::uint16_t cls = kClassUnlabelled;
       switch (e->shape) {
         case Shape::kBox:
           t = hitBox(boxes_[e->index], d, t_min);
           refl = boxes_[e->index].reflectivity;
+          cls = boxes_[e->index].cls;
           break;
         case Shape::kCylinder:
           t = hitCylinder(cylinders_[e->index], d, t_min);
           refl = cylinders_[e->index].reflectivity;
+          cls = cylinders_[e->index].cls;
           break;
         case Shape::kEllipsoid:
           t = hitEllipsoid(ellipsoids_[e->index], d, t_min);
           refl = ellipsoids_[e->index].reflectivity;
+          cls = ellipsoids_[e->index].cls;
           break;
       }
       if (t <= best.t) {
-        best = {t, refl, false};
+        best = {t, refl, false, cls};
+        any = true;
+      }
+    }
+    if (p_.layout != SceneParams::Layout::kStreet) {
+      // Height-field terrain: nearer than the nearest object?
+      const double t = marchTerrain(d, t_min, best.t);
+      if (t != kNoHit) {
+        const double hx = origin_.x + t * d.x, hy = origin_.y + t * d.y;
+        const std::uint16_t cls = naturalClass(p_, hx, hy);
+        const double rough = cls == kClassTerrain       ? p_.grass_roughness
+                             : cls == kClassOtherGround ? 0.2 * p_.grass_roughness
+                                                        : 0.0;
+        const float refl = cls == kClassTerrain       ? kGrassReflectivity
+                           : cls == kClassOtherGround ? kDirtReflectivity
+                           : cls == kClassSidewalk    ? kSidewalkReflectivity
+                                                      : kRoadReflectivity;
+        best = {t, refl, true, cls, static_cast<float>(rough)};
         any = true;
       }
     }
@@ -200,14 +311,15 @@ class Scene {
       for (int j = 0; j < 2; ++j) {
         const bool sidewalk = j == 1;
         terrain_.push_back({a, p_.slope_y, c + (sidewalk ? p_.curb_height : 0.0), xs[i], xs[i + 1],
-                            ys[j], ys[j + 1],
-                            sidewalk ? kSidewalkReflectivity : kRoadReflectivity});
+                            ys[j], ys[j + 1], sidewalk ? kSidewalkReflectivity : kRoadReflectivity,
+                            sidewalk ? kClassSidewalk : kClassRoad});
       }
     }
   }
 
-  void addBox(double x0, double x1, double y0, double y1, double z0, double z1, float refl) {
-    boxes_.push_back({{x0, y0, z0}, {x1, y1, z1}, refl});
+  void addBox(double x0, double x1, double y0, double y1, double z0, double z1, float refl,
+              std::uint16_t cls) {
+    boxes_.push_back({{x0, y0, z0}, {x1, y1, z1}, refl, cls});
   }
 
   void addCar(std::mt19937& rng, double xc, double yc) {
@@ -218,10 +330,10 @@ class Scene {
     const double g = worldGroundHeight(p_, xc, yc);
     const double bottom = minGroundOver(p_, x0, x1, y0, y1) - 0.3;
     const double body_top = g + hgt(rng);
-    addBox(x0, x1, y0, y1, bottom, body_top, kCarReflectivity);
+    addBox(x0, x1, y0, y1, bottom, body_top, kCarReflectivity, kClassCar);
     // Cabin: narrower box with the roof on top.
     addBox(x0 + 0.25 * l, x1 - 0.2 * l, y0 + 0.1, y1 - 0.1, body_top - 0.01, g + roof(rng),
-           kCarReflectivity);
+           kCarReflectivity, kClassCar);
   }
 
   void addTree(std::mt19937& rng, double x, double y) {
@@ -230,17 +342,18 @@ class Scene {
     const double g = worldGroundHeight(p_, x, y);
     const double rz = crown_h(rng), rxy = crown_r(rng);
     const double cz = g + crown_base(rng) + rz;  // the canopy starts ~2 m above the ground
-    ellipsoids_.push_back({{x, y, cz}, {rxy, rxy, rz}, kCrownReflectivity});
+    ellipsoids_.push_back({{x, y, cz}, {rxy, rxy, rz}, kCrownReflectivity, kClassVegetation});
     const double tr = trunk_r(rng);
     cylinders_.push_back({x, y, tr, minGroundOver(p_, x - tr, x + tr, y - tr, y + tr) - 0.2, cz,
-                          kTrunkReflectivity});
+                          kTrunkReflectivity, kClassTrunk});
   }
 
   void addPole(std::mt19937& rng, double x, double y) {
     std::uniform_real_distribution<double> height(5.0, 8.0);
     const double r = 0.1;
     cylinders_.push_back({x, y, r, minGroundOver(p_, x - r, x + r, y - r, y + r) - 0.2,
-                          worldGroundHeight(p_, x, y) + height(rng), kPoleReflectivity});
+                          worldGroundHeight(p_, x, y) + height(rng), kPoleReflectivity,
+                          kClassPole});
   }
 
   // Row of buildings between y_near and y_far (y_far beyond y_near, on either side).
@@ -256,7 +369,7 @@ class Scene {
       const double x1 = std::min(x + l, e);
       addBox(x, x1, y0, y1, minGroundOver(p_, x, x1, y0, y1) - 0.5,
              worldGroundHeight(p_, 0.5 * (x + x1), 0.5 * (y0 + y1)) + height(rng),
-             kWallReflectivity);
+             kWallReflectivity, kClassBuilding);
       x = x1 + gap(rng);
     }
   }
@@ -292,6 +405,118 @@ class Scene {
     for (double x = 9.0 + tree_gap(rng); x < e; x += tree_gap(rng)) addTree(rng, x, cy + 2.0);
     for (double x = 9.0 - tree_gap(rng); x > -e; x -= tree_gap(rng)) addTree(rng, x, cy + 2.0);
     for (double x = -e + tree_gap(rng); x < e; x += tree_gap(rng)) addTree(rng, x, -9.0);
+  }
+
+  // A bush (or undergrowth clump) of height h above the ground at its centre and radius r: an
+  // ellipsoid whose lower part is buried, so it grows out of the ground on any slope.
+  void addBush(double x, double y, double h, double r) {
+    const double rz = 0.65 * h;
+    ellipsoids_.push_back({{x, y, worldGroundHeight(p_, x, y) + h - rz},
+                           {r, r, rz},
+                           kBushReflectivity,
+                           kClassVegetation});
+  }
+
+  // Places `count` objects uniformly in |x| <= ex, |y - track| in [near, far] (either side; far
+  // <= 0 means anywhere in |y| <= ex), away from the scanner's world position.
+  template <typename Place>
+  void scatter(std::mt19937& rng, int count, double ex, double near, double far, Place place) {
+    std::uniform_real_distribution<double> ux(-ex, ex), uside(near, far > 0.0 ? far : ex),
+        uy(-ex, ex), coin(0.0, 1.0);
+    for (int i = 0; i < count; ++i) {
+      const double x = ux(rng);
+      double y;
+      if (far > 0.0) {
+        const double off = uside(rng);
+        y = trackCentre(p_, x) + (coin(rng) < 0.5 ? -off : off);
+      } else {
+        y = uy(rng);
+        if (std::fabs(y - trackCentre(p_, x)) < near) continue;
+      }
+      if (std::hypot(x - p_.sensor_x, y - p_.sensor_y) < 3.0) continue;
+      place(x, y);
+    }
+  }
+
+  void buildNaturalLayout() {
+    std::mt19937 rng(p_.seed);
+    std::uniform_real_distribution<double> bush_h(0.3, 1.0), bush_r(0.3, 1.2), under_h(0.12, 0.3),
+        under_r(0.2, 0.6);
+    auto bush = [&](double x, double y) {
+      const double h = bush_h(rng);
+      addBush(x, y, h, bush_r(rng));
+    };
+    auto under = [&](double x, double y) {
+      const double h = under_h(rng);
+      addBush(x, y, h, under_r(rng));
+    };
+    auto tree = [&](double x, double y) { addTree(rng, x, y); };
+    if (p_.layout == SceneParams::Layout::kVerge) {
+      const double e = std::min(p_.scene_extent, 70.0);
+      std::uniform_real_distribution<double> ux(-e, e), verge_y(5.0, 20.0), lawn_y(-22.0, -7.0),
+          car_gap(8.0, 25.0);
+      for (int i = 0; i < 60; ++i) {
+        const double x = ux(rng), y = verge_y(rng);
+        bush(x, y);
+      }
+      for (int i = 0; i < 60; ++i) {
+        const double x = ux(rng), y = lawn_y(rng);
+        bush(x, y);
+      }
+      // Oncoming lane (y = 2.6) ahead, the scanner's lane (y = 0) behind it; no car closer to
+      // the scanner's own vehicle than a real one could be.
+      for (double x = -e + car_gap(rng); x < e; x += car_gap(rng)) {
+        const double y = x > p_.sensor_x ? 2.6 : 0.0;
+        if (std::fabs(x - p_.sensor_x) < (y > 0.0 ? 3.0 : 8.0)) continue;
+        addCar(rng, x, y);
+      }
+      std::uniform_real_distribution<double> tree_gap(10.0, 25.0);
+      for (double x = -e + tree_gap(rng); x < e; x += tree_gap(rng)) addTree(rng, x, 13.0);
+      for (double x = -e + tree_gap(rng); x < e; x += tree_gap(rng)) addTree(rng, x, -17.0);
+      std::uniform_real_distribution<double> pole_gap(15.0, 30.0);
+      for (double x = -e + pole_gap(rng); x < e; x += pole_gap(rng)) addPole(rng, x, -5.5);
+      addBuildingRow(rng, 26.0, +1.0);
+      addBuildingRow(rng, -26.0, -1.0);
+    } else if (p_.layout == SceneParams::Layout::kOffroad) {
+      scatter(rng, 250, 55.0, 1.8, 0.0, bush);
+      scatter(rng, 900, 35.0, 1.8, 0.0, under);
+      scatter(rng, 15, 60.0, 6.0, 0.0, tree);
+    } else {  // kTrail
+      scatter(rng, 200, 60.0, 2.0, 15.0, bush);
+      scatter(rng, 400, 40.0, 1.8, 12.0, under);
+      scatter(rng, 25, 60.0, 6.0, 30.0, tree);
+    }
+  }
+
+  // First crossing of the ray origin + t d below the height-field terrain in (t_min, t_max]:
+  // steps that grow with the range (the hills are metres wide), then bisection.
+  double marchTerrain(const Vec3& d, double t_min, double t_max) const {
+    auto above = [&](double t) {
+      return origin_.z + t * d.z - worldGroundHeight(p_, origin_.x + t * d.x, origin_.y + t * d.y);
+    };
+    // The natural terrains are never steeper than kMaxGrade (kerb steps only rise, so a long
+    // step cannot jump over them): a ray h above the terrain cannot reach it within
+    // h / (kMaxGrade |d_xy| + max(0, -d_z)).
+    constexpr double kMaxGrade = 0.5;
+    const double climb = kMaxGrade * std::hypot(d.x, d.y) + std::max(0.0, -d.z);
+    double t0 = t_min;
+    double h0 = above(t0);
+    if (!(t_max > t0) || h0 <= 0.0) return kNoHit;
+    while (t0 < t_max) {
+      const double t1 = std::min(t0 + std::max(0.04 + 0.008 * t0, h0 / climb), t_max);
+      const double h1 = above(t1);
+      if (h1 <= 0.0) {
+        double lo = t0, hi = t1;
+        for (int it = 0; it < 40; ++it) {
+          const double mid = 0.5 * (lo + hi);
+          (above(mid) > 0.0 ? lo : hi) = mid;
+        }
+        return hi;
+      }
+      t0 = t1;
+      h0 = h1;
+    }
+    return kNoHit;
   }
 
   void addSector(Shape shape, std::uint32_t index, double x0, double x1, double y0, double y1) {
@@ -414,6 +639,8 @@ Pattern lidarPattern(const SceneParams& p) {
     double deg;
     if (p.beams == 1) {
       deg = p.vertical_min_deg;
+    } else if (p.uniform_beams) {
+      deg = p.vertical_max_deg - span * b / (p.beams - 1);
     } else if (b < upper) {
       deg = p.vertical_max_deg - (p.vertical_max_deg - split) * b / std::max(upper, 1);
     } else {
@@ -447,6 +674,7 @@ struct Block {
   std::vector<float> xyz, intensity;
   std::vector<std::uint16_t> ring;
   std::vector<std::uint8_t> truth;
+  std::vector<std::uint16_t> semantic;
 };
 
 constexpr std::size_t kBlocks = 256;
@@ -472,6 +700,7 @@ GeneratedScan castPattern(const SceneParams& p, const Scene& scene, const Patter
     std::mt19937 rng(seq);
     std::normal_distribution<double> range_noise(0.0, sigma > 0.0 ? sigma : 1.0);
     std::normal_distribution<float> intensity_noise(0.0f, 0.03f);
+    std::uniform_real_distribution<double> rough_noise(-1.0, 1.0);
     std::vector<const SectorEntry*> objects;
     Block& blk = out[b];
     const std::size_t c0 = cols * b / blocks, c1 = cols * (b + 1) / blocks;
@@ -493,9 +722,12 @@ GeneratedScan castPattern(const SceneParams& p, const Scene& scene, const Patter
           continue;
         }
         const double range = sigma > 0.0 ? hit.t + range_noise(rng) : hit.t;
+        // Grass and dirt: the return comes from a blade or clod up to `roughness` off the surface.
+        const double dz = hit.roughness > 0.f ? hit.roughness * rough_noise(rng) : 0.0;
         blk.xyz.push_back(static_cast<float>(d.x * range));
         blk.xyz.push_back(static_cast<float>(d.y * range));
-        blk.xyz.push_back(static_cast<float>(d.z * range));
+        blk.xyz.push_back(static_cast<float>(d.z * range + dz));
+        blk.semantic.push_back(hit.cls);
         blk.intensity.push_back(std::clamp(hit.reflectivity + intensity_noise(rng), 0.0f, 1.0f));
         blk.ring.push_back(static_cast<std::uint16_t>(r));
         blk.truth.push_back(hit.ground ? 1 : 0);
@@ -511,12 +743,14 @@ GeneratedScan castPattern(const SceneParams& p, const Scene& scene, const Patter
     scan.xyz.reserve(3 * n);
     scan.intensity.reserve(n);
     scan.ring.reserve(n);
+    scan.semantic.reserve(n);
   }
   for (const Block& b : out) {
     scan.xyz.insert(scan.xyz.end(), b.xyz.begin(), b.xyz.end());
     scan.intensity.insert(scan.intensity.end(), b.intensity.begin(), b.intensity.end());
     scan.ring.insert(scan.ring.end(), b.ring.begin(), b.ring.end());
     scan.truth.insert(scan.truth.end(), b.truth.begin(), b.truth.end());
+    scan.semantic.insert(scan.semantic.end(), b.semantic.begin(), b.semantic.end());
   }
   return scan;
 }
@@ -533,12 +767,14 @@ void thinTo(GeneratedScan* scan, std::size_t keep) {
     scan->intensity[w] = scan->intensity[i];
     scan->ring[w] = scan->ring[i];
     scan->truth[w] = scan->truth[i];
+    scan->semantic[w] = scan->semantic[i];
     ++w;
   }
   scan->xyz.resize(3 * w);
   scan->intensity.resize(w);
   scan->ring.resize(w);
   scan->truth.resize(w);
+  scan->semantic.resize(w);
 }
 
 // Inserts `count` NaN points (non-ground, ring 0) evenly among the points.
@@ -551,6 +787,7 @@ void insertNans(GeneratedScan* scan, std::size_t count) {
   out.intensity.reserve(total);
   out.ring.reserve(total);
   out.truth.reserve(total);
+  out.semantic.reserve(total);
   std::size_t next_nan = 0, src = 0;
   for (std::size_t i = 0; i < total; ++i) {
     // NaN k sits at position (k + 1) * total / (count + 1) - 1.
@@ -560,6 +797,7 @@ void insertNans(GeneratedScan* scan, std::size_t count) {
       out.intensity.push_back(0.f);
       out.ring.push_back(0);
       out.truth.push_back(0);
+      out.semantic.push_back(kClassUnlabelled);
       ++next_nan;
       continue;
     }
@@ -567,6 +805,7 @@ void insertNans(GeneratedScan* scan, std::size_t count) {
     out.intensity.push_back(scan->intensity[src]);
     out.ring.push_back(scan->ring[src]);
     out.truth.push_back(scan->truth[src]);
+    out.semantic.push_back(scan->semantic[src]);
     ++src;
   }
   *scan = std::move(out);
@@ -600,6 +839,35 @@ void SceneParams::validate() const {
   checkRange("ramp_end_x", ramp_end_x, ramp_start_x + 0.5, 1e4, "m");
   checkRange("ramp_height", ramp_height, -20.0, 20.0, "m");
   checkRange("scene_extent", scene_extent, 10.0, 2000.0, "m");
+  checkRange("grass_roughness", grass_roughness, 0.0, 1.0, "m");
+}
+
+std::vector<std::string> builtinSceneKinds() {
+  return {"lidar", "tls", "verge", "offroad", "trail"};
+}
+
+SceneParams builtinSceneParams(const std::string& kind) {
+  SceneParams params;
+  if (kind == "lidar") {
+    params.mode = SceneParams::Mode::kLidar64;
+  } else if (kind == "tls") {
+    params.mode = SceneParams::Mode::kTls;
+  } else if (kind == "verge") {
+    params.layout = SceneParams::Layout::kVerge;
+  } else if (kind == "offroad" || kind == "trail") {
+    // Ouster OS1-64 on a small off-road vehicle, as in RELLIS-3D.
+    params.layout = kind == "offroad" ? SceneParams::Layout::kOffroad : SceneParams::Layout::kTrail;
+    params.uniform_beams = true;
+    params.vertical_min_deg = -16.6;
+    params.vertical_max_deg = 16.6;
+    params.azimuth_steps = 2048;
+    params.sensor_height = 1.3;
+  } else {
+    std::string known;
+    for (const auto& k : builtinSceneKinds()) known += (known.empty() ? "" : ", ") + k;
+    throw std::invalid_argument("unknown built-in scene '" + kind + "' (known: " + known + ")");
+  }
+  return params;
 }
 
 GeneratedScan generateScene(const SceneParams& params) {

@@ -13,6 +13,7 @@
 #include <thread>
 #include <vector>
 
+#include "cli_args.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/scan_io.h"
 
@@ -21,33 +22,34 @@
 #endif
 
 namespace gf = ground_filter;
+namespace cli = ground_filter::cli;
 
 namespace {
 
 const char kUsage[] =
-    "usage: ground_filter_benchmark [--method NAME] [--set NAME=VALUE]... [--repeat N]\n"
-    "                               [--warmup N] [--threads N[,N...]] [PATH...]\n"
+    "usage: ground_filter_benchmark [--method NAME] [--params FILE] [--set NAME=VALUE]...\n"
+    "                               [--repeat N] [--warmup N] [--threads N[,N...]] [PATH...]\n"
     "\n"
     "Times GroundFilter::filter() on each scan (the core only: loading is not timed) and prints\n"
     "median / min / max ms per frame, million points per second (from the median) and the\n"
     "median of every stage the filter reports.\n"
     "\n"
-    "PATH                scan file, directory or builtin:lidar[:SEED] / builtin:tls[:SEED];\n"
+    "PATH                scan file, directory or builtin:KIND[:SEED] (lidar, tls, verge,\n"
+    "                    offroad, trail);\n"
     "                    default: DATA/semantickitti/seq00/00000{0,1,2}.bin and\n"
     "                    DATA/unlabelled/os128_000000.pcd with DATA = $GF_DATA_DIR or the\n"
     "                    build-time default " GF_DEFAULT_DATA_DIR
     "\n"
-    "--method NAME       filter method (default voxel)\n"
-    "--set NAME=VALUE    override a filter parameter (repeatable)\n"
+    "--method NAME       filter method: voxel (default), normal, voxel_paper\n"
+    "--params FILE       parameters from a flat YAML file (config/*.yaml, 'name: value')\n"
+    "--set NAME=VALUE    override a filter parameter (repeatable; after --params)\n"
     "--repeat N          timed runs per file (default 20)\n"
     "--warmup N          untimed runs per file before timing (default 2)\n"
     "--threads LIST      set the filter's 'threads' parameter, one table row per value\n"
     "                    (e.g. 1,2); default: the method's default\n"
     "--help              this text\n";
 
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+using cli::UsageError;
 
 struct Options {
   std::string method = "voxel";
@@ -58,63 +60,39 @@ struct Options {
   std::vector<std::string> paths;
 };
 
-int parseCount(const std::string& opt, const std::string& v, int min) {
-  char* end = nullptr;
-  const long n = std::strtol(v.c_str(), &end, 10);
-  if (v.empty() || *end != '\0' || n < min || n > 1000000) {
-    throw UsageError(opt + " expects an integer >= " + std::to_string(min) + ", got '" + v + "'");
-  }
-  return static_cast<int>(n);
-}
-
 Options parseArgs(int argc, char** argv) {
   Options o;
-  for (int i = 1; i < argc; ++i) {
-    std::string arg = argv[i];
-    std::string value;
-    bool has_inline = false;
-    if (arg.rfind("--", 0) == 0 && arg.find('=') != std::string::npos) {
-      value = arg.substr(arg.find('=') + 1);
-      arg = arg.substr(0, arg.find('='));
-      has_inline = true;
-    }
-    auto next = [&]() -> std::string {
-      if (has_inline) return value;
-      if (i + 1 >= argc) throw UsageError(arg + " needs a value");
-      return argv[++i];
-    };
+  cli::FilterArgs filter_args;
+  cli::ArgCursor args(argc, argv);
+  while (args.next()) {
+    const std::string& arg = args.option();
     if (arg == "--help" || arg == "-h") {
       std::cout << kUsage;
       std::exit(0);
-    } else if (arg == "--method") {
-      o.method = next();
-    } else if (arg == "--set") {
-      const std::string kv = next();
-      const std::size_t eq = kv.find('=');
-      if (eq == std::string::npos || eq == 0) {
-        throw UsageError("--set expects NAME=VALUE, got '" + kv + "'");
-      }
-      o.settings.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
+    } else if (filter_args.consume(&args)) {
+      continue;
     } else if (arg == "--repeat") {
-      o.repeat = parseCount(arg, next(), 1);
+      o.repeat = cli::parseIntOption(arg, args.value(), 1, 1000000);
     } else if (arg == "--warmup") {
-      o.warmup = parseCount(arg, next(), 0);
+      o.warmup = cli::parseIntOption(arg, args.value(), 0, 1000000);
     } else if (arg == "--threads") {
-      const std::string list = next();
+      const std::string list = args.value();
       std::size_t start = 0;
       while (start <= list.size()) {
         const std::size_t comma = std::min(list.find(',', start), list.size());
         const std::string t = list.substr(start, comma - start);
-        parseCount("--threads", t, 0);
+        cli::parseIntOption("--threads", t, 0, 1000000);
         o.threads.push_back(t);
         start = comma + 1;
       }
     } else if (arg.size() > 1 && arg[0] == '-') {
       throw UsageError("unknown option '" + arg + "'");
     } else {
-      o.paths.push_back(argv[i]);
+      o.paths.push_back(args.raw());
     }
   }
+  o.method = filter_args.method;
+  o.settings = filter_args.settings();
   if (o.paths.empty()) {
     const char* env = std::getenv("GF_DATA_DIR");
     const std::string data = env && *env ? env : GF_DEFAULT_DATA_DIR;
@@ -124,13 +102,6 @@ Options parseArgs(int argc, char** argv) {
     }
   }
   return o;
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 struct Row {
@@ -180,8 +151,7 @@ int run(const Options& opt) {
         stats = gf::FilterStats();
         const auto t0 = std::chrono::steady_clock::now();
         filter.filter(view, &labels, &stats);
-        const auto t1 = std::chrono::steady_clock::now();
-        times.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+        times.push_back(cli::msSince(t0));
         for (const auto& s : stats.stage_ms) {
           auto& v = stage_times[s.first];
           if (v.empty()) stage_order.push_back(s.first);
@@ -193,10 +163,11 @@ int run(const Options& opt) {
       row.threads = thread_values[ti];
       row.label = gf::scanStem(file) + (row.threads.empty() ? "" : "@" + row.threads);
       row.points = view.size();
-      row.median_ms = median(times);
+      row.median_ms = cli::median(times);
       row.min_ms = *std::min_element(times.begin(), times.end());
       row.max_ms = *std::max_element(times.begin(), times.end());
-      for (const auto& name : stage_order) row.stages.emplace_back(name, median(stage_times[name]));
+      for (const auto& name : stage_order)
+        row.stages.emplace_back(name, cli::median(stage_times[name]));
       rows.push_back(row);
     }
   }

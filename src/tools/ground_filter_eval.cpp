@@ -14,17 +14,20 @@
 #include <string>
 #include <vector>
 
+#include "cli_args.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/metrics.h"
 #include "ground_filter/scan_io.h"
 
 namespace gf = ground_filter;
+namespace cli = ground_filter::cli;
 
 namespace {
 
 const char kUsage[] =
-    "usage: ground_filter_eval [--method NAME] [--set NAME=VALUE]... [--json]\n"
-    "                          [--write-labels DIR] [--write-clouds DIR] [--repeat N] PATH...\n"
+    "usage: ground_filter_eval [--method NAME] [--params FILE] [--set NAME=VALUE]... [--json]\n"
+    "                          [--classes] [--write-labels DIR] [--write-clouds DIR]\n"
+    "                          [--repeat N] PATH...\n"
     "\n"
     "Runs a ground filter on every scan and prints per-file and pooled results: points, points\n"
     "labelled ground, filter time in ms, and where ground truth exists the confusion counts\n"
@@ -32,10 +35,14 @@ const char kUsage[] =
     "\n"
     "PATH                a .bin (KITTI, sibling .label = SemanticKITTI truth), .pcd (a 'label'\n"
     "                    field = ISPRS truth: 1 ground, 0 not, other = ignored) or .ply file; a\n"
-    "                    directory (all such files in it, sorted); or builtin:lidar[:SEED] /\n"
-    "                    builtin:tls[:SEED] (generated scene with exact truth)\n"
-    "--method NAME       filter method (default voxel)\n"
-    "--set NAME=VALUE    override a filter parameter (repeatable)\n"
+    "                    directory (all such files in it, sorted); or builtin:KIND[:SEED], KIND\n"
+    "                    lidar, tls, verge, offroad or trail (generated scene, exact truth)\n"
+    "--method NAME       filter method: voxel (default), normal, voxel_paper\n"
+    "--params FILE       parameters from a flat YAML file (config/*.yaml, 'name: value')\n"
+    "--set NAME=VALUE    override a filter parameter (repeatable; after --params)\n"
+    "--classes           also print, pooled over the files, each semantic class (SemanticKITTI\n"
+    "                    labels, generated scenes) split by truth: points and % labelled\n"
+    "                    ground (= recall of a ground class); JSON key \"classes\"\n"
     "--json              print exactly one JSON object instead of the table:\n"
     "                    {\"files\":[{\"file\",\"points\",\"ground\",\"ms\",\n"
     "                    \"tp\",\"fp\",\"tn\",\"fn\",\"accuracy\",\"precision\",\n"
@@ -51,14 +58,13 @@ const char kUsage[] =
     "Exit status: 0 ok, 1 a file could not be read/written or its labels do not match, 2 bad\n"
     "command line, unknown method or invalid parameter.\n";
 
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+using cli::UsageError;
 
 struct Options {
   std::string method = "voxel";
   gf::ParamSettings settings;
   bool json = false;
+  bool classes = false;
   std::string labels_dir;
   std::string clouds_dir;
   int repeat = 1;
@@ -74,55 +80,31 @@ struct FileResult {
   gf::Confusion confusion;
 };
 
-int parsePositive(const std::string& opt, const std::string& v) {
-  char* end = nullptr;
-  const long n = std::strtol(v.c_str(), &end, 10);
-  if (v.empty() || *end != '\0' || n < 1 || n > 1000000) {
-    throw UsageError(opt + " expects a positive integer, got '" + v + "'");
-  }
-  return static_cast<int>(n);
-}
-
 Options parseArgs(int argc, char** argv) {
   Options o;
   bool help = false;
-  for (int i = 1; i < argc; ++i) {
-    std::string arg = argv[i];
-    std::string value;
-    bool has_inline = false;
-    if (arg.rfind("--", 0) == 0 && arg.find('=') != std::string::npos) {
-      value = arg.substr(arg.find('=') + 1);
-      arg = arg.substr(0, arg.find('='));
-      has_inline = true;
-    }
-    auto next = [&]() -> std::string {
-      if (has_inline) return value;
-      if (i + 1 >= argc) throw UsageError(arg + " needs a value");
-      return argv[++i];
-    };
+  cli::FilterArgs filter_args;
+  cli::ArgCursor args(argc, argv);
+  while (args.next()) {
+    const std::string& arg = args.option();
     if (arg == "--help" || arg == "-h") {
       help = true;
     } else if (arg == "--json") {
       o.json = true;
-    } else if (arg == "--method") {
-      o.method = next();
-    } else if (arg == "--set") {
-      const std::string kv = next();
-      const std::size_t eq = kv.find('=');
-      if (eq == std::string::npos || eq == 0) {
-        throw UsageError("--set expects NAME=VALUE, got '" + kv + "'");
-      }
-      o.settings.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
+    } else if (arg == "--classes") {
+      o.classes = true;
+    } else if (filter_args.consume(&args)) {
+      continue;
     } else if (arg == "--write-labels") {
-      o.labels_dir = next();
+      o.labels_dir = args.value();
     } else if (arg == "--write-clouds") {
-      o.clouds_dir = next();
+      o.clouds_dir = args.value();
     } else if (arg == "--repeat") {
-      o.repeat = parsePositive(arg, next());
+      o.repeat = cli::parseIntOption(arg, args.value(), 1, 1000000);
     } else if (arg.size() > 1 && arg[0] == '-' && arg != "-") {
       throw UsageError("unknown option '" + arg + "'");
     } else {
-      o.paths.push_back(argv[i]);
+      o.paths.push_back(args.raw());
     }
   }
   if (help) {
@@ -130,13 +112,9 @@ Options parseArgs(int argc, char** argv) {
     std::exit(0);
   }
   if (o.paths.empty()) throw UsageError("no PATH given");
+  o.method = filter_args.method;
+  o.settings = filter_args.settings();
   return o;
-}
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 std::string jsonString(const std::string& s) {
@@ -221,6 +199,7 @@ int run(const Options& opt) {
   }
 
   std::vector<FileResult> results;
+  std::vector<gf::ClassCount> classes;
   std::vector<std::uint8_t> labels;
   for (const auto& file : files) {
     const gf::Scan scan = gf::loadScan(file);
@@ -229,8 +208,7 @@ int run(const Options& opt) {
     for (int r = 0; r < opt.repeat; ++r) {
       const auto t0 = std::chrono::steady_clock::now();
       filter->filter(view, &labels);
-      const auto t1 = std::chrono::steady_clock::now();
-      times.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+      times.push_back(cli::msSince(t0));
     }
     if (labels.size() != view.size()) {
       throw std::runtime_error(file + ": filter returned " + std::to_string(labels.size()) +
@@ -240,9 +218,12 @@ int run(const Options& opt) {
     res.file = file;
     res.points = view.size();
     res.ground = static_cast<std::size_t>(std::count(labels.begin(), labels.end(), 1));
-    res.ms = median(times);
+    res.ms = cli::median(times);
     res.labelled = scan.labelled();
     if (res.labelled) res.confusion = gf::countConfusion(labels, scan.truth);
+    if (opt.classes && res.labelled && !scan.semantic.empty()) {
+      gf::addClassCounts(labels, scan.truth, scan.semantic, &classes);
+    }
     if (!opt.labels_dir.empty()) gf::writeLabels(opt.labels_dir, file, labels);
     if (!opt.clouds_dir.empty()) gf::writeSplitClouds(opt.clouds_dir, file, scan.cloud, labels);
     results.push_back(res);
@@ -271,7 +252,19 @@ int run(const Options& opt) {
     }
     os << "],\"pooled\":" << jsonRecord("pooled", points, ground, ms, labelled_files > 0, pooled)
        << ",\"file_count\":" << results.size() << ",\"labelled_files\":" << labelled_files
-       << "},\"method\":" << jsonString(opt.method) << ",\"repeat\":" << opt.repeat << "}";
+       << "},\"method\":" << jsonString(opt.method) << ",\"repeat\":" << opt.repeat;
+    if (opt.classes) {
+      os << ",\"classes\":[";
+      for (std::size_t i = 0; i < classes.size(); ++i) {
+        const auto& c = classes[i];
+        os << (i ? "," : "") << "{\"class\":" << c.cls
+           << ",\"name\":" << jsonString(gf::semanticKittiClassName(c.cls))
+           << ",\"truth\":" << static_cast<int>(c.truth) << ",\"points\":" << c.points
+           << ",\"labelled_ground\":" << c.labelled_ground << "}";
+      }
+      os << "]";
+    }
+    os << "}";
     std::cout << os.str() << std::endl;
     return 0;
   }
@@ -293,6 +286,21 @@ int run(const Options& opt) {
   printRow(name_w, "pooled", points, ground, ms, labelled_files > 0, pooled);
   std::printf("%zu file(s), %zu labelled; pooled ms = sum over files\n", results.size(),
               labelled_files);
+  if (opt.classes) {
+    std::printf(
+        "\nper class, pooled (truth under the scan's protocol; %% labelled ground = recall\n"
+        "of a ground row, false-positive share of a non-ground row)\n");
+    std::printf("%5s %-16s %-10s %10s %10s %9s\n", "class", "name", "truth", "points", "as_ground",
+                "%ground");
+    for (const auto& c : classes) {
+      std::printf(
+          "%5u %-16s %-10s %10" PRIu64 " %10" PRIu64 " %9s\n", c.cls,
+          gf::semanticKittiClassName(c.cls).c_str(), c.truth ? "ground" : "non-ground", c.points,
+          c.labelled_ground,
+          pct(static_cast<double>(c.labelled_ground) / static_cast<double>(c.points)).c_str());
+    }
+    if (classes.empty()) std::printf("(no file with semantic classes)\n");
+  }
   return 0;
 }
 

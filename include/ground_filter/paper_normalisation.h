@@ -1,0 +1,57 @@
+#ifndef GROUND_FILTER_PAPER_NORMALISATION_H
+#define GROUND_FILTER_PAPER_NORMALISATION_H
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "ground_filter/cloud_view.h"
+#include "ground_filter/ground_filter.h"
+#include "ground_filter/voxel_ground_filter.h"
+
+namespace ground_filter {
+
+/// \brief The voxel method's parameters as the paper states them: 0.1 voxels, 0.04 flatness,
+///        one global plane, 0.10 distance with the mean +- 1 std band, height margin 1.
+VoxelGroundFilterParams paperVoxelParams();
+
+/// \brief The authors' normalisation (MATLAB `standart.m`): each coordinate v of the valid
+///        points of input indices [begin, end) becomes 1 / (1 + exp(-(v - mean) / std)), mean
+///        and sample std (n - 1) over those points, per axis; an axis without spread maps to 0.5.
+///        Appends the mapped points to `xyz` (packed x y z) and their input indices to `index`;
+///        with `normalise` false the points are appended unmapped.
+void paperNormaliseSegment(const CloudView& cloud, std::size_t begin, std::size_t end,
+                           std::vector<float>* xyz, std::vector<std::size_t>* index,
+                           bool normalise = true);
+
+/// \brief Voxel filter on the paper's normalised coordinates (`voxel_paper`): the input is cut
+///        into consecutive segments of `segment_points` points in input order (MainVoxel.m:
+///        65,536), every segment is mapped by paperNormaliseSegment() and filtered on its own
+///        by a VoxelGroundFilter with `params` (default paperVoxelParams(), whose lengths are
+///        then in normalised units). With `normalise` false the segments keep their metric
+///        coordinates (the same pipeline without the mapping, for comparison). Same output
+///        contract as every GroundFilter.
+class PaperNormalisedVoxelFilter : public GroundFilter {
+ public:
+  /// \brief Stores the parameters.
+  /// \throws std::invalid_argument when params.validate() fails or segment_points < 3.
+  explicit PaperNormalisedVoxelFilter(const VoxelGroundFilterParams& params = paperVoxelParams(),
+                                      int segment_points = 65536, bool normalise = true);
+
+  void filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
+              FilterStats* stats = nullptr) override;
+  std::string name() const override { return "voxel_paper"; }
+
+ private:
+  VoxelGroundFilter voxel_;
+  std::size_t segment_points_;
+  bool normalise_;
+  std::vector<float> xyz_;          // normalised points of one segment
+  std::vector<std::size_t> index_;  // their input indices
+  std::vector<std::uint8_t> segment_labels_;
+};
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_PAPER_NORMALISATION_H

@@ -1,0 +1,77 @@
+#!/usr/bin/env bash
+# Precision / recall / F1 per dev group for each method, one markdown table (README/docs
+# "Accuracy"). Needs a build (bash -c 'source scripts/common.sh; gf_build').
+#   bash scripts/eval_all.sh        # voxel, normal, normal + vehicle_lidar_normal preset,
+#                                   # voxel_paper; every group
+#   METHODS="voxel normal@vehicle_lidar_normal" bash scripts/eval_all.sh   # METHOD[@PRESET]
+#   bash scripts/eval_all.sh --set plane_distance=0.2   # extra eval arguments for every run
+# Groups: SemanticKITTI seq00 0-2 (labelled), RELLIS-3D off-road frame, ISPRS 8 tiles and the two
+# airborne tiles (defaults and the airborne preset: config/airborne.yaml for voxel,
+# config/airborne_normal.yaml for normal; no preset row for voxel_paper), generated scenes
+# (2 seeds per kind).
+# Pooled over the files of a group; ms = sum of the files' filter times.
+set -euo pipefail
+export PATH="/usr/bin:/bin:${PATH}"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+DATA="${GF_DATA_DIR:-${ROOT}/../shared/data}"
+EVAL="${GF_EVAL:-${ROOT}/.ws/devel/lib/ground_filter/ground_filter_eval}"
+METHODS="${METHODS:-voxel normal normal@vehicle_lidar_normal voxel_paper}"
+[ -x "${EVAL}" ] || { echo "eval_all.sh: ${EVAL} not built" >&2; exit 1; }
+
+K="${DATA}/semantickitti/seq00"
+# name|extra eval arguments|paths
+GROUPS_DEF="${GROUPS_DEF:-kitti seq00 0-2||${K}/000000.bin ${K}/000001.bin ${K}/000002.bin
+offroad rellis3d||${DATA}/offroad
+isprs 8 tiles||${DATA}/isprs
+isprs 8 tiles, preset airborne|preset:airborne|${DATA}/isprs
+airborne 2 tiles||${DATA}/airborne
+airborne 2 tiles, preset airborne|preset:airborne|${DATA}/airborne
+gen street (lidar:1,2)||builtin:lidar:1 builtin:lidar:2
+gen verge (verge:1,2)||builtin:verge:1 builtin:verge:2
+gen offroad (offroad:1,2)||builtin:offroad:1 builtin:offroad:2
+gen trail (trail:1,2)||builtin:trail:1 builtin:trail:2}"
+
+TMP="$(mktemp -d)"
+trap 'rm -rf "${TMP}"' EXIT
+i=0
+while IFS='|' read -r name extra paths; do
+  [ -n "${name}" ] || continue
+  for token in ${METHODS}; do
+    # METHOD or METHOD@PRESET (= --params config/PRESET.yaml on every group).
+    m="${token%%@*}"
+    args=""
+    [[ "${token}" == *@* ]] && args="--params ${ROOT}/config/${token#*@}.yaml"
+    if [[ "${extra}" == preset:* ]]; then
+      preset="${extra#preset:}"
+      case "${token}" in
+        voxel) args="--params ${ROOT}/config/${preset}.yaml" ;;
+        normal) args="--params ${ROOT}/config/${preset}_normal.yaml" ;;
+        *) continue ;;
+      esac
+    fi
+    i=$((i + 1))
+    # shellcheck disable=SC2086
+    if ! "${EVAL}" --json --method "${m}" ${args} "$@" ${paths} > "${TMP}/${i}.json" 2> "${TMP}/${i}.err"; then
+      echo "{\"error\": $(python3 -c 'import json,sys; print(json.dumps(open(sys.argv[1]).read().strip()))' "${TMP}/${i}.err")}" > "${TMP}/${i}.json"
+    fi
+    printf '%s\t%s\t%s\n' "${name}" "${token}" "${TMP}/${i}.json" >> "${TMP}/index.tsv"
+  done
+done <<< "${GROUPS_DEF}"
+
+python3 - "${TMP}/index.tsv" "$*" <<'PY'
+import json, sys
+rows = [l.rstrip("\n").split("\t") for l in open(sys.argv[1])]
+extra = sys.argv[2]
+print("eval arguments: " + (extra if extra else "(defaults)"))
+print("| group | method | files | P % | R % | F1 % | ms (sum) |")
+print("|---|---|---|---|---|---|---|")
+for name, method, path in rows:
+    d = json.load(open(path))
+    if "error" in d:
+        print(f"| {name} | {method} | error: {d['error']} | | | | |")
+        continue
+    p = d["pooled"]
+    f = lambda v: "-" if v is None else f"{100 * v:.2f}"
+    print(f"| {name} | {method} | {p['labelled_files']} | {f(p['precision'])} | "
+          f"{f(p['recall'])} | {f(p['f1'])} | {p['ms']:.0f} |")
+PY

@@ -1,0 +1,129 @@
+#include "cli_args.h"
+
+#include <algorithm>
+#include <cstdlib>
+#include <fstream>
+
+namespace ground_filter {
+namespace cli {
+
+namespace {
+
+std::string trim(const std::string& s) {
+  const std::size_t b = s.find_first_not_of(" \t\r");
+  if (b == std::string::npos) return "";
+  const std::size_t e = s.find_last_not_of(" \t\r");
+  return s.substr(b, e - b + 1);
+}
+
+}  // namespace
+
+bool ArgCursor::next() {
+  if (i_ + 1 >= argc_) return false;
+  ++i_;
+  option_ = argv_[i_];
+  has_inline_ = false;
+  inline_value_.clear();
+  const std::size_t eq = option_.find('=');
+  if (option_.rfind("--", 0) == 0 && eq != std::string::npos) {
+    inline_value_ = option_.substr(eq + 1);
+    option_ = option_.substr(0, eq);
+    has_inline_ = true;
+  }
+  return true;
+}
+
+std::string ArgCursor::value() {
+  if (has_inline_) return inline_value_;
+  if (i_ + 1 >= argc_) throw UsageError(option_ + " needs a value");
+  return argv_[++i_];
+}
+
+bool FilterArgs::consume(ArgCursor* args) {
+  const std::string& opt = args->option();
+  if (opt == "--method") {
+    method = args->value();
+  } else if (opt == "--set") {
+    from_set.push_back(parseSetting(args->value()));
+  } else if (opt == "--params") {
+    const std::string path = args->value();
+    try {
+      const ParamSettings s = loadParamsFile(path);
+      from_file.insert(from_file.end(), s.begin(), s.end());
+    } catch (const std::runtime_error& e) {
+      throw UsageError(e.what());
+    }
+  } else {
+    return false;
+  }
+  return true;
+}
+
+ParamSettings FilterArgs::settings() const {
+  ParamSettings s = from_file;
+  s.insert(s.end(), from_set.begin(), from_set.end());
+  return s;
+}
+
+std::pair<std::string, std::string> parseSetting(const std::string& kv) {
+  const std::size_t eq = kv.find('=');
+  if (eq == std::string::npos || eq == 0) {
+    throw UsageError("--set expects NAME=VALUE, got '" + kv + "'");
+  }
+  return {kv.substr(0, eq), kv.substr(eq + 1)};
+}
+
+int parseIntOption(const std::string& opt, const std::string& v, int lo, int hi) {
+  char* end = nullptr;
+  const long n = std::strtol(v.c_str(), &end, 10);
+  if (v.empty() || *end != '\0' || n < lo || n > hi) {
+    throw UsageError(opt + " expects an integer in [" + std::to_string(lo) + ", " +
+                     std::to_string(hi) + "], got '" + v + "'");
+  }
+  return static_cast<int>(n);
+}
+
+ParamSettings loadParamsFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path + ": cannot open parameter file");
+  ParamSettings out;
+  std::string line;
+  for (int no = 1; std::getline(in, line); ++no) {
+    const std::string where = path + ":" + std::to_string(no) + ": ";
+    // A '#' starts a comment unless it is inside quotes (values here never need one).
+    const std::size_t hash = line.find('#');
+    const std::string body = trim(hash == std::string::npos ? line : line.substr(0, hash));
+    if (body.empty()) continue;
+    if (line.find_first_not_of(" \t") != 0) {
+      throw std::runtime_error(where + "nested keys are not parameters (flat 'name: value' only)");
+    }
+    const std::size_t colon = body.find(':');
+    if (colon == std::string::npos || colon == 0) {
+      throw std::runtime_error(where + "expected 'name: value', got '" + body + "'");
+    }
+    const std::string name = trim(body.substr(0, colon));
+    std::string value = trim(body.substr(colon + 1));
+    if (value.size() >= 2 && (value.front() == '"' || value.front() == '\'') &&
+        value.back() == value.front()) {
+      value = value.substr(1, value.size() - 2);
+    }
+    if (value.empty() || value[0] == '[' || value[0] == '{' || value[0] == '|' || value[0] == '>') {
+      throw std::runtime_error(where + "parameter '" + name + "' needs a scalar value");
+    }
+    for (const auto& kv : out) {
+      if (kv.first == name) throw std::runtime_error(where + "parameter '" + name + "' repeated");
+    }
+    out.emplace_back(name, value);
+  }
+  return out;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+}  // namespace cli
+}  // namespace ground_filter

@@ -1,0 +1,87 @@
+// Command-line helpers shared by ground_filter_eval and ground_filter_benchmark: option cursor
+// with --name=value support, --set NAME=VALUE, --params FILE (flat YAML), integers, timing.
+#ifndef GROUND_FILTER_TOOLS_CLI_ARGS_H
+#define GROUND_FILTER_TOOLS_CLI_ARGS_H
+
+#include <chrono>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "ground_filter/ground_filter.h"
+
+namespace ground_filter {
+namespace cli {
+
+/// \brief A bad command line (the tools exit with status 2).
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// \brief Walks argv; splits `--name=value` into option and inline value.
+class ArgCursor {
+ public:
+  /// \brief Starts before argv[1].
+  ArgCursor(int argc, char** argv) : argc_(argc), argv_(argv) {}
+  /// \brief Moves to the next argument; false when there is none.
+  bool next();
+  /// \brief The current argument without an inline `=value` of a `--` option.
+  const std::string& option() const { return option_; }
+  /// \brief The current argument exactly as given.
+  const char* raw() const { return argv_[i_]; }
+  /// \brief The option's value: the inline one, else the next argument.
+  /// \throws UsageError when there is none.
+  std::string value();
+
+ private:
+  int argc_;
+  char** argv_;
+  int i_ = 0;
+  std::string option_;
+  std::string inline_value_;
+  bool has_inline_ = false;
+};
+
+/// \brief The filter options every tool shares: `--method NAME`, `--params FILE` and
+///        `--set NAME=VALUE` (a `--set` overrides the file whatever their order).
+struct FilterArgs {
+  std::string method = "voxel";  ///< --method (default voxel)
+  ParamSettings from_file;       ///< --params, in file order
+  ParamSettings from_set;        ///< --set, in command-line order
+
+  /// \brief Takes the cursor's current option when it is one of the three.
+  /// \returns false when it is another option.
+  /// \throws UsageError for a bad value or an unreadable/malformed parameter file.
+  bool consume(ArgCursor* args);
+  /// \brief The file's settings followed by the --set ones.
+  ParamSettings settings() const;
+};
+
+/// \brief Splits `NAME=VALUE` of `--set`.
+/// \throws UsageError when there is no '=' or NAME is empty.
+std::pair<std::string, std::string> parseSetting(const std::string& kv);
+
+/// \brief Integer value of option `opt` in [lo, hi].
+/// \throws UsageError otherwise.
+int parseIntOption(const std::string& opt, const std::string& v, int lo, int hi);
+
+/// \brief Reads a parameter file: flat YAML `name: value` lines (the files of config/ and of
+///        `params_file:=`), `#` comments and blank lines allowed; quotes around a value are
+///        removed. Order is kept.
+/// \throws std::runtime_error naming the file and line for anything else (nesting, lists, a
+///         repeated name) or when the file cannot be read.
+ParamSettings loadParamsFile(const std::string& path);
+
+/// \brief Median of `v` (mean of the two middle values for an even count; 0 for none).
+double median(std::vector<double> v);
+
+/// \brief Milliseconds since `t0` on the steady clock.
+inline double msSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace cli
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_TOOLS_CLI_ARGS_H
