@@ -86,20 +86,35 @@ TEST(NormalGroundFilter, FlatPlaneIsGround) {
   EXPECT_EQ(st.backend, "kdtree");
 }
 
-TEST(NormalGroundFilter, PlaneTilted15DegreesDependsOnTheAngleWindow) {
-  const Cloud c = plane(8.0, 0.1, -1.73, std::tan(15.0 * M_PI / 180.0));
-  // Default window 80..100 deg (normal within 10 deg of vertical): a 15 deg slope is not ground.
+TEST(NormalGroundFilter, PlaneTilted20DegreesDependsOnTheAngleWindow) {
+  const Cloud c = plane(8.0, 0.1, -1.73, std::tan(20.0 * M_PI / 180.0));
+  // Default window 75..105 deg (normal within 15 deg of vertical): a 20 deg slope is not ground.
   EXPECT_EQ(groundShare(run(c)), 0.0);
-  // Window 70..110 deg (20 deg from vertical): all of it is ground.
+  // The paper's 80..100 deg neither.
+  gf::NormalGroundFilterParams paper;
+  paper.min_normal_angle = 80.0;
+  paper.max_normal_angle = 100.0;
+  EXPECT_EQ(groundShare(run(c, paper)), 0.0);
+  // Window 65..115 deg (25 deg from vertical): all of it is ground.
   gf::NormalGroundFilterParams wide;
-  wide.min_normal_angle = 70.0;
-  wide.max_normal_angle = 110.0;
+  wide.min_normal_angle = 65.0;
+  wide.max_normal_angle = 115.0;
   EXPECT_EQ(groundShare(run(c, wide)), 1.0);
   // An asymmetric window acts through its narrower side (a PCA normal has no sign).
   gf::NormalGroundFilterParams asym;
-  asym.min_normal_angle = 70.0;
-  asym.max_normal_angle = 100.0;
+  asym.min_normal_angle = 65.0;
+  asym.max_normal_angle = 105.0;
   EXPECT_EQ(groundShare(run(c, asym)), 0.0);
+}
+
+TEST(NormalGroundFilter, PlaneTilted12DegreesIsGroundWithTheDefaultsNotThePaperWindow) {
+  // Grass verges slope 15-30 %: the default window keeps a 12 deg (21 %) slope, the paper's not.
+  const Cloud c = plane(8.0, 0.1, -1.73, std::tan(12.0 * M_PI / 180.0));
+  EXPECT_EQ(groundShare(run(c)), 1.0);
+  gf::NormalGroundFilterParams paper;
+  paper.min_normal_angle = 80.0;
+  paper.max_normal_angle = 100.0;
+  EXPECT_EQ(groundShare(run(c, paper)), 0.0);
 }
 
 TEST(NormalGroundFilter, VerticalWallIsNotGround) {

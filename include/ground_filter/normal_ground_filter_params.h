@@ -10,12 +10,13 @@ namespace ground_filter {
 /// \brief Parameters of the normal-vector method (Diaz et al., section 2.3.1). One line per field:
 ///        meaning [unit] (default; paper value when it differs).
 struct NormalGroundFilterParams {
-  double cell_size = 0.10;          ///< x/y grid cell ordering points into columns [m] (0.10)
-  int k = 50;                       ///< neighbours per point, itself included [points] (50; 3..256)
-  double min_normal_angle = 80.0;   ///< normal-to-horizontal angle window, low end [deg] (80)
-  double max_normal_angle = 100.0;  ///< normal-to-horizontal angle window, high end [deg] (100)
-  double min_planarity = 0.0;       ///< flat: planarity dominant and >= this (see README) [1] (0)
-  bool bayes_vote = true;           ///< naive-Bayes vote over each K neighbourhood [bool] (true)
+  double cell_size = 0.10;  ///< x/y grid cell ordering points into columns [m] (0.10)
+  int k = 64;  ///< neighbours per point, itself included [points] (64; paper 50; GPU k <= 64)
+  double min_normal_angle = 75.0;  ///< normal-to-horizontal window, low end [deg] (75; paper 80)
+  double max_normal_angle =
+      105.0;                     ///< normal-to-horizontal window, high end [deg] (105; paper 100)
+  double min_planarity = 0.0;    ///< flat: planarity dominant and >= this (see README) [1] (0)
+  bool bayes_vote = true;        ///< naive-Bayes vote over each K neighbourhood [bool] (true)
   double plane_distance = 0.15;  ///< max point-to-plane distance of a ground point [m] (paper 0.10)
   bool std_filter = false;       ///< also require mean +- std_multiplier * std of distances [bool]
   double std_multiplier = 1.0;   ///< width of that band in standard deviations [1] (1.0, paper)
