@@ -16,7 +16,8 @@
 //   ~max_scans (int, 0)          stop after this many scans (0 = unlimited)
 //   ~wait_for_subscribers (bool, true)  publish only while ~output has a subscriber
 //   generated scene only:
-//   ~mode (string, lidar)        lidar (64-beam, moving) or tls (tripod sweep, fixed)
+//   ~mode (string, lidar)        builtin scene kind: lidar (64-beam, moving), tls (tripod
+//                                sweep), verge, offroad, trail (fixed scanner, new noise)
 //   ~seed (int, 1)               scene layout seed
 //   ~speed (double, 10)          sensor speed along the road [m/s]
 //   ~tls_points (int, 2000000)   TLS point budget [points] (1 k..5 M)
@@ -144,14 +145,15 @@ int main(int argc, char** argv) {
     ROS_FATAL("~max_scans, ~seed, ~tls_points and ~nan_points must be >= 0");
     return 1;
   }
-  if (mode != "lidar" && mode != "tls") {
-    ROS_FATAL("~mode '%s' is not lidar or tls", mode.c_str());
+  ground_filter::SceneParams scene;
+  try {
+    scene = ground_filter::builtinSceneParams(mode);  // scene layout and scanner of the kind
+  } catch (const std::exception& e) {
+    ROS_FATAL("~mode: %s", e.what());
     return 1;
   }
-
-  ground_filter::SceneParams scene;
-  scene.mode = mode == "tls" ? ground_filter::SceneParams::Mode::kTls
-                             : ground_filter::SceneParams::Mode::kLidar64;
+  // Only the street scene has a driving path; the others keep the scanner where it stands.
+  const bool drives = mode == "lidar";
   scene.seed = static_cast<std::uint32_t>(seed);
   scene.tls_points = static_cast<std::size_t>(tls_points);
   scene.nan_points = static_cast<std::size_t>(nan_points);
@@ -177,8 +179,7 @@ int main(int argc, char** argv) {
     ROS_INFO("publishing %zu scan file(s) from %s at %g Hz%s", files.size(), input.c_str(), rate,
              loop ? " (looping)" : "");
   } else {
-    ROS_INFO("publishing the generated %s scene (seed %d) at %g Hz",
-             mode == "tls" ? "TLS" : "64-beam LiDAR", seed, rate);
+    ROS_INFO("publishing the generated '%s' scene (seed %d) at %g Hz", mode.c_str(), seed, rate);
   }
 
   ros::Publisher pub = pnh.advertise<sensor_msgs::PointCloud2>("output", 2);
@@ -210,8 +211,10 @@ int main(int argc, char** argv) {
         }
         *msg = tls_cache;
       } else {
-        const double span = kPathEndX - kPathStartX;
-        scene.sensor_x = kPathStartX + std::fmod(published * speed / rate, span);
+        if (drives) {
+          const double span = kPathEndX - kPathStartX;
+          scene.sensor_x = kPathStartX + std::fmod(published * speed / rate, span);
+        }
         scene.noise_seed = published;
         toMessage(ground_filter::generateScene(scene), msg.get());
       }
