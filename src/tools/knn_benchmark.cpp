@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "cli_args.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/kdtree_neighbor_search.h"
 #include "ground_filter/scan_io.h"
@@ -53,14 +54,8 @@ const char kUsage[] =
 
 using Clock = std::chrono::steady_clock;
 
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0.0 : v[v.size() / 2];
-}
+using ground_filter::cli::median;
+using ground_filter::cli::msSince;
 
 /// Finite points of a scan as packed xyz.
 std::vector<float> packedXyz(const std::string& path) {
