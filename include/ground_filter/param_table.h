@@ -4,8 +4,6 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
-#include <type_traits>
-#include <variant>
 #include <vector>
 
 #include "ground_filter/param_parse.h"
@@ -14,17 +12,43 @@ namespace ground_filter {
 
 /// \brief One row of a parameter table: the single place a parameter's name, struct member,
 ///        range, unit and description are written. set(), validate(), the log line, the docs
-///        table and the drift test against the .cfg files all read it.
+///        table and the drift test against the .cfg files all read it. (C++14: no std::variant,
+///        so installed headers stay usable from C++14 packages.)
 template <class P>
 struct ParamSpec {
-  /// \brief The struct member the row reads and writes.
-  using Member = std::variant<double P::*, int P::*, bool P::*, std::string P::*>;
-  const char* name;         ///< parameter name (CLI, YAML, dynamic_reconfigure)
-  Member member;            ///< field of P
-  double min;               ///< smallest valid value (numbers only)
-  double max;               ///< largest valid value (numbers only)
+  /// \brief Type of the struct member.
+  enum class Type { kDouble, kInt, kBool, kString };
+
+  /// \brief A double member with its range.
+  ParamSpec(const char* n, double P::*m, double lo, double hi, const char* u, const char* d)
+      : name(n), type(Type::kDouble), as_double(m), min(lo), max(hi), unit(u), description(d) {}
+  /// \brief An int member with its range.
+  ParamSpec(const char* n, int P::*m, double lo, double hi, const char* u, const char* d)
+      : name(n), type(Type::kInt), as_int(m), min(lo), max(hi), unit(u), description(d) {}
+  /// \brief A bool member (no range).
+  ParamSpec(const char* n, bool P::*m, double lo, double hi, const char* u, const char* d)
+      : name(n), type(Type::kBool), as_bool(m), min(lo), max(hi), unit(u), description(d) {}
+  /// \brief A string member (its values are checked by the struct's validate()).
+  ParamSpec(const char* n, std::string P::*m, double lo, double hi, const char* u, const char* d)
+      : name(n), type(Type::kString), as_string(m), min(lo), max(hi), unit(u), description(d) {}
+
+  const char* name;                     ///< parameter name (CLI, YAML, dynamic_reconfigure)
+  Type type;                            ///< which of the members below is set
+  double P::*as_double = nullptr;       ///< field of P (type kDouble)
+  int P::*as_int = nullptr;             ///< field of P (type kInt)
+  bool P::*as_bool = nullptr;           ///< field of P (type kBool)
+  std::string P::*as_string = nullptr;  ///< field of P (type kString)
+  double min;                           ///< smallest valid value (numbers only)
+  double max;                           ///< largest valid value (numbers only)
   const char* unit;         ///< unit as written in the .cfg description ("m", "deg", "" = none)
   const char* description;  ///< one line: what it does
+
+  /// \brief True for double and int members (the ones with a range).
+  bool isNumber() const { return type == Type::kDouble || type == Type::kInt; }
+  /// \brief The value of a number member of `p` as a double.
+  double number(const P& p) const {
+    return type == Type::kDouble ? p.*as_double : static_cast<double>(p.*as_int);
+  }
 };
 
 /// \brief All parameters of one params struct, in the order of the .cfg file.
@@ -35,16 +59,20 @@ using ParamTable = std::vector<ParamSpec<P>>;
 template <class P>
 std::string paramValueText(const ParamSpec<P>& spec, const P& p) {
   std::ostringstream out;
-  std::visit(
-      [&](auto member) {
-        using T = std::decay_t<decltype(p.*member)>;
-        if constexpr (std::is_same_v<T, bool>) {
-          out << (p.*member ? "true" : "false");
-        } else {
-          out << p.*member;
-        }
-      },
-      spec.member);
+  switch (spec.type) {
+    case ParamSpec<P>::Type::kDouble:
+      out << p.*spec.as_double;
+      break;
+    case ParamSpec<P>::Type::kInt:
+      out << p.*spec.as_int;
+      break;
+    case ParamSpec<P>::Type::kBool:
+      out << (p.*spec.as_bool ? "true" : "false");
+      break;
+    case ParamSpec<P>::Type::kString:
+      out << p.*spec.as_string;
+      break;
+  }
   return out.str();
 }
 
@@ -55,20 +83,20 @@ void setParam(const ParamTable<P>& table, const char* method, const std::string&
               const std::string& value, P* p) {
   for (const auto& spec : table) {
     if (name != spec.name) continue;
-    std::visit(
-        [&](auto member) {
-          using T = std::decay_t<decltype(p->*member)>;
-          if constexpr (std::is_same_v<T, double>) {
-            p->*member = parseDoubleParam(name, value);
-          } else if constexpr (std::is_same_v<T, int>) {
-            p->*member = parseIntParam(name, value);
-          } else if constexpr (std::is_same_v<T, bool>) {
-            p->*member = parseBoolParam(name, value);
-          } else {
-            p->*member = value;
-          }
-        },
-        spec.member);
+    switch (spec.type) {
+      case ParamSpec<P>::Type::kDouble:
+        p->*spec.as_double = parseDoubleParam(name, value);
+        break;
+      case ParamSpec<P>::Type::kInt:
+        p->*spec.as_int = parseIntParam(name, value);
+        break;
+      case ParamSpec<P>::Type::kBool:
+        p->*spec.as_bool = parseBoolParam(name, value);
+        break;
+      case ParamSpec<P>::Type::kString:
+        p->*spec.as_string = value;
+        break;
+    }
     return;
   }
   std::string known;
@@ -82,14 +110,7 @@ void setParam(const ParamTable<P>& table, const char* method, const std::string&
 template <class P>
 void checkParamRanges(const ParamTable<P>& table, const P& p) {
   for (const auto& spec : table) {
-    std::visit(
-        [&](auto member) {
-          using T = std::decay_t<decltype(p.*member)>;
-          if constexpr (std::is_same_v<T, double> || std::is_same_v<T, int>) {
-            checkRange(spec.name, static_cast<double>(p.*member), spec.min, spec.max, spec.unit);
-          }
-        },
-        spec.member);
+    if (spec.isNumber()) checkRange(spec.name, spec.number(p), spec.min, spec.max, spec.unit);
   }
 }
 
