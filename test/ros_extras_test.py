@@ -288,7 +288,7 @@ class RosExtrasTest(unittest.TestCase):
                         "output rate [Hz]", "processing time mean [ms]",
                         "processing time max [ms]", "clouds in", "clouds out", "dropped",
                         "dropped: malformed", "dropped: no transform", "dropped: not PointCloud2",
-                        "dropped: filter failed", "invalid points (NaN/Inf)", "fallbacks",
+                        "out of range points", "invalid points (NaN/Inf)", "fallbacks",
                         "frame_id changes", "stamps going back"):
                 self.assertIsNotNone(self.value(name, key), "diagnostics lack '%s'" % key)
             self.assertEqual(self.value(name, "method"), rospy.get_param("~method"))
