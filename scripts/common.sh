@@ -21,6 +21,7 @@ GF_APT_PACKAGES=(
   python3-std-srvs python3-diagnostic-msgs
   libsensor-msgs-dev python3-sensor-msgs
   libeigen3-dev libnanoflann-dev googletest libgtest-dev
+  clang libclang-rt-dev libomp-dev
   rviz xvfb xauth libgl1-mesa-dri imagemagick
 )
 

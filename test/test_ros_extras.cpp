@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "../src/nodelets/ground_filter_nodelet.h"
+#include "point_cloud2.h"
 
 namespace gf = ground_filter;
 using sensor_msgs::PointCloud2;
