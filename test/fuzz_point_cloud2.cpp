@@ -34,8 +34,9 @@ void require(bool ok, const char* what) {
 
 extern "C" int LLVMFuzzerInitialize(int* /*argc*/, char*** /*argv*/) {
   const char* method = std::getenv("GF_FUZZ_METHOD");
-  // One thread: libFuzzer runs inputs back to back; threads only add noise to ASan reports.
-  g_filter = gf::makeGroundFilter(method ? method : "voxel", {{"threads", "1"}});
+  // As the nodelet runs it (max_range 1000 m); one thread: libFuzzer runs inputs back to back.
+  g_filter = gf::makeGroundFilter(method ? method : "voxel",
+                                  {{"threads", "1"}, {"max_range", "1000"}});
   return 0;
 }
 

@@ -101,6 +101,27 @@ TEST(CheckPointCloud2, EmptyCloudsAreValid) {
   EXPECT_EQ(check(makeCloud(5, 0)), gf::CloudRejectReason::kNone);
 }
 
+// Fuzzing found it: width 0 with a huge height walked billions of empty rows per pass.
+TEST(CheckPointCloud2, ZeroWidthHugeHeightHasNoRowsToWalk) {
+  PointCloud2 c = makeCloud(0, 1);
+  c.height = 0xFFFFFFF0u;
+  c.row_step = 0;
+  c.data.clear();
+  gf::CloudLayout layout;
+  ASSERT_EQ(gf::checkPointCloud2(c, &layout, nullptr), gf::CloudRejectReason::kNone);
+  EXPECT_EQ(layout.points, 0u);
+  EXPECT_EQ(layout.height, 0u);
+  std::vector<std::uint8_t> labels;
+  PointCloud2 g, ng, labeled;
+  const gf::SplitCounts counts = gf::splitPointCloud2(c, layout, &labels, &g, &ng);
+  EXPECT_EQ(counts.ground + counts.nonground, 0u);
+  EXPECT_EQ(g.width + ng.width, 0u);
+  std::string why;
+  ASSERT_TRUE(gf::makeLabeledCloud(c, layout, labels, &labeled, &why));
+  EXPECT_EQ(labeled.height, c.height);  // the header is kept
+  EXPECT_TRUE(labeled.data.empty());
+}
+
 TEST(CheckPointCloud2, MissingField) {
   PointCloud2 c = makeCloud(4);
   c.fields.erase(c.fields.begin() + 1);  // z

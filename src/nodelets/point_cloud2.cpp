@@ -146,7 +146,9 @@ CloudRejectReason checkPointCloud2(const sensor_msgs::PointCloud2& cloud, CloudL
     layout->y_offset = offsets[1];
     layout->z_offset = offsets[2];
     layout->width = cloud.width;
-    layout->height = cloud.height;
+    // No rows to walk when there is no point: a cloud of width 0 and height 4e9 must not cost
+    // 4e9 empty row iterations in every pass (found by fuzzing: seconds per message).
+    layout->height = cloud.width == 0 ? 0 : cloud.height;
     layout->point_step = cloud.point_step;
     layout->row_step = cloud.row_step;
     layout->points = std::size_t{cloud.width} * cloud.height;

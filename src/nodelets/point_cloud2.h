@@ -37,7 +37,7 @@ struct CloudLayout {
   std::size_t y_offset = 4;    ///< byte offset of float32 y
   std::size_t z_offset = 8;    ///< byte offset of float32 z
   std::size_t width = 0;       ///< records per row
-  std::size_t height = 0;      ///< rows
+  std::size_t height = 0;      ///< rows to walk (0 when width is 0, whatever the header says)
   std::size_t point_step = 0;  ///< bytes per record
   std::size_t row_step = 0;    ///< bytes per row (>= width * point_step)
   std::size_t points = 0;      ///< width * height
