@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <limits>
 #include <memory>
@@ -125,6 +126,8 @@ TEST(WorkingVolume, FarPointsInKittiFrameLeaveOtherLabelsUnchanged) {
     ASSERT_EQ(reference.size(), n);
     EXPECT_EQ(ref_stats.out_of_range_points, 0u);
     ASSERT_GT(ref_stats.ground_points, n / 3);  // a real result to compare against
+    std::printf("[ %s ] backend '%s', %zu of %zu points ground\n", caseName(c).c_str(),
+                ref_stats.backend.c_str(), ref_stats.ground_points, n);
     std::mt19937 rng(12);
     for (std::size_t far_count : {1u, 10u, 1000u}) {
       SCOPED_TRACE(far_count);

@@ -86,7 +86,12 @@ void GroundFilterNodelet::onInit() {
   onInitFilter();
   // Build the first filter object now, before the input is subscribed: the first cloud of a
   // bag that starts at once is filtered at once (no construction cost, never dropped).
-  updateFilter();
+  try {
+    updateFilter();
+  } catch (const std::exception& e) {
+    NODELET_ERROR("%s: building the filter failed (tried again with the first cloud): %s",
+                  methodName().c_str(), e.what());
+  }
   onInitPostProcess();
 }
 
@@ -267,6 +272,7 @@ void GroundFilterNodelet::cloudCallback(const sensor_msgs::PointCloud2ConstPtr& 
   ProcessedCloud out;
   {
     std::lock_guard<std::mutex> lock(process_mutex_);
+    std::string build_error;
     try {
       updateFilter();
       if (filter_) {
@@ -277,10 +283,11 @@ void GroundFilterNodelet::cloudCallback(const sensor_msgs::PointCloud2ConstPtr& 
       }
     } catch (const std::exception& e) {
       filter_.reset();  // processPointCloud2 publishes the cloud as all non-ground
-      out.filter_error = e.what();
+      build_error = e.what();
     }
     processPointCloud2(*msg, layout, filter_.get(), transform ? &to_gravity : nullptr,
                        pub_labeled_.getNumSubscribers() > 0, &buffers_, &out);
+    if (!build_error.empty()) out.filter_error = build_error;
     if (!out.filter_error.empty()) filter_.reset();  // rebuilt from scratch for the next cloud
   }
   publish(out,
