@@ -1,6 +1,7 @@
 #ifndef GROUND_FILTER_WORKING_VOLUME_H
 #define GROUND_FILTER_WORKING_VOLUME_H
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -32,8 +33,17 @@ struct WorkingVolume {
   /// \brief Checks max_range (0 or in (0, kWorkingVolumeHardLimit]).
   /// \throws std::invalid_argument naming the value and the range.
   void validate() const;
-  /// \brief True when the finite point (x, y, z) lies inside the volume.
-  bool contains(float x, float y, float z) const;
+  /// \brief True when the point (x, y, z) lies inside the volume (false for NaN/Inf).
+  ///
+  /// Float arithmetic, so the per-point check costs a few instructions; a distance that
+  /// overflows (1e30 m) is Inf and so outside.
+  bool contains(float x, float y, float z) const {
+    const float dx = x - origin[0], dy = y - origin[1], dz = z - origin[2];
+    const float h = static_cast<float>(kWorkingVolumeHardLimit);
+    if (!(std::fabs(dx) <= h && std::fabs(dy) <= h && std::fabs(dz) <= h)) return false;
+    const float r = static_cast<float>(max_range);
+    return r == 0.f || dx * dx + dy * dy + dz * dz <= r * r;
+  }
 };
 
 /// \brief A GroundFilter that runs another one on the points inside a WorkingVolume only.

@@ -19,18 +19,6 @@ void WorkingVolume::validate() const {
   }
 }
 
-bool WorkingVolume::contains(float x, float y, float z) const {
-  // Double: a 1e30 m float squared would overflow float to Inf (still out, but say so plainly).
-  const double dx = static_cast<double>(x) - origin[0];
-  const double dy = static_cast<double>(y) - origin[1];
-  const double dz = static_cast<double>(z) - origin[2];
-  if (std::fabs(dx) > kWorkingVolumeHardLimit || std::fabs(dy) > kWorkingVolumeHardLimit ||
-      std::fabs(dz) > kWorkingVolumeHardLimit) {
-    return false;
-  }
-  return max_range == 0.0 || dx * dx + dy * dy + dz * dz <= max_range * max_range;
-}
-
 WorkingVolumeFilter::WorkingVolumeFilter(std::unique_ptr<GroundFilter> inner,
                                          const WorkingVolume& volume)
     : inner_(std::move(inner)), volume_(volume) {
@@ -55,8 +43,11 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
   // Cheap first pass: most scans have no far point and go to the inner filter without a copy.
   std::size_t out_of_range = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    float x, y, z;
-    if (cloud.get(i, &x, &y, &z) && !volume_.contains(x, y, z)) ++out_of_range;
+    const float x = cloud.x(i), y = cloud.y(i), z = cloud.z(i);
+    // contains() is false for NaN/Inf too: only then tell the two apart.
+    if (!volume_.contains(x, y, z) && std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) {
+      ++out_of_range;
+    }
   }
   if (out_of_range == 0) {
     inner_->filter(cloud, labels, stats);
