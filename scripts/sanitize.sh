@@ -36,9 +36,11 @@ python3 "${JUNIT}" "${RESULTS}/sanitize_build.xml" sanitize build pass ""
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:halt_on_error=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 rc_all=0
+mkdir -p "${SAN_BUILD}/logs"
 for bin in "${SAN_BUILD}"/asan_test_*; do
+  [ -f "${bin}" ] && [ -x "${bin}" ] || continue  # test binaries only
   name="$(basename "${bin}")"
-  log="${SAN_BUILD}/${name}.log"
+  log="${SAN_BUILD}/logs/${name}.log"
   set +e
   nice -n 5 "${bin}" --gtest_output="xml:${RESULTS}/${name}.xml" > "${log}" 2>&1
   rc=$?
