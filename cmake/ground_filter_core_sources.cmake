@@ -20,4 +20,5 @@ set(GF_CORE_SOURCES
   src/core/normal/classify.cpp
   src/core/kdtree_neighbor_search.cpp
   src/core/neighbor_search_factory.cpp
+  src/core/working_volume.cpp
 )

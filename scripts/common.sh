@@ -26,7 +26,8 @@ GF_APT_PACKAGES=(
 )
 # Tests and the rviz view only (GF_NO_TEST_DEPS=1 skips them: 51 packages fewer on a minimal
 # root). nanoflann: the optional reference of one kd-tree test.
-GF_APT_TEST_PACKAGES=(libnanoflann-dev rviz xvfb xauth libgl1-mesa-dri imagemagick)
+GF_APT_TEST_PACKAGES=(libnanoflann-dev rviz xvfb xauth libgl1-mesa-dri imagemagick
+  clang libclang-rt-dev libomp-dev)  # clang: sanitizer build and libFuzzer (scripts/sanitize.sh)
 if [ "${GF_NO_TEST_DEPS:-0}" != "1" ]; then
   GF_APT_PACKAGES+=("${GF_APT_TEST_PACKAGES[@]}")
 fi

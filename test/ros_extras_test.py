@@ -288,7 +288,7 @@ class RosExtrasTest(unittest.TestCase):
                         "output rate [Hz]", "processing time mean [ms]",
                         "processing time max [ms]", "clouds in", "clouds out", "dropped",
                         "dropped: malformed", "dropped: no transform", "dropped: not PointCloud2",
-                        "dropped: filter failed", "invalid points (NaN/Inf)", "fallbacks",
+                        "out of range points", "invalid points (NaN/Inf)", "fallbacks",
                         "frame_id changes", "stamps going back"):
                 self.assertIsNotNone(self.value(name, key), "diagnostics lack '%s'" % key)
             self.assertEqual(self.value(name, "method"), rospy.get_param("~method"))
@@ -361,6 +361,108 @@ class RosExtrasTest(unittest.TestCase):
         finally:
             out.close()
 
+
+    def test_far_points_working_volume(self):
+        """Issue 12: 1000 points 300 km .. 1e30 m away in a KITTI frame are published as
+        non-ground and counted ("out of range points"); every other point keeps the label it
+        gets without them."""
+        topics = ["/flat_filter/ground", "/flat_filter/nonground"]
+        out = Outputs(topics)
+        try:
+            self.connect(self.pubs["flat"])
+            n = self.rec.shape[0]
+            far = np.zeros(1000, dtype=REC)
+            values = np.array([3e5, -1e7, 1e30, -1e30], dtype=np.float32)
+            far["x"] = values[np.arange(1000) % 4]
+            far["y"] = 1.0
+            far["z"] = -1.0
+            far["idx"] = n + np.arange(1000, dtype=np.uint32)
+            # Far points at random places; the frame's own points keep their order (the normal
+            # filter's RANSAC and neighbour ties depend on the order, not on the far points).
+            rng = np.random.RandomState(3)
+            is_far = np.zeros(n + 1000, dtype=bool)
+            is_far[rng.choice(n + 1000, 1000, replace=False)] = True
+            mixed = np.zeros(n + 1000, dtype=REC)
+            mixed[~is_far] = self.rec
+            mixed[is_far] = far
+            self.wait_for(lambda: all(s.get_num_connections() > 0 for s in out.subs),
+                          "output subscriptions connected")
+            self.wait_for(lambda: self.input_subscribed("/gf_extras/flat"), "flat_filter input")
+            before = self.number("flat_filter", "out of range points") or 0
+            ref_stamp, far_stamp = self.next_stamp(), self.next_stamp()
+            clouds = [make_cloud(self.rec, "velodyne", ref_stamp),
+                      make_cloud(mixed, "velodyne", far_stamp)]
+            # Published again until both come back: the input connection of the lazy filter
+            # may still be the one an earlier test closed.
+            deadline = time.monotonic() + WAIT_S
+            while not all(out.get(t, s) for t in topics for s in (ref_stamp, far_stamp)):
+                self.assertLess(time.monotonic(), deadline, "both clouds split")
+                for c in clouds:
+                    self.pubs["flat"].publish(c)
+                end = time.monotonic() + 5.0
+                while time.monotonic() < end and not all(
+                        out.get(t, s) for t in topics for s in (ref_stamp, far_stamp)):
+                    time.sleep(0.05)
+            ref_g = np.frombuffer(out.get(topics[0], ref_stamp).data, dtype=REC)["idx"]
+            far_g = np.frombuffer(out.get(topics[0], far_stamp).data, dtype=REC)["idx"]
+            far_ng = np.frombuffer(out.get(topics[1], far_stamp).data, dtype=REC)["idx"]
+            self.assertEqual(far_g.size + far_ng.size, n + 1000)
+            self.assertGreater(ref_g.size, n // 3)
+            self.assertFalse(np.any(far_g >= n), "a far point was labelled ground")
+            np.testing.assert_array_equal(np.sort(far_g), np.sort(ref_g))
+            self.wait_for(lambda: (self.number("flat_filter", "out of range points") or 0) >=
+                          before + 1000, "diagnostics counting the 1000 out of range points")
+            self.assertEqual(self.number("flat_filter", "filter errors (published as non-ground)"),
+                             0)
+        finally:
+            out.close()
+
+    def test_startup_bag_first_message_at_once(self):
+        """Issue 12: a bag whose messages start at once, played in a burst right after the
+        nodelet came up: every cloud is filtered and published, none is lost for want of a
+        filter (the first filter object is built in onInit)."""
+        name = "startup_filter"
+        self.wait_for(lambda: self.input_subscribed("/gf_extras/startup"), "startup_filter input")
+        self.assertEqual(self.number(name, "clouds in") or 0, 0, "a cloud before the bag")
+        tmp = tempfile.mkdtemp(prefix="gf_startup_")
+        bag_path = os.path.join(tmp, "startup.bag")
+        small = self.rec  # the whole frame: its first rings alone may hold no ground
+        with rosbag.Bag(bag_path, "w") as bag:
+            for i in range(3):
+                t = rospy.Time(20, 0) + rospy.Duration(0.001 * i)
+                bag.write("/gf_extras/startup", make_cloud(small, "velodyne", t), t)
+        out = Outputs(["/startup_filter/ground", "/startup_filter/nonground"])
+        player = None
+        try:
+            self.wait_for(lambda: all(s.get_num_connections() > 0 for s in out.subs),
+                          "output subscriptions connected")
+            # -i: no pause between messages; --wait-for-subscribers: the first one is sent the
+            # moment the nodelet's input is connected; -k: the player stays up until its send
+            # queue is out (a player that exits at once may drop what it has not sent yet).
+            player = subprocess.Popen(["rosbag", "play", "-q", "-i", "-k",
+                                       "--wait-for-subscribers", bag_path],
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT,
+                                      start_new_session=True)
+            for i in range(3):
+                stamp = rospy.Time(20, 0) + rospy.Duration(0.001 * i)
+                self.wait_for(lambda s=stamp: out.get("/startup_filter/ground", s) and
+                              out.get("/startup_filter/nonground", s),
+                              "cloud %d of the bag split" % i)
+                g = out.get("/startup_filter/ground", stamp)
+                ng = out.get("/startup_filter/nonground", stamp)
+                self.assertEqual(g.width + ng.width, small.shape[0])
+                self.assertGreater(g.width, 0)
+            self.wait_for(lambda: self.number(name, "clouds out") == 3, "diagnostics: 3 out")
+            self.assertEqual(self.number(name, "clouds in"), 3)
+            self.assertEqual(self.number(name, "dropped"), 0)
+            self.assertEqual(self.number(name, "filter errors (published as non-ground)"), 0)
+        finally:
+            if player is not None and player.poll() is None:
+                os.killpg(player.pid, signal.SIGINT)
+                player.wait(timeout=20)
+            out.close()
+            os.remove(bag_path)
+            os.rmdir(tmp)
 
 if __name__ == "__main__":
     rostest.rosrun(PKG, "ros_extras", RosExtrasTest, sys.argv)

@@ -9,13 +9,15 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
-#include "../src/nodelets/ground_filter_nodelet.h"
-#include "../src/nodelets/voxel_ground_filter_nodelet.h"
+#include "ground_filter/working_volume.h"
+#include "point_cloud2.h"
+#include "voxel_ground_filter_nodelet.h"
 
 namespace gf = ground_filter;
 using sensor_msgs::PointCloud2;
@@ -97,6 +99,27 @@ TEST(CheckPointCloud2, EmptyCloudsAreValid) {
   EXPECT_EQ(check(makeCloud(0, 1)), gf::CloudRejectReason::kNone);
   EXPECT_EQ(check(makeCloud(0, 0)), gf::CloudRejectReason::kNone);
   EXPECT_EQ(check(makeCloud(5, 0)), gf::CloudRejectReason::kNone);
+}
+
+// Fuzzing found it: width 0 with a huge height walked billions of empty rows per pass.
+TEST(CheckPointCloud2, ZeroWidthHugeHeightHasNoRowsToWalk) {
+  PointCloud2 c = makeCloud(0, 1);
+  c.height = 0xFFFFFFF0u;
+  c.row_step = 0;
+  c.data.clear();
+  gf::CloudLayout layout;
+  ASSERT_EQ(gf::checkPointCloud2(c, &layout, nullptr), gf::CloudRejectReason::kNone);
+  EXPECT_EQ(layout.points, 0u);
+  EXPECT_EQ(layout.height, 0u);
+  std::vector<std::uint8_t> labels;
+  PointCloud2 g, ng, labeled;
+  const gf::SplitCounts counts = gf::splitPointCloud2(c, layout, &labels, &g, &ng);
+  EXPECT_EQ(counts.ground + counts.nonground, 0u);
+  EXPECT_EQ(g.width + ng.width, 0u);
+  std::string why;
+  ASSERT_TRUE(gf::makeLabeledCloud(c, layout, labels, &labeled, &why));
+  EXPECT_EQ(labeled.height, c.height);  // the header is kept
+  EXPECT_TRUE(labeled.data.empty());
 }
 
 TEST(CheckPointCloud2, MissingField) {
@@ -309,7 +332,8 @@ std::vector<std::string> knownVoxelParamNames() {
 TEST(VoxelCfg, SameParameterNamesAsParams) {
   std::vector<std::string> cfg_names;
   for (const auto& d : gf::VoxelGroundFilterConfig::__getParamDescriptions__()) {
-    cfg_names.push_back(d->name);
+    // max_range belongs to the working volume around every filter, not to its Params.
+    if (d->name != "max_range") cfg_names.push_back(d->name);
   }
   std::vector<std::string> params_names = knownVoxelParamNames();
   ASSERT_FALSE(params_names.empty()) << "could not read the names from set()'s error message";
@@ -332,6 +356,7 @@ TEST(VoxelCfg, EveryParameterMapsToItsFieldAndItsRangeValidates) {
   const auto& descriptions = gf::VoxelGroundFilterConfig::__getParamDescriptions__();
   ASSERT_FALSE(descriptions.empty());
   for (const auto& d : descriptions) {
+    if (d->name == "max_range") continue;  // WorkingVolume, tested below
     for (const auto* bound :
          {&gf::VoxelGroundFilterConfig::__getMin__(), &gf::VoxelGroundFilterConfig::__getMax__()}) {
       const gf::VoxelGroundFilterConfig config = withOne(*d, defaults, *bound);
@@ -353,6 +378,80 @@ TEST(VoxelCfg, EveryParameterMapsToItsFieldAndItsRangeValidates) {
   c.voxel_size = gf::VoxelGroundFilterConfig::__getMax__().voxel_size;
   c.tile_size = gf::VoxelGroundFilterConfig::__getMax__().tile_size;
   EXPECT_NO_THROW(gf::voxelParamsFromConfig(c).validate());
+}
+
+// max_range: the cfg default is the library's and its whole range is a valid WorkingVolume.
+TEST(VoxelCfg, MaxRangeIsTheWorkingVolume) {
+  EXPECT_EQ(gf::VoxelGroundFilterConfig::__getDefault__().max_range, gf::kDefaultMaxRange);
+  EXPECT_EQ(gf::VoxelGroundFilterConfig::__getMax__().max_range, gf::kWorkingVolumeHardLimit);
+  for (double r : {gf::VoxelGroundFilterConfig::__getMin__().max_range,
+                   gf::VoxelGroundFilterConfig::__getMax__().max_range}) {
+    gf::WorkingVolume v;
+    v.max_range = r;
+    EXPECT_NO_THROW(v.validate()) << r;
+  }
+}
+
+namespace {
+
+// A filter that labels every point ground, or throws.
+class StubFilter : public gf::GroundFilter {
+ public:
+  explicit StubFilter(bool fail) : fail_(fail) {}
+  void filter(const gf::CloudView& cloud, std::vector<std::uint8_t>* labels,
+              gf::FilterStats* stats) override {
+    if (fail_) throw std::runtime_error("stub failure");
+    labels->assign(cloud.size(), gf::kGround);
+    if (stats) stats->ground_points = cloud.size();
+  }
+  std::string name() const override { return "stub"; }
+
+ private:
+  bool fail_;
+};
+
+}  // namespace
+
+// The shared nodelet/fuzz path: far points go to non-ground through the working volume, NaN
+// points too; a failing or missing filter publishes everything as non-ground; ~labeled matches.
+TEST(ProcessPointCloud2, WorkingVolumeNaNAndFailures) {
+  PointCloud2 c = makeCloud(40, 2, 8);  // organised, padded rows: x = i, y = 2i, z = 3i
+  setFloat(&c, 5, 8, 1e30f);            // far
+  setFloat(&c, 6, 12, 3e5f);            // far
+  setFloat(&c, 7, 4, std::numeric_limits<float>::quiet_NaN());
+  gf::CloudLayout layout;
+  ASSERT_EQ(gf::checkPointCloud2(c, &layout, nullptr), gf::CloudRejectReason::kNone);
+  gf::WorkingVolume volume;
+  volume.max_range = 100.0;  // x = i, y = 2i, z = 3i: points 27..79 are farther than 100 m
+  gf::WorkingVolumeFilter filter(std::make_unique<StubFilter>(false), volume);
+  gf::CloudProcessingBuffers buffers;
+  gf::ProcessedCloud out;
+  gf::processPointCloud2(c, layout, &filter, nullptr, true, &buffers, &out);
+  EXPECT_TRUE(out.filter_error.empty());
+  std::size_t expect_far = 2;
+  for (std::size_t i = 0; i < 80; ++i) {
+    if (i != 5 && i != 6 && i != 7 && std::sqrt(14.0 * i * i) > 100.0) ++expect_far;
+  }
+  EXPECT_EQ(out.stats.out_of_range_points, expect_far);
+  EXPECT_EQ(out.counts.invalid, 1u);
+  EXPECT_EQ(out.counts.ground, 80u - expect_far - 1u);
+  EXPECT_EQ(out.counts.ground + out.counts.nonground, 80u);
+  ASSERT_TRUE(out.labeled);
+  std::size_t labelled_ground = 0;
+  for (std::size_t i = 0; i < 80; ++i) {
+    labelled_ground += out.labeled->data[i * out.labeled->point_step + 24];
+  }
+  EXPECT_EQ(labelled_ground, out.counts.ground);
+
+  gf::WorkingVolumeFilter failing(std::make_unique<StubFilter>(true), volume);
+  gf::processPointCloud2(c, layout, &failing, nullptr, false, &buffers, &out);
+  EXPECT_NE(out.filter_error.find("stub failure"), std::string::npos);
+  EXPECT_EQ(out.counts.ground, 0u);
+  EXPECT_EQ(out.counts.nonground, 80u);
+  EXPECT_FALSE(out.labeled);
+  gf::processPointCloud2(c, layout, nullptr, nullptr, false, &buffers, &out);
+  EXPECT_FALSE(out.filter_error.empty());
+  EXPECT_EQ(out.counts.nonground, 80u);
 }
 
 int main(int argc, char** argv) {

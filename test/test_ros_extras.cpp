@@ -5,13 +5,16 @@
 #include <ros/serialization.h>
 #include <std_msgs/String.h>
 
+#include <boost/make_shared.hpp>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <string>
+#include <typeinfo>
 #include <vector>
 
-#include "../src/nodelets/ground_filter_nodelet.h"
+#include "cloud_subscription_helper.h"
+#include "point_cloud2.h"
 
 namespace gf = ground_filter;
 using sensor_msgs::PointCloud2;
@@ -81,6 +84,52 @@ void putU32(std::vector<std::uint8_t>* b, std::size_t pos, std::uint32_t v) {
 }
 
 }  // namespace
+
+// The ~input subscription helper: PointCloud2 bytes become a message; bytes of another type
+// (by md5sum or by content) are reported with their publisher and give no message.
+TEST(CloudSubscriptionHelper, DeliversCloudsReportsOtherBytes) {
+  std::vector<std::string> problems;
+  gf::CloudSubscriptionHelper helper([](const sensor_msgs::PointCloud2ConstPtr&) {},
+                                     [&problems](const std::string& what, const std::string& from) {
+                                       problems.push_back(what + " | " + from);
+                                     });
+  EXPECT_TRUE(helper.getTypeInfo() == typeid(PointCloud2));
+  std::vector<std::uint8_t> bytes = serialize(makeCloud(9, 2, 4));
+  auto header = boost::make_shared<ros::M_string>();
+  (*header)["md5sum"] = ros::message_traits::md5sum<PointCloud2>();
+  (*header)["type"] = "sensor_msgs/PointCloud2";
+  (*header)["callerid"] = "/player";
+  ros::SubscriptionCallbackHelperDeserializeParams params;
+  params.buffer = bytes.data();
+  params.length = static_cast<std::uint32_t>(bytes.size());
+  params.connection_header = header;
+  const ros::VoidConstPtr msg = helper.deserialize(params);
+  ASSERT_TRUE(msg);
+  const auto cloud = boost::static_pointer_cast<const PointCloud2>(msg);
+  EXPECT_EQ(cloud->width, 9u);
+  EXPECT_EQ(cloud->height, 2u);
+  EXPECT_TRUE(problems.empty());
+
+  std::vector<std::uint8_t> text = serialize([] {
+    std_msgs::String s;
+    s.data = "hello";
+    return s;
+  }());
+  params.buffer = text.data();
+  params.length = static_cast<std::uint32_t>(text.size());
+  EXPECT_FALSE(helper.deserialize(params));  // right md5sum, wrong bytes
+  ASSERT_EQ(problems.size(), 1u);
+  EXPECT_NE(problems[0].find("do not decode"), std::string::npos) << problems[0];
+  EXPECT_NE(problems[0].find("/player"), std::string::npos) << problems[0];
+
+  (*header)["md5sum"] = ros::message_traits::md5sum<std_msgs::String>();
+  (*header)["type"] = "std_msgs/String";
+  params.buffer = bytes.data();
+  params.length = static_cast<std::uint32_t>(bytes.size());
+  EXPECT_FALSE(helper.deserialize(params));  // another type's connection, even cloud bytes
+  ASSERT_EQ(problems.size(), 2u);
+  EXPECT_NE(problems[1].find("std_msgs/String"), std::string::npos) << problems[1];
+}
 
 TEST(CheckSerializedPointCloud2, AcceptsRealMessages) {
   EXPECT_TRUE(checkBytes(serialize(makeCloud(100, 2, 8))));

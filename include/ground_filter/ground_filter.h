@@ -23,10 +23,13 @@ enum Label : std::uint8_t {
 struct FilterStats {
   std::size_t input_points = 0;    ///< points in the view
   std::size_t invalid_points = 0;  ///< NaN/Inf points (labelled non-ground, never used)
-  std::size_t ground_points = 0;   ///< points labelled ground
-  double total_ms = 0.0;           ///< wall time of the whole call
-  std::string backend;             ///< neighbour backend actually used ("" when not applicable)
-  std::string note;                ///< e.g. the reason for a backend fallback; empty when none
+  /// Finite points outside the working volume (labelled non-ground, never used); see
+  /// WorkingVolumeFilter. Always 0 for a filter that is not wrapped in one.
+  std::size_t out_of_range_points = 0;
+  std::size_t ground_points = 0;  ///< points labelled ground
+  double total_ms = 0.0;          ///< wall time of the whole call
+  std::string backend;            ///< neighbour backend actually used ("" when not applicable)
+  std::string note;               ///< e.g. the reason for a backend fallback; empty when none
   /// Named stage timings in milliseconds, in execution order.
   std::vector<std::pair<std::string, double>> stage_ms;
 };
@@ -52,7 +55,12 @@ using ParamSettings = std::vector<std::pair<std::string, std::string>>;
 /// \brief Names of the methods makeGroundFilter knows.
 std::vector<std::string> groundFilterMethods();
 
-/// \brief Creates the filter `method` with its defaults overridden by `settings`.
+/// \brief Creates the filter `method` with its defaults overridden by `settings`, wrapped in a
+///        WorkingVolumeFilter (working_volume.h) around the view's origin.
+///
+/// Besides the method's own parameters, `settings` may hold `max_range` [m]: points farther
+/// from the origin are labelled non-ground. Default 0 here (only the hard limit of 5 km per
+/// axis): files and benchmarks need not be sensor-centred; the nodelets default to 1000 m.
 /// \throws std::invalid_argument for an unknown method, unknown parameter or invalid value.
 std::unique_ptr<GroundFilter> makeGroundFilter(const std::string& method,
                                                const ParamSettings& settings = {});

@@ -5,6 +5,7 @@
 #include "ground_filter/paper_normalisation.h"
 #include "ground_filter/param_parse.h"
 #include "ground_filter/voxel_ground_filter.h"
+#include "ground_filter/working_volume.h"
 
 namespace ground_filter {
 
@@ -12,24 +13,35 @@ std::vector<std::string> groundFilterMethods() { return {"voxel", "normal", "vox
 
 std::unique_ptr<GroundFilter> makeGroundFilter(const std::string& method,
                                                const ParamSettings& settings) {
+  // max_range belongs to the working volume around every method, not to a method.
+  WorkingVolume volume;
+  volume.max_range = 0.0;  // files need not be sensor-centred: hard limit only unless asked
+  ParamSettings own;
+  for (const auto& kv : settings) {
+    if (kv.first == "max_range") {
+      volume.max_range = parseDoubleParam(kv.first, kv.second);
+    } else {
+      own.push_back(kv);
+    }
+  }
+  volume.validate();
+  std::unique_ptr<GroundFilter> inner;
   if (method == "voxel") {
     VoxelGroundFilterParams params;
-    for (const auto& kv : settings) params.set(kv.first, kv.second);
-    return std::make_unique<VoxelGroundFilter>(params);
-  }
-  if (method == "normal") {
+    for (const auto& kv : own) params.set(kv.first, kv.second);
+    inner = std::make_unique<VoxelGroundFilter>(params);
+  } else if (method == "normal") {
     NormalGroundFilterParams params;
-    for (const auto& kv : settings) params.set(kv.first, kv.second);
-    return std::make_unique<NormalGroundFilter>(params);
-  }
-  if (method == "voxel_paper") {
-    // The paper's literal voxel parameters on logistic z-score coordinates (README, "Voxel
-    // method", fidelity); settings override them, plus segment_points (65,536) and
+    for (const auto& kv : own) params.set(kv.first, kv.second);
+    inner = std::make_unique<NormalGroundFilter>(params);
+  } else if (method == "voxel_paper") {
+    // The paper's literal voxel parameters on logistic z-score coordinates (docs/voxel_method.md,
+    // paper fidelity); settings override them, plus segment_points (65,536) and
     // paper_normalisation (true; false = the same segments in metric coordinates).
     VoxelGroundFilterParams params = paperVoxelParams();
     int segment_points = 65536;
     bool normalise = true;
-    for (const auto& kv : settings) {
+    for (const auto& kv : own) {
       if (kv.first == "segment_points") {
         segment_points = parseIntParam(kv.first, kv.second);
       } else if (kv.first == "paper_normalisation") {
@@ -38,11 +50,13 @@ std::unique_ptr<GroundFilter> makeGroundFilter(const std::string& method,
         params.set(kv.first, kv.second);
       }
     }
-    return std::make_unique<PaperNormalisedVoxelFilter>(params, segment_points, normalise);
+    inner = std::make_unique<PaperNormalisedVoxelFilter>(params, segment_points, normalise);
+  } else {
+    std::string known;
+    for (const auto& m : groundFilterMethods()) known += (known.empty() ? "" : ", ") + m;
+    throw std::invalid_argument("unknown method '" + method + "' (known: " + known + ")");
   }
-  std::string known;
-  for (const auto& m : groundFilterMethods()) known += (known.empty() ? "" : ", ") + m;
-  throw std::invalid_argument("unknown method '" + method + "' (known: " + known + ")");
+  return std::make_unique<WorkingVolumeFilter>(std::move(inner), volume);
 }
 
 }  // namespace ground_filter

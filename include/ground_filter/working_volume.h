@@ -1,0 +1,85 @@
+#ifndef GROUND_FILTER_WORKING_VOLUME_H
+#define GROUND_FILTER_WORKING_VOLUME_H
+
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "ground_filter/cloud_view.h"
+#include "ground_filter/ground_filter.h"
+
+namespace ground_filter {
+
+/// \brief Hard limit of the working volume [m]: a point farther than this from the origin along
+///        any axis is always out of range, also with max_range 0 (off).
+///
+/// Chosen so no filter's index math can overflow: the whole volume spans at most 10 km per axis,
+/// which the voxel grid holds (2^21 voxels per axis) down to the smallest voxel_size (0.005 m:
+/// 10.49 km); the normal filter's grids adapt their cell size to any extent.
+constexpr double kWorkingVolumeHardLimit = 5000.0;
+
+/// \brief Default of the nodelets' `max_range` [m] (makeGroundFilter defaults to 0).
+constexpr double kDefaultMaxRange = 1000.0;
+
+/// \brief The volume in which points are filtered: a ball of `max_range` around `origin`,
+///        clipped to the box of +- kWorkingVolumeHardLimit per axis around `origin`.
+struct WorkingVolume {
+  double max_range = kDefaultMaxRange;  ///< ball radius, 0 = off (box only) [m] (1000)
+  float origin[3] = {0.f, 0.f, 0.f};    ///< sensor origin in the view's frame [m] (0, 0, 0)
+
+  /// \brief Checks max_range (0 or in (0, kWorkingVolumeHardLimit]).
+  /// \throws std::invalid_argument naming the value and the range.
+  void validate() const;
+  /// \brief True when the point (x, y, z) lies inside the volume (false for NaN/Inf).
+  ///
+  /// Float arithmetic, so the per-point check costs a few instructions; a distance that
+  /// overflows (1e30 m) is Inf and so outside.
+  bool contains(float x, float y, float z) const {
+    const float dx = x - origin[0], dy = y - origin[1], dz = z - origin[2];
+    const float h = static_cast<float>(kWorkingVolumeHardLimit);
+    if (!(std::fabs(dx) <= h && std::fabs(dy) <= h && std::fabs(dz) <= h)) return false;
+    const float r = static_cast<float>(max_range);
+    return r == 0.f || dx * dx + dy * dy + dz * dz <= r * r;
+  }
+};
+
+/// \brief A GroundFilter that runs another one on the points inside a WorkingVolume only.
+///
+/// Points outside the volume (one far echo, a corrupt 1e30 m value) are labelled kNonGround one
+/// by one and counted in FilterStats::out_of_range_points; the inner filter sees the rest. A
+/// first pass checks every point; when all finite points are inside (the usual case) the view
+/// goes to the inner filter as it is, without a copy. Otherwise the finite in-range points are
+/// packed, in input order, into a scratch xyz buffer, filtered, and their labels scattered
+/// back, so every other point gets the label it would get without the far points.
+class WorkingVolumeFilter : public GroundFilter {
+ public:
+  /// \brief Wraps `inner` (not null).
+  /// \throws std::invalid_argument when `volume` is invalid or `inner` is null.
+  WorkingVolumeFilter(std::unique_ptr<GroundFilter> inner, const WorkingVolume& volume);
+
+  void filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
+              FilterStats* stats = nullptr) override;
+  /// \brief The inner filter's name.
+  std::string name() const override { return inner_->name(); }
+
+  /// \brief Moves the volume's centre (e.g. to the sensor origin in a gravity frame).
+  void setOrigin(float x, float y, float z);
+  /// \brief The volume in use.
+  const WorkingVolume& volume() const { return volume_; }
+  /// \brief The wrapped filter.
+  GroundFilter& inner() { return *inner_; }
+
+ private:
+  std::unique_ptr<GroundFilter> inner_;
+  WorkingVolume volume_;
+  std::vector<float> xyz_;         // packed in-range points
+  std::vector<std::size_t> kept_;  // their input indices
+  std::vector<std::uint8_t> inner_labels_;
+};
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_WORKING_VOLUME_H

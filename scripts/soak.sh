@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Soak test of the nodelets (scripts/soak.py says what it does and what passes).
+#   scripts/soak.sh [MINUTES] [--results DIR] [--rate HZ]
+# Default 10 minutes at 20 Hz of ../shared/data/unlabelled/os128_000000.pcd. Needs the catkin
+# build in .ws/ (scripts/run_tests.sh or gf_build). Starts its own roscore on a free port unless
+# ROS_MASTER_URI is set; ROS_HOSTNAME defaults to loopback. Logs: .ws/soak_logs/.
+set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+MINUTES=10
+EXTRA=()
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --results|--rate|--scan) EXTRA+=("$1" "$2"); shift 2 ;;
+    [0-9]*) MINUTES="$1"; shift ;;
+    *) echo "usage: $0 [MINUTES] [--results DIR] [--rate HZ] [--scan PATH]" >&2; exit 2 ;;
+  esac
+done
+set +u
+# shellcheck disable=SC1091
+source "${GF_WS}/devel/setup.bash"
+set -u
+export ROS_HOSTNAME="${ROS_HOSTNAME:-localhost}"
+if [ -z "${ROS_MASTER_URI:-}" ]; then
+  port="$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')"
+  export ROS_MASTER_URI="http://localhost:${port}"
+fi
+export ROS_LOG_DIR="${GF_WS}/soak_logs/ros"
+exec python3 "${GF_ROOT}/scripts/soak.py" run --minutes "${MINUTES}" "${EXTRA[@]}"

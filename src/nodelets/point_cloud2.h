@@ -1,0 +1,144 @@
+#ifndef GROUND_FILTER_SRC_NODELETS_POINT_CLOUD2_H
+#define GROUND_FILTER_SRC_NODELETS_POINT_CLOUD2_H
+
+// sensor_msgs/PointCloud2 at byte level, without any nodelet or ROS graph code: validation, the
+// zero-copy view, the zero-loss split and the labelled output. Used by the nodelets and by the
+// fuzz target (test/fuzz_point_cloud2.cpp).
+
+#include <sensor_msgs/PointCloud2.h>
+
+#include <Eigen/Geometry>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "ground_filter/cloud_view.h"
+#include "ground_filter/ground_filter.h"
+
+namespace ground_filter {
+
+/// \brief Why a PointCloud2 was rejected (one throttle slot per reason).
+enum class CloudRejectReason : int {
+  kNone = 0,
+  kBigEndian,     ///< is_bigendian set (records are read as little-endian)
+  kMissingField,  ///< no field named x, y or z
+  kFieldType,     ///< x/y/z not FLOAT32, or a field of unknown datatype
+  kFieldCount,    ///< x/y/z with count != 1
+  kFieldExtent,   ///< a field reaches past point_step
+  kRowStep,       ///< row_step < width * point_step
+  kDataSize,      ///< data.size() != row_step * height
+  kCount          ///< number of reasons (array size)
+};
+
+/// \brief Where x/y/z sit in a validated PointCloud2 and how its rows are laid out.
+struct CloudLayout {
+  std::size_t x_offset = 0;    ///< byte offset of float32 x inside a record
+  std::size_t y_offset = 4;    ///< byte offset of float32 y
+  std::size_t z_offset = 8;    ///< byte offset of float32 z
+  std::size_t width = 0;       ///< records per row
+  std::size_t height = 0;      ///< rows to walk (0 when width is 0, whatever the header says)
+  std::size_t point_step = 0;  ///< bytes per record
+  std::size_t row_step = 0;    ///< bytes per row (>= width * point_step)
+  std::size_t points = 0;      ///< width * height
+  bool contiguous = true;      ///< every record at i * point_step (no padding between rows)
+};
+
+/// \brief Checks a PointCloud2 before any byte of it is read.
+///
+/// Accepts float32 x/y/z (count 1, any offset and order) in records whose fields all fit inside
+/// point_step, row_step >= width * point_step and data.size() == row_step * height; little-endian.
+/// \param layout filled when the cloud is valid.
+/// \param message filled with a human-readable reason when it is not.
+/// \return kNone when valid, the reason otherwise.
+CloudRejectReason checkPointCloud2(const sensor_msgs::PointCloud2& cloud, CloudLayout* layout,
+                                   std::string* message);
+
+/// \brief A CloudView over a validated cloud: zero-copy when rows are contiguous; otherwise x/y/z
+///        are packed once into `scratch` (organised clouds with row padding).
+CloudView makeCloudView(const sensor_msgs::PointCloud2& cloud, const CloudLayout& layout,
+                        std::vector<float>* scratch);
+
+/// \brief Point counts of one split.
+struct SplitCounts {
+  std::size_t ground = 0;     ///< records copied to the ground cloud
+  std::size_t nonground = 0;  ///< records copied to the non-ground cloud (invalid ones included)
+  std::size_t invalid = 0;    ///< NaN/Inf records (all in non-ground)
+};
+
+/// \brief Copies every record of `in` whole (point_step bytes) into exactly one of `ground` and
+///        `nonground`, in input order.
+///
+/// A record goes to ground when its label is not kNonGround and its x/y/z are finite; NaN/Inf
+/// records always go to non-ground. `labels` is normalised in place to the labels actually
+/// applied (kGround / kNonGround). Outputs get the input header, fields, point_step and
+/// endianness, height 1, and is_dense true unless they hold a NaN/Inf record.
+/// \pre `labels->size() == layout.points`.
+SplitCounts splitPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
+                             std::vector<std::uint8_t>* labels, sensor_msgs::PointCloud2* ground,
+                             sensor_msgs::PointCloud2* nonground);
+
+/// \brief A CloudView of the cloud's x/y/z mapped through `transform` (e.g. sensor -> gravity
+///        frame), packed into `scratch`; NaN/Inf points stay non-finite. Only the view moves: the
+///        cloud itself (and so every output record) is left as it is.
+CloudView makeTransformedCloudView(const sensor_msgs::PointCloud2& cloud, const CloudLayout& layout,
+                                   const Eigen::Isometry3d& transform, std::vector<float>* scratch);
+
+/// \brief Checks that `len` bytes are one serialized sensor_msgs/PointCloud2: every length field
+///        fits in the buffer and the message ends exactly at its end (so deserialising it can
+///        neither overrun nor allocate a size read from garbage).
+/// \param why set to the first problem found when it returns false.
+bool checkSerializedPointCloud2(const std::uint8_t* buf, std::uint32_t len, std::string* why);
+
+/// \brief Name of the per-point label field of the `~labeled` output.
+constexpr char kLabelFieldName[] = "ground";
+
+/// \brief The input cloud with a uint8 field `ground` (1 ground, 0 non-ground) per record.
+///
+/// Width, height, header and every input field are kept; row padding is dropped. Without a
+/// `ground` field in the input, it is appended after the input record (point_step grows to the
+/// next multiple of 4); an input uint8 `ground` field (count 1) is overwritten in place.
+/// \return false, with `why` set, when the input has a `ground` field of another type.
+/// \pre `labels.size() == layout.points` (labels as normalised by splitPointCloud2()).
+bool makeLabeledCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
+                      const std::vector<std::uint8_t>& labels, sensor_msgs::PointCloud2* out,
+                      std::string* why);
+
+/// \brief Checks (checkSerializedPointCloud2()) and deserialises one serialised PointCloud2.
+/// \return false, with `why` set, when the bytes are no PointCloud2 (`msg` is then unspecified).
+bool deserializePointCloud2(const std::uint8_t* buf, std::uint32_t len,
+                            sensor_msgs::PointCloud2* msg, std::string* why);
+
+/// \brief Scratch memory of processPointCloud2(), kept between clouds.
+struct CloudProcessingBuffers {
+  std::vector<std::uint8_t> labels;  ///< one label per point
+  std::vector<float> xyz;            ///< packed x/y/z (padded rows, transformed views)
+};
+
+/// \brief Outputs of one cloud: ground / non-ground (always), ~labeled (when asked for).
+struct ProcessedCloud {
+  sensor_msgs::PointCloud2Ptr ground;     ///< records labelled ground
+  sensor_msgs::PointCloud2Ptr nonground;  ///< every other record (NaN/Inf, out of range too)
+  sensor_msgs::PointCloud2Ptr labeled;    ///< null unless asked for and possible
+  SplitCounts counts;                     ///< what the split did
+  FilterStats stats;                      ///< what the filter did (empty when it failed)
+  std::string filter_error;   ///< non-empty: the filter failed, every record went to non-ground
+  std::string labeled_error;  ///< non-empty: ~labeled was asked for but is not possible
+};
+
+/// \brief Filters one validated cloud and splits it: the shared path of the nodelets and of
+///        the fuzz target.
+///
+/// The filter sees the cloud's x/y/z (mapped through `transform` when not null). A filter that
+/// throws or returns a wrong number of labels loses nothing: every record goes to non-ground
+/// and `out->filter_error` says why. Every record lands in exactly one of the two outputs.
+void processPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
+                        GroundFilter* filter, const Eigen::Isometry3d* transform, bool want_labeled,
+                        CloudProcessingBuffers* buffers, ProcessedCloud* out);
+
+/// \brief Short name of a rejection reason for logs ("row_step", ...).
+const char* reasonName(CloudRejectReason reason);
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_NODELETS_POINT_CLOUD2_H

@@ -1,0 +1,250 @@
+// Working volume (issue 12): far points (300 km, 1e7 m, 1e30 m) are labelled non-ground one by
+// one and counted, and every other point of a real KITTI frame keeps its label, for both filters
+// and both KNN backends.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <limits>
+#include <memory>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "ground_filter/ground_filter.h"
+#include "ground_filter/voxel_ground_filter.h"
+#include "ground_filter/working_volume.h"
+
+namespace gf = ground_filter;
+
+namespace {
+
+// x y z of a KITTI .bin (float32 x y z intensity per point).
+std::vector<float> loadKittiXyz(const std::string& path) {
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  if (!in) throw std::runtime_error("cannot open " + path);
+  const std::size_t bytes = static_cast<std::size_t>(in.tellg());
+  std::vector<float> rec(bytes / sizeof(float));
+  in.seekg(0);
+  in.read(reinterpret_cast<char*>(rec.data()), static_cast<std::streamsize>(rec.size() * 4));
+  std::vector<float> xyz;
+  xyz.reserve(rec.size() / 4 * 3);
+  for (std::size_t i = 0; i + 3 < rec.size(); i += 4) {
+    xyz.insert(xyz.end(), {rec[i], rec[i + 1], rec[i + 2]});
+  }
+  return xyz;
+}
+
+const std::vector<float>& kittiFrame() {
+  static const std::vector<float> xyz =
+      loadKittiXyz(std::string(GF_DATA_DIR) + "/semantickitti/seq00/000000.bin");
+  return xyz;
+}
+
+// The far coordinates the issue names, each on a different axis and sign.
+const float kFar[][3] = {{300e3f, 0.f, 0.f},   {0.f, -1e7f, 0.f},  {0.f, 0.f, 1e30f},
+                         {-1e30f, 1e30f, 5.f}, {5001.f, 0.f, 0.f}, {0.f, 0.f, -2e5f}};
+
+struct Case {
+  std::string method;
+  gf::ParamSettings settings;
+};
+
+std::vector<Case> cases() {
+  return {{"voxel", {}},
+          {"normal", {{"knn_backend", "kdtree"}}},
+          // Without a GPU this runs on the kd-tree fallback: the wrapper must not care.
+          {"normal", {{"knn_backend", "gpu"}}}};
+}
+
+std::string caseName(const Case& c) {
+  return c.method + (c.settings.empty() ? std::string() : "/" + c.settings[0].second);
+}
+
+}  // namespace
+
+TEST(WorkingVolume, ContainsBallAndHardLimit) {
+  gf::WorkingVolume v;
+  v.max_range = 100.0;
+  EXPECT_TRUE(v.contains(0.f, 0.f, 0.f));
+  EXPECT_TRUE(v.contains(99.9f, 0.f, 0.f));
+  EXPECT_FALSE(v.contains(100.1f, 0.f, 0.f));
+  EXPECT_FALSE(v.contains(60.f, 60.f, 60.f));  // 103.9 m away
+  v.origin[0] = 1000.f;                        // a sensor away from the frame origin
+  EXPECT_TRUE(v.contains(1099.f, 0.f, 0.f));
+  EXPECT_FALSE(v.contains(0.f, 0.f, 0.f));
+  v = gf::WorkingVolume();
+  v.max_range = 0.0;  // off: only the hard limit per axis
+  EXPECT_TRUE(v.contains(4999.f, -4999.f, 4999.f));
+  EXPECT_FALSE(v.contains(5001.f, 0.f, 0.f));
+  EXPECT_FALSE(v.contains(0.f, 0.f, -1e30f));
+  EXPECT_FALSE(v.contains(std::numeric_limits<float>::max(), 0.f, 0.f));
+}
+
+TEST(WorkingVolume, ValidateRanges) {
+  gf::WorkingVolume v;
+  for (double ok : {0.0, 0.001, 1000.0, gf::kWorkingVolumeHardLimit}) {
+    v.max_range = ok;
+    EXPECT_NO_THROW(v.validate()) << ok;
+  }
+  for (double bad : {-1.0, gf::kWorkingVolumeHardLimit + 1.0, std::nan(""), 1e300}) {
+    v.max_range = bad;
+    EXPECT_THROW(v.validate(), std::invalid_argument) << bad;
+  }
+  v.max_range = 10.0;
+  v.origin[1] = std::numeric_limits<float>::infinity();
+  EXPECT_THROW(v.validate(), std::invalid_argument);
+  EXPECT_THROW(gf::makeGroundFilter("voxel", {{"max_range", "-5"}}), std::invalid_argument);
+  EXPECT_THROW(gf::makeGroundFilter("voxel", {{"max_range", "abc"}}), std::invalid_argument);
+  EXPECT_THROW(gf::WorkingVolumeFilter(nullptr, gf::WorkingVolume()), std::invalid_argument);
+}
+
+// The issue's failure: without the working volume one far point fails the whole scan.
+TEST(WorkingVolume, BareVoxelFilterFailsOnOneFarPoint) {
+  std::vector<float> xyz = kittiFrame();
+  xyz.insert(xyz.end(), {300e3f, 0.f, 0.f});
+  gf::VoxelGroundFilter bare;
+  std::vector<std::uint8_t> labels;
+  EXPECT_THROW(bare.filter(gf::CloudView::packedXyz(xyz.data(), xyz.size() / 3), &labels),
+               std::runtime_error);
+}
+
+// 1, 10 and 1000 far points at random places in a KITTI frame: they are non-ground and
+// counted; every other point keeps the label it gets without them.
+TEST(WorkingVolume, FarPointsInKittiFrameLeaveOtherLabelsUnchanged) {
+  const std::vector<float>& frame = kittiFrame();
+  const std::size_t n = frame.size() / 3;
+  ASSERT_GT(n, 100000u);
+  for (const Case& c : cases()) {
+    SCOPED_TRACE(caseName(c));
+    auto filter = gf::makeGroundFilter(c.method, c.settings);
+    std::vector<std::uint8_t> reference;
+    gf::FilterStats ref_stats;
+    filter->filter(gf::CloudView::packedXyz(frame.data(), n), &reference, &ref_stats);
+    ASSERT_EQ(reference.size(), n);
+    EXPECT_EQ(ref_stats.out_of_range_points, 0u);
+    ASSERT_GT(ref_stats.ground_points, n / 3);  // a real result to compare against
+    std::printf("[ %s ] backend '%s', %zu of %zu points ground\n", caseName(c).c_str(),
+                ref_stats.backend.c_str(), ref_stats.ground_points, n);
+    std::mt19937 rng(12);
+    for (std::size_t far_count : {1u, 10u, 1000u}) {
+      SCOPED_TRACE(far_count);
+      // Mark positions for the far points, then interleave them with the frame in order.
+      std::vector<bool> is_far(n + far_count, false);
+      for (std::size_t placed = 0; placed < far_count;) {
+        const std::size_t at = rng() % is_far.size();
+        if (!is_far[at]) is_far[at] = true, ++placed;
+      }
+      std::vector<float> xyz;
+      xyz.reserve(3 * is_far.size());
+      std::size_t next = 0, k = 0;
+      for (std::size_t i = 0; i < is_far.size(); ++i) {
+        if (is_far[i]) {
+          const float* p = kFar[k++ % (sizeof(kFar) / sizeof(kFar[0]))];
+          xyz.insert(xyz.end(), {p[0], p[1], p[2]});
+        } else {
+          xyz.insert(xyz.end(), {frame[3 * next], frame[3 * next + 1], frame[3 * next + 2]});
+          ++next;
+        }
+      }
+      std::vector<std::uint8_t> labels;
+      gf::FilterStats stats;
+      ASSERT_NO_THROW(
+          filter->filter(gf::CloudView::packedXyz(xyz.data(), is_far.size()), &labels, &stats));
+      ASSERT_EQ(labels.size(), is_far.size());
+      EXPECT_EQ(stats.input_points, is_far.size());
+      EXPECT_EQ(stats.out_of_range_points, far_count);
+      EXPECT_EQ(stats.invalid_points, 0u);
+      EXPECT_EQ(stats.ground_points, ref_stats.ground_points);
+      std::size_t changed = 0, far_ground = 0;
+      for (std::size_t i = 0, j = 0; i < is_far.size(); ++i) {
+        if (is_far[i]) {
+          far_ground += labels[i] != gf::kNonGround;
+        } else {
+          changed += labels[i] != reference[j++];
+        }
+      }
+      EXPECT_EQ(far_ground, 0u);
+      EXPECT_EQ(changed, 0u);
+    }
+  }
+}
+
+// max_range cuts a real frame: points beyond it are non-ground and counted; NaN points are
+// counted as invalid, not as out of range; each point is counted once.
+TEST(WorkingVolume, MaxRangeAndNaNCounts) {
+  std::vector<float> xyz = kittiFrame();
+  const std::size_t n = xyz.size() / 3;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (std::size_t i = 0; i < n; i += 1000) xyz[3 * i + 1] = nan;
+  std::size_t expect_nan = 0, expect_far = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const float x = xyz[3 * i], y = xyz[3 * i + 1], z = xyz[3 * i + 2];
+    if (!std::isfinite(y)) {
+      ++expect_nan;
+    } else if (std::sqrt(double{x} * x + double{y} * y + double{z} * z) > 20.0) {
+      ++expect_far;
+    }
+  }
+  ASSERT_GT(expect_far, 1000u);
+  auto filter = gf::makeGroundFilter("voxel", {{"max_range", "20"}});
+  std::vector<std::uint8_t> labels;
+  gf::FilterStats stats;
+  filter->filter(gf::CloudView::packedXyz(xyz.data(), n), &labels, &stats);
+  ASSERT_EQ(labels.size(), n);
+  EXPECT_EQ(stats.invalid_points, expect_nan);
+  EXPECT_EQ(stats.out_of_range_points, expect_far);
+  EXPECT_EQ(stats.input_points, n);
+  std::size_t ground = 0, bad = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const float x = xyz[3 * i], y = xyz[3 * i + 1], z = xyz[3 * i + 2];
+    ground += labels[i] == gf::kGround;
+    const bool out = !std::isfinite(y) || x * x + y * y + z * z > 400.f;
+    bad += out && labels[i] != gf::kNonGround;
+  }
+  EXPECT_EQ(bad, 0u);
+  EXPECT_EQ(ground, stats.ground_points);
+  EXPECT_GT(ground, 0u);
+  ASSERT_FALSE(stats.stage_ms.empty());
+  EXPECT_EQ(stats.stage_ms.front().first, "working volume");
+}
+
+// All points out of range, or none at all: labels of the right size, no throw.
+TEST(WorkingVolume, AllOutOfRangeAndEmpty) {
+  for (const Case& c : cases()) {
+    SCOPED_TRACE(caseName(c));
+    auto filter = gf::makeGroundFilter(c.method, c.settings);
+    std::vector<float> xyz = {1e30f, 0.f, 0.f, -1e7f, 3.f, 3.f, 0.f, 0.f, 9e9f};
+    std::vector<std::uint8_t> labels = {7};
+    gf::FilterStats stats;
+    ASSERT_NO_THROW(filter->filter(gf::CloudView::packedXyz(xyz.data(), 3), &labels, &stats));
+    EXPECT_EQ(labels, std::vector<std::uint8_t>(3, gf::kNonGround));
+    EXPECT_EQ(stats.out_of_range_points, 3u);
+    EXPECT_EQ(stats.ground_points, 0u);
+    ASSERT_NO_THROW(filter->filter(gf::CloudView(), &labels, &stats));
+    EXPECT_TRUE(labels.empty());
+    EXPECT_EQ(stats.out_of_range_points, 0u);
+  }
+}
+
+// The origin moves the volume (the nodelet centres it on the sensor in the gravity frame).
+TEST(WorkingVolume, OriginMovesTheVolume) {
+  std::vector<float> xyz = kittiFrame();
+  const std::size_t n = xyz.size() / 3;
+  for (std::size_t i = 0; i < n; ++i) xyz[3 * i] += 3000.f;  // sensor at x = 3 km
+  gf::WorkingVolume volume;
+  volume.max_range = 200.0;
+  gf::WorkingVolumeFilter filter(std::make_unique<gf::VoxelGroundFilter>(), volume);
+  std::vector<std::uint8_t> labels;
+  gf::FilterStats stats;
+  filter.filter(gf::CloudView::packedXyz(xyz.data(), n), &labels, &stats);
+  EXPECT_EQ(stats.out_of_range_points, n);  // centred on 0: everything is 3 km away
+  filter.setOrigin(3000.f, 0.f, 0.f);
+  filter.filter(gf::CloudView::packedXyz(xyz.data(), n), &labels, &stats);
+  EXPECT_EQ(stats.out_of_range_points, 0u);
+  EXPECT_GT(stats.ground_points, n / 3);
+  EXPECT_THROW(filter.setOrigin(std::nanf(""), 0.f, 0.f), std::invalid_argument);
+  EXPECT_EQ(filter.name(), "voxel");
+}
