@@ -114,7 +114,7 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
 
   // ---- 1. valid points, bounds, voxel keys
   auto t0 = Clock::now();
-  const std::size_t n = m.voxelizer.prepare(cloud, p.voxel_size, &g);
+  const std::size_t n = m.voxelizer.prepare(cloud, p.voxel_size, threads, &g);
   st.invalid_points = cloud.size() - n;
   st.stage_ms.emplace_back("prepare", msSince(t0));
   if (n == 0) {

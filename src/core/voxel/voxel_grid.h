@@ -15,6 +15,10 @@ namespace voxel {
 
 constexpr int kMaxAxisBits = 21;  // 3 * 21 bits fit one 64-bit key
 
+// Stages split their work over `threads` only from this many valid points: below it the
+// parallel regions cost more than they save (a KITTI frame, 124 k points, stays on one thread).
+constexpr std::size_t kParallelMinPoints = 150000;
+
 // Voxel flags.
 constexpr std::uint8_t kFlat = 1;  // enough points and a small height range (paper)
 constexpr std::uint8_t kSeed = 2;  // ground seed candidate of the local model

@@ -1,5 +1,7 @@
 #include "voxel/voxelize.h"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <limits>
 #include <sstream>
@@ -60,7 +62,90 @@ void radixScatter(int lo, int passes, int digit, std::uint32_t* hist, std::vecto
   }
 }
 
+// What computeKeys() needs, by value (no aliasing with the arrays it writes).
+struct KeyJob {
+  float* out;            // relative x y z per slot
+  std::uint64_t* keys;   // key, or key << 32 | slot when packed
+  std::uint32_t* order;  // slot per key (not packed)
+  std::uint32_t* index;  // input index per slot (not all valid)
+  std::uint32_t* hist;   // digit counts of every radix pass, or null
+  float min[3];
+  float inv_vs;
+  std::uint32_t last[3];  // voxels per axis - 1
+  int shift_x, shift_y;
+  int passes, digit, shift_lo;
+  bool packed, all_valid;
+};
+
+// Relative coordinates, keys (and digit counts) of the valid points among input [begin, end),
+// written from slot `slot` on.
+void computeKeys(const CloudView& cloud, const KeyJob job, std::size_t begin, std::size_t end,
+                 std::size_t slot) {
+  const CloudView view = cloud;  // a local copy: stores cannot alias its fields
+  const std::uint32_t dmask = (1u << job.digit) - 1;
+  std::size_t s = slot;
+  for (std::size_t i = begin; i < end; ++i) {
+    float x = view.x(i), y = view.y(i), z = view.z(i);
+    if (!job.all_valid) {
+      if (!((x - x) + (y - y) + (z - z) == 0.f)) continue;
+      job.index[s] = static_cast<std::uint32_t>(i);
+    }
+    x -= job.min[0];
+    y -= job.min[1];
+    z -= job.min[2];
+    job.out[3 * s] = x;
+    job.out[3 * s + 1] = y;
+    job.out[3 * s + 2] = z;
+    const std::uint64_t ix = std::min(static_cast<std::uint32_t>(x * job.inv_vs), job.last[0]);
+    const std::uint64_t iy = std::min(static_cast<std::uint32_t>(y * job.inv_vs), job.last[1]);
+    const std::uint64_t iz = std::min(static_cast<std::uint32_t>(z * job.inv_vs), job.last[2]);
+    const std::uint64_t key = (ix << job.shift_x) | (iy << job.shift_y) | iz;
+    std::uint64_t word;
+    if (job.packed) {
+      word = (key << 32) | s;
+      job.keys[s] = word;
+    } else {
+      word = key;
+      job.keys[s] = key;
+      job.order[s] = static_cast<std::uint32_t>(s);
+    }
+    ++s;
+    if (!job.hist) continue;
+    word >>= job.shift_lo;
+    ++job.hist[word & dmask];
+    if (job.passes > 1) ++job.hist[(std::size_t{1} << job.digit) + ((word >> job.digit) & dmask)];
+    for (int q = 2; q < job.passes; ++q) {
+      ++job.hist[(static_cast<std::size_t>(q) << job.digit) + ((word >> (q * job.digit)) & dmask)];
+    }
+  }
+}
+
 }  // namespace
+
+void Voxelizer::scanBounds(const CloudView& cloud, Chunk* ch) {
+  const CloudView view = cloud;  // a local copy: stores cannot alias its fields
+  float lo[3], hi[3];
+  lo[0] = lo[1] = lo[2] = std::numeric_limits<float>::max();
+  hi[0] = hi[1] = hi[2] = -std::numeric_limits<float>::max();
+  std::size_t valid = 0;
+  for (std::size_t i = ch->begin; i < ch->end; ++i) {
+    const float x = view.x(i), y = view.y(i), z = view.z(i);
+    // x - x is 0 for finite x and NaN for NaN/Inf: one test for all three.
+    if (!((x - x) + (y - y) + (z - z) == 0.f)) continue;
+    ++valid;
+    lo[0] = x < lo[0] ? x : lo[0];
+    lo[1] = y < lo[1] ? y : lo[1];
+    lo[2] = z < lo[2] ? z : lo[2];
+    hi[0] = x > hi[0] ? x : hi[0];
+    hi[1] = y > hi[1] ? y : hi[1];
+    hi[2] = z > hi[2] ? z : hi[2];
+  }
+  ch->valid = valid;
+  for (int d = 0; d < 3; ++d) {
+    ch->lo[d] = lo[d];
+    ch->hi[d] = hi[d];
+  }
+}
 
 void CellGrid::setup(const VoxelGroundFilterParams& p, std::uint64_t nx, std::uint64_t ny) {
   std::uint64_t border = 0;
@@ -88,34 +173,38 @@ void CellGrid::setup(const VoxelGroundFilterParams& p, std::uint64_t nx, std::ui
   }
 }
 
-std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, VoxelGrid* g) {
+std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, VoxelGrid* g) {
   const std::size_t n_in = cloud.size();
-  // Valid points compacted (x y z triplets) and their bounds.
-  g->point_index.resize(n_in);
-  pxyz_.resize(3 * n_in);
-  std::uint32_t* idx = g->point_index.data();
-  float* out = pxyz_.data();
-  float minx = std::numeric_limits<float>::max(), miny = minx, minz = minx;
-  float maxx = -minx, maxy = -minx, maxz = -minx;
+  const int nt = threads > 1 && n_in >= kParallelMinPoints ? threads : 1;
+  threads_ = nt;
+  chunks_.resize(static_cast<std::size_t>(nt));
+  for (int t = 0; t < nt; ++t) {
+    chunks_[t].begin = n_in * t / nt;
+    chunks_[t].end = n_in * (t + 1) / nt;
+  }
+  // Pass 1: bounds and number of the valid points of every chunk.
+  if (nt == 1) {
+    scanBounds(cloud, &chunks_[0]);
+  } else {
+#pragma omp parallel for num_threads(nt) schedule(static, 1)
+    for (int t = 0; t < nt; ++t) scanBounds(cloud, &chunks_[t]);
+  }
   std::size_t n = 0;
-  for (std::size_t i = 0; i < n_in; ++i) {
-    const float x = cloud.x(i), y = cloud.y(i), z = cloud.z(i);
-    // x - x is 0 for finite x and NaN for NaN/Inf: one test for all three.
-    if (!((x - x) + (y - y) + (z - z) == 0.f)) continue;
-    idx[n] = static_cast<std::uint32_t>(i);
-    out[3 * n] = x;
-    out[3 * n + 1] = y;
-    out[3 * n + 2] = z;
-    ++n;
-    minx = x < minx ? x : minx;
-    miny = y < miny ? y : miny;
-    minz = z < minz ? z : minz;
-    maxx = x > maxx ? x : maxx;
-    maxy = y > maxy ? y : maxy;
-    maxz = z > maxz ? z : maxz;
+  float lo[3], hi[3];
+  lo[0] = lo[1] = lo[2] = std::numeric_limits<float>::max();
+  hi[0] = hi[1] = hi[2] = -std::numeric_limits<float>::max();
+  for (Chunk& ch : chunks_) {
+    ch.out = n;
+    n += ch.valid;
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = std::min(lo[d], ch.lo[d]);
+      hi[d] = std::max(hi[d], ch.hi[d]);
+    }
   }
   g->all_valid = n == n_in;
   if (n == 0) return 0;
+  const float minx = lo[0], miny = lo[1], minz = lo[2];
+  const float maxx = hi[0], maxy = hi[1], maxz = hi[2];
   const std::uint64_t nx = static_cast<std::uint64_t>((static_cast<double>(maxx) - minx) / vs) + 1;
   const std::uint64_t ny = static_cast<std::uint64_t>((static_cast<double>(maxy) - miny) / vs) + 1;
   const std::uint64_t nz = static_cast<std::uint64_t>((static_cast<double>(maxz) - minz) / vs) + 1;
@@ -137,62 +226,114 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, VoxelGrid* g) 
   // Sorting (key << 32 | slot) words moves 8 bytes a point instead of 12 when the key fits.
   g->packed = bx + by + bz <= 32;
 
-  // Coordinates relative to the minimum (keeps float precision far from the origin: UTM, TLS),
-  // voxel keys and the digit counts of the radix sort (as few passes as digits of at most
-  // kMaxDigitBits allow).
+  // Pass 2: coordinates relative to the minimum (keeps float precision far from the origin:
+  // UTM, TLS), voxel keys and, on one thread, the digit counts of every radix pass (as few
+  // passes as digits of at most kMaxDigitBits allow); several threads count per pass in sort().
+  pxyz_.resize(3 * n);
   g->keys.resize(n);
   if (!g->packed) g->order.resize(n);
+  if (!g->all_valid) g->point_index.resize(n);
   const int key_bits = bx + by + bz;
   plan_.lo = g->packed ? 32 : 0;
   plan_.passes = std::max(1, (key_bits + kMaxDigitBits - 1) / kMaxDigitBits);
   plan_.digit = std::max(1, (key_bits + plan_.passes - 1) / plan_.passes);
-  hist_.assign(static_cast<std::size_t>(plan_.passes) << plan_.digit, 0);
-  std::uint64_t* k_out = g->keys.data();
-  std::uint32_t* o_out = g->order.data();
-  std::uint32_t* h = hist_.data();
-  const float inv_vs = static_cast<float>(1.0 / vs);
-  const std::uint32_t lx = static_cast<std::uint32_t>(nx - 1),
-                      ly = static_cast<std::uint32_t>(ny - 1),
-                      lz = static_cast<std::uint32_t>(nz - 1);
-  const int sx_ = g->shift_x, sy_ = g->shift_y;
-  const int passes = plan_.passes, digit = plan_.digit, lo = plan_.lo;
-  const std::uint32_t dmask = plan_.mask();
-  const bool pk = g->packed;
-  for (std::size_t s = 0; s < n; ++s) {
-    const float x = out[3 * s] - minx, y = out[3 * s + 1] - miny, z = out[3 * s + 2] - minz;
-    out[3 * s] = x;
-    out[3 * s + 1] = y;
-    out[3 * s + 2] = z;
-    const std::uint64_t ix = std::min(static_cast<std::uint32_t>(x * inv_vs), lx);
-    const std::uint64_t iy = std::min(static_cast<std::uint32_t>(y * inv_vs), ly);
-    const std::uint64_t iz = std::min(static_cast<std::uint32_t>(z * inv_vs), lz);
-    const std::uint64_t key = (ix << sx_) | (iy << sy_) | iz;
-    std::uint64_t word;
-    if (pk) {
-      word = (key << 32) | s;
-      k_out[s] = word;
-    } else {
-      word = key;
-      k_out[s] = key;
-      o_out[s] = static_cast<std::uint32_t>(s);
-    }
-    word >>= lo;
-    ++h[word & dmask];
-    if (passes > 1) ++h[(std::size_t{1} << digit) + ((word >> digit) & dmask)];
-    for (int q = 2; q < passes; ++q) {
-      ++h[(static_cast<std::size_t>(q) << digit) + ((word >> (q * digit)) & dmask)];
+  const bool count = nt == 1;
+  if (count) hist_.assign(static_cast<std::size_t>(plan_.passes) << plan_.digit, 0);
+  KeyJob job;
+  job.out = pxyz_.data();
+  job.keys = g->keys.data();
+  job.order = g->order.data();
+  job.index = g->point_index.data();
+  job.hist = count ? hist_.data() : nullptr;
+  job.min[0] = minx;
+  job.min[1] = miny;
+  job.min[2] = minz;
+  job.inv_vs = static_cast<float>(1.0 / vs);
+  job.last[0] = static_cast<std::uint32_t>(nx - 1);
+  job.last[1] = static_cast<std::uint32_t>(ny - 1);
+  job.last[2] = static_cast<std::uint32_t>(nz - 1);
+  job.shift_x = g->shift_x;
+  job.shift_y = g->shift_y;
+  job.passes = plan_.passes;
+  job.digit = plan_.digit;
+  job.shift_lo = plan_.lo;
+  job.packed = g->packed;
+  job.all_valid = g->all_valid;
+  if (nt == 1) {
+    computeKeys(cloud, job, chunks_[0].begin, chunks_[0].end, chunks_[0].out);
+  } else {
+#pragma omp parallel for num_threads(nt) schedule(static, 1)
+    for (int t = 0; t < nt; ++t) {
+      computeKeys(cloud, job, chunks_[t].begin, chunks_[t].end, chunks_[t].out);
     }
   }
   return n;
 }
 
 void Voxelizer::sort(VoxelGrid* g) {
-  if (g->packed) {
-    radixScatter<std::uint32_t>(plan_.lo, plan_.passes, plan_.digit, hist_.data(), &g->keys,
-                                &keys_tmp_, nullptr, nullptr);
-  } else {
-    radixScatter(plan_.lo, plan_.passes, plan_.digit, hist_.data(), &g->keys, &keys_tmp_, &g->order,
-                 &order_tmp_);
+  if (threads_ == 1) {
+    if (g->packed) {
+      radixScatter<std::uint32_t>(plan_.lo, plan_.passes, plan_.digit, hist_.data(), &g->keys,
+                                  &keys_tmp_, nullptr, nullptr);
+    } else {
+      radixScatter(plan_.lo, plan_.passes, plan_.digit, hist_.data(), &g->keys, &keys_tmp_,
+                   &g->order, &order_tmp_);
+    }
+    return;
+  }
+  // Several threads: per pass, each thread counts the digits of its contiguous share, then
+  // scatters it behind the shares of the threads before it (digit-major, thread-minor offsets):
+  // the same stable order as one thread.
+  const std::size_t n = g->keys.size();
+  const int nt = threads_;
+  const int digit = plan_.digit;
+  const std::uint32_t mask = plan_.mask();
+  const std::size_t buckets = std::size_t{1} << digit;
+  const bool with_order = !g->packed;
+  keys_tmp_.resize(n);
+  if (with_order) order_tmp_.resize(n);
+  hist_.resize(static_cast<std::size_t>(nt) * buckets);
+  for (int q = 0; q < plan_.passes; ++q) {
+    const int shift = plan_.lo + q * digit;
+    const std::uint64_t* k = g->keys.data();
+    std::uint64_t* kt = keys_tmp_.data();
+    const std::uint32_t* o = g->order.data();
+    std::uint32_t* ot = order_tmp_.data();
+    std::uint32_t* hist = hist_.data();
+    bool skip = false;
+#pragma omp parallel num_threads(nt)
+    {
+      const int t = omp_get_thread_num();
+      const std::size_t b = n * t / nt, e = n * (t + 1) / nt;
+      std::uint32_t* h = hist + t * buckets;
+      std::fill(h, h + buckets, 0u);
+      for (std::size_t i = b; i < e; ++i) ++h[(k[i] >> shift) & mask];
+#pragma omp barrier
+#pragma omp single
+      {
+        std::size_t first = 0;  // pass skipped when every key has the digit of keys[0]
+        for (int u = 0; u < nt; ++u) first += hist[u * buckets + ((k[0] >> shift) & mask)];
+        skip = first == n;
+        std::uint32_t sum = 0;
+        for (std::size_t j = 0; j < buckets && !skip; ++j) {
+          for (int u = 0; u < nt; ++u) {
+            const std::uint32_t cnt = hist[u * buckets + j];
+            hist[u * buckets + j] = sum;
+            sum += cnt;
+          }
+        }
+      }
+      if (!skip) {
+        for (std::size_t i = b; i < e; ++i) {
+          const std::uint32_t dst = h[(k[i] >> shift) & mask]++;
+          kt[dst] = k[i];
+          if (with_order) ot[dst] = o[i];
+        }
+      }
+    }
+    if (skip) continue;
+    g->keys.swap(keys_tmp_);
+    if (with_order) g->order.swap(order_tmp_);
   }
 }
 

@@ -17,10 +17,10 @@ namespace voxel {
 ///        builds the voxels, their flags, cells and the columns of a VoxelGrid.
 class Voxelizer {
  public:
-  /// \brief Compacts the valid points, sizes the key layout of `g` and computes the keys.
-  ///        Returns the number of valid points (0: `g` is left as is).
+  /// \brief Finds the valid points and their bounds, sizes the key layout of `g` and computes
+  ///        the keys. Returns the number of valid points (0: `g` is left as is).
   /// \throws std::runtime_error when an axis needs more than 2^21 voxels.
-  std::size_t prepare(const CloudView& cloud, double voxel_size, VoxelGrid* g);
+  std::size_t prepare(const CloudView& cloud, double voxel_size, int threads, VoxelGrid* g);
   /// \brief Sorts the keys and fills the points, voxels, columns, `flat` and `seeds` of `g`;
   ///        marks the cells holding voxels in `cells`.
   void build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* cells);
@@ -30,13 +30,22 @@ class Voxelizer {
     int lo = 0, passes = 0, digit = 1;
     std::uint32_t mask() const { return (1u << digit) - 1; }
   };
+  struct Chunk {                                         // one thread's share of the input
+    std::size_t begin = 0, end = 0, valid = 0, out = 0;  // input range, valid points, first slot
+    float lo[3], hi[3];                                  // bounds of its valid points
+  };
+  static void scanBounds(const CloudView& cloud, Chunk* ch);
   void sort(VoxelGrid* g);
 
+  int threads_ = 1;          // threads of this scan (1 below kParallelMinPoints)
   std::vector<float> pxyz_;  // valid points, x y z triplets relative to the min corner
+  std::vector<Chunk> chunks_;
   std::vector<std::uint64_t> keys_tmp_;
   std::vector<std::uint32_t> order_tmp_;
   RadixPlan plan_;
-  std::vector<std::uint32_t> hist_;  // digit counts of every radix pass
+  // Digit counts: one thread, every pass (counted by prepare()); several threads, the current
+  // pass per thread (threads_ << digit).
+  std::vector<std::uint32_t> hist_;
 };
 
 }  // namespace voxel
