@@ -12,6 +12,7 @@
 #include "voxel/vote.h"
 #include "voxel/voxel_grid.h"
 #include "voxel/voxelize.h"
+#include "voxel/worker_pool.h"
 
 namespace ground_filter {
 
@@ -90,6 +91,7 @@ struct VoxelGroundFilter::Impl {
   voxel::GroundModel model;
   voxel::Classifier classifier;
   voxel::Voter voter;
+  voxel::WorkerPool pool;  // threads > 1 only
 };
 
 VoxelGroundFilter::VoxelGroundFilter(const VoxelGroundFilterParams& params)
@@ -114,7 +116,7 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
 
   // ---- 1. valid points, bounds, voxel keys
   auto t0 = Clock::now();
-  const std::size_t n = m.voxelizer.prepare(cloud, p.voxel_size, threads, &g);
+  const std::size_t n = m.voxelizer.prepare(cloud, p.voxel_size, threads, &m.pool, &g);
   st.invalid_points = cloud.size() - n;
   st.stage_ms.emplace_back("prepare", msSince(t0));
   if (n == 0) {
@@ -125,7 +127,7 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
 
   // ---- 2. voxels (sorted keys, runs), 3. flat voxels and seed candidates
   t0 = Clock::now();
-  m.voxelizer.build(p, &g, &m.cells);
+  m.voxelizer.build(p, &m.pool, &g, &m.cells);
   st.stage_ms.emplace_back("voxelize", msSince(t0));
 
   // ---- 4. height filter, 5. region growing, largest segment
@@ -149,7 +151,7 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
   // ---- 7. per-point distance to the (cell) plane, optional mean +- std band
   t0 = Clock::now();
   if (have_plane) {
-    m.classifier.run(p, g, m.cells, m.model, m.segmenter, best, threads);
+    m.classifier.run(p, g, m.cells, m.model, m.segmenter, best, threads, &m.pool);
   } else {
     m.classifier.ground.assign(n, 0);
   }
@@ -157,7 +159,7 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
 
   // ---- 8. final 26-neighbourhood majority vote per voxel (point-weighted)
   t0 = Clock::now();
-  if (p.majority_vote && have_plane) m.voter.run(g, &m.classifier);
+  if (p.majority_vote && have_plane) m.voter.run(g, threads, &m.pool, &m.classifier);
   st.stage_ms.emplace_back("vote", msSince(t0));
 
   // Labels back to input order: sorted position -> slot (low word of a packed key, or `order`)

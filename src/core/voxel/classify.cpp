@@ -108,7 +108,7 @@ void Classifier::bandStats(const VoxelGroundFilterParams& p, const VoxelGrid& g,
 
 void Classifier::run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const CellGrid& cells,
                      const GroundModel& model, const Segmenter& segs, std::int64_t best,
-                     int threads) {
+                     int threads, WorkerPool* pool) {
   const std::size_t n = g.points();
   const std::size_t nv = g.voxels();
   const std::size_t nc = p.local_planes ? cells.count() : 1;
@@ -141,14 +141,9 @@ void Classifier::run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const
   // non-ground points).
   const std::size_t ncol = g.columns();
   const int nt = threads > 1 && n >= kParallelMinPoints ? threads : 1;
-  if (nt == 1) {
-    classifyColumns(job, 0, ncol);
-  } else {
-#pragma omp parallel for num_threads(nt) schedule(static, 1)
-    for (int t = 0; t < 4 * nt; ++t) {  // columns vary in size: a few chunks per thread
-      classifyColumns(job, ncol * t / (4 * nt), ncol * (t + 1) / (4 * nt));
-    }
-  }
+  const int nch = nt == 1 ? 1 : 4 * nt;
+  pool->run(nt, nch,
+            [&](int, int c) { classifyColumns(job, ncol * c / nch, ncol * (c + 1) / nch); });
 }
 
 }  // namespace voxel

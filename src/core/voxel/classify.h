@@ -10,6 +10,7 @@
 #include "voxel/ground_model.h"
 #include "voxel/segments.h"
 #include "voxel/voxel_grid.h"
+#include "voxel/worker_pool.h"
 
 namespace ground_filter {
 namespace voxel {
@@ -27,7 +28,8 @@ class Classifier {
   /// \brief Labels every point of `g` (key order). `best` is the largest segment (global mode
   ///        std band); `threads` > 1 splits the columns.
   void run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const CellGrid& cells,
-           const GroundModel& model, const Segmenter& segs, std::int64_t best, int threads);
+           const GroundModel& model, const Segmenter& segs, std::int64_t best, int threads,
+           WorkerPool* pool);
 
   /// \brief Label per point in key order (1 ground).
   std::vector<std::uint8_t> ground;

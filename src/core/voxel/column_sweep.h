@@ -2,6 +2,7 @@
 #ifndef GROUND_FILTER_SRC_CORE_VOXEL_COLUMN_SWEEP_H
 #define GROUND_FILTER_SRC_CORE_VOXEL_COLUMN_SWEEP_H
 
+#include <algorithm>
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -12,7 +13,22 @@
 namespace ground_filter {
 namespace voxel {
 
-/// \brief Calls visit(q, r0, r1, r2) for every column q in key order; r0, r1 and r2 point at
+/// \brief Splits the columns of `g` into `parts` ranges of whole rows (x): bounds[t] ..
+///        bounds[t + 1] (size parts + 1; empty ranges where rows are few).
+inline void splitRows(const VoxelGrid& g, int parts, std::vector<std::size_t>* bounds) {
+  const std::size_t ncol = g.columns();
+  const int y_bits = g.shift_x - g.shift_y;
+  bounds->assign(static_cast<std::size_t>(parts) + 1, ncol);
+  (*bounds)[0] = 0;
+  for (int t = 1; t < parts; ++t) {
+    std::size_t c = std::max(ncol * t / parts, (*bounds)[t - 1]);
+    while (c > 0 && c < ncol && (g.col_key[c] >> y_bits) == (g.col_key[c - 1] >> y_bits)) ++c;
+    (*bounds)[t] = c;
+  }
+}
+
+/// \brief Calls visit(q, r0, r1, r2) for every column q in [c0, c1) (whole rows, key order);
+///        r0, r1 and r2 point at
 ///        entry y of the dense rows x - 1, x and x + 1 (y of column q), so r[0], r[1], r[2] are
 ///        the entries of columns y - 1, y, y + 1.
 ///
@@ -20,8 +36,8 @@ namespace voxel {
 /// (entry y + 1 is column y; a fill may touch y .. y + 2), clear(row, q) undoes it. Three row
 /// buffers (x mod 3) are reused, so a row is filled once however many columns read it.
 template <typename T, typename Fill, typename Clear, typename Visit>
-void sweepColumns(const VoxelGrid& g, std::vector<T>* buf, const T& empty, Fill&& fill,
-                  Clear&& clear, Visit&& visit) {
+void sweepColumns(const VoxelGrid& g, std::size_t c0, std::size_t c1, std::vector<T>* buf,
+                  const T& empty, Fill&& fill, Clear&& clear, Visit&& visit) {
   const std::size_t ncol = g.columns();
   const int y_bits = g.shift_x - g.shift_y;
   const std::uint64_t y_mask = g.mask_y;
@@ -42,8 +58,14 @@ void sweepColumns(const VoxelGrid& g, std::vector<T>* buf, const T& empty, Fill&
     held_b[k] = b;
     held_e[k] = e;
   };
-  std::size_t c = 0;
-  while (c < ncol) {
+  std::size_t c = c0;
+  if (c < c1 && (ck[c] >> y_bits) > 0) {  // the row before the range, if it has columns
+    const std::uint64_t px = (ck[c] >> y_bits) - 1;
+    std::size_t pb = c;
+    while (pb > 0 && (ck[pb - 1] >> y_bits) == px) --pb;
+    put(px, pb, c);
+  }
+  while (c < c1) {
     const std::uint64_t x = ck[c] >> y_bits;
     std::size_t ce = c;
     while (ce < ncol && (ck[ce] >> y_bits) == x) ++ce;
@@ -51,7 +73,7 @@ void sweepColumns(const VoxelGrid& g, std::vector<T>* buf, const T& empty, Fill&
     while (ne < ncol && (ck[ne] >> y_bits) == x + 1) ++ne;
     put(x, c, ce);
     put(x + 1, ce, ne);           // empty when row x + 1 has no columns
-    if (x > 0) put(x - 1, 0, 0);  // no-op when row x - 1 was held as a neighbour, else cleared
+    if (x > 0) put(x - 1, 0, 0);  // no-op when row x - 1 is held (as x or x + 1), else cleared
     // At x == 0 the buffer of "x - 1" was never filled: all empty.
     const T* r0 = rows + ((x + 2) % 3) * stride;
     const T* r1 = rows + (x % 3) * stride;

@@ -8,6 +8,7 @@
 
 #include "voxel/classify.h"
 #include "voxel/voxel_grid.h"
+#include "voxel/worker_pool.h"
 
 namespace ground_filter {
 namespace voxel {
@@ -17,7 +18,8 @@ namespace voxel {
 class Voter {
  public:
   /// \brief Rewrites `cls->ground` (reads the classification only: all sums come first).
-  void run(const VoxelGrid& g, Classifier* cls);
+  ///        `threads` > 1 splits the columns into ranges of whole rows.
+  void run(const VoxelGrid& g, int threads, WorkerPool* pool, Classifier* cls);
 
  private:
   struct ColInfo {
@@ -26,10 +28,15 @@ class Voter {
     std::uint32_t first, end;  // voxels
   };
   /// Per column, the z range of the voxels whose vote can change (alo_ > ahi_: none).
-  void votedRanges(const VoxelGrid& g, const Classifier& cls);
+  void votedRanges(const VoxelGrid& g, const Classifier& cls, int t, int range);
+  /// Sums of the voted voxels of the columns of `range`, on thread t.
+  void sums(const VoxelGrid& g, const Classifier& cls, int t, int range, bool lazy);
+  /// Prefix sums of column c into pre_.
+  void buildColumn(const VoxelGrid& g, const Classifier& cls, std::size_t c);
 
-  std::vector<ZRange> range_rows_;
-  std::vector<std::int32_t> id_rows_;
+  std::vector<std::size_t> bounds_;                 // column ranges (whole rows)
+  std::vector<std::vector<ZRange>> range_rows_;     // per thread
+  std::vector<std::vector<std::int32_t>> id_rows_;  // per thread
   std::vector<std::int32_t> alo_, ahi_;
   std::vector<ColInfo> col_info_;    // + one empty sentinel
   std::vector<std::uint32_t> pre_;   // z prefix sums of (ground, all) points

@@ -1,7 +1,5 @@
 #include "voxel/voxelize.h"
 
-#include <omp.h>
-
 #include <algorithm>
 #include <limits>
 #include <sstream>
@@ -173,22 +171,19 @@ void CellGrid::setup(const VoxelGroundFilterParams& p, std::uint64_t nx, std::ui
   }
 }
 
-std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, VoxelGrid* g) {
+std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, WorkerPool* pool,
+                               VoxelGrid* g) {
   const std::size_t n_in = cloud.size();
   const int nt = threads > 1 && n_in >= kParallelMinPoints ? threads : 1;
   threads_ = nt;
-  chunks_.resize(static_cast<std::size_t>(nt));
-  for (int t = 0; t < nt; ++t) {
-    chunks_[t].begin = n_in * t / nt;
-    chunks_[t].end = n_in * (t + 1) / nt;
+  const int nch = nt == 1 ? 1 : 4 * nt;  // chunks of the input
+  chunks_.resize(static_cast<std::size_t>(nch));
+  for (int c = 0; c < nch; ++c) {
+    chunks_[c].begin = n_in * c / nch;
+    chunks_[c].end = n_in * (c + 1) / nch;
   }
   // Pass 1: bounds and number of the valid points of every chunk.
-  if (nt == 1) {
-    scanBounds(cloud, &chunks_[0]);
-  } else {
-#pragma omp parallel for num_threads(nt) schedule(static, 1)
-    for (int t = 0; t < nt; ++t) scanBounds(cloud, &chunks_[t]);
-  }
+  pool->run(nt, nch, [&](int, int c) { scanBounds(cloud, &chunks_[c]); });
   std::size_t n = 0;
   float lo[3], hi[3];
   lo[0] = lo[1] = lo[2] = std::numeric_limits<float>::max();
@@ -259,18 +254,13 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, V
   job.shift_lo = plan_.lo;
   job.packed = g->packed;
   job.all_valid = g->all_valid;
-  if (nt == 1) {
-    computeKeys(cloud, job, chunks_[0].begin, chunks_[0].end, chunks_[0].out);
-  } else {
-#pragma omp parallel for num_threads(nt) schedule(static, 1)
-    for (int t = 0; t < nt; ++t) {
-      computeKeys(cloud, job, chunks_[t].begin, chunks_[t].end, chunks_[t].out);
-    }
-  }
+  pool->run(nt, nch, [&](int, int c) {
+    computeKeys(cloud, job, chunks_[c].begin, chunks_[c].end, chunks_[c].out);
+  });
   return n;
 }
 
-void Voxelizer::sort(VoxelGrid* g) {
+void Voxelizer::sort(WorkerPool* pool, VoxelGrid* g) {
   if (threads_ == 1) {
     if (g->packed) {
       radixScatter<std::uint32_t>(plan_.lo, plan_.passes, plan_.digit, hist_.data(), &g->keys,
@@ -281,18 +271,19 @@ void Voxelizer::sort(VoxelGrid* g) {
     }
     return;
   }
-  // Several threads: per pass, each thread counts the digits of its contiguous share, then
-  // scatters it behind the shares of the threads before it (digit-major, thread-minor offsets):
-  // the same stable order as one thread.
+  // Several threads: per pass, the digits of every chunk (contiguous shares of the keys) are
+  // counted, then each chunk is scattered behind the chunks before it (digit-major, chunk-minor
+  // offsets): the same stable order as one thread.
   const std::size_t n = g->keys.size();
   const int nt = threads_;
+  const int nch = 2 * nt;
   const int digit = plan_.digit;
   const std::uint32_t mask = plan_.mask();
   const std::size_t buckets = std::size_t{1} << digit;
   const bool with_order = !g->packed;
   keys_tmp_.resize(n);
   if (with_order) order_tmp_.resize(n);
-  hist_.resize(static_cast<std::size_t>(nt) * buckets);
+  hist_.resize(static_cast<std::size_t>(nch) * buckets);
   for (int q = 0; q < plan_.passes; ++q) {
     const int shift = plan_.lo + q * digit;
     const std::uint64_t* k = g->keys.data();
@@ -300,45 +291,40 @@ void Voxelizer::sort(VoxelGrid* g) {
     const std::uint32_t* o = g->order.data();
     std::uint32_t* ot = order_tmp_.data();
     std::uint32_t* hist = hist_.data();
-    bool skip = false;
-#pragma omp parallel num_threads(nt)
-    {
-      const int t = omp_get_thread_num();
-      const std::size_t b = n * t / nt, e = n * (t + 1) / nt;
-      std::uint32_t* h = hist + t * buckets;
+    pool->run(nt, nch, [&](int, int c) {
+      const std::size_t b = n * c / nch, e = n * (c + 1) / nch;
+      std::uint32_t* h = hist + c * buckets;
       std::fill(h, h + buckets, 0u);
       for (std::size_t i = b; i < e; ++i) ++h[(k[i] >> shift) & mask];
-#pragma omp barrier
-#pragma omp single
-      {
-        std::size_t first = 0;  // pass skipped when every key has the digit of keys[0]
-        for (int u = 0; u < nt; ++u) first += hist[u * buckets + ((k[0] >> shift) & mask)];
-        skip = first == n;
-        std::uint32_t sum = 0;
-        for (std::size_t j = 0; j < buckets && !skip; ++j) {
-          for (int u = 0; u < nt; ++u) {
-            const std::uint32_t cnt = hist[u * buckets + j];
-            hist[u * buckets + j] = sum;
-            sum += cnt;
-          }
-        }
-      }
-      if (!skip) {
-        for (std::size_t i = b; i < e; ++i) {
-          const std::uint32_t dst = h[(k[i] >> shift) & mask]++;
-          kt[dst] = k[i];
-          if (with_order) ot[dst] = o[i];
-        }
+    });
+    std::size_t first = 0;  // the pass is skipped when every key has the digit of keys[0]
+    for (int u = 0; u < nch; ++u) first += hist[u * buckets + ((k[0] >> shift) & mask)];
+    if (first == n) continue;
+    std::uint32_t sum = 0;
+    for (std::size_t j = 0; j < buckets; ++j) {
+      for (int u = 0; u < nch; ++u) {
+        const std::uint32_t cnt = hist[u * buckets + j];
+        hist[u * buckets + j] = sum;
+        sum += cnt;
       }
     }
-    if (skip) continue;
+    pool->run(nt, nch, [&](int, int c) {
+      const std::size_t b = n * c / nch, e = n * (c + 1) / nch;
+      std::uint32_t* h = hist + c * buckets;
+      for (std::size_t i = b; i < e; ++i) {
+        const std::uint32_t dst = h[(k[i] >> shift) & mask]++;
+        kt[dst] = k[i];
+        if (with_order) ot[dst] = o[i];
+      }
+    });
     g->keys.swap(keys_tmp_);
     if (with_order) g->order.swap(order_tmp_);
   }
 }
 
-void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* cells) {
-  sort(g);
+void Voxelizer::build(const VoxelGroundFilterParams& p, WorkerPool* pool, VoxelGrid* g,
+                      CellGrid* cells) {
+  sort(pool, g);
   const std::size_t n = g->keys.size();
   // One pass over the sorted points: coordinates in key order, runs of equal keys become voxels.
   // A voxel is finished when the next one starts (its flags need the next key).

@@ -9,6 +9,7 @@
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/voxel_ground_filter.h"
 #include "voxel/voxel_grid.h"
+#include "voxel/worker_pool.h"
 
 namespace ground_filter {
 namespace voxel {
@@ -20,10 +21,11 @@ class Voxelizer {
   /// \brief Finds the valid points and their bounds, sizes the key layout of `g` and computes
   ///        the keys. Returns the number of valid points (0: `g` is left as is).
   /// \throws std::runtime_error when an axis needs more than 2^21 voxels.
-  std::size_t prepare(const CloudView& cloud, double voxel_size, int threads, VoxelGrid* g);
+  std::size_t prepare(const CloudView& cloud, double voxel_size, int threads, WorkerPool* pool,
+                      VoxelGrid* g);
   /// \brief Sorts the keys and fills the points, voxels, columns, `flat` and `seeds` of `g`;
   ///        marks the cells holding voxels in `cells`.
-  void build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* cells);
+  void build(const VoxelGroundFilterParams& p, WorkerPool* pool, VoxelGrid* g, CellGrid* cells);
 
  private:
   struct RadixPlan {
@@ -35,7 +37,7 @@ class Voxelizer {
     float lo[3], hi[3];                                  // bounds of its valid points
   };
   static void scanBounds(const CloudView& cloud, Chunk* ch);
-  void sort(VoxelGrid* g);
+  void sort(WorkerPool* pool, VoxelGrid* g);
 
   int threads_ = 1;          // threads of this scan (1 below kParallelMinPoints)
   std::vector<float> pxyz_;  // valid points, x y z triplets relative to the min corner
