@@ -106,10 +106,19 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
   const auto t_start = Clock::now();
   Impl& m = *impl_;
   voxel::VoxelGrid& g = m.grid;
+  // Stage timings only when asked for; a reused FilterStats keeps its capacity (no allocation
+  // after the first scan, see the docs).
   FilterStats local_stats;
   FilterStats& st = stats ? *stats : local_stats;
-  st = FilterStats();
+  st.stage_ms.clear();
+  st.backend.clear();
+  st.note.clear();
+  st.invalid_points = st.ground_points = 0;
+  st.total_ms = 0.0;
   st.input_points = cloud.size();
+  auto stage = [&](const char* name, Clock::time_point t0) {
+    if (stats) st.stage_ms.emplace_back(name, msSince(t0));
+  };
   labels->assign(cloud.size(), kNonGround);
   const VoxelGroundFilterParams& p = params_;
   const int threads = p.threads > 0 ? p.threads : omp_get_max_threads();
@@ -118,7 +127,7 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
   auto t0 = Clock::now();
   const std::size_t n = m.voxelizer.prepare(cloud, p.voxel_size, threads, &m.pool, &g);
   st.invalid_points = cloud.size() - n;
-  st.stage_ms.emplace_back("prepare", msSince(t0));
+  stage("prepare", t0);
   if (n == 0) {
     st.total_ms = msSince(t_start);
     return;
@@ -128,12 +137,12 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
   // ---- 2. voxels (sorted keys, runs), 3. flat voxels and seed candidates
   t0 = Clock::now();
   m.voxelizer.build(p, &m.pool, &g, &m.cells);
-  st.stage_ms.emplace_back("voxelize", msSince(t0));
+  stage("voxelize", t0);
 
   // ---- 4. height filter, 5. region growing, largest segment
   t0 = Clock::now();
   std::int64_t best = m.segmenter.run(p, &g);
-  st.stage_ms.emplace_back("segments", msSince(t0));
+  stage("segments", t0);
 
   // ---- 6. plane of the largest segment (paper), local ground model
   t0 = Clock::now();
@@ -146,7 +155,7 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
       m.model.setGlobal(gp);
     }
   }
-  st.stage_ms.emplace_back("ground_model", msSince(t0));
+  stage("ground_model", t0);
 
   // ---- 7. per-point distance to the (cell) plane, optional mean +- std band
   t0 = Clock::now();
@@ -155,12 +164,12 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
   } else {
     m.classifier.ground.assign(n, 0);
   }
-  st.stage_ms.emplace_back("classify", msSince(t0));
+  stage("classify", t0);
 
   // ---- 8. final 26-neighbourhood majority vote per voxel (point-weighted)
   t0 = Clock::now();
   if (p.majority_vote && have_plane) m.voter.run(g, threads, &m.pool, &m.classifier);
-  st.stage_ms.emplace_back("vote", msSince(t0));
+  stage("vote", t0);
 
   // Labels back to input order: sorted position -> slot (low word of a packed key, or `order`)
   // -> input index (identity when every point is valid).

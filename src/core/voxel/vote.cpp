@@ -139,6 +139,10 @@ void Voter::run(const VoxelGrid& g, int threads, WorkerPool* workers, Classifier
   splitRows(g, nch, &bounds_);
   range_rows_.resize(static_cast<std::size_t>(nt));
   id_rows_.resize(static_cast<std::size_t>(nt));
+  for (int t = 0; t < nt; ++t) {  // here: a worker may first run a chunk in a later scan
+    range_rows_[t].reserve(3 * (g.ny + 2));
+    id_rows_[t].reserve(3 * (g.ny + 2));
+  }
   alo_.resize(ncol);
   ahi_.resize(ncol);
   // Per column, prefix sums of (ground, all) points over z from its lowest voxel - 1 to its
