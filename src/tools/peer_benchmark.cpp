@@ -224,8 +224,8 @@ int run(const Options& opt) {
     // RANSAC input: the finite points (SACSegmentation itself drops nothing).
     pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
     std::vector<std::size_t> index;
-    cloud->reserve(n);
-    for (std::size_t i = 0; i < n; ++i) {
+    if (opt.peer) cloud->reserve(n);
+    for (std::size_t i = 0; i < n && opt.peer; ++i) {
       const float x = in.xyz[3 * i], y = in.xyz[3 * i + 1], z = in.xyz[3 * i + 2];
       if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) continue;
       cloud->push_back(pcl::PointXYZ(x, y, z));

@@ -331,13 +331,20 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, WorkerPool* pool, VoxelG
   g->sx.resize(n);
   g->sy.resize(n);
   g->sz.resize(n);
-  g->vkey.resize(n);
-  g->vstart.resize(n + 1);
-  g->vx.resize(n);
-  g->vy.resize(n);
-  g->vz.resize(n);
-  g->vflags.resize(n);
-  g->vcell.resize(n);
+  // Voxels = runs of equal keys, counted first so the per-voxel arrays take what they need.
+  std::size_t runs = 1;
+  {
+    const std::uint64_t* kk = g->keys.data();
+    const int low = g->packed ? 32 : 0;
+    for (std::size_t i = 1; i < n; ++i) runs += (kk[i] >> low) != (kk[i - 1] >> low);
+  }
+  g->vkey.resize(runs);
+  g->vstart.resize(runs + 1);
+  g->vx.resize(runs);
+  g->vy.resize(runs);
+  g->vz.resize(runs);
+  g->vflags.resize(runs);
+  g->vcell.resize(runs);
   g->col_key.clear();
   g->col_first.clear();
   g->flat.clear();
@@ -425,8 +432,6 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, WorkerPool* pool, VoxelG
   }
   finish(nv - 1, static_cast<std::uint32_t>(n), false, 0);
   vs[nv] = static_cast<std::uint32_t>(n);
-  g->vkey.resize(nv);
-  g->vstart.resize(nv + 1);
   g->col_first.push_back(static_cast<std::uint32_t>(nv));
 }
 
