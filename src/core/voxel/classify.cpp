@@ -25,43 +25,64 @@ struct Job {
   double band_k;
 };
 
-// Labels the points of columns [c0, c1).
-void classifyColumns(const Job job, std::size_t c0, std::size_t c1) {
-  const std::uint32_t* vs = job.vstart;
+// Labels the points of columns [c0, c1). Every field is copied to a local first: the byte
+// stores of the labels may alias anything in memory, locals not.
+void classifyColumns(const Job& job, std::size_t c0, std::size_t c1) {
+  const std::uint32_t* const vs = job.vstart;
+  const std::uint32_t* const vcell = job.vcell;
+  const std::uint64_t* const vkey = job.vkey;
+  const std::uint32_t* const cf = job.col_first;
+  const float* const px = job.x;
+  const float* const py = job.y;
+  const float* const pz = job.z;
+  const float* const vx = job.vx;
+  const float* const vy = job.vy;
+  const HeightPlane* const planes = job.planes;
+  const float* const cosines = job.cosines;
+  const double* const mu = job.mu;
+  const double* const sigma = job.sigma;
+  std::uint8_t* const ground = job.ground;
+  std::uint32_t* const voxel_ground = job.voxel_ground;
+  ZRange* const col_range = job.col_range;
+  const std::uint64_t mz = job.mask_z;
+  const float dmax = job.dmax;
+  const double band_k = job.band_k;
   for (std::size_t col = c0; col < c1; ++col) {
     ZRange r = kEmptyRange;
-    for (std::uint32_t v = job.col_first[col]; v < job.col_first[col + 1]; ++v) {
-      const std::uint32_t c = job.vcell[v];
-      const HeightPlane& hp = job.planes[c];
+    const std::uint32_t v_end = cf[col + 1];
+    for (std::uint32_t v = cf[col]; v < v_end; ++v) {
+      const std::uint32_t c = vcell[v];
+      const HeightPlane hp = planes[c];
       // Distances relative to the voxel centroid keep float precision far from the origin.
-      const float cosf = job.cosines[c];
-      const float x0 = job.vx[v], y0 = job.vy[v];
+      const float cosf = cosines[c];
+      const float x0 = vx[v], y0 = vy[v];
       const float h0 = static_cast<float>(hp.at(x0, y0));
       const float a = static_cast<float>(hp.a), b = static_cast<float>(hp.b);
-      float lo = -job.dmax, hi = job.dmax;
-      if (job.sigma && job.sigma[c] > 0.0) {
-        lo = std::max(lo, static_cast<float>(job.mu[c] - job.band_k * job.sigma[c]));
-        hi = std::min(hi, static_cast<float>(job.mu[c] + job.band_k * job.sigma[c]));
+      float lo = -dmax, hi = dmax;
+      if (sigma && sigma[c] > 0.0) {
+        lo = std::max(lo, static_cast<float>(mu[c] - band_k * sigma[c]));
+        hi = std::min(hi, static_cast<float>(mu[c] + band_k * sigma[c]));
       }
       std::uint32_t gcount = 0;
-      for (std::uint32_t k = vs[v]; k < vs[v + 1]; ++k) {
-        const float d = (job.z[k] - h0 - a * (job.x[k] - x0) - b * (job.y[k] - y0)) * cosf;
-        const bool is_ground = (d > lo) & (d < hi);
-        job.ground[k] = is_ground;
+      const std::uint32_t k0 = vs[v], k1 = vs[v + 1];
+      for (std::uint32_t k = k0; k < k1; ++k) {
+        const float d = (pz[k] - h0 - a * (px[k] - x0) - b * (py[k] - y0)) * cosf;
+        const std::uint32_t is_ground = (d > lo) & (d < hi);
+        ground[k] = static_cast<std::uint8_t>(is_ground);
         gcount += is_ground;
       }
-      job.voxel_ground[v] = gcount;
-      const std::int32_t iz = static_cast<std::int32_t>(job.vkey[v] & job.mask_z);
+      voxel_ground[v] = gcount;
+      const std::int32_t iz = static_cast<std::int32_t>(vkey[v] & mz);
       if (gcount != 0) {
         r.glo = std::min(r.glo, iz);
         r.ghi = iz;
       }
-      if (gcount != vs[v + 1] - vs[v]) {
+      if (gcount != k1 - k0) {
         r.nlo = std::min(r.nlo, iz);
         r.nhi = iz;
       }
     }
-    job.col_range[col] = r;
+    col_range[col] = r;
   }
 }
 
