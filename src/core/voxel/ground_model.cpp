@@ -110,7 +110,7 @@ void GroundModel::grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, con
   const std::int64_t stride = static_cast<std::int64_t>(ncy);  // includes the border
   const std::int64_t nb_off[9] = {-stride - 1, -stride,    -stride + 1, -1,        0,
                                   1,           stride - 1, stride,      stride + 1};
-  mom_.resize(nc);
+  nbsum_.assign(nc, Moments());
   plane_.assign(nc, gp);  // cells never grown (no seeds beyond reach) keep the global plane
   parent_.resize(nc);
   state_.assign(nc, CellState::kNew);
@@ -150,7 +150,7 @@ void GroundModel::grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, con
   parent_[start] = static_cast<std::uint32_t>(start);
   state[start] = CellState::kQueued;
   const Seed* seeds = seeds_.data();
-  Moments* mom = mom_.data();
+  Moments* nbsum = nbsum_.data();
   HeightPlane* plane = plane_.data();
   std::uint32_t* parent = parent_.data();
   const std::uint32_t* cst = start_.data();
@@ -189,11 +189,7 @@ void GroundModel::grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, con
     const double cy = (ty - 0.5) * cs;
     HeightPlane pred;
     pred.c = plane[parent[t]].at(cx, cy);
-    Moments nb;
-    for (int k = 0; k < 9; ++k) {
-      const std::size_t u = static_cast<std::size_t>(t + nb_off[k]);
-      if (state[u] == CellState::kDoneSeeded) nb.add(mom[u]);
-    }
+    const Moments nb = nbsum[t];
     if (nb.w > 0) pred = fitHeightPlane(nb, 0.0, 0.0, lambda);
     HeightPlane cur = pred;
     Moments own;
@@ -215,9 +211,9 @@ void GroundModel::grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, con
     }
     const bool seeded = own.w > 0 && cur.a * cur.a + cur.b * cur.b <= max_grad2;
     if (seeded) {
-      mom[t] = own;
       plane[t] = cur;
       state[t] = CellState::kDoneSeeded;
+      for (int k = 0; k < 9; ++k) nbsum[t + nb_off[k]].add(own);
     } else {
       plane[t] = pred;
       state[t] = CellState::kDone;
@@ -242,11 +238,7 @@ void GroundModel::grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, con
   cos_.resize(nc);
   for (std::size_t t = 0; t < nc; ++t) {
     if (!used[t]) continue;
-    Moments nb;
-    for (int k = 0; k < 9; ++k) {
-      const std::size_t u = static_cast<std::size_t>(t + nb_off[k]);
-      if (state[u] == CellState::kDoneSeeded) nb.add(mom[u]);
-    }
+    const Moments& nb = nbsum[t];
     const HeightPlane& gr = plane[t];
     const HeightPlane f = nb.w > 0 ? fitHeightPlane(nb, gr.a, gr.b, lambda) : gr;
     final_[t] = f;

@@ -46,7 +46,7 @@ class GroundModel {
 
   std::vector<std::uint32_t> start_, fill_;  // seed candidates per cell (CSR)
   std::vector<Seed> seeds_;
-  std::vector<Moments> mom_;           // accepted seeds of a seeded cell
+  std::vector<Moments> nbsum_;         // accepted seeds of the seeded cells of the 3 x 3 around
   std::vector<HeightPlane> plane_;     // grown plane
   std::vector<std::uint32_t> parent_;  // cell that queued it
   std::vector<CellState> state_;
