@@ -472,6 +472,6 @@ TEST(VoxelGroundFilterKitti, PooledF1AboveFloor) {
   }
   const double f1 = 2.0 * tp / (2.0 * tp + fp + fn);
   RecordProperty("pooled_f1", std::to_string(f1));
-  // Floor = measured pooled F1 with the defaults minus one point (README, "Evaluation").
+  // Floor = measured pooled F1 with the defaults minus one point (docs/evaluation.md).
   EXPECT_GE(f1, kVoxelF1Floor);
 }
