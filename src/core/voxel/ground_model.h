@@ -41,8 +41,30 @@ class GroundModel {
   struct Seed {
     float x, y, z, w;
   };
+  struct Geometry {
+    double cs = 1, lambda = 1, max_grad2 = 1;  // cell edge [m], slope prior weight, max slope^2
+    std::uint32_t ncy = 1;                     // cells along y (border included)
+    std::int64_t nb_off[9] = {};               // index offsets of the 3 x 3 neighbourhood
+  };
+  static bool finished(CellState s) { return s == CellState::kDone || s == CellState::kDoneSeeded; }
+  /// Seed candidates per cell (CSR); returns the start cell.
+  std::size_t bucketSeeds(const VoxelGrid& g, std::size_t cells, const Segmenter& segs,
+                          std::int64_t best);
+  /// Every cell new (global plane, no seeds) except the border and cells out of reach.
+  void resetCells(const CellGrid& cells, const HeightPlane& gp);
   /// Marks the cells within kReachCells of a cell holding voxels (bit 2 of reach_).
   void markReach(const CellGrid& cells);
+  /// Prediction of the start cell.
+  HeightPlane startPlane(const VoxelGrid& g, const Segmenter& segs, std::int64_t best,
+                         std::size_t start, const HeightPlane& gp) const;
+  /// Next cell with seeds that the growth did not reach (from *next on), queued as a new start.
+  bool nextIsland(const CellGrid& cells, std::size_t* next, std::uint32_t* cell);
+  /// Predicts, accepts seeds and fits cell t; returns whether it kept seeds.
+  bool fitCell(const VoxelGroundFilterParams& p, std::uint32_t t);
+  /// Queues the unfinished neighbours of t (near queue when t kept seeds).
+  void queueNeighbours(std::uint32_t t, bool seeded);
+
+  Geometry geo_;
 
   std::vector<std::uint32_t> start_, fill_;  // seed candidates per cell (CSR)
   std::vector<Seed> seeds_;
