@@ -339,9 +339,10 @@ TEST(VoxelGroundFilter, DeterministicForAnyThreadCount) {
 namespace {
 
 // Above the filter's parallel threshold (150 k valid points, src/core/voxel/voxel_grid.h), with
-// NaN points. `wide`: 600 m across with a 15 m pole, so a voxel key needs more than 32 bits
-// (the sort moves key and point index separately).
-Cloud largeScene(bool wide) {
+// NaN points. `wide`: 600 m across with a 15 m pole, so a voxel key needs more than 32 bits (key
+// and point index still share one sort word). `huge`: two points 9 km away on every axis, so key
+// and point index no longer fit one word (the sort moves them separately).
+Cloud largeScene(bool wide, bool huge = false) {
   std::mt19937 rng(wide ? 21 : 20);
   Cloud c;
   auto ground = [](float x, float y) { return 0.03f * x - 0.01f * y; };
@@ -352,6 +353,10 @@ Cloud largeScene(bool wide) {
   }
   addBox(&c, -4.f, 5.f, 3.f, 2.f, ground(-4.f, 5.f), 2.f, 0.05f);
   addBox(&c, 6.f, -3.f, 1.f, 4.f, ground(6.f, -3.f), 1.f, 0.05f);
+  if (huge) {
+    c.add(-4500.f, -4500.f, -4500.f, false);
+    c.add(4500.f, 4500.f, 4500.f, false);
+  }
   for (std::size_t i = 0; i < c.size(); i += 97) {
     c.xyz[3 * i + (i % 3)] = std::numeric_limits<float>::quiet_NaN();
     c.truth[i] = 0;
@@ -374,6 +379,15 @@ TEST(VoxelGroundFilter, SameLabelsForAnyThreadCountOnLargeClouds) {
       p.threads = threads;
       EXPECT_EQ(ref, run(c, p)) << "threads " << threads << ", wide " << wide;
     }
+  }
+  const Cloud c = largeScene(false, true);
+  gf::VoxelGroundFilterParams p;
+  p.threads = 1;
+  const auto ref = run(c, p);
+  EXPECT_GT(agreement(ref, c.truth, 1), 0.5);  // coarse cells (capped cell count), still ground
+  for (int threads : {2, 3}) {
+    p.threads = threads;
+    EXPECT_EQ(ref, run(c, p)) << "threads " << threads << ", huge";
   }
 }
 

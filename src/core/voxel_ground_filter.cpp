@@ -171,16 +171,17 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
   if (p.majority_vote && have_plane) m.voter.run(g, threads, &m.pool, &m.classifier);
   stage("vote", t0);
 
-  // Labels back to input order: sorted position -> slot (low word of a packed key, or `order`)
+  // Labels back to input order: sorted position -> slot (low bits of a packed key, or `order`)
   // -> input index (identity when every point is valid).
   std::size_t ground_count = 0;
   const std::uint64_t* keys = g.keys.data();
+  const std::uint64_t slot_mask = (std::uint64_t{1} << g.slot_bits) - 1;
   const std::uint32_t* ord = g.order.data();
   const std::uint32_t* idx = g.point_index.data();
   const std::uint8_t* gr = m.classifier.ground.data();
   std::uint8_t* out = labels->data();
   for (std::size_t i = 0; i < n; ++i) {
-    const std::uint32_t slot = g.packed ? static_cast<std::uint32_t>(keys[i]) : ord[i];
+    const std::uint32_t slot = g.packed ? static_cast<std::uint32_t>(keys[i] & slot_mask) : ord[i];
     out[g.all_valid ? slot : idx[slot]] = gr[i];
     ground_count += gr[i];
   }

@@ -73,9 +73,10 @@ struct VoxelGrid {
   int shift_x = 0, shift_y = 0;
   std::uint64_t mask_y = 0, mask_z = 0;
 
-  // Sorted position -> input index: the low word of keys[i] (packed) or order[i] is the slot
-  // (valid point in input order), point_index[slot] the input index unless all_valid.
-  bool packed = false;  // keys hold (voxel key << 32 | slot)
+  // Sorted position -> input index: the low slot_bits of keys[i] (packed) or order[i] is the
+  // slot (valid point in input order), point_index[slot] the input index unless all_valid.
+  bool packed = false;  // keys hold (voxel key << slot_bits | slot)
+  int slot_bits = 32;   // packed: bits of the slot (32, fewer when the key needs more)
   bool all_valid = false;
   std::vector<std::uint64_t> keys;
   std::vector<std::uint32_t> order;

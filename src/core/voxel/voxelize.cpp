@@ -63,7 +63,7 @@ void radixScatter(int lo, int passes, int digit, std::uint32_t* hist, std::vecto
 // What computeKeys() needs, by value (no aliasing with the arrays it writes).
 struct KeyJob {
   float* out;            // relative x y z per slot
-  std::uint64_t* keys;   // key, or key << 32 | slot when packed
+  std::uint64_t* keys;   // key, or key << slot_bits | slot when packed
   std::uint32_t* order;  // slot per key (not packed)
   std::uint32_t* index;  // input index per slot (not all valid)
   std::uint32_t* hist;   // digit counts of every radix pass, or null
@@ -71,7 +71,7 @@ struct KeyJob {
   float inv_vs;
   std::uint32_t last[3];  // voxels per axis - 1
   int shift_x, shift_y;
-  int passes, digit, shift_lo;
+  int passes, digit, shift_lo, slot_bits;
   bool packed, all_valid;
 };
 
@@ -100,7 +100,7 @@ void computeKeys(const CloudView& cloud, const KeyJob job, std::size_t begin, st
     const std::uint64_t key = (ix << job.shift_x) | (iy << job.shift_y) | iz;
     std::uint64_t word;
     if (job.packed) {
-      word = (key << 32) | s;
+      word = (key << job.slot_bits) | s;
       job.keys[s] = word;
     } else {
       word = key;
@@ -218,8 +218,10 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   g->shift_x = by + bz;
   g->mask_z = (std::uint64_t{1} << bz) - 1;
   g->mask_y = (std::uint64_t{1} << by) - 1;
-  // Sorting (key << 32 | slot) words moves 8 bytes a point instead of 12 when the key fits.
-  g->packed = bx + by + bz <= 32;
+  // Sorting (key << slot_bits | slot) words moves 8 bytes a point instead of 12 when key and
+  // slot fit one word (slot_bits 32, fewer for keys over 32 bits: 5 M points need 23).
+  g->slot_bits = std::min(32, 64 - (bx + by + bz));
+  g->packed = n <= (std::uint64_t{1} << g->slot_bits);
 
   // Pass 2: coordinates relative to the minimum (keeps float precision far from the origin:
   // UTM, TLS), voxel keys and, on one thread, the digit counts of every radix pass (as few
@@ -229,7 +231,7 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   if (!g->packed) g->order.resize(n);
   if (!g->all_valid) g->point_index.resize(n);
   const int key_bits = bx + by + bz;
-  plan_.lo = g->packed ? 32 : 0;
+  plan_.lo = g->packed ? g->slot_bits : 0;
   plan_.passes = std::max(1, (key_bits + kMaxDigitBits - 1) / kMaxDigitBits);
   plan_.digit = std::max(1, (key_bits + plan_.passes - 1) / plan_.passes);
   const bool count = nt == 1;
@@ -253,6 +255,7 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   job.digit = plan_.digit;
   job.shift_lo = plan_.lo;
   job.packed = g->packed;
+  job.slot_bits = g->slot_bits;
   job.all_valid = g->all_valid;
   pool->run(nt, nch, [&](int, int c) {
     computeKeys(cloud, job, chunks_[c].begin, chunks_[c].end, chunks_[c].out);
@@ -335,7 +338,7 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, WorkerPool* pool, VoxelG
   std::size_t runs = 1;
   {
     const std::uint64_t* kk = g->keys.data();
-    const int low = g->packed ? 32 : 0;
+    const int low = g->packed ? g->slot_bits : 0;
     for (std::size_t i = 1; i < n; ++i) runs += (kk[i] >> low) != (kk[i - 1] >> low);
   }
   g->vkey.resize(runs);
@@ -369,6 +372,8 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, WorkerPool* pool, VoxelG
   const std::uint32_t min_pts = static_cast<std::uint32_t>(p.min_points_per_voxel);
   const float flat_thr = static_cast<float>(p.flatness_threshold);
   const bool pk = g->packed;
+  const int slot_bits = g->slot_bits;
+  const std::uint64_t slot_mask = (std::uint64_t{1} << slot_bits) - 1;
   const int sy_ = g->shift_y, sx_ = g->shift_x;
   const bool local = p.local_planes;
   const std::uint64_t my = g->mask_y, mz = g->mask_z;
@@ -408,11 +413,12 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, WorkerPool* pool, VoxelG
   constexpr std::size_t kAhead = 16;  // prefetch distance of the random coordinate reads
   for (std::size_t i = 0; i < n; ++i) {
     if (i + kAhead < n) {
-      const std::uint32_t ps = pk ? static_cast<std::uint32_t>(k[i + kAhead]) : o[i + kAhead];
+      const std::uint32_t ps =
+          pk ? static_cast<std::uint32_t>(k[i + kAhead] & slot_mask) : o[i + kAhead];
       __builtin_prefetch(in + 3 * static_cast<std::size_t>(ps));
     }
-    const std::uint64_t key = pk ? k[i] >> 32 : k[i];
-    const std::uint32_t s = pk ? static_cast<std::uint32_t>(k[i]) : o[i];
+    const std::uint64_t key = pk ? k[i] >> slot_bits : k[i];
+    const std::uint32_t s = pk ? static_cast<std::uint32_t>(k[i] & slot_mask) : o[i];
     const float x = in[3 * s], y = in[3 * s + 1], z = in[3 * s + 2];
     x_out[i] = x;
     y_out[i] = y;
