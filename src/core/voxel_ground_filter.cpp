@@ -136,7 +136,7 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
 
   // ---- 2. voxels (sorted keys, runs), 3. flat voxels and seed candidates
   t0 = Clock::now();
-  m.voxelizer.build(p, &m.pool, &g, &m.cells);
+  m.voxelizer.build(p, &g, &m.cells);
   stage("voxelize", t0);
 
   // ---- 4. height filter, 5. region growing, largest segment

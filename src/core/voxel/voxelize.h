@@ -25,7 +25,7 @@ class Voxelizer {
                       VoxelGrid* g);
   /// \brief Sorts the keys and fills the points, voxels, columns, `flat` and `seeds` of `g`;
   ///        marks the cells holding voxels in `cells`.
-  void build(const VoxelGroundFilterParams& p, WorkerPool* pool, VoxelGrid* g, CellGrid* cells);
+  void build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* cells);
 
  private:
   struct RadixPlan {
@@ -37,16 +37,15 @@ class Voxelizer {
     float lo[3], hi[3];                                  // bounds of its valid points
   };
   static void scanBounds(const CloudView& cloud, Chunk* ch);
-  void sort(WorkerPool* pool, VoxelGrid* g);
+  void sort(VoxelGrid* g);
 
-  int threads_ = 1;          // threads of this scan (1 below kParallelMinPoints)
   std::vector<float> pxyz_;  // valid points, x y z triplets relative to the min corner
   std::vector<Chunk> chunks_;
   std::vector<std::uint64_t> keys_tmp_;
   std::vector<std::uint32_t> order_tmp_;
   RadixPlan plan_;
-  // Digit counts: one thread, every pass (counted by prepare()); several threads, the current
-  // pass per thread (threads_ << digit).
+  // Digit counts of every radix pass (counted by prepare(), one histogram per thread, summed
+  // into the first).
   std::vector<std::uint32_t> hist_;
 };
 
