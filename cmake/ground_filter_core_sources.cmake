@@ -6,6 +6,12 @@ set(GF_CORE_SOURCES
   src/core/plane_fit.cpp
   src/core/voxel_ground_filter.cpp
   src/core/voxel_ground_filter_params.cpp
+  src/core/voxel/voxelize.cpp
+  src/core/voxel/segments.cpp
+  src/core/voxel/ground_model.cpp
+  src/core/voxel/classify.cpp
+  src/core/voxel/vote.cpp
+  src/core/voxel/worker_pool.cpp
   src/core/filter_factory.cpp
   src/core/metrics.cpp
   src/core/scene_generator.cpp

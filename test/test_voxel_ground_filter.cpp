@@ -1,10 +1,13 @@
 // Known-answer tests of the voxel ground filter (core library, no ROS).
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <new>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -15,6 +18,22 @@
 #include "ground_filter/voxel_ground_filter.h"
 
 namespace gf = ground_filter;
+
+// Every operator new of this test binary is counted (NoAllocationAfterTheFirstScanOfASize).
+namespace {
+std::atomic<std::size_t>& allocationCount() {
+  static std::atomic<std::size_t> count{0};
+  return count;
+}
+}  // namespace
+
+void* operator new(std::size_t size) {
+  ++allocationCount();
+  if (void* p = std::malloc(size ? size : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 // Pooled F1 of the defaults on SemanticKITTI seq00 frames 0-2, measured (0.9724), minus one point.
 constexpr double kVoxelF1Floor = 0.9624;
@@ -318,6 +337,81 @@ TEST(VoxelGroundFilter, DeterministicForAnyThreadCount) {
   EXPECT_EQ(a, run(c, p1));
 }
 
+namespace {
+
+// Above the filter's parallel threshold (150 k valid points, src/core/voxel/voxel_grid.h), with
+// NaN points. `wide`: 600 m across with a 15 m pole, so a voxel key needs more than 32 bits (key
+// and point index still share one sort word). `huge`: two points 9 km away on every axis, so key
+// and point index no longer fit one word (the sort moves them separately).
+Cloud largeScene(bool wide, bool huge = false) {
+  std::mt19937 rng(wide ? 21 : 20);
+  Cloud c;
+  auto ground = [](float x, float y) { return 0.03f * x - 0.01f * y; };
+  addSurface(&c, -12, 12, -12, 12, 0.04f, ground, 0.02f, &rng);
+  if (wide) {
+    addSurface(&c, -300, 300, -300, 300, 1.4f, ground, 0.02f, &rng);
+    for (float z = 0.f; z < 15.f; z += 0.05f) c.add(250.f, 250.f, ground(250.f, 250.f) + z, false);
+  }
+  addBox(&c, -4.f, 5.f, 3.f, 2.f, ground(-4.f, 5.f), 2.f, 0.05f);
+  addBox(&c, 6.f, -3.f, 1.f, 4.f, ground(6.f, -3.f), 1.f, 0.05f);
+  if (huge) {
+    c.add(-4500.f, -4500.f, -4500.f, false);
+    c.add(4500.f, 4500.f, 4500.f, false);
+  }
+  for (std::size_t i = 0; i < c.size(); i += 97) {
+    c.xyz[3 * i + (i % 3)] = std::numeric_limits<float>::quiet_NaN();
+    c.truth[i] = 0;
+  }
+  return c;
+}
+
+}  // namespace
+
+TEST(VoxelGroundFilter, SameLabelsForAnyThreadCountOnLargeClouds) {
+  for (bool wide : {false, true}) {
+    const Cloud c = largeScene(wide);
+    ASSERT_GT(c.size(), 200000u);
+    gf::VoxelGroundFilterParams p;
+    p.threads = 1;
+    const auto ref = run(c, p);
+    EXPECT_GT(agreement(ref, c.truth, 1), 0.9) << "wide " << wide;  // ground found
+    EXPECT_GT(agreement(ref, c.truth, 0), 0.9) << "wide " << wide;  // boxes and NaN are not
+    for (int threads : {2, 3, 4, 0}) {
+      p.threads = threads;
+      EXPECT_EQ(ref, run(c, p)) << "threads " << threads << ", wide " << wide;
+    }
+  }
+  const Cloud c = largeScene(false, true);
+  gf::VoxelGroundFilterParams p;
+  p.threads = 1;
+  const auto ref = run(c, p);
+  EXPECT_GT(agreement(ref, c.truth, 1), 0.5);  // coarse cells (capped cell count), still ground
+  for (int threads : {2, 3}) {
+    p.threads = threads;
+    EXPECT_EQ(ref, run(c, p)) << "threads " << threads << ", huge";
+  }
+}
+
+TEST(VoxelGroundFilter, NoAllocationAfterTheFirstScanOfASize) {
+  const Cloud c = largeScene(false);
+  for (int threads : {1, 2}) {
+    gf::VoxelGroundFilterParams p;
+    p.threads = threads;
+    gf::VoxelGroundFilter f(p);
+    std::vector<std::uint8_t> first;
+    gf::FilterStats stats;
+    f.filter(c.view(), &first, &stats);
+    ASSERT_EQ(stats.stage_ms.size(), 6u);
+    std::vector<std::uint8_t> labels(c.size(), 2);  // allocated before counting
+    const std::size_t before = allocationCount().load();
+    f.filter(c.view(), &labels, &stats);  // reused labels and stats
+    f.filter(c.view(), &labels, nullptr);
+    EXPECT_EQ(allocationCount().load() - before, 0u) << "threads " << threads;
+    EXPECT_EQ(first, labels);
+    EXPECT_EQ(stats.stage_ms.size(), 6u);
+  }
+}
+
 TEST(VoxelGroundFilterParams, ValidationRejectsBadValues) {
   auto expectBad = [](const char* name, const char* value) {
     gf::VoxelGroundFilterParams p;
@@ -394,6 +488,6 @@ TEST(VoxelGroundFilterKitti, PooledF1AboveFloor) {
   }
   const double f1 = 2.0 * tp / (2.0 * tp + fp + fn);
   RecordProperty("pooled_f1", std::to_string(f1));
-  // Floor = measured pooled F1 with the defaults minus one point (README, "Evaluation").
+  // Floor = measured pooled F1 with the defaults minus one point (docs/evaluation.md).
   EXPECT_GE(f1, kVoxelF1Floor);
 }

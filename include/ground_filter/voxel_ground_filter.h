@@ -17,7 +17,12 @@ namespace ground_filter {
 ///
 /// With `local_planes` (default) the single plane of the paper becomes a ground model of
 /// `tile_size` cells grown outwards from the largest flat segment, each cell fitted to the
-/// lowest voxels of its columns near the prediction of its neighbours (README, "Voxel method").
+/// lowest voxels of its columns near the prediction of its neighbours (docs/voxel_method.md).
+///
+/// With `threads` > 1, scans of at least 150 k valid points split the key computation, sort,
+/// classification and vote over that many threads; the labels are the same for any thread count.
+/// Scratch buffers (and worker threads) are kept: a repeated scan of the same size allocates
+/// nothing when `labels` and `stats` are reused.
 class VoxelGroundFilter : public GroundFilter {
  public:
   /// \brief Validates and stores `params`.
@@ -25,7 +30,8 @@ class VoxelGroundFilter : public GroundFilter {
   explicit VoxelGroundFilter(const VoxelGroundFilterParams& params = VoxelGroundFilterParams());
   ~VoxelGroundFilter() override;
 
-  /// \brief Labels every point (NaN/Inf points are non-ground and never used).
+  /// \brief Labels every point (NaN/Inf points are non-ground and never used). Stage timings
+  ///        go to `stats->stage_ms` only when `stats` is given.
   /// \throws std::runtime_error when the cloud spans more than 2^21 voxels along an axis.
   void filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
               FilterStats* stats = nullptr) override;

@@ -8,7 +8,7 @@
 namespace ground_filter {
 
 /// \brief Parameters of the voxel method (Diaz et al., section 2.3.2). One line per field:
-///        meaning [unit] (default; paper value when it differs). README, "Voxel method", says
+///        meaning [unit] (default; paper value when it differs). docs/voxel_method.md says
 ///        what each step does with them and gives the measurements behind every default that
 ///        differs from the paper (paper: plane_distance 0.10, std_filter on, one global plane).
 struct VoxelGroundFilterParams {

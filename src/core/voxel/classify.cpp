@@ -1,0 +1,171 @@
+#include "voxel/classify.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace ground_filter {
+namespace voxel {
+
+namespace {
+
+// What classifyColumns() needs, by value (the label stores, bytes, may alias anything else).
+struct Job {
+  const std::uint32_t *vstart, *vcell;
+  const std::uint64_t* vkey;
+  const std::uint32_t* col_first;
+  const float *x, *y, *z, *vx, *vy;
+  const HeightPlane* planes;
+  const float* cosines;
+  const double *mu, *sigma;  // std band per cell, or null
+  std::uint8_t* ground;
+  std::uint32_t* voxel_ground;
+  ZRange* col_range;
+  std::uint64_t mask_z;
+  float dmax;
+  double band_k;
+};
+
+// Labels the points of columns [c0, c1). Every field is copied to a local first: the byte
+// stores of the labels may alias anything in memory, locals not.
+void classifyColumns(const Job& job, std::size_t c0, std::size_t c1) {
+  const std::uint32_t* const vs = job.vstart;
+  const std::uint32_t* const vcell = job.vcell;
+  const std::uint64_t* const vkey = job.vkey;
+  const std::uint32_t* const cf = job.col_first;
+  const float* const px = job.x;
+  const float* const py = job.y;
+  const float* const pz = job.z;
+  const float* const vx = job.vx;
+  const float* const vy = job.vy;
+  const HeightPlane* const planes = job.planes;
+  const float* const cosines = job.cosines;
+  const double* const mu = job.mu;
+  const double* const sigma = job.sigma;
+  std::uint8_t* const ground = job.ground;
+  std::uint32_t* const voxel_ground = job.voxel_ground;
+  ZRange* const col_range = job.col_range;
+  const std::uint64_t mz = job.mask_z;
+  const float dmax = job.dmax;
+  const double band_k = job.band_k;
+  for (std::size_t col = c0; col < c1; ++col) {
+    ZRange r = kEmptyRange;
+    const std::uint32_t v_end = cf[col + 1];
+    for (std::uint32_t v = cf[col]; v < v_end; ++v) {
+      const std::uint32_t c = vcell[v];
+      const HeightPlane hp = planes[c];
+      // Distances relative to the voxel centroid keep float precision far from the origin.
+      const float cosf = cosines[c];
+      const float x0 = vx[v], y0 = vy[v];
+      const float h0 = static_cast<float>(hp.at(x0, y0));
+      const float a = static_cast<float>(hp.a), b = static_cast<float>(hp.b);
+      float lo = -dmax, hi = dmax;
+      if (sigma && sigma[c] > 0.0) {
+        lo = std::max(lo, static_cast<float>(mu[c] - band_k * sigma[c]));
+        hi = std::min(hi, static_cast<float>(mu[c] + band_k * sigma[c]));
+      }
+      std::uint32_t gcount = 0;
+      const std::uint32_t k0 = vs[v], k1 = vs[v + 1];
+      for (std::uint32_t k = k0; k < k1; ++k) {
+        const float d = (pz[k] - h0 - a * (px[k] - x0) - b * (py[k] - y0)) * cosf;
+        const std::uint32_t is_ground = (d > lo) & (d < hi);
+        ground[k] = static_cast<std::uint8_t>(is_ground);
+        gcount += is_ground;
+      }
+      voxel_ground[v] = gcount;
+      const std::int32_t iz = static_cast<std::int32_t>(vkey[v] & mz);
+      if (gcount != 0) {
+        r.glo = std::min(r.glo, iz);
+        r.ghi = iz;
+      }
+      if (gcount != k1 - k0) {
+        r.nlo = std::min(r.nlo, iz);
+        r.nhi = iz;
+      }
+    }
+    col_range[col] = r;
+  }
+}
+
+}  // namespace
+
+void Classifier::bandStats(const VoxelGroundFilterParams& p, const VoxelGrid& g, std::size_t nc,
+                           const GroundModel& model, const Segmenter& segs, std::int64_t best) {
+  // Mean and std of the signed distances of the points that shaped each plane: the largest
+  // segment (global plane) or the cell's seeds within plane_distance of its plane.
+  mu_.assign(nc, 0.0);
+  sigma_.assign(nc, 0.0);
+  count_.assign(nc, 0);
+  auto addVoxel = [&](std::uint32_t v) {
+    const std::uint32_t c = g.vcell[v];
+    const HeightPlane& hp = model.plane(c);
+    const double cosf = model.cosine(c);
+    for (std::uint32_t k = g.vstart[v]; k < g.vstart[v + 1]; ++k) {
+      const double d = (g.sz[k] - hp.at(g.sx[k], g.sy[k])) * cosf;
+      mu_[c] += d;
+      sigma_[c] += d * d;
+      ++count_[c];
+    }
+  };
+  if (p.local_planes) {
+    for (std::size_t v = 0; v < g.voxels(); ++v) {
+      if (!(g.vflags[v] & kSeed)) continue;
+      const HeightPlane& hp = model.plane(g.vcell[v]);
+      if (std::abs(g.vz[v] - hp.at(g.vx[v], g.vy[v])) < p.plane_distance) {
+        addVoxel(static_cast<std::uint32_t>(v));
+      }
+    }
+  } else {
+    for (std::size_t i = 0; i < g.flat.size(); ++i) {
+      if (segs.segmentOf(i) == static_cast<std::uint32_t>(best)) addVoxel(g.flat[i]);
+    }
+  }
+  for (std::size_t c = 0; c < nc; ++c) {
+    const double k = static_cast<double>(count_[c]);
+    const double mu = k > 0 ? mu_[c] / k : 0.0;
+    sigma_[c] = k > 1 ? std::sqrt(std::max(0.0, sigma_[c] / k - mu * mu)) : 0.0;
+    mu_[c] = mu;
+  }
+}
+
+void Classifier::run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const CellGrid& cells,
+                     const GroundModel& model, const Segmenter& segs, std::int64_t best,
+                     int threads, WorkerPool* pool) {
+  const std::size_t n = g.points();
+  const std::size_t nv = g.voxels();
+  const std::size_t nc = p.local_planes ? cells.count() : 1;
+  const bool band = p.std_filter;
+  if (band) bandStats(p, g, nc, model, segs, best);
+  ground.resize(n);
+  voxel_ground.resize(nv);
+  col_range.resize(g.columns());
+  Job job;
+  job.vstart = g.vstart.data();
+  job.vcell = g.vcell.data();
+  job.vkey = g.vkey.data();
+  job.col_first = g.col_first.data();
+  job.x = g.sx.data();
+  job.y = g.sy.data();
+  job.z = g.sz.data();
+  job.vx = g.vx.data();
+  job.vy = g.vy.data();
+  job.planes = model.planes();
+  job.cosines = model.cosines();
+  job.mu = band ? mu_.data() : nullptr;
+  job.sigma = band ? sigma_.data() : nullptr;
+  job.ground = ground.data();
+  job.voxel_ground = voxel_ground.data();
+  job.col_range = col_range.data();
+  job.mask_z = g.mask_z;
+  job.dmax = static_cast<float>(p.plane_distance);
+  job.band_k = p.std_multiplier;
+  // Column by column (the vote wants each column's z range of voxels with ground and with
+  // non-ground points).
+  const std::size_t ncol = g.columns();
+  const int nt = threads > 1 && n >= kParallelMinPoints ? threads : 1;
+  const int nch = nt == 1 ? 1 : 4 * nt;
+  pool->run(nt, nch,
+            [&](int, int c) { classifyColumns(job, ncol * c / nch, ncol * (c + 1) / nch); });
+}
+
+}  // namespace voxel
+}  // namespace ground_filter

@@ -1,0 +1,271 @@
+#include "voxel/ground_model.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace ground_filter {
+namespace voxel {
+
+namespace {
+
+// Weight of the prior slope in a cell fit, in points at a cell edge's distance: keeps a cell whose
+// seeds are one scan line (collinear) from tilting around it.
+constexpr double kSlopePriorWeight = 1.0;
+// Cells of the local model farther than this from any cell with points are not grown.
+constexpr std::int64_t kReachCells = 4;
+
+}  // namespace
+
+HeightPlane fitHeightPlane(const Moments& m, double a0, double b0, double lambda) {
+  const double mx = m.x / m.w, my = m.y / m.w, mz = m.z / m.w;
+  const double cxx = m.xx - m.w * mx * mx + lambda, cxy = m.xy - m.w * mx * my;
+  const double cyy = m.yy - m.w * my * my + lambda;
+  const double rx = m.xz - m.w * mx * mz + lambda * a0, ry = m.yz - m.w * my * mz + lambda * b0;
+  const double det = cxx * cyy - cxy * cxy;
+  HeightPlane out;
+  if (det > 1e-18) {
+    out.a = (cyy * rx - cxy * ry) / det;
+    out.b = (cxx * ry - cxy * rx) / det;
+  } else {
+    out.a = a0;
+    out.b = b0;
+  }
+  out.c = mz - out.a * mx - out.b * my;
+  return out;
+}
+
+void GroundModel::setGlobal(const HeightPlane& gp) {
+  final_.assign(1, gp);
+  cos_.assign(1, static_cast<float>(1.0 / std::sqrt(1.0 + gp.a * gp.a + gp.b * gp.b)));
+}
+
+void GroundModel::markReach(const CellGrid& cells) {
+  const std::uint64_t ncx = cells.ncx, ncy = cells.ncy;
+  reach_.assign(cells.count(), 0);
+  for (std::uint64_t x = 0; x < ncx; ++x) {  // dilate along y (bit 1), then along x (bit 2)
+    const std::uint8_t* used = cells.used.data() + x * ncy;
+    std::uint8_t* r = reach_.data() + x * ncy;
+    std::int64_t last = -(kReachCells + 1);
+    for (std::int64_t y = 0; y < static_cast<std::int64_t>(ncy); ++y) {
+      if (used[y]) last = y;
+      if (y - last <= kReachCells) r[y] = 1;
+    }
+    last = static_cast<std::int64_t>(ncy) + kReachCells + 1;
+    for (std::int64_t y = static_cast<std::int64_t>(ncy) - 1; y >= 0; --y) {
+      if (used[y]) last = y;
+      if (last - y <= kReachCells) r[y] = 1;
+    }
+  }
+  for (std::uint64_t y = 0; y < ncy; ++y) {
+    std::int64_t last = -(kReachCells + 1);
+    for (std::int64_t x = 0; x < static_cast<std::int64_t>(ncx); ++x) {
+      if (reach_[x * ncy + y] & 1) last = x;
+      if (x - last <= kReachCells) reach_[x * ncy + y] |= 2;
+    }
+    last = static_cast<std::int64_t>(ncx) + kReachCells + 1;
+    for (std::int64_t x = static_cast<std::int64_t>(ncx) - 1; x >= 0; --x) {
+      if (reach_[x * ncy + y] & 1) last = x;
+      if (last - x <= kReachCells) reach_[x * ncy + y] |= 2;
+    }
+  }
+}
+
+std::size_t GroundModel::bucketSeeds(const VoxelGrid& g, std::size_t nc, const Segmenter& segs,
+                                     std::int64_t best) {
+  // Seed candidates per cell (CSR, coordinates copied for sequential access); start cell = most
+  // voxels of the largest segment.
+  const std::uint32_t* vc = g.vcell.data();
+  start_.assign(nc + 1, 0);
+  for (std::uint32_t v : g.seeds) ++start_[vc[v] + 1];
+  for (std::size_t c = 0; c < nc; ++c) start_[c + 1] += start_[c];
+  seeds_.resize(g.seeds.size());
+  fill_.assign(start_.begin(), start_.end() - 1);
+  for (std::uint32_t v : g.seeds) {
+    seeds_[fill_[vc[v]]++] = Seed{g.vx[v], g.vy[v], g.vz[v], static_cast<float>(g.pointsIn(v))};
+  }
+  std::vector<std::uint32_t>& seg_in_cell = fill_;  // reused
+  seg_in_cell.assign(nc, 0);
+  for (std::size_t i = 0; i < g.flat.size(); ++i) {
+    if (segs.segmentOf(i) == static_cast<std::uint32_t>(best)) ++seg_in_cell[vc[g.flat[i]]];
+  }
+  return std::max_element(seg_in_cell.begin(), seg_in_cell.end()) - seg_in_cell.begin();
+}
+
+void GroundModel::resetCells(const CellGrid& cells, const HeightPlane& gp) {
+  const std::size_t nc = cells.count();
+  const std::uint64_t ncx = cells.ncx, ncy = cells.ncy;
+  nbsum_.assign(nc, Moments());
+  plane_.assign(nc, gp);  // cells never grown (no seeds beyond reach) keep the global plane
+  parent_.resize(nc);
+  state_.assign(nc, CellState::kNew);
+  near_q_.assign(nc, 0);
+  CellState* state = state_.data();
+  // Cells farther than kReachCells from any cell with points are never grown (kDone): they
+  // would only carry the prediction across empty space. Data beyond such a stretch are grown
+  // again from a new start (nextIsland()). The border is kDone too.
+  markReach(cells);
+  for (std::size_t t = 0; t < nc; ++t) {
+    if (!(reach_[t] & 2)) state[t] = CellState::kDone;
+  }
+  for (std::uint64_t x = 0; x < ncx; ++x) {
+    state[x * ncy] = state[x * ncy + ncy - 1] = CellState::kDone;
+  }
+  for (std::uint64_t y = 0; y < ncy; ++y) {
+    state[y] = state[(ncx - 1) * ncy + y] = CellState::kDone;
+  }
+  queue_.clear();
+  queue_far_.clear();
+}
+
+HeightPlane GroundModel::startPlane(const VoxelGrid& g, const Segmenter& segs, std::int64_t best,
+                                    std::size_t start, const HeightPlane& gp) const {
+  // The largest segment's voxels in the start cell (level slope prior), so a tilted global plane
+  // cannot put it off the ground it was chosen for.
+  Moments sm;
+  for (std::size_t i = 0; i < g.flat.size(); ++i) {
+    const std::uint32_t v = g.flat[i];
+    if (segs.segmentOf(i) == static_cast<std::uint32_t>(best) && g.vcell[v] == start) {
+      sm.add(g.vx[v], g.vy[v], g.vz[v], static_cast<double>(g.pointsIn(v)));
+    }
+  }
+  return sm.w > 0 ? fitHeightPlane(sm, 0.0, 0.0, geo_.lambda) : gp;
+}
+
+bool GroundModel::nextIsland(const CellGrid& cells, std::size_t* next, std::uint32_t* cell) {
+  // Cells with points not reached (beyond an empty stretch): grow again from the first of them
+  // with seeds, predicted level through its lowest seed (the ground is the lowest surface);
+  // cells without seeds left over keep the global plane.
+  const std::size_t nc = cells.count();
+  const std::uint32_t* cst = start_.data();
+  std::size_t i = *next;
+  while (i < nc && !(cells.used[i] && state_[i] == CellState::kNew && cst[i + 1] > cst[i])) ++i;
+  *next = i;
+  if (i == nc) return false;
+  const std::uint32_t t = static_cast<std::uint32_t>(i);
+  float zlow = std::numeric_limits<float>::max();
+  for (std::uint32_t k = cst[t]; k < cst[t + 1]; ++k) zlow = std::min(zlow, seeds_[k].z);
+  plane_[t] = HeightPlane();
+  plane_[t].c = zlow;
+  parent_[t] = t;
+  state_[t] = CellState::kQueued;
+  *cell = t;
+  return true;
+}
+
+bool GroundModel::fitCell(const VoxelGroundFilterParams& p, std::uint32_t t) {
+  // Prediction: the parent's height at this cell's centre (level), refined by the seeds of the
+  // finished neighbours (also for empty cells: they pass it on). Seeds: the candidates from
+  // height_margin below to seed_window above the prediction (the ground is the lowest surface:
+  // lower candidates are safe, higher ones may be objects), refit, then those within
+  // plane_distance of the refit, refit again.
+  const std::uint32_t tx = t / geo_.ncy, ty = t - tx * geo_.ncy;
+  const double cx = (tx - 0.5) * geo_.cs;  // the border shifts the cell indices by one
+  const double cy = (ty - 0.5) * geo_.cs;
+  HeightPlane pred;
+  pred.c = plane_[parent_[t]].at(cx, cy);
+  const Moments nb = nbsum_[t];
+  if (nb.w > 0) pred = fitHeightPlane(nb, 0.0, 0.0, geo_.lambda);
+  HeightPlane cur = pred;
+  Moments own;
+  const std::uint32_t s0 = start_[t], s1 = start_[t + 1];
+  if (s1 > s0) {
+    double below = p.height_margin, above = p.seed_window;
+    for (int pass = 0; pass < 2; ++pass) {
+      own = Moments();
+      for (std::uint32_t k = s0; k < s1; ++k) {
+        const Seed& sd = seeds_[k];
+        const double dz = sd.z - cur.at(sd.x, sd.y);
+        if (dz < above && dz > -below) own.add(sd.x, sd.y, sd.z, sd.w);
+      }
+      if (own.w <= 0) break;
+      Moments tot = nb;
+      tot.add(own);
+      cur = fitHeightPlane(tot, 0.0, 0.0, geo_.lambda);
+      below = above = p.plane_distance;
+    }
+  }
+  const bool seeded = own.w > 0 && cur.a * cur.a + cur.b * cur.b <= geo_.max_grad2;
+  if (seeded) {
+    plane_[t] = cur;
+    state_[t] = CellState::kDoneSeeded;
+    for (int k = 0; k < 9; ++k) nbsum_[t + geo_.nb_off[k]].add(own);
+  } else {
+    plane_[t] = pred;
+    state_[t] = CellState::kDone;
+  }
+  return seeded;
+}
+
+void GroundModel::queueNeighbours(std::uint32_t t, bool seeded) {
+  // Two FIFO queues: cells next to a cell with accepted seeds first ("near"), the rest after
+  // ("far"), so the model grows where there is evidence and crosses empty stretches (the
+  // sensor's blind circle, shadows) last, from all sides.
+  for (int k = 0; k < 9; ++k) {
+    const std::size_t u = static_cast<std::size_t>(t + geo_.nb_off[k]);
+    const CellState su = state_[u];
+    if (finished(su) || (su == CellState::kQueued && !seeded)) continue;
+    if (seeded) {
+      if (su == CellState::kQueued && near_q_[u]) continue;  // already waiting near seeds
+      near_q_[u] = 1;
+      queue_.push_back(static_cast<std::uint32_t>(u));
+    } else {
+      queue_far_.push_back(static_cast<std::uint32_t>(u));
+    }
+    state_[u] = CellState::kQueued;
+    parent_[u] = t;
+  }
+}
+
+void GroundModel::grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, const CellGrid& cells,
+                       const Segmenter& segs, const HeightPlane& gp, std::int64_t best) {
+  const std::size_t nc = cells.count();
+  geo_.cs = static_cast<double>(cells.cell_vox) * p.voxel_size;
+  geo_.lambda = kSlopePriorWeight * geo_.cs * geo_.cs;
+  const double max_grad = std::tan(p.max_slope_deg * M_PI / 180.0);
+  geo_.max_grad2 = max_grad * max_grad;
+  geo_.ncy = static_cast<std::uint32_t>(cells.ncy);
+  const std::int64_t stride = static_cast<std::int64_t>(cells.ncy);  // includes the border
+  const std::int64_t off[9] = {-stride - 1, -stride,    -stride + 1, -1,        0,
+                               1,           stride - 1, stride,      stride + 1};
+  std::copy(off, off + 9, geo_.nb_off);
+
+  // Growth from the cell holding most of the largest segment, then from every island of cells
+  // with seeds it did not reach (the grid's border cells are kDone: 3 x 3 neighbourhoods need
+  // no bounds checks).
+  const std::size_t start = bucketSeeds(g, nc, segs, best);
+  resetCells(cells, gp);
+  plane_[start] = startPlane(g, segs, best, start, gp);
+  parent_[start] = static_cast<std::uint32_t>(start);
+  state_[start] = CellState::kQueued;
+  queue_.push_back(static_cast<std::uint32_t>(start));
+  std::size_t qn = 0, qf = 0, next_island = 0;
+  for (;;) {
+    std::uint32_t t;
+    if (qn < queue_.size()) {
+      t = queue_[qn++];
+    } else if (qf < queue_far_.size()) {
+      t = queue_far_[qf++];
+    } else if (!nextIsland(cells, &next_island, &t)) {
+      break;
+    }
+    if (finished(state_[t])) continue;  // queued twice (far, then near)
+    queueNeighbours(t, fitCell(p, t));
+  }
+
+  // Final planes of the cells holding points: seeds of the 3 x 3 cells around, all sides now
+  // known; without seeds around, the grown plane.
+  final_.resize(nc);
+  cos_.resize(nc);
+  for (std::size_t t = 0; t < nc; ++t) {
+    if (!cells.used[t]) continue;
+    const Moments& nb = nbsum_[t];
+    const HeightPlane& gr = plane_[t];
+    const HeightPlane f = nb.w > 0 ? fitHeightPlane(nb, gr.a, gr.b, geo_.lambda) : gr;
+    final_[t] = f;
+    cos_[t] = static_cast<float>(1.0 / std::sqrt(1.0 + f.a * f.a + f.b * f.b));
+  }
+}
+
+}  // namespace voxel
+}  // namespace ground_filter

@@ -1,0 +1,85 @@
+// Private to the voxel filter: the ground model (one plane, or grown cell planes).
+#ifndef GROUND_FILTER_SRC_CORE_VOXEL_GROUND_MODEL_H
+#define GROUND_FILTER_SRC_CORE_VOXEL_GROUND_MODEL_H
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "ground_filter/voxel_ground_filter.h"
+#include "voxel/segments.h"
+#include "voxel/voxel_grid.h"
+
+namespace ground_filter {
+namespace voxel {
+
+/// \brief Step 6: the plane of every cell of a CellGrid (one cell: the global plane).
+class GroundModel {
+ public:
+  /// \brief One plane for the whole scan (paper).
+  void setGlobal(const HeightPlane& plane);
+  /// \brief Cell planes grown outwards from the cell holding most of segment `best`, starting
+  ///        from the global plane `gp` (see the docs, "local ground model").
+  void grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, const CellGrid& cells,
+            const Segmenter& segs, const HeightPlane& gp, std::int64_t best);
+
+  /// \brief Final plane of cell c (cells holding voxels; any cell after setGlobal()).
+  const HeightPlane& plane(std::size_t c) const { return final_[c]; }
+  /// \brief Cosine of the slope of plane(c): vertical to normal distance.
+  float cosine(std::size_t c) const { return cos_[c]; }
+  const HeightPlane* planes() const { return final_.data(); }
+  const float* cosines() const { return cos_.data(); }
+
+ private:
+  /// Growth state of a cell.
+  enum class CellState : std::uint8_t {
+    kNew,         ///< not reached yet
+    kQueued,      ///< waits in a queue
+    kDone,        ///< finished without seeds (or never grown: border, out of reach)
+    kDoneSeeded,  ///< finished with accepted seeds (its moments count for its neighbours)
+  };
+  struct Seed {
+    float x, y, z, w;
+  };
+  struct Geometry {
+    double cs = 1, lambda = 1, max_grad2 = 1;  // cell edge [m], slope prior weight, max slope^2
+    std::uint32_t ncy = 1;                     // cells along y (border included)
+    std::int64_t nb_off[9] = {};               // index offsets of the 3 x 3 neighbourhood
+  };
+  static bool finished(CellState s) { return s == CellState::kDone || s == CellState::kDoneSeeded; }
+  /// Seed candidates per cell (CSR); returns the start cell.
+  std::size_t bucketSeeds(const VoxelGrid& g, std::size_t cells, const Segmenter& segs,
+                          std::int64_t best);
+  /// Every cell new (global plane, no seeds) except the border and cells out of reach.
+  void resetCells(const CellGrid& cells, const HeightPlane& gp);
+  /// Marks the cells within kReachCells of a cell holding voxels (bit 2 of reach_).
+  void markReach(const CellGrid& cells);
+  /// Prediction of the start cell.
+  HeightPlane startPlane(const VoxelGrid& g, const Segmenter& segs, std::int64_t best,
+                         std::size_t start, const HeightPlane& gp) const;
+  /// Next cell with seeds that the growth did not reach (from *next on), queued as a new start.
+  bool nextIsland(const CellGrid& cells, std::size_t* next, std::uint32_t* cell);
+  /// Predicts, accepts seeds and fits cell t; returns whether it kept seeds.
+  bool fitCell(const VoxelGroundFilterParams& p, std::uint32_t t);
+  /// Queues the unfinished neighbours of t (near queue when t kept seeds).
+  void queueNeighbours(std::uint32_t t, bool seeded);
+
+  Geometry geo_;
+
+  std::vector<std::uint32_t> start_, fill_;  // seed candidates per cell (CSR)
+  std::vector<Seed> seeds_;
+  std::vector<Moments> nbsum_;         // accepted seeds of the seeded cells of the 3 x 3 around
+  std::vector<HeightPlane> plane_;     // grown plane
+  std::vector<std::uint32_t> parent_;  // cell that queued it
+  std::vector<CellState> state_;
+  std::vector<std::uint32_t> queue_, queue_far_;  // cells to grow: next to seeds, others
+  std::vector<std::uint8_t> near_q_;              // cell waits in queue_
+  std::vector<std::uint8_t> reach_;
+  std::vector<HeightPlane> final_;
+  std::vector<float> cos_;
+};
+
+}  // namespace voxel
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_CORE_VOXEL_GROUND_MODEL_H

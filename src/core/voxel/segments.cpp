@@ -1,0 +1,179 @@
+#include "voxel/segments.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+#include "ground_filter/plane_fit.h"
+
+namespace ground_filter {
+namespace voxel {
+
+namespace {
+
+std::uint32_t findRoot(std::uint32_t* uf, std::uint32_t i) {
+  while (uf[i] != i) {
+    uf[i] = uf[uf[i]];
+    i = uf[i];
+  }
+  return i;
+}
+
+// Joins two sets; the smaller index becomes the root, so labels do not depend on visit order.
+void unite(std::uint32_t* uf, std::uint32_t a, std::uint32_t b) {
+  a = findRoot(uf, a);
+  b = findRoot(uf, b);
+  if (a < b) {
+    uf[b] = a;
+  } else if (b < a) {
+    uf[a] = b;
+  }
+}
+
+}  // namespace
+
+std::int64_t Segmenter::run(const VoxelGroundFilterParams& p, VoxelGrid* g) {
+  std::vector<std::uint32_t>& flat = g->flat;
+  // ---- height filter (paper, global plane only): flat voxels higher than the mean flat-voxel
+  // height + margin are not ground seeds. The local model has its own, local, windows.
+  if (!p.local_planes && !flat.empty()) {
+    double flat_z_sum = 0.0;
+    for (std::uint32_t v : flat) flat_z_sum += g->vz[v];
+    const double cut = flat_z_sum / flat.size() + p.height_margin;
+    std::size_t k = 0;
+    for (std::uint32_t v : flat) {
+      if (g->vz[v] < cut) flat[k++] = v;
+    }
+    flat.resize(k);
+  }
+  // ---- region growing over the flat voxels (26-adjacency) as union-find: each flat voxel is
+  // joined with the flat voxels among its 13 neighbours with smaller keys: row x - 1 (columns
+  // y - 1 .. y + 1), column y - 1 of its own row, and the voxel below it. Rows of flat-column ids
+  // (two buffers, x parity) replace any search.
+  const std::size_t nf = flat.size();
+  uf_.resize(nf);
+  std::uint32_t* u = uf_.data();
+  for (std::size_t i = 0; i < nf; ++i) u[i] = static_cast<std::uint32_t>(i);
+  const std::uint32_t* fl = flat.data();
+  const std::uint64_t* vk = g->vkey.data();
+  const std::size_t stride = g->ny + 2;
+  rows_.assign(2 * stride, -1);
+  std::int32_t* rows = rows_.data();
+  std::array<std::int64_t, 2> held_x = {-1, -1};
+  std::array<std::size_t, 2> held_b{}, held_e{};  // flat index range of the row a buffer holds
+  const int sy_ = g->shift_y;
+  const std::uint64_t my = g->mask_y, mz = g->mask_z;
+  std::size_t i = 0;
+  while (i < nf) {
+    const std::uint64_t x = vk[fl[i]] >> g->shift_x;
+    std::size_t e = i;
+    while (e < nf && (vk[fl[e]] >> g->shift_x) == x) ++e;
+    // This row's buffer: clear the row it held, fill with this row's first flat voxel per y.
+    const int k = static_cast<int>(x & 1);
+    std::int32_t* cur = rows + k * stride + 1;
+    for (std::size_t j = held_b[k]; j < held_e[k]; ++j) cur[(vk[fl[j]] >> sy_) & my] = -1;
+    for (std::size_t j = e; j-- > i;) cur[(vk[fl[j]] >> sy_) & my] = static_cast<std::int32_t>(j);
+    held_x[k] = static_cast<std::int64_t>(x);
+    held_b[k] = i;
+    held_e[k] = e;
+    const bool has_prev = x > 0 && held_x[k ^ 1] == static_cast<std::int64_t>(x - 1);
+    const std::int32_t* prev = rows + (k ^ 1) * stride + 1;
+    for (std::size_t a = i; a < e; ++a) {
+      const std::uint64_t key = vk[fl[a]];
+      const std::uint64_t col = key >> sy_;
+      const std::int64_t y = static_cast<std::int64_t>(col & my);
+      const std::int64_t z = static_cast<std::int64_t>(key & mz);
+      // Same column, one step below.
+      if (a > i && (vk[fl[a - 1]] >> sy_) == col &&
+          z - static_cast<std::int64_t>(vk[fl[a - 1]] & mz) == 1) {
+        unite(u, static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(a - 1));
+      }
+      // Neighbour columns: (x, y - 1) and (x - 1, y - 1 .. y + 1).
+      std::int32_t nbs[4] = {cur[y - 1], has_prev ? prev[y - 1] : -1, has_prev ? prev[y] : -1,
+                             has_prev ? prev[y + 1] : -1};
+      for (std::int32_t f : nbs) {
+        if (f < 0) continue;
+        const std::uint64_t fcol = vk[fl[f]] >> sy_;
+        for (std::size_t b = static_cast<std::size_t>(f); b < nf && (vk[fl[b]] >> sy_) == fcol;
+             ++b) {
+          const std::int64_t dz = static_cast<std::int64_t>(vk[fl[b]] & mz) - z;
+          if (dz > 1) break;
+          if (dz >= -1) unite(u, static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
+        }
+      }
+    }
+    i = e;
+  }
+  // Largest segment: most voxels (its area; robust to many duplicate points), then most points.
+  seg_voxels_.assign(nf, 0);
+  seg_points_.assign(nf, 0);
+  for (std::size_t j = 0; j < nf; ++j) {
+    const std::uint32_t r = findRoot(u, static_cast<std::uint32_t>(j));
+    u[j] = r;  // flattened: uf_[j] is the segment id (its root) from here on
+    ++seg_voxels_[r];
+    seg_points_[r] += g->pointsIn(fl[j]);
+  }
+  std::int64_t best = -1;
+  for (std::size_t j = 0; j < nf; ++j) {
+    if (u[j] != j) continue;
+    if (best < 0 || seg_voxels_[j] > seg_voxels_[best] ||
+        (seg_voxels_[j] == seg_voxels_[best] && seg_points_[j] > seg_points_[best])) {
+      best = static_cast<std::int64_t>(j);
+    }
+  }
+  return best;
+}
+
+bool Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g,
+                            std::int64_t* best, HeightPlane* gp) const {
+  if (*best < 0) return false;
+  // The plane of the largest segment that is not steeper than max_slope_deg: the largest one can
+  // be a wall scanned line by line (its flat voxels stack up), see the docs.
+  constexpr int kCandidates = 8;
+  std::array<std::uint32_t, kCandidates> cand{};
+  int ncand = 0;
+  auto better = [&](std::uint32_t a, std::uint32_t b) {
+    return seg_voxels_[a] != seg_voxels_[b] ? seg_voxels_[a] > seg_voxels_[b]
+                                            : seg_points_[a] > seg_points_[b];
+  };
+  const std::size_t nf = g.flat.size();
+  for (std::size_t j = 0; j < nf; ++j) {  // the largest segments, by voxels then points
+    if (uf_[j] != j) continue;
+    int pos = ncand;
+    while (pos > 0 && better(static_cast<std::uint32_t>(j), cand[pos - 1])) --pos;
+    if (pos >= kCandidates) continue;
+    for (int q = std::min(ncand, kCandidates - 1); q > pos; --q) cand[q] = cand[q - 1];
+    cand[pos] = static_cast<std::uint32_t>(j);
+    ncand = std::min(ncand + 1, kCandidates);
+  }
+  std::array<PlaneAccumulator, kCandidates> acc;
+  std::array<double, kCandidates> zsum{}, cnt{};
+  for (std::size_t j = 0; j < nf; ++j) {
+    int q = 0;
+    while (q < ncand && cand[q] != uf_[j]) ++q;
+    if (q == ncand) continue;
+    const std::uint32_t v = g.flat[j];
+    for (std::uint32_t k = g.vstart[v]; k < g.vstart[v + 1]; ++k) {
+      acc[q].add(g.sx[k], g.sy[k], g.sz[k]);
+      zsum[q] += g.sz[k];
+      cnt[q] += 1.0;
+    }
+  }
+  const double min_nz = std::cos(p.max_slope_deg * M_PI / 180.0);
+  Plane plane;
+  for (int q = 0; q < ncand; ++q) {
+    if (acc[q].fit(&plane) && plane.normal.z() >= min_nz) {
+      *best = cand[q];
+      gp->a = -plane.normal.x() / plane.normal.z();
+      gp->b = -plane.normal.y() / plane.normal.z();
+      gp->c = -plane.d / plane.normal.z();
+      return true;
+    }
+  }
+  *gp = HeightPlane();
+  gp->c = zsum[0] / cnt[0];  // no sub-horizontal plane (one scan line): level, through the largest
+  return true;
+}
+
+}  // namespace voxel
+}  // namespace ground_filter

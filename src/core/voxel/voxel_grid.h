@@ -1,0 +1,126 @@
+// Private to the voxel filter: the data every stage of src/core/voxel/ reads (points sorted by
+// voxel key, voxels, columns, ground-model cells) and the small math shared by the stages.
+#ifndef GROUND_FILTER_SRC_CORE_VOXEL_VOXEL_GRID_H
+#define GROUND_FILTER_SRC_CORE_VOXEL_VOXEL_GRID_H
+
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "ground_filter/voxel_ground_filter.h"
+
+namespace ground_filter {
+namespace voxel {
+
+constexpr int kMaxAxisBits = 21;  // 3 * 21 bits fit one 64-bit key
+
+// Stages split their work over `threads` only from this many valid points: below it the
+// parallel regions cost more than they save (a KITTI frame, 124 k points, stays on one thread).
+constexpr std::size_t kParallelMinPoints = 150000;
+
+// Voxel flags.
+constexpr std::uint8_t kFlat = 1;  // enough points and a small height range (paper)
+constexpr std::uint8_t kSeed = 2;  // ground seed candidate of the local model
+
+// "No voxel" ends of a z range.
+constexpr std::int32_t kNoLo = std::numeric_limits<std::int32_t>::max() / 2;
+constexpr std::int32_t kNoHi = -kNoLo;
+
+/// \brief Weighted first and second moments of (x, y, z) for height-field plane fits.
+struct Moments {
+  double w = 0, x = 0, y = 0, z = 0, xx = 0, xy = 0, yy = 0, xz = 0, yz = 0;
+  void add(double px, double py, double pz, double pw) {
+    w += pw;
+    x += pw * px;
+    y += pw * py;
+    z += pw * pz;
+    xx += pw * px * px;
+    xy += pw * px * py;
+    yy += pw * py * py;
+    xz += pw * px * pz;
+    yz += pw * py * pz;
+  }
+  void add(const Moments& o) {
+    w += o.w;
+    x += o.x;
+    y += o.y;
+    z += o.z;
+    xx += o.xx;
+    xy += o.xy;
+    yy += o.yy;
+    xz += o.xz;
+    yz += o.yz;
+  }
+};
+
+/// \brief Ground surface z = a x + b y + c (coordinates relative to the cloud's min corner).
+struct HeightPlane {
+  double a = 0, b = 0, c = 0;
+  double at(double x, double y) const { return a * x + b * y + c; }
+};
+
+/// \brief Least-squares z = a x + b y + c of `m`, the slope pulled towards (a0, b0) with weight
+///        `lambda` [weight m^2]. Needs m.w > 0.
+HeightPlane fitHeightPlane(const Moments& m, double a0, double b0, double lambda);
+
+/// \brief Valid points sorted by voxel key, their voxels and columns (written by Voxelizer).
+///
+/// Key layout: x | y | z bit fields, z lowest, so a column's voxels are consecutive and a
+/// column's key is the voxel key >> shift_y.
+struct VoxelGrid {
+  std::uint64_t nx = 0, ny = 0, nz = 0;  // voxels per axis
+  int shift_x = 0, shift_y = 0;
+  std::uint64_t mask_y = 0, mask_z = 0;
+
+  // Sorted position -> input index: the low slot_bits of keys[i] (packed) or order[i] is the
+  // slot (valid point in input order), point_index[slot] the input index unless all_valid.
+  bool packed = false;  // keys hold (voxel key << slot_bits | slot)
+  int slot_bits = 32;   // packed: bits of the slot (32, fewer when the key needs more)
+  bool all_valid = false;
+  std::vector<std::uint64_t> keys;
+  std::vector<std::uint32_t> order;
+  std::vector<std::uint32_t> point_index;
+
+  // Per valid point in key order, relative to the cloud's min corner.
+  std::vector<float> sx, sy, sz;
+
+  // Per voxel, key order.
+  std::vector<std::uint64_t> vkey;
+  std::vector<std::uint32_t> vstart;  // CSR into the sorted points, size voxels + 1
+  std::vector<float> vx, vy, vz;      // centroid
+  std::vector<std::uint8_t> vflags;   // kFlat | kSeed
+  std::vector<std::uint32_t> vcell;   // ground-model cell
+
+  // Columns (x, y): runs of voxels.
+  std::vector<std::uint64_t> col_key;    // voxel key >> shift_y
+  std::vector<std::uint32_t> col_first;  // first voxel, size columns + 1
+
+  // Flat voxels used for region growing (all of them for the global plane, the flat seed
+  // candidates for the local model) and seed candidates, voxel ids in key order.
+  std::vector<std::uint32_t> flat;
+  std::vector<std::uint32_t> seeds;
+
+  std::size_t points() const { return sx.size(); }
+  std::size_t voxels() const { return vkey.size(); }
+  std::size_t columns() const { return col_key.size(); }
+  std::uint32_t pointsIn(std::size_t v) const { return vstart[v + 1] - vstart[v]; }
+  std::int32_t zOf(std::size_t v) const { return static_cast<std::int32_t>(vkey[v] & mask_z); }
+};
+
+/// \brief Cells of the local ground model (tile_size), with a border of one cell so 3 x 3
+///        neighbourhoods need no bounds checks; one cell for the global plane.
+struct CellGrid {
+  std::uint64_t cell_vox = 1, ncx = 1, ncy = 1;
+  std::vector<std::uint32_t> cell_of_x, cell_of_y;  // voxel x -> cell x * ncy, voxel y -> cell y
+  std::vector<std::uint8_t> used;                   // holds voxels (Voxelizer)
+
+  std::size_t count() const { return ncx * ncy; }
+  /// \brief Sizes the grid for `nx` x `ny` voxels and fills the per-axis lookups.
+  void setup(const VoxelGroundFilterParams& p, std::uint64_t nx, std::uint64_t ny);
+};
+
+}  // namespace voxel
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_CORE_VOXEL_VOXEL_GRID_H

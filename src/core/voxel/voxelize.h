@@ -1,0 +1,55 @@
+// Private to the voxel filter: valid points, voxel keys, radix sort, voxels, columns, flags.
+#ifndef GROUND_FILTER_SRC_CORE_VOXEL_VOXELIZE_H
+#define GROUND_FILTER_SRC_CORE_VOXEL_VOXELIZE_H
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "ground_filter/cloud_view.h"
+#include "ground_filter/voxel_ground_filter.h"
+#include "voxel/voxel_grid.h"
+#include "voxel/worker_pool.h"
+
+namespace ground_filter {
+namespace voxel {
+
+/// \brief Steps 1-2 and the seed candidates of step 6: sorts the valid points by voxel key and
+///        builds the voxels, their flags, cells and the columns of a VoxelGrid.
+class Voxelizer {
+ public:
+  /// \brief Finds the valid points and their bounds, sizes the key layout of `g` and computes
+  ///        the keys. Returns the number of valid points (0: `g` is left as is).
+  /// \throws std::runtime_error when an axis needs more than 2^21 voxels.
+  std::size_t prepare(const CloudView& cloud, double voxel_size, int threads, WorkerPool* pool,
+                      VoxelGrid* g);
+  /// \brief Sorts the keys and fills the points, voxels, columns, `flat` and `seeds` of `g`;
+  ///        marks the cells holding voxels in `cells`.
+  void build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* cells);
+
+ private:
+  struct RadixPlan {
+    int lo = 0, passes = 0, digit = 1;
+    std::uint32_t mask() const { return (1u << digit) - 1; }
+  };
+  struct Chunk {                                         // one thread's share of the input
+    std::size_t begin = 0, end = 0, valid = 0, out = 0;  // input range, valid points, first slot
+    float lo[3], hi[3];                                  // bounds of its valid points
+  };
+  static void scanBounds(const CloudView& cloud, Chunk* ch);
+  void sort(VoxelGrid* g);
+
+  std::vector<float> pxyz_;  // valid points, x y z triplets relative to the min corner
+  std::vector<Chunk> chunks_;
+  std::vector<std::uint64_t> keys_tmp_;
+  std::vector<std::uint32_t> order_tmp_;
+  RadixPlan plan_;
+  // Digit counts of every radix pass (counted by prepare(), one histogram per thread, summed
+  // into the first).
+  std::vector<std::uint32_t> hist_;
+};
+
+}  // namespace voxel
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_CORE_VOXEL_VOXELIZE_H

@@ -1,0 +1,320 @@
+// ground_filter_peer_benchmark: the voxel filter against PCL's SACSegmentation plane (RANSAC),
+// alternated call by call on the same frames; medians, their ratio and, where the scan has ground
+// truth, F1 of both. Benchmark only: this target alone is built with -march=native and
+// PCL_NO_PRECOMPILE (PCL's templates compiled here, for this CPU); the voxel filter comes from
+// the shipped core library (portable flags).
+
+#include <pcl/ModelCoefficients.h>
+#include <pcl/PointIndices.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+#include <pcl/sample_consensus/method_types.h>
+#include <pcl/sample_consensus/model_types.h>
+#include <pcl/segmentation/sac_segmentation.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <iostream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "ground_filter/metrics.h"
+#include "ground_filter/scan_io.h"
+#include "ground_filter/scene_generator.h"
+#include "ground_filter/voxel_ground_filter.h"
+
+#ifndef GF_DEFAULT_DATA_DIR
+#define GF_DEFAULT_DATA_DIR "../shared/data"
+#endif
+
+namespace gf = ground_filter;
+
+namespace {
+
+const char kUsage[] =
+    "usage: ground_filter_peer_benchmark [--repeat N] [--warmup N] [--threads N]\n"
+    "                                    [--replicate K] [--tls-points N] [--no-peer]\n"
+    "                                    [--set NAME=VALUE]... [PATH...]\n"
+    "\n"
+    "Times the voxel filter (shipped build) and PCL's SACSegmentation plane (RANSAC, distance\n"
+    "threshold 0.2 m, 1000 iterations, optimized coefficients; compiled here with -march=native\n"
+    "and PCL_NO_PRECOMPILE), alternating the two call by call on the same points. Prints the\n"
+    "median and min ms of both, the ratio voxel / RANSAC of the medians and, for labelled scans,\n"
+    "F1 (ground positive) of both (RANSAC: plane inliers are ground).\n"
+    "\n"
+    "PATH            scan file, directory or builtin:lidar[:SEED] / builtin:tls[:SEED]; default:\n"
+    "                DATA/semantickitti/seq00/00000{0,1,2}.bin (DATA = $GF_DATA_DIR or\n"
+    "                " GF_DEFAULT_DATA_DIR
+    ")\n"
+    "--repeat N      timed calls of each method per input (default 15)\n"
+    "--warmup N      untimed calls of each before timing (default 1)\n"
+    "--threads N     the voxel filter's threads parameter (default 1)\n"
+    "--replicate K   each input as K copies side by side (x shifted by the input's x extent +\n"
+    "                10 m), e.g. K = 40 makes 5 M points of a KITTI frame (default 1)\n"
+    "--tls-points N  add a generated TLS scan of N points (builtin:tls with tls_points = N)\n"
+    "--no-peer       time the voxel filter only\n"
+    "--set N=V       voxel filter parameter (repeatable)\n"
+    "--help          this text\n";
+
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct Options {
+  int repeat = 15;
+  int warmup = 1;
+  int threads = 1;
+  int replicate = 1;
+  long tls_points = 0;
+  bool peer = true;
+  gf::ParamSettings settings;
+  std::vector<std::string> paths;
+};
+
+long parseCount(const std::string& opt, const std::string& v, long min, long max) {
+  char* end = nullptr;
+  const long n = std::strtol(v.c_str(), &end, 10);
+  if (v.empty() || *end != '\0' || n < min || n > max) {
+    throw UsageError(opt + " expects an integer in [" + std::to_string(min) + ", " +
+                     std::to_string(max) + "], got '" + v + "'");
+  }
+  return n;
+}
+
+Options parseArgs(int argc, char** argv) {
+  Options o;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) throw UsageError(arg + " needs a value");
+      return argv[++i];
+    };
+    if (arg == "--help" || arg == "-h") {
+      std::cout << kUsage;
+      std::exit(0);
+    } else if (arg == "--repeat") {
+      o.repeat = static_cast<int>(parseCount(arg, value(), 1, 100000));
+    } else if (arg == "--warmup") {
+      o.warmup = static_cast<int>(parseCount(arg, value(), 0, 1000));
+    } else if (arg == "--threads") {
+      o.threads = static_cast<int>(parseCount(arg, value(), 0, 256));
+    } else if (arg == "--replicate") {
+      o.replicate = static_cast<int>(parseCount(arg, value(), 1, 1000));
+    } else if (arg == "--tls-points") {
+      o.tls_points = parseCount(arg, value(), 1000, 5000000);
+    } else if (arg == "--no-peer") {
+      o.peer = false;
+    } else if (arg == "--set") {
+      const std::string kv = value();
+      const auto eq = kv.find('=');
+      if (eq == std::string::npos) throw UsageError("--set expects NAME=VALUE, got '" + kv + "'");
+      o.settings.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
+    } else if (arg.rfind("--", 0) == 0) {
+      throw UsageError("unknown option " + arg);
+    } else {
+      o.paths.push_back(arg);
+    }
+  }
+  return o;
+}
+
+// One input: packed x y z of its points (NaN/Inf kept: the voxel filter sees every point) and
+// truth per point (-1 ignored) or empty.
+struct Input {
+  std::string name;
+  std::vector<float> xyz;
+  std::vector<std::int8_t> truth;
+  std::size_t size() const { return xyz.size() / 3; }
+};
+
+Input replicate(Input in, int copies) {
+  if (copies <= 1) return in;
+  float lo = 1e30f, hi = -1e30f;
+  const std::size_t n = in.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const float x = in.xyz[3 * i];
+    if (std::isfinite(x)) {
+      lo = std::min(lo, x);
+      hi = std::max(hi, x);
+    }
+  }
+  const float step = hi > lo ? hi - lo + 10.f : 10.f;
+  Input out;
+  out.name = in.name + " x" + std::to_string(copies);
+  out.xyz.reserve(in.xyz.size() * copies);
+  for (int k = 0; k < copies; ++k) {
+    for (std::size_t i = 0; i < n; ++i) {
+      out.xyz.push_back(in.xyz[3 * i] + step * k);
+      out.xyz.push_back(in.xyz[3 * i + 1]);
+      out.xyz.push_back(in.xyz[3 * i + 2]);
+    }
+    out.truth.insert(out.truth.end(), in.truth.begin(), in.truth.end());
+  }
+  return out;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const std::size_t m = v.size() / 2;
+  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+}
+
+double msSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+struct Row {
+  std::string name;
+  std::size_t points = 0;
+  double voxel_med = 0, voxel_min = 0, peer_med = 0, peer_min = 0;
+  double voxel_f1 = -1, peer_f1 = -1;
+};
+
+int run(const Options& opt) {
+  std::vector<Input> inputs;
+  std::vector<std::string> paths = opt.paths;
+  if (paths.empty() && opt.tls_points == 0) {
+    const char* env = std::getenv("GF_DATA_DIR");
+    const std::string data = env ? env : GF_DEFAULT_DATA_DIR;
+    for (const char* f : {"000000", "000001", "000002"}) {
+      paths.push_back(data + "/semantickitti/seq00/" + f + ".bin");
+    }
+  }
+  for (const std::string& p : paths) {
+    for (const std::string& file : gf::listScanFiles(p)) {
+      const gf::Scan scan = gf::loadScan(file);
+      const gf::CloudView view = gf::viewOf(scan.cloud);
+      Input in;
+      in.name = gf::scanStem(file);
+      in.xyz.resize(3 * view.size());
+      for (std::size_t i = 0; i < view.size(); ++i) {
+        in.xyz[3 * i] = view.x(i);
+        in.xyz[3 * i + 1] = view.y(i);
+        in.xyz[3 * i + 2] = view.z(i);
+      }
+      in.truth = scan.truth;
+      inputs.push_back(replicate(std::move(in), opt.replicate));
+    }
+  }
+  if (opt.tls_points > 0) {
+    gf::SceneParams sp;
+    sp.mode = gf::SceneParams::Mode::kTls;
+    sp.tls_points = static_cast<std::size_t>(opt.tls_points);
+    gf::GeneratedScan g = gf::generateScene(sp);
+    Input in;
+    in.name = "builtin:tls(" + std::to_string(opt.tls_points) + ")";
+    in.xyz = std::move(g.xyz);
+    in.truth.assign(g.truth.begin(), g.truth.end());
+    inputs.push_back(replicate(std::move(in), opt.replicate));
+  }
+
+  gf::ParamSettings settings = opt.settings;
+  settings.emplace_back("threads", std::to_string(opt.threads));
+  std::vector<Row> rows;
+  for (const Input& in : inputs) {
+    const std::size_t n = in.size();
+    const gf::CloudView view = gf::CloudView::packedXyz(in.xyz.data(), n);
+    auto voxel = gf::makeGroundFilter("voxel", settings);
+    std::vector<std::uint8_t> labels, peer_labels(n, 0);
+    // RANSAC input: the finite points (SACSegmentation itself drops nothing).
+    pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+    std::vector<std::size_t> index;
+    if (opt.peer) cloud->reserve(n);
+    for (std::size_t i = 0; i < n && opt.peer; ++i) {
+      const float x = in.xyz[3 * i], y = in.xyz[3 * i + 1], z = in.xyz[3 * i + 2];
+      if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) continue;
+      cloud->push_back(pcl::PointXYZ(x, y, z));
+      index.push_back(i);
+    }
+    pcl::SACSegmentation<pcl::PointXYZ> seg;
+    seg.setOptimizeCoefficients(true);
+    seg.setModelType(pcl::SACMODEL_PLANE);
+    seg.setMethodType(pcl::SAC_RANSAC);
+    seg.setDistanceThreshold(0.2);
+    seg.setMaxIterations(1000);
+    seg.setInputCloud(cloud);
+    pcl::PointIndices inliers;
+    pcl::ModelCoefficients coefficients;
+
+    std::vector<double> tv, tp;
+    for (int r = 0; r < opt.warmup + opt.repeat; ++r) {
+      auto t0 = std::chrono::steady_clock::now();
+      voxel->filter(view, &labels);
+      const double v_ms = msSince(t0);
+      double p_ms = 0.0;
+      if (opt.peer) {
+        t0 = std::chrono::steady_clock::now();
+        seg.segment(inliers, coefficients);
+        p_ms = msSince(t0);
+      }
+      if (r < opt.warmup) continue;
+      tv.push_back(v_ms);
+      tp.push_back(p_ms);
+    }
+    Row row;
+    row.name = in.name;
+    row.points = n;
+    row.voxel_med = median(tv);
+    row.voxel_min = *std::min_element(tv.begin(), tv.end());
+    row.peer_med = median(tp);
+    row.peer_min = *std::min_element(tp.begin(), tp.end());
+    if (!in.truth.empty()) {
+      row.voxel_f1 = gf::computeMetrics(gf::countConfusion(labels, in.truth)).f1;
+      if (opt.peer) {
+        for (int k : inliers.indices) peer_labels[index[static_cast<std::size_t>(k)]] = 1;
+        row.peer_f1 = gf::computeMetrics(gf::countConfusion(peer_labels, in.truth)).f1;
+      }
+    }
+    rows.push_back(row);
+  }
+
+  std::printf(
+      "voxel (threads=%d, shipped flags) vs PCL SACSegmentation plane (RANSAC 0.2 m, 1000 "
+      "iterations, optimized; -march=native); %d alternated calls each after %d warm-up\n",
+      opt.threads, opt.repeat, opt.warmup);
+  std::printf("%-28s %9s %10s %9s %10s %9s %7s %8s %8s\n", "input", "points", "voxel_med",
+              "voxel_min", "ransac_med", "ransac_min", "ratio", "voxel_F1", "ransac_F1");
+  double sv = 0, sp = 0;
+  std::size_t np = 0;
+  for (const Row& r : rows) {
+    auto fixed = [](double v, bool ok) {
+      char buf[32];
+      std::snprintf(buf, sizeof(buf), "%.2f", v);
+      return ok ? std::string(buf) : std::string("-");
+    };
+    std::printf("%-28s %9zu %10.3f %9.3f %10.3f %9.3f %7s %8s %8s\n", r.name.c_str(), r.points,
+                r.voxel_med, r.voxel_min, r.peer_med, r.peer_min,
+                fixed(r.voxel_med / r.peer_med, opt.peer).c_str(),
+                fixed(100.0 * r.voxel_f1, r.voxel_f1 >= 0).c_str(),
+                fixed(100.0 * r.peer_f1, r.peer_f1 >= 0).c_str());
+    sv += r.voxel_med;
+    sp += r.peer_med;
+    np += r.points;
+  }
+  if (rows.size() > 1) {
+    char ratio[32] = "-";
+    if (opt.peer) std::snprintf(ratio, sizeof(ratio), "%.2f", sv / sp);
+    std::printf("%-28s %9zu %10.3f %9s %10.3f %9s %7s   (sums of medians)\n", "all", np, sv, "", sp,
+                "", ratio);
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(parseArgs(argc, argv));
+  } catch (const UsageError& e) {
+    std::cerr << "ground_filter_peer_benchmark: " << e.what() << "\n(try --help)" << std::endl;
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "ground_filter_peer_benchmark: " << e.what() << std::endl;
+    return 1;
+  }
+}
