@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "gf_test_clouds.h"
 #include "ground_filter/working_volume.h"
 #include "point_cloud2.h"
 #include "voxel_ground_filter_nodelet.h"
@@ -25,42 +26,22 @@ using sensor_msgs::PointField;
 
 namespace {
 
-PointField field(const std::string& name, std::uint32_t offset, std::uint8_t type,
-                 std::uint32_t count = 1) {
-  PointField f;
-  f.name = name;
-  f.offset = offset;
-  f.datatype = type;
-  f.count = count;
-  return f;
-}
+using gf_test::field;
 
 // Records of 24 bytes: intensity f32 @0, z @4, x @8, y @12, ring u16 @16, 6 bytes padding.
 // Point i has x = i, y = 2i, z = 3i, intensity = 100 + i, ring = i, padding = i.
 PointCloud2 makeCloud(std::uint32_t width, std::uint32_t height = 1, std::uint32_t row_pad = 0) {
-  PointCloud2 c;
-  c.header.frame_id = "velodyne";
-  c.header.stamp.sec = 42;
-  c.width = width;
-  c.height = height;
-  c.fields = {field("intensity", 0, PointField::FLOAT32), field("z", 4, PointField::FLOAT32),
-              field("x", 8, PointField::FLOAT32), field("y", 12, PointField::FLOAT32),
-              field("ring", 16, PointField::UINT16)};
-  c.point_step = 24;
-  c.row_step = width * c.point_step + row_pad;
-  c.data.assign(std::size_t{c.row_step} * height, 0xEE);
-  for (std::uint32_t r = 0, i = 0; r < height; ++r) {
-    for (std::uint32_t col = 0; col < width; ++col, ++i) {
-      std::uint8_t* rec = c.data.data() + std::size_t{r} * c.row_step + col * c.point_step;
-      const float v[4] = {100.0f + i, 3.0f * i, 1.0f * i, 2.0f * i};
-      std::memcpy(rec, v, sizeof(v));
-      const std::uint16_t ring = static_cast<std::uint16_t>(i);
-      std::memcpy(rec + 16, &ring, 2);
-      std::memset(rec + 18, static_cast<int>(i & 0xFF), 6);
-    }
-  }
-  c.is_dense = true;
-  return c;
+  return gf_test::buildCloud(
+      {field("intensity", 0, PointField::FLOAT32), field("z", 4, PointField::FLOAT32),
+       field("x", 8, PointField::FLOAT32), field("y", 12, PointField::FLOAT32),
+       field("ring", 16, PointField::UINT16)},
+      24, width, height, row_pad, 0xEE, 42, [](std::uint8_t* rec, std::uint32_t i) {
+        const float v[4] = {100.0f + i, 3.0f * i, 1.0f * i, 2.0f * i};
+        std::memcpy(rec, v, sizeof(v));
+        const std::uint16_t ring = static_cast<std::uint16_t>(i);
+        std::memcpy(rec + 16, &ring, 2);
+        std::memset(rec + 18, static_cast<int>(i & 0xFF), 6);
+      });
 }
 
 const std::uint8_t* record(const PointCloud2& c, std::size_t i) {

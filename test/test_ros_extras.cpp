@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "cloud_subscription_helper.h"
+#include "gf_test_clouds.h"
 #include "point_cloud2.h"
 
 namespace gf = ground_filter;
@@ -22,38 +23,19 @@ using sensor_msgs::PointField;
 
 namespace {
 
-PointField field(const std::string& name, std::uint32_t offset, std::uint8_t type) {
-  PointField f;
-  f.name = name;
-  f.offset = offset;
-  f.datatype = type;
-  f.count = 1;
-  return f;
-}
+using gf_test::field;
 
 // 20-byte records: x y z intensity (float32) and id (uint32) = i; rows padded by `row_pad`.
 PointCloud2 makeCloud(std::uint32_t width, std::uint32_t height = 1, std::uint32_t row_pad = 0) {
-  PointCloud2 c;
-  c.header.frame_id = "velodyne";
-  c.header.stamp.sec = 7;
-  c.width = width;
-  c.height = height;
-  c.fields = {field("x", 0, PointField::FLOAT32), field("y", 4, PointField::FLOAT32),
-              field("z", 8, PointField::FLOAT32), field("intensity", 12, PointField::FLOAT32),
-              field("id", 16, PointField::UINT32)};
-  c.point_step = 20;
-  c.row_step = width * c.point_step + row_pad;
-  c.data.assign(std::size_t{c.row_step} * height, 0xAB);
-  for (std::uint32_t r = 0, i = 0; r < height; ++r) {
-    for (std::uint32_t col = 0; col < width; ++col, ++i) {
-      std::uint8_t* rec = c.data.data() + std::size_t{r} * c.row_step + col * c.point_step;
-      const float v[4] = {1.0f * i, -2.0f * i, 0.5f * i, 10.0f + i};
-      std::memcpy(rec, v, sizeof(v));
-      std::memcpy(rec + 16, &i, 4);
-    }
-  }
-  c.is_dense = true;
-  return c;
+  return gf_test::buildCloud(
+      {field("x", 0, PointField::FLOAT32), field("y", 4, PointField::FLOAT32),
+       field("z", 8, PointField::FLOAT32), field("intensity", 12, PointField::FLOAT32),
+       field("id", 16, PointField::UINT32)},
+      20, width, height, row_pad, 0xAB, 7, [](std::uint8_t* rec, std::uint32_t i) {
+        const float v[4] = {1.0f * i, -2.0f * i, 0.5f * i, 10.0f + i};
+        std::memcpy(rec, v, sizeof(v));
+        std::memcpy(rec + 16, &i, 4);
+      });
 }
 
 gf::CloudLayout layoutOf(const PointCloud2& c) {
