@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "cli_args.h"
 #include "ground_filter/metrics.h"
 #include "ground_filter/scan_io.h"
 #include "ground_filter/scene_generator.h"
@@ -158,15 +159,8 @@ Input replicate(Input in, int copies) {
   return out;
 }
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t m = v.size() / 2;
-  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
-}
-
-double msSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
+using gf::cli::median;
+using gf::cli::msSince;
 
 struct Row {
   std::string name;
