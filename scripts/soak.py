@@ -204,9 +204,12 @@ def run(args):
         trim = ([] if args.malloc_trim_period is None
                 else ["_malloc_trim_period:=%g" % args.malloc_trim_period])
         for name, plugin in NODELETS.items():
+            # --no-bond: on a machine loaded far past its cores (other builds), the loader's
+            # bond heartbeats timed out after ~60 s and the manager unloaded both nodelets
+            # ("Bond broken, exiting"); the soak measures the manager, not bondcpp.
             start(name, ["rosrun", "nodelet", "nodelet", "load", plugin, "/soak_manager",
                          "__name:=" + name, "~input:=" + INPUT, "_lazy:=false",
-                         "_queue_size:=3", "_diagnostic_period:=1.0"] + trim)
+                         "_queue_size:=3", "_diagnostic_period:=1.0", "--no-bond"] + trim)
 
         def subscribed():
             _, subs, _ = master.getSystemState()
