@@ -111,6 +111,72 @@ __device__ inline void warpSortPairs(float& d, int& id, int lane) {
   }
 }
 
+/// Compare-exchange step of a bitonic merge: lane keeps the smaller pair of (own, partner at
+/// lane ^ stride) when it is the lower lane of the two, else the larger.
+__device__ inline void bitonicStep(float& d, int& id, int lane, int stride) {
+  const float od = __shfl_xor_sync(0xffffffffu, d, stride);
+  const int oi = __shfl_xor_sync(0xffffffffu, id, stride);
+  const bool lower = (lane & stride) == 0;
+  if (lower == pairLess(od, oi, d, id)) {
+    d = od;
+    id = oi;
+  }
+}
+
+/// Sorts a bitonic sequence of one pair per lane into increasing order.
+__device__ inline void bitonicMerge(float& d, int& id, int lane) {
+  for (int stride = 16; stride > 0; stride >>= 1) bitonicStep(d, id, lane, stride);
+}
+
+/// Merges a batch of pairs (one per lane, non-entrants set to (inf, kEmptyIndex)) into the sorted
+/// list in one go: the list keeps the smallest 32 (one half) or 64 (two halves) pairs of both,
+/// which are exactly the slots that one insertion per entrant would leave (rows are unique, so
+/// (distance, index) orders them totally).
+template <bool kTwoHalves>
+__device__ inline void warpMerge(WarpList& w, float d, int id, int lane, int k) {
+  const unsigned full = 0xffffffffu;
+  warpSortPairs(d, id, lane);
+  // Reversed, the sorted batch against an ascending half gives a bitonic sequence of the
+  // smaller of each pair: the 32 smallest of the two.
+  float rd = __shfl_sync(full, d, 31 - lane);
+  int ri = __shfl_sync(full, id, 31 - lane);
+  if (kTwoHalves) {
+    // Smallest 32 of (hi, batch); every pair of lo stays in the list (at most 63 are smaller).
+    if (pairLess(rd, ri, w.dhi, w.ihi)) {
+      w.dhi = rd;
+      w.ihi = ri;
+    }
+    bitonicMerge(w.dhi, w.ihi, lane);
+    rd = __shfl_sync(full, w.dhi, 31 - lane);
+    ri = __shfl_sync(full, w.ihi, 31 - lane);
+    // lo and the reversed new hi: element-wise min and max split them into the smallest and the
+    // largest 32, each a bitonic sequence.
+    const bool swap = pairLess(rd, ri, w.dlo, w.ilo);
+    w.dhi = swap ? w.dlo : rd;
+    w.ihi = swap ? w.ilo : ri;
+    if (swap) {
+      w.dlo = rd;
+      w.ilo = ri;
+    }
+    bitonicMerge(w.dlo, w.ilo, lane);
+    bitonicMerge(w.dhi, w.ihi, lane);
+  } else {
+    if (pairLess(rd, ri, w.dlo, w.ilo)) {
+      w.dlo = rd;
+      w.ilo = ri;
+    }
+    bitonicMerge(w.dlo, w.ilo, lane);
+  }
+  const int kl = (k - 1) & 31;
+  if (!kTwoHalves || k <= 32) {
+    w.kd = __shfl_sync(full, w.dlo, kl);
+    w.ki = __shfl_sync(full, w.ilo, kl);
+  } else {
+    w.kd = __shfl_sync(full, w.dhi, kl);
+    w.ki = __shfl_sync(full, w.ihi, kl);
+  }
+}
+
 /// One warp per query; queries [base, end) of the Morton-sorted points; row s of the output holds
 /// the list of sorted point s (original indices). kTwoHalves: k > 32. kSortCells: visit the cells
 /// of each batch nearest first (the K-th distance shrinks sooner, fewer insertions).
@@ -118,8 +184,8 @@ template <bool kTwoHalves, bool kSortCells>
 __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
     knnKernel(const __grid_constant__ GridDesc g, const float4* __restrict__ pts,
               const unsigned long long* __restrict__ tkeys, const uint2* __restrict__ tvals, int n,
-              const unsigned int* __restrict__ run_id, const unsigned int* __restrict__ run_end,
-              int base, int end, int k, std::int32_t* __restrict__ out_idx,
+              const unsigned int* __restrict__ run_stop, int base, int end, int k, int merge_min,
+              std::int32_t* __restrict__ out_idx,
               float* __restrict__ out_d2, unsigned long long* __restrict__ stats) {
   const unsigned full = 0xffffffffu;
   const int lane = threadIdx.x & 31;
@@ -236,10 +302,12 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
           const unsigned int oexcl = __shfl_sync(full, excl, owner);
           float d = INFINITY;
           int id = kEmptyIndex;
+          unsigned int stop = 0;
           const bool valid = gpos < count;
           const unsigned int spos = ostart + (gpos - oexcl);  // sorted position (valid lanes)
           if (valid) {
             const float4 p = pts[spos];
+            if (run_stop) stop = run_stop[spos];
             d = sqDist(p.x, p.y, p.z, q.x, q.y, q.z);
             id = __float_as_int(p.w);
           }
@@ -257,6 +325,12 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
             w.ki = (!kTwoHalves || k <= 32) ? __shfl_sync(full, w.ilo, kl) : kEmptyIndex;
             n_ins += __popc(m);
             m = 0;
+          } else if (merge_min > 0 && __popc(m) >= merge_min) {
+            // Many entrants: one bitonic merge costs about as much as 5 single insertions.
+            const bool in = (m >> lane) & 1u;
+            warpMerge<kTwoHalves>(w, in ? d : INFINITY, in ? id : kEmptyIndex, lane, k);
+            n_ins += __popc(m);
+            m = 0;
           }
           while (m) {
             const int src = __ffs(m) - 1;
@@ -267,15 +341,20 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
             m &= ~(1u << src);
             m &= __ballot_sync(full, useful && pairLess(d, id, w.kd, w.ki));
           }
-          // Exact skip inside runs of equal keys (e.g. thousands of identical no-return points):
-          // with the list full at K-th distance 0 only (0, index < ki) can still enter, and a
-          // run's indices ascend (stable sort), so once a member's index exceeds ki the rest of
-          // its run cannot enter either.
-          if (w.kd == 0.f && w.ki != kEmptyIndex) {
+          // Exact skip inside runs of identical points (e.g. thousands of no-return points at the
+          // origin): they share one distance and their indices ascend (stable sort), so once the
+          // last lane's point cannot enter the list (beyond lim, or not before the K-th pair) no
+          // later member of its run can.
+          if (run_stop) {
             const int last = min(kWarp - 1, static_cast<int>(count - cb) - 1);
+            const float d_last = __shfl_sync(full, d, last);
             const int id_last = __shfl_sync(full, id, last);
             const unsigned int pos_last = __shfl_sync(full, spos, last);
-            if (id_last > w.ki) cb += run_end[run_id[pos_last] - 1] - pos_last - 1;
+            const unsigned int stop_last = __shfl_sync(full, stop, last);
+            if (stop_last > pos_last + 1 &&
+                (!(d_last <= lim) || !pairLess(d_last, id_last, w.kd, w.ki))) {
+              cb += stop_last - pos_last - 1;
+            }
           }
         }
       }
@@ -336,15 +415,16 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
 }  // namespace
 
 void launchKnnQuery(const GridDesc& g, const float4* pts, const unsigned long long* tkeys,
-                    const uint2* tvals, const unsigned int* run_id, const unsigned int* run_end,
-                    int n, int base, int end, int k, bool sort_cells, std::int32_t* out_idx,
-                    float* out_d2, unsigned long long* stats, cudaStream_t st) {
+                    const uint2* tvals, const unsigned int* run_stop, int n, int base, int end,
+                    int k, bool sort_cells, int merge_min, std::int32_t* out_idx, float* out_d2,
+                    unsigned long long* stats, cudaStream_t st) {
   if (end <= base) return;
   const unsigned int blocks = blocksFor(static_cast<std::size_t>(end - base) * kWarp, kQueryBlock);
   // Variants: k > 32 (two list halves), cells nearest first.
-#define GF_KNN_LAUNCH(TWO, SORT)                                                                 \
-  knnKernel<TWO, SORT><<<blocks, kQueryBlock, 0, st>>>(g, pts, tkeys, tvals, n, run_id, run_end, \
-                                                       base, end, k, out_idx, out_d2, stats)
+#define GF_KNN_LAUNCH(TWO, SORT)                                                            \
+  knnKernel<TWO, SORT><<<blocks, kQueryBlock, 0, st>>>(g, pts, tkeys, tvals, n, run_stop, \
+                                                       base, end, k, merge_min, out_idx,   \
+                                                       out_d2, stats)
   const bool two = k > 32;
   if (sort_cells) {
     if (two)

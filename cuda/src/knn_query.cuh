@@ -32,13 +32,14 @@ enum Stat {
 };
 
 /// One warp per query for sorted points [base, end): row s of `out_idx` (and `out_d2` when not
-/// null) gets the k nearest original indices of sorted point s. `run_id` / `run_end`: run of
-/// equal keys of each sorted point (1-based) and each run's end (launchRuns). `stats`
+/// null) gets the k nearest original indices of sorted point s. `run_stop`: per sorted point, the
+/// end of its run of identical points (launchRunEnds), or null to skip no runs. `merge_min`: a
+/// batch with at least this many entrants is merged into the list at once (0: never). `stats`
 /// (kStatCount counters) may be null.
 void launchKnnQuery(const GridDesc& g, const float4* pts, const unsigned long long* tkeys,
-                    const uint2* tvals, const unsigned int* run_id, const unsigned int* run_end,
-                    int n, int base, int end, int k, bool sort_cells, std::int32_t* out_idx,
-                    float* out_d2, unsigned long long* stats, cudaStream_t st);
+                    const uint2* tvals, const unsigned int* run_stop, int n, int base, int end,
+                    int k, bool sort_cells, int merge_min, std::int32_t* out_idx, float* out_d2,
+                    unsigned long long* stats, cudaStream_t st);
 
 }  // namespace cuda_impl
 }  // namespace ground_filter

@@ -362,6 +362,51 @@ TEST_F(CudaKnnTest, OptionsChangeSpeedNeverLists) {
   EXPECT_EQ(a.d2, a2.d2);
 }
 
+TEST_F(CudaKnnTest, ListMergingAndIdenticalPointSkipMatchBruteForce) {
+  // A ring of points around 4,000 copies of the origin (an Ouster's no-returns): queries on the
+  // ring reach the origin's cell but not always the origin, so runs of identical points are
+  // skipped at distances > 0; plus duplicates (1..12 copies) and a plain box.
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<float> ang(0.f, 6.2831853f), rad(0.6f, 3.f), zz(-0.3f, 0.3f);
+  std::uniform_int_distribution<int> rep(1, 12);
+  std::vector<float> ring;
+  for (int i = 0; i < 6000; ++i) {
+    if (i % 3 == 0) {
+      ring.insert(ring.end(), {0.f, 0.f, 0.f});
+      ring.insert(ring.end(), {0.f, 0.f, 0.f});
+    }
+    const float a = ang(rng), r = rad(rng), z = zz(rng);
+    for (int c = rep(rng) > 10 ? 3 : 1; c > 0; --c) {
+      ring.insert(ring.end(), {r * std::cos(a), r * std::sin(a), z});
+    }
+  }
+  const auto box = uniformCloud(5000, 3.f, 3.f, 3.f, 32);
+  const std::vector<const std::vector<float>*> clouds = {&ring, &box};
+  for (const std::vector<float>* xyz : clouds) {
+    for (int k : {1, 8, 32, 33, 50, 64}) {
+      // Brute force checks every row of one variant; the others must give the same bits.
+      Lists ref;
+      for (int merge_min : {0, 1, 2, 6, 33}) {
+        for (bool skip : {false, true}) {
+          CudaKnnOptions o;
+          o.merge_min = merge_min;
+          o.skip_duplicates = skip;
+          CudaKnn knn(o);
+          const Lists l = run(knn, *xyz, k);
+          if (ref.idx.empty()) {
+            expectExact(*xyz, k, l);
+            ref = l;
+          } else {
+            EXPECT_EQ(l.idx, ref.idx) << "k = " << k << ", merge_min = " << merge_min
+                                      << ", skip_duplicates = " << skip;
+            EXPECT_EQ(l.d2, ref.d2);
+          }
+        }
+      }
+    }
+  }
+}
+
 TEST_F(CudaKnnTest, ListsKeptOnDeviceFeedTheCounts) {
   const auto xyz = lidarLikeCloud(20000, 24);
   const std::size_t n = 20000;
