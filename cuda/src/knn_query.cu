@@ -177,23 +177,32 @@ __device__ inline void warpMerge(WarpList& w, float d, int id, int lane, int k) 
   }
 }
 
-/// One warp per query; queries [base, end) of the Morton-sorted points; row s of the output holds
-/// the list of sorted point s (original indices). kTwoHalves: k > 32. kSortCells: visit the cells
-/// of each batch nearest first (the K-th distance shrinks sooner, fewer insertions).
+/// Per-query work counters of searchQuery (CudaKnnOptions::collect_stats).
+struct QueryCounters {
+  unsigned int cand = 0, ins = 0, shell = 0, lev = 0;
+  int bits = 0;
+  float lim = 0.f;
+};
+
+/// The search of one query by one warp. Part `part` of `nparts`: the warp takes only the candidate
+/// batches (32 consecutive positions of a shell's concatenated cell ranges) with index
+/// part mod nparts, and stops as the whole search would, on its own (larger) K-th distance, so the
+/// union of the parts' lists holds the query's K nearest (kHeavyWarps warps of one block finish a
+/// heavy query). Returns false, with the list unfinished, once the cells reached hold more than
+/// `abort_cands` candidates (0: never).
 template <bool kTwoHalves, bool kSortCells>
-__global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
-    knnKernel(const __grid_constant__ GridDesc g, const float4* __restrict__ pts,
-              const unsigned long long* __restrict__ tkeys, const uint2* __restrict__ tvals, int n,
-              const unsigned int* __restrict__ run_stop, int base, int end, int k, int merge_min,
-              std::int32_t* __restrict__ out_idx,
-              float* __restrict__ out_d2, unsigned long long* __restrict__ stats) {
+__device__ __forceinline__ bool searchQuery(const GridDesc& g, const float4* __restrict__ pts,
+                                            const unsigned long long* __restrict__ tkeys,
+                                            const uint2* __restrict__ tvals, int n,
+                                            const unsigned int* __restrict__ run_stop,
+                                            long long qi, int k, int merge_min, int part,
+                                            int nparts, unsigned int abort_cands, int lane,
+                                            WarpList& w, QueryCounters& c) {
   const unsigned full = 0xffffffffu;
-  const int lane = threadIdx.x & 31;
-  const long long qi =
-      base + ((static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x) >> 5);
-  if (qi >= end) return;  // uniform per warp
-  const long long t_start = stats ? clock64() : 0;
-  unsigned int n_cand = 0, n_ins = 0, n_shell = 0, n_lev = 0;
+  unsigned int& n_cand = c.cand;
+  unsigned int& n_ins = c.ins;
+  unsigned int& n_shell = c.shell;
+  unsigned int& n_lev = c.lev;
   const float4 q = pts[qi];
   const std::uint32_t qx = quantize(q.x, g.ox, g.inv), qy = quantize(q.y, g.oy, g.inv),
                       qz = quantize(q.z, g.oz, g.inv);
@@ -223,7 +232,6 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
   const unsigned okm = __ballot_sync(full, ok), okr = __ballot_sync(full, ok_r);
   int li = min(okm ? __ffs(okm) - 1 : g.nlev - 1, okr ? __ffs(okr) - 1 : g.nlev - 1);
 
-  WarpList w;
   for (;;) {  // one pass per level tried; a pass that starves moves to the next coarser level
     ++n_lev;
     const LevelDesc& lv = g.lv[li];
@@ -291,7 +299,8 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
         const unsigned int excl = incl - cell.y;
         const unsigned int count = __shfl_sync(full, incl, 31);
         n_cand += count;
-        for (unsigned int cb = 0; cb < count; cb += kWarp) {
+        if (abort_cands && n_cand > abort_cands) return false;  // warp-uniform
+        for (unsigned int cb = part * kWarp; cb < count; cb += kWarp * nparts) {
           const unsigned int gpos = cb + lane;
           int owner = 0;  // first lane whose inclusive sum exceeds gpos
           for (int step = 16; step > 0; step >>= 1) {
@@ -345,7 +354,7 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
           // origin): they share one distance and their indices ascend (stable sort), so once the
           // last lane's point cannot enter the list (beyond lim, or not before the K-th pair) no
           // later member of its run can.
-          if (run_stop) {
+          if (run_stop && nparts == 1) {
             const int last = min(kWarp - 1, static_cast<int>(count - cb) - 1);
             const float d_last = __shfl_sync(full, d, last);
             const int id_last = __shfl_sync(full, id, last);
@@ -368,6 +377,9 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
       if (cz + r < last) bound = fminf(bound, g.oz + (cz + r + 1) * cs - q.z);
       if (bound == INFINITY) break;  // the block covers the whole grid
       bound -= eps;
+      // Every point within lim visited: nothing farther can enter (ends a part of a heavy query
+      // whose own points within lim are fewer than K).
+      if (bound > 0.f && lim <= bound * bound) break;
       if (w.ki != kEmptyIndex && bound > 0.f && w.kd <= bound * bound) break;
       // Still short of k points two shells out while the bound's ball needs many more shells:
       // this level is too fine around q; start again one level coarser rather than walking many
@@ -382,6 +394,15 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
     ++li;
   }
 
+  c.bits = g.lv[li].bits;
+  c.lim = lim;
+  return true;
+}
+
+/// Writes the list of sorted point qi (row qi of the output).
+template <bool kTwoHalves>
+__device__ inline void writeRow(const WarpList& w, long long qi, int k, int lane,
+                                std::int32_t* __restrict__ out_idx, float* __restrict__ out_d2) {
   const std::size_t row = static_cast<std::size_t>(qi) * k;
   if (lane < k) {
     out_idx[row + lane] = w.ilo == kEmptyIndex ? -1 : w.ilo;
@@ -391,24 +412,90 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
     out_idx[row + lane + 32] = w.ihi == kEmptyIndex ? -1 : w.ihi;
     if (out_d2) out_d2[row + lane + 32] = w.ihi == kEmptyIndex ? INFINITY : w.dhi;
   }
+}
+
+/// One warp per query; queries [base, end) of the Morton-sorted points; row s of the output holds
+/// the list of sorted point s (original indices). kTwoHalves: k > 32. kSortCells: visit the cells
+/// of each batch nearest first (the K-th distance shrinks sooner, fewer insertions). A query whose
+/// cells hold more than `abort_cands` candidates (an isolated point, whose K-th neighbour lies
+/// tens of metres away) is left to knnHeavyKernel: its index goes to heavy[base + ...].
+template <bool kTwoHalves, bool kSortCells>
+__global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
+    knnKernel(const __grid_constant__ GridDesc g, const float4* __restrict__ pts,
+              const unsigned long long* __restrict__ tkeys, const uint2* __restrict__ tvals, int n,
+              const unsigned int* __restrict__ run_stop, int base, int end, int k, int merge_min,
+              unsigned int abort_cands, unsigned int* __restrict__ heavy,
+              unsigned int* __restrict__ heavy_count, std::int32_t* __restrict__ out_idx,
+              float* __restrict__ out_d2, unsigned long long* __restrict__ stats) {
+  const int lane = threadIdx.x & 31;
+  const long long qi =
+      base + ((static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x) >> 5);
+  if (qi >= end) return;  // uniform per warp
+  const long long t_start = stats ? clock64() : 0;
+  WarpList w;
+  QueryCounters c;
+  const bool done = searchQuery<kTwoHalves, kSortCells>(g, pts, tkeys, tvals, n, run_stop, qi, k,
+                                                        merge_min, 0, 1, abort_cands, lane, w, c);
+  if (!done) {
+    if (lane == 0) heavy[base + atomicAdd(heavy_count, 1u)] = static_cast<unsigned int>(qi);
+  } else {
+    writeRow<kTwoHalves>(w, qi, k, lane, out_idx, out_d2);
+  }
   if (stats && lane == 0) {
     const unsigned long long cyc = static_cast<unsigned long long>(clock64() - t_start);
-    atomicAdd(&stats[kStatCandidates], n_cand);
-    atomicAdd(&stats[kStatInsertions], n_ins);
-    atomicAdd(&stats[kStatShells], n_shell);
-    atomicAdd(&stats[kStatLevels], n_lev);
+    atomicAdd(&stats[kStatCandidates], c.cand);
+    atomicAdd(&stats[kStatInsertions], c.ins);
+    atomicAdd(&stats[kStatShells], c.shell);
+    atomicAdd(&stats[kStatLevels], c.lev);
     atomicAdd(&stats[kStatCycles], cyc);
+    if (!done) atomicAdd(&stats[kStatHeavy], 1ull);
     if (cyc > 100000) atomicAdd(&stats[kStatOver100k], 1ull);
     if (cyc > 1000000) atomicAdd(&stats[kStatOver1M], 1ull);
     if (atomicMax(&stats[kStatMaxCycles], cyc) < cyc) {  // the slowest so far (racy: diagnostics)
-      stats[kStatSlowCand] = n_cand;
-      stats[kStatSlowIns] = n_ins;
-      stats[kStatSlowShells] = n_shell;
-      stats[kStatSlowLevels] = n_lev;
-      stats[kStatSlowBits] = g.lv[li].bits;
-      stats[kStatSlowLim] = __float_as_uint(lim);
+      stats[kStatSlowCand] = c.cand;
+      stats[kStatSlowIns] = c.ins;
+      stats[kStatSlowShells] = c.shell;
+      stats[kStatSlowLevels] = c.lev;
+      stats[kStatSlowBits] = c.bits;
+      stats[kStatSlowLim] = __float_as_uint(c.lim);
       stats[kStatSlowKd] = __float_as_uint(w.kd);
     }
+  }
+}
+
+/// The queries knnKernel left: kHeavyWarps warps per query, each over its part of the candidates,
+/// then warp 0 merges the parts' lists (their points are disjoint, so the merged list is exact).
+/// Blocks stride over the heavy[base ...] list (its length is on the device: no host sync).
+template <bool kTwoHalves, bool kSortCells>
+__global__ void __launch_bounds__(kHeavyWarps* kWarp, 2)
+    knnHeavyKernel(const __grid_constant__ GridDesc g, const float4* __restrict__ pts,
+                   const unsigned long long* __restrict__ tkeys, const uint2* __restrict__ tvals,
+                   int n, int base, int k, int merge_min, const unsigned int* __restrict__ heavy,
+                   const unsigned int* __restrict__ heavy_count, std::int32_t* __restrict__ out_idx,
+                   float* __restrict__ out_d2) {
+  __shared__ float sd[kHeavyWarps][2 * kWarp];
+  __shared__ int si[kHeavyWarps][2 * kWarp];
+  const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
+  const unsigned int nh = *heavy_count;
+  for (unsigned int h = blockIdx.x; h < nh; h += gridDim.x) {  // uniform per block
+    const long long qi = heavy[base + h];
+    WarpList w;
+    QueryCounters c;
+    searchQuery<kTwoHalves, kSortCells>(g, pts, tkeys, tvals, n, nullptr, qi, k, merge_min, warp,
+                                        kHeavyWarps, 0u, lane, w, c);
+    sd[warp][lane] = w.dlo;
+    si[warp][lane] = w.ilo;
+    sd[warp][lane + kWarp] = kTwoHalves ? w.dhi : INFINITY;
+    si[warp][lane + kWarp] = kTwoHalves ? w.ihi : kEmptyIndex;
+    __syncthreads();
+    if (warp == 0) {
+      for (int o = 1; o < kHeavyWarps; ++o) {
+        warpMerge<kTwoHalves>(w, sd[o][lane], si[o][lane], lane, k);
+        if (kTwoHalves) warpMerge<kTwoHalves>(w, sd[o][lane + kWarp], si[o][lane + kWarp], lane, k);
+      }
+      writeRow<kTwoHalves>(w, qi, k, lane, out_idx, out_d2);
+    }
+    __syncthreads();
   }
 }
 
@@ -416,15 +503,25 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
 
 void launchKnnQuery(const GridDesc& g, const float4* pts, const unsigned long long* tkeys,
                     const uint2* tvals, const unsigned int* run_stop, int n, int base, int end,
-                    int k, bool sort_cells, int merge_min, std::int32_t* out_idx, float* out_d2,
-                    unsigned long long* stats, cudaStream_t st) {
+                    int k, bool sort_cells, int merge_min, unsigned int abort_cands,
+                    unsigned int* heavy, unsigned int* heavy_count, int heavy_blocks,
+                    std::int32_t* out_idx, float* out_d2, unsigned long long* stats,
+                    cudaStream_t st) {
   if (end <= base) return;
   const unsigned int blocks = blocksFor(static_cast<std::size_t>(end - base) * kWarp, kQueryBlock);
   // Variants: k > 32 (two list halves), cells nearest first.
-#define GF_KNN_LAUNCH(TWO, SORT)                                                            \
-  knnKernel<TWO, SORT><<<blocks, kQueryBlock, 0, st>>>(g, pts, tkeys, tvals, n, run_stop, \
-                                                       base, end, k, merge_min, out_idx,   \
-                                                       out_d2, stats)
+#define GF_KNN_LAUNCH(TWO, SORT)                                                                  \
+  do {                                                                                            \
+    knnKernel<TWO, SORT><<<blocks, kQueryBlock, 0, st>>>(g, pts, tkeys, tvals, n, run_stop, base, \
+                                                         end, k, merge_min, abort_cands, heavy,   \
+                                                         heavy_count, out_idx, out_d2, stats);    \
+    GF_CUDA_CHECK_LAUNCH();                                                                       \
+    if (abort_cands) {                                                                            \
+      knnHeavyKernel<TWO, SORT><<<heavy_blocks, kHeavyWarps * kWarp, 0, st>>>(                    \
+          g, pts, tkeys, tvals, n, base, k, merge_min, heavy, heavy_count, out_idx, out_d2);      \
+      GF_CUDA_CHECK_LAUNCH();                                                                     \
+    }                                                                                             \
+  } while (0)
   const bool two = k > 32;
   if (sort_cells) {
     if (two)
@@ -438,7 +535,6 @@ void launchKnnQuery(const GridDesc& g, const float4* pts, const unsigned long lo
       GF_KNN_LAUNCH(false, false);
   }
 #undef GF_KNN_LAUNCH
-  GF_CUDA_CHECK_LAUNCH();
 }
 
 }  // namespace cuda_impl
