@@ -184,12 +184,11 @@ struct QueryCounters {
   float lim = 0.f;
 };
 
-/// The search of one query by one warp. Part `part` of `nparts`: the warp takes only the candidate
-/// batches (32 consecutive positions of a shell's concatenated cell ranges) with index
-/// part mod nparts, and stops as the whole search would, on its own (larger) K-th distance, so the
-/// union of the parts' lists holds the query's K nearest (kHeavyWarps warps of one block finish a
-/// heavy query). Returns false, with the list unfinished, once the cells reached hold more than
-/// `abort_cands` candidates (0: never).
+/// The search of one query by one warp. Part `part` of `nparts` > 1: the warp takes only the points
+/// of the sorted 32-blocks b with b mod nparts == part, a fixed partition, and runs the search on
+/// them alone (its own K-th distance prunes and stops it), so the union of the parts' lists holds
+/// the query's K nearest (kHeavyWarps warps of one block finish a heavy query). Returns false,
+/// with the list unfinished, once it has loaded more than `abort_cands` candidates (0: never).
 template <bool kTwoHalves, bool kSortCells>
 __device__ __forceinline__ bool searchQuery(const GridDesc& g, const float4* __restrict__ pts,
                                             const unsigned long long* __restrict__ tkeys,
@@ -203,6 +202,7 @@ __device__ __forceinline__ bool searchQuery(const GridDesc& g, const float4* __r
   unsigned int& n_ins = c.ins;
   unsigned int& n_shell = c.shell;
   unsigned int& n_lev = c.lev;
+  unsigned int scanned = 0;  // candidates loaded so far (runs skipped do not count)
   const float4 q = pts[qi];
   const std::uint32_t qx = quantize(q.x, g.ox, g.inv), qy = quantize(q.y, g.oy, g.inv),
                       qz = quantize(q.z, g.oz, g.inv);
@@ -290,30 +290,12 @@ __device__ __forceinline__ bool searchQuery(const GridDesc& g, const float4* __r
           }
         }
         if (kSortCells) warpSortCells(key, cell, lane);
-        // Concatenate the cells' point ranges across the warp.
-        unsigned int incl = cell.y;
-        for (int o = 1; o < kWarp; o <<= 1) {
-          const unsigned int v = __shfl_up_sync(full, incl, o);
-          if (lane >= o) incl += v;
-        }
-        const unsigned int excl = incl - cell.y;
-        const unsigned int count = __shfl_sync(full, incl, 31);
-        n_cand += count;
-        if (abort_cands && n_cand > abort_cands) return false;  // warp-uniform
-        for (unsigned int cb = part * kWarp; cb < count; cb += kWarp * nparts) {
-          const unsigned int gpos = cb + lane;
-          int owner = 0;  // first lane whose inclusive sum exceeds gpos
-          for (int step = 16; step > 0; step >>= 1) {
-            const unsigned int v = __shfl_sync(full, incl, owner + step - 1);
-            if (v <= gpos) owner += step;
-          }
-          const unsigned int ostart = __shfl_sync(full, cell.x, owner);
-          const unsigned int oexcl = __shfl_sync(full, excl, owner);
-          float d = INFINITY;
-          int id = kEmptyIndex;
-          unsigned int stop = 0;
-          const bool valid = gpos < count;
-          const unsigned int spos = ostart + (gpos - oexcl);  // sorted position (valid lanes)
+        // The candidate at sorted position spos (valid lanes) against the list: d, id and the
+        // end of its run of identical points come back for the skip below.
+        auto consume = [&](bool valid, unsigned int spos, float& d, int& id, unsigned int& stop) {
+          d = INFINITY;
+          id = kEmptyIndex;
+          stop = 0;
           if (valid) {
             const float4 p = pts[spos];
             if (run_stop) stop = run_stop[spos];
@@ -350,11 +332,59 @@ __device__ __forceinline__ bool searchQuery(const GridDesc& g, const float4* __r
             m &= ~(1u << src);
             m &= __ballot_sync(full, useful && pairLess(d, id, w.kd, w.ki));
           }
+        };
+        if (nparts > 1) {
+          // Part of a heavy query: the points of sorted 32-blocks b with b mod nparts == part,
+          // cell by cell (a partition of the points that no level or pruning choice changes).
+          unsigned int todo = __ballot_sync(full, cell.y > 0);
+          while (todo) {
+            const int j = __ffs(todo) - 1;
+            todo &= todo - 1;
+            const unsigned int s0 = __shfl_sync(full, cell.x, j), s1 = s0 + __shfl_sync(full, cell.y, j);
+            n_cand += s1 - s0;
+            const unsigned int b0 = s0 >> 5;
+            const unsigned int first = b0 + (part + nparts - b0 % nparts) % nparts;
+            for (unsigned int blk = first; (blk << 5) < s1; blk += nparts) {
+              const unsigned int spos = (blk << 5) + lane;
+              float d;
+              int id;
+              unsigned int stop;
+              consume(spos >= s0 && spos < s1, spos, d, id, stop);
+            }
+          }
+          continue;
+        }
+        // Concatenate the cells' point ranges across the warp.
+        unsigned int incl = cell.y;
+        for (int o = 1; o < kWarp; o <<= 1) {
+          const unsigned int v = __shfl_up_sync(full, incl, o);
+          if (lane >= o) incl += v;
+        }
+        const unsigned int excl = incl - cell.y;
+        const unsigned int count = __shfl_sync(full, incl, 31);
+        n_cand += count;
+        for (unsigned int cb = 0; cb < count; cb += kWarp) {
+          // Too many candidates for one warp: leave the query to the heavy kernel (warp-uniform).
+          scanned += kWarp;
+          if (abort_cands && scanned > abort_cands) return false;
+          const unsigned int gpos = cb + lane;
+          int owner = 0;  // first lane whose inclusive sum exceeds gpos
+          for (int step = 16; step > 0; step >>= 1) {
+            const unsigned int v = __shfl_sync(full, incl, owner + step - 1);
+            if (v <= gpos) owner += step;
+          }
+          const unsigned int ostart = __shfl_sync(full, cell.x, owner);
+          const unsigned int oexcl = __shfl_sync(full, excl, owner);
+          const unsigned int spos = ostart + (gpos - oexcl);  // sorted position (valid lanes)
+          float d;
+          int id;
+          unsigned int stop;
+          consume(gpos < count, spos, d, id, stop);
           // Exact skip inside runs of identical points (e.g. thousands of no-return points at the
           // origin): they share one distance and their indices ascend (stable sort), so once the
           // last lane's point cannot enter the list (beyond lim, or not before the K-th pair) no
           // later member of its run can.
-          if (run_stop && nparts == 1) {
+          if (run_stop) {
             const int last = min(kWarp - 1, static_cast<int>(count - cb) - 1);
             const float d_last = __shfl_sync(full, d, last);
             const int id_last = __shfl_sync(full, id, last);
