@@ -4,7 +4,7 @@
 // frames replicated with x/y offsets.
 //
 //   bench_gpu_knn [--data DIR] [--sizes 0,1000000,5000000] [--reps N] [--filter-reps N]
-//                 [--variants]
+//                 [--variants] [--no-filter]
 //
 // KNN times are wall-clock medians after one warm-up call, host<->device copies included. Filter
 // times: the three configurations run in turn (A, B, C, A, B, C, ...) and each column is the
@@ -183,6 +183,7 @@ int main(int argc, char** argv) {
   int reps = 5;
   int freps = 15;
   bool variants = false;
+  bool filter = true;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--data" && i + 1 < argc) {
@@ -193,6 +194,8 @@ int main(int argc, char** argv) {
       freps = std::max(1, std::atoi(argv[++i]));
     } else if (a == "--variants") {
       variants = true;
+    } else if (a == "--no-filter") {
+      filter = false;
     } else if (a == "--sizes" && i + 1 < argc) {
       sizes.clear();
       std::string s = argv[++i];
@@ -204,7 +207,7 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(
           stderr,
-          "usage: %s [--data DIR] [--sizes N,N,..] [--reps N] [--filter-reps N] [--variants]\n",
+          "usage: %s [--data DIR] [--sizes N,N,..] [--reps N] [--filter-reps N] [--variants] [--no-filter]\n",
           argv[0]);
       return 2;
     }
@@ -375,8 +378,10 @@ int main(int argc, char** argv) {
     cl = gf::NeighborLists();
 
     // ---- whole normal-vector filter: CPU 2 threads, CPU all cores, GPU, in turn
-    filter_rows.push_back(
-        benchFilter(label, xyz, n > 2000000 ? std::max(3, freps / 3) : freps));
+    if (filter) {
+      filter_rows.push_back(
+          benchFilter(label, xyz, n > 2000000 ? std::max(3, freps / 3) : freps));
+    }
   }
 
   std::printf("K-nearest neighbours, K = %d (ms)\n\n", k);

@@ -111,6 +111,46 @@ __device__ inline void warpSortPairs(float& d, int& id, int lane) {
   }
 }
 
+/// Smallest power of two >= c, at least 2 (c <= 32).
+__device__ inline int pow2AtLeast(int c) { return c <= 2 ? 2 : 1 << (32 - __clz(c - 1)); }
+
+/// Lane l < popc(mask) gets the value of the l-th lane set in `mask` (ascending lanes); other
+/// lanes keep `fill`.
+template <typename T>
+__device__ inline T compactLanes(T v, unsigned mask, int lane, T fill) {
+  const int c = __popc(mask);
+  const int src = lane < c ? static_cast<int>(__fns(mask, 0, lane + 1)) : 0;
+  const T got = __shfl_sync(0xffffffffu, v, src);
+  return lane < c ? got : fill;
+}
+
+/// Sorts the (distance, index) pairs of the lanes set in `mask` into lanes 0.. in increasing
+/// order; the other lanes get (inf, kEmptyIndex). A bitonic network only as wide as needed.
+__device__ inline void warpSortMasked(float& d, int& id, unsigned mask, int lane) {
+  const unsigned full = 0xffffffffu;
+  d = compactLanes(d, mask, lane, INFINITY);
+  id = compactLanes(id, mask, lane, kEmptyIndex);
+  const int p = pow2AtLeast(__popc(mask));
+  for (int size = 2; size <= p; size <<= 1) {
+    for (int stride = size >> 1; stride > 0; stride >>= 1) {
+      const float od = __shfl_xor_sync(full, d, stride);
+      const int oi = __shfl_xor_sync(full, id, stride);
+      const bool ascending = (lane & size) == 0 || size == p;
+      const bool lower = (lane & stride) == 0;
+      if (lower == ascending ? pairLess(od, oi, d, id) : pairLess(d, id, od, oi)) {
+        d = od;
+        id = oi;
+      }
+    }
+  }
+}
+
+/// warpSortCells, skipped when at most one cell of the batch is non-empty (always so for the
+/// query's own cell, shell 0).
+__device__ inline void warpSortNonEmptyCells(float& key, uint2& cell, int lane) {
+  if (__popc(__ballot_sync(0xffffffffu, cell.y != 0)) > 1) warpSortCells(key, cell, lane);
+}
+
 /// Compare-exchange step of a bitonic merge: lane keeps the smaller pair of (own, partner at
 /// lane ^ stride) when it is the lower lane of the two, else the larger.
 __device__ inline void bitonicStep(float& d, int& id, int lane, int stride) {
@@ -133,9 +173,10 @@ __device__ inline void bitonicMerge(float& d, int& id, int lane) {
 /// which are exactly the slots that one insertion per entrant would leave (rows are unique, so
 /// (distance, index) orders them totally).
 template <bool kTwoHalves>
-__device__ inline void warpMerge(WarpList& w, float d, int id, int lane, int k) {
+__device__ inline void warpMerge(WarpList& w, float d, int id, int lane, int k,
+                                 bool presorted = false) {
   const unsigned full = 0xffffffffu;
-  warpSortPairs(d, id, lane);
+  if (!presorted) warpSortPairs(d, id, lane);
   // Reversed, the sorted batch against an ascending half gives a bitonic sequence of the
   // smaller of each pair: the 32 smallest of the two.
   float rd = __shfl_sync(full, d, 31 - lane);
@@ -289,7 +330,7 @@ __device__ __forceinline__ bool searchQuery(const GridDesc& g, const float4* __r
             }
           }
         }
-        if (kSortCells) warpSortCells(key, cell, lane);
+        if (kSortCells) warpSortNonEmptyCells(key, cell, lane);
         // The candidate at sorted position spos (valid lanes) against the list: d, id and the
         // end of its run of identical points come back for the skip below.
         auto consume = [&](bool valid, unsigned int spos, float& d, int& id, unsigned int& stop) {
@@ -520,8 +561,10 @@ __global__ void __launch_bounds__(kHeavyWarps* kWarp, 2)
     __syncthreads();
     if (warp == 0) {
       for (int o = 1; o < kHeavyWarps; ++o) {
-        warpMerge<kTwoHalves>(w, sd[o][lane], si[o][lane], lane, k);
-        if (kTwoHalves) warpMerge<kTwoHalves>(w, sd[o][lane + kWarp], si[o][lane + kWarp], lane, k);
+        warpMerge<kTwoHalves>(w, sd[o][lane], si[o][lane], lane, k, true);
+        if (kTwoHalves) {
+          warpMerge<kTwoHalves>(w, sd[o][lane + kWarp], si[o][lane + kWarp], lane, k, true);
+        }
       }
       writeRow<kTwoHalves>(w, qi, k, lane, out_idx, out_d2);
     }
