@@ -205,10 +205,10 @@ int main(int argc, char** argv) {
         p = q + 1;
       }
     } else {
-      std::fprintf(
-          stderr,
-          "usage: %s [--data DIR] [--sizes N,N,..] [--reps N] [--filter-reps N] [--variants] [--no-filter]\n",
-          argv[0]);
+      std::fprintf(stderr,
+                   "usage: %s [--data DIR] [--sizes N,N,..] [--reps N] [--filter-reps N] "
+                   "[--variants] [--no-filter]\n",
+                   argv[0]);
       return 2;
     }
   }
@@ -357,14 +357,13 @@ int main(int argc, char** argv) {
         cs.search(xyz.data(), n, vv.k, nullptr, nullptr);
         const auto& t = cs.lastTimings();
         char line[400];
-        std::snprintf(line, sizeof line,
-                      "| %s | K %d, merge from %d, skip identical %s, heavy from %d | %.2f | %.2f | "
-                      "%.0f | %.0f | %.2f | %.2f | %.0f | %.0f |",
-                      label.c_str(), vv.k, vv.merge_min, vv.skip ? "on" : "off", vv.heavy,
-                      median(tq),
-                      median(tt), t.candidates_per_query, t.insertions_per_query,
-                      t.shells_per_query, t.levels_per_query, t.mean_query_cycles,
-                      t.max_query_cycles);
+        std::snprintf(
+            line, sizeof line,
+            "| %s | K %d, merge from %d, skip identical %s, heavy from %d | %.2f | %.2f | "
+            "%.0f | %.0f | %.2f | %.2f | %.0f | %.0f |",
+            label.c_str(), vv.k, vv.merge_min, vv.skip ? "on" : "off", vv.heavy, median(tq),
+            median(tt), t.candidates_per_query, t.insertions_per_query, t.shells_per_query,
+            t.levels_per_query, t.mean_query_cycles, t.max_query_cycles);
         variant_lines.push_back(line);
         if (vv.k == 64 && vv.merge_min == 6) {  // the slowest query without / with heavy
           variant_lines.push_back("|  | " + t.detail + " | | | | | | | | |");
@@ -379,8 +378,7 @@ int main(int argc, char** argv) {
 
     // ---- whole normal-vector filter: CPU 2 threads, CPU all cores, GPU, in turn
     if (filter) {
-      filter_rows.push_back(
-          benchFilter(label, xyz, n > 2000000 ? std::max(3, freps / 3) : freps));
+      filter_rows.push_back(benchFilter(label, xyz, n > 2000000 ? std::max(3, freps / 3) : freps));
     }
   }
 

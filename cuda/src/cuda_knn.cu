@@ -423,10 +423,9 @@ void CudaKnn::Impl::searchOnDevice(const float* d_xyz, int n, int k, std::int32_
     };
     std::ostringstream os;
     os << h[kStatHeavy] << " heavy queries (second kernel), " << h[kStatOver100k]
-       << " queries > 1e5 cycles, " << h[kStatOver1M]
-       << " > 1e6; slowest: " << h[kStatSlowCand] << " candidates, " << h[kStatSlowIns]
-       << " insertions, " << h[kStatSlowShells] << " shells, " << h[kStatSlowLevels]
-       << " levels, last level 2^" << h[kStatSlowBits] << " cells/axis (cell "
+       << " queries > 1e5 cycles, " << h[kStatOver1M] << " > 1e6; slowest: " << h[kStatSlowCand]
+       << " candidates, " << h[kStatSlowIns] << " insertions, " << h[kStatSlowShells] << " shells, "
+       << h[kStatSlowLevels] << " levels, last level 2^" << h[kStatSlowBits] << " cells/axis (cell "
        << edge / static_cast<float>(1u << h[kStatSlowBits]) << " m), bound "
        << std::sqrt(asFloat(h[kStatSlowLim])) << " m, K-th distance "
        << std::sqrt(asFloat(h[kStatSlowKd])) << " m";

@@ -34,8 +34,8 @@ struct CudaKnn::Impl {
   const float* list_xyz = nullptr;  // the points the lists index (device)
 
   cuda_impl::DeviceBuffer xyz, keys_a, keys_b, vals_a, vals_b, start_level, sorted, sort_temp,
-      small, table_keys, table_vals, out_idx, out_d2, pca, flags, counts, run_id, run_end,
-      run_stop, heavy, heavy_counts;
+      small, table_keys, table_vals, out_idx, out_d2, pca, flags, counts, run_id, run_end, run_stop,
+      heavy, heavy_counts;
   cuda_impl::PinnedBuffer h_small, h_xyz, h_idx, h_d2, h_order, h_pca, h_flags, h_counts;
 
   /// Device bytes still allowed: the explicit limit, or 90 % of what is free now.

@@ -111,40 +111,6 @@ __device__ inline void warpSortPairs(float& d, int& id, int lane) {
   }
 }
 
-/// Smallest power of two >= c, at least 2 (c <= 32).
-__device__ inline int pow2AtLeast(int c) { return c <= 2 ? 2 : 1 << (32 - __clz(c - 1)); }
-
-/// Lane l < popc(mask) gets the value of the l-th lane set in `mask` (ascending lanes); other
-/// lanes keep `fill`.
-template <typename T>
-__device__ inline T compactLanes(T v, unsigned mask, int lane, T fill) {
-  const int c = __popc(mask);
-  const int src = lane < c ? static_cast<int>(__fns(mask, 0, lane + 1)) : 0;
-  const T got = __shfl_sync(0xffffffffu, v, src);
-  return lane < c ? got : fill;
-}
-
-/// Sorts the (distance, index) pairs of the lanes set in `mask` into lanes 0.. in increasing
-/// order; the other lanes get (inf, kEmptyIndex). A bitonic network only as wide as needed.
-__device__ inline void warpSortMasked(float& d, int& id, unsigned mask, int lane) {
-  const unsigned full = 0xffffffffu;
-  d = compactLanes(d, mask, lane, INFINITY);
-  id = compactLanes(id, mask, lane, kEmptyIndex);
-  const int p = pow2AtLeast(__popc(mask));
-  for (int size = 2; size <= p; size <<= 1) {
-    for (int stride = size >> 1; stride > 0; stride >>= 1) {
-      const float od = __shfl_xor_sync(full, d, stride);
-      const int oi = __shfl_xor_sync(full, id, stride);
-      const bool ascending = (lane & size) == 0 || size == p;
-      const bool lower = (lane & stride) == 0;
-      if (lower == ascending ? pairLess(od, oi, d, id) : pairLess(d, id, od, oi)) {
-        d = od;
-        id = oi;
-      }
-    }
-  }
-}
-
 /// warpSortCells, skipped when at most one cell of the batch is non-empty (always so for the
 /// query's own cell, shell 0).
 __device__ inline void warpSortNonEmptyCells(float& key, uint2& cell, int lane) {
@@ -234,10 +200,10 @@ template <bool kTwoHalves, bool kSortCells>
 __device__ __forceinline__ bool searchQuery(const GridDesc& g, const float4* __restrict__ pts,
                                             const unsigned long long* __restrict__ tkeys,
                                             const uint2* __restrict__ tvals, int n,
-                                            const unsigned int* __restrict__ run_stop,
-                                            long long qi, int k, int merge_min, int part,
-                                            int nparts, unsigned int abort_cands, int lane,
-                                            WarpList& w, QueryCounters& c) {
+                                            const unsigned int* __restrict__ run_stop, long long qi,
+                                            int k, int merge_min, int part, int nparts,
+                                            unsigned int abort_cands, int lane, WarpList& w,
+                                            QueryCounters& c) {
   const unsigned full = 0xffffffffu;
   unsigned int& n_cand = c.cand;
   unsigned int& n_ins = c.ins;
@@ -381,7 +347,8 @@ __device__ __forceinline__ bool searchQuery(const GridDesc& g, const float4* __r
           while (todo) {
             const int j = __ffs(todo) - 1;
             todo &= todo - 1;
-            const unsigned int s0 = __shfl_sync(full, cell.x, j), s1 = s0 + __shfl_sync(full, cell.y, j);
+            const unsigned int s0 = __shfl_sync(full, cell.x, j),
+                               s1 = s0 + __shfl_sync(full, cell.y, j);
             n_cand += s1 - s0;
             const unsigned int b0 = s0 >> 5;
             const unsigned int first = b0 + (part + nparts - b0 % nparts) % nparts;
