@@ -287,7 +287,7 @@ TEST(SceneGenerator, VergeSlopesAwayFromTheRoadAndTrailIsHilly) {
 }
 
 TEST(SceneGenerator, BuiltinKindsNameTheirSceneAndScanner) {
-  EXPECT_EQ(builtinSceneKinds().size(), 5u);
+  EXPECT_EQ(builtinSceneKinds().size(), 6u);
   for (const std::string& kind : builtinSceneKinds()) {
     EXPECT_NO_THROW(builtinSceneParams(kind).validate()) << kind;
   }
