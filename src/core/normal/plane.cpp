@@ -7,7 +7,6 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 
 #include "radix_sort.h"
 
@@ -218,17 +217,7 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
       const std::uint32_t i = tile_order_[j];
       if (!voted[i] && !p.plane_all_points) continue;
       const double d = distanceOf(plane, &xyz[3 * static_cast<std::size_t>(i)]);
-      static const int variant = getenv("GF_EXP") ? atoi(getenv("GF_EXP")) : 0;
-      if (variant == 1 && voted[i]) {
-        ground[i] = d <= hi;
-      } else if (variant >= 3 && voted[i]) {
-        const double f = variant == 3 ? 2.0 : (variant == 4 ? 3.0 : 1.5);
-        ground[i] = d >= f * lo && d <= f * hi;
-      } else if (variant == 2) {
-        ground[i] = d <= hi;
-      } else {
-        ground[i] = d >= lo && d <= hi;
-      }
+      ground[i] = d >= lo && d <= hi;
     }
   }
 }
