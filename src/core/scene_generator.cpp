@@ -888,7 +888,8 @@ GeneratedScan airborneScan(const SceneParams& p) {
   for (int j = 0; j < n; ++j) {
     for (int i = 0; i < n; ++i) {
       const double x = -ext + (i + u01(rng)) * step, y = -ext + (j + u01(rng)) * step;
-      double z = airborneHeight(p, x, y);
+      const double terrain = airborneHeight(p, x, y);
+      double z = terrain;
       std::uint16_t cls = kClassTerrain;
       float refl = kGrassReflectivity;
       for (const Box& b : boxes) {
@@ -905,7 +906,8 @@ GeneratedScan airborneScan(const SceneParams& p) {
           const double top = ellipsoidTop(e, x, y, &depth);
           // Crowns let 35 % of the pulses through to what is below; bushes none.
           if (top <= z || (list == &crowns && pass < 0.35)) continue;
-          z = top - 0.5 * into * depth;
+          // Returns from inside the crown (or bush), never below 0.2 m over the terrain.
+          z = std::max(top - (list == &crowns ? 0.5 : 0.15) * into * depth, terrain + 0.2);
           cls = e.cls;
           refl = e.reflectivity;
         }
