@@ -22,8 +22,8 @@
 #include <vector>
 
 #include "cli_args.h"
-#include "ground_filter/ground_filter.h"
 #include "gf_test_data.h"
+#include "ground_filter/ground_filter.h"
 #include "ground_filter/metrics.h"
 #include "ground_filter/paper_normalisation.h"
 #include "ground_filter/scan_io.h"

@@ -22,8 +22,8 @@ namespace ground_filter {
 struct SceneParams {
   /// \brief Scanner model.
   enum class Mode {
-    kLidar64,  ///< spinning 64-beam LiDAR on a car (HDL-64-like), ~100 k returns
-    kTls,      ///< terrestrial laser scanner on a tripod: dense spherical sweep, 1-5 M returns
+    kLidar64,   ///< spinning 64-beam LiDAR on a car (HDL-64-like), ~100 k returns
+    kTls,       ///< terrestrial laser scanner on a tripod: dense spherical sweep, 1-5 M returns
     kAirborne,  ///< nadir airborne scan of its own hilly world with buildings, trees, bushes and
                 ///< cars (layout ignored): airborne_density points per m2, world frame
   };

@@ -30,7 +30,7 @@ struct NormalGroundFilter::Impl {
   normal::VoteStage vote;
   normal::PlaneStage plane;
   std::vector<std::uint8_t> candidate, voted, ground;  // per ordered point
-  MorphGround morph;                                  // morph_ground (airborne) only
+  MorphGround morph;                                   // morph_ground (airborne) only
 };
 
 NormalGroundFilter::NormalGroundFilter(const NormalGroundFilterParams& params)

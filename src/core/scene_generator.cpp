@@ -825,7 +825,6 @@ void insertNans(GeneratedScan* scan, std::size_t count) {
   *scan = std::move(out);
 }
 
-
 // kAirborne: one vertical pulse per cell of a jittered grid (density points per m2) over
 // [-scene_extent, scene_extent]^2, first (highest) surface hit: flat-roofed buildings (some on
 // the slopes), cars, bushes, and tree crowns that 35 % of the pulses pass through to the
@@ -849,8 +848,8 @@ GeneratedScan airborneScan(const SceneParams& p) {
     }
     if (overlaps) continue;
     const double base = minGroundOver(p, x0, x1, y0, y1);
-    boxes.push_back({{x0, y0, base - 1.0}, {x1, y1, base + uni(3.0, 15.0)},
-                     kWallReflectivity, kClassBuilding});
+    boxes.push_back(
+        {{x0, y0, base - 1.0}, {x1, y1, base + uni(3.0, 15.0)}, kWallReflectivity, kClassBuilding});
   }
   const int cars = static_cast<int>(area / 900.0);
   for (int i = 0; i < cars; ++i) {
@@ -858,8 +857,10 @@ GeneratedScan airborneScan(const SceneParams& p) {
     const bool along_x = u01(rng) < 0.5;
     const double hx = along_x ? 2.25 : 0.9, hy = along_x ? 0.9 : 2.25;
     const double base = minGroundOver(p, cx - hx, cx + hx, cy - hy, cy + hy);
-    boxes.push_back({{cx - hx, cy - hy, base - 0.5}, {cx + hx, cy + hy, base + 1.5},
-                     kCarReflectivity, kClassCar});
+    boxes.push_back({{cx - hx, cy - hy, base - 0.5},
+                     {cx + hx, cy + hy, base + 1.5},
+                     kCarReflectivity,
+                     kClassCar});
   }
   const int trees = static_cast<int>(area / 250.0);
   for (int i = 0; i < trees; ++i) {
@@ -871,8 +872,8 @@ GeneratedScan airborneScan(const SceneParams& p) {
   const int nbush = static_cast<int>(area / 150.0);
   for (int i = 0; i < nbush; ++i) {
     const double cx = uni(-ext, ext), cy = uni(-ext, ext), r = uni(0.6, 1.8), h = uni(0.5, 1.5);
-    bushes.push_back({{cx, cy, airborneHeight(p, cx, cy)}, {r, r, h}, kBushReflectivity,
-                      kClassVegetation});
+    bushes.push_back(
+        {{cx, cy, airborneHeight(p, cx, cy)}, {r, r, h}, kBushReflectivity, kClassVegetation});
   }
   // Top of an ellipsoid at (x, y), or -inf outside its footprint.
   auto ellipsoidTop = [](const Ellipsoid& e, double x, double y, double* depth) {
