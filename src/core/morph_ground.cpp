@@ -13,52 +13,38 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 // rings; the surface far inside a wide gap matters little, the opening is taken over it).
 constexpr int kFillSweeps = 50;
 
-// Sliding minimum of half-width w over one row (van Herk / Gil-Werman: block prefix and suffix
-// minima, 3 comparisons a cell for any w); cells outside the row do not count.
-void rowMin(const float* in, int n, int w, float* out, std::vector<float>* pad,
-            std::vector<float>* pre, std::vector<float>* suf) {
-  if (w == 0) {
-    std::copy(in, in + n, out);
-    return;
+// Widens the sliding minimum of every row by one cell on each side: the minimum over
+// [x - w, x + w] is the minimum of those over [x - 1 - (w - 1), x - 1 + (w - 1)] and
+// [x + 1 - (w - 1), x + 1 + (w - 1)]; cells outside the row do not count.
+void widenRowMin(float* t, int nx, int ny) {
+  for (int y = 0; y < ny; ++y) {
+    float* row = t + static_cast<std::size_t>(y) * nx;
+    float prev = kInf;
+    for (int x = 0; x < nx; ++x) {
+      const float here = row[x];
+      const float next = x + 1 < nx ? row[x + 1] : kInf;
+      row[x] = std::min(here, std::min(prev, next));
+      prev = here;
+    }
   }
-  const int len = n + 2 * w, block = 2 * w + 1;
-  pad->resize(len);
-  pre->resize(len);
-  suf->resize(len);
-  float* p = pad->data();
-  std::fill(p, p + w, kInf);
-  std::copy(in, in + n, p + w);
-  std::fill(p + w + n, p + len, kInf);
-  float* g = pre->data();
-  float* h = suf->data();
-  for (int b0 = 0; b0 < len; b0 += block) {
-    const int b1 = std::min(len, b0 + block);
-    g[b0] = p[b0];
-    for (int i = b0 + 1; i < b1; ++i) g[i] = std::min(g[i - 1], p[i]);
-    h[b1 - 1] = p[b1 - 1];
-    for (int i = b1 - 2; i >= b0; --i) h[i] = std::min(h[i + 1], p[i]);
-  }
-  // Window [x, x + 2w] in padded coordinates = [x - w, x + w] in the row.
-  for (int x = 0; x < n; ++x) out[x] = std::min(h[x], g[x + 2 * w]);
 }
 
 }  // namespace
 
 void MorphGround::erode(const std::vector<float>& in, int r, bool dilate, std::vector<float>* out) {
   // A disk of radius r is a stack of rows: row dy is a segment of half-width
-  // floor(sqrt(r^2 - dy^2)). Dilation = erosion of the negated raster.
+  // w(dy) = floor(sqrt(r^2 - dy^2)). Going from dy = r to 0, w only grows, so the row minima of
+  // half-width w(dy) come from widening the previous ones (2 comparisons a cell per step).
+  // Dilation = erosion of the negated raster.
   const std::size_t n = in.size();
-  cur_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) cur_[i] = dilate ? -in[i] : in[i];
-  out->assign(n, kInf);
   tmp_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) tmp_[i] = dilate ? -in[i] : in[i];
+  out->assign(n, kInf);
   float* o = out->data();
-  for (int dy = 0; dy <= r; ++dy) {
-    const int w = static_cast<int>(std::floor(std::sqrt(static_cast<double>(r * r - dy * dy))));
-    for (int y = 0; y < ny_; ++y) {
-      rowMin(cur_.data() + static_cast<std::size_t>(y) * nx_, nx_, w,
-             tmp_.data() + static_cast<std::size_t>(y) * nx_, &pad_, &pre_, &suf_);
-    }
+  int w = 0;
+  for (int dy = r; dy >= 0; --dy) {
+    const int want = static_cast<int>(std::floor(std::sqrt(static_cast<double>(r * r - dy * dy))));
+    for (; w < want; ++w) widenRowMin(tmp_.data(), nx_, ny_);
     for (int y = 0; y < ny_; ++y) {
       float* oy = o + static_cast<std::size_t>(y) * nx_;
       for (int sgn = -1; sgn <= 1; sgn += 2) {
