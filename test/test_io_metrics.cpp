@@ -1037,6 +1037,15 @@ TEST(Presets, AirbornePresetsFilterGeneratedAirborneTiles) {
     EXPECT_GE(f1, 0.95) << file;
     EXPECT_GT(f1, f1_defaults + 0.05) << file;
   }
+  // Both presets run the same morphological surface: the same labels.
+  const gf::GeneratedScan scan = gf::generateScene(gf::builtinSceneParams("airborne"));
+  const gf::CloudView view = gf::CloudView::packedXyz(scan.xyz.data(), scan.size());
+  std::vector<std::uint8_t> voxel_labels, normal_labels;
+  gf::makeGroundFilter("voxel", gf::cli::loadParamsFile(dir + "/airborne.yaml"))
+      ->filter(view, &voxel_labels);
+  gf::makeGroundFilter("normal", gf::cli::loadParamsFile(dir + "/airborne_normal.yaml"))
+      ->filter(view, &normal_labels);
+  EXPECT_EQ(voxel_labels, normal_labels);
 }
 
 // ------------------------------------------------------------------ paper normalisation
