@@ -280,6 +280,26 @@ TEST(VoxelGroundFilter, AirborneMorphModeSeparatesRoofsFromASlopedGround) {
   EXPECT_EQ(again, labels);
 }
 
+// Airborne mode on a cloud 11 km across: the raster cell grows so that at most
+// MorphGround::kMaxCells (4 M) cells are allocated; two flat patches at the far corners stay
+// ground, a roof on one of them does not.
+TEST(VoxelGroundFilter, AirborneMorphModeOnAHugeExtentStaysBounded) {
+  Cloud c;
+  std::mt19937 rng(3);
+  auto flat = [](float, float) { return 0.0f; };
+  addSurface(&c, -4000.f, -3940.f, -4000.f, -3940.f, 1.0f, flat, 0.05f, &rng);
+  addSurface(&c, 3940.f, 4000.f, 3940.f, 4000.f, 1.0f, flat, 0.05f, &rng);
+  for (float u = 0.f; u < 12.f; u += 1.0f) {
+    for (float v = 0.f; v < 12.f; v += 1.0f) c.add(3960.f + u, 3960.f + v, 7.0f, false);
+  }
+  gf::VoxelGroundFilterParams p;
+  p.morph_ground = true;
+  p.plane_distance = 0.5;
+  const auto labels = run(c, p);
+  EXPECT_GT(agreement(labels, c.truth, 1), 0.97);
+  EXPECT_GT(agreement(labels, c.truth, 0), 0.9);
+}
+
 TEST(VoxelGroundFilter, ReusedFilterGivesTheSameLabels) {
   // Scratch buffers persist between calls: a second, different cloud and then the first again.
   std::mt19937 rng(12);

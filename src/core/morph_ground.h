@@ -34,7 +34,7 @@ class MorphGround {
                   std::vector<std::uint8_t>* labels);
 
   /// \brief Upper limit on raster cells (memory and time bound for huge extents).
-  static constexpr std::size_t kMaxCells = std::size_t{1} << 24;
+  static constexpr std::size_t kMaxCells = std::size_t{1} << 22;
 
  private:
   void fill(std::vector<float>* z);  // fill NaN cells (nearest rings, then Laplace sweeps)
