@@ -22,11 +22,11 @@
 #include <vector>
 
 #include "cli_args.h"
-#include "ground_filter/ground_filter.h"
 #include "gf_test_data.h"
-#include "ground_filter/metrics.h"
-#include "ground_filter/paper_normalisation.h"
-#include "ground_filter/scan_io.h"
+#include "ground_filter/ground_filter.h"
+#include "ground_filter/io/metrics.h"
+#include "ground_filter/io/scan_io.h"
+#include "paper_normalisation.h"
 
 namespace gf = ground_filter;
 namespace fs = std::filesystem;

@@ -15,8 +15,8 @@
 
 #include "gf_test_data.h"
 #include "ground_filter/cloud_view.h"
-#include "ground_filter/kdtree_neighbor_search.h"
-#include "ground_filter/scan_io.h"
+#include "ground_filter/io/scan_io.h"
+#include "neighbors/kdtree_neighbor_search.h"
 
 // nanoflann is an optional test dependency (CMakeLists.txt defines GF_HAVE_NANOFLANN when found).
 #ifdef GF_HAVE_NANOFLANN

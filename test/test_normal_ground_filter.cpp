@@ -15,12 +15,13 @@
 
 #include "gf_test_data.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/kdtree_neighbor_search.h"
-#include "ground_filter/metrics.h"
-#include "ground_filter/neighbor_search_factory.h"
+#include "ground_filter/io/metrics.h"
+#include "ground_filter/io/scan_io.h"
+#include "ground_filter/neighbors/neighbor_search_factory.h"
 #include "ground_filter/normal_ground_filter.h"
-#include "ground_filter/scan_io.h"
-#include "ground_filter/scene_generator.h"
+#include "ground_filter/scene/scene_generator.h"
+#include "neighbors/kdtree_neighbor_search.h"
+#include "normal/neighborhood_pca.h"
 
 namespace gf = ground_filter;
 

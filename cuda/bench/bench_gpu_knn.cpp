@@ -28,9 +28,9 @@
 #include <vector>
 
 #include "ground_filter/cuda_knn.h"
-#include "ground_filter/gpu_neighbor_search.h"
-#include "ground_filter/kdtree_neighbor_search.h"
 #include "ground_filter/normal_ground_filter.h"
+#include "neighbors/gpu_neighbor_search.h"
+#include "neighbors/kdtree_neighbor_search.h"
 
 namespace gf = ground_filter;
 

@@ -17,8 +17,8 @@
 #include "brute_force_knn.h"
 #include "ground_filter/cuda_knn.h"
 #include "ground_filter/cuda_normal_pipeline.h"
-#include "ground_filter/gpu_neighbor_search.h"
 #include "ground_filter/normal_ground_filter.h"
+#include "neighbors/gpu_neighbor_search.h"
 
 namespace gf = ground_filter;
 

@@ -9,7 +9,6 @@
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/neighbor_search.h"
-#include "ground_filter/neighborhood_pca.h"  // PointPca, computeNeighborhoodPca (were here)
 #include "ground_filter/normal_ground_filter_params.h"
 
 namespace ground_filter {

@@ -4,7 +4,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "ground_filter/neighbor_search_factory.h"
+#include "ground_filter/neighbors/neighbor_search_factory.h"
 
 namespace ground_filter {
 

@@ -2,7 +2,7 @@
 
 #include <pluginlib/class_list_macros.hpp>
 
-#include "ground_filter/neighbor_search_factory.h"
+#include "ground_filter/neighbors/neighbor_search_factory.h"
 #include "params_from_config.h"
 
 namespace ground_filter {

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <exception>
 #include <fstream>
+#include <iostream>
 
 namespace ground_filter {
 namespace cli {
@@ -17,6 +19,23 @@ std::string trim(const std::string& s) {
 }
 
 }  // namespace
+
+int runTool(const char* tool, const std::function<int()>& body) {
+  try {
+    return body();
+  } catch (const UsageError& e) {
+    std::cerr << tool << ": " << e.what() << "\n(try --help)" << std::endl;
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << tool << ": error: " << e.what() << std::endl;
+    return 1;
+  }
+}
+
+std::string dataDir() {
+  const char* env = std::getenv("GF_DATA_DIR");
+  return env && *env ? env : GF_DEFAULT_DATA_DIR;
+}
 
 bool ArgCursor::next() {
   if (i_ + 1 >= argc_) return false;

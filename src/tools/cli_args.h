@@ -1,15 +1,22 @@
-// Command-line helpers shared by ground_filter_eval and ground_filter_benchmark: option cursor
-// with --name=value support, --set NAME=VALUE, --params FILE (flat YAML), integers, timing.
+// Command-line helpers shared by the tools (eval, benchmark, knn and peer benchmarks): main()'s
+// error handling, option cursor with --name=value support, --set NAME=VALUE, --params FILE (flat
+// YAML), integers, the default data folder, timing.
 #ifndef GROUND_FILTER_TOOLS_CLI_ARGS_H
 #define GROUND_FILTER_TOOLS_CLI_ARGS_H
 
 #include <chrono>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "ground_filter/ground_filter.h"
+
+// The build sets it to the checkout's ../shared/data (CMakeLists.txt, target ground_filter_cli).
+#ifndef GF_DEFAULT_DATA_DIR
+#define GF_DEFAULT_DATA_DIR "../shared/data"
+#endif
 
 namespace ground_filter {
 namespace cli {
@@ -18,6 +25,14 @@ namespace cli {
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+
+/// \brief A tool's main(): returns `body()`; a UsageError prints "TOOL: message (try --help)"
+///        and gives 2, any other exception "TOOL: error: message" and gives 1.
+int runTool(const char* tool, const std::function<int()>& body);
+
+/// \brief Folder of the default inputs: $GF_DATA_DIR when set and not empty, else the build-time
+///        GF_DEFAULT_DATA_DIR.
+std::string dataDir();
 
 /// \brief Walks argv; splits `--name=value` into option and inline value.
 class ArgCursor {

@@ -15,11 +15,7 @@
 
 #include "cli_args.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/scan_io.h"
-
-#ifndef GF_DEFAULT_DATA_DIR
-#define GF_DEFAULT_DATA_DIR "../shared/data"
-#endif
+#include "ground_filter/io/scan_io.h"
 
 namespace gf = ground_filter;
 namespace cli = ground_filter::cli;
@@ -94,8 +90,7 @@ Options parseArgs(int argc, char** argv) {
   o.method = filter_args.method;
   o.settings = filter_args.settings();
   if (o.paths.empty()) {
-    const char* env = std::getenv("GF_DATA_DIR");
-    const std::string data = env && *env ? env : GF_DEFAULT_DATA_DIR;
+    const std::string data = cli::dataDir();
     for (const char* f : {"semantickitti/seq00/000000.bin", "semantickitti/seq00/000001.bin",
                           "semantickitti/seq00/000002.bin", "unlabelled/os128_000000.pcd"}) {
       o.paths.push_back(data + "/" + f);
@@ -243,13 +238,5 @@ int run(const Options& opt) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return run(parseArgs(argc, argv));
-  } catch (const UsageError& e) {
-    std::cerr << "ground_filter_benchmark: " << e.what() << "\n(try --help)" << std::endl;
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "ground_filter_benchmark: error: " << e.what() << std::endl;
-    return 1;
-  }
+  return cli::runTool("ground_filter_benchmark", [&] { return run(parseArgs(argc, argv)); });
 }

@@ -16,8 +16,8 @@
 
 #include "cli_args.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/metrics.h"
-#include "ground_filter/scan_io.h"
+#include "ground_filter/io/metrics.h"
+#include "ground_filter/io/scan_io.h"
 
 namespace gf = ground_filter;
 namespace cli = ground_filter::cli;
@@ -307,13 +307,5 @@ int run(const Options& opt) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return run(parseArgs(argc, argv));
-  } catch (const UsageError& e) {
-    std::cerr << "ground_filter_eval: " << e.what() << "\n(try --help)" << std::endl;
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "ground_filter_eval: error: " << e.what() << std::endl;
-    return 1;
-  }
+  return cli::runTool("ground_filter_eval", [&] { return run(parseArgs(argc, argv)); });
 }

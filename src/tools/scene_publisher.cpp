@@ -33,8 +33,8 @@
 #include <string>
 #include <vector>
 
-#include "ground_filter/scan_io.h"
-#include "ground_filter/scene_generator.h"
+#include "ground_filter/io/scan_io.h"
+#include "ground_filter/scene/scene_generator.h"
 
 namespace {
 

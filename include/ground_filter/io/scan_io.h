@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_SCAN_IO_H
-#define GROUND_FILTER_SCAN_IO_H
+#ifndef GROUND_FILTER_IO_SCAN_IO_H
+#define GROUND_FILTER_IO_SCAN_IO_H
 
 #include <pcl/PCLPointCloud2.h>
 
@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "ground_filter/cloud_view.h"
-#include "ground_filter/scene_generator.h"
+#include "ground_filter/scene/scene_generator.h"
 
 namespace ground_filter {
 
@@ -95,4 +95,4 @@ std::pair<std::string, std::string> writeSplitClouds(const std::string& dir,
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SCAN_IO_H
+#endif  // GROUND_FILTER_IO_SCAN_IO_H

@@ -1,4 +1,4 @@
-#include "ground_filter/kdtree_neighbor_search.h"
+#include "neighbors/kdtree_neighbor_search.h"
 
 #include <omp.h>
 
@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
-#include "avx512_common.h"
-#include "ground_filter/neighborhood_pca.h"
+#include "neighbors/avx512_common.h"
+#include "normal/neighborhood_pca.h"
 
 #if defined(__GNUC__)
 #define GF_KNN_ALWAYS_INLINE inline __attribute__((always_inline))
