@@ -41,6 +41,10 @@ bool ArgCursor::next() {
   if (i_ + 1 >= argc_) return false;
   ++i_;
   option_ = argv_[i_];
+  if (option_ == "--help" || option_ == "-h") {
+    std::cout << usage_;
+    std::exit(0);
+  }
   has_inline_ = false;
   inline_value_.clear();
   const std::size_t eq = option_.find('=');
@@ -56,6 +60,23 @@ std::string ArgCursor::value() {
   if (has_inline_) return inline_value_;
   if (i_ + 1 >= argc_) throw UsageError(option_ + " needs a value");
   return argv_[++i_];
+}
+
+std::string ArgCursor::path() const {
+  if (option_.size() > 1 && option_[0] == '-') {
+    throw UsageError("unknown option '" + option_ + "'");
+  }
+  return argv_[i_];
+}
+
+bool ArgCursor::takeInt(const std::vector<IntOption>& options) {
+  for (const IntOption& o : options) {
+    if (option_ == o.name) {
+      *o.value = parseIntOption(option_, value(), o.lo, o.hi);
+      return true;
+    }
+  }
+  return false;
 }
 
 bool FilterArgs::consume(ArgCursor* args) {
@@ -100,6 +121,17 @@ int parseIntOption(const std::string& opt, const std::string& v, int lo, int hi)
                      std::to_string(hi) + "], got '" + v + "'");
   }
   return static_cast<int>(n);
+}
+
+std::vector<int> parseIntList(const std::string& opt, const std::string& v, int lo, int hi) {
+  std::vector<int> out;
+  std::size_t start = 0;
+  while (start <= v.size()) {
+    const std::size_t comma = std::min(v.find(',', start), v.size());
+    out.push_back(parseIntOption(opt, v.substr(start, comma - start), lo, hi));
+    start = comma + 1;
+  }
+  return out;
 }
 
 ParamSettings loadParamsFile(const std::string& path) {

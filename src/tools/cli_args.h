@@ -34,12 +34,20 @@ int runTool(const char* tool, const std::function<int()>& body);
 ///        GF_DEFAULT_DATA_DIR.
 std::string dataDir();
 
-/// \brief Walks argv; splits `--name=value` into option and inline value.
+/// \brief An integer option: its name, where it goes and its range.
+struct IntOption {
+  const char* name;  ///< e.g. "--repeat"
+  int* value;        ///< set from the option's value
+  int lo, hi;        ///< accepted range (inclusive)
+};
+
+/// \brief Walks argv; splits `--name=value` into option and inline value; answers `--help`.
 class ArgCursor {
  public:
-  /// \brief Starts before argv[1].
-  ArgCursor(int argc, char** argv) : argc_(argc), argv_(argv) {}
-  /// \brief Moves to the next argument; false when there is none.
+  /// \brief Starts before argv[1]; `usage` is the tool's --help text.
+  ArgCursor(int argc, char** argv, const char* usage) : argc_(argc), argv_(argv), usage_(usage) {}
+  /// \brief Moves to the next argument; false when there is none. `--help` or `-h` prints the
+  ///        usage text and exits with status 0.
   bool next();
   /// \brief The current argument without an inline `=value` of a `--` option.
   const std::string& option() const { return option_; }
@@ -48,10 +56,18 @@ class ArgCursor {
   /// \brief The option's value: the inline one, else the next argument.
   /// \throws UsageError when there is none.
   std::string value();
+  /// \brief The current argument as a PATH (operand); a lone "-" is one.
+  /// \throws UsageError when it looks like an option (no tool option matched it).
+  std::string path() const;
+  /// \brief Takes the current option when it is one of `options` (parseIntOption()).
+  /// \returns false when it is none of them.
+  /// \throws UsageError for a missing or bad value.
+  bool takeInt(const std::vector<IntOption>& options);
 
  private:
   int argc_;
   char** argv_;
+  const char* usage_;
   int i_ = 0;
   std::string option_;
   std::string inline_value_;
@@ -80,6 +96,10 @@ std::pair<std::string, std::string> parseSetting(const std::string& kv);
 /// \brief Integer value of option `opt` in [lo, hi].
 /// \throws UsageError otherwise.
 int parseIntOption(const std::string& opt, const std::string& v, int lo, int hi);
+
+/// \brief Comma-separated integers of option `opt`, each in [lo, hi] (e.g. `--threads 1,2`).
+/// \throws UsageError for an empty or bad entry.
+std::vector<int> parseIntList(const std::string& opt, const std::string& v, int lo, int hi);
 
 /// \brief Reads a parameter file: flat YAML `name: value` lines (the files of config/ and of
 ///        `params_file:=`), `#` comments and blank lines allowed; quotes around a value are

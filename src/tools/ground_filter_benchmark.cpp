@@ -59,32 +59,19 @@ struct Options {
 Options parseArgs(int argc, char** argv) {
   Options o;
   cli::FilterArgs filter_args;
-  cli::ArgCursor args(argc, argv);
+  const std::vector<cli::IntOption> ints = {{"--repeat", &o.repeat, 1, 1000000},
+                                            {"--warmup", &o.warmup, 0, 1000000}};
+  cli::ArgCursor args(argc, argv, kUsage);
   while (args.next()) {
     const std::string& arg = args.option();
-    if (arg == "--help" || arg == "-h") {
-      std::cout << kUsage;
-      std::exit(0);
-    } else if (filter_args.consume(&args)) {
+    if (filter_args.consume(&args) || args.takeInt(ints)) {
       continue;
-    } else if (arg == "--repeat") {
-      o.repeat = cli::parseIntOption(arg, args.value(), 1, 1000000);
-    } else if (arg == "--warmup") {
-      o.warmup = cli::parseIntOption(arg, args.value(), 0, 1000000);
     } else if (arg == "--threads") {
-      const std::string list = args.value();
-      std::size_t start = 0;
-      while (start <= list.size()) {
-        const std::size_t comma = std::min(list.find(',', start), list.size());
-        const std::string t = list.substr(start, comma - start);
-        cli::parseIntOption("--threads", t, 0, 1000000);
-        o.threads.push_back(t);
-        start = comma + 1;
+      for (int t : cli::parseIntList(arg, args.value(), 0, 1000000)) {
+        o.threads.push_back(std::to_string(t));
       }
-    } else if (arg.size() > 1 && arg[0] == '-') {
-      throw UsageError("unknown option '" + arg + "'");
     } else {
-      o.paths.push_back(args.raw());
+      o.paths.push_back(args.path());
     }
   }
   o.method = filter_args.method;

@@ -82,34 +82,24 @@ struct FileResult {
 
 Options parseArgs(int argc, char** argv) {
   Options o;
-  bool help = false;
   cli::FilterArgs filter_args;
-  cli::ArgCursor args(argc, argv);
+  const std::vector<cli::IntOption> ints = {{"--repeat", &o.repeat, 1, 1000000}};
+  cli::ArgCursor args(argc, argv, kUsage);
   while (args.next()) {
     const std::string& arg = args.option();
-    if (arg == "--help" || arg == "-h") {
-      help = true;
+    if (filter_args.consume(&args) || args.takeInt(ints)) {
+      continue;
     } else if (arg == "--json") {
       o.json = true;
     } else if (arg == "--classes") {
       o.classes = true;
-    } else if (filter_args.consume(&args)) {
-      continue;
     } else if (arg == "--write-labels") {
       o.labels_dir = args.value();
     } else if (arg == "--write-clouds") {
       o.clouds_dir = args.value();
-    } else if (arg == "--repeat") {
-      o.repeat = cli::parseIntOption(arg, args.value(), 1, 1000000);
-    } else if (arg.size() > 1 && arg[0] == '-' && arg != "-") {
-      throw UsageError("unknown option '" + arg + "'");
     } else {
-      o.paths.push_back(args.raw());
+      o.paths.push_back(args.path());
     }
-  }
-  if (help) {
-    std::cout << kUsage;
-    std::exit(0);
   }
   if (o.paths.empty()) throw UsageError("no PATH given");
   o.method = filter_args.method;

@@ -190,32 +190,20 @@ struct Options {
 
 Options parseArgs(int argc, char** argv) {
   Options o;
-  cli::ArgCursor args(argc, argv);
+  const std::vector<cli::IntOption> ints = {{"--k", &o.k, 1, 256},
+                                            {"--repeat", &o.repeat, 1, 100000},
+                                            {"--large", &o.large, 1, 1000000000}};
+  cli::ArgCursor args(argc, argv, kUsage);
   while (args.next()) {
     const std::string& arg = args.option();
-    if (arg == "--help" || arg == "-h") {
-      std::cout << kUsage;
-      std::exit(0);
-    } else if (arg == "--k") {
-      o.k = cli::parseIntOption(arg, args.value(), 1, 256);
-    } else if (arg == "--repeat") {
-      o.repeat = cli::parseIntOption(arg, args.value(), 1, 100000);
-    } else if (arg == "--large") {
-      o.large = cli::parseIntOption(arg, args.value(), 1, 1000000000);
+    if (args.takeInt(ints)) {
+      continue;
     } else if (arg == "--threads") {
-      const std::string list = args.value();
-      for (std::size_t b = 0; b < list.size();) {
-        std::size_t e = list.find(',', b);
-        if (e == std::string::npos) e = list.size();
-        o.threads.push_back(cli::parseIntOption(arg, list.substr(b, e - b), 1, 1024));
-        b = e + 1;
-      }
+      o.threads = cli::parseIntList(arg, args.value(), 1, 1024);
     } else if (arg == "--set") {
       o.settings.push_back(cli::parseSetting(args.value()));
-    } else if (arg.size() > 1 && arg[0] == '-') {
-      throw cli::UsageError("unknown option " + arg);
     } else {
-      o.paths.push_back(args.raw());
+      o.paths.push_back(args.path());
     }
   }
   return o;

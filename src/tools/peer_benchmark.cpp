@@ -59,8 +59,6 @@ const char kUsage[] =
     "--set N=V       voxel filter parameter (repeatable)\n"
     "--help          this text\n";
 
-using cli::UsageError;
-
 struct Options {
   int repeat = 15;
   int warmup = 1;
@@ -74,30 +72,22 @@ struct Options {
 
 Options parseArgs(int argc, char** argv) {
   Options o;
-  cli::ArgCursor args(argc, argv);
+  const std::vector<cli::IntOption> ints = {{"--repeat", &o.repeat, 1, 100000},
+                                            {"--warmup", &o.warmup, 0, 1000},
+                                            {"--threads", &o.threads, 0, 256},
+                                            {"--replicate", &o.replicate, 1, 1000},
+                                            {"--tls-points", &o.tls_points, 1000, 5000000}};
+  cli::ArgCursor args(argc, argv, kUsage);
   while (args.next()) {
     const std::string& arg = args.option();
-    if (arg == "--help" || arg == "-h") {
-      std::cout << kUsage;
-      std::exit(0);
-    } else if (arg == "--repeat") {
-      o.repeat = cli::parseIntOption(arg, args.value(), 1, 100000);
-    } else if (arg == "--warmup") {
-      o.warmup = cli::parseIntOption(arg, args.value(), 0, 1000);
-    } else if (arg == "--threads") {
-      o.threads = cli::parseIntOption(arg, args.value(), 0, 256);
-    } else if (arg == "--replicate") {
-      o.replicate = cli::parseIntOption(arg, args.value(), 1, 1000);
-    } else if (arg == "--tls-points") {
-      o.tls_points = cli::parseIntOption(arg, args.value(), 1000, 5000000);
+    if (args.takeInt(ints)) {
+      continue;
     } else if (arg == "--no-peer") {
       o.peer = false;
     } else if (arg == "--set") {
       o.settings.push_back(cli::parseSetting(args.value()));
-    } else if (arg.rfind("--", 0) == 0) {
-      throw UsageError("unknown option " + arg);
     } else {
-      o.paths.push_back(args.raw());
+      o.paths.push_back(args.path());
     }
   }
   return o;
