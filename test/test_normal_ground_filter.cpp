@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "gf_test_data.h"
+#include "gf_test_points.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/io/metrics.h"
 #include "ground_filter/io/scan_io.h"
@@ -87,35 +88,31 @@ TEST(NormalGroundFilter, FlatPlaneIsGround) {
   EXPECT_EQ(st.backend, "kdtree");
 }
 
+/// Defaults with the normal-angle window [min_deg, max_deg] (the paper's: 80..100).
+gf::NormalGroundFilterParams angleWindow(double min_deg, double max_deg) {
+  gf::NormalGroundFilterParams p;
+  p.min_normal_angle = min_deg;
+  p.max_normal_angle = max_deg;
+  return p;
+}
+
 TEST(NormalGroundFilter, PlaneTilted20DegreesDependsOnTheAngleWindow) {
   const Cloud c = plane(8.0, 0.1, -1.73, std::tan(20.0 * M_PI / 180.0));
   // Default window 75..105 deg (normal within 15 deg of vertical): a 20 deg slope is not ground.
   EXPECT_EQ(groundShare(run(c)), 0.0);
   // The paper's 80..100 deg neither.
-  gf::NormalGroundFilterParams paper;
-  paper.min_normal_angle = 80.0;
-  paper.max_normal_angle = 100.0;
-  EXPECT_EQ(groundShare(run(c, paper)), 0.0);
+  EXPECT_EQ(groundShare(run(c, angleWindow(80.0, 100.0))), 0.0);
   // Window 65..115 deg (25 deg from vertical): all of it is ground.
-  gf::NormalGroundFilterParams wide;
-  wide.min_normal_angle = 65.0;
-  wide.max_normal_angle = 115.0;
-  EXPECT_EQ(groundShare(run(c, wide)), 1.0);
+  EXPECT_EQ(groundShare(run(c, angleWindow(65.0, 115.0))), 1.0);
   // An asymmetric window acts through its narrower side (a PCA normal has no sign).
-  gf::NormalGroundFilterParams asym;
-  asym.min_normal_angle = 65.0;
-  asym.max_normal_angle = 105.0;
-  EXPECT_EQ(groundShare(run(c, asym)), 0.0);
+  EXPECT_EQ(groundShare(run(c, angleWindow(65.0, 105.0))), 0.0);
 }
 
 TEST(NormalGroundFilter, PlaneTilted12DegreesIsGroundWithTheDefaultsNotThePaperWindow) {
   // Grass verges slope 15-30 %: the default window keeps a 12 deg (21 %) slope, the paper's not.
   const Cloud c = plane(8.0, 0.1, -1.73, std::tan(12.0 * M_PI / 180.0));
   EXPECT_EQ(groundShare(run(c)), 1.0);
-  gf::NormalGroundFilterParams paper;
-  paper.min_normal_angle = 80.0;
-  paper.max_normal_angle = 100.0;
-  EXPECT_EQ(groundShare(run(c, paper)), 0.0);
+  EXPECT_EQ(groundShare(run(c, angleWindow(80.0, 100.0))), 0.0);
 }
 
 TEST(NormalGroundFilter, VerticalWallIsNotGround) {
@@ -397,21 +394,7 @@ void expectMatchesBruteForce(const Cloud& c, int k, const gf::NeighborLists& lis
 }
 
 Cloud randomCloud(std::size_t n, unsigned seed, bool clustered) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(-10.f, 10.f), small(-0.3f, 0.3f);
-  Cloud c;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (clustered && i % 3 == 0 && i > 0) {
-      // Near (or exactly on, every 9th) an earlier point: dense spots and duplicates.
-      const std::size_t j = rng() % i;
-      const bool dup = i % 9 == 0;
-      add(&c, c[3 * j] + (dup ? 0.f : small(rng)), c[3 * j + 1] + (dup ? 0.f : small(rng)),
-          c[3 * j + 2] + (dup ? 0.f : small(rng)));
-    } else {
-      add(&c, u(rng), u(rng), 0.2f * u(rng));
-    }
-  }
-  return c;
+  return gf_test::randomCloud(n, seed, clustered, 0.3f);
 }
 
 }  // namespace

@@ -89,6 +89,22 @@ double agreement(const std::vector<std::uint8_t>& labels, const std::vector<std:
   return total ? static_cast<double>(same) / total : 1.0;
 }
 
+/// Non-ground points of `c` above `z_min` and how many of them are labelled ground.
+struct Above {
+  std::size_t points = 0;
+  std::size_t wrong = 0;
+};
+Above nonGroundAbove(const Cloud& c, const std::vector<std::uint8_t>& labels, float z_min) {
+  Above a;
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    if (!c.truth[i] && c.xyz[3 * i + 2] > z_min) {
+      ++a.points;
+      a.wrong += labels[i] != 0;
+    }
+  }
+  return a;
+}
+
 std::vector<std::uint8_t> run(const Cloud& c, const gf::VoxelGroundFilterParams& p = {},
                               gf::FilterStats* st = nullptr) {
   gf::VoxelGroundFilter f(p);
@@ -132,21 +148,18 @@ TEST(VoxelGroundFilter, PlaneWithBox) {
       &c, -8, 8, -8, 8, 0.05f, [](float, float) { return 0.f; }, 0.005f, &rng);
   addBox(&c, 3.f, 2.f, 2.f, 1.8f, 0.f, 1.5f, 0.05f);
   const auto labels = run(c);
-  std::size_t high_box = 0, high_box_wrong = 0, far_ground = 0, far_ground_wrong = 0;
+  const Above high_box = nonGroundAbove(c, labels, 0.3f);
+  std::size_t far_ground = 0, far_ground_wrong = 0;
   for (std::size_t i = 0; i < c.size(); ++i) {
-    const float x = c.xyz[3 * i], y = c.xyz[3 * i + 1], z = c.xyz[3 * i + 2];
-    if (!c.truth[i] && z > 0.3f) {
-      ++high_box;
-      high_box_wrong += labels[i] != 0;
-    }
+    const float x = c.xyz[3 * i], y = c.xyz[3 * i + 1];
     const bool near_box = std::abs(x - 3.f) < 1.6f && std::abs(y - 2.f) < 1.5f;
     if (c.truth[i] && !near_box) {
       ++far_ground;
       far_ground_wrong += labels[i] != 1;
     }
   }
-  ASSERT_GT(high_box, 1000u);
-  EXPECT_EQ(high_box_wrong, 0u);
+  ASSERT_GT(high_box.points, 1000u);
+  EXPECT_EQ(high_box.wrong, 0u);
   EXPECT_LE(far_ground_wrong, far_ground / 100);
 }
 
@@ -205,15 +218,9 @@ TEST(VoxelGroundFilter, GroundUnderOverhangAndBesideBoxes) {
   addBox(&c, 6.f, -6.f, 2.f, 2.f, 0.12f, 1.5f, 0.05f);
   addBox(&c, -6.f, 6.f, 1.5f, 3.f, -0.12f, 1.2f, 0.05f);
   const auto labels = run(c);
-  std::size_t slab = 0, slab_wrong = 0;
-  for (std::size_t i = 0; i < c.size(); ++i) {
-    if (!c.truth[i] && c.xyz[3 * i + 2] > 2.0f) {
-      ++slab;
-      slab_wrong += labels[i] != 0;
-    }
-  }
-  ASSERT_GT(slab, 10000u);
-  EXPECT_EQ(slab_wrong, 0u);
+  const Above slab = nonGroundAbove(c, labels, 2.0f);
+  ASSERT_GT(slab.points, 10000u);
+  EXPECT_EQ(slab.wrong, 0u);
   EXPECT_GE(agreement(labels, c.truth, 1), 0.99);
 }
 
@@ -227,15 +234,9 @@ TEST(VoxelGroundFilter, PaperGlobalPlaneModeSeparatesBox) {
   p.local_planes = false;
   p.plane_distance = 0.10;
   const auto labels = run(c, p);
-  std::size_t high = 0, high_wrong = 0;
-  for (std::size_t i = 0; i < c.size(); ++i) {
-    if (!c.truth[i] && c.xyz[3 * i + 2] > 0.3f) {
-      ++high;
-      high_wrong += labels[i] != 0;
-    }
-  }
-  ASSERT_GT(high, 1000u);
-  EXPECT_EQ(high_wrong, 0u);
+  const Above high = nonGroundAbove(c, labels, 0.3f);
+  ASSERT_GT(high.points, 1000u);
+  EXPECT_EQ(high.wrong, 0u);
   EXPECT_GE(agreement(labels, c.truth, 1), 0.99);
 }
 
