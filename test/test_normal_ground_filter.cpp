@@ -4,8 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
+#include <initializer_list>
 #include <limits>
 #include <random>
 #include <stdexcept>
@@ -472,59 +474,61 @@ gf::NeighborLists oneRow(int k, std::vector<std::int32_t> idx) {
   return l;
 }
 
+/// Packed x y z of `p`.
+Cloud points(std::initializer_list<std::array<double, 3>> p) {
+  Cloud c;
+  for (const auto& q : p) add(&c, q[0], q[1], q[2]);
+  return c;
+}
+
+/// PCA of one neighbourhood: the points `idx` of `c` as a row of width `k`.
+gf::PointPca pcaOf(const Cloud& c, int k, std::vector<std::int32_t> idx) {
+  std::vector<gf::PointPca> out;
+  gf::computeNeighborhoodPca(c.data(), oneRow(k, std::move(idx)), 1, &out);
+  EXPECT_EQ(out.size(), 1u);
+  return out.empty() ? gf::PointPca() : out[0];
+}
+
+void expectEigenvalues(const gf::PointPca& p, double e0, double e1, double e2) {
+  EXPECT_NEAR(p.eigen[0], e0, 1e-6);
+  EXPECT_NEAR(p.eigen[1], e1, 1e-6);
+  EXPECT_NEAR(p.eigen[2], e2, 1e-6);
+}
+
 }  // namespace
 
 TEST(NeighborhoodPca, MatchesHandComputedCovariance) {
   // Rectangle 2 m x 1 m in z = 0, offset to 80 m like a far KITTI point.
   for (double off : {0.0, 80.0}) {
-    Cloud c;
-    add(&c, off + 0, off + 0, -1.7);
-    add(&c, off + 2, off + 0, -1.7);
-    add(&c, off + 0, off + 1, -1.7);
-    add(&c, off + 2, off + 1, -1.7);
+    const Cloud c = points({{off + 0, off + 0, -1.7},
+                            {off + 2, off + 0, -1.7},
+                            {off + 0, off + 1, -1.7},
+                            {off + 2, off + 1, -1.7}});
     // Mean (1, 0.5); covariance diag(1, 0.25, 0) -> eigenvalues 0, 0.25, 1 (sum 1.25).
-    std::vector<gf::PointPca> out;
-    gf::computeNeighborhoodPca(c.data(), oneRow(6, {0, 1, 2, 3}), 1, &out);
-    ASSERT_EQ(out.size(), 1u);
-    ASSERT_TRUE(out[0].valid);
-    EXPECT_NEAR(out[0].eigen[0], 0.0, 1e-6);
-    EXPECT_NEAR(out[0].eigen[1], 0.25 / 1.25, 1e-6);
-    EXPECT_NEAR(out[0].eigen[2], 1.0 / 1.25, 1e-6);
-    EXPECT_NEAR(std::abs(out[0].normal[2]), 1.0, 1e-6);
+    const gf::PointPca flat = pcaOf(c, 6, {0, 1, 2, 3});
+    ASSERT_TRUE(flat.valid);
+    expectEigenvalues(flat, 0.0, 0.25 / 1.25, 1.0 / 1.25);
+    EXPECT_NEAR(std::abs(flat.normal[2]), 1.0, 1e-6);
   }
   // Tilted: points (0,0,0), (1,0,1), (0,1,0), (1,1,1): plane z = x, normal (-1,0,1)/sqrt 2.
   // Centred covariance: [[.25,0,.25],[0,.25,0],[.25,0,.25]] -> eigenvalues 0, .25, .5.
-  Cloud t;
-  add(&t, 0, 0, 0);
-  add(&t, 1, 0, 1);
-  add(&t, 0, 1, 0);
-  add(&t, 1, 1, 1);
-  std::vector<gf::PointPca> out;
-  gf::computeNeighborhoodPca(t.data(), oneRow(4, {0, 1, 2, 3}), 1, &out);
-  ASSERT_TRUE(out[0].valid);
-  EXPECT_NEAR(out[0].eigen[0], 0.0, 1e-6);
-  EXPECT_NEAR(out[0].eigen[1], 1.0 / 3.0, 1e-6);
-  EXPECT_NEAR(out[0].eigen[2], 2.0 / 3.0, 1e-6);
-  EXPECT_NEAR(std::abs(out[0].normal[0]), std::sqrt(0.5), 1e-6);
-  EXPECT_NEAR(std::abs(out[0].normal[1]), 0.0, 1e-6);
-  EXPECT_NEAR(std::abs(out[0].normal[2]), std::sqrt(0.5), 1e-6);
-  EXPECT_LT(out[0].normal[0] * out[0].normal[2], 0.f);  // (-1, 0, 1) up to sign
+  const gf::PointPca tilted =
+      pcaOf(points({{0, 0, 0}, {1, 0, 1}, {0, 1, 0}, {1, 1, 1}}), 4, {0, 1, 2, 3});
+  ASSERT_TRUE(tilted.valid);
+  expectEigenvalues(tilted, 0.0, 1.0 / 3.0, 2.0 / 3.0);
+  EXPECT_NEAR(std::abs(tilted.normal[0]), std::sqrt(0.5), 1e-6);
+  EXPECT_NEAR(std::abs(tilted.normal[1]), 0.0, 1e-6);
+  EXPECT_NEAR(std::abs(tilted.normal[2]), std::sqrt(0.5), 1e-6);
+  EXPECT_LT(tilted.normal[0] * tilted.normal[2], 0.f);  // (-1, 0, 1) up to sign
 }
 
 TEST(NeighborhoodPca, DegenerateNeighbourhoodsAreInvalid) {
-  Cloud c;
-  add(&c, 1, 1, 1);
-  add(&c, 1, 1, 1);
-  add(&c, 1, 1, 1);
-  add(&c, 2, 1, 1);
-  std::vector<gf::PointPca> out;
-  gf::computeNeighborhoodPca(c.data(), oneRow(5, {0, 1}), 1, &out);  // fewer than 3
-  EXPECT_FALSE(out[0].valid);
-  gf::computeNeighborhoodPca(c.data(), oneRow(5, {0, 1, 2}), 1, &out);  // no spread
-  EXPECT_FALSE(out[0].valid);
-  gf::computeNeighborhoodPca(c.data(), oneRow(5, {0, 1, 2, 3}), 1, &out);  // a line: valid
-  EXPECT_TRUE(out[0].valid);
-  EXPECT_NEAR(out[0].eigen[2], 1.0, 1e-6);  // all spread along one axis
+  const Cloud c = points({{1, 1, 1}, {1, 1, 1}, {1, 1, 1}, {2, 1, 1}});
+  EXPECT_FALSE(pcaOf(c, 5, {0, 1}).valid);              // fewer than 3
+  EXPECT_FALSE(pcaOf(c, 5, {0, 1, 2}).valid);           // no spread
+  const gf::PointPca line = pcaOf(c, 5, {0, 1, 2, 3});  // a line: valid
+  EXPECT_TRUE(line.valid);
+  EXPECT_NEAR(line.eigen[2], 1.0, 1e-6);  // all spread along one axis
 }
 
 TEST(NeighborhoodPca, SameForAnyThreadCount) {

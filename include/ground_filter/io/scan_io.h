@@ -49,6 +49,11 @@ struct Scan {
 ///         extension or a label count that does not match the points.
 Scan loadScan(const std::string& path);
 
+/// \brief A generated scene as a Scan, as `builtin:` paths load it: packed fields x y z intensity
+///        (float32) and ring (uint16), truth and classes; `path` is "builtin".
+/// \throws std::runtime_error when the scene's arrays do not have one entry per point.
+Scan scanOf(GeneratedScan scene);
+
 /// \brief Short SemanticKITTI class name ("road", "vegetation", ...); "class N" when unknown.
 std::string semanticKittiClassName(std::uint16_t cls);
 
