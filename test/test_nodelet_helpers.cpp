@@ -325,9 +325,9 @@ TEST(VoxelCfg, SameParameterNamesAsParams) {
 }
 
 TEST(VoxelCfg, DefaultsAreTheLibraryDefaults) {
-  const auto params = gf::voxelParamsFromConfig(gf::VoxelGroundFilterConfig::__getDefault__());
-  EXPECT_EQ(gf::describeVoxelParams(params),
-            gf::describeVoxelParams(gf::VoxelGroundFilterParams()));
+  const auto params = gf::paramsFromConfigTable<gf::VoxelGroundFilterParams>(
+      gf::VoxelGroundFilterConfig::__getDefault__());
+  EXPECT_EQ(params.describe(), gf::VoxelGroundFilterParams().describe());
 }
 
 // Each cfg parameter is a Params field of the same name, mapped to it, and every value the cfg
@@ -341,11 +341,11 @@ TEST(VoxelCfg, EveryParameterMapsToItsFieldAndItsRangeValidates) {
     for (const auto* bound :
          {&gf::VoxelGroundFilterConfig::__getMin__(), &gf::VoxelGroundFilterConfig::__getMax__()}) {
       const gf::VoxelGroundFilterConfig config = withOne(*d, defaults, *bound);
-      const auto mapped = gf::voxelParamsFromConfig(config);
+      const auto mapped = gf::paramsFromConfigTable<gf::VoxelGroundFilterParams>(config);
       gf::VoxelGroundFilterParams by_name;
       ASSERT_NO_THROW(by_name.set(d->name, valueText(*d, config)))
           << "cfg parameter '" << d->name << "' is not a VoxelGroundFilterParams field";
-      EXPECT_EQ(gf::describeVoxelParams(mapped), gf::describeVoxelParams(by_name))
+      EXPECT_EQ(mapped.describe(), by_name.describe())
           << "cfg parameter '" << d->name << "' not mapped onto its field";
       if (d->name == "tile_size" || d->name == "voxel_size") continue;  // cross-field rule below
       EXPECT_NO_THROW(mapped.validate()) << d->name << " = " << valueText(*d, config);
@@ -355,10 +355,10 @@ TEST(VoxelCfg, EveryParameterMapsToItsFieldAndItsRangeValidates) {
   gf::VoxelGroundFilterConfig c = defaults;
   c.voxel_size = gf::VoxelGroundFilterConfig::__getMin__().voxel_size;
   c.tile_size = gf::VoxelGroundFilterConfig::__getMin__().tile_size;
-  EXPECT_NO_THROW(gf::voxelParamsFromConfig(c).validate());
+  EXPECT_NO_THROW(gf::paramsFromConfigTable<gf::VoxelGroundFilterParams>(c).validate());
   c.voxel_size = gf::VoxelGroundFilterConfig::__getMax__().voxel_size;
   c.tile_size = gf::VoxelGroundFilterConfig::__getMax__().tile_size;
-  EXPECT_NO_THROW(gf::voxelParamsFromConfig(c).validate());
+  EXPECT_NO_THROW(gf::paramsFromConfigTable<gf::VoxelGroundFilterParams>(c).validate());
 }
 
 // max_range: the cfg default is the library's and its whole range is a valid WorkingVolume.

@@ -28,18 +28,8 @@ GroundFilterNodelet::~GroundFilterNodelet() = default;
 
 GroundFilterNodelet::CounterValues GroundFilterNodelet::Counters::values() const {
   CounterValues v;
-  v.clouds_in = clouds_in;
-  v.clouds_out = clouds_out;
-  v.clouds_rejected = clouds_rejected;
-  v.clouds_no_transform = clouds_no_transform;
-  v.not_cloud = not_cloud;
-  v.filter_errors = filter_errors;
-  v.invalid_points = invalid_points;
-  v.out_of_range_points = out_of_range_points;
-  v.config_rejected = config_rejected;
-  v.frame_changes = frame_changes;
-  v.stamps_backwards = stamps_backwards;
-  v.fallbacks = fallbacks;
+  const auto& live = CounterSet<std::atomic<std::uint64_t>>::all();
+  for (std::size_t i = 0; i < live.size(); ++i) v.*CounterValues::all()[i] = this->*live[i];
   return v;
 }
 

@@ -9,12 +9,6 @@
 
 namespace ground_filter {
 
-/// \brief Maps every dynamic_reconfigure field onto VoxelGroundFilterParams (no validation).
-VoxelGroundFilterParams voxelParamsFromConfig(const VoxelGroundFilterConfig& config);
-
-/// \brief One line "name=value ..." of all voxel parameters, for logs.
-std::string describeVoxelParams(const VoxelGroundFilterParams& params);
-
 /// \brief Nodelet `ground_filter/VoxelGroundFilter`: the voxel method on GroundFilterNodelet,
 ///        parameters from cfg/VoxelGroundFilter.cfg through dynamic_reconfigure.
 class VoxelGroundFilterNodelet
@@ -22,12 +16,6 @@ class VoxelGroundFilterNodelet
                                          VoxelGroundFilter> {
  protected:
   std::string methodName() const override { return "voxel"; }
-  VoxelGroundFilterParams paramsFromConfig(const VoxelGroundFilterConfig& config) const override {
-    return voxelParamsFromConfig(config);
-  }
-  std::string describeParams(const VoxelGroundFilterParams& params) const override {
-    return describeVoxelParams(params);
-  }
 };
 
 }  // namespace ground_filter
