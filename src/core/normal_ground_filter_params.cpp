@@ -34,10 +34,6 @@ const ParamTable<NormalGroundFilterParams>& NormalGroundFilterParams::table() {
   return rows;
 }
 
-void NormalGroundFilterParams::set(const std::string& name, const std::string& value) {
-  setParam(table(), "normal", name, value, this);
-}
-
 void NormalGroundFilterParams::validate() const {
   // The angle window must contain the vertical (90 deg) and reach at most 90 deg from it: the
   // table's ranges say exactly that.
@@ -50,7 +46,5 @@ void NormalGroundFilterParams::validate() const {
                                 "' is not one of: " + known);
   }
 }
-
-std::string NormalGroundFilterParams::describe() const { return describeParams(table(), *this); }
 
 }  // namespace ground_filter

@@ -183,6 +183,10 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   void logRejected(CloudRejectReason reason, const std::string& message);
   // True when a message of this slot may be logged now; counts the suppressed ones.
   bool logNow(int slot, std::uint64_t* suppressed = nullptr);
+  // Counts one stream event in `counter` and warns "<method>: <what> (N so far)<then>" when
+  // logNow(slot) allows it.
+  void countAndWarn(std::atomic<std::uint64_t>* counter, int slot, const std::string& what,
+                    const char* then);
   // Counts and warns about frame_id changes and stamps going back between consecutive clouds.
   void checkStream(const std_msgs::Header& header);
   // Transform gravity_frame_ <- header.frame_id at header.stamp, waiting up to tf_timeout_.
@@ -233,6 +237,7 @@ class ReconfigurableFilterNodelet : public GroundFilterNodelet {
  protected:
   /// \brief Called with every accepted set before it is installed (e.g. a backend warning).
   virtual void onParamsAccepted(const Params& /*params*/) {}
+  std::string methodName() const override { return Params::method(); }
 
   void onInitFilter() override {
     server_ = std::make_unique<dynamic_reconfigure::Server<Config>>(*pnh_);

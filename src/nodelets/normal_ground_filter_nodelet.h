@@ -16,7 +16,6 @@ class NormalGroundFilterNodelet
     : public ReconfigurableFilterNodelet<NormalGroundFilterConfig, NormalGroundFilterParams,
                                          NormalGroundFilter> {
  protected:
-  std::string methodName() const override { return "normal"; }
   void onParamsAccepted(const NormalGroundFilterParams& params) override;
 
  private:

@@ -1,8 +1,6 @@
 #ifndef GROUND_FILTER_SRC_NODELETS_VOXEL_GROUND_FILTER_NODELET_H
 #define GROUND_FILTER_SRC_NODELETS_VOXEL_GROUND_FILTER_NODELET_H
 
-#include <string>
-
 #include "ground_filter/VoxelGroundFilterConfig.h"
 #include "ground_filter/voxel_ground_filter.h"
 #include "ground_filter_nodelet.h"
@@ -13,10 +11,7 @@ namespace ground_filter {
 ///        parameters from cfg/VoxelGroundFilter.cfg through dynamic_reconfigure.
 class VoxelGroundFilterNodelet
     : public ReconfigurableFilterNodelet<VoxelGroundFilterConfig, VoxelGroundFilterParams,
-                                         VoxelGroundFilter> {
- protected:
-  std::string methodName() const override { return "voxel"; }
-};
+                                         VoxelGroundFilter> {};
 
 }  // namespace ground_filter
 
