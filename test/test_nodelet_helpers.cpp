@@ -27,22 +27,7 @@ using sensor_msgs::PointField;
 namespace {
 
 using gf_test::field;
-
-// Records of 24 bytes: intensity f32 @0, z @4, x @8, y @12, ring u16 @16, 6 bytes padding.
-// Point i has x = i, y = 2i, z = 3i, intensity = 100 + i, ring = i, padding = i.
-PointCloud2 makeCloud(std::uint32_t width, std::uint32_t height = 1, std::uint32_t row_pad = 0) {
-  return gf_test::buildCloud(
-      {field("intensity", 0, PointField::FLOAT32), field("z", 4, PointField::FLOAT32),
-       field("x", 8, PointField::FLOAT32), field("y", 12, PointField::FLOAT32),
-       field("ring", 16, PointField::UINT16)},
-      24, width, height, row_pad, 0xEE, 42, [](std::uint8_t* rec, std::uint32_t i) {
-        const float v[4] = {100.0f + i, 3.0f * i, 1.0f * i, 2.0f * i};
-        std::memcpy(rec, v, sizeof(v));
-        const std::uint16_t ring = static_cast<std::uint16_t>(i);
-        std::memcpy(rec + 16, &ring, 2);
-        std::memset(rec + 18, static_cast<int>(i & 0xFF), 6);
-      });
-}
+using gf_test::makeCloud;
 
 const std::uint8_t* record(const PointCloud2& c, std::size_t i) {
   return c.data.data() + (i / c.width) * c.row_step + (i % c.width) * c.point_step;

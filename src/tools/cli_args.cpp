@@ -79,6 +79,20 @@ bool ArgCursor::takeInt(const std::vector<IntOption>& options) {
   return false;
 }
 
+void parseCommandLine(int argc, char** argv, const char* usage, const std::vector<IntOption>& ints,
+                      ParamSettings* sets, std::vector<std::string>* paths,
+                      const std::function<bool(ArgCursor*)>& other) {
+  ArgCursor args(argc, argv, usage);
+  while (args.next()) {
+    if (args.takeInt(ints)) continue;
+    if (sets && args.option() == "--set") {
+      sets->push_back(parseSetting(args.value()));
+    } else if (!other || !other(&args)) {
+      paths->push_back(args.path());
+    }
+  }
+}
+
 bool FilterArgs::consume(ArgCursor* args) {
   const std::string& opt = args->option();
   if (opt == "--method") {

@@ -74,6 +74,15 @@ class ArgCursor {
   bool has_inline_ = false;
 };
 
+/// \brief Walks the command line: `--help` prints `usage` and exits; the integer options `ints`;
+///        `--set NAME=VALUE` into `*sets` when `sets` is given; any other option goes to
+///        `other(cursor)` (when given), which returns false for one it does not know; the
+///        remaining arguments are PATHs, appended to `*paths`.
+/// \throws UsageError for an unknown option or a missing or bad value.
+void parseCommandLine(int argc, char** argv, const char* usage, const std::vector<IntOption>& ints,
+                      ParamSettings* sets, std::vector<std::string>* paths,
+                      const std::function<bool(ArgCursor*)>& other = nullptr);
+
 /// \brief The filter options every tool shares: `--method NAME`, `--params FILE` and
 ///        `--set NAME=VALUE` (a `--set` overrides the file whatever their order).
 struct FilterArgs {

@@ -59,21 +59,15 @@ struct Options {
 Options parseArgs(int argc, char** argv) {
   Options o;
   cli::FilterArgs filter_args;
-  const std::vector<cli::IntOption> ints = {{"--repeat", &o.repeat, 1, 1000000},
-                                            {"--warmup", &o.warmup, 0, 1000000}};
-  cli::ArgCursor args(argc, argv, kUsage);
-  while (args.next()) {
-    const std::string& arg = args.option();
-    if (filter_args.consume(&args) || args.takeInt(ints)) {
-      continue;
-    } else if (arg == "--threads") {
-      for (int t : cli::parseIntList(arg, args.value(), 0, 1000000)) {
-        o.threads.push_back(std::to_string(t));
-      }
-    } else {
-      o.paths.push_back(args.path());
-    }
-  }
+  cli::parseCommandLine(argc, argv, kUsage,
+                        {{"--repeat", &o.repeat, 1, 1000000}, {"--warmup", &o.warmup, 0, 1000000}},
+                        nullptr, &o.paths, [&](cli::ArgCursor* args) {
+                          if (args->option() != "--threads") return filter_args.consume(args);
+                          for (int t : cli::parseIntList("--threads", args->value(), 0, 1000000)) {
+                            o.threads.push_back(std::to_string(t));
+                          }
+                          return true;
+                        });
   o.method = filter_args.method;
   o.settings = filter_args.settings();
   if (o.paths.empty()) {

@@ -83,24 +83,22 @@ struct FileResult {
 Options parseArgs(int argc, char** argv) {
   Options o;
   cli::FilterArgs filter_args;
-  const std::vector<cli::IntOption> ints = {{"--repeat", &o.repeat, 1, 1000000}};
-  cli::ArgCursor args(argc, argv, kUsage);
-  while (args.next()) {
-    const std::string& arg = args.option();
-    if (filter_args.consume(&args) || args.takeInt(ints)) {
-      continue;
-    } else if (arg == "--json") {
-      o.json = true;
-    } else if (arg == "--classes") {
-      o.classes = true;
-    } else if (arg == "--write-labels") {
-      o.labels_dir = args.value();
-    } else if (arg == "--write-clouds") {
-      o.clouds_dir = args.value();
-    } else {
-      o.paths.push_back(args.path());
-    }
-  }
+  cli::parseCommandLine(argc, argv, kUsage, {{"--repeat", &o.repeat, 1, 1000000}}, nullptr,
+                        &o.paths, [&](cli::ArgCursor* args) {
+                          const std::string& arg = args->option();
+                          if (arg == "--json") {
+                            o.json = true;
+                          } else if (arg == "--classes") {
+                            o.classes = true;
+                          } else if (arg == "--write-labels") {
+                            o.labels_dir = args->value();
+                          } else if (arg == "--write-clouds") {
+                            o.clouds_dir = args->value();
+                          } else {
+                            return filter_args.consume(args);
+                          }
+                          return true;
+                        });
   if (o.paths.empty()) throw UsageError("no PATH given");
   o.method = filter_args.method;
   o.settings = filter_args.settings();

@@ -190,22 +190,15 @@ struct Options {
 
 Options parseArgs(int argc, char** argv) {
   Options o;
-  const std::vector<cli::IntOption> ints = {{"--k", &o.k, 1, 256},
-                                            {"--repeat", &o.repeat, 1, 100000},
-                                            {"--large", &o.large, 1, 1000000000}};
-  cli::ArgCursor args(argc, argv, kUsage);
-  while (args.next()) {
-    const std::string& arg = args.option();
-    if (args.takeInt(ints)) {
-      continue;
-    } else if (arg == "--threads") {
-      o.threads = cli::parseIntList(arg, args.value(), 1, 1024);
-    } else if (arg == "--set") {
-      o.settings.push_back(cli::parseSetting(args.value()));
-    } else {
-      o.paths.push_back(args.path());
-    }
-  }
+  cli::parseCommandLine(argc, argv, kUsage,
+                        {{"--k", &o.k, 1, 256},
+                         {"--repeat", &o.repeat, 1, 100000},
+                         {"--large", &o.large, 1, 1000000000}},
+                        &o.settings, &o.paths, [&](cli::ArgCursor* args) {
+                          if (args->option() != "--threads") return false;
+                          o.threads = cli::parseIntList("--threads", args->value(), 1, 1024);
+                          return true;
+                        });
   return o;
 }
 

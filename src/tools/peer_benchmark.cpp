@@ -72,24 +72,17 @@ struct Options {
 
 Options parseArgs(int argc, char** argv) {
   Options o;
-  const std::vector<cli::IntOption> ints = {{"--repeat", &o.repeat, 1, 100000},
-                                            {"--warmup", &o.warmup, 0, 1000},
-                                            {"--threads", &o.threads, 0, 256},
-                                            {"--replicate", &o.replicate, 1, 1000},
-                                            {"--tls-points", &o.tls_points, 1000, 5000000}};
-  cli::ArgCursor args(argc, argv, kUsage);
-  while (args.next()) {
-    const std::string& arg = args.option();
-    if (args.takeInt(ints)) {
-      continue;
-    } else if (arg == "--no-peer") {
-      o.peer = false;
-    } else if (arg == "--set") {
-      o.settings.push_back(cli::parseSetting(args.value()));
-    } else {
-      o.paths.push_back(args.path());
-    }
-  }
+  cli::parseCommandLine(argc, argv, kUsage,
+                        {{"--repeat", &o.repeat, 1, 100000},
+                         {"--warmup", &o.warmup, 0, 1000},
+                         {"--threads", &o.threads, 0, 256},
+                         {"--replicate", &o.replicate, 1, 1000},
+                         {"--tls-points", &o.tls_points, 1000, 5000000}},
+                        &o.settings, &o.paths, [&](cli::ArgCursor* args) {
+                          if (args->option() != "--no-peer") return false;
+                          o.peer = false;
+                          return true;
+                        });
   return o;
 }
 
