@@ -23,7 +23,7 @@ class NormalGroundFilter : public GroundFilter {
   /// \throws std::invalid_argument when params.validate() fails.
   explicit NormalGroundFilter(const NormalGroundFilterParams& params = NormalGroundFilterParams());
   /// \brief As above with the neighbour backend given instead of made from params.knn_backend
-  ///        (tests, custom backends; e.g. a GpuNeighborSearch with a device-memory limit).
+  ///        (tests, benchmarks, custom backends).
   /// \throws std::invalid_argument when params.validate() fails or `search` is null.
   NormalGroundFilter(const NormalGroundFilterParams& params,
                      std::unique_ptr<NeighborSearch> search);
