@@ -1,31 +1,34 @@
-# Sources of the ROS/PCL-free core library (ground_filter_core), relative to the package root.
-# Included by the top-level CMakeLists.txt and by cuda/CMakeLists.txt (standalone GPU build), so
-# the list exists once. The CUDA adapter (src/core/gpu_neighbor_search.cpp) is added where CUDA is.
-set(GF_CORE_SOURCES
-  src/core/param_parse.cpp
-  src/core/plane_fit.cpp
-  src/core/voxel_ground_filter.cpp
-  src/core/voxel_ground_filter_params.cpp
-  src/core/voxel/voxelize.cpp
-  src/core/voxel/segments.cpp
-  src/core/voxel/ground_model.cpp
-  src/core/voxel/classify.cpp
-  src/core/voxel/vote.cpp
-  src/core/voxel/worker_pool.cpp
-  src/core/morph_ground.cpp
-  src/core/filter_factory.cpp
-  src/core/metrics.cpp
-  src/core/scene_generator.cpp
-  src/core/paper_normalisation.cpp
-  src/core/normal_ground_filter.cpp
-  src/core/normal_ground_filter_params.cpp
-  src/core/normal/order.cpp
-  src/core/normal/neighborhoods.cpp
-  src/core/normal/neighborhood_pca.cpp
-  src/core/normal/vote.cpp
-  src/core/normal/plane.cpp
-  src/core/normal/classify.cpp
-  src/core/kdtree_neighbor_search.cpp
-  src/core/neighbor_search_factory.cpp
-  src/core/working_volume.cpp
-)
+# Sources of the ROS/PCL-free core library (ground_filter_core), relative to the package root, one
+# line per room of src/core/ (docs/architecture.md). Included by the top-level CMakeLists.txt and
+# by cuda/CMakeLists.txt (standalone GPU build), so the list exists once.
+#
+# gf_core_room(<folder under src/core, or . for its top> <file name without .cpp> ...)
+macro(gf_core_room dir)
+  foreach(gf_name ${ARGN})
+    if("${dir}" STREQUAL ".")
+      list(APPEND GF_CORE_SOURCES src/core/${gf_name}.cpp)
+    else()
+      list(APPEND GF_CORE_SOURCES src/core/${dir}/${gf_name}.cpp)
+    endif()
+  endforeach()
+endmacro()
+
+set(GF_CORE_SOURCES)
+# shared: makeGroundFilter, parameter parsing, plane fit, working volume, morphological ground
+# surface (airborne mode of both methods)
+gf_core_room(. filter_factory param_parse plane_fit working_volume morph_ground)
+# voxel method: the filter and its parameter table, one file per stage, the paper mode
+gf_core_room(. voxel_ground_filter voxel_ground_filter_params paper_normalisation)
+gf_core_room(voxel voxelize segments ground_model classify vote worker_pool)
+# normal method: the filter and its parameter table, one file per stage
+gf_core_room(. normal_ground_filter normal_ground_filter_params)
+gf_core_room(normal order neighborhoods neighborhood_pca vote plane classify)
+# K nearest neighbours: kd-tree and the backend factory
+gf_core_room(neighbors kdtree_neighbor_search neighbor_search_factory)
+# metrics (scan files are in ground_filter_io: they need PCL), generated scenes
+gf_core_room(io metrics)
+gf_core_room(scene scene_generator)
+
+# The CUDA adapter of the neighbour interface (and the whole-filter pipeline): added to the core
+# where CUDA is built.
+set(GF_CORE_CUDA_SOURCES src/core/neighbors/gpu_neighbor_search.cpp)

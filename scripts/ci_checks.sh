@@ -44,20 +44,23 @@ gf_check_focal_like() {
     python3 "${GF_JUNIT}" "${results}/ci-focal_like_skip.xml" focal_like nanoflann_test_skipped \
       failed "exit ${rc}: $(tail -n 20 "${ws}/focal_like_test.log")"
   fi
-  # Installed headers (install(DIRECTORY include/ground_filter/)) in C++14 (focal's default GCC 9
-  # and downstream packages that stay on C++14).
-  local bad=() h pcl_inc
+  # Installed headers (install(DIRECTORY include/ground_filter/), subfolders included) in C++14
+  # (focal's default GCC 9 and downstream packages that stay on C++14), each on its own with only
+  # include/ on the path: a public header that includes a private one (src/) fails here.
+  local bad=() rel pcl_inc headers
   pcl_inc="$(ls -d /usr/include/pcl-1.* 2>/dev/null | sort -V | tail -n 1)"
-  for h in "${GF_ROOT}"/include/ground_filter/*.h; do
-    if ! echo "#include <ground_filter/$(basename "${h}")>" | g++ -std=c++14 -fsyntax-only \
+  headers="$(cd "${GF_ROOT}/include" && find ground_filter -name '*.h' | sort)"
+  : >"${ws}/cxx14.log"
+  for rel in ${headers}; do
+    if ! echo "#include <${rel}>" | g++ -std=c++14 -fsyntax-only \
           -x c++ -I"${GF_ROOT}/include" -isystem /usr/include/eigen3 ${pcl_inc:+-isystem "${pcl_inc}"} - \
           >>"${ws}/cxx14.log" 2>&1; then
-      bad+=("$(basename "${h}")")
+      bad+=("${rel}")
     fi
   done
   if [ ${#bad[@]} -eq 0 ]; then
     python3 "${GF_JUNIT}" "${results}/ci-cxx14_headers.xml" focal_like cxx14_headers passed \
-      "$(ls "${GF_ROOT}"/include/ground_filter/*.h | wc -l) headers compile with -std=c++14"
+      "$(echo "${headers}" | wc -l) headers compile alone with -std=c++14"
   else
     python3 "${GF_JUNIT}" "${results}/ci-cxx14_headers.xml" focal_like cxx14_headers failed \
       "not C++14: ${bad[*]} (see ${ws}/cxx14.log)"

@@ -13,7 +13,6 @@ import sys
 import tempfile
 import threading
 import time
-import unittest
 
 import numpy as np
 import rosgraph
@@ -29,6 +28,7 @@ WAIT_S = 60.0
 sys.path.insert(0, os.path.join(rospkg.RosPack().get_path(PKG), "scripts"))
 import make_bag  # noqa: E402
 from ros_launch_helpers import Process, loopback_env  # noqa: E402
+from rostest_helpers import RosTestCase  # noqa: E402
 
 
 def records(msg):
@@ -65,7 +65,7 @@ class Pairs(object):
             s.unregister()
 
 
-class BagPlaybackTest(unittest.TestCase):
+class BagPlaybackTest(RosTestCase):
 
     @classmethod
     def setUpClass(cls):
@@ -98,13 +98,6 @@ class BagPlaybackTest(unittest.TestCase):
             os.rmdir(cls.tmp)
         except OSError:
             pass
-
-    def wait_for(self, predicate, what, timeout=WAIT_S):
-        deadline = time.monotonic() + timeout
-        while not predicate():
-            if time.monotonic() > deadline or rospy.is_shutdown():
-                self.fail("timed out after %.0f s: %s" % (timeout, what))
-            time.sleep(0.1)
 
     def input_subscribed(self, node):
         """True when node `node` subscribes to the bag topic (master state)."""

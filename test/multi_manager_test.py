@@ -11,8 +11,6 @@ filters sharing an input topic in one manager each get it).
 import os
 import sys
 import threading
-import time
-import unittest
 
 import rosgraph
 import rospkg
@@ -26,9 +24,10 @@ WAIT_S = 60.0
 
 sys.path.insert(0, os.path.join(rospkg.RosPack().get_path(PKG), "scripts"))
 import make_bag  # noqa: E402
+from rostest_helpers import RosTestCase  # noqa: E402
 
 
-class MultiManagerTest(unittest.TestCase):
+class MultiManagerTest(RosTestCase):
 
     @classmethod
     def setUpClass(cls):
@@ -36,13 +35,6 @@ class MultiManagerTest(unittest.TestCase):
         cls.filters = [tuple(f) for f in rospy.get_param("~filters")]
         cls.scan = make_bag.read_scan(rospy.get_param("~data_file"))
         cls.master = rosgraph.Master("/multi_manager_test")
-
-    def wait_for(self, predicate, what, timeout=WAIT_S):
-        deadline = time.monotonic() + timeout
-        while not predicate():
-            if time.monotonic() > deadline or rospy.is_shutdown():
-                self.fail("timed out after %.0f s: %s" % (timeout, what))
-            time.sleep(0.1)
 
     def system_state(self):
         pubs, subs, _ = self.master.getSystemState()

@@ -18,12 +18,13 @@ Private parameters:
 """
 
 import math
+import os
 import sys
 import threading
 import time
-import unittest
 
 import numpy as np
+import rospkg
 import rospy
 import rostest
 from dynamic_reconfigure.client import Client as ReconfigureClient
@@ -33,6 +34,9 @@ from std_msgs.msg import Float64
 
 PKG = "ground_filter"
 WAIT_S = 60.0  # generous: the test machine may be slow; never a timing assertion
+
+sys.path.insert(0, os.path.join(rospkg.RosPack().get_path(PKG), "scripts"))
+from rostest_helpers import RosTestCase  # noqa: E402
 
 # Record layout of the published test clouds: x/y/z not at offset 0, a float64 and a uint16
 # field, and 6 padding bytes that must be copied too (zero loss means whole records).
@@ -154,8 +158,8 @@ class PairCollector:
             s.unregister()
 
 
-class NodeletSplitTest(unittest.TestCase):
-    stamp_counter = 0
+class NodeletSplitTest(RosTestCase):
+    POLL_S = 0.05
 
     @classmethod
     def setUpClass(cls):
@@ -167,11 +171,8 @@ class NodeletSplitTest(unittest.TestCase):
         cls.kitti_records = make_records(cls.kitti)
         cls.pub = rospy.Publisher(cls.input_topic, PointCloud2, queue_size=200)
         cls.collector = None
-        cls.rosout = []
-        cls.rosout_lock = threading.Lock()
         # Both the raw and the aggregated log: either one is enough to see the nodelet's ERRORs.
-        cls.rosout_subs = [rospy.Subscriber(t, Log, cls._on_rosout, queue_size=1000)
-                           for t in ("/rosout", "/rosout_agg")]
+        cls.collect_rosout(("/rosout", "/rosout_agg"))
         # The nodelet is loaded once its outputs are advertised.
         deadline = time.monotonic() + WAIT_S
         want = cls.filter_name + "/ground"
@@ -182,17 +183,6 @@ class NodeletSplitTest(unittest.TestCase):
         else:
             raise AssertionError("nodelet never advertised " + want)
 
-    @classmethod
-    def _on_rosout(cls, msg):
-        with cls.rosout_lock:
-            cls.rosout.append(msg)
-
-    @classmethod
-    def next_stamp(cls):
-        # Distinct, increasing stamps: outputs are matched to inputs by stamp.
-        cls.stamp_counter += 1
-        return rospy.Time(1000 + cls.stamp_counter, 1000 * cls.stamp_counter)
-
     def subscribe_outputs(self):
         """Subscribes to both outputs (starting the lazy input subscription) once."""
         cls = type(self)
@@ -201,13 +191,6 @@ class NodeletSplitTest(unittest.TestCase):
         self.wait_for(lambda: cls.pub.get_num_connections() >= 1,
                       "the nodelet never subscribed to " + cls.input_topic)
         return cls.collector
-
-    def wait_for(self, predicate, what, timeout=WAIT_S):
-        deadline = time.monotonic() + timeout
-        while not predicate():
-            if time.monotonic() > deadline or rospy.is_shutdown():
-                self.fail("timed out: " + what)
-            time.sleep(0.05)
 
     def assert_split(self, cloud, ground, nonground):
         """The zero-loss contract for one input cloud and its two outputs."""
@@ -424,13 +407,9 @@ class NodeletSplitTest(unittest.TestCase):
         for (stamp, _), (_, reason) in zip(bad, cases):
             self.assertFalse(col.seen(stamp), "output published for a cloud with " + reason)
 
-        def logged(reason):
-            with self.rosout_lock:
-                return any(m.level >= Log.ERROR and reason in m.msg for m in self.rosout)
-
         for _, reason in cases:
-            self.wait_for(lambda r=reason: logged(r), "no ERROR on /rosout naming '%s'" % reason,
-                          timeout=10.0)
+            self.wait_for(lambda r=reason: self.logged(Log.ERROR, r),
+                          "no ERROR on /rosout naming '%s'" % reason, timeout=10.0)
 
     def test_reconfigure_while_streaming(self):
         """dynamic_reconfigure: valid values applied, out-of-range clamped, invalid refused;
@@ -486,12 +465,8 @@ class NodeletSplitTest(unittest.TestCase):
         rospy.loginfo("reconfigure: %d clouds streamed, %d pairs received", len(stamps),
                       len(pairs))
 
-        def refused_logged():
-            with self.rosout_lock:
-                return any(m.level >= Log.ERROR and "parameters refused" in m.msg
-                           for m in self.rosout)
-
-        self.wait_for(refused_logged, "no ERROR for the refused parameters", timeout=10.0)
+        self.wait_for(lambda: self.logged(Log.ERROR, "parameters refused"),
+                      "no ERROR for the refused parameters", timeout=10.0)
 
 
 if __name__ == "__main__":

@@ -9,7 +9,6 @@ import sys
 import tempfile
 import threading
 import time
-import unittest
 
 import numpy as np
 import rosbag
@@ -27,6 +26,9 @@ from std_msgs.msg import String
 PKG = "ground_filter"
 WAIT_S = 60.0
 TILT_DEG = 20.0
+
+sys.path.insert(0, os.path.join(rospkg.RosPack().get_path(PKG), "scripts"))
+from rostest_helpers import RosTestCase  # noqa: E402
 
 REC = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4"), ("idx", "<u4")])
 LABELED = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4"),
@@ -80,7 +82,9 @@ class Outputs(object):
             s.unregister()
 
 
-class RosExtrasTest(unittest.TestCase):
+class RosExtrasTest(RosTestCase):
+    POLL_S = 0.05
+    STAMP_BASE_S, STAMP_STEP_NS = 500, 0
 
     @classmethod
     def setUpClass(cls):
@@ -111,36 +115,17 @@ class RosExtrasTest(unittest.TestCase):
 
         cls.lock = threading.Lock()
         cls.diag = {}
-        cls.rosout = []
         rospy.Subscriber("/diagnostics", DiagnosticArray, cls._on_diag, queue_size=50)
         # /rosout itself: rostest starts no rosout node, so nothing is aggregated.
-        rospy.Subscriber("/rosout", Log, cls._on_log, queue_size=500)
+        cls.collect_rosout(("/rosout",))
         cls.pubs = {n: rospy.Publisher("/gf_extras/" + n, PointCloud2, queue_size=20)
                     for n in ("flat", "tilted", "notf")}
-        cls.stamp_counter = 0
 
     @classmethod
     def _on_diag(cls, msg):
         with cls.lock:
             for st in msg.status:
                 cls.diag[st.name.split(":")[0]] = st
-
-    @classmethod
-    def _on_log(cls, msg):
-        with cls.lock:
-            cls.rosout.append(msg)
-
-    @classmethod
-    def next_stamp(cls):
-        cls.stamp_counter += 1
-        return rospy.Time(500 + cls.stamp_counter, 0)
-
-    def wait_for(self, predicate, what, timeout=WAIT_S):
-        deadline = time.monotonic() + timeout
-        while not predicate():
-            if time.monotonic() > deadline or rospy.is_shutdown():
-                self.fail("timed out after %.0f s: %s" % (timeout, what))
-            time.sleep(0.05)
 
     def status(self, name):
         with self.lock:
@@ -161,10 +146,6 @@ class RosExtrasTest(unittest.TestCase):
             return float(v)
         except (TypeError, ValueError):
             return None
-
-    def logged(self, level, text):
-        with self.lock:
-            return any(m.level >= level and text in m.msg for m in self.rosout)
 
     def input_subscribed(self, topic):
         _, subs, _ = rosgraph.Master("/ros_extras_test").getSystemState()

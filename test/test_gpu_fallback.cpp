@@ -10,13 +10,13 @@
 #include <string>
 #include <vector>
 
-#include "ground_filter/kdtree_neighbor_search.h"
-#include "ground_filter/neighbor_search_factory.h"
-#include "ground_filter/normal_filter_pipeline.h"
+#include "ground_filter/neighbors/neighbor_search_factory.h"
 #include "ground_filter/normal_ground_filter.h"
+#include "neighbors/kdtree_neighbor_search.h"
+#include "normal/normal_filter_pipeline.h"
 #ifdef GROUND_FILTER_HAVE_CUDA
 #include "ground_filter/cuda_knn.h"
-#include "ground_filter/gpu_neighbor_search.h"
+#include "neighbors/gpu_neighbor_search.h"
 #endif
 
 namespace gf = ground_filter;

@@ -1,13 +1,19 @@
-"""Install space: the package installed into a fresh prefix runs the demo with only that install
-space sourced (run by catkin_add_nosetests after the build).
+"""Install space: the package installed into a fresh prefix installs exactly its public headers,
+each of which compiles on its own in C++14, and runs the demo with only that install space
+sourced (run by catkin_add_nosetests after the build).
 
-The workspace build is installed with `cmake --install` into a staging directory (DESTDIR under
-/tmp: nothing is written into the workspace, its install/ folder included), then, in a clean
-environment (`env -i`, only the staged install/setup.bash sourced, a master on a free port),
-`roslaunch ground_filter demo.launch scans:=N` must load the nodelet from the staged prefix
-(checked in the nodelet manager's /proc/PID/maps), print N scans split with counts conserved,
-and end by itself.
+The workspace build is installed once with `cmake --install` into a staging directory (DESTDIR
+under /tmp: nothing is written into the workspace, its install/ folder included). Then:
+- the headers under include/ground_filter/ are exactly PUBLIC_HEADERS (the API: a private header
+  of src/ that gets installed, or a public one that does not, fails);
+- each installed header compiles alone with -std=c++14 against the install space only (a
+  public header that includes a private one fails);
+- in a clean environment (`env -i`, only the staged install/setup.bash sourced, a master on a
+  free port), `roslaunch ground_filter demo.launch scans:=N` must load the nodelet from the
+  staged prefix (checked in the nodelet manager's /proc/PID/maps), print N scans split with
+  counts conserved, and end by itself.
 """
+import glob
 import json
 import os
 import re
@@ -23,6 +29,19 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.realpath
 from ros_launch_helpers import Process, free_port, loopback_env  # noqa: E402
 
 CONFIG = "gf_install_test.json"  # written by CMakeLists.txt next to where this test runs
+ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
+# The public API, relative to include/ground_filter/: the filters and their parameters, the
+# cloud view, the neighbour interface and factory, the host-clean CUDA classes, scan files and
+# metrics (libground_filter_io), generated scenes; and the nodelets' dynamic_reconfigure Config
+# types (generated). Everything else is private (src/).
+PUBLIC_HEADERS = {
+    "cloud_view.h", "cuda_knn.h", "cuda_normal_pipeline.h", "ground_filter.h",
+    "neighbor_search.h", "normal_ground_filter.h", "normal_ground_filter_params.h",
+    "param_parse.h", "param_table.h", "voxel_ground_filter.h", "voxel_ground_filter_params.h",
+    "working_volume.h", "neighbors/neighbor_search_factory.h", "io/metrics.h", "io/scan_io.h",
+    "scene/scene_generator.h",
+    "NormalGroundFilterConfig.h", "VoxelGroundFilterConfig.h",
+}
 SCANS = 5
 TIMEOUT_S = 120
 
@@ -39,19 +58,59 @@ class InstallSpaceTest(unittest.TestCase):
         cls.build_dir = cfg["build_dir"]
         cls.prefix = cfg["install_prefix"]
         cls.stage = tempfile.mkdtemp(prefix="gf_install_test_")
+        t0 = time.monotonic()
+        env = dict(os.environ, DESTDIR=cls.stage)
+        p = subprocess.run(["cmake", "--install", cls.build_dir], env=env,
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                           universal_newlines=True)
+        cls.install_error = None if p.returncode == 0 else p.stdout[-4000:]
+        cls.install = os.path.join(cls.stage, cls.prefix.lstrip("/"))
+        cls.install_s = time.monotonic() - t0
 
     @classmethod
     def tearDownClass(cls):
         shutil.rmtree(cls.stage, ignore_errors=True)
 
+    def installed_headers(self):
+        self.assertIsNone(self.install_error, "cmake --install failed:\n%s" % self.install_error)
+        inc = os.path.join(self.install, "include", "ground_filter")
+        return {os.path.relpath(h, inc)
+                for h in glob.glob(os.path.join(inc, "**", "*.h"), recursive=True)}
+
+    def test_only_public_headers_installed(self):
+        installed = self.installed_headers()
+        private = {os.path.relpath(h, ROOT)
+                   for h in glob.glob(os.path.join(ROOT, "src", "**", "*.h"), recursive=True)}
+        leaked = sorted(h for h in installed - PUBLIC_HEADERS
+                        if any(p.endswith("/" + os.path.basename(h)) for p in private))
+        self.assertEqual(leaked, [], "private headers (src/) installed")
+        self.assertEqual(sorted(installed - PUBLIC_HEADERS), [],
+                         "installed but not public (move it to src/ or add it to PUBLIC_HEADERS)")
+        self.assertEqual(sorted(PUBLIC_HEADERS - installed), [], "public headers not installed")
+
+    def test_public_headers_compile_alone_in_cxx14(self):
+        """Each installed header alone, C++14, with only the install space's include/ (plus
+        Eigen, PCL and the system's ROS headers for the generated Config types)."""
+        inc = os.path.join(self.install, "include")
+        pcl = sorted(glob.glob("/usr/include/pcl-1.*"))
+        flags = ["-std=c++14", "-fsyntax-only", "-x", "c++", "-I" + inc,
+                 "-isystem", "/usr/include/eigen3"] + (["-isystem", pcl[-1]] if pcl else [])
+        ros = os.environ.get("ROS_ROOT", "")
+        if ros:  # /opt/ros/<distro>/share/ros -> /opt/ros/<distro>/include
+            flags += ["-isystem", os.path.join(os.path.dirname(os.path.dirname(ros)), "include")]
+        bad = []
+        for h in sorted(self.installed_headers()):
+            p = subprocess.run(["g++"] + flags + ["-"], input="#include <ground_filter/%s>\n" % h,
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                               universal_newlines=True)
+            if p.returncode != 0:
+                bad.append("%s:\n%s" % (h, p.stdout[-1500:]))
+        self.assertEqual(bad, [], "headers that do not compile alone in C++14")
+
     def test_demo_from_install_space(self):
-        t0 = time.monotonic()
-        env = dict(os.environ, DESTDIR=self.stage)
-        p = subprocess.run(["cmake", "--install", self.build_dir], env=env,
-                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                           universal_newlines=True)
-        self.assertEqual(p.returncode, 0, "cmake --install failed:\n" + p.stdout[-4000:])
-        install = os.path.join(self.stage, self.prefix.lstrip("/"))
+        self.assertIsNone(self.install_error, "cmake --install failed:\n%s" % self.install_error)
+        install = self.install
+        install_s = self.install_s
         for rel in ("setup.bash", "lib/libground_filter_nodelets.so",
                     "lib/ground_filter/make_bag.py",
                     "lib/ground_filter/scene_publisher", "lib/ground_filter/demo_monitor",
@@ -60,7 +119,6 @@ class InstallSpaceTest(unittest.TestCase):
                     "share/ground_filter/rviz/ground_filter.rviz",
                     "include/ground_filter/ground_filter.h"):
             self.assertTrue(os.path.exists(os.path.join(install, rel)), "not installed: " + rel)
-        install_s = time.monotonic() - t0
 
         home = os.path.join(self.stage, "home")
         os.makedirs(home)

@@ -14,9 +14,10 @@
 #include <vector>
 
 #include "gf_test_data.h"
+#include "gf_test_points.h"
 #include "ground_filter/cloud_view.h"
-#include "ground_filter/kdtree_neighbor_search.h"
-#include "ground_filter/scan_io.h"
+#include "ground_filter/io/scan_io.h"
+#include "neighbors/kdtree_neighbor_search.h"
 
 // nanoflann is an optional test dependency (CMakeLists.txt defines GF_HAVE_NANOFLANN when found).
 #ifdef GF_HAVE_NANOFLANN
@@ -86,23 +87,8 @@ void expectSameLists(const gf::NeighborLists& want, const gf::NeighborLists& got
   EXPECT_EQ(bad_rows, 0u);
 }
 
-/// Uniform points in a flat box, or with clusters near earlier points and exact duplicates.
 Cloud randomCloud(std::size_t n, unsigned seed, bool clustered) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(-10.f, 10.f), small(-0.2f, 0.2f);
-  Cloud c;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (clustered && i % 3 == 0 && i > 0) {
-      const std::size_t j = rng() % i;
-      const bool dup = i % 9 == 0;
-      c.insert(c.end(),
-               {c[3 * j] + (dup ? 0.f : small(rng)), c[3 * j + 1] + (dup ? 0.f : small(rng)),
-                c[3 * j + 2] + (dup ? 0.f : small(rng))});
-    } else {
-      c.insert(c.end(), {u(rng), u(rng), 0.2f * u(rng)});
-    }
-  }
-  return c;
+  return gf_test::randomCloud(n, seed, clustered, 0.2f);
 }
 
 #ifdef GF_HAVE_NANOFLANN

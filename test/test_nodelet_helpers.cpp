@@ -27,22 +27,7 @@ using sensor_msgs::PointField;
 namespace {
 
 using gf_test::field;
-
-// Records of 24 bytes: intensity f32 @0, z @4, x @8, y @12, ring u16 @16, 6 bytes padding.
-// Point i has x = i, y = 2i, z = 3i, intensity = 100 + i, ring = i, padding = i.
-PointCloud2 makeCloud(std::uint32_t width, std::uint32_t height = 1, std::uint32_t row_pad = 0) {
-  return gf_test::buildCloud(
-      {field("intensity", 0, PointField::FLOAT32), field("z", 4, PointField::FLOAT32),
-       field("x", 8, PointField::FLOAT32), field("y", 12, PointField::FLOAT32),
-       field("ring", 16, PointField::UINT16)},
-      24, width, height, row_pad, 0xEE, 42, [](std::uint8_t* rec, std::uint32_t i) {
-        const float v[4] = {100.0f + i, 3.0f * i, 1.0f * i, 2.0f * i};
-        std::memcpy(rec, v, sizeof(v));
-        const std::uint16_t ring = static_cast<std::uint16_t>(i);
-        std::memcpy(rec + 16, &ring, 2);
-        std::memset(rec + 18, static_cast<int>(i & 0xFF), 6);
-      });
-}
+using gf_test::makeCloud;
 
 const std::uint8_t* record(const PointCloud2& c, std::size_t i) {
   return c.data.data() + (i / c.width) * c.row_step + (i % c.width) * c.point_step;
@@ -325,9 +310,9 @@ TEST(VoxelCfg, SameParameterNamesAsParams) {
 }
 
 TEST(VoxelCfg, DefaultsAreTheLibraryDefaults) {
-  const auto params = gf::voxelParamsFromConfig(gf::VoxelGroundFilterConfig::__getDefault__());
-  EXPECT_EQ(gf::describeVoxelParams(params),
-            gf::describeVoxelParams(gf::VoxelGroundFilterParams()));
+  const auto params = gf::paramsFromConfigTable<gf::VoxelGroundFilterParams>(
+      gf::VoxelGroundFilterConfig::__getDefault__());
+  EXPECT_EQ(params.describe(), gf::VoxelGroundFilterParams().describe());
 }
 
 // Each cfg parameter is a Params field of the same name, mapped to it, and every value the cfg
@@ -341,11 +326,11 @@ TEST(VoxelCfg, EveryParameterMapsToItsFieldAndItsRangeValidates) {
     for (const auto* bound :
          {&gf::VoxelGroundFilterConfig::__getMin__(), &gf::VoxelGroundFilterConfig::__getMax__()}) {
       const gf::VoxelGroundFilterConfig config = withOne(*d, defaults, *bound);
-      const auto mapped = gf::voxelParamsFromConfig(config);
+      const auto mapped = gf::paramsFromConfigTable<gf::VoxelGroundFilterParams>(config);
       gf::VoxelGroundFilterParams by_name;
       ASSERT_NO_THROW(by_name.set(d->name, valueText(*d, config)))
           << "cfg parameter '" << d->name << "' is not a VoxelGroundFilterParams field";
-      EXPECT_EQ(gf::describeVoxelParams(mapped), gf::describeVoxelParams(by_name))
+      EXPECT_EQ(mapped.describe(), by_name.describe())
           << "cfg parameter '" << d->name << "' not mapped onto its field";
       if (d->name == "tile_size" || d->name == "voxel_size") continue;  // cross-field rule below
       EXPECT_NO_THROW(mapped.validate()) << d->name << " = " << valueText(*d, config);
@@ -355,10 +340,10 @@ TEST(VoxelCfg, EveryParameterMapsToItsFieldAndItsRangeValidates) {
   gf::VoxelGroundFilterConfig c = defaults;
   c.voxel_size = gf::VoxelGroundFilterConfig::__getMin__().voxel_size;
   c.tile_size = gf::VoxelGroundFilterConfig::__getMin__().tile_size;
-  EXPECT_NO_THROW(gf::voxelParamsFromConfig(c).validate());
+  EXPECT_NO_THROW(gf::paramsFromConfigTable<gf::VoxelGroundFilterParams>(c).validate());
   c.voxel_size = gf::VoxelGroundFilterConfig::__getMax__().voxel_size;
   c.tile_size = gf::VoxelGroundFilterConfig::__getMax__().tile_size;
-  EXPECT_NO_THROW(gf::voxelParamsFromConfig(c).validate());
+  EXPECT_NO_THROW(gf::paramsFromConfigTable<gf::VoxelGroundFilterParams>(c).validate());
 }
 
 // max_range: the cfg default is the library's and its whole range is a valid WorkingVolume.

@@ -4,8 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
+#include <initializer_list>
 #include <limits>
 #include <random>
 #include <stdexcept>
@@ -14,13 +16,15 @@
 #include <vector>
 
 #include "gf_test_data.h"
+#include "gf_test_points.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/kdtree_neighbor_search.h"
-#include "ground_filter/metrics.h"
-#include "ground_filter/neighbor_search_factory.h"
+#include "ground_filter/io/metrics.h"
+#include "ground_filter/io/scan_io.h"
+#include "ground_filter/neighbors/neighbor_search_factory.h"
 #include "ground_filter/normal_ground_filter.h"
-#include "ground_filter/scan_io.h"
-#include "ground_filter/scene_generator.h"
+#include "ground_filter/scene/scene_generator.h"
+#include "neighbors/kdtree_neighbor_search.h"
+#include "normal/neighborhood_pca.h"
 
 namespace gf = ground_filter;
 
@@ -86,35 +90,31 @@ TEST(NormalGroundFilter, FlatPlaneIsGround) {
   EXPECT_EQ(st.backend, "kdtree");
 }
 
+/// Defaults with the normal-angle window [min_deg, max_deg] (the paper's: 80..100).
+gf::NormalGroundFilterParams angleWindow(double min_deg, double max_deg) {
+  gf::NormalGroundFilterParams p;
+  p.min_normal_angle = min_deg;
+  p.max_normal_angle = max_deg;
+  return p;
+}
+
 TEST(NormalGroundFilter, PlaneTilted20DegreesDependsOnTheAngleWindow) {
   const Cloud c = plane(8.0, 0.1, -1.73, std::tan(20.0 * M_PI / 180.0));
   // Default window 75..105 deg (normal within 15 deg of vertical): a 20 deg slope is not ground.
   EXPECT_EQ(groundShare(run(c)), 0.0);
   // The paper's 80..100 deg neither.
-  gf::NormalGroundFilterParams paper;
-  paper.min_normal_angle = 80.0;
-  paper.max_normal_angle = 100.0;
-  EXPECT_EQ(groundShare(run(c, paper)), 0.0);
+  EXPECT_EQ(groundShare(run(c, angleWindow(80.0, 100.0))), 0.0);
   // Window 65..115 deg (25 deg from vertical): all of it is ground.
-  gf::NormalGroundFilterParams wide;
-  wide.min_normal_angle = 65.0;
-  wide.max_normal_angle = 115.0;
-  EXPECT_EQ(groundShare(run(c, wide)), 1.0);
+  EXPECT_EQ(groundShare(run(c, angleWindow(65.0, 115.0))), 1.0);
   // An asymmetric window acts through its narrower side (a PCA normal has no sign).
-  gf::NormalGroundFilterParams asym;
-  asym.min_normal_angle = 65.0;
-  asym.max_normal_angle = 105.0;
-  EXPECT_EQ(groundShare(run(c, asym)), 0.0);
+  EXPECT_EQ(groundShare(run(c, angleWindow(65.0, 105.0))), 0.0);
 }
 
 TEST(NormalGroundFilter, PlaneTilted12DegreesIsGroundWithTheDefaultsNotThePaperWindow) {
   // Grass verges slope 15-30 %: the default window keeps a 12 deg (21 %) slope, the paper's not.
   const Cloud c = plane(8.0, 0.1, -1.73, std::tan(12.0 * M_PI / 180.0));
   EXPECT_EQ(groundShare(run(c)), 1.0);
-  gf::NormalGroundFilterParams paper;
-  paper.min_normal_angle = 80.0;
-  paper.max_normal_angle = 100.0;
-  EXPECT_EQ(groundShare(run(c, paper)), 0.0);
+  EXPECT_EQ(groundShare(run(c, angleWindow(80.0, 100.0))), 0.0);
 }
 
 TEST(NormalGroundFilter, VerticalWallIsNotGround) {
@@ -396,21 +396,7 @@ void expectMatchesBruteForce(const Cloud& c, int k, const gf::NeighborLists& lis
 }
 
 Cloud randomCloud(std::size_t n, unsigned seed, bool clustered) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(-10.f, 10.f), small(-0.3f, 0.3f);
-  Cloud c;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (clustered && i % 3 == 0 && i > 0) {
-      // Near (or exactly on, every 9th) an earlier point: dense spots and duplicates.
-      const std::size_t j = rng() % i;
-      const bool dup = i % 9 == 0;
-      add(&c, c[3 * j] + (dup ? 0.f : small(rng)), c[3 * j + 1] + (dup ? 0.f : small(rng)),
-          c[3 * j + 2] + (dup ? 0.f : small(rng)));
-    } else {
-      add(&c, u(rng), u(rng), 0.2f * u(rng));
-    }
-  }
-  return c;
+  return gf_test::randomCloud(n, seed, clustered, 0.3f);
 }
 
 }  // namespace
@@ -488,59 +474,61 @@ gf::NeighborLists oneRow(int k, std::vector<std::int32_t> idx) {
   return l;
 }
 
+/// Packed x y z of `p`.
+Cloud points(std::initializer_list<std::array<double, 3>> p) {
+  Cloud c;
+  for (const auto& q : p) add(&c, q[0], q[1], q[2]);
+  return c;
+}
+
+/// PCA of one neighbourhood: the points `idx` of `c` as a row of width `k`.
+gf::PointPca pcaOf(const Cloud& c, int k, std::vector<std::int32_t> idx) {
+  std::vector<gf::PointPca> out;
+  gf::computeNeighborhoodPca(c.data(), oneRow(k, std::move(idx)), 1, &out);
+  EXPECT_EQ(out.size(), 1u);
+  return out.empty() ? gf::PointPca() : out[0];
+}
+
+void expectEigenvalues(const gf::PointPca& p, double e0, double e1, double e2) {
+  EXPECT_NEAR(p.eigen[0], e0, 1e-6);
+  EXPECT_NEAR(p.eigen[1], e1, 1e-6);
+  EXPECT_NEAR(p.eigen[2], e2, 1e-6);
+}
+
 }  // namespace
 
 TEST(NeighborhoodPca, MatchesHandComputedCovariance) {
   // Rectangle 2 m x 1 m in z = 0, offset to 80 m like a far KITTI point.
   for (double off : {0.0, 80.0}) {
-    Cloud c;
-    add(&c, off + 0, off + 0, -1.7);
-    add(&c, off + 2, off + 0, -1.7);
-    add(&c, off + 0, off + 1, -1.7);
-    add(&c, off + 2, off + 1, -1.7);
+    const Cloud c = points({{off + 0, off + 0, -1.7},
+                            {off + 2, off + 0, -1.7},
+                            {off + 0, off + 1, -1.7},
+                            {off + 2, off + 1, -1.7}});
     // Mean (1, 0.5); covariance diag(1, 0.25, 0) -> eigenvalues 0, 0.25, 1 (sum 1.25).
-    std::vector<gf::PointPca> out;
-    gf::computeNeighborhoodPca(c.data(), oneRow(6, {0, 1, 2, 3}), 1, &out);
-    ASSERT_EQ(out.size(), 1u);
-    ASSERT_TRUE(out[0].valid);
-    EXPECT_NEAR(out[0].eigen[0], 0.0, 1e-6);
-    EXPECT_NEAR(out[0].eigen[1], 0.25 / 1.25, 1e-6);
-    EXPECT_NEAR(out[0].eigen[2], 1.0 / 1.25, 1e-6);
-    EXPECT_NEAR(std::abs(out[0].normal[2]), 1.0, 1e-6);
+    const gf::PointPca flat = pcaOf(c, 6, {0, 1, 2, 3});
+    ASSERT_TRUE(flat.valid);
+    expectEigenvalues(flat, 0.0, 0.25 / 1.25, 1.0 / 1.25);
+    EXPECT_NEAR(std::abs(flat.normal[2]), 1.0, 1e-6);
   }
   // Tilted: points (0,0,0), (1,0,1), (0,1,0), (1,1,1): plane z = x, normal (-1,0,1)/sqrt 2.
   // Centred covariance: [[.25,0,.25],[0,.25,0],[.25,0,.25]] -> eigenvalues 0, .25, .5.
-  Cloud t;
-  add(&t, 0, 0, 0);
-  add(&t, 1, 0, 1);
-  add(&t, 0, 1, 0);
-  add(&t, 1, 1, 1);
-  std::vector<gf::PointPca> out;
-  gf::computeNeighborhoodPca(t.data(), oneRow(4, {0, 1, 2, 3}), 1, &out);
-  ASSERT_TRUE(out[0].valid);
-  EXPECT_NEAR(out[0].eigen[0], 0.0, 1e-6);
-  EXPECT_NEAR(out[0].eigen[1], 1.0 / 3.0, 1e-6);
-  EXPECT_NEAR(out[0].eigen[2], 2.0 / 3.0, 1e-6);
-  EXPECT_NEAR(std::abs(out[0].normal[0]), std::sqrt(0.5), 1e-6);
-  EXPECT_NEAR(std::abs(out[0].normal[1]), 0.0, 1e-6);
-  EXPECT_NEAR(std::abs(out[0].normal[2]), std::sqrt(0.5), 1e-6);
-  EXPECT_LT(out[0].normal[0] * out[0].normal[2], 0.f);  // (-1, 0, 1) up to sign
+  const gf::PointPca tilted =
+      pcaOf(points({{0, 0, 0}, {1, 0, 1}, {0, 1, 0}, {1, 1, 1}}), 4, {0, 1, 2, 3});
+  ASSERT_TRUE(tilted.valid);
+  expectEigenvalues(tilted, 0.0, 1.0 / 3.0, 2.0 / 3.0);
+  EXPECT_NEAR(std::abs(tilted.normal[0]), std::sqrt(0.5), 1e-6);
+  EXPECT_NEAR(std::abs(tilted.normal[1]), 0.0, 1e-6);
+  EXPECT_NEAR(std::abs(tilted.normal[2]), std::sqrt(0.5), 1e-6);
+  EXPECT_LT(tilted.normal[0] * tilted.normal[2], 0.f);  // (-1, 0, 1) up to sign
 }
 
 TEST(NeighborhoodPca, DegenerateNeighbourhoodsAreInvalid) {
-  Cloud c;
-  add(&c, 1, 1, 1);
-  add(&c, 1, 1, 1);
-  add(&c, 1, 1, 1);
-  add(&c, 2, 1, 1);
-  std::vector<gf::PointPca> out;
-  gf::computeNeighborhoodPca(c.data(), oneRow(5, {0, 1}), 1, &out);  // fewer than 3
-  EXPECT_FALSE(out[0].valid);
-  gf::computeNeighborhoodPca(c.data(), oneRow(5, {0, 1, 2}), 1, &out);  // no spread
-  EXPECT_FALSE(out[0].valid);
-  gf::computeNeighborhoodPca(c.data(), oneRow(5, {0, 1, 2, 3}), 1, &out);  // a line: valid
-  EXPECT_TRUE(out[0].valid);
-  EXPECT_NEAR(out[0].eigen[2], 1.0, 1e-6);  // all spread along one axis
+  const Cloud c = points({{1, 1, 1}, {1, 1, 1}, {1, 1, 1}, {2, 1, 1}});
+  EXPECT_FALSE(pcaOf(c, 5, {0, 1}).valid);              // fewer than 3
+  EXPECT_FALSE(pcaOf(c, 5, {0, 1, 2}).valid);           // no spread
+  const gf::PointPca line = pcaOf(c, 5, {0, 1, 2, 3});  // a line: valid
+  EXPECT_TRUE(line.valid);
+  EXPECT_NEAR(line.eigen[2], 1.0, 1e-6);  // all spread along one axis
 }
 
 TEST(NeighborhoodPca, SameForAnyThreadCount) {

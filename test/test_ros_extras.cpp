@@ -24,19 +24,7 @@ using sensor_msgs::PointField;
 namespace {
 
 using gf_test::field;
-
-// 20-byte records: x y z intensity (float32) and id (uint32) = i; rows padded by `row_pad`.
-PointCloud2 makeCloud(std::uint32_t width, std::uint32_t height = 1, std::uint32_t row_pad = 0) {
-  return gf_test::buildCloud(
-      {field("x", 0, PointField::FLOAT32), field("y", 4, PointField::FLOAT32),
-       field("z", 8, PointField::FLOAT32), field("intensity", 12, PointField::FLOAT32),
-       field("id", 16, PointField::UINT32)},
-      20, width, height, row_pad, 0xAB, 7, [](std::uint8_t* rec, std::uint32_t i) {
-        const float v[4] = {1.0f * i, -2.0f * i, 0.5f * i, 10.0f + i};
-        std::memcpy(rec, v, sizeof(v));
-        std::memcpy(rec + 16, &i, 4);
-      });
-}
+using gf_test::makeCloud;
 
 gf::CloudLayout layoutOf(const PointCloud2& c) {
   gf::CloudLayout layout;
@@ -167,33 +155,33 @@ TEST(MakeLabeledCloud, AppendsAlignedUint8FieldAndDropsRowPadding) {
   EXPECT_EQ(out.header.stamp, in.header.stamp);
   EXPECT_EQ(out.width, 5u);
   EXPECT_EQ(out.height, 3u);
-  EXPECT_EQ(out.point_step, 24u);  // 20 + 1, rounded up to a multiple of 4
-  EXPECT_EQ(out.row_step, 5u * 24u);
-  ASSERT_EQ(out.data.size(), 15u * 24u);
+  EXPECT_EQ(out.point_step, 28u);  // 24 + 1, rounded up to a multiple of 4
+  EXPECT_EQ(out.row_step, 5u * 28u);
+  ASSERT_EQ(out.data.size(), 15u * 28u);
   ASSERT_EQ(out.fields.size(), in.fields.size() + 1);
   const PointField& g = out.fields.back();
   EXPECT_EQ(g.name, "ground");
-  EXPECT_EQ(g.offset, 20u);
+  EXPECT_EQ(g.offset, 24u);
   EXPECT_EQ(g.datatype, PointField::UINT8);
   EXPECT_EQ(g.count, 1u);
   for (std::size_t i = 0; i < 15; ++i) {
-    const std::uint8_t* src = in.data.data() + (i / 5) * in.row_step + (i % 5) * 20;
-    const std::uint8_t* dst = out.data.data() + i * 24;
-    EXPECT_EQ(std::memcmp(src, dst, 20), 0) << "record " << i;
-    EXPECT_EQ(dst[20], i % 3 == 0 ? 1 : 0) << "record " << i;
+    const std::uint8_t* src = in.data.data() + (i / 5) * in.row_step + (i % 5) * 24;
+    const std::uint8_t* dst = out.data.data() + i * 28;
+    EXPECT_EQ(std::memcmp(src, dst, 24), 0) << "record " << i;
+    EXPECT_EQ(dst[24], i % 3 == 0 ? 1 : 0) << "record " << i;
   }
 }
 
 TEST(MakeLabeledCloud, ReusesExistingUint8GroundFieldRefusesOtherTypes) {
   PointCloud2 in = makeCloud(4);
-  in.fields.push_back(field("ground", 19, PointField::UINT8));  // top byte of id: free here
+  in.fields.push_back(field("ground", 19, PointField::UINT8));  // a padding byte: free here
   const gf::CloudLayout layout = layoutOf(in);
   const std::vector<std::uint8_t> labels = {1, 0, 1, 0};
   PointCloud2 out;
   ASSERT_TRUE(gf::makeLabeledCloud(in, layout, labels, &out, nullptr));
   EXPECT_EQ(out.point_step, in.point_step);
   EXPECT_EQ(out.fields.size(), in.fields.size());
-  for (std::size_t i = 0; i < 4; ++i) EXPECT_EQ(out.data[i * 20 + 19], labels[i]);
+  for (std::size_t i = 0; i < 4; ++i) EXPECT_EQ(out.data[i * 24 + 19], labels[i]);
 
   in.fields.back().datatype = PointField::FLOAT32;
   in.fields.back().offset = 12;
@@ -205,7 +193,7 @@ TEST(MakeLabeledCloud, ReusesExistingUint8GroundFieldRefusesOtherTypes) {
 TEST(MakeTransformedCloudView, RotatesAndTranslatesKeepsNaN) {
   PointCloud2 in = makeCloud(3, 2, 4);  // padded rows: the transform reads row by row
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  std::memcpy(in.data.data() + in.row_step + 20 + 4, &nan, 4);  // point 4: y = NaN
+  std::memcpy(in.data.data() + in.row_step + 24 + 12, &nan, 4);  // point 4: y = NaN
   const gf::CloudLayout layout = layoutOf(in);
   // 90 degrees about z, then +10 in z: (x, y, z) -> (-y, x, z + 10).
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
@@ -219,12 +207,12 @@ TEST(MakeTransformedCloudView, RotatesAndTranslatesKeepsNaN) {
       EXPECT_FALSE(v.isValid(i));
       continue;
     }
-    EXPECT_NEAR(v.x(i), 2.0f * i, 1e-5) << i;  // -y = 2i
-    EXPECT_NEAR(v.y(i), 1.0f * i, 1e-5) << i;  // x = i
-    EXPECT_NEAR(v.z(i), 0.5f * i + 10.0f, 1e-5) << i;
+    EXPECT_NEAR(v.x(i), -2.0f * i, 1e-5) << i;  // -y = -2i
+    EXPECT_NEAR(v.y(i), 1.0f * i, 1e-5) << i;   // x = i
+    EXPECT_NEAR(v.z(i), 3.0f * i + 10.0f, 1e-5) << i;
   }
   // The cloud itself is untouched (outputs are copied from it).
   float x1;
-  std::memcpy(&x1, in.data.data() + 20, 4);
+  std::memcpy(&x1, in.data.data() + 24 + 8, 4);
   EXPECT_EQ(x1, 1.0f);
 }

@@ -27,10 +27,12 @@
 #include <string>
 #include <vector>
 
+#include "brute_force_knn.h"  // readKittiBin (cuda/test/)
 #include "ground_filter/cuda_knn.h"
-#include "ground_filter/gpu_neighbor_search.h"
-#include "ground_filter/kdtree_neighbor_search.h"
 #include "ground_filter/normal_ground_filter.h"
+#include "neighbors/gpu_neighbor_search.h"
+#include "neighbors/kdtree_neighbor_search.h"
+#include "replicate_frames.h"
 
 namespace gf = ground_filter;
 
@@ -58,34 +60,6 @@ double timeMedian(int reps, const std::function<void()>& f) {
     t.push_back(msSince(t0));
   }
   return median(t);
-}
-
-std::vector<float> readKittiBin(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::vector<float> rec, xyz;
-  if (!f) return xyz;
-  f.seekg(0, std::ios::end);
-  rec.resize(static_cast<std::size_t>(f.tellg()) / sizeof(float));
-  f.seekg(0);
-  f.read(reinterpret_cast<char*>(rec.data()), static_cast<std::streamsize>(rec.size() * 4));
-  for (std::size_t i = 0; i + 3 < rec.size(); i += 4) {
-    xyz.insert(xyz.end(), {rec[i], rec[i + 1], rec[i + 2]});
-  }
-  return xyz;
-}
-
-/// `n` points: frames 0, 1, 2, ... cycled, copy t shifted by 200 m steps on a 7-wide x/y grid.
-std::vector<float> replicate(const std::vector<std::vector<float>>& frames, std::size_t n) {
-  std::vector<float> xyz;
-  xyz.reserve(3 * n);
-  for (int t = 0; xyz.size() < 3 * n; ++t) {
-    const auto& f = frames[t % frames.size()];
-    const float ox = 200.f * static_cast<float>(t % 7), oy = 200.f * static_cast<float>(t / 7);
-    for (std::size_t i = 0; i < f.size() / 3 && xyz.size() < 3 * n; ++i) {
-      xyz.insert(xyz.end(), {f[3 * i] + ox, f[3 * i + 1] + oy, f[3 * i + 2]});
-    }
-  }
-  return xyz;
 }
 
 std::string sizeLabel(std::size_t n) {
@@ -216,14 +190,15 @@ int main(int argc, char** argv) {
   for (int f = 0; f < 6; ++f) {
     char name[32];
     std::snprintf(name, sizeof name, "/%06d.bin", f);
-    auto xyz = readKittiBin(data + name);
+    auto xyz = gf_test::readKittiBin(data + name);
     if (!xyz.empty()) frames.push_back(std::move(xyz));
   }
   if (frames.empty()) {
     std::fprintf(stderr, "no KITTI frames (000000.bin ...) in %s\n", data.c_str());
     return 1;
   }
-  const std::vector<float> os128 = readKittiBin(data + "/os128_000000.bin");  // converted PCD
+  const std::vector<float> os128 =
+      gf_test::readKittiBin(data + "/os128_000000.bin");  // converted PCD
   std::string why;
   if (!gf::CudaKnn::deviceAvailable(&why)) {
     std::fprintf(stderr, "no usable CUDA device: %s\n", why.c_str());
@@ -282,7 +257,7 @@ int main(int argc, char** argv) {
   for (std::size_t want : todo) {
     const bool is_os = want == static_cast<std::size_t>(-1);
     const std::vector<float> xyz =
-        is_os ? os128 : (want == 0 ? frames[0] : replicate(frames, want));
+        is_os ? os128 : (want == 0 ? frames[0] : gf_test::replicateFrames(frames, want));
     const std::size_t n = xyz.size() / 3;
     const std::string label = is_os ? "OS-128 (240 k)" : sizeLabel(n);
     const int r = n > 2000000 ? std::max(1, reps / 2) : reps;

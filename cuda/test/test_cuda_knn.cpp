@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "brute_force_knn.h"
+#include "gpu_test.h"
 #include "ground_filter/cuda_knn.h"
 
 using ground_filter::CudaError;
@@ -91,13 +92,7 @@ std::vector<float> lidarLikeCloud(std::size_t n, unsigned seed) {
   return xyz;
 }
 
-class CudaKnnTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    std::string why;
-    ASSERT_TRUE(CudaKnn::deviceAvailable(&why)) << "these tests need a CUDA GPU: " << why;
-  }
-};
+using CudaKnnTest = gf_test::GpuTest;
 
 TEST_F(CudaKnnTest, DeviceReportsItself) {
   CudaKnn knn;

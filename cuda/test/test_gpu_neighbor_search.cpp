@@ -11,11 +11,13 @@
 #include <vector>
 
 #include "brute_force_knn.h"
+#include "gpu_test.h"
 #include "ground_filter/cuda_knn.h"
-#include "ground_filter/gpu_neighbor_search.h"
-#include "ground_filter/kdtree_neighbor_search.h"
-#include "ground_filter/neighbor_search_factory.h"
+#include "ground_filter/neighbors/neighbor_search_factory.h"
 #include "ground_filter/normal_ground_filter.h"
+#include "neighbors/gpu_neighbor_search.h"
+#include "neighbors/kdtree_neighbor_search.h"
+#include "normal/neighborhood_pca.h"
 
 namespace gf = ground_filter;
 
@@ -46,13 +48,7 @@ std::size_t compareWithKdTree(const gf::NeighborLists& gpu, const gf::NeighborLi
   return rows_differ;
 }
 
-class GpuNeighborSearchTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    std::string why;
-    ASSERT_TRUE(gf::CudaKnn::deviceAvailable(&why)) << "these tests need a CUDA GPU: " << why;
-  }
-};
+using GpuNeighborSearchTest = gf_test::GpuTest;
 
 TEST_F(GpuNeighborSearchTest, FactoryGivesTheGpuBackend) {
   EXPECT_TRUE(gf::neighborSearchAvailable("gpu"));

@@ -15,10 +15,12 @@
 #include <vector>
 
 #include "brute_force_knn.h"
+#include "gpu_test.h"
 #include "ground_filter/cuda_knn.h"
 #include "ground_filter/cuda_normal_pipeline.h"
-#include "ground_filter/gpu_neighbor_search.h"
 #include "ground_filter/normal_ground_filter.h"
+#include "neighbors/gpu_neighbor_search.h"
+#include "replicate_frames.h"
 
 namespace gf = ground_filter;
 
@@ -37,17 +39,7 @@ std::vector<float> replicated(std::size_t n) {
     auto xyz = frame(name);
     if (!xyz.empty()) frames.push_back(std::move(xyz));
   }
-  std::vector<float> xyz;
-  if (frames.empty()) return xyz;
-  xyz.reserve(3 * n);
-  for (int t = 0; xyz.size() < 3 * n; ++t) {
-    const auto& f = frames[t % frames.size()];
-    const float ox = 200.f * static_cast<float>(t % 7), oy = 200.f * static_cast<float>(t / 7);
-    for (std::size_t i = 0; i < f.size() / 3 && xyz.size() < 3 * n; ++i) {
-      xyz.insert(xyz.end(), {f[3 * i] + ox, f[3 * i + 1] + oy, f[3 * i + 2]});
-    }
-  }
-  return xyz;
+  return gf_test::replicateFrames(frames, n);
 }
 
 struct Compared {
@@ -79,13 +71,7 @@ Compared compare(const std::vector<float>& xyz, gf::NormalGroundFilterParams p,
   return r;
 }
 
-class GpuPipelineTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    std::string why;
-    ASSERT_TRUE(gf::CudaKnn::deviceAvailable(&why)) << "these tests need a CUDA GPU: " << why;
-  }
-};
+using GpuPipelineTest = gf_test::GpuTest;
 
 TEST_F(GpuPipelineTest, DevFramesGiveTheKdTreeLabels) {
   std::size_t total = 0, differ = 0;

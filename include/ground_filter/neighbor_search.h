@@ -9,7 +9,7 @@
 
 namespace ground_filter {
 
-struct PointPca;  // neighborhood_pca.h
+struct PointPca;  // per-point PCA (private: src/core/normal/neighborhood_pca.h)
 
 /// \brief K-nearest-neighbour lists of every point of a packed xyz cloud (the point itself
 ///        included, at distance 0).

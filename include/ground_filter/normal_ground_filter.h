@@ -9,7 +9,6 @@
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/neighbor_search.h"
-#include "ground_filter/neighborhood_pca.h"  // PointPca, computeNeighborhoodPca (were here)
 #include "ground_filter/normal_ground_filter_params.h"
 
 namespace ground_filter {
@@ -24,7 +23,7 @@ class NormalGroundFilter : public GroundFilter {
   /// \throws std::invalid_argument when params.validate() fails.
   explicit NormalGroundFilter(const NormalGroundFilterParams& params = NormalGroundFilterParams());
   /// \brief As above with the neighbour backend given instead of made from params.knn_backend
-  ///        (tests, custom backends; e.g. a GpuNeighborSearch with a device-memory limit).
+  ///        (tests, benchmarks, custom backends).
   /// \throws std::invalid_argument when params.validate() fails or `search` is null.
   NormalGroundFilter(const NormalGroundFilterParams& params,
                      std::unique_ptr<NeighborSearch> search);

@@ -9,7 +9,7 @@ namespace ground_filter {
 
 /// \brief Parameters of the normal-vector method (Diaz et al., section 2.3.1). One line per field:
 ///        meaning [unit] (default; paper value when it differs).
-struct NormalGroundFilterParams {
+struct NormalGroundFilterParams : TableParams<NormalGroundFilterParams> {
   double cell_size = 0.10;  ///< x/y grid cell ordering points into columns [m] (0.10)
   int k = 64;  ///< neighbours per point, itself included [points] (64; paper 50; GPU k <= 64)
   double min_normal_angle = 75.0;  ///< normal-to-horizontal window, low end [deg] (75; paper 80)
@@ -34,17 +34,14 @@ struct NormalGroundFilterParams {
   double morph_window = 18.0;  ///< morph: largest opening radius [m] (18)
   double morph_scale = 1.25;  ///< morph: plane_distance grows by this x surface gradient [m] (1.25)
 
-  /// \brief Sets one field from text (CLI `--set NAME=VALUE`).
-  /// \throws std::invalid_argument for an unknown name or a malformed value.
-  void set(const std::string& name, const std::string& value);
-  /// \brief Checks every field's range.
+  /// \brief Checks every field's range (and the rules between fields).
   /// \throws std::invalid_argument naming the first bad field, its value and its range.
   void validate() const;
-  /// \brief "name=value ..." of every parameter (log line).
-  std::string describe() const;
   /// \brief The parameter table (name, member, range, unit) behind set(), validate() and
   ///        describe(); cfg/NormalGroundFilter.cfg must agree with it.
   static const ParamTable<NormalGroundFilterParams>& table();
+  /// \brief "normal": the method's name (messages, makeGroundFilter()).
+  static const char* method() { return "normal"; }
 };
 
 }  // namespace ground_filter

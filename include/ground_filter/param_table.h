@@ -124,6 +124,21 @@ std::string describeParams(const ParamTable<P>& table, const P& p) {
   return out;
 }
 
+/// \brief Base of a params struct `P` whose table drives set() and describe() (CRTP). `P`
+///        provides `static const ParamTable<P>& table()`, `static const char* method()` (the
+///        method's name in messages) and its own `validate()` (checkParamRanges() plus any
+///        cross-field rule).
+template <class P>
+struct TableParams {
+  /// \brief Sets one field from text (CLI `--set NAME=VALUE`).
+  /// \throws std::invalid_argument for an unknown name or a malformed value.
+  void set(const std::string& name, const std::string& value) {
+    setParam(P::table(), P::method(), name, value, static_cast<P*>(this));
+  }
+  /// \brief "name=value ..." of every parameter (log line).
+  std::string describe() const { return describeParams(P::table(), static_cast<const P&>(*this)); }
+};
+
 }  // namespace ground_filter
 
 #endif  // GROUND_FILTER_PARAM_TABLE_H

@@ -11,7 +11,7 @@ namespace ground_filter {
 ///        meaning [unit] (default; paper value when it differs). docs/voxel_method.md says
 ///        what each step does with them and gives the measurements behind every default that
 ///        differs from the paper (paper: plane_distance 0.10, std_filter on, one global plane).
-struct VoxelGroundFilterParams {
+struct VoxelGroundFilterParams : TableParams<VoxelGroundFilterParams> {
   double voxel_size = 0.10;          ///< voxel edge length [m] (0.10, paper)
   double flatness_threshold = 0.04;  ///< flat voxel: max z - min z below this [m] (0.04)
   int min_points_per_voxel = 2;      ///< voxels with fewer points are never flat [points] (2)
@@ -31,17 +31,14 @@ struct VoxelGroundFilterParams {
   double morph_window = 18.0;  ///< morph: largest opening radius [m] (18)
   double morph_scale = 1.25;  ///< morph: plane_distance grows by this x surface gradient [m] (1.25)
 
-  /// \brief Sets one field from text (CLI `--set NAME=VALUE`).
-  /// \throws std::invalid_argument for an unknown name or a malformed value.
-  void set(const std::string& name, const std::string& value);
-  /// \brief Checks every field's range.
+  /// \brief Checks every field's range (and the rules between fields).
   /// \throws std::invalid_argument naming the first bad field, its value and its range.
   void validate() const;
-  /// \brief "name=value ..." of every parameter (log line).
-  std::string describe() const;
   /// \brief The parameter table (name, member, range, unit) behind set(), validate() and
   ///        describe(); cfg/VoxelGroundFilter.cfg must agree with it.
   static const ParamTable<VoxelGroundFilterParams>& table();
+  /// \brief "voxel": the method's name (messages, makeGroundFilter()).
+  static const char* method() { return "voxel"; }
 };
 
 }  // namespace ground_filter

@@ -2,10 +2,10 @@
 
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/normal_ground_filter.h"
-#include "ground_filter/paper_normalisation.h"
 #include "ground_filter/param_parse.h"
 #include "ground_filter/voxel_ground_filter.h"
 #include "ground_filter/working_volume.h"
+#include "paper_normalisation.h"
 
 namespace ground_filter {
 

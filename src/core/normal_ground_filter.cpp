@@ -7,12 +7,12 @@
 #include <cstdint>
 #include <stdexcept>
 
-#include "ground_filter/neighbor_search_factory.h"
-#include "ground_filter/normal_filter_pipeline.h"
+#include "ground_filter/neighbors/neighbor_search_factory.h"
 #include "ground_filter/param_parse.h"
 #include "morph_ground.h"
 #include "normal/classify.h"
 #include "normal/neighborhoods.h"
+#include "normal/normal_filter_pipeline.h"
 #include "normal/order.h"
 #include "normal/plane.h"
 #include "normal/stage_times.h"

@@ -4,7 +4,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "ground_filter/neighbor_search_factory.h"
+#include "ground_filter/neighbors/neighbor_search_factory.h"
 
 namespace ground_filter {
 
@@ -39,10 +39,6 @@ const ParamTable<NormalGroundFilterParams>& NormalGroundFilterParams::table() {
   return rows;
 }
 
-void NormalGroundFilterParams::set(const std::string& name, const std::string& value) {
-  setParam(table(), "normal", name, value, this);
-}
-
 void NormalGroundFilterParams::validate() const {
   // The angle window must contain the vertical (90 deg) and reach at most 90 deg from it: the
   // table's ranges say exactly that.
@@ -55,7 +51,5 @@ void NormalGroundFilterParams::validate() const {
                                 "' is not one of: " + known);
   }
 }
-
-std::string NormalGroundFilterParams::describe() const { return describeParams(table(), *this); }
 
 }  // namespace ground_filter

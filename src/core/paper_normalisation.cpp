@@ -1,4 +1,4 @@
-#include "ground_filter/paper_normalisation.h"
+#include "paper_normalisation.h"
 
 #include <algorithm>
 #include <chrono>

@@ -1,4 +1,4 @@
-#include "ground_filter/plane_fit.h"
+#include "plane_fit.h"
 
 #include <Eigen/Eigenvalues>
 

@@ -32,17 +32,11 @@ const ParamTable<VoxelGroundFilterParams>& VoxelGroundFilterParams::table() {
   return rows;
 }
 
-void VoxelGroundFilterParams::set(const std::string& name, const std::string& value) {
-  setParam(table(), "voxel", name, value, this);
-}
-
 void VoxelGroundFilterParams::validate() const {
   checkParamRanges(table(), *this);
   if (tile_size < 2.0 * voxel_size) {
     throw std::invalid_argument("parameter 'tile_size' must be at least 2 * voxel_size");
   }
 }
-
-std::string VoxelGroundFilterParams::describe() const { return describeParams(table(), *this); }
 
 }  // namespace ground_filter

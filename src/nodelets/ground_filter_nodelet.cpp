@@ -41,18 +41,8 @@ GroundFilterNodelet::~GroundFilterNodelet() = default;
 
 GroundFilterNodelet::CounterValues GroundFilterNodelet::Counters::values() const {
   CounterValues v;
-  v.clouds_in = clouds_in;
-  v.clouds_out = clouds_out;
-  v.clouds_rejected = clouds_rejected;
-  v.clouds_no_transform = clouds_no_transform;
-  v.not_cloud = not_cloud;
-  v.filter_errors = filter_errors;
-  v.invalid_points = invalid_points;
-  v.out_of_range_points = out_of_range_points;
-  v.config_rejected = config_rejected;
-  v.frame_changes = frame_changes;
-  v.stamps_backwards = stamps_backwards;
-  v.fallbacks = fallbacks;
+  const auto& live = CounterSet<std::atomic<std::uint64_t>>::all();
+  for (std::size_t i = 0; i < live.size(); ++i) v.*CounterValues::all()[i] = this->*live[i];
   return v;
 }
 
@@ -177,6 +167,15 @@ void GroundFilterNodelet::logRejected(CloudRejectReason reason, const std::strin
                 sub_input_.getTopic().c_str(), reasonName(reason), message.c_str(), more.c_str());
 }
 
+void GroundFilterNodelet::countAndWarn(std::atomic<std::uint64_t>* counter, int slot,
+                                       const std::string& what, const char* then) {
+  const auto n = ++*counter;
+  if (logNow(slot)) {
+    NODELET_WARN("%s: %s (%llu so far)%s", methodName().c_str(), what.c_str(),
+                 static_cast<unsigned long long>(n), then);
+  }
+}
+
 void GroundFilterNodelet::checkStream(const std_msgs::Header& header) {
   std::string old_frame;
   double back_s = 0.0;
@@ -194,23 +193,17 @@ void GroundFilterNodelet::checkStream(const std_msgs::Header& header) {
     monitor_.have_last = true;
   }
   if (frame_changed) {
-    const auto n = ++counters_.frame_changes;
-    if (logNow(kFrameChange)) {
-      NODELET_WARN(
-          "%s: input frame_id changed from '%s' to '%s' (%llu changes so far); every "
-          "cloud is processed and published in its own frame",
-          methodName().c_str(), old_frame.c_str(), header.frame_id.c_str(),
-          static_cast<unsigned long long>(n));
-    }
+    countAndWarn(&counters_.frame_changes, kFrameChange,
+                 "input frame_id changed from '" + old_frame + "' to '" + header.frame_id + "'",
+                 "; every cloud is processed and published in its own frame");
   }
   if (went_back) {
-    const auto n = ++counters_.stamps_backwards;
-    if (logNow(kStampBack)) {
-      NODELET_WARN(
-          "%s: input stamp went back by %.3f s (a bag loop or a restarted driver?) "
-          "(%llu times so far); the cloud is processed as usual",
-          methodName().c_str(), back_s, static_cast<unsigned long long>(n));
-    }
+    char by[64];
+    std::snprintf(by, sizeof(by), "%.3f s", back_s);
+    countAndWarn(
+        &counters_.stamps_backwards, kStampBack,
+        std::string("input stamp went back by ") + by + " (a bag loop or a restarted driver?)",
+        "; the cloud is processed as usual");
   }
 }
 
@@ -238,13 +231,11 @@ bool GroundFilterNodelet::lookupGravityTransform(const std_msgs::Header& header,
 }
 
 void GroundFilterNodelet::onNotCloud(const std::string& what, const std::string& publisher) {
-  const auto n = ++counters_.not_cloud;
-  if (logNow(kNotCloud)) {
-    NODELET_WARN("%s: dropped a message on %s from %s: %s (%llu such messages so far)",
-                 methodName().c_str(), sub_input_.getTopic().c_str(),
-                 publisher.empty() ? "an unknown publisher" : publisher.c_str(), what.c_str(),
-                 static_cast<unsigned long long>(n));
-  }
+  countAndWarn(&counters_.not_cloud, kNotCloud,
+               "dropped a message on " + sub_input_.getTopic() + " from " +
+                   (publisher.empty() ? std::string("an unknown publisher") : publisher) + ": " +
+                   what,
+               "");
 }
 
 void GroundFilterNodelet::updateFilter() {
@@ -281,14 +272,13 @@ void GroundFilterNodelet::cloudCallback(const sensor_msgs::PointCloud2ConstPtr& 
   Eigen::Isometry3d to_gravity = Eigen::Isometry3d::Identity();
   const bool transform = !gravity_frame_.empty() && msg->header.frame_id != gravity_frame_;
   if (transform && !lookupGravityTransform(msg->header, &to_gravity, &why)) {
-    const auto n = ++counters_.clouds_no_transform;
-    if (logNow(kNoTransform)) {
-      NODELET_WARN(
-          "%s: no transform from '%s' to gravity frame '%s' at t=%.3f within %.3f s: "
-          "%s; cloud dropped (%llu so far)",
-          methodName().c_str(), msg->header.frame_id.c_str(), gravity_frame_.c_str(),
-          msg->header.stamp.toSec(), tf_timeout_, why.c_str(), static_cast<unsigned long long>(n));
-    }
+    char when[96];
+    std::snprintf(when, sizeof(when), "' at t=%.3f within %.3f s: ", msg->header.stamp.toSec(),
+                  tf_timeout_);
+    countAndWarn(&counters_.clouds_no_transform, kNoTransform,
+                 "no transform from '" + msg->header.frame_id + "' to gravity frame '" +
+                     gravity_frame_ + when + why + "; cloud dropped",
+                 "");
     return;
   }
 

@@ -10,6 +10,7 @@
 #include <tf2_ros/transform_listener.h>
 
 #include <Eigen/Geometry>
+#include <array>
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
@@ -22,6 +23,7 @@
 
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/working_volume.h"
+#include "params_from_config.h"
 #include "point_cloud2.h"
 
 namespace ground_filter {
@@ -75,38 +77,42 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   GroundFilterNodelet();
   ~GroundFilterNodelet() override;
 
-  /// \brief Counter values at one moment (plain numbers: copied, subtracted, logged).
-  struct CounterValues {
-    std::uint64_t clouds_in = 0;            ///< clouds received
-    std::uint64_t clouds_out = 0;           ///< clouds split and published
-    std::uint64_t clouds_rejected = 0;      ///< dropped: malformed clouds
-    std::uint64_t clouds_no_transform = 0;  ///< dropped: no transform to the gravity frame
-    std::uint64_t not_cloud = 0;            ///< dropped: input messages that are no PointCloud2
-    std::uint64_t filter_errors = 0;        ///< filter threw: published all non-ground
-    std::uint64_t invalid_points = 0;       ///< NaN/Inf points sent to non-ground
-    std::uint64_t out_of_range_points = 0;  ///< points outside the working volume -> non-ground
-    std::uint64_t config_rejected = 0;      ///< parameter sets refused by validation
-    std::uint64_t frame_changes = 0;        ///< clouds whose frame_id differs from the last
-    std::uint64_t stamps_backwards = 0;     ///< clouds stamped before the previous one
-    std::uint64_t fallbacks = 0;            ///< clouds with a FilterStats::note (fallback)
+  /// \brief The nodelet's counters by name: T = std::uint64_t for values at one moment (copied,
+  ///        subtracted, logged), T = std::atomic<std::uint64_t> for the live counters.
+  template <class T>
+  struct CounterSet {
+    T clouds_in{0};            ///< clouds received
+    T clouds_out{0};           ///< clouds split and published
+    T clouds_rejected{0};      ///< dropped: malformed clouds
+    T clouds_no_transform{0};  ///< dropped: no transform to the gravity frame
+    T not_cloud{0};            ///< dropped: input messages that are no PointCloud2
+    T filter_errors{0};        ///< filter threw: published all non-ground
+    T invalid_points{0};       ///< NaN/Inf points sent to non-ground
+    T out_of_range_points{0};  ///< points outside the working volume -> non-ground
+    T config_rejected{0};      ///< parameter sets refused by validation
+    T frame_changes{0};        ///< clouds whose frame_id differs from the last
+    T stamps_backwards{0};     ///< clouds stamped before the previous one
+    T fallbacks{0};            ///< clouds with a FilterStats::note (fallback)
+
+    /// \brief Every counter above, in order (copies walk this list).
+    static const std::array<T CounterSet::*, 12>& all() {
+      static const std::array<T CounterSet::*, 12> members = {
+          &CounterSet::clouds_in,        &CounterSet::clouds_out,
+          &CounterSet::clouds_rejected,  &CounterSet::clouds_no_transform,
+          &CounterSet::not_cloud,        &CounterSet::filter_errors,
+          &CounterSet::invalid_points,   &CounterSet::out_of_range_points,
+          &CounterSet::config_rejected,  &CounterSet::frame_changes,
+          &CounterSet::stamps_backwards, &CounterSet::fallbacks};
+      return members;
+    }
     /// \brief Clouds received but not published, all reasons.
     std::uint64_t dropped() const { return clouds_rejected + clouds_no_transform + not_cloud; }
   };
+  /// \brief Counter values at one moment.
+  using CounterValues = CounterSet<std::uint64_t>;
 
   /// \brief Counters since start (updated and read from any thread).
-  struct Counters {
-    std::atomic<std::uint64_t> clouds_in{0};            ///< see CounterValues
-    std::atomic<std::uint64_t> clouds_out{0};           ///< see CounterValues
-    std::atomic<std::uint64_t> clouds_rejected{0};      ///< see CounterValues
-    std::atomic<std::uint64_t> clouds_no_transform{0};  ///< see CounterValues
-    std::atomic<std::uint64_t> not_cloud{0};            ///< see CounterValues
-    std::atomic<std::uint64_t> filter_errors{0};        ///< see CounterValues
-    std::atomic<std::uint64_t> invalid_points{0};       ///< see CounterValues
-    std::atomic<std::uint64_t> out_of_range_points{0};  ///< see CounterValues
-    std::atomic<std::uint64_t> config_rejected{0};      ///< see CounterValues
-    std::atomic<std::uint64_t> frame_changes{0};        ///< see CounterValues
-    std::atomic<std::uint64_t> stamps_backwards{0};     ///< see CounterValues
-    std::atomic<std::uint64_t> fallbacks{0};            ///< see CounterValues
+  struct Counters : CounterSet<std::atomic<std::uint64_t>> {
     /// \brief The current values (each read atomically; not one snapshot of all).
     CounterValues values() const;
   };
@@ -179,6 +185,10 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   void logRejected(CloudRejectReason reason, const std::string& message);
   // True when a message of this slot may be logged now; counts the suppressed ones.
   bool logNow(int slot, std::uint64_t* suppressed = nullptr);
+  // Counts one stream event in `counter` and warns "<method>: <what> (N so far)<then>" when
+  // logNow(slot) allows it.
+  void countAndWarn(std::atomic<std::uint64_t>* counter, int slot, const std::string& what,
+                    const char* then);
   // Counts and warns about frame_id changes and stamps going back between consecutive clouds.
   void checkStream(const std_msgs::Header& header);
   // Transform gravity_frame_ <- header.frame_id at header.stamp, waiting up to tf_timeout_.
@@ -228,12 +238,9 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
 template <typename Config, typename Params, typename Filter>
 class ReconfigurableFilterNodelet : public GroundFilterNodelet {
  protected:
-  /// \brief Maps every cfg field onto the params struct (no validation).
-  virtual Params paramsFromConfig(const Config& config) const = 0;
-  /// \brief One log line "name=value ..." of all parameters.
-  virtual std::string describeParams(const Params& params) const = 0;
   /// \brief Called with every accepted set before it is installed (e.g. a backend warning).
   virtual void onParamsAccepted(const Params& /*params*/) {}
+  std::string methodName() const override { return Params::method(); }
 
   void onInitFilter() override {
     server_ = std::make_unique<dynamic_reconfigure::Server<Config>>(*pnh_);
@@ -243,7 +250,8 @@ class ReconfigurableFilterNodelet : public GroundFilterNodelet {
 
  private:
   void reconfigure(Config& config, uint32_t /*level*/) {
-    Params params = paramsFromConfig(config);
+    // Every cfg field onto the params struct through its table (no validation).
+    Params params = paramsFromConfigTable<Params>(config);
     WorkingVolume volume;
     volume.max_range = config.max_range;
     try {
@@ -257,14 +265,14 @@ class ReconfigurableFilterNodelet : public GroundFilterNodelet {
         return;
       }
       config = Config::__getDefault__();  // the .cfg defaults are the library's
-      params = paramsFromConfig(config);
+      params = paramsFromConfigTable<Params>(config);
       volume.max_range = config.max_range;
     }
     last_good_ = config;
     have_good_ = true;
     onParamsAccepted(params);
     setFilterFactory([params]() { return std::make_unique<Filter>(params); }, volume,
-                     describeParams(params));
+                     params.describe());
   }
 
   std::unique_ptr<dynamic_reconfigure::Server<Config>> server_;

@@ -2,16 +2,9 @@
 
 #include <pluginlib/class_list_macros.hpp>
 
-#include "ground_filter/neighbor_search_factory.h"
-#include "params_from_config.h"
+#include "ground_filter/neighbors/neighbor_search_factory.h"
 
 namespace ground_filter {
-
-NormalGroundFilterParams normalParamsFromConfig(const NormalGroundFilterConfig& config) {
-  return paramsFromConfigTable<NormalGroundFilterParams>(config);
-}
-
-std::string describeNormalParams(const NormalGroundFilterParams& p) { return p.describe(); }
 
 void NormalGroundFilterNodelet::onParamsAccepted(const NormalGroundFilterParams& params) {
   // A backend this build or machine cannot run falls back to the kd-tree: say so once per

@@ -9,12 +9,6 @@
 
 namespace ground_filter {
 
-/// \brief Maps every dynamic_reconfigure field onto NormalGroundFilterParams (no validation).
-NormalGroundFilterParams normalParamsFromConfig(const NormalGroundFilterConfig& config);
-
-/// \brief One line "name=value ..." of all normal-vector parameters, for logs.
-std::string describeNormalParams(const NormalGroundFilterParams& params);
-
 /// \brief Nodelet `ground_filter/NormalGroundFilter`: the normal-vector method on
 ///        GroundFilterNodelet, parameters from cfg/NormalGroundFilter.cfg through
 ///        dynamic_reconfigure; `knn_backend` switches the neighbour search at run time.
@@ -22,13 +16,6 @@ class NormalGroundFilterNodelet
     : public ReconfigurableFilterNodelet<NormalGroundFilterConfig, NormalGroundFilterParams,
                                          NormalGroundFilter> {
  protected:
-  std::string methodName() const override { return "normal"; }
-  NormalGroundFilterParams paramsFromConfig(const NormalGroundFilterConfig& config) const override {
-    return normalParamsFromConfig(config);
-  }
-  std::string describeParams(const NormalGroundFilterParams& params) const override {
-    return describeNormalParams(params);
-  }
   void onParamsAccepted(const NormalGroundFilterParams& params) override;
 
  private:

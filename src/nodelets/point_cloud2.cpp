@@ -55,24 +55,13 @@ void prepareOutput(const sensor_msgs::PointCloud2& in, std::size_t n,
 }  // namespace
 
 const char* reasonName(CloudRejectReason r) {
-  switch (r) {
-    case CloudRejectReason::kBigEndian:
-      return "big-endian";
-    case CloudRejectReason::kMissingField:
-      return "missing field";
-    case CloudRejectReason::kFieldType:
-      return "field type";
-    case CloudRejectReason::kFieldCount:
-      return "field count";
-    case CloudRejectReason::kFieldExtent:
-      return "field extent";
-    case CloudRejectReason::kRowStep:
-      return "row_step";
-    case CloudRejectReason::kDataSize:
-      return "data size";
-    default:
-      return "none";
-  }
+  // In the order of CloudRejectReason.
+  static const char* const kNames[] = {"none",        "big-endian",   "missing field", "field type",
+                                       "field count", "field extent", "row_step",      "data size"};
+  static_assert(sizeof(kNames) / sizeof(kNames[0]) == static_cast<int>(CloudRejectReason::kCount),
+                "one name per CloudRejectReason");
+  const int i = static_cast<int>(r);
+  return i > 0 && i < static_cast<int>(CloudRejectReason::kCount) ? kNames[i] : "none";
 }
 
 CloudRejectReason checkPointCloud2(const sensor_msgs::PointCloud2& cloud, CloudLayout* layout,

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <exception>
 #include <fstream>
+#include <iostream>
 
 namespace ground_filter {
 namespace cli {
@@ -18,10 +20,31 @@ std::string trim(const std::string& s) {
 
 }  // namespace
 
+int runTool(const char* tool, const std::function<int()>& body) {
+  try {
+    return body();
+  } catch (const UsageError& e) {
+    std::cerr << tool << ": " << e.what() << "\n(try --help)" << std::endl;
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << tool << ": error: " << e.what() << std::endl;
+    return 1;
+  }
+}
+
+std::string dataDir() {
+  const char* env = std::getenv("GF_DATA_DIR");
+  return env && *env ? env : GF_DEFAULT_DATA_DIR;
+}
+
 bool ArgCursor::next() {
   if (i_ + 1 >= argc_) return false;
   ++i_;
   option_ = argv_[i_];
+  if (option_ == "--help" || option_ == "-h") {
+    std::cout << usage_;
+    std::exit(0);
+  }
   has_inline_ = false;
   inline_value_.clear();
   const std::size_t eq = option_.find('=');
@@ -37,6 +60,37 @@ std::string ArgCursor::value() {
   if (has_inline_) return inline_value_;
   if (i_ + 1 >= argc_) throw UsageError(option_ + " needs a value");
   return argv_[++i_];
+}
+
+std::string ArgCursor::path() const {
+  if (option_.size() > 1 && option_[0] == '-') {
+    throw UsageError("unknown option '" + option_ + "'");
+  }
+  return argv_[i_];
+}
+
+bool ArgCursor::takeInt(const std::vector<IntOption>& options) {
+  for (const IntOption& o : options) {
+    if (option_ == o.name) {
+      *o.value = parseIntOption(option_, value(), o.lo, o.hi);
+      return true;
+    }
+  }
+  return false;
+}
+
+void parseCommandLine(int argc, char** argv, const char* usage, const std::vector<IntOption>& ints,
+                      ParamSettings* sets, std::vector<std::string>* paths,
+                      const std::function<bool(ArgCursor*)>& other) {
+  ArgCursor args(argc, argv, usage);
+  while (args.next()) {
+    if (args.takeInt(ints)) continue;
+    if (sets && args.option() == "--set") {
+      sets->push_back(parseSetting(args.value()));
+    } else if (!other || !other(&args)) {
+      paths->push_back(args.path());
+    }
+  }
 }
 
 bool FilterArgs::consume(ArgCursor* args) {
@@ -81,6 +135,17 @@ int parseIntOption(const std::string& opt, const std::string& v, int lo, int hi)
                      std::to_string(hi) + "], got '" + v + "'");
   }
   return static_cast<int>(n);
+}
+
+std::vector<int> parseIntList(const std::string& opt, const std::string& v, int lo, int hi) {
+  std::vector<int> out;
+  std::size_t start = 0;
+  while (start <= v.size()) {
+    const std::size_t comma = std::min(v.find(',', start), v.size());
+    out.push_back(parseIntOption(opt, v.substr(start, comma - start), lo, hi));
+    start = comma + 1;
+  }
+  return out;
 }
 
 ParamSettings loadParamsFile(const std::string& path) {

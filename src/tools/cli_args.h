@@ -1,15 +1,22 @@
-// Command-line helpers shared by ground_filter_eval and ground_filter_benchmark: option cursor
-// with --name=value support, --set NAME=VALUE, --params FILE (flat YAML), integers, timing.
+// Command-line helpers shared by the tools (eval, benchmark, knn and peer benchmarks): main()'s
+// error handling, option cursor with --name=value support, --set NAME=VALUE, --params FILE (flat
+// YAML), integers, the default data folder, timing.
 #ifndef GROUND_FILTER_TOOLS_CLI_ARGS_H
 #define GROUND_FILTER_TOOLS_CLI_ARGS_H
 
 #include <chrono>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "ground_filter/ground_filter.h"
+
+// The build sets it to the checkout's ../shared/data (CMakeLists.txt, target ground_filter_cli).
+#ifndef GF_DEFAULT_DATA_DIR
+#define GF_DEFAULT_DATA_DIR "../shared/data"
+#endif
 
 namespace ground_filter {
 namespace cli {
@@ -19,12 +26,28 @@ struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// \brief Walks argv; splits `--name=value` into option and inline value.
+/// \brief A tool's main(): returns `body()`; a UsageError prints "TOOL: message (try --help)"
+///        and gives 2, any other exception "TOOL: error: message" and gives 1.
+int runTool(const char* tool, const std::function<int()>& body);
+
+/// \brief Folder of the default inputs: $GF_DATA_DIR when set and not empty, else the build-time
+///        GF_DEFAULT_DATA_DIR.
+std::string dataDir();
+
+/// \brief An integer option: its name, where it goes and its range.
+struct IntOption {
+  const char* name;  ///< e.g. "--repeat"
+  int* value;        ///< set from the option's value
+  int lo, hi;        ///< accepted range (inclusive)
+};
+
+/// \brief Walks argv; splits `--name=value` into option and inline value; answers `--help`.
 class ArgCursor {
  public:
-  /// \brief Starts before argv[1].
-  ArgCursor(int argc, char** argv) : argc_(argc), argv_(argv) {}
-  /// \brief Moves to the next argument; false when there is none.
+  /// \brief Starts before argv[1]; `usage` is the tool's --help text.
+  ArgCursor(int argc, char** argv, const char* usage) : argc_(argc), argv_(argv), usage_(usage) {}
+  /// \brief Moves to the next argument; false when there is none. `--help` or `-h` prints the
+  ///        usage text and exits with status 0.
   bool next();
   /// \brief The current argument without an inline `=value` of a `--` option.
   const std::string& option() const { return option_; }
@@ -33,15 +56,32 @@ class ArgCursor {
   /// \brief The option's value: the inline one, else the next argument.
   /// \throws UsageError when there is none.
   std::string value();
+  /// \brief The current argument as a PATH (operand); a lone "-" is one.
+  /// \throws UsageError when it looks like an option (no tool option matched it).
+  std::string path() const;
+  /// \brief Takes the current option when it is one of `options` (parseIntOption()).
+  /// \returns false when it is none of them.
+  /// \throws UsageError for a missing or bad value.
+  bool takeInt(const std::vector<IntOption>& options);
 
  private:
   int argc_;
   char** argv_;
+  const char* usage_;
   int i_ = 0;
   std::string option_;
   std::string inline_value_;
   bool has_inline_ = false;
 };
+
+/// \brief Walks the command line: `--help` prints `usage` and exits; the integer options `ints`;
+///        `--set NAME=VALUE` into `*sets` when `sets` is given; any other option goes to
+///        `other(cursor)` (when given), which returns false for one it does not know; the
+///        remaining arguments are PATHs, appended to `*paths`.
+/// \throws UsageError for an unknown option or a missing or bad value.
+void parseCommandLine(int argc, char** argv, const char* usage, const std::vector<IntOption>& ints,
+                      ParamSettings* sets, std::vector<std::string>* paths,
+                      const std::function<bool(ArgCursor*)>& other = nullptr);
 
 /// \brief The filter options every tool shares: `--method NAME`, `--params FILE` and
 ///        `--set NAME=VALUE` (a `--set` overrides the file whatever their order).
@@ -65,6 +105,10 @@ std::pair<std::string, std::string> parseSetting(const std::string& kv);
 /// \brief Integer value of option `opt` in [lo, hi].
 /// \throws UsageError otherwise.
 int parseIntOption(const std::string& opt, const std::string& v, int lo, int hi);
+
+/// \brief Comma-separated integers of option `opt`, each in [lo, hi] (e.g. `--threads 1,2`).
+/// \throws UsageError for an empty or bad entry.
+std::vector<int> parseIntList(const std::string& opt, const std::string& v, int lo, int hi);
 
 /// \brief Reads a parameter file: flat YAML `name: value` lines (the files of config/ and of
 ///        `params_file:=`), `#` comments and blank lines allowed; quotes around a value are

@@ -31,28 +31,22 @@
 #include <string>
 #include <vector>
 
+#include "ground_filter/io/metrics.h"
+
 namespace {
 
 constexpr std::uint8_t kTruthIgnore = 255;
 
-// Confusion counts, ground being the positive class; ignored points are left out.
-struct Confusion {
-  std::uint64_t tp = 0, fp = 0, tn = 0, fn = 0, ignored = 0;
-  bool valid = false;  // false when a cloud had no usable gt_ground field
+namespace gf = ground_filter;
 
-  void add(const Confusion& o) {
-    tp += o.tp;
-    fp += o.fp;
-    tn += o.tn;
-    fn += o.fn;
-    ignored += o.ignored;
-  }
-  static double ratio(double num, double den) { return den > 0.0 ? num / den : 0.0; }
-  double accuracy() const { return ratio(tp + tn, tp + tn + fp + fn); }
-  double precision() const { return ratio(tp, tp + fp); }
-  double recall() const { return ratio(tp, tp + fn); }
-  double f1() const { return ratio(2.0 * tp, 2.0 * tp + fp + fn); }
-};
+// A fraction as a percentage with two decimals; "-" where it is undefined (NaN, e.g. precision
+// when nothing was labelled ground).
+std::string percent(double fraction) {
+  if (std::isnan(fraction)) return "-";
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.2f", 100.0 * fraction);
+  return buf;
+}
 
 // Counts gt_ground values of every record of `cloud`; returns false when the field is missing
 // or not uint8.
@@ -135,15 +129,16 @@ class DemoMonitor {
                 timed_scans_ ? formatMs(sum_filter_ms_ / timed_scans_).c_str() : "n/a",
                 sum_latency_ms_ / scans_);
     if (scored_scans_ > 0) {
+      const gf::Metrics m = gf::computeMetrics(pooled_);
       std::printf(
-          "[demo_monitor] accuracy over %zu labelled scans: mean F1 %.2f %%; pooled "
-          "accuracy %.2f %%, precision %.2f %%, recall %.2f %%, F1 %.2f %% "
+          "[demo_monitor] accuracy over %zu labelled scans: mean F1 %s %%; pooled "
+          "accuracy %s %%, precision %s %%, recall %s %%, F1 %s %% "
           "(tp %llu fp %llu tn %llu fn %llu, ignored %llu)\n",
-          scored_scans_, 100.0 * sum_f1_ / scored_scans_, 100.0 * pooled_.accuracy(),
-          100.0 * pooled_.precision(), 100.0 * pooled_.recall(), 100.0 * pooled_.f1(),
+          scored_scans_, percent(sum_f1_ / scored_scans_).c_str(), percent(m.accuracy).c_str(),
+          percent(m.precision).c_str(), percent(m.recall).c_str(), percent(m.f1).c_str(),
           static_cast<unsigned long long>(pooled_.tp), static_cast<unsigned long long>(pooled_.fp),
           static_cast<unsigned long long>(pooled_.tn), static_cast<unsigned long long>(pooled_.fn),
-          static_cast<unsigned long long>(pooled_.ignored));
+          static_cast<unsigned long long>(pooled_ignored_));
     } else {
       std::printf("[demo_monitor] no scan carried gt_ground labels: accuracy not measured\n");
     }
@@ -159,7 +154,9 @@ class DemoMonitor {
     double stamp;  // header stamp [s] (seq is rewritten by every roscpp publisher)
     double latency_ms;
     std::size_t ground, nonground;
-    Confusion confusion;
+    gf::Confusion confusion;  // ground the positive class, ignored points left out
+    std::uint64_t ignored = 0;
+    bool scored = false;  // false when a cloud had no usable gt_ground field
   };
   struct Timing {
     ros::WallTime arrival;
@@ -185,13 +182,11 @@ class DemoMonitor {
     std::uint64_t ign_g = 0, ign_n = 0;
     const bool ok_g = countTruth(*ground, &p.confusion.tp, &p.confusion.fp, &ign_g);
     const bool ok_n = countTruth(*nonground, &p.confusion.fn, &p.confusion.tn, &ign_n);
-    // An empty output has no way to show its fields: it is fine when the other one has them.
-    p.confusion.valid = (ok_g || p.ground == 0) && (ok_n || p.nonground == 0) && (ok_g || ok_n);
-    p.confusion.ignored = ign_g + ign_n;
-    if (p.confusion.valid &&
-        p.confusion.tp + p.confusion.fp + p.confusion.tn + p.confusion.fn == 0) {
-      p.confusion.valid = false;  // all points ignored
-    }
+    // An empty output has no way to show its fields: it is fine when the other one has them;
+    // a scan whose points are all ignored is not scored.
+    p.scored = (ok_g || p.ground == 0) && (ok_n || p.nonground == 0) && (ok_g || ok_n) &&
+               p.confusion.total() > 0;
+    p.ignored = ign_g + ign_n;
     pending_.push_back(p);
     last_activity_ = p.arrival;
     flush(ros::WallTimerEvent());
@@ -258,12 +253,13 @@ class DemoMonitor {
     }
     std::printf("%5zu %15.3f %8zu %8zu %10zu %9s %9.1f", scans_, p.stamp, points, p.ground,
                 p.nonground, ms >= 0.0 ? formatMs(ms).c_str() : "n/a", p.latency_ms);
-    if (p.confusion.valid) {
-      const Confusion& c = p.confusion;
-      std::printf(" %8.2f %8.2f %8.2f %8.2f\n", 100.0 * c.accuracy(), 100.0 * c.precision(),
-                  100.0 * c.recall(), 100.0 * c.f1());
-      pooled_.add(c);
-      sum_f1_ += c.f1();
+    if (p.scored) {
+      const gf::Metrics m = gf::computeMetrics(p.confusion);
+      std::printf(" %8s %8s %8s %8s\n", percent(m.accuracy).c_str(), percent(m.precision).c_str(),
+                  percent(m.recall).c_str(), percent(m.f1).c_str());
+      pooled_.add(p.confusion);
+      pooled_ignored_ += p.ignored;
+      sum_f1_ += m.f1;
       ++scored_scans_;
     } else {
       std::printf(" %8s %8s %8s %8s\n", "n/a", "n/a", "n/a", "n/a");
@@ -303,7 +299,8 @@ class DemoMonitor {
   std::size_t scans_ = 0, timed_scans_ = 0, scored_scans_ = 0;
   std::uint64_t total_points_ = 0;
   double sum_filter_ms_ = 0.0, sum_latency_ms_ = 0.0, sum_f1_ = 0.0;
-  Confusion pooled_;
+  gf::Confusion pooled_;
+  std::uint64_t pooled_ignored_ = 0;
   bool done_ = false;
   bool failed_ = false;
   bool shutdown_launch_ = false;

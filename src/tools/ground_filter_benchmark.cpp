@@ -15,11 +15,7 @@
 
 #include "cli_args.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/scan_io.h"
-
-#ifndef GF_DEFAULT_DATA_DIR
-#define GF_DEFAULT_DATA_DIR "../shared/data"
-#endif
+#include "ground_filter/io/scan_io.h"
 
 namespace gf = ground_filter;
 namespace cli = ground_filter::cli;
@@ -63,39 +59,19 @@ struct Options {
 Options parseArgs(int argc, char** argv) {
   Options o;
   cli::FilterArgs filter_args;
-  cli::ArgCursor args(argc, argv);
-  while (args.next()) {
-    const std::string& arg = args.option();
-    if (arg == "--help" || arg == "-h") {
-      std::cout << kUsage;
-      std::exit(0);
-    } else if (filter_args.consume(&args)) {
-      continue;
-    } else if (arg == "--repeat") {
-      o.repeat = cli::parseIntOption(arg, args.value(), 1, 1000000);
-    } else if (arg == "--warmup") {
-      o.warmup = cli::parseIntOption(arg, args.value(), 0, 1000000);
-    } else if (arg == "--threads") {
-      const std::string list = args.value();
-      std::size_t start = 0;
-      while (start <= list.size()) {
-        const std::size_t comma = std::min(list.find(',', start), list.size());
-        const std::string t = list.substr(start, comma - start);
-        cli::parseIntOption("--threads", t, 0, 1000000);
-        o.threads.push_back(t);
-        start = comma + 1;
-      }
-    } else if (arg.size() > 1 && arg[0] == '-') {
-      throw UsageError("unknown option '" + arg + "'");
-    } else {
-      o.paths.push_back(args.raw());
-    }
-  }
+  cli::parseCommandLine(argc, argv, kUsage,
+                        {{"--repeat", &o.repeat, 1, 1000000}, {"--warmup", &o.warmup, 0, 1000000}},
+                        nullptr, &o.paths, [&](cli::ArgCursor* args) {
+                          if (args->option() != "--threads") return filter_args.consume(args);
+                          for (int t : cli::parseIntList("--threads", args->value(), 0, 1000000)) {
+                            o.threads.push_back(std::to_string(t));
+                          }
+                          return true;
+                        });
   o.method = filter_args.method;
   o.settings = filter_args.settings();
   if (o.paths.empty()) {
-    const char* env = std::getenv("GF_DATA_DIR");
-    const std::string data = env && *env ? env : GF_DEFAULT_DATA_DIR;
+    const std::string data = cli::dataDir();
     for (const char* f : {"semantickitti/seq00/000000.bin", "semantickitti/seq00/000001.bin",
                           "semantickitti/seq00/000002.bin", "unlabelled/os128_000000.pcd"}) {
       o.paths.push_back(data + "/" + f);
@@ -243,13 +219,5 @@ int run(const Options& opt) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return run(parseArgs(argc, argv));
-  } catch (const UsageError& e) {
-    std::cerr << "ground_filter_benchmark: " << e.what() << "\n(try --help)" << std::endl;
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "ground_filter_benchmark: error: " << e.what() << std::endl;
-    return 1;
-  }
+  return cli::runTool("ground_filter_benchmark", [&] { return run(parseArgs(argc, argv)); });
 }

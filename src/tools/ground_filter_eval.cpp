@@ -16,8 +16,8 @@
 
 #include "cli_args.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/metrics.h"
-#include "ground_filter/scan_io.h"
+#include "ground_filter/io/metrics.h"
+#include "ground_filter/io/scan_io.h"
 
 namespace gf = ground_filter;
 namespace cli = ground_filter::cli;
@@ -82,35 +82,23 @@ struct FileResult {
 
 Options parseArgs(int argc, char** argv) {
   Options o;
-  bool help = false;
   cli::FilterArgs filter_args;
-  cli::ArgCursor args(argc, argv);
-  while (args.next()) {
-    const std::string& arg = args.option();
-    if (arg == "--help" || arg == "-h") {
-      help = true;
-    } else if (arg == "--json") {
-      o.json = true;
-    } else if (arg == "--classes") {
-      o.classes = true;
-    } else if (filter_args.consume(&args)) {
-      continue;
-    } else if (arg == "--write-labels") {
-      o.labels_dir = args.value();
-    } else if (arg == "--write-clouds") {
-      o.clouds_dir = args.value();
-    } else if (arg == "--repeat") {
-      o.repeat = cli::parseIntOption(arg, args.value(), 1, 1000000);
-    } else if (arg.size() > 1 && arg[0] == '-' && arg != "-") {
-      throw UsageError("unknown option '" + arg + "'");
-    } else {
-      o.paths.push_back(args.raw());
-    }
-  }
-  if (help) {
-    std::cout << kUsage;
-    std::exit(0);
-  }
+  cli::parseCommandLine(argc, argv, kUsage, {{"--repeat", &o.repeat, 1, 1000000}}, nullptr,
+                        &o.paths, [&](cli::ArgCursor* args) {
+                          const std::string& arg = args->option();
+                          if (arg == "--json") {
+                            o.json = true;
+                          } else if (arg == "--classes") {
+                            o.classes = true;
+                          } else if (arg == "--write-labels") {
+                            o.labels_dir = args->value();
+                          } else if (arg == "--write-clouds") {
+                            o.clouds_dir = args->value();
+                          } else {
+                            return filter_args.consume(args);
+                          }
+                          return true;
+                        });
   if (o.paths.empty()) throw UsageError("no PATH given");
   o.method = filter_args.method;
   o.settings = filter_args.settings();
@@ -307,13 +295,5 @@ int run(const Options& opt) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return run(parseArgs(argc, argv));
-  } catch (const UsageError& e) {
-    std::cerr << "ground_filter_eval: " << e.what() << "\n(try --help)" << std::endl;
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "ground_filter_eval: error: " << e.what() << std::endl;
-    return 1;
-  }
+  return cli::runTool("ground_filter_eval", [&] { return run(parseArgs(argc, argv)); });
 }

@@ -21,14 +21,11 @@
 
 #include "cli_args.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/kdtree_neighbor_search.h"
-#include "ground_filter/scan_io.h"
-
-#ifndef GF_DEFAULT_DATA_DIR
-#define GF_DEFAULT_DATA_DIR "../shared/data"
-#endif
+#include "ground_filter/io/scan_io.h"
+#include "neighbors/kdtree_neighbor_search.h"
 
 namespace gf = ground_filter;
+namespace cli = ground_filter::cli;
 
 namespace {
 
@@ -54,8 +51,8 @@ const char kUsage[] =
 
 using Clock = std::chrono::steady_clock;
 
-using ground_filter::cli::median;
-using ground_filter::cli::msSince;
+using cli::median;
+using cli::msSince;
 
 /// Finite points of a scan as packed xyz.
 std::vector<float> packedXyz(const std::string& path) {
@@ -182,67 +179,49 @@ int largeMode(const std::vector<std::string>& paths, std::size_t points, int rep
   return 0;
 }
 
+struct Options {
+  int k = 50;
+  int repeat = 0;  // 0: the mode's default
+  int large = 0;
+  std::vector<int> threads;
+  gf::ParamSettings settings;
+  std::vector<std::string> paths;
+};
+
+Options parseArgs(int argc, char** argv) {
+  Options o;
+  cli::parseCommandLine(argc, argv, kUsage,
+                        {{"--k", &o.k, 1, 256},
+                         {"--repeat", &o.repeat, 1, 100000},
+                         {"--large", &o.large, 1, 1000000000}},
+                        &o.settings, &o.paths, [&](cli::ArgCursor* args) {
+                          if (args->option() != "--threads") return false;
+                          o.threads = cli::parseIntList("--threads", args->value(), 1, 1024);
+                          return true;
+                        });
+  return o;
+}
+
+int run(Options o) {
+  const std::string data = cli::dataDir();
+  if (o.large > 0) {
+    if (o.paths.empty()) {
+      for (int f = 0; f < 6; ++f) {
+        o.paths.push_back(data + "/semantickitti/seq00/00000" + std::to_string(f) + ".bin");
+      }
+    }
+    return largeMode(o.paths, static_cast<std::size_t>(o.large), o.repeat > 0 ? o.repeat : 3,
+                     o.settings);
+  }
+  if (o.paths.empty()) o.paths.push_back(data + "/semantickitti/seq00/000000.bin");
+  if (o.threads.empty()) o.threads = {1, omp_get_num_procs()};
+  int rc = 0;
+  for (const auto& p : o.paths) rc |= knnMode(p, o.k, o.repeat > 0 ? o.repeat : 5, o.threads);
+  return rc;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    int k = 50, repeat = -1;
-    std::size_t large = 0;
-    std::vector<int> threads;
-    gf::ParamSettings settings;
-    std::vector<std::string> paths;
-    for (int a = 1; a < argc; ++a) {
-      const std::string arg = argv[a];
-      auto value = [&]() -> std::string {
-        if (a + 1 >= argc) throw std::invalid_argument(arg + " needs a value");
-        return argv[++a];
-      };
-      if (arg == "--help" || arg == "-h") {
-        std::cout << kUsage;
-        return 0;
-      } else if (arg == "--k") {
-        k = std::stoi(value());
-      } else if (arg == "--repeat") {
-        repeat = std::stoi(value());
-      } else if (arg == "--large") {
-        large = std::stoul(value());
-      } else if (arg == "--threads") {
-        const std::string list = value();
-        for (std::size_t b = 0; b < list.size();) {
-          std::size_t e = list.find(',', b);
-          if (e == std::string::npos) e = list.size();
-          threads.push_back(std::stoi(list.substr(b, e - b)));
-          b = e + 1;
-        }
-      } else if (arg == "--set") {
-        const std::string kv = value();
-        const std::size_t eq = kv.find('=');
-        if (eq == std::string::npos) throw std::invalid_argument("--set needs NAME=VALUE");
-        settings.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
-      } else if (!arg.empty() && arg[0] == '-') {
-        throw std::invalid_argument("unknown option " + arg);
-      } else {
-        paths.push_back(arg);
-      }
-    }
-    if (k < 1 || k > 256) throw std::invalid_argument("--k must be in [1, 256]");
-    const char* env = std::getenv("GF_DATA_DIR");
-    const std::string data = env ? env : GF_DEFAULT_DATA_DIR;
-    if (large > 0) {
-      if (paths.empty()) {
-        for (int f = 0; f < 6; ++f) {
-          paths.push_back(data + "/semantickitti/seq00/00000" + std::to_string(f) + ".bin");
-        }
-      }
-      return largeMode(paths, large, repeat > 0 ? repeat : 3, settings);
-    }
-    if (paths.empty()) paths.push_back(data + "/semantickitti/seq00/000000.bin");
-    if (threads.empty()) threads = {1, omp_get_num_procs()};
-    int rc = 0;
-    for (const auto& p : paths) rc |= knnMode(p, k, repeat > 0 ? repeat : 5, threads);
-    return rc;
-  } catch (const std::exception& e) {
-    std::cerr << "ground_filter_knn_benchmark: " << e.what() << "\n(try --help)\n";
-    return 2;
-  }
+  return cli::runTool("ground_filter_knn_benchmark", [&] { return run(parseArgs(argc, argv)); });
 }

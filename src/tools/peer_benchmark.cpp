@@ -24,16 +24,13 @@
 #include <vector>
 
 #include "cli_args.h"
-#include "ground_filter/metrics.h"
-#include "ground_filter/scan_io.h"
-#include "ground_filter/scene_generator.h"
+#include "ground_filter/io/metrics.h"
+#include "ground_filter/io/scan_io.h"
+#include "ground_filter/scene/scene_generator.h"
 #include "ground_filter/voxel_ground_filter.h"
 
-#ifndef GF_DEFAULT_DATA_DIR
-#define GF_DEFAULT_DATA_DIR "../shared/data"
-#endif
-
 namespace gf = ground_filter;
+namespace cli = ground_filter::cli;
 
 namespace {
 
@@ -62,65 +59,30 @@ const char kUsage[] =
     "--set N=V       voxel filter parameter (repeatable)\n"
     "--help          this text\n";
 
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
 struct Options {
   int repeat = 15;
   int warmup = 1;
   int threads = 1;
   int replicate = 1;
-  long tls_points = 0;
+  int tls_points = 0;
   bool peer = true;
   gf::ParamSettings settings;
   std::vector<std::string> paths;
 };
 
-long parseCount(const std::string& opt, const std::string& v, long min, long max) {
-  char* end = nullptr;
-  const long n = std::strtol(v.c_str(), &end, 10);
-  if (v.empty() || *end != '\0' || n < min || n > max) {
-    throw UsageError(opt + " expects an integer in [" + std::to_string(min) + ", " +
-                     std::to_string(max) + "], got '" + v + "'");
-  }
-  return n;
-}
-
 Options parseArgs(int argc, char** argv) {
   Options o;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) throw UsageError(arg + " needs a value");
-      return argv[++i];
-    };
-    if (arg == "--help" || arg == "-h") {
-      std::cout << kUsage;
-      std::exit(0);
-    } else if (arg == "--repeat") {
-      o.repeat = static_cast<int>(parseCount(arg, value(), 1, 100000));
-    } else if (arg == "--warmup") {
-      o.warmup = static_cast<int>(parseCount(arg, value(), 0, 1000));
-    } else if (arg == "--threads") {
-      o.threads = static_cast<int>(parseCount(arg, value(), 0, 256));
-    } else if (arg == "--replicate") {
-      o.replicate = static_cast<int>(parseCount(arg, value(), 1, 1000));
-    } else if (arg == "--tls-points") {
-      o.tls_points = parseCount(arg, value(), 1000, 5000000);
-    } else if (arg == "--no-peer") {
-      o.peer = false;
-    } else if (arg == "--set") {
-      const std::string kv = value();
-      const auto eq = kv.find('=');
-      if (eq == std::string::npos) throw UsageError("--set expects NAME=VALUE, got '" + kv + "'");
-      o.settings.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
-    } else if (arg.rfind("--", 0) == 0) {
-      throw UsageError("unknown option " + arg);
-    } else {
-      o.paths.push_back(arg);
-    }
-  }
+  cli::parseCommandLine(argc, argv, kUsage,
+                        {{"--repeat", &o.repeat, 1, 100000},
+                         {"--warmup", &o.warmup, 0, 1000},
+                         {"--threads", &o.threads, 0, 256},
+                         {"--replicate", &o.replicate, 1, 1000},
+                         {"--tls-points", &o.tls_points, 1000, 5000000}},
+                        &o.settings, &o.paths, [&](cli::ArgCursor* args) {
+                          if (args->option() != "--no-peer") return false;
+                          o.peer = false;
+                          return true;
+                        });
   return o;
 }
 
@@ -159,8 +121,8 @@ Input replicate(Input in, int copies) {
   return out;
 }
 
-using gf::cli::median;
-using gf::cli::msSince;
+using cli::median;
+using cli::msSince;
 
 struct Row {
   std::string name;
@@ -173,8 +135,7 @@ int run(const Options& opt) {
   std::vector<Input> inputs;
   std::vector<std::string> paths = opt.paths;
   if (paths.empty() && opt.tls_points == 0) {
-    const char* env = std::getenv("GF_DATA_DIR");
-    const std::string data = env ? env : GF_DEFAULT_DATA_DIR;
+    const std::string data = cli::dataDir();
     for (const char* f : {"000000", "000001", "000002"}) {
       paths.push_back(data + "/semantickitti/seq00/" + f + ".bin");
     }
@@ -302,13 +263,5 @@ int run(const Options& opt) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return run(parseArgs(argc, argv));
-  } catch (const UsageError& e) {
-    std::cerr << "ground_filter_peer_benchmark: " << e.what() << "\n(try --help)" << std::endl;
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "ground_filter_peer_benchmark: " << e.what() << std::endl;
-    return 1;
-  }
+  return cli::runTool("ground_filter_peer_benchmark", [&] { return run(parseArgs(argc, argv)); });
 }

@@ -26,15 +26,15 @@
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
 
-#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <exception>
 #include <string>
+#include <utility>
 #include <vector>
 
-#include "ground_filter/scan_io.h"
-#include "ground_filter/scene_generator.h"
+#include "ground_filter/io/scan_io.h"
+#include "ground_filter/scene/scene_generator.h"
 
 namespace {
 
@@ -44,45 +44,6 @@ constexpr char kTruthField[] = "gt_ground";
 // The sensor drives over this stretch of the generated road and then starts over.
 constexpr double kPathStartX = -10.0;
 constexpr double kPathEndX = 40.0;
-
-sensor_msgs::PointField makeField(const std::string& name, std::uint32_t offset,
-                                  std::uint8_t type) {
-  sensor_msgs::PointField f;
-  f.name = name;
-  f.offset = offset;
-  f.datatype = type;
-  f.count = 1;
-  return f;
-}
-
-// Generated scan -> PointCloud2 with x y z intensity (float32), ring (uint16), gt_ground (uint8).
-void toMessage(const ground_filter::GeneratedScan& scan, sensor_msgs::PointCloud2* msg) {
-  constexpr std::uint32_t kStep = 20;  // 19 bytes of fields + 1 padding byte
-  msg->fields = {makeField("x", 0, sensor_msgs::PointField::FLOAT32),
-                 makeField("y", 4, sensor_msgs::PointField::FLOAT32),
-                 makeField("z", 8, sensor_msgs::PointField::FLOAT32),
-                 makeField("intensity", 12, sensor_msgs::PointField::FLOAT32),
-                 makeField("ring", 16, sensor_msgs::PointField::UINT16),
-                 makeField(kTruthField, 18, sensor_msgs::PointField::UINT8)};
-  const std::size_t n = scan.size();
-  msg->height = 1;
-  msg->width = static_cast<std::uint32_t>(n);
-  msg->is_bigendian = false;
-  msg->point_step = kStep;
-  msg->row_step = kStep * msg->width;
-  msg->data.assign(n * kStep, 0);
-  bool dense = true;
-  for (std::size_t i = 0; i < n; ++i) {
-    std::uint8_t* rec = msg->data.data() + i * kStep;
-    std::memcpy(rec, &scan.xyz[3 * i], 3 * sizeof(float));
-    std::memcpy(rec + 12, &scan.intensity[i], sizeof(float));
-    std::memcpy(rec + 16, &scan.ring[i], sizeof(std::uint16_t));
-    rec[18] = scan.truth[i];
-    dense = dense && std::isfinite(scan.xyz[3 * i]) && std::isfinite(scan.xyz[3 * i + 1]) &&
-            std::isfinite(scan.xyz[3 * i + 2]);
-  }
-  msg->is_dense = dense;
-}
 
 // Loaded scan -> PointCloud2 with all its fields, plus gt_ground when it has ground truth.
 void toMessage(ground_filter::Scan* scan, sensor_msgs::PointCloud2* msg) {
@@ -113,6 +74,12 @@ void toMessage(ground_filter::Scan* scan, sensor_msgs::PointCloud2* msg) {
     in.data = std::move(data);
   }
   pcl_conversions::moveFromPCL(in, *msg);
+}
+
+// Generated scan -> PointCloud2 with x y z intensity (float32), ring (uint16), gt_ground (uint8).
+void toMessage(ground_filter::GeneratedScan scene, sensor_msgs::PointCloud2* msg) {
+  ground_filter::Scan scan = ground_filter::scanOf(std::move(scene));
+  toMessage(&scan, msg);
 }
 
 }  // namespace

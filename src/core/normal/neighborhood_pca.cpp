@@ -3,7 +3,7 @@
 // registers (lane by lane the same additions in the same order, products not fused: the same
 // bits as the scalar code). One neighbourhood per lane with gathers was 1.5x slower on Zen 4.
 
-#include "ground_filter/neighborhood_pca.h"
+#include "normal/neighborhood_pca.h"
 
 #include <omp.h>
 
@@ -12,7 +12,7 @@
 #include <algorithm>
 #include <cstdint>
 
-#include "../avx512_common.h"
+#include "neighbors/avx512_common.h"
 
 namespace ground_filter {
 

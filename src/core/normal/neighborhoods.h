@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "ground_filter/neighbor_search.h"
-#include "ground_filter/neighborhood_pca.h"
+#include "normal/neighborhood_pca.h"
 #include "stage_times.h"
 
 namespace ground_filter {

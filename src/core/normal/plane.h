@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "ground_filter/normal_ground_filter.h"
-#include "ground_filter/plane_fit.h"
 #include "order.h"
+#include "plane_fit.h"
 
 namespace ground_filter {
 namespace normal {

@@ -4,7 +4,7 @@
 #include <array>
 #include <cmath>
 
-#include "ground_filter/plane_fit.h"
+#include "plane_fit.h"
 
 namespace ground_filter {
 namespace voxel {

@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_NEIGHBOR_SEARCH_FACTORY_H
-#define GROUND_FILTER_NEIGHBOR_SEARCH_FACTORY_H
+#ifndef GROUND_FILTER_NEIGHBORS_NEIGHBOR_SEARCH_FACTORY_H
+#define GROUND_FILTER_NEIGHBORS_NEIGHBOR_SEARCH_FACTORY_H
 
 #include <memory>
 #include <string>
@@ -28,4 +28,4 @@ std::unique_ptr<NeighborSearch> makeNeighborSearch(const std::string& backend, i
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_NEIGHBOR_SEARCH_FACTORY_H
+#endif  // GROUND_FILTER_NEIGHBORS_NEIGHBOR_SEARCH_FACTORY_H

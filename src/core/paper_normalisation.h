@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_PAPER_NORMALISATION_H
-#define GROUND_FILTER_PAPER_NORMALISATION_H
+#ifndef GROUND_FILTER_SRC_CORE_PAPER_NORMALISATION_H
+#define GROUND_FILTER_SRC_CORE_PAPER_NORMALISATION_H
 
 #include <cstddef>
 #include <cstdint>
@@ -54,4 +54,4 @@ class PaperNormalisedVoxelFilter : public GroundFilter {
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_PAPER_NORMALISATION_H
+#endif  // GROUND_FILTER_SRC_CORE_PAPER_NORMALISATION_H

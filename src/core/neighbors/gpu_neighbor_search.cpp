@@ -1,4 +1,4 @@
-#include "ground_filter/gpu_neighbor_search.h"
+#include "neighbors/gpu_neighbor_search.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,9 +6,9 @@
 #include <string>
 
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/kdtree_neighbor_search.h"
-#include "ground_filter/neighborhood_pca.h"
 #include "ground_filter/normal_ground_filter_params.h"
+#include "neighbors/kdtree_neighbor_search.h"
+#include "normal/neighborhood_pca.h"
 
 namespace ground_filter {
 

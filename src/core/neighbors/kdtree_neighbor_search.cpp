@@ -1,4 +1,4 @@
-#include "ground_filter/kdtree_neighbor_search.h"
+#include "neighbors/kdtree_neighbor_search.h"
 
 #include <omp.h>
 
@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
-#include "avx512_common.h"
-#include "ground_filter/neighborhood_pca.h"
+#include "neighbors/avx512_common.h"
+#include "normal/neighborhood_pca.h"
 
 #if defined(__GNUC__)
 #define GF_KNN_ALWAYS_INLINE inline __attribute__((always_inline))
@@ -391,10 +391,11 @@ GF_TARGET_AVX512 inline __m512i laneMerge(__m512i v) {
   return laneStep<1, 1>(laneStep<2, 2>(laneStep<4, 4>(v)));
 }
 
-/// Sorts the bitonic sequence v[0..R) (register-level half-cleaners, then lanes).
+/// Register-level half-cleaners over v[0..R) at distances s_max, s_max / 2, ..., 1, then each
+/// register's lanes: sorts every run of 2 s_max registers that is a bitonic sequence.
 template <int R>
-GF_TARGET_AVX512 inline void bitonicMerge(__m512i* v) {
-  for (int s = R / 2; s >= 1; s /= 2) {
+GF_TARGET_AVX512 inline void halfCleanAndMerge(__m512i* v, int s_max) {
+  for (int s = s_max; s >= 1; s /= 2) {
     for (int i = 0; i < R; ++i) {
       if (i & s) continue;
       const __m512i a = v[i], b = v[i + s];
@@ -403,6 +404,12 @@ GF_TARGET_AVX512 inline void bitonicMerge(__m512i* v) {
     }
   }
   for (int i = 0; i < R; ++i) v[i] = laneMerge(v[i]);
+}
+
+/// Sorts the bitonic sequence v[0..R).
+template <int R>
+GF_TARGET_AVX512 inline void bitonicMerge(__m512i* v) {
+  halfCleanAndMerge<R>(v, R / 2);
 }
 
 GF_TARGET_AVX512 inline void compareExchange(__m512i* a, __m512i* b) {
@@ -475,15 +482,7 @@ GF_TARGET_AVX512 inline void bitonicSort(__m512i* v) {
         v[blk + size - 1 - j] = reverseLanes(_mm512_max_epu64(a, b));
       }
     }
-    for (int s = size / 4; s >= 1; s /= 2) {
-      for (int i = 0; i < R; ++i) {
-        if (i & s) continue;
-        const __m512i a = v[i], b = v[i + s];
-        v[i] = _mm512_min_epu64(a, b);
-        v[i + s] = _mm512_max_epu64(a, b);
-      }
-    }
-    for (int i = 0; i < R; ++i) v[i] = laneMerge(v[i]);
+    halfCleanAndMerge<R>(v, size / 4);
   }
 }
 

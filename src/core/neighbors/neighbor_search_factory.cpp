@@ -1,12 +1,12 @@
-#include "ground_filter/neighbor_search_factory.h"
+#include "ground_filter/neighbors/neighbor_search_factory.h"
 
 #include <stdexcept>
 
-#include "ground_filter/kdtree_neighbor_search.h"
+#include "neighbors/kdtree_neighbor_search.h"
 
 #ifdef GROUND_FILTER_HAVE_CUDA
 #include "ground_filter/cuda_knn.h"
-#include "ground_filter/gpu_neighbor_search.h"
+#include "neighbors/gpu_neighbor_search.h"
 #endif
 
 namespace ground_filter {

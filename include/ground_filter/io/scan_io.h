@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_SCAN_IO_H
-#define GROUND_FILTER_SCAN_IO_H
+#ifndef GROUND_FILTER_IO_SCAN_IO_H
+#define GROUND_FILTER_IO_SCAN_IO_H
 
 #include <pcl/PCLPointCloud2.h>
 
@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "ground_filter/cloud_view.h"
-#include "ground_filter/scene_generator.h"
+#include "ground_filter/scene/scene_generator.h"
 
 namespace ground_filter {
 
@@ -48,6 +48,11 @@ struct Scan {
 /// \throws std::runtime_error naming the file for a missing/unreadable/malformed file, an unknown
 ///         extension or a label count that does not match the points.
 Scan loadScan(const std::string& path);
+
+/// \brief A generated scene as a Scan, as `builtin:` paths load it: packed fields x y z intensity
+///        (float32) and ring (uint16), truth and classes; `path` is "builtin".
+/// \throws std::runtime_error when the scene's arrays do not have one entry per point.
+Scan scanOf(GeneratedScan scene);
 
 /// \brief Short SemanticKITTI class name ("road", "vegetation", ...); "class N" when unknown.
 std::string semanticKittiClassName(std::uint16_t cls);
@@ -95,4 +100,4 @@ std::pair<std::string, std::string> writeSplitClouds(const std::string& dir,
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SCAN_IO_H
+#endif  // GROUND_FILTER_IO_SCAN_IO_H

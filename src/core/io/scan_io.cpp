@@ -1,4 +1,4 @@
-#include "ground_filter/scan_io.h"
+#include "ground_filter/io/scan_io.h"
 
 #include <pcl/common/io.h>
 #include <pcl/io/pcd_io.h>
@@ -14,7 +14,7 @@
 #include <fstream>
 #include <stdexcept>
 
-#include "ground_filter/scene_generator.h"
+#include "ground_filter/scene/scene_generator.h"
 
 namespace ground_filter {
 
@@ -66,6 +66,25 @@ pcl::PCLPointField makeField(const std::string& name, std::uint32_t offset, std:
   return f;
 }
 
+// x y z intensity as float32 at 0, 4, 8, 12: a KITTI record, the generator's first 16 bytes.
+std::vector<pcl::PCLPointField> xyziFields() {
+  return {makeField("x", 0, pcl::PCLPointField::FLOAT32),
+          makeField("y", 4, pcl::PCLPointField::FLOAT32),
+          makeField("z", 8, pcl::PCLPointField::FLOAT32),
+          makeField("intensity", 12, pcl::PCLPointField::FLOAT32)};
+}
+
+// One row of `n` packed little-endian records of `step` bytes with `fields`; data not set.
+void setLayout(std::vector<pcl::PCLPointField> fields, std::size_t n, std::uint32_t step,
+               pcl::PCLPointCloud2* c) {
+  c->fields = std::move(fields);
+  c->height = 1;
+  c->width = static_cast<std::uint32_t>(n);
+  c->point_step = step;
+  c->row_step = static_cast<std::uint32_t>(n * step);
+  c->is_bigendian = false;
+}
+
 bool allFinite(const pcl::PCLPointCloud2& cloud) {
   const CloudView view = viewOf(cloud);
   for (std::size_t i = 0; i < view.size(); ++i) {
@@ -99,15 +118,7 @@ Scan loadKittiBin(const std::string& path) {
   }
   const std::size_t n = bytes.size() / kRecord;
   pcl::PCLPointCloud2& c = scan.cloud;
-  c.fields = {makeField("x", 0, pcl::PCLPointField::FLOAT32),
-              makeField("y", 4, pcl::PCLPointField::FLOAT32),
-              makeField("z", 8, pcl::PCLPointField::FLOAT32),
-              makeField("intensity", 12, pcl::PCLPointField::FLOAT32)};
-  c.height = 1;
-  c.width = static_cast<std::uint32_t>(n);
-  c.point_step = kRecord;
-  c.row_step = static_cast<std::uint32_t>(n * kRecord);
-  c.is_bigendian = false;
+  setLayout(xyziFields(), n, kRecord, &c);
   c.data.assign(bytes.begin(), bytes.end());
   c.is_dense = allFinite(c);
 
@@ -280,39 +291,38 @@ Scan loadBuiltinScan(const std::string& path) {
   } catch (const std::exception& e) {
     fail(path, std::string("scene generator failed: ") + e.what());
   }
-  const std::size_t n = gen.size();
-  if (gen.xyz.size() != 3 * n || gen.intensity.size() != n || gen.ring.size() != n ||
-      gen.semantic.size() != n) {
-    fail(path, "scene generator returned inconsistent array sizes");
-  }
-  Scan scan;
+  Scan scan = scanOf(std::move(gen));
   scan.path = path;
-  pcl::PCLPointCloud2& c = scan.cloud;
-  constexpr std::uint32_t kStep = 4 * sizeof(float) + sizeof(std::uint16_t);  // packed, 18 B
-  c.fields = {makeField("x", 0, pcl::PCLPointField::FLOAT32),
-              makeField("y", 4, pcl::PCLPointField::FLOAT32),
-              makeField("z", 8, pcl::PCLPointField::FLOAT32),
-              makeField("intensity", 12, pcl::PCLPointField::FLOAT32),
-              makeField("ring", 16, pcl::PCLPointField::UINT16)};
-  c.height = 1;
-  c.width = static_cast<std::uint32_t>(n);
-  c.point_step = kStep;
-  c.row_step = static_cast<std::uint32_t>(n * kStep);
-  c.is_bigendian = false;
-  c.data.resize(n * kStep);
-  for (std::size_t i = 0; i < n; ++i) {
-    std::uint8_t* rec = c.data.data() + i * kStep;
-    std::memcpy(rec, &gen.xyz[3 * i], 3 * sizeof(float));
-    std::memcpy(rec + 12, &gen.intensity[i], sizeof(float));
-    std::memcpy(rec + 16, &gen.ring[i], sizeof(std::uint16_t));
-  }
-  c.is_dense = allFinite(c);
-  scan.truth.assign(gen.truth.begin(), gen.truth.end());  // 1 ground, 0 non-ground
-  scan.semantic = std::move(gen.semantic);
   return scan;
 }
 
 }  // namespace
+
+Scan scanOf(GeneratedScan scene) {
+  const std::size_t n = scene.size();
+  if (scene.xyz.size() != 3 * n || scene.intensity.size() != n || scene.ring.size() != n ||
+      scene.semantic.size() != n) {
+    throw std::runtime_error("generated scene: inconsistent array sizes");
+  }
+  Scan scan;
+  scan.path = "builtin";
+  pcl::PCLPointCloud2& c = scan.cloud;
+  constexpr std::uint32_t kStep = 4 * sizeof(float) + sizeof(std::uint16_t);  // packed, 18 B
+  std::vector<pcl::PCLPointField> fields = xyziFields();
+  fields.push_back(makeField("ring", 16, pcl::PCLPointField::UINT16));
+  setLayout(std::move(fields), n, kStep, &c);
+  c.data.resize(n * kStep);
+  for (std::size_t i = 0; i < n; ++i) {
+    std::uint8_t* rec = c.data.data() + i * kStep;
+    std::memcpy(rec, &scene.xyz[3 * i], 3 * sizeof(float));
+    std::memcpy(rec + 12, &scene.intensity[i], sizeof(float));
+    std::memcpy(rec + 16, &scene.ring[i], sizeof(std::uint16_t));
+  }
+  c.is_dense = allFinite(c);
+  scan.truth.assign(scene.truth.begin(), scene.truth.end());  // 1 ground, 0 non-ground
+  scan.semantic = std::move(scene.semantic);
+  return scan;
+}
 
 std::int8_t semanticKittiTruth(std::uint32_t raw_label, float z) {
   switch (raw_label & 0xFFFFu) {

@@ -1,4 +1,4 @@
-#include "ground_filter/scene_generator.h"
+#include "ground_filter/scene/scene_generator.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_GPU_NEIGHBOR_SEARCH_H
-#define GROUND_FILTER_GPU_NEIGHBOR_SEARCH_H
+#ifndef GROUND_FILTER_SRC_CORE_NEIGHBORS_GPU_NEIGHBOR_SEARCH_H
+#define GROUND_FILTER_SRC_CORE_NEIGHBORS_GPU_NEIGHBOR_SEARCH_H
 
 // Only usable when the package is built with CUDA (GROUND_FILTER_HAVE_CUDA); use
 // makeNeighborSearch("gpu", ...) to get it with the kd-tree fallback handled.
@@ -12,7 +12,7 @@
 #include "ground_filter/cuda_knn.h"
 #include "ground_filter/cuda_normal_pipeline.h"
 #include "ground_filter/neighbor_search.h"
-#include "ground_filter/normal_filter_pipeline.h"
+#include "normal/normal_filter_pipeline.h"
 
 namespace ground_filter {
 
@@ -79,4 +79,4 @@ class GpuNeighborSearch : public NeighborSearch, public NormalFilterPipeline {
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_GPU_NEIGHBOR_SEARCH_H
+#endif  // GROUND_FILTER_SRC_CORE_NEIGHBORS_GPU_NEIGHBOR_SEARCH_H

@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_NEIGHBORHOOD_PCA_H
-#define GROUND_FILTER_NEIGHBORHOOD_PCA_H
+#ifndef GROUND_FILTER_SRC_CORE_NORMAL_NEIGHBORHOOD_PCA_H
+#define GROUND_FILTER_SRC_CORE_NORMAL_NEIGHBORHOOD_PCA_H
 
 #include <cstddef>
 #include <cstdint>
@@ -30,4 +30,4 @@ void computeRowsPca(const float* xyz, const std::int32_t* indices, int k, const 
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_NEIGHBORHOOD_PCA_H
+#endif  // GROUND_FILTER_SRC_CORE_NORMAL_NEIGHBORHOOD_PCA_H
