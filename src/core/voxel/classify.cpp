@@ -20,6 +20,7 @@ struct Job {
   std::uint8_t* ground;
   std::uint32_t* voxel_ground;
   ZRange* col_range;
+  std::uint8_t* col_mask;
   std::uint64_t mask_z;
   float dmax;
   double band_k;
@@ -44,6 +45,7 @@ void classifyColumns(const Job& job, std::size_t c0, std::size_t c1) {
   std::uint8_t* const ground = job.ground;
   std::uint32_t* const voxel_ground = job.voxel_ground;
   ZRange* const col_range = job.col_range;
+  std::uint8_t* const col_mask = job.col_mask;
   const std::uint64_t mz = job.mask_z;
   const float dmax = job.dmax;
   const double band_k = job.band_k;
@@ -83,6 +85,7 @@ void classifyColumns(const Job& job, std::size_t c0, std::size_t c1) {
       }
     }
     col_range[col] = r;
+    col_mask[col] = static_cast<std::uint8_t>((r.ghi != kNoHi ? 1 : 0) | (r.nhi != kNoHi ? 2 : 0));
   }
 }
 
@@ -138,6 +141,7 @@ void Classifier::run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const
   ground.resize(n);
   voxel_ground.resize(nv);
   col_range.resize(g.columns());
+  col_mask.resize(g.columns());
   Job job;
   job.vstart = g.vstart.data();
   job.vcell = g.vcell.data();
@@ -155,6 +159,7 @@ void Classifier::run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const
   job.ground = ground.data();
   job.voxel_ground = voxel_ground.data();
   job.col_range = col_range.data();
+  job.col_mask = col_mask.data();
   job.mask_z = g.mask_z;
   job.dmax = static_cast<float>(p.plane_distance);
   job.band_k = p.std_multiplier;

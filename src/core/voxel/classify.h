@@ -37,6 +37,8 @@ class Classifier {
   std::vector<std::uint32_t> voxel_ground;
   /// \brief Per column: z range of the voxels with ground / non-ground points.
   std::vector<ZRange> col_range;
+  /// \brief Per column: 1 when it holds ground points, | 2 when it holds non-ground points.
+  std::vector<std::uint8_t> col_mask;
 
  private:
   void bandStats(const VoxelGroundFilterParams& p, const VoxelGrid& g, std::size_t cells,

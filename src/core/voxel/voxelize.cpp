@@ -1,5 +1,7 @@
 #include "voxel/voxelize.h"
 
+#include <emmintrin.h>
+
 #include <algorithm>
 #include <limits>
 #include <sstream>
@@ -62,41 +64,45 @@ void radixScatter(int lo, int passes, int digit, std::uint32_t* hist, std::vecto
 
 // What computeKeys() needs, by value (no aliasing with the arrays it writes).
 struct KeyJob {
-  float* out;            // relative x y z per slot
+  float* pts;            // x y z 0 per input point: absolute in, relative to the min corner out
   std::uint64_t* keys;   // key, or key << slot_bits | slot when packed
   std::uint32_t* order;  // slot per key (not packed)
   std::uint32_t* index;  // input index per slot (not all valid)
   std::uint32_t* hist;   // digit counts of every radix pass
-  float min[3];
+  float min[4];
   float inv_vs;
-  std::uint32_t last[3];  // voxels per axis - 1
+  std::int32_t last[4];  // voxels per axis - 1
   int shift_x, shift_y;
   int passes, digit, shift_lo, slot_bits;
   bool packed, all_valid;
 };
 
-// Relative coordinates, keys and digit counts of the valid points among input [begin, end),
-// written from slot `slot` on.
-void computeKeys(const CloudView& cloud, const KeyJob job, std::size_t begin, std::size_t end,
-                 std::size_t slot) {
-  const CloudView view = cloud;  // a local copy: stores cannot alias its fields
+// Coordinates relative to the min corner (in place), keys and digit counts of the valid points
+// among input [begin, end) (copied to job.pts by scanBounds()), written from slot `slot` on.
+// SSE2 (every x86-64): one point per vector; the arithmetic is the scalar one lane by lane.
+void computeKeys(const KeyJob job, std::size_t begin, std::size_t end, std::size_t slot) {
   const std::uint32_t dmask = (1u << job.digit) - 1;
+  const __m128 vmin = _mm_loadu_ps(job.min);
+  const __m128 vinv = _mm_set1_ps(job.inv_vs);
+  const __m128i vlast = _mm_loadu_si128(reinterpret_cast<const __m128i*>(job.last));
+  const __m128 zero = _mm_setzero_ps();
   std::size_t s = slot;
   for (std::size_t i = begin; i < end; ++i) {
-    float x = view.x(i), y = view.y(i), z = view.z(i);
+    __m128 p = _mm_load_ps(job.pts + 4 * i);
     if (!job.all_valid) {
-      if (!((x - x) + (y - y) + (z - z) == 0.f)) continue;
+      // x - x is 0 for finite x and NaN for NaN/Inf (w is 0).
+      if (_mm_movemask_ps(_mm_cmpeq_ps(_mm_sub_ps(p, p), zero)) != 0xF) continue;
       job.index[s] = static_cast<std::uint32_t>(i);
     }
-    x -= job.min[0];
-    y -= job.min[1];
-    z -= job.min[2];
-    job.out[3 * s] = x;
-    job.out[3 * s + 1] = y;
-    job.out[3 * s + 2] = z;
-    const std::uint64_t ix = std::min(static_cast<std::uint32_t>(x * job.inv_vs), job.last[0]);
-    const std::uint64_t iy = std::min(static_cast<std::uint32_t>(y * job.inv_vs), job.last[1]);
-    const std::uint64_t iz = std::min(static_cast<std::uint32_t>(z * job.inv_vs), job.last[2]);
+    p = _mm_sub_ps(p, vmin);
+    _mm_store_ps(job.pts + 4 * i, p);
+    // Truncation of a value >= 0 (below 2^22: the axis checks of prepare()), then min(., last).
+    __m128i q = _mm_cvttps_epi32(_mm_mul_ps(p, vinv));
+    const __m128i over = _mm_cmpgt_epi32(q, vlast);
+    q = _mm_or_si128(_mm_and_si128(over, vlast), _mm_andnot_si128(over, q));
+    const std::uint64_t ix = static_cast<std::uint32_t>(_mm_cvtsi128_si32(q));
+    const std::uint64_t iy = static_cast<std::uint32_t>(_mm_cvtsi128_si32(_mm_srli_si128(q, 4)));
+    const std::uint64_t iz = static_cast<std::uint32_t>(_mm_cvtsi128_si32(_mm_srli_si128(q, 8)));
     const std::uint64_t key = (ix << job.shift_x) | (iy << job.shift_y) | iz;
     std::uint64_t word;
     if (job.packed) {
@@ -111,36 +117,49 @@ void computeKeys(const CloudView& cloud, const KeyJob job, std::size_t begin, st
     word >>= job.shift_lo;
     ++job.hist[word & dmask];
     if (job.passes > 1) ++job.hist[(std::size_t{1} << job.digit) + ((word >> job.digit) & dmask)];
-    for (int q = 2; q < job.passes; ++q) {
-      ++job.hist[(static_cast<std::size_t>(q) << job.digit) + ((word >> (q * job.digit)) & dmask)];
+    for (int q2 = 2; q2 < job.passes; ++q2) {
+      ++job.hist[(static_cast<std::size_t>(q2) << job.digit) + ((word >> (q2 * job.digit)) & dmask)];
     }
   }
 }
 
 }  // namespace
 
-void Voxelizer::scanBounds(const CloudView& cloud, Chunk* ch) {
+void Voxelizer::scanBounds(const CloudView& cloud, float* pts, Chunk* ch) {
+  // Copies x y z (w = 0) of every input point to `pts` (one aligned vector a point for the key
+  // pass and the gather of build()) and takes the bounds of the valid ones.
   const CloudView view = cloud;  // a local copy: stores cannot alias its fields
-  float lo[3], hi[3];
-  lo[0] = lo[1] = lo[2] = std::numeric_limits<float>::max();
-  hi[0] = hi[1] = hi[2] = -std::numeric_limits<float>::max();
+  const __m128 zero = _mm_setzero_ps();
+  __m128 lo = _mm_set1_ps(std::numeric_limits<float>::max());
+  __m128 hi = _mm_set1_ps(-std::numeric_limits<float>::max());
   std::size_t valid = 0;
-  for (std::size_t i = ch->begin; i < ch->end; ++i) {
-    const float x = view.x(i), y = view.y(i), z = view.z(i);
+  auto add = [&](std::size_t i, __m128 p) {
+    _mm_store_ps(pts + 4 * i, p);
     // x - x is 0 for finite x and NaN for NaN/Inf: one test for all three.
-    if (!((x - x) + (y - y) + (z - z) == 0.f)) continue;
+    if (_mm_movemask_ps(_mm_cmpeq_ps(_mm_sub_ps(p, p), zero)) != 0xF) return;
     ++valid;
-    lo[0] = x < lo[0] ? x : lo[0];
-    lo[1] = y < lo[1] ? y : lo[1];
-    lo[2] = z < lo[2] ? z : lo[2];
-    hi[0] = x > hi[0] ? x : hi[0];
-    hi[1] = y > hi[1] ? y : hi[1];
-    hi[2] = z > hi[2] ? z : hi[2];
+    lo = _mm_min_ps(p, lo);  // p < lo ? p : lo, as the scalar code did
+    hi = _mm_max_ps(p, hi);
+  };
+  if (view.xyzFollowedByFloat()) {  // x y z ? in every record (KITTI, PCL PointXYZ, most drivers)
+    const __m128 xyz_mask = _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1));
+    const std::uint8_t* base = view.data() + view.xOffset();
+    const std::size_t stride = view.stride();
+    for (std::size_t i = ch->begin; i < ch->end; ++i) {
+      add(i, _mm_and_ps(_mm_loadu_ps(reinterpret_cast<const float*>(base + i * stride)), xyz_mask));
+    }
+  } else {
+    for (std::size_t i = ch->begin; i < ch->end; ++i) {
+      add(i, _mm_set_ps(0.f, view.z(i), view.y(i), view.x(i)));
+    }
   }
   ch->valid = valid;
+  alignas(16) float l[4], h[4];
+  _mm_store_ps(l, lo);
+  _mm_store_ps(h, hi);
   for (int d = 0; d < 3; ++d) {
-    ch->lo[d] = lo[d];
-    ch->hi[d] = hi[d];
+    ch->lo[d] = l[d];
+    ch->hi[d] = h[d];
   }
 }
 
@@ -180,8 +199,9 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
     chunks_[c].begin = n_in * c / nch;
     chunks_[c].end = n_in * (c + 1) / nch;
   }
-  // Pass 1: bounds and number of the valid points of every chunk.
-  pool->run(nt, nch, [&](int, int c) { scanBounds(cloud, &chunks_[c]); });
+  // Pass 1: copies of the points, bounds and number of the valid points of every chunk.
+  pxyz_.resize(4 * n_in);
+  pool->run(nt, nch, [&](int, int c) { scanBounds(cloud, pxyz_.data(), &chunks_[c]); });
   std::size_t n = 0;
   float lo[3], hi[3];
   lo[0] = lo[1] = lo[2] = std::numeric_limits<float>::max();
@@ -224,7 +244,6 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   // Pass 2: coordinates relative to the minimum (keeps float precision far from the origin:
   // UTM, TLS), voxel keys and, on one thread, the digit counts of every radix pass (as few
   // passes as digits of at most kMaxDigitBits allow); several threads count per pass in sort().
-  pxyz_.resize(3 * n);
   g->keys.resize(n);
   if (!g->packed) g->order.resize(n);
   if (!g->all_valid) g->point_index.resize(n);
@@ -236,7 +255,7 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   const std::size_t per = static_cast<std::size_t>(plan_.passes) << plan_.digit;
   hist_.assign(per * static_cast<std::size_t>(nt), 0);
   KeyJob job;
-  job.out = pxyz_.data();
+  job.pts = pxyz_.data();
   job.keys = g->keys.data();
   job.order = g->order.data();
   job.index = g->point_index.data();
@@ -244,10 +263,12 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   job.min[0] = minx;
   job.min[1] = miny;
   job.min[2] = minz;
+  job.min[3] = 0.f;
   job.inv_vs = static_cast<float>(1.0 / vs);
-  job.last[0] = static_cast<std::uint32_t>(nx - 1);
-  job.last[1] = static_cast<std::uint32_t>(ny - 1);
-  job.last[2] = static_cast<std::uint32_t>(nz - 1);
+  job.last[0] = static_cast<std::int32_t>(nx - 1);
+  job.last[1] = static_cast<std::int32_t>(ny - 1);
+  job.last[2] = static_cast<std::int32_t>(nz - 1);
+  job.last[3] = 0;
   job.shift_x = g->shift_x;
   job.shift_y = g->shift_y;
   job.passes = plan_.passes;
@@ -259,7 +280,7 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   pool->run(nt, nch, [&](int t, int c) {
     KeyJob own = job;
     own.hist = job.hist + per * static_cast<std::size_t>(t);
-    computeKeys(cloud, own, chunks_[c].begin, chunks_[c].end, chunks_[c].out);
+    computeKeys(own, chunks_[c].begin, chunks_[c].end, chunks_[c].out);
   });
   for (int t = 1; t < nt; ++t) {
     const std::uint32_t* h = hist_.data() + per * static_cast<std::size_t>(t);
@@ -310,7 +331,9 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   cells->used.assign(cells->count(), 0);
   const std::uint64_t* k = g->keys.data();
   const std::uint32_t* o = g->order.data();
-  const float* in = pxyz_.data();
+  const float* in = pxyz_.data();  // x y z 0 per input point (relative)
+  const bool av = g->all_valid;
+  const std::uint32_t* pidx = g->point_index.data();
   float* x_out = g->sx.data();
   float* y_out = g->sy.data();
   float* z_out = g->sz.data();
@@ -370,11 +393,12 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
     if (i + kAhead < n) {
       const std::uint32_t ps =
           pk ? static_cast<std::uint32_t>(k[i + kAhead] & slot_mask) : o[i + kAhead];
-      __builtin_prefetch(in + 3 * static_cast<std::size_t>(ps));
+      __builtin_prefetch(in + 4 * static_cast<std::size_t>(av ? ps : pidx[ps]));
     }
     const std::uint64_t key = pk ? k[i] >> slot_bits : k[i];
     const std::uint32_t s = pk ? static_cast<std::uint32_t>(k[i] & slot_mask) : o[i];
-    const float x = in[3 * s], y = in[3 * s + 1], z = in[3 * s + 2];
+    const float* pt = in + 4 * static_cast<std::size_t>(av ? s : pidx[s]);
+    const float x = pt[0], y = pt[1], z = pt[2];
     x_out[i] = x;
     y_out[i] = y;
     z_out[i] = z;
