@@ -27,8 +27,18 @@ struct Job {
 };
 
 // Labels the points of columns [c0, c1). Every field is copied to a local first: the byte
-// stores of the labels may alias anything in memory, locals not.
-void classifyColumns(const Job& job, std::size_t c0, std::size_t c1) {
+// stores of the labels may alias anything in memory, locals not. A column lies in one cell: its
+// plane is read once.
+// Voxels hold 1-2 points on average: GCC's vectorised inner loop spends more in its set-up than
+// it saves, so this function is compiled without loop vectorisation.
+#if defined(__GNUC__) && !defined(__clang__)
+#define GF_NO_VECTORIZE __attribute__((optimize("no-tree-vectorize")))
+#else
+#define GF_NO_VECTORIZE
+#endif
+
+template <bool kBand>
+GF_NO_VECTORIZE void classifyColumnsT(const Job& job, std::size_t c0, std::size_t c1) {
   const std::uint32_t* const vs = job.vstart;
   const std::uint32_t* const vcell = job.vcell;
   const std::uint64_t* const vkey = job.vkey;
@@ -51,20 +61,21 @@ void classifyColumns(const Job& job, std::size_t c0, std::size_t c1) {
   const double band_k = job.band_k;
   for (std::size_t col = c0; col < c1; ++col) {
     ZRange r = kEmptyRange;
+    std::uint32_t v = cf[col];
     const std::uint32_t v_end = cf[col + 1];
-    for (std::uint32_t v = cf[col]; v < v_end; ++v) {
-      const std::uint32_t c = vcell[v];
-      const HeightPlane hp = planes[c];
+    const std::uint32_t c = vcell[v];
+    const HeightPlane hp = planes[c];
+    const float cosf = cosines[c];
+    const float a = static_cast<float>(hp.a), b = static_cast<float>(hp.b);
+    float lo = -dmax, hi = dmax;
+    if (kBand && sigma[c] > 0.0) {
+      lo = std::max(lo, static_cast<float>(mu[c] - band_k * sigma[c]));
+      hi = std::min(hi, static_cast<float>(mu[c] + band_k * sigma[c]));
+    }
+    for (; v < v_end; ++v) {
       // Distances relative to the voxel centroid keep float precision far from the origin.
-      const float cosf = cosines[c];
       const float x0 = vx[v], y0 = vy[v];
       const float h0 = static_cast<float>(hp.at(x0, y0));
-      const float a = static_cast<float>(hp.a), b = static_cast<float>(hp.b);
-      float lo = -dmax, hi = dmax;
-      if (sigma && sigma[c] > 0.0) {
-        lo = std::max(lo, static_cast<float>(mu[c] - band_k * sigma[c]));
-        hi = std::min(hi, static_cast<float>(mu[c] + band_k * sigma[c]));
-      }
       std::uint32_t gcount = 0;
       const std::uint32_t k0 = vs[v], k1 = vs[v + 1];
       for (std::uint32_t k = k0; k < k1; ++k) {
@@ -86,6 +97,14 @@ void classifyColumns(const Job& job, std::size_t c0, std::size_t c1) {
     }
     col_range[col] = r;
     col_mask[col] = static_cast<std::uint8_t>((r.ghi != kNoHi ? 1 : 0) | (r.nhi != kNoHi ? 2 : 0));
+  }
+}
+
+void classifyColumns(const Job& job, std::size_t c0, std::size_t c1) {
+  if (job.sigma) {
+    classifyColumnsT<true>(job, c0, c1);
+  } else {
+    classifyColumnsT<false>(job, c0, c1);
   }
 }
 

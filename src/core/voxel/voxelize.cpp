@@ -324,10 +324,12 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   g->vz.resize(runs);
   g->vflags.resize(runs);
   g->vcell.resize(runs);
-  g->col_key.clear();
-  g->col_first.clear();
-  g->flat.clear();
-  g->seeds.clear();
+  // Columns and flat / seed lists: at most one entry a voxel (written through pointers, cut to
+  // length at the end; the buffers do not zero what they grow by).
+  g->col_key.resize(runs);
+  g->col_first.resize(runs + 1);
+  g->flat.resize(runs);
+  g->seeds.resize(runs);
   cells->used.assign(cells->count(), 0);
   const std::uint64_t* k = g->keys.data();
   const std::uint32_t* o = g->order.data();
@@ -344,6 +346,10 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   float* vz = g->vz.data();
   std::uint8_t* vflags = g->vflags.data();
   std::uint32_t* vcell = g->vcell.data();
+  std::uint64_t* ckey = g->col_key.data();
+  std::uint32_t* cfirst = g->col_first.data();
+  std::uint32_t* flat = g->flat.data();
+  std::uint32_t* seeds = g->seeds.data();
   std::uint8_t* used = cells->used.data();
   const std::uint32_t* cxt = cells->cell_of_x.data();
   const std::uint32_t* cyt = cells->cell_of_y.data();
@@ -351,73 +357,92 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   const float flat_thr = static_cast<float>(p.flatness_threshold);
   const bool pk = g->packed;
   const int slot_bits = g->slot_bits;
+  const int low = pk ? slot_bits : 0;
   const std::uint64_t slot_mask = (std::uint64_t{1} << slot_bits) - 1;
   const int sy_ = g->shift_y, sx_ = g->shift_x;
   const bool local = p.local_planes;
   const std::uint64_t my = g->mask_y, mz = g->mask_z;
-  std::size_t nv = 0;
-  float zmin = 0.f, zmax = 0.f, xsum = 0.f, ysum = 0.f, zsum = 0.f;
-  // Finishes voxel v (points [vs[v], end)); `next` is the key of the following voxel, if any.
-  auto finish = [&](std::size_t v, std::uint32_t end, bool has_next, std::uint64_t next) {
-    const std::uint32_t cnt = end - vs[v];
-    const float inv = 1.f / static_cast<float>(cnt);
-    vx[v] = xsum * inv;
-    vy[v] = ysum * inv;
-    vz[v] = zsum * inv;
-    const std::uint64_t key = vk[v];
-    const std::uint64_t col = key >> sy_;
-    // ---- flat voxels (paper): enough points and a small height range.
-    const bool is_flat = cnt >= min_pts && zmax - zmin < flat_thr;
-    // ---- seed candidates of the local model: the lowest voxel of its column with free space
-    // above it, flat or too sparse to tell (far, sparse ground).
-    const bool lowest = v == 0 || (vk[v - 1] >> sy_) != col;
-    const bool clear =
-        !has_next || (next >> sy_) != col || (next & mz) - (key & mz) > kSeedClearanceVoxels;
-    const bool is_seed = (is_flat || cnt < min_pts) && lowest && clear;
-    vflags[v] = static_cast<std::uint8_t>((is_flat ? kFlat : 0) | (is_seed ? kSeed : 0));
-    const std::uint32_t cell = cxt[key >> sx_] + cyt[col & my];
-    vcell[v] = cell;
-    used[cell] = 1;
-    if (lowest) {
-      g->col_key.push_back(col);
-      g->col_first.push_back(static_cast<std::uint32_t>(v));
-    }
-    // Region growing input: every flat voxel (paper) for the global plane; for the local model
-    // only the flat seed candidates (the same components on the ground, 3x less work, and wall
-    // voxels stacked line over line drop out).
-    if (is_flat && (is_seed || !local)) g->flat.push_back(static_cast<std::uint32_t>(v));
-    if (is_seed) g->seeds.push_back(static_cast<std::uint32_t>(v));
-  };
+  std::size_t nv = 0, ncol = 0, nflat = 0, nseed = 0;
+  std::uint64_t prev_col = ~std::uint64_t{0};
+  std::uint32_t cell = 0;
   constexpr std::size_t kAhead = 16;  // prefetch distance of the random coordinate reads
-  for (std::size_t i = 0; i < n; ++i) {
+  // Point i of the sorted order: its coordinates go to slot i of sx, sy, sz.
+  auto point = [&](std::size_t i) {
     if (i + kAhead < n) {
       const std::uint32_t ps =
           pk ? static_cast<std::uint32_t>(k[i + kAhead] & slot_mask) : o[i + kAhead];
       __builtin_prefetch(in + 4 * static_cast<std::size_t>(av ? ps : pidx[ps]));
     }
-    const std::uint64_t key = pk ? k[i] >> slot_bits : k[i];
     const std::uint32_t s = pk ? static_cast<std::uint32_t>(k[i] & slot_mask) : o[i];
     const float* pt = in + 4 * static_cast<std::size_t>(av ? s : pidx[s]);
-    const float x = pt[0], y = pt[1], z = pt[2];
-    x_out[i] = x;
-    y_out[i] = y;
-    z_out[i] = z;
-    if (nv == 0 || key != vk[nv - 1]) {
-      if (nv > 0) finish(nv - 1, static_cast<std::uint32_t>(i), true, key);
-      vk[nv] = key;
-      vs[nv++] = static_cast<std::uint32_t>(i);
-      zmin = zmax = z;
-      xsum = ysum = zsum = 0.f;
+    x_out[i] = pt[0];
+    y_out[i] = pt[1];
+    z_out[i] = pt[2];
+    return pt;
+  };
+  std::size_t i = 0;
+  std::uint64_t key = k[0] >> low;
+  while (i < n) {
+    // ---- one voxel: the run of points with this key.
+    const std::size_t v = nv++;
+    vk[v] = key;
+    vs[v] = static_cast<std::uint32_t>(i);
+    const float* pt = point(i);
+    float zmin = pt[2], zmax = pt[2];
+    float xsum = 0.f + pt[0], ysum = 0.f + pt[1], zsum = 0.f + pt[2];
+    std::uint64_t next = 0;
+    bool has_next = false;
+    for (++i; i < n; ++i) {
+      next = k[i] >> low;
+      if (next != key) {
+        has_next = true;
+        break;
+      }
+      pt = point(i);
+      zmin = std::min(zmin, pt[2]);
+      zmax = std::max(zmax, pt[2]);
+      xsum += pt[0];
+      ysum += pt[1];
+      zsum += pt[2];
     }
-    zmin = std::min(zmin, z);
-    zmax = std::max(zmax, z);
-    xsum += x;
-    ysum += y;
-    zsum += z;
+    const std::uint32_t cnt = static_cast<std::uint32_t>(i) - vs[v];
+    const float inv = 1.f / static_cast<float>(cnt);
+    vx[v] = xsum * inv;
+    vy[v] = ysum * inv;
+    vz[v] = zsum * inv;
+    const std::uint64_t col = key >> sy_;
+    const bool lowest = col != prev_col;
+    if (lowest) {  // a new column: its cell, and the column list
+      prev_col = col;
+      cell = cxt[key >> sx_] + cyt[col & my];
+      used[cell] = 1;
+      ckey[ncol] = col;
+      cfirst[ncol++] = static_cast<std::uint32_t>(v);
+    }
+    vcell[v] = cell;
+    // ---- flat voxels (paper): enough points and a small height range.
+    const bool is_flat = cnt >= min_pts && zmax - zmin < flat_thr;
+    // ---- seed candidates of the local model: the lowest voxel of its column with free space
+    // above it, flat or too sparse to tell (far, sparse ground).
+    const bool clear =
+        !has_next || (next >> sy_) != col || (next & mz) - (key & mz) > kSeedClearanceVoxels;
+    const bool is_seed = (is_flat || cnt < min_pts) && lowest && clear;
+    vflags[v] = static_cast<std::uint8_t>((is_flat ? kFlat : 0) | (is_seed ? kSeed : 0));
+    // Region growing input: every flat voxel (paper) for the global plane; for the local model
+    // only the flat seed candidates (the same components on the ground, 3x less work, and wall
+    // voxels stacked line over line drop out).
+    flat[nflat] = static_cast<std::uint32_t>(v);
+    nflat += is_flat && (is_seed || !local);
+    seeds[nseed] = static_cast<std::uint32_t>(v);
+    nseed += is_seed;
+    key = next;
   }
-  finish(nv - 1, static_cast<std::uint32_t>(n), false, 0);
   vs[nv] = static_cast<std::uint32_t>(n);
-  g->col_first.push_back(static_cast<std::uint32_t>(nv));
+  cfirst[ncol] = static_cast<std::uint32_t>(nv);
+  g->col_key.resize(ncol);
+  g->col_first.resize(ncol + 1);
+  g->flat.resize(nflat);
+  g->seeds.resize(nseed);
 }
 
 }  // namespace voxel
