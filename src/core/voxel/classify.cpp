@@ -159,8 +159,10 @@ void Classifier::run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const
   if (band) bandStats(p, g, nc, model, segs, best);
   ground.resize(n);
   voxel_ground.resize(nv);
-  col_range.resize(g.columns());
-  col_mask.resize(g.columns());
+  col_range.resize(g.columns() + 1);  // + an empty sentinel column (the vote's "no column")
+  col_mask.resize(g.columns() + 1);
+  col_range[g.columns()] = kEmptyRange;
+  col_mask[g.columns()] = 0;
   Job job;
   job.vstart = g.vstart.data();
   job.vcell = g.vcell.data();

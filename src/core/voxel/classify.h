@@ -35,9 +35,11 @@ class Classifier {
   std::vector<std::uint8_t> ground;
   /// \brief Ground points per voxel.
   std::vector<std::uint32_t> voxel_ground;
-  /// \brief Per column: z range of the voxels with ground / non-ground points.
+  /// \brief Per column: z range of the voxels with ground / non-ground points (+ one empty
+  ///        sentinel column).
   std::vector<ZRange> col_range;
-  /// \brief Per column: 1 when it holds ground points, | 2 when it holds non-ground points.
+  /// \brief Per column: 1 when it holds ground points, | 2 when it holds non-ground points
+  ///        (+ 0 for the sentinel).
   std::vector<std::uint8_t> col_mask;
 
  private:

@@ -23,10 +23,12 @@ class Voter {
   void run(const VoxelGrid& g, int threads, WorkerPool* pool, Classifier* cls);
 
  private:
-  /// Votes the voxels of columns [c0, c1) (whole rows) whose neighbourhood holds both labels.
-  void vote(const VoxelGrid& g, std::size_t c0, std::size_t c1, Classifier* cls);
+  /// Votes, on thread t, the voxels of the columns of `range` (whole rows) whose neighbourhood
+  /// holds both labels.
+  void vote(const VoxelGrid& g, int t, int range, Classifier* cls);
 
-  std::vector<std::size_t> bounds_;  // column ranges (whole rows)
+  std::vector<std::size_t> bounds_;                 // column ranges (whole rows)
+  std::vector<std::vector<std::int32_t>> id_rows_;  // per thread
 };
 
 }  // namespace voxel
