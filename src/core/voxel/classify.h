@@ -21,6 +21,12 @@ struct ZRange {
 };
 constexpr ZRange kEmptyRange{kNoLo, kNoHi, kNoLo, kNoHi};
 
+/// \brief What the per-point test needs of a cell: its plane's slope and cosine (float) and the
+///        accepted band of signed distances.
+struct CellCoef {
+  float a, b, cos, lo, hi;
+};
+
 /// \brief Step 7: ground = within plane_distance of the cell plane (and, with std_filter, inside
 ///        the cell's mean +- k std band).
 class Classifier {
@@ -46,6 +52,8 @@ class Classifier {
   void bandStats(const VoxelGroundFilterParams& p, const VoxelGrid& g, std::size_t cells,
                  const GroundModel& model, const Segmenter& segs, std::int64_t best);
   std::vector<double> mu_, sigma_;  // std band per cell
+  std::vector<CellCoef> coef_;
+  std::vector<float> h0_;  // plane height at each voxel's centroid
   std::vector<std::uint64_t> count_;
 };
 

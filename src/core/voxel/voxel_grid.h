@@ -111,6 +111,7 @@ struct VoxelGrid {
 
   // Per valid point in key order, relative to the cloud's min corner.
   std::vector<float> sx, sy, sz;
+  Buffer<std::uint32_t> pvox;  // voxel of each point
 
   // Per voxel, key order.
   std::vector<std::uint64_t> vkey;

@@ -339,6 +339,8 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   float* x_out = g->sx.data();
   float* y_out = g->sy.data();
   float* z_out = g->sz.data();
+  g->pvox.resize(n);
+  std::uint32_t* pv = g->pvox.data();
   std::uint64_t* vk = g->vkey.data();
   std::uint32_t* vs = g->vstart.data();
   float* vx = g->vx.data();
@@ -388,6 +390,7 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
     vk[v] = key;
     vs[v] = static_cast<std::uint32_t>(i);
     const float* pt = point(i);
+    pv[i] = static_cast<std::uint32_t>(v);
     float zmin = pt[2], zmax = pt[2];
     float xsum = 0.f + pt[0], ysum = 0.f + pt[1], zsum = 0.f + pt[2];
     std::uint64_t next = 0;
@@ -399,6 +402,7 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
         break;
       }
       pt = point(i);
+      pv[i] = static_cast<std::uint32_t>(v);
       zmin = std::min(zmin, pt[2]);
       zmax = std::max(zmax, pt[2]);
       xsum += pt[0];
