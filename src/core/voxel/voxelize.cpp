@@ -80,22 +80,30 @@ struct KeyJob {
 // Coordinates relative to the min corner (in place), keys and digit counts of the valid points
 // among input [begin, end) (copied to job.pts by scanBounds()), written from slot `slot` on.
 // SSE2 (every x86-64): one point per vector; the arithmetic is the scalar one lane by lane.
-void computeKeys(const KeyJob job, std::size_t begin, std::size_t end, std::size_t slot) {
+template <bool kPacked, bool kAllValid, int kPasses>
+void computeKeysT(const KeyJob job, std::size_t begin, std::size_t end, std::size_t slot) {
   const std::uint32_t dmask = (1u << job.digit) - 1;
+  const int passes = kPasses > 0 ? kPasses : job.passes;
+  const int digit = job.digit, shift_lo = job.shift_lo, slot_bits = job.slot_bits;
+  const int shift_x = job.shift_x, shift_y = job.shift_y;
+  std::uint32_t* const hist = job.hist;
+  std::uint32_t* const hist1 = job.hist + (std::size_t{1} << digit);
+  float* const pts = job.pts;
+  std::uint64_t* const keys = job.keys;
   const __m128 vmin = _mm_loadu_ps(job.min);
   const __m128 vinv = _mm_set1_ps(job.inv_vs);
   const __m128i vlast = _mm_loadu_si128(reinterpret_cast<const __m128i*>(job.last));
   const __m128 zero = _mm_setzero_ps();
   std::size_t s = slot;
   for (std::size_t i = begin; i < end; ++i) {
-    __m128 p = _mm_load_ps(job.pts + 4 * i);
-    if (!job.all_valid) {
+    __m128 p = _mm_load_ps(pts + 4 * i);
+    if (!kAllValid) {
       // x - x is 0 for finite x and NaN for NaN/Inf (w is 0).
       if (_mm_movemask_ps(_mm_cmpeq_ps(_mm_sub_ps(p, p), zero)) != 0xF) continue;
       job.index[s] = static_cast<std::uint32_t>(i);
     }
     p = _mm_sub_ps(p, vmin);
-    _mm_store_ps(job.pts + 4 * i, p);
+    _mm_store_ps(pts + 4 * i, p);
     // Truncation of a value >= 0 (below 2^22: the axis checks of prepare()), then min(., last).
     __m128i q = _mm_cvttps_epi32(_mm_mul_ps(p, vinv));
     const __m128i over = _mm_cmpgt_epi32(q, vlast);
@@ -103,23 +111,35 @@ void computeKeys(const KeyJob job, std::size_t begin, std::size_t end, std::size
     const std::uint64_t ix = static_cast<std::uint32_t>(_mm_cvtsi128_si32(q));
     const std::uint64_t iy = static_cast<std::uint32_t>(_mm_cvtsi128_si32(_mm_srli_si128(q, 4)));
     const std::uint64_t iz = static_cast<std::uint32_t>(_mm_cvtsi128_si32(_mm_srli_si128(q, 8)));
-    const std::uint64_t key = (ix << job.shift_x) | (iy << job.shift_y) | iz;
+    const std::uint64_t key = (ix << shift_x) | (iy << shift_y) | iz;
     std::uint64_t word;
-    if (job.packed) {
-      word = (key << job.slot_bits) | s;
-      job.keys[s] = word;
+    if (kPacked) {
+      word = (key << slot_bits) | s;
+      keys[s] = word;
     } else {
       word = key;
-      job.keys[s] = key;
+      keys[s] = key;
       job.order[s] = static_cast<std::uint32_t>(s);
     }
     ++s;
-    word >>= job.shift_lo;
-    ++job.hist[word & dmask];
-    if (job.passes > 1) ++job.hist[(std::size_t{1} << job.digit) + ((word >> job.digit) & dmask)];
-    for (int q2 = 2; q2 < job.passes; ++q2) {
-      ++job.hist[(static_cast<std::size_t>(q2) << job.digit) + ((word >> (q2 * job.digit)) & dmask)];
+    word >>= shift_lo;
+    ++hist[word & dmask];
+    if (passes > 1) ++hist1[(word >> digit) & dmask];
+    for (int q2 = 2; q2 < passes; ++q2) {
+      ++hist[(static_cast<std::size_t>(q2) << digit) + ((word >> (q2 * digit)) & dmask)];
     }
+  }
+}
+
+void computeKeys(const KeyJob& job, std::size_t begin, std::size_t end, std::size_t slot) {
+  if (job.packed && job.all_valid && job.passes == 2) {  // the common case: one word a point
+    computeKeysT<true, true, 2>(job, begin, end, slot);
+  } else if (job.packed && job.all_valid) {
+    computeKeysT<true, true, 0>(job, begin, end, slot);
+  } else if (job.packed) {
+    computeKeysT<true, false, 0>(job, begin, end, slot);
+  } else {
+    computeKeysT<false, false, 0>(job, begin, end, slot);
   }
 }
 
