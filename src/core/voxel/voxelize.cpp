@@ -384,84 +384,93 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   const int sy_ = g->shift_y, sx_ = g->shift_x;
   const bool local = p.local_planes;
   const std::uint64_t my = g->mask_y, mz = g->mask_z;
-  std::size_t nv = 0, ncol = 0, nflat = 0, nseed = 0;
-  std::uint64_t prev_col = ~std::uint64_t{0};
-  std::uint32_t cell = 0;
+  // Two passes without a branch per point or voxel (the runs are 1-2 points long on average:
+  // loops over them mispredict their exits). Pass 1: coordinates in key order, runs of equal
+  // keys become voxels (a store is always made, the counter moves when a run starts), running
+  // sums and z range per voxel.
+  zmin_.resize(runs);
+  zmax_.resize(runs);
+  float* zlo = zmin_.data();
+  float* zhi = zmax_.data();
   constexpr std::size_t kAhead = 16;  // prefetch distance of the random coordinate reads
-  // Point i of the sorted order: its coordinates go to slot i of sx, sy, sz.
-  auto point = [&](std::size_t i) {
+  std::size_t nv = 0;
+  std::uint64_t prev = ~std::uint64_t{0};  // no key (keys use at most 63 bits)
+  float xs = 0.f, ys = 0.f, zs = 0.f, zmn = 0.f, zmx = 0.f;
+  const float kKeep[2] = {1.f, 0.f};
+  const float kLowReset[2] = {0.f, std::numeric_limits<float>::infinity()};
+  const float kHighReset[2] = {0.f, -std::numeric_limits<float>::infinity()};
+  for (std::size_t i = 0; i < n; ++i) {
     if (i + kAhead < n) {
       const std::uint32_t ps =
           pk ? static_cast<std::uint32_t>(k[i + kAhead] & slot_mask) : o[i + kAhead];
       __builtin_prefetch(in + 4 * static_cast<std::size_t>(av ? ps : pidx[ps]));
     }
+    const std::uint64_t key = k[i] >> low;
     const std::uint32_t s = pk ? static_cast<std::uint32_t>(k[i] & slot_mask) : o[i];
     const float* pt = in + 4 * static_cast<std::size_t>(av ? s : pidx[s]);
-    x_out[i] = pt[0];
-    y_out[i] = pt[1];
-    z_out[i] = pt[2];
-    return pt;
-  };
-  std::size_t i = 0;
-  std::uint64_t key = k[0] >> low;
-  while (i < n) {
-    // ---- one voxel: the run of points with this key.
-    const std::size_t v = nv++;
-    vk[v] = key;
-    vs[v] = static_cast<std::uint32_t>(i);
-    const float* pt = point(i);
+    const float x = pt[0], y = pt[1], z = pt[2];
+    x_out[i] = x;
+    y_out[i] = y;
+    z_out[i] = z;
+    const bool first = key != prev;
+    prev = key;
+    vk[nv] = key;  // kept when the run starts here, overwritten otherwise
+    vs[nv] = static_cast<std::uint32_t>(i);
+    nv += first;
+    const std::size_t v = nv - 1;
     pv[i] = static_cast<std::uint32_t>(v);
-    float zmin = pt[2], zmax = pt[2];
-    float xsum = 0.f + pt[0], ysum = 0.f + pt[1], zsum = 0.f + pt[2];
-    std::uint64_t next = 0;
-    bool has_next = false;
-    for (++i; i < n; ++i) {
-      next = k[i] >> low;
-      if (next != key) {
-        has_next = true;
-        break;
-      }
-      pt = point(i);
-      pv[i] = static_cast<std::uint32_t>(v);
-      zmin = std::min(zmin, pt[2]);
-      zmax = std::max(zmax, pt[2]);
-      xsum += pt[0];
-      ysum += pt[1];
-      zsum += pt[2];
-    }
-    const std::uint32_t cnt = static_cast<std::uint32_t>(i) - vs[v];
+    // The same sums in the same order as a loop over the run would make (0 + x first), with
+    // arithmetic instead of selects: relative coordinates are >= +0, so s * 0 is +0.
+    const float keep = kKeep[first];
+    xs = xs * keep + x;
+    ys = ys * keep + y;
+    zs = zs * keep + z;
+    zmn = std::min(zmn + kLowReset[first], z);
+    zmx = std::max(zmx + kHighReset[first], z);
+    vx[v] = xs;
+    vy[v] = ys;
+    vz[v] = zs;
+    zlo[v] = zmn;
+    zhi[v] = zmx;
+  }
+  vs[nv] = static_cast<std::uint32_t>(n);
+  // Pass 2, per voxel: centroid, column, cell, flags and the flat / seed lists.
+  std::size_t ncol = 0, nflat = 0, nseed = 0;
+  std::uint64_t prev_col = ~std::uint64_t{0};
+  std::uint32_t cell = 0;
+  for (std::size_t v = 0; v < nv; ++v) {
+    const std::uint64_t key = vk[v];
+    const std::uint32_t cnt = vs[v + 1] - vs[v];
     const float inv = 1.f / static_cast<float>(cnt);
-    vx[v] = xsum * inv;
-    vy[v] = ysum * inv;
-    vz[v] = zsum * inv;
+    vx[v] *= inv;
+    vy[v] *= inv;
+    vz[v] *= inv;
     const std::uint64_t col = key >> sy_;
     const bool lowest = col != prev_col;
-    if (lowest) {  // a new column: its cell, and the column list
-      prev_col = col;
-      cell = cxt[key >> sx_] + cyt[col & my];
-      used[cell] = 1;
-      ckey[ncol] = col;
-      cfirst[ncol++] = static_cast<std::uint32_t>(v);
-    }
+    prev_col = col;
+    const std::uint32_t col_cell = cxt[key >> sx_] + cyt[col & my];
+    cell = lowest ? col_cell : cell;
+    used[cell] = 1;
+    ckey[ncol] = col;
+    cfirst[ncol] = static_cast<std::uint32_t>(v);
+    ncol += lowest;
     vcell[v] = cell;
     // ---- flat voxels (paper): enough points and a small height range.
-    const bool is_flat = cnt >= min_pts && zmax - zmin < flat_thr;
+    const bool is_flat = (cnt >= min_pts) & (zhi[v] - zlo[v] < flat_thr);
     // ---- seed candidates of the local model: the lowest voxel of its column with free space
     // above it, flat or too sparse to tell (far, sparse ground).
-    const bool clear =
-        !has_next || (next >> sy_) != col || (next & mz) - (key & mz) > kSeedClearanceVoxels;
-    const bool is_seed = (is_flat || cnt < min_pts) && lowest && clear;
+    const std::uint64_t next = v + 1 < nv ? vk[v + 1] : ~std::uint64_t{0};
+    const bool clear = ((next >> sy_) != col) | ((next & mz) - (key & mz) > kSeedClearanceVoxels);
+    const bool is_seed = (is_flat | (cnt < min_pts)) & lowest & clear;
     vflags[v] = static_cast<std::uint8_t>((is_flat ? kFlat : 0) | (is_seed ? kSeed : 0));
     // Region growing input: every flat voxel (paper) for the global plane; for the local model
     // only the flat seed candidates (the same components on the ground, 3x less work, and wall
     // voxels stacked line over line drop out).
     flat[nflat] = static_cast<std::uint32_t>(v);
-    nflat += is_flat && (is_seed || !local);
+    nflat += is_flat & (is_seed | !local);
     seeds[nseed] = static_cast<std::uint32_t>(v);
     nseed += is_seed;
-    key = next;
   }
-  vs[nv] = static_cast<std::uint32_t>(n);
   cfirst[ncol] = static_cast<std::uint32_t>(nv);
   g->col_key.resize(ncol);
   g->col_first.resize(ncol + 1);

@@ -43,6 +43,7 @@ class Voxelizer {
   // prepare() (invalid points: the input as is, never read again).
   std::vector<float> pxyz_;
   std::vector<Chunk> chunks_;
+  Buffer<float> zmin_, zmax_;  // z range per voxel
   std::vector<std::uint64_t> keys_tmp_;
   std::vector<std::uint32_t> order_tmp_;
   RadixPlan plan_;
