@@ -337,7 +337,7 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
     const int low = g->packed ? g->slot_bits : 0;
     for (std::size_t i = 1; i < n; ++i) runs += (kk[i] >> low) != (kk[i - 1] >> low);
   }
-  g->vkey.resize(runs);
+  g->vkey.resize(runs + 1);  // build() stores one key past the last voxel (cut below)
   g->vstart.resize(runs + 1);
   g->vx.resize(runs);
   g->vy.resize(runs);
@@ -472,6 +472,7 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
     nseed += is_seed;
   }
   cfirst[ncol] = static_cast<std::uint32_t>(nv);
+  g->vkey.resize(nv);
   g->col_key.resize(ncol);
   g->col_first.resize(ncol + 1);
   g->flat.resize(nflat);
