@@ -12,6 +12,7 @@ set(GF_CORE_SOURCES
   src/core/voxel/classify.cpp
   src/core/voxel/vote.cpp
   src/core/voxel/worker_pool.cpp
+  src/core/morph_ground.cpp
   src/core/filter_factory.cpp
   src/core/metrics.cpp
   src/core/scene_generator.cpp

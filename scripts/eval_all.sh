@@ -8,7 +8,7 @@
 # Groups: SemanticKITTI seq00 0-2 (labelled), RELLIS-3D off-road frame, ISPRS 8 tiles and the two
 # airborne tiles (defaults and the airborne preset: config/airborne.yaml for voxel,
 # config/airborne_normal.yaml for normal; no preset row for voxel_paper), generated scenes
-# (2 seeds per kind).
+# (2 seeds per kind; the generated airborne tiles with the airborne presets).
 # Pooled over the files of a group; ms = sum of the files' filter times.
 set -euo pipefail
 export PATH="/usr/bin:/bin:${PATH}"
@@ -29,7 +29,8 @@ airborne 2 tiles, preset airborne|preset:airborne|${DATA}/airborne
 gen street (lidar:1,2)||builtin:lidar:1 builtin:lidar:2
 gen verge (verge:1,2)||builtin:verge:1 builtin:verge:2
 gen offroad (offroad:1,2)||builtin:offroad:1 builtin:offroad:2
-gen trail (trail:1,2)||builtin:trail:1 builtin:trail:2}"
+gen trail (trail:1,2)||builtin:trail:1 builtin:trail:2
+gen airborne (airborne:1,2), preset airborne|preset:airborne|builtin:airborne:1 builtin:airborne:2}"
 
 TMP="$(mktemp -d)"
 trap 'rm -rf "${TMP}"' EXIT

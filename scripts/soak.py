@@ -201,10 +201,15 @@ def run(args):
         # (without it RSS grew ~20 MB/min at 20 Hz of this 240 k-point scan; 2026-11-23).
         manager = start("manager", ["env", "MALLOC_MMAP_THRESHOLD_=1048576", "rosrun", "nodelet",
                                     "nodelet", "manager", "__name:=soak_manager"])
+        trim = ([] if args.malloc_trim_period is None
+                else ["_malloc_trim_period:=%g" % args.malloc_trim_period])
         for name, plugin in NODELETS.items():
+            # --no-bond: on a machine loaded far past its cores (other builds), the loader's
+            # bond heartbeats timed out after ~60 s and the manager unloaded both nodelets
+            # ("Bond broken, exiting"); the soak measures the manager, not bondcpp.
             start(name, ["rosrun", "nodelet", "nodelet", "load", plugin, "/soak_manager",
                          "__name:=" + name, "~input:=" + INPUT, "_lazy:=false",
-                         "_queue_size:=3", "_diagnostic_period:=1.0"])
+                         "_queue_size:=3", "_diagnostic_period:=1.0", "--no-bond"] + trim)
 
         def subscribed():
             _, subs, _ = master.getSystemState()
@@ -373,6 +378,8 @@ def main():
     r.add_argument("--scan", default=os.path.join(ROOT, "..", "shared", "data", "unlabelled",
                                                   "os128_000000.pcd"))
     r.add_argument("--results", default="")
+    r.add_argument("--malloc-trim-period", type=float, default=None,
+                   help="the nodelets' ~malloc_trim_period [s] (default: theirs, 1 s; 0 = off)")
     p = sub.add_parser("publish")
     p.add_argument("--scan", required=True)
     p.add_argument("--rate", type=float, default=20.0)

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Soak test of the nodelets (scripts/soak.py says what it does and what passes).
-#   scripts/soak.sh [MINUTES] [--results DIR] [--rate HZ]
+#   scripts/soak.sh [MINUTES] [--results DIR] [--rate HZ] [--scan PATH] [--malloc-trim-period S]
 # Default 10 minutes at 20 Hz of ../shared/data/unlabelled/os128_000000.pcd. Needs the catkin
 # build in .ws/ (scripts/run_tests.sh or gf_build). Starts its own roscore on a free port unless
 # ROS_MASTER_URI is set; ROS_HOSTNAME defaults to loopback. Logs: .ws/soak_logs/.
@@ -10,9 +10,9 @@ MINUTES=10
 EXTRA=()
 while [ $# -gt 0 ]; do
   case "$1" in
-    --results|--rate|--scan) EXTRA+=("$1" "$2"); shift 2 ;;
+    --results|--rate|--scan|--malloc-trim-period) EXTRA+=("$1" "$2"); shift 2 ;;
     [0-9]*) MINUTES="$1"; shift ;;
-    *) echo "usage: $0 [MINUTES] [--results DIR] [--rate HZ] [--scan PATH]" >&2; exit 2 ;;
+    *) echo "usage: $0 [MINUTES] [--results DIR] [--rate HZ] [--scan PATH] [--malloc-trim-period S]" >&2; exit 2 ;;
   esac
 done
 set +u

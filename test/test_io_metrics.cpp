@@ -22,11 +22,12 @@
 #include <vector>
 
 #include "cli_args.h"
-#include "ground_filter/ground_filter.h"
 #include "gf_test_data.h"
+#include "ground_filter/ground_filter.h"
 #include "ground_filter/metrics.h"
 #include "ground_filter/paper_normalisation.h"
 #include "ground_filter/scan_io.h"
+#include "ground_filter/scene_generator.h"
 
 namespace gf = ground_filter;
 namespace fs = std::filesystem;
@@ -912,7 +913,7 @@ TEST(Builtin, FailureModeScenesHaveClassesAndTruth) {
     EXPECT_GT(terrain, 5000u) << path;
   }
   const std::vector<std::string> kinds = gf::builtinSceneKinds();
-  EXPECT_EQ(kinds.size(), 5u);
+  EXPECT_EQ(kinds.size(), 6u);
   try {
     gf::loadScan("builtin:moon");
     ADD_FAILURE() << "no exception";
@@ -1002,6 +1003,49 @@ TEST(Presets, EveryConfigLoadsIntoItsMethod) {
     }
   }
   EXPECT_GE(files, 3u);
+}
+
+// The airborne presets (morphological ground surface) on generated airborne tiles: hills, a
+// 5 m embankment of up to ~80 % slope, buildings (some on the slopes), trees that 35 % of the
+// pulses pass, bushes and cars; exact truth. Pooled F1 over seeds 1-3 measured 98.5 % with
+// both presets (docs/evaluation.md); the floor, the ISPRS goal of 95 %, leaves a margin
+// of 3.5 points. The 10 cm ground-level voxel defaults score far below (80 %).
+TEST(Presets, AirbornePresetsFilterGeneratedAirborneTiles) {
+  const std::string dir = GF_CONFIG_DIR;
+  auto pooledF1 = [](gf::GroundFilter* filter) {
+    std::uint64_t tp = 0, fp = 0, fn = 0;
+    for (std::uint32_t seed = 1; seed <= 3; ++seed) {
+      gf::SceneParams sp = gf::builtinSceneParams("airborne");
+      sp.seed = seed;
+      const gf::GeneratedScan scan = gf::generateScene(sp);
+      std::vector<std::uint8_t> labels;
+      filter->filter(gf::CloudView::packedXyz(scan.xyz.data(), scan.size()), &labels);
+      for (std::size_t i = 0; i < scan.size(); ++i) {
+        tp += scan.truth[i] && labels[i];
+        fp += !scan.truth[i] && labels[i];
+        fn += scan.truth[i] && !labels[i];
+      }
+    }
+    return 2.0 * tp / (2.0 * tp + fp + fn);
+  };
+  const double f1_defaults = pooledF1(gf::makeGroundFilter("voxel").get());
+  for (const char* file : {"airborne.yaml", "airborne_normal.yaml"}) {
+    const std::string method = std::string(file) == "airborne.yaml" ? "voxel" : "normal";
+    auto filter = gf::makeGroundFilter(method, gf::cli::loadParamsFile(dir + "/" + file));
+    const double f1 = pooledF1(filter.get());
+    RecordProperty(std::string("f1_") + method, std::to_string(f1));
+    EXPECT_GE(f1, 0.95) << file;
+    EXPECT_GT(f1, f1_defaults + 0.05) << file;
+  }
+  // Both presets run the same morphological surface: the same labels.
+  const gf::GeneratedScan scan = gf::generateScene(gf::builtinSceneParams("airborne"));
+  const gf::CloudView view = gf::CloudView::packedXyz(scan.xyz.data(), scan.size());
+  std::vector<std::uint8_t> voxel_labels, normal_labels;
+  gf::makeGroundFilter("voxel", gf::cli::loadParamsFile(dir + "/airborne.yaml"))
+      ->filter(view, &voxel_labels);
+  gf::makeGroundFilter("normal", gf::cli::loadParamsFile(dir + "/airborne_normal.yaml"))
+      ->filter(view, &normal_labels);
+  EXPECT_EQ(voxel_labels, normal_labels);
 }
 
 // ------------------------------------------------------------------ paper normalisation

@@ -287,7 +287,7 @@ TEST(SceneGenerator, VergeSlopesAwayFromTheRoadAndTrailIsHilly) {
 }
 
 TEST(SceneGenerator, BuiltinKindsNameTheirSceneAndScanner) {
-  EXPECT_EQ(builtinSceneKinds().size(), 5u);
+  EXPECT_EQ(builtinSceneKinds().size(), 6u);
   for (const std::string& kind : builtinSceneKinds()) {
     EXPECT_NO_THROW(builtinSceneParams(kind).validate()) << kind;
   }
@@ -304,6 +304,42 @@ TEST(SceneGenerator, BuiltinKindsNameTheirSceneAndScanner) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("trail"), std::string::npos) << e.what();
   }
+}
+
+// kAirborne: one return per pulse at the requested density, truth = terrain class exactly,
+// ground points on sceneGroundHeight (within the noise), objects above it, and the embankment
+// and hills give metres of relief.
+TEST(SceneGenerator, AirborneTileHasExactTruthAndRelief) {
+  SceneParams p = builtinSceneParams("airborne");
+  EXPECT_EQ(p.mode, SceneParams::Mode::kAirborne);
+  p.seed = 3;
+  const GeneratedScan a = generateScene(p);
+  const double area = 4.0 * p.scene_extent * p.scene_extent;
+  EXPECT_NEAR(static_cast<double>(a.size()), area * p.airborne_density, 0.02 * area);
+  std::map<std::uint16_t, std::size_t> classes;
+  double lo = 1e9, hi = -1e9;
+  std::size_t ground = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const float* q = &a.xyz[3 * i];
+    const double surface = sceneGroundHeight(p, q[0], q[1]);
+    ++classes[a.semantic[i]];
+    ASSERT_EQ(a.truth[i], a.semantic[i] == kClassTerrain ? 1 : 0) << i;
+    if (a.truth[i]) {
+      ++ground;
+      ASSERT_NEAR(q[2], surface, 6 * p.range_noise_sigma) << i;
+      lo = std::min(lo, surface);
+      hi = std::max(hi, surface);
+    } else {
+      ASSERT_GT(q[2], surface - 6 * p.range_noise_sigma) << i;
+    }
+  }
+  EXPECT_GT(hi - lo, 8.0);
+  EXPECT_GT(ground, a.size() / 2);
+  EXPECT_GT(classes[kClassBuilding], 1000u);
+  EXPECT_GT(classes[kClassVegetation], 1000u);
+  EXPECT_GT(classes[kClassCar], 20u);
+  const GeneratedScan b = generateScene(p);
+  EXPECT_EQ(a.xyz, b.xyz);  // deterministic
 }
 
 TEST(SceneGenerator, InvalidParametersAreRefused) {

@@ -239,6 +239,67 @@ TEST(VoxelGroundFilter, PaperGlobalPlaneModeSeparatesBox) {
   EXPECT_GE(agreement(labels, c.truth, 1), 0.99);
 }
 
+// Airborne mode (morph_ground, config/airborne.yaml): a nadir-like scan at 1 point per m2 of a
+// hill (slopes up to 30 %) with three flat roofs 12-20 m wide and 6-10 m up, one on the slope;
+// the 10 cm voxel defaults cannot work at this spacing.
+TEST(VoxelGroundFilter, AirborneMorphModeSeparatesRoofsFromASlopedGround) {
+  Cloud c;
+  std::mt19937 rng(7);
+  auto height = [](float x, float y) { return 0.15f * x + 3.0f * std::sin(y / 20.0f); };
+  addSurface(&c, -60.f, 60.f, -60.f, 60.f, 1.0f, height, 0.05f, &rng);
+  const float roofs[3][5] = {{-30.f, -30.f, 20.f, 14.f, 8.f},  // cx, cy, sx, sy, height
+                             {25.f, 10.f, 12.f, 12.f, 6.f},
+                             {0.f, 35.f, 16.f, 12.f, 10.f}};
+  std::size_t roof_points = 0;
+  for (const auto& r : roofs) {
+    const float top = height(r[0] + r[2] / 2, r[1]) + r[4];
+    for (float u = -r[2] / 2; u <= r[2] / 2; u += 1.0f) {
+      for (float v = -r[3] / 2; v <= r[3] / 2; v += 1.0f) {
+        c.add(r[0] + u + 0.5f, r[1] + v + 0.5f, top, false);
+        ++roof_points;
+      }
+    }
+  }
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  c.add(nan, 0.f, 0.f, false);
+  gf::VoxelGroundFilterParams p;
+  p.morph_ground = true;
+  p.plane_distance = 0.5;
+  gf::FilterStats st;
+  const auto labels = run(c, p, &st);
+  EXPECT_GT(roof_points, 500u);
+  EXPECT_GT(agreement(labels, c.truth, 1), 0.98);  // ground kept
+  EXPECT_GT(agreement(labels, c.truth, 0), 0.98);  // roofs (and the NaN point) removed
+  EXPECT_EQ(labels.back(), gf::kNonGround);
+  EXPECT_EQ(st.invalid_points, 1u);
+  // Same labels from a reused filter.
+  gf::VoxelGroundFilter f(p);
+  std::vector<std::uint8_t> again;
+  f.filter(c.view(), &again);
+  f.filter(c.view(), &again);
+  EXPECT_EQ(again, labels);
+}
+
+// Airborne mode on a cloud 11 km across: the raster cell grows so that at most
+// MorphGround::kMaxCells (4 M) cells are allocated; two flat patches at the far corners stay
+// ground, a roof on one of them does not.
+TEST(VoxelGroundFilter, AirborneMorphModeOnAHugeExtentStaysBounded) {
+  Cloud c;
+  std::mt19937 rng(3);
+  auto flat = [](float, float) { return 0.0f; };
+  addSurface(&c, -4000.f, -3940.f, -4000.f, -3940.f, 1.0f, flat, 0.05f, &rng);
+  addSurface(&c, 3940.f, 4000.f, 3940.f, 4000.f, 1.0f, flat, 0.05f, &rng);
+  for (float u = 0.f; u < 12.f; u += 1.0f) {
+    for (float v = 0.f; v < 12.f; v += 1.0f) c.add(3960.f + u, 3960.f + v, 7.0f, false);
+  }
+  gf::VoxelGroundFilterParams p;
+  p.morph_ground = true;
+  p.plane_distance = 0.5;
+  const auto labels = run(c, p);
+  EXPECT_GT(agreement(labels, c.truth, 1), 0.97);
+  EXPECT_GT(agreement(labels, c.truth, 0), 0.9);
+}
+
 TEST(VoxelGroundFilter, ReusedFilterGivesTheSameLabels) {
   // Scratch buffers persist between calls: a second, different cloud and then the first again.
   std::mt19937 rng(12);

@@ -4,7 +4,7 @@
 // frames replicated with x/y offsets.
 //
 //   bench_gpu_knn [--data DIR] [--sizes 0,1000000,5000000] [--reps N] [--filter-reps N]
-//                 [--variants]
+//                 [--variants] [--no-filter]
 //
 // KNN times are wall-clock medians after one warm-up call, host<->device copies included. Filter
 // times: the three configurations run in turn (A, B, C, A, B, C, ...) and each column is the
@@ -183,6 +183,7 @@ int main(int argc, char** argv) {
   int reps = 5;
   int freps = 15;
   bool variants = false;
+  bool filter = true;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--data" && i + 1 < argc) {
@@ -193,6 +194,8 @@ int main(int argc, char** argv) {
       freps = std::max(1, std::atoi(argv[++i]));
     } else if (a == "--variants") {
       variants = true;
+    } else if (a == "--no-filter") {
+      filter = false;
     } else if (a == "--sizes" && i + 1 < argc) {
       sizes.clear();
       std::string s = argv[++i];
@@ -202,10 +205,10 @@ int main(int argc, char** argv) {
         p = q + 1;
       }
     } else {
-      std::fprintf(
-          stderr,
-          "usage: %s [--data DIR] [--sizes N,N,..] [--reps N] [--filter-reps N] [--variants]\n",
-          argv[0]);
+      std::fprintf(stderr,
+                   "usage: %s [--data DIR] [--sizes N,N,..] [--reps N] [--filter-reps N] "
+                   "[--variants] [--no-filter]\n",
+                   argv[0]);
       return 2;
     }
   }
@@ -274,9 +277,14 @@ int main(int argc, char** argv) {
   std::vector<FilterRow> filter_rows;
   std::vector<std::string> variant_lines;
 
-  for (std::size_t want : sizes) {
-    const std::vector<float> xyz = want == 0 ? frames[0] : replicate(frames, want);
+  std::vector<std::size_t> todo = sizes;
+  if (!os128.empty()) todo.push_back(static_cast<std::size_t>(-1));  // the Ouster frame last
+  for (std::size_t want : todo) {
+    const bool is_os = want == static_cast<std::size_t>(-1);
+    const std::vector<float> xyz =
+        is_os ? os128 : (want == 0 ? frames[0] : replicate(frames, want));
     const std::size_t n = xyz.size() / 3;
+    const std::string label = is_os ? "OS-128 (240 k)" : sizeLabel(n);
     const int r = n > 2000000 ? std::max(1, reps / 2) : reps;
     std::fprintf(stderr, "size %zu ...\n", n);
 
@@ -318,56 +326,48 @@ int main(int argc, char** argv) {
         }
       }
     }
-    knn_rows.push_back({sizeLabel(n), median(up), median(grid), median(query), median(total),
+    knn_rows.push_back({label, median(up), median(grid), median(query), median(total),
                         median(dev_only), cpu_ms, median(build), differ});
 
     if (variants) {
-      for (bool sorted : {true, false}) {
-        for (int mp : {0, 6, 25}) {
-          gf::CudaKnnOptions o;
-          o.sort_cells = sorted;
-          o.level_min_points = mp;
-          gf::CudaKnn v(o);
-          std::vector<double> tq, tt;
-          v.search(xyz.data(), n, k, gidx.data(), gd2.data());
-          for (int i = 0; i < std::max(r, 3); ++i) {
-            v.search(xyz.data(), n, k, gidx.data(), gd2.data());
-            tq.push_back(v.lastTimings().query_ms);
-            tt.push_back(v.lastTimings().total_ms);
-          }
-          o.collect_stats = true;
-          gf::CudaKnn cs(o);
-          cs.search(xyz.data(), n, k, nullptr, nullptr);
-          const auto& t = cs.lastTimings();
-          char line[400];
-          std::snprintf(line, sizeof line,
-                        "| %s | %s | %s | %.2f | %.2f | %.0f | %.0f | %.2f | %.2f | %.0f | %.0f |",
-                        sizeLabel(n).c_str(), sorted ? "nearest first" : "raster",
-                        mp == 0 ? "auto (K/4)" : std::to_string(mp).c_str(), median(tq), median(tt),
-                        t.candidates_per_query, t.insertions_per_query, t.shells_per_query,
-                        t.levels_per_query, t.mean_query_cycles, t.max_query_cycles);
-          variant_lines.push_back(line);
-          if (sorted && mp == 0) {
-            variant_lines.push_back("|  | " + t.detail + " | | | | | | | | | |");
-          }
-        }
-      }
-      for (int chunks : {1, 4, 16}) {
+      // List merging and the identical-point skip (on/off), lists kept on the device; K 50 and the
+      // filter's K 64.
+      struct V {
+        int k, merge_min;
+        bool skip;
+        int heavy;
+      };
+      for (const V& vv :
+           {V{k, 0, false, 0}, V{k, 6, true, 0}, V{k, 6, true, 2048}, V{k, 6, true, 8192},
+            V{k, 6, true, 32768}, V{64, 0, false, 0}, V{64, 6, true, 0}, V{64, 6, true, 8192}}) {
         gf::CudaKnnOptions o;
-        o.download_chunks = chunks;
+        o.merge_min = vv.merge_min;
+        o.skip_duplicates = vv.skip;
+        o.heavy_candidates = vv.heavy;
         gf::CudaKnn v(o);
         std::vector<double> tq, tt;
-        v.search(xyz.data(), n, k, gidx.data(), gd2.data());
-        for (int i = 0; i < std::max(r, 3); ++i) {
-          v.search(xyz.data(), n, k, gidx.data(), gd2.data());
+        v.search(xyz.data(), n, vv.k, nullptr, nullptr);
+        for (int i = 0; i < std::max(r, 5); ++i) {
+          v.search(xyz.data(), n, vv.k, nullptr, nullptr);
           tq.push_back(v.lastTimings().query_ms);
           tt.push_back(v.lastTimings().total_ms);
         }
-        char line[200];
-        std::snprintf(line, sizeof line,
-                      "| %s | %d download chunks | auto | %.2f | %.2f | | | | | | |",
-                      sizeLabel(n).c_str(), chunks, median(tq), median(tt));
+        o.collect_stats = true;
+        gf::CudaKnn cs(o);
+        cs.search(xyz.data(), n, vv.k, nullptr, nullptr);
+        const auto& t = cs.lastTimings();
+        char line[400];
+        std::snprintf(
+            line, sizeof line,
+            "| %s | K %d, merge from %d, skip identical %s, heavy from %d | %.2f | %.2f | "
+            "%.0f | %.0f | %.2f | %.2f | %.0f | %.0f |",
+            label.c_str(), vv.k, vv.merge_min, vv.skip ? "on" : "off", vv.heavy, median(tq),
+            median(tt), t.candidates_per_query, t.insertions_per_query, t.shells_per_query,
+            t.levels_per_query, t.mean_query_cycles, t.max_query_cycles);
         variant_lines.push_back(line);
+        if (vv.k == 64 && vv.merge_min == 6) {  // the slowest query without / with heavy
+          variant_lines.push_back("|  | " + t.detail + " | | | | | | | | |");
+        }
       }
     }
     gidx.clear();
@@ -377,11 +377,9 @@ int main(int argc, char** argv) {
     cl = gf::NeighborLists();
 
     // ---- whole normal-vector filter: CPU 2 threads, CPU all cores, GPU, in turn
-    filter_rows.push_back(
-        benchFilter(sizeLabel(n), xyz, n > 2000000 ? std::max(3, freps / 3) : freps));
-  }
-  if (!os128.empty()) {
-    filter_rows.push_back(benchFilter("OS-128 (240 k)", os128, freps));
+    if (filter) {
+      filter_rows.push_back(benchFilter(label, xyz, n > 2000000 ? std::max(3, freps / 3) : freps));
+    }
   }
 
   std::printf("K-nearest neighbours, K = %d (ms)\n\n", k);
@@ -417,10 +415,10 @@ int main(int argc, char** argv) {
   }
   if (!variant_lines.empty()) {
     std::printf(
-        "\nGPU KNN variants (ms; work per query from a run with counters)\n\n| points | "
-        "cell order | level_min_points | query + download | total | candidates | "
+        "\nGPU KNN variants, lists kept on the device (ms; work per query from a run with "
+        "counters)\n\n| points | variant | query | total | candidates | "
         "insertions | shells | levels | mean cycles | max cycles |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|\n");
+        "|---|---|---|---|---|---|---|---|---|---|\n");
     for (const auto& l : variant_lines) std::printf("%s\n", l.c_str());
   }
   return 0;

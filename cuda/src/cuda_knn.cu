@@ -109,6 +109,7 @@ CudaKnn::CudaKnn(const CudaKnnOptions& options) : impl_(std::make_unique<Impl>()
   cudaDeviceProp prop;
   GF_CUDA_CHECK(cudaGetDeviceProperties(&prop, options.device));
   im.device_name = prop.name;
+  im.sms = prop.multiProcessorCount;
   GF_CUDA_CHECK(cudaStreamCreateWithFlags(&im.stream, cudaStreamNonBlocking));
   GF_CUDA_CHECK(cudaStreamCreateWithFlags(&im.copy, cudaStreamNonBlocking));
   for (int c = 0; c < Impl::kMaxChunks; ++c) {
@@ -200,8 +201,13 @@ void CudaKnn::Impl::searchOnDevice(const float* d_xyz, int n, int k, std::int32_
   im.grow(im.start_level, n_in, "the cell starts");
   im.grow(im.sorted, n_in * sizeof(float4), "the sorted points");
   im.grow(im.sort_temp, sort_temp_bytes, "the sort scratch");
-  im.grow(im.run_id, n_in * sizeof(unsigned int), "the key runs");
-  im.grow(im.run_end, n_in * sizeof(unsigned int), "the key runs");
+  im.grow(im.run_id, n_in * sizeof(unsigned int), "the duplicate runs");
+  im.grow(im.run_end, n_in * sizeof(unsigned int), "the duplicate runs");
+  im.grow(im.run_stop, n_in * sizeof(unsigned int), "the duplicate runs");
+  if (im.opt.heavy_candidates > 0) {
+    im.grow(im.heavy, n_in * sizeof(unsigned int), "the heavy queries");
+    im.grow(im.heavy_counts, Impl::kMaxChunks * sizeof(unsigned int), "the heavy queries");
+  }
   const std::size_t small_bytes =
       64 + 32 * sizeof(unsigned int) + kStatCount * sizeof(unsigned long long);
   im.grow(im.small, small_bytes, "the bounds");
@@ -231,16 +237,22 @@ void CudaKnn::Impl::searchOnDevice(const float* d_xyz, int n, int k, std::int32_
   const unsigned int* d_order = vb.Current();
   GF_CUDA_CHECK(cudaMemsetAsync(
       d_hist, 0, 32 * sizeof(unsigned int) + kStatCount * sizeof(unsigned long long), st));
+  if (im.opt.heavy_candidates > 0) {
+    GF_CUDA_CHECK(
+        cudaMemsetAsync(im.heavy_counts.ptr, 0, Impl::kMaxChunks * sizeof(unsigned int), st));
+  }
   launchCellStartLevel(d_keys, n, im.start_level.as<unsigned char>(), d_hist, st);
   launchGather(d_xyz, d_order, n, im.sorted.as<float4>(), st);
-  {  // runs of equal keys (their indices ascend): the query skips the rest of a useless run
+  {  // runs of identical points (their indices ascend): the query skips the rest of a run
+     // once one member cannot enter its list
     unsigned int* d_run_id = im.run_id.as<unsigned int>();
     unsigned int* d_run_end = im.run_end.as<unsigned int>();
-    launchRunHeads(im.start_level.as<unsigned char>(), n, d_run_end, st);  // heads, for the scan
+    launchRunHeads(im.sorted.as<float4>(), n, d_run_end, st);  // heads, for the scan
     std::size_t scan_bytes = im.sort_temp.bytes;
     GF_CUDA_CHECK(
         cub::DeviceScan::InclusiveSum(im.sort_temp.ptr, scan_bytes, d_run_end, d_run_id, n, st));
-    launchRunEnds(im.start_level.as<unsigned char>(), d_run_id, n, d_run_end, st);
+    launchRunEnds(im.sorted.as<float4>(), d_run_id, n, d_run_end, im.run_stop.as<unsigned int>(),
+                  st);
   }
   if (download) {  // the row order (sorted -> original) for the host-side scatter
     im.h_order.ensure(n_in * sizeof(unsigned int));
@@ -322,7 +334,9 @@ void CudaKnn::Impl::searchOnDevice(const float* d_xyz, int n, int k, std::int32_
   uint2* d_tvals = im.table_vals.as<uint2>();
   GF_CUDA_CHECK(cudaMemsetAsync(d_tkeys, 0xff, off * sizeof(unsigned long long), st));
   launchBuildCells(g, d_keys, im.start_level.as<unsigned char>(), n, d_tkeys, d_tvals, st);
-  GF_CUDA_CHECK(cudaStreamSynchronize(st));
+  if (download || im.opt.collect_stats) {  // the pipeline needs no sync here
+    GF_CUDA_CHECK(cudaStreamSynchronize(st));
+  }
   im.timings.grid_ms = msSince(t0);
   im.timings.levels = g.nlev;
   im.timings.finest_bits = finest;
@@ -346,9 +360,14 @@ void CudaKnn::Impl::searchOnDevice(const float* d_xyz, int n, int k, std::int32_
   for (int c = 0; c < chunks; ++c) {
     const int b = c * per_chunk, e = std::min(n, b + per_chunk);
     if (b >= e) break;
-    launchKnnQuery(g, im.sorted.as<float4>(), d_tkeys, d_tvals, im.run_id.as<unsigned int>(),
-                   im.run_end.as<unsigned int>(), n, b, e, k, im.opt.sort_cells, d_idx, d_d2, stats,
-                   st);
+    const bool heavy = im.opt.heavy_candidates > 0;
+    launchKnnQuery(g, im.sorted.as<float4>(), d_tkeys, d_tvals,
+                   im.opt.skip_duplicates ? im.run_stop.as<unsigned int>() : nullptr, n, b, e, k,
+                   im.opt.sort_cells, im.opt.merge_min,
+                   heavy ? static_cast<unsigned int>(im.opt.heavy_candidates) : 0u,
+                   heavy ? im.heavy.as<unsigned int>() : nullptr,
+                   heavy ? im.heavy_counts.as<unsigned int>() + c : nullptr, 2 * im.sms, d_idx,
+                   d_d2, stats, st);
     if (download) {
       const std::size_t r0 = static_cast<std::size_t>(b) * k,
                         nr = static_cast<std::size_t>(e - b) * k;
@@ -403,10 +422,10 @@ void CudaKnn::Impl::searchOnDevice(const float* d_xyz, int n, int k, std::int32_
       return f;
     };
     std::ostringstream os;
-    os << h[kStatOver100k] << " queries > 1e5 cycles, " << h[kStatOver1M]
-       << " > 1e6; slowest: " << h[kStatSlowCand] << " candidates, " << h[kStatSlowIns]
-       << " insertions, " << h[kStatSlowShells] << " shells, " << h[kStatSlowLevels]
-       << " levels, last level 2^" << h[kStatSlowBits] << " cells/axis (cell "
+    os << h[kStatHeavy] << " heavy queries (second kernel), " << h[kStatOver100k]
+       << " queries > 1e5 cycles, " << h[kStatOver1M] << " > 1e6; slowest: " << h[kStatSlowCand]
+       << " candidates, " << h[kStatSlowIns] << " insertions, " << h[kStatSlowShells] << " shells, "
+       << h[kStatSlowLevels] << " levels, last level 2^" << h[kStatSlowBits] << " cells/axis (cell "
        << edge / static_cast<float>(1u << h[kStatSlowBits]) << " m), bound "
        << std::sqrt(asFloat(h[kStatSlowLim])) << " m, K-th distance "
        << std::sqrt(asFloat(h[kStatSlowKd])) << " m";

@@ -148,7 +148,11 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   auto t0 = std::chrono::steady_clock::now();
   float* h_in = pl.h_in.as<float>();
   const std::int64_t nn = static_cast<std::int64_t>(n_in);
-#pragma omp parallel for schedule(static) if (nn > (1 << 18))  // waking threads costs more below
+  // One thread per 32 k points, up to all: a KITTI/OS-128 frame packs in 0.3/0.6 ms on one
+  // thread, and waking a few threads costs far less.
+  const int pack_threads = static_cast<int>(
+      std::max<std::int64_t>(1, std::min<std::int64_t>(omp_get_max_threads(), nn >> 15)));
+#pragma omp parallel for schedule(static) num_threads(pack_threads) if (pack_threads > 1)
   for (std::int64_t i = 0; i < nn; ++i) {
     h_in[3 * i] = cloud.x(static_cast<std::size_t>(i));
     h_in[3 * i + 1] = cloud.y(static_cast<std::size_t>(i));

@@ -157,32 +157,49 @@ __global__ void closeCellsKernel(const __grid_constant__ GridDesc g,
         static_cast<unsigned int>(i + 1) - table_vals[lv.table_off + h].x;
   }
 }
-/// heads[i] = sorted point i starts a run of equal keys.
-__global__ void runHeadsKernel(const unsigned char* __restrict__ start_level, int n,
-                               unsigned int* heads) {
+/// Sorted point i starts a run of identical points (equal coordinates imply equal keys, and a
+/// run's original indices ascend: the sort is stable).
+__device__ inline bool runHead(const float4* __restrict__ sorted, int i) {
+  if (i == 0) return true;
+  const float4 a = sorted[i - 1], b = sorted[i];
+  return !(a.x == b.x && a.y == b.y && a.z == b.z);
+}
+
+/// heads[i] = sorted point i starts a run of identical points.
+__global__ void runHeadsKernel(const float4* __restrict__ sorted, int n, unsigned int* heads) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i < n) heads[i] = start_level[i] != kMaxLevels;
+  if (i < n) heads[i] = runHead(sorted, i);
 }
 
 /// run_end[run_id[i] - 1] = i + 1 for the last point i of each run.
-__global__ void runEndsKernel(const unsigned char* __restrict__ start_level,
+__global__ void runEndsKernel(const float4* __restrict__ sorted,
                               const unsigned int* __restrict__ run_id, int n,
                               unsigned int* run_end) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i >= n) return;
-  if (i + 1 == n || start_level[i + 1] != kMaxLevels) run_end[run_id[i] - 1] = i + 1;
+  if (i + 1 == n || runHead(sorted, i + 1)) run_end[run_id[i] - 1] = i + 1;
+}
+
+/// run_stop[i] = end of sorted point i's run.
+__global__ void runStopKernel(const unsigned int* __restrict__ run_id,
+                              const unsigned int* __restrict__ run_end, int n,
+                              unsigned int* run_stop) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < n) run_stop[i] = run_end[run_id[i] - 1];
 }
 
 }  // namespace
 
-void launchRunHeads(const unsigned char* start_level, int n, unsigned int* heads, cudaStream_t st) {
-  runHeadsKernel<<<blocksFor(n, 256), 256, 0, st>>>(start_level, n, heads);
+void launchRunHeads(const float4* sorted, int n, unsigned int* heads, cudaStream_t st) {
+  runHeadsKernel<<<blocksFor(n, 256), 256, 0, st>>>(sorted, n, heads);
   GF_CUDA_CHECK_LAUNCH();
 }
 
-void launchRunEnds(const unsigned char* start_level, const unsigned int* run_id, int n,
-                   unsigned int* run_end, cudaStream_t st) {
-  runEndsKernel<<<blocksFor(n, 256), 256, 0, st>>>(start_level, run_id, n, run_end);
+void launchRunEnds(const float4* sorted, const unsigned int* run_id, int n, unsigned int* run_end,
+                   unsigned int* run_stop, cudaStream_t st) {
+  runEndsKernel<<<blocksFor(n, 256), 256, 0, st>>>(sorted, run_id, n, run_end);
+  GF_CUDA_CHECK_LAUNCH();
+  runStopKernel<<<blocksFor(n, 256), 256, 0, st>>>(run_id, run_end, n, run_stop);
   GF_CUDA_CHECK_LAUNCH();
 }
 

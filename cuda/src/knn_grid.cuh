@@ -129,11 +129,12 @@ void launchCellStartLevel(const unsigned long long* keys, int n, unsigned char* 
 /// Sorted points (x, y, z, original index as int bits).
 void launchGather(const float* xyz, const unsigned int* order, int n, float4* sorted,
                   cudaStream_t st);
-/// heads[i] = sorted point i starts a run of equal Morton keys (0/1).
-void launchRunHeads(const unsigned char* start_level, int n, unsigned int* heads, cudaStream_t st);
-/// With run_id = inclusive scan of the heads: run_end[run_id[i] - 1] = end of i's run.
-void launchRunEnds(const unsigned char* start_level, const unsigned int* run_id, int n,
-                   unsigned int* run_end, cudaStream_t st);
+/// heads[i] = sorted point i starts a run of identical points (0/1).
+void launchRunHeads(const float4* sorted, int n, unsigned int* heads, cudaStream_t st);
+/// With run_id = inclusive scan of the heads: run_end[run_id[i] - 1] = end of i's run (scratch),
+/// then run_stop[i] = end of i's run, per sorted point.
+void launchRunEnds(const float4* sorted, const unsigned int* run_id, int n, unsigned int* run_end,
+                   unsigned int* run_stop, cudaStream_t st);
 /// Fills the cell tables of every level of `g` (tables preset to kEmptyKey).
 void launchBuildCells(const GridDesc& g, const unsigned long long* keys,
                       const unsigned char* start_level, int n, unsigned long long* table_keys,

@@ -25,6 +25,7 @@ struct CudaKnn::Impl {
   cudaEvent_t copy_done[kMaxChunks] = {};
   cudaEvent_t order_done = nullptr;
   std::string device_name;
+  int sms = 1;  // multiprocessors
   std::size_t device_bytes = 0;
   CudaKnnTimings timings;
   // The lists of the last search, kept on the device (rows in Morton order).
@@ -33,7 +34,8 @@ struct CudaKnn::Impl {
   const float* list_xyz = nullptr;  // the points the lists index (device)
 
   cuda_impl::DeviceBuffer xyz, keys_a, keys_b, vals_a, vals_b, start_level, sorted, sort_temp,
-      small, table_keys, table_vals, out_idx, out_d2, pca, flags, counts, run_id, run_end;
+      small, table_keys, table_vals, out_idx, out_d2, pca, flags, counts, run_id, run_end, run_stop,
+      heavy, heavy_counts;
   cuda_impl::PinnedBuffer h_small, h_xyz, h_idx, h_d2, h_order, h_pca, h_flags, h_counts;
 
   /// Device bytes still allowed: the explicit limit, or 90 % of what is free now.

@@ -111,23 +111,105 @@ __device__ inline void warpSortPairs(float& d, int& id, int lane) {
   }
 }
 
-/// One warp per query; queries [base, end) of the Morton-sorted points; row s of the output holds
-/// the list of sorted point s (original indices). kTwoHalves: k > 32. kSortCells: visit the cells
-/// of each batch nearest first (the K-th distance shrinks sooner, fewer insertions).
-template <bool kTwoHalves, bool kSortCells>
-__global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
-    knnKernel(const __grid_constant__ GridDesc g, const float4* __restrict__ pts,
-              const unsigned long long* __restrict__ tkeys, const uint2* __restrict__ tvals, int n,
-              const unsigned int* __restrict__ run_id, const unsigned int* __restrict__ run_end,
-              int base, int end, int k, std::int32_t* __restrict__ out_idx,
-              float* __restrict__ out_d2, unsigned long long* __restrict__ stats) {
+/// warpSortCells, skipped when at most one cell of the batch is non-empty (always so for the
+/// query's own cell, shell 0).
+__device__ inline void warpSortNonEmptyCells(float& key, uint2& cell, int lane) {
+  if (__popc(__ballot_sync(0xffffffffu, cell.y != 0)) > 1) warpSortCells(key, cell, lane);
+}
+
+/// Compare-exchange step of a bitonic merge: lane keeps the smaller pair of (own, partner at
+/// lane ^ stride) when it is the lower lane of the two, else the larger.
+__device__ inline void bitonicStep(float& d, int& id, int lane, int stride) {
+  const float od = __shfl_xor_sync(0xffffffffu, d, stride);
+  const int oi = __shfl_xor_sync(0xffffffffu, id, stride);
+  const bool lower = (lane & stride) == 0;
+  if (lower == pairLess(od, oi, d, id)) {
+    d = od;
+    id = oi;
+  }
+}
+
+/// Sorts a bitonic sequence of one pair per lane into increasing order.
+__device__ inline void bitonicMerge(float& d, int& id, int lane) {
+  for (int stride = 16; stride > 0; stride >>= 1) bitonicStep(d, id, lane, stride);
+}
+
+/// Merges a batch of pairs (one per lane, non-entrants set to (inf, kEmptyIndex)) into the sorted
+/// list in one go: the list keeps the smallest 32 (one half) or 64 (two halves) pairs of both,
+/// which are exactly the slots that one insertion per entrant would leave (rows are unique, so
+/// (distance, index) orders them totally).
+template <bool kTwoHalves>
+__device__ inline void warpMerge(WarpList& w, float d, int id, int lane, int k,
+                                 bool presorted = false) {
   const unsigned full = 0xffffffffu;
-  const int lane = threadIdx.x & 31;
-  const long long qi =
-      base + ((static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x) >> 5);
-  if (qi >= end) return;  // uniform per warp
-  const long long t_start = stats ? clock64() : 0;
-  unsigned int n_cand = 0, n_ins = 0, n_shell = 0, n_lev = 0;
+  if (!presorted) warpSortPairs(d, id, lane);
+  // Reversed, the sorted batch against an ascending half gives a bitonic sequence of the
+  // smaller of each pair: the 32 smallest of the two.
+  float rd = __shfl_sync(full, d, 31 - lane);
+  int ri = __shfl_sync(full, id, 31 - lane);
+  if (kTwoHalves) {
+    // Smallest 32 of (hi, batch); every pair of lo stays in the list (at most 63 are smaller).
+    if (pairLess(rd, ri, w.dhi, w.ihi)) {
+      w.dhi = rd;
+      w.ihi = ri;
+    }
+    bitonicMerge(w.dhi, w.ihi, lane);
+    rd = __shfl_sync(full, w.dhi, 31 - lane);
+    ri = __shfl_sync(full, w.ihi, 31 - lane);
+    // lo and the reversed new hi: element-wise min and max split them into the smallest and the
+    // largest 32, each a bitonic sequence.
+    const bool swap = pairLess(rd, ri, w.dlo, w.ilo);
+    w.dhi = swap ? w.dlo : rd;
+    w.ihi = swap ? w.ilo : ri;
+    if (swap) {
+      w.dlo = rd;
+      w.ilo = ri;
+    }
+    bitonicMerge(w.dlo, w.ilo, lane);
+    bitonicMerge(w.dhi, w.ihi, lane);
+  } else {
+    if (pairLess(rd, ri, w.dlo, w.ilo)) {
+      w.dlo = rd;
+      w.ilo = ri;
+    }
+    bitonicMerge(w.dlo, w.ilo, lane);
+  }
+  const int kl = (k - 1) & 31;
+  if (!kTwoHalves || k <= 32) {
+    w.kd = __shfl_sync(full, w.dlo, kl);
+    w.ki = __shfl_sync(full, w.ilo, kl);
+  } else {
+    w.kd = __shfl_sync(full, w.dhi, kl);
+    w.ki = __shfl_sync(full, w.ihi, kl);
+  }
+}
+
+/// Per-query work counters of searchQuery (CudaKnnOptions::collect_stats).
+struct QueryCounters {
+  unsigned int cand = 0, ins = 0, shell = 0, lev = 0;
+  int bits = 0;
+  float lim = 0.f;
+};
+
+/// The search of one query by one warp. Part `part` of `nparts` > 1: the warp takes only the points
+/// of the sorted 32-blocks b with b mod nparts == part, a fixed partition, and runs the search on
+/// them alone (its own K-th distance prunes and stops it), so the union of the parts' lists holds
+/// the query's K nearest (kHeavyWarps warps of one block finish a heavy query). Returns false,
+/// with the list unfinished, once it has loaded more than `abort_cands` candidates (0: never).
+template <bool kTwoHalves, bool kSortCells>
+__device__ __forceinline__ bool searchQuery(const GridDesc& g, const float4* __restrict__ pts,
+                                            const unsigned long long* __restrict__ tkeys,
+                                            const uint2* __restrict__ tvals, int n,
+                                            const unsigned int* __restrict__ run_stop, long long qi,
+                                            int k, int merge_min, int part, int nparts,
+                                            unsigned int abort_cands, int lane, WarpList& w,
+                                            QueryCounters& c) {
+  const unsigned full = 0xffffffffu;
+  unsigned int& n_cand = c.cand;
+  unsigned int& n_ins = c.ins;
+  unsigned int& n_shell = c.shell;
+  unsigned int& n_lev = c.lev;
+  unsigned int scanned = 0;  // candidates loaded so far (runs skipped do not count)
   const float4 q = pts[qi];
   const std::uint32_t qx = quantize(q.x, g.ox, g.inv), qy = quantize(q.y, g.oy, g.inv),
                       qz = quantize(q.z, g.oz, g.inv);
@@ -157,7 +239,6 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
   const unsigned okm = __ballot_sync(full, ok), okr = __ballot_sync(full, ok_r);
   int li = min(okm ? __ffs(okm) - 1 : g.nlev - 1, okr ? __ffs(okr) - 1 : g.nlev - 1);
 
-  WarpList w;
   for (;;) {  // one pass per level tried; a pass that starves moves to the next coarser level
     ++n_lev;
     const LevelDesc& lv = g.lv[li];
@@ -215,31 +296,16 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
             }
           }
         }
-        if (kSortCells) warpSortCells(key, cell, lane);
-        // Concatenate the cells' point ranges across the warp.
-        unsigned int incl = cell.y;
-        for (int o = 1; o < kWarp; o <<= 1) {
-          const unsigned int v = __shfl_up_sync(full, incl, o);
-          if (lane >= o) incl += v;
-        }
-        const unsigned int excl = incl - cell.y;
-        const unsigned int count = __shfl_sync(full, incl, 31);
-        n_cand += count;
-        for (unsigned int cb = 0; cb < count; cb += kWarp) {
-          const unsigned int gpos = cb + lane;
-          int owner = 0;  // first lane whose inclusive sum exceeds gpos
-          for (int step = 16; step > 0; step >>= 1) {
-            const unsigned int v = __shfl_sync(full, incl, owner + step - 1);
-            if (v <= gpos) owner += step;
-          }
-          const unsigned int ostart = __shfl_sync(full, cell.x, owner);
-          const unsigned int oexcl = __shfl_sync(full, excl, owner);
-          float d = INFINITY;
-          int id = kEmptyIndex;
-          const bool valid = gpos < count;
-          const unsigned int spos = ostart + (gpos - oexcl);  // sorted position (valid lanes)
+        if (kSortCells) warpSortNonEmptyCells(key, cell, lane);
+        // The candidate at sorted position spos (valid lanes) against the list: d, id and the
+        // end of its run of identical points come back for the skip below.
+        auto consume = [&](bool valid, unsigned int spos, float& d, int& id, unsigned int& stop) {
+          d = INFINITY;
+          id = kEmptyIndex;
+          stop = 0;
           if (valid) {
             const float4 p = pts[spos];
+            if (run_stop) stop = run_stop[spos];
             d = sqDist(p.x, p.y, p.z, q.x, q.y, q.z);
             id = __float_as_int(p.w);
           }
@@ -257,6 +323,12 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
             w.ki = (!kTwoHalves || k <= 32) ? __shfl_sync(full, w.ilo, kl) : kEmptyIndex;
             n_ins += __popc(m);
             m = 0;
+          } else if (merge_min > 0 && __popc(m) >= merge_min) {
+            // Many entrants: one bitonic merge costs about as much as 5 single insertions.
+            const bool in = (m >> lane) & 1u;
+            warpMerge<kTwoHalves>(w, in ? d : INFINITY, in ? id : kEmptyIndex, lane, k);
+            n_ins += __popc(m);
+            m = 0;
           }
           while (m) {
             const int src = __ffs(m) - 1;
@@ -267,15 +339,69 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
             m &= ~(1u << src);
             m &= __ballot_sync(full, useful && pairLess(d, id, w.kd, w.ki));
           }
-          // Exact skip inside runs of equal keys (e.g. thousands of identical no-return points):
-          // with the list full at K-th distance 0 only (0, index < ki) can still enter, and a
-          // run's indices ascend (stable sort), so once a member's index exceeds ki the rest of
-          // its run cannot enter either.
-          if (w.kd == 0.f && w.ki != kEmptyIndex) {
+        };
+        if (nparts > 1) {
+          // Part of a heavy query: the points of sorted 32-blocks b with b mod nparts == part,
+          // cell by cell (a partition of the points that no level or pruning choice changes).
+          unsigned int todo = __ballot_sync(full, cell.y > 0);
+          while (todo) {
+            const int j = __ffs(todo) - 1;
+            todo &= todo - 1;
+            const unsigned int s0 = __shfl_sync(full, cell.x, j),
+                               s1 = s0 + __shfl_sync(full, cell.y, j);
+            n_cand += s1 - s0;
+            const unsigned int b0 = s0 >> 5;
+            const unsigned int first = b0 + (part + nparts - b0 % nparts) % nparts;
+            for (unsigned int blk = first; (blk << 5) < s1; blk += nparts) {
+              const unsigned int spos = (blk << 5) + lane;
+              float d;
+              int id;
+              unsigned int stop;
+              consume(spos >= s0 && spos < s1, spos, d, id, stop);
+            }
+          }
+          continue;
+        }
+        // Concatenate the cells' point ranges across the warp.
+        unsigned int incl = cell.y;
+        for (int o = 1; o < kWarp; o <<= 1) {
+          const unsigned int v = __shfl_up_sync(full, incl, o);
+          if (lane >= o) incl += v;
+        }
+        const unsigned int excl = incl - cell.y;
+        const unsigned int count = __shfl_sync(full, incl, 31);
+        n_cand += count;
+        for (unsigned int cb = 0; cb < count; cb += kWarp) {
+          // Too many candidates for one warp: leave the query to the heavy kernel (warp-uniform).
+          scanned += kWarp;
+          if (abort_cands && scanned > abort_cands) return false;
+          const unsigned int gpos = cb + lane;
+          int owner = 0;  // first lane whose inclusive sum exceeds gpos
+          for (int step = 16; step > 0; step >>= 1) {
+            const unsigned int v = __shfl_sync(full, incl, owner + step - 1);
+            if (v <= gpos) owner += step;
+          }
+          const unsigned int ostart = __shfl_sync(full, cell.x, owner);
+          const unsigned int oexcl = __shfl_sync(full, excl, owner);
+          const unsigned int spos = ostart + (gpos - oexcl);  // sorted position (valid lanes)
+          float d;
+          int id;
+          unsigned int stop;
+          consume(gpos < count, spos, d, id, stop);
+          // Exact skip inside runs of identical points (e.g. thousands of no-return points at the
+          // origin): they share one distance and their indices ascend (stable sort), so once the
+          // last lane's point cannot enter the list (beyond lim, or not before the K-th pair) no
+          // later member of its run can.
+          if (run_stop) {
             const int last = min(kWarp - 1, static_cast<int>(count - cb) - 1);
+            const float d_last = __shfl_sync(full, d, last);
             const int id_last = __shfl_sync(full, id, last);
             const unsigned int pos_last = __shfl_sync(full, spos, last);
-            if (id_last > w.ki) cb += run_end[run_id[pos_last] - 1] - pos_last - 1;
+            const unsigned int stop_last = __shfl_sync(full, stop, last);
+            if (stop_last > pos_last + 1 &&
+                (!(d_last <= lim) || !pairLess(d_last, id_last, w.kd, w.ki))) {
+              cb += stop_last - pos_last - 1;
+            }
           }
         }
       }
@@ -289,6 +415,9 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
       if (cz + r < last) bound = fminf(bound, g.oz + (cz + r + 1) * cs - q.z);
       if (bound == INFINITY) break;  // the block covers the whole grid
       bound -= eps;
+      // Every point within lim visited: nothing farther can enter (ends a part of a heavy query
+      // whose own points within lim are fewer than K).
+      if (bound > 0.f && lim <= bound * bound) break;
       if (w.ki != kEmptyIndex && bound > 0.f && w.kd <= bound * bound) break;
       // Still short of k points two shells out while the bound's ball needs many more shells:
       // this level is too fine around q; start again one level coarser rather than walking many
@@ -303,6 +432,15 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
     ++li;
   }
 
+  c.bits = g.lv[li].bits;
+  c.lim = lim;
+  return true;
+}
+
+/// Writes the list of sorted point qi (row qi of the output).
+template <bool kTwoHalves>
+__device__ inline void writeRow(const WarpList& w, long long qi, int k, int lane,
+                                std::int32_t* __restrict__ out_idx, float* __restrict__ out_d2) {
   const std::size_t row = static_cast<std::size_t>(qi) * k;
   if (lane < k) {
     out_idx[row + lane] = w.ilo == kEmptyIndex ? -1 : w.ilo;
@@ -312,39 +450,118 @@ __global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
     out_idx[row + lane + 32] = w.ihi == kEmptyIndex ? -1 : w.ihi;
     if (out_d2) out_d2[row + lane + 32] = w.ihi == kEmptyIndex ? INFINITY : w.dhi;
   }
+}
+
+/// One warp per query; queries [base, end) of the Morton-sorted points; row s of the output holds
+/// the list of sorted point s (original indices). kTwoHalves: k > 32. kSortCells: visit the cells
+/// of each batch nearest first (the K-th distance shrinks sooner, fewer insertions). A query whose
+/// cells hold more than `abort_cands` candidates (an isolated point, whose K-th neighbour lies
+/// tens of metres away) is left to knnHeavyKernel: its index goes to heavy[base + ...].
+template <bool kTwoHalves, bool kSortCells>
+__global__ void __launch_bounds__(kQueryBlock, kQueryBlocksPerSm)
+    knnKernel(const __grid_constant__ GridDesc g, const float4* __restrict__ pts,
+              const unsigned long long* __restrict__ tkeys, const uint2* __restrict__ tvals, int n,
+              const unsigned int* __restrict__ run_stop, int base, int end, int k, int merge_min,
+              unsigned int abort_cands, unsigned int* __restrict__ heavy,
+              unsigned int* __restrict__ heavy_count, std::int32_t* __restrict__ out_idx,
+              float* __restrict__ out_d2, unsigned long long* __restrict__ stats) {
+  const int lane = threadIdx.x & 31;
+  const long long qi =
+      base + ((static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x) >> 5);
+  if (qi >= end) return;  // uniform per warp
+  const long long t_start = stats ? clock64() : 0;
+  WarpList w;
+  QueryCounters c;
+  const bool done = searchQuery<kTwoHalves, kSortCells>(g, pts, tkeys, tvals, n, run_stop, qi, k,
+                                                        merge_min, 0, 1, abort_cands, lane, w, c);
+  if (!done) {
+    if (lane == 0) heavy[base + atomicAdd(heavy_count, 1u)] = static_cast<unsigned int>(qi);
+  } else {
+    writeRow<kTwoHalves>(w, qi, k, lane, out_idx, out_d2);
+  }
   if (stats && lane == 0) {
     const unsigned long long cyc = static_cast<unsigned long long>(clock64() - t_start);
-    atomicAdd(&stats[kStatCandidates], n_cand);
-    atomicAdd(&stats[kStatInsertions], n_ins);
-    atomicAdd(&stats[kStatShells], n_shell);
-    atomicAdd(&stats[kStatLevels], n_lev);
+    atomicAdd(&stats[kStatCandidates], c.cand);
+    atomicAdd(&stats[kStatInsertions], c.ins);
+    atomicAdd(&stats[kStatShells], c.shell);
+    atomicAdd(&stats[kStatLevels], c.lev);
     atomicAdd(&stats[kStatCycles], cyc);
+    if (!done) atomicAdd(&stats[kStatHeavy], 1ull);
     if (cyc > 100000) atomicAdd(&stats[kStatOver100k], 1ull);
     if (cyc > 1000000) atomicAdd(&stats[kStatOver1M], 1ull);
     if (atomicMax(&stats[kStatMaxCycles], cyc) < cyc) {  // the slowest so far (racy: diagnostics)
-      stats[kStatSlowCand] = n_cand;
-      stats[kStatSlowIns] = n_ins;
-      stats[kStatSlowShells] = n_shell;
-      stats[kStatSlowLevels] = n_lev;
-      stats[kStatSlowBits] = g.lv[li].bits;
-      stats[kStatSlowLim] = __float_as_uint(lim);
+      stats[kStatSlowCand] = c.cand;
+      stats[kStatSlowIns] = c.ins;
+      stats[kStatSlowShells] = c.shell;
+      stats[kStatSlowLevels] = c.lev;
+      stats[kStatSlowBits] = c.bits;
+      stats[kStatSlowLim] = __float_as_uint(c.lim);
       stats[kStatSlowKd] = __float_as_uint(w.kd);
     }
+  }
+}
+
+/// The queries knnKernel left: kHeavyWarps warps per query, each over its part of the candidates,
+/// then warp 0 merges the parts' lists (their points are disjoint, so the merged list is exact).
+/// Blocks stride over the heavy[base ...] list (its length is on the device: no host sync).
+template <bool kTwoHalves, bool kSortCells>
+__global__ void __launch_bounds__(kHeavyWarps* kWarp, 2)
+    knnHeavyKernel(const __grid_constant__ GridDesc g, const float4* __restrict__ pts,
+                   const unsigned long long* __restrict__ tkeys, const uint2* __restrict__ tvals,
+                   int n, int base, int k, int merge_min, const unsigned int* __restrict__ heavy,
+                   const unsigned int* __restrict__ heavy_count, std::int32_t* __restrict__ out_idx,
+                   float* __restrict__ out_d2) {
+  __shared__ float sd[kHeavyWarps][2 * kWarp];
+  __shared__ int si[kHeavyWarps][2 * kWarp];
+  const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
+  const unsigned int nh = *heavy_count;
+  for (unsigned int h = blockIdx.x; h < nh; h += gridDim.x) {  // uniform per block
+    const long long qi = heavy[base + h];
+    WarpList w;
+    QueryCounters c;
+    searchQuery<kTwoHalves, kSortCells>(g, pts, tkeys, tvals, n, nullptr, qi, k, merge_min, warp,
+                                        kHeavyWarps, 0u, lane, w, c);
+    sd[warp][lane] = w.dlo;
+    si[warp][lane] = w.ilo;
+    sd[warp][lane + kWarp] = kTwoHalves ? w.dhi : INFINITY;
+    si[warp][lane + kWarp] = kTwoHalves ? w.ihi : kEmptyIndex;
+    __syncthreads();
+    if (warp == 0) {
+      for (int o = 1; o < kHeavyWarps; ++o) {
+        warpMerge<kTwoHalves>(w, sd[o][lane], si[o][lane], lane, k, true);
+        if (kTwoHalves) {
+          warpMerge<kTwoHalves>(w, sd[o][lane + kWarp], si[o][lane + kWarp], lane, k, true);
+        }
+      }
+      writeRow<kTwoHalves>(w, qi, k, lane, out_idx, out_d2);
+    }
+    __syncthreads();
   }
 }
 
 }  // namespace
 
 void launchKnnQuery(const GridDesc& g, const float4* pts, const unsigned long long* tkeys,
-                    const uint2* tvals, const unsigned int* run_id, const unsigned int* run_end,
-                    int n, int base, int end, int k, bool sort_cells, std::int32_t* out_idx,
-                    float* out_d2, unsigned long long* stats, cudaStream_t st) {
+                    const uint2* tvals, const unsigned int* run_stop, int n, int base, int end,
+                    int k, bool sort_cells, int merge_min, unsigned int abort_cands,
+                    unsigned int* heavy, unsigned int* heavy_count, int heavy_blocks,
+                    std::int32_t* out_idx, float* out_d2, unsigned long long* stats,
+                    cudaStream_t st) {
   if (end <= base) return;
   const unsigned int blocks = blocksFor(static_cast<std::size_t>(end - base) * kWarp, kQueryBlock);
   // Variants: k > 32 (two list halves), cells nearest first.
-#define GF_KNN_LAUNCH(TWO, SORT)                                                                 \
-  knnKernel<TWO, SORT><<<blocks, kQueryBlock, 0, st>>>(g, pts, tkeys, tvals, n, run_id, run_end, \
-                                                       base, end, k, out_idx, out_d2, stats)
+#define GF_KNN_LAUNCH(TWO, SORT)                                                                  \
+  do {                                                                                            \
+    knnKernel<TWO, SORT><<<blocks, kQueryBlock, 0, st>>>(g, pts, tkeys, tvals, n, run_stop, base, \
+                                                         end, k, merge_min, abort_cands, heavy,   \
+                                                         heavy_count, out_idx, out_d2, stats);    \
+    GF_CUDA_CHECK_LAUNCH();                                                                       \
+    if (abort_cands) {                                                                            \
+      knnHeavyKernel<TWO, SORT><<<heavy_blocks, kHeavyWarps * kWarp, 0, st>>>(                    \
+          g, pts, tkeys, tvals, n, base, k, merge_min, heavy, heavy_count, out_idx, out_d2);      \
+      GF_CUDA_CHECK_LAUNCH();                                                                     \
+    }                                                                                             \
+  } while (0)
   const bool two = k > 32;
   if (sort_cells) {
     if (two)
@@ -358,7 +575,6 @@ void launchKnnQuery(const GridDesc& g, const float4* pts, const unsigned long lo
       GF_KNN_LAUNCH(false, false);
   }
 #undef GF_KNN_LAUNCH
-  GF_CUDA_CHECK_LAUNCH();
 }
 
 }  // namespace cuda_impl

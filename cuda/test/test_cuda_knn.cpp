@@ -347,6 +347,18 @@ TEST_F(CudaKnnTest, OptionsChangeSpeedNeverLists) {
       EXPECT_GE(t.max_query_cycles, t.mean_query_cycles);
     }
   }
+  // Heavy queries split over 16 warps (outliers 100 m out), with any pipeline depth.
+  for (int heavy : {0, 1, 100, 2000}) {
+    for (int chunks : {1, 3}) {
+      CudaKnnOptions o;
+      o.heavy_candidates = heavy;
+      o.download_chunks = chunks;
+      CudaKnn split(o);
+      const Lists c = run(split, xyz, 40);
+      EXPECT_EQ(a.idx, c.idx) << "heavy_candidates = " << heavy << ", " << chunks << " chunks";
+      EXPECT_EQ(a.d2, c.d2);
+    }
+  }
   // Any depth of the query/download pipeline.
   for (int chunks : {1, 3, 16}) {
     CudaKnnOptions o;
@@ -360,6 +372,54 @@ TEST_F(CudaKnnTest, OptionsChangeSpeedNeverLists) {
   const Lists a2 = run(knn, xyz, 40);
   EXPECT_EQ(a.idx, a2.idx);
   EXPECT_EQ(a.d2, a2.d2);
+}
+
+TEST_F(CudaKnnTest, ListMergingDuplicateSkipAndHeavySplitMatchBruteForce) {
+  // A ring of points around 4,000 copies of the origin (an Ouster's no-returns): queries on the
+  // ring reach the origin's cell but not always the origin, so runs of identical points are
+  // skipped at distances > 0; plus duplicates (1..12 copies) and a plain box.
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<float> ang(0.f, 6.2831853f), rad(0.6f, 3.f), zz(-0.3f, 0.3f);
+  std::uniform_int_distribution<int> rep(1, 12);
+  std::vector<float> ring;
+  for (int i = 0; i < 6000; ++i) {
+    if (i % 3 == 0) {
+      ring.insert(ring.end(), {0.f, 0.f, 0.f});
+      ring.insert(ring.end(), {0.f, 0.f, 0.f});
+    }
+    const float a = ang(rng), r = rad(rng), z = zz(rng);
+    for (int c = rep(rng) > 10 ? 3 : 1; c > 0; --c) {
+      ring.insert(ring.end(), {r * std::cos(a), r * std::sin(a), z});
+    }
+  }
+  const auto box = uniformCloud(5000, 3.f, 3.f, 3.f, 32);
+  const std::vector<const std::vector<float>*> clouds = {&ring, &box};
+  for (const std::vector<float>* xyz : clouds) {
+    for (int k : {1, 8, 32, 33, 50, 64}) {
+      // Brute force checks every row of one variant; the others must give the same bits.
+      Lists ref;
+      for (int heavy : {0, 1, 300}) {  // 1: nearly every query split over 16 warps
+        for (int merge_min : {0, 1, 2, 6, 33}) {
+          for (bool skip : {false, true}) {
+            CudaKnnOptions o;
+            o.merge_min = merge_min;
+            o.skip_duplicates = skip;
+            o.heavy_candidates = heavy;
+            CudaKnn knn(o);
+            const Lists l = run(knn, *xyz, k);
+            if (ref.idx.empty()) {
+              expectExact(*xyz, k, l);
+              ref = l;
+            } else {
+              EXPECT_EQ(l.idx, ref.idx) << "k = " << k << ", merge_min = " << merge_min
+                                        << ", skip_duplicates = " << skip << ", heavy = " << heavy;
+              EXPECT_EQ(l.d2, ref.d2);
+            }
+          }
+        }
+      }
+    }
+  }
 }
 
 TEST_F(CudaKnnTest, ListsKeptOnDeviceFeedTheCounts) {

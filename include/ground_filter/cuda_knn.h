@@ -34,6 +34,9 @@ struct CudaKnnOptions {
   bool sort_cells = true;        ///< visit each batch of cells nearest first [bool] (true)
   bool collect_stats = false;    ///< count per-query work in CudaKnnTimings (slower) [bool] (false)
   int download_chunks = 0;       ///< query/download pipeline depth, 0 = auto (<= 16) [chunks] (0)
+  bool skip_duplicates = true;   ///< skip runs of identical points that cannot enter [bool] (true)
+  int merge_min = 6;             ///< merge a batch's entrants in one go from this many [pts] (6)
+  int heavy_candidates = 8192;   ///< more candidates: query to 16 warps, 0 = never [pts] (8192)
 };
 
 /// \brief Wall times of the last CudaKnn calls (host clock, streams synchronised) [ms], and the

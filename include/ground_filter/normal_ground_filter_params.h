@@ -28,6 +28,11 @@ struct NormalGroundFilterParams {
   int segment_points = 65536;    ///< points per segment, at most [points] (65536, paper)
   std::string knn_backend = "kdtree";  ///< neighbour search: kdtree | gpu [enum] (kdtree)
   int threads = 0;                     ///< worker threads, 0 = all cores [threads] (0)
+  bool morph_ground = false;   ///< airborne: morphological surface, not tile planes [bool] (false)
+  double morph_cell = 1.0;     ///< morph: raster cell edge [m] (1.0)
+  double morph_slope = 0.15;   ///< morph: terrain slope the opening keeps, rise/run [1] (0.15)
+  double morph_window = 18.0;  ///< morph: largest opening radius [m] (18)
+  double morph_scale = 1.25;  ///< morph: plane_distance grows by this x surface gradient [m] (1.25)
 
   /// \brief Sets one field from text (CLI `--set NAME=VALUE`).
   /// \throws std::invalid_argument for an unknown name or a malformed value.

@@ -22,8 +22,10 @@ namespace ground_filter {
 struct SceneParams {
   /// \brief Scanner model.
   enum class Mode {
-    kLidar64,  ///< spinning 64-beam LiDAR on a car (HDL-64-like), ~100 k returns
-    kTls,      ///< terrestrial laser scanner on a tripod: dense spherical sweep, 1-5 M returns
+    kLidar64,   ///< spinning 64-beam LiDAR on a car (HDL-64-like), ~100 k returns
+    kTls,       ///< terrestrial laser scanner on a tripod: dense spherical sweep, 1-5 M returns
+    kAirborne,  ///< nadir airborne scan of its own hilly world with buildings, trees, bushes and
+                ///< cars (layout ignored): airborne_density points per m2, world frame
   };
   /// \brief World layout.
   enum class Layout {
@@ -65,6 +67,7 @@ struct SceneParams {
   /// Half-range of the uniform vertical noise of grass returns (blades, tufts) [m] (0.05);
   /// dirt gets a fifth of it, roads and sidewalks none. Only the non-street layouts have grass.
   double grass_roughness = 0.05;
+  double airborne_density = 1.5;  ///< kAirborne: pulses per m2 over the tile [points/m2] (1.5)
 
   // Terrain (world frame; road level z = slope_x * x + slope_y * y + ramp).
   double slope_x = 0.02;       ///< road slope along x (gentle) [m/m] (0.02)
@@ -110,7 +113,9 @@ struct GeneratedScan {
 /// \brief Scene and scanner of a named built-in scene (`builtin:KIND[:SEED]` of the tools):
 ///        `lidar` (street, HDL-64), `tls` (street, tripod scanner), `verge` (grass verge and
 ///        sloped lawns beside a road, HDL-64), `offroad` (grassland with bushes and undergrowth,
-///        Ouster OS1-64 1.3 m up), `trail` (hilly dirt trail, Ouster OS1-64 1.3 m up).
+///        Ouster OS1-64 1.3 m up), `trail` (hilly dirt trail, Ouster OS1-64 1.3 m up),
+///        `airborne` (nadir scan, 1.5 points/m2, of a 180 m tile with hills, an embankment,
+///        buildings, trees, bushes and cars; 5 cm height noise).
 /// \throws std::invalid_argument naming the known kinds for any other name.
 SceneParams builtinSceneParams(const std::string& kind);
 

@@ -25,6 +25,11 @@ struct VoxelGroundFilterParams {
   double max_slope_deg = 30.0;       ///< steeper cell / global planes are rejected [deg] (30)
   bool majority_vote = true;         ///< final 26-neighbourhood vote per voxel [bool] (true)
   int threads = 1;                   ///< worker threads, 0 = all cores [threads] (1)
+  bool morph_ground = false;         ///< airborne: morphological surface, not voxels [bool] (false)
+  double morph_cell = 1.0;           ///< morph: raster cell edge [m] (1.0)
+  double morph_slope = 0.15;   ///< morph: terrain slope the opening keeps, rise/run [1] (0.15)
+  double morph_window = 18.0;  ///< morph: largest opening radius [m] (18)
+  double morph_scale = 1.25;  ///< morph: plane_distance grows by this x surface gradient [m] (1.25)
 
   /// \brief Sets one field from text (CLI `--set NAME=VALUE`).
   /// \throws std::invalid_argument for an unknown name or a malformed value.

@@ -10,6 +10,7 @@
 #include "ground_filter/neighbor_search_factory.h"
 #include "ground_filter/normal_filter_pipeline.h"
 #include "ground_filter/param_parse.h"
+#include "morph_ground.h"
 #include "normal/classify.h"
 #include "normal/neighborhoods.h"
 #include "normal/order.h"
@@ -29,6 +30,7 @@ struct NormalGroundFilter::Impl {
   normal::VoteStage vote;
   normal::PlaneStage plane;
   std::vector<std::uint8_t> candidate, voted, ground;  // per ordered point
+  MorphGround morph;                                   // morph_ground (airborne) only
 };
 
 NormalGroundFilter::NormalGroundFilter(const NormalGroundFilterParams& params)
@@ -67,6 +69,19 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   st.backend = im.search->name();
   st.note = backend_note_;
   labels->assign(cloud.size(), kNonGround);
+
+  // ---- airborne mode: the morphological surface replaces the normals and tile planes (on a
+  //      nadir scan the lowest return per cell is the better ground evidence, see the docs).
+  if (p.morph_ground) {
+    const auto t0 = Clock::now();
+    const MorphGroundSettings ms{p.morph_cell, p.morph_slope, p.morph_window, p.plane_distance,
+                                 p.morph_scale};
+    st.invalid_points = cloud.size() - im.morph.run(cloud, ms, labels);
+    st.stage_ms.emplace_back("morph", msSince(t0));
+    st.ground_points = static_cast<std::size_t>(std::count(labels->begin(), labels->end(), 1));
+    st.total_ms = msSince(t_start);
+    return;
+  }
 
   // ---- whole-filter hook (GPU): a backend that runs the whole filter on its device gets the
   //      scan first; false = it cannot (segments, k, device fault) and the steps below run.

@@ -29,6 +29,11 @@ const ParamTable<NormalGroundFilterParams>& NormalGroundFilterParams::table() {
       {"tile_size", &P::tile_size, 0.5, 100000.0, "m", "tile edge for local planes"},
       {"use_segments", &P::use_segments, 0, 0, "bool", "paper's segments of grid columns"},
       {"segment_points", &P::segment_points, 256, 1 << 26, "points", "points per segment"},
+      {"morph_ground", &P::morph_ground, 0, 0, "bool", "airborne: morphological ground surface"},
+      {"morph_cell", &P::morph_cell, 0.05, 100.0, "m", "morph: raster cell edge"},
+      {"morph_slope", &P::morph_slope, 0.0, 10.0, "", "morph: slope kept by the opening"},
+      {"morph_window", &P::morph_window, 0.1, 1000.0, "m", "morph: largest opening radius"},
+      {"morph_scale", &P::morph_scale, 0.0, 100.0, "m", "morph: threshold per unit gradient"},
       {"threads", &P::threads, 0, 256, "threads", "worker threads, 0 = all cores"},
   };
   return rows;

@@ -147,7 +147,20 @@ double trailHeight(const SceneParams& p, double x, double y) {
          0.45 * std::sin((x - y) / 8.0 + phase(p, 2));
 }
 
+// kAirborne: hills of several metres (slopes up to ~30 %) and an embankment that rises 5 m
+// over 9 m (about 55 %) along a line across the tile.
+double airborneHeight(const SceneParams& p, double x, double y) {
+  const double hills = 6.0 * std::sin(x / 35.0 + phase(p, 0)) * std::cos(y / 45.0 + phase(p, 1)) +
+                       2.5 * std::sin((x + y) / 20.0 + phase(p, 2)) +
+                       0.6 * std::sin((x - 2.0 * y) / 7.0 + phase(p, 3));
+  const double a = phase(p, 4);
+  const double u = std::cos(a) * x + std::sin(a) * y - 20.0 * std::sin(phase(p, 5));
+  const double t = std::max(0.0, std::min(1.0, (u + 4.5) / 9.0));
+  return hills + 5.0 * t * t * (3.0 - 2.0 * t);  // smoothstep: steepest (~0.8) mid-slope
+}
+
 double worldGroundHeight(const SceneParams& p, double x, double y) {
+  if (p.mode == SceneParams::Mode::kAirborne) return airborneHeight(p, x, y);
   switch (p.layout) {
     case SceneParams::Layout::kVerge:
       return vergeHeight(p, x, y);
@@ -172,6 +185,7 @@ std::uint16_t naturalClass(const SceneParams& p, double x, double y) {
 }
 
 Vec3 scannerOrigin(const SceneParams& p) {
+  if (p.mode == SceneParams::Mode::kAirborne) return {0.0, 0.0, 0.0};  // world frame
   const double h = p.mode == SceneParams::Mode::kTls ? p.tripod_height : p.sensor_height;
   return {p.sensor_x, p.sensor_y, worldGroundHeight(p, p.sensor_x, p.sensor_y) + h};
 }
@@ -811,6 +825,106 @@ void insertNans(GeneratedScan* scan, std::size_t count) {
   *scan = std::move(out);
 }
 
+// kAirborne: one vertical pulse per cell of a jittered grid (density points per m2) over
+// [-scene_extent, scene_extent]^2, first (highest) surface hit: flat-roofed buildings (some on
+// the slopes), cars, bushes, and tree crowns that 35 % of the pulses pass through to the
+// ground. Terrain is ground, everything else not. Coordinates in the world frame.
+GeneratedScan airborneScan(const SceneParams& p) {
+  std::seed_seq seq{p.seed, 0xA1u};
+  std::mt19937 rng(seq);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  auto uni = [&](double lo, double hi) { return lo + (hi - lo) * u01(rng); };
+  const double ext = p.scene_extent;
+  std::vector<Box> boxes;
+  std::vector<Ellipsoid> crowns, bushes;
+  const double area = 4.0 * ext * ext;
+  const int buildings = std::max(2, static_cast<int>(area / 1800.0));
+  for (int i = 0; i < buildings; ++i) {
+    const double w = uni(8.0, 30.0), d = uni(8.0, 22.0), cx = uni(-ext, ext), cy = uni(-ext, ext);
+    const double x0 = cx - w / 2, x1 = cx + w / 2, y0 = cy - d / 2, y1 = cy + d / 2;
+    bool overlaps = false;
+    for (const Box& b : boxes) {
+      overlaps |= x0 < b.hi.x + 4 && x1 > b.lo.x - 4 && y0 < b.hi.y + 4 && y1 > b.lo.y - 4;
+    }
+    if (overlaps) continue;
+    const double base = minGroundOver(p, x0, x1, y0, y1);
+    boxes.push_back(
+        {{x0, y0, base - 1.0}, {x1, y1, base + uni(3.0, 15.0)}, kWallReflectivity, kClassBuilding});
+  }
+  const int cars = static_cast<int>(area / 900.0);
+  for (int i = 0; i < cars; ++i) {
+    const double cx = uni(-ext, ext), cy = uni(-ext, ext);
+    const bool along_x = u01(rng) < 0.5;
+    const double hx = along_x ? 2.25 : 0.9, hy = along_x ? 0.9 : 2.25;
+    const double base = minGroundOver(p, cx - hx, cx + hx, cy - hy, cy + hy);
+    boxes.push_back({{cx - hx, cy - hy, base - 0.5},
+                     {cx + hx, cy + hy, base + 1.5},
+                     kCarReflectivity,
+                     kClassCar});
+  }
+  const int trees = static_cast<int>(area / 250.0);
+  for (int i = 0; i < trees; ++i) {
+    const double cx = uni(-ext, ext), cy = uni(-ext, ext), r = uni(2.0, 5.0);
+    const double rz = uni(2.0, 5.0);
+    const double top = airborneHeight(p, cx, cy) + uni(5.0, 18.0);
+    crowns.push_back({{cx, cy, top - rz}, {r, r, rz}, kCrownReflectivity, kClassVegetation});
+  }
+  const int nbush = static_cast<int>(area / 150.0);
+  for (int i = 0; i < nbush; ++i) {
+    const double cx = uni(-ext, ext), cy = uni(-ext, ext), r = uni(0.6, 1.8), h = uni(0.5, 1.5);
+    bushes.push_back(
+        {{cx, cy, airborneHeight(p, cx, cy)}, {r, r, h}, kBushReflectivity, kClassVegetation});
+  }
+  // Top of an ellipsoid at (x, y), or -inf outside its footprint.
+  auto ellipsoidTop = [](const Ellipsoid& e, double x, double y, double* depth) {
+    const double qx = (x - e.c.x) / e.r.x, qy = (y - e.c.y) / e.r.y, q = 1.0 - qx * qx - qy * qy;
+    if (q <= 0.0) return -kNoHit;
+    *depth = 2.0 * e.r.z * std::sqrt(q);
+    return e.c.z + e.r.z * std::sqrt(q);
+  };
+  const double step = 1.0 / std::sqrt(p.airborne_density);
+  const int n = static_cast<int>(std::floor(2.0 * ext / step));
+  std::normal_distribution<double> noise(0.0, p.range_noise_sigma > 0 ? p.range_noise_sigma : 1.0);
+  GeneratedScan scan;
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const double x = -ext + (i + u01(rng)) * step, y = -ext + (j + u01(rng)) * step;
+      const double terrain = airborneHeight(p, x, y);
+      double z = terrain;
+      std::uint16_t cls = kClassTerrain;
+      float refl = kGrassReflectivity;
+      for (const Box& b : boxes) {
+        if (x >= b.lo.x && x < b.hi.x && y >= b.lo.y && y < b.hi.y && b.hi.z > z) {
+          z = b.hi.z;
+          cls = b.cls;
+          refl = b.reflectivity;
+        }
+      }
+      const double pass = u01(rng), into = u01(rng);
+      for (const auto* list : {&crowns, &bushes}) {
+        for (const Ellipsoid& e : *list) {
+          double depth = 0.0;
+          const double top = ellipsoidTop(e, x, y, &depth);
+          // Crowns let 35 % of the pulses through to what is below; bushes none.
+          if (top <= z || (list == &crowns && pass < 0.35)) continue;
+          // Returns from inside the crown (or bush), never below 0.2 m over the terrain.
+          z = std::max(top - (list == &crowns ? 0.5 : 0.15) * into * depth, terrain + 0.2);
+          cls = e.cls;
+          refl = e.reflectivity;
+        }
+      }
+      if (p.range_noise_sigma > 0.0) z += noise(rng);
+      scan.xyz.insert(scan.xyz.end(),
+                      {static_cast<float>(x), static_cast<float>(y), static_cast<float>(z)});
+      scan.intensity.push_back(refl);
+      scan.ring.push_back(0);
+      scan.truth.push_back(cls == kClassTerrain ? 1 : 0);
+      scan.semantic.push_back(cls);
+    }
+  }
+  return scan;
+}
+
 }  // namespace
 
 void SceneParams::validate() const {
@@ -840,10 +954,11 @@ void SceneParams::validate() const {
   checkRange("ramp_height", ramp_height, -20.0, 20.0, "m");
   checkRange("scene_extent", scene_extent, 10.0, 2000.0, "m");
   checkRange("grass_roughness", grass_roughness, 0.0, 1.0, "m");
+  checkRange("airborne_density", airborne_density, 0.05, 100.0, "points/m2");
 }
 
 std::vector<std::string> builtinSceneKinds() {
-  return {"lidar", "tls", "verge", "offroad", "trail"};
+  return {"lidar", "tls", "verge", "offroad", "trail", "airborne"};
 }
 
 SceneParams builtinSceneParams(const std::string& kind) {
@@ -862,6 +977,9 @@ SceneParams builtinSceneParams(const std::string& kind) {
     params.vertical_max_deg = 16.6;
     params.azimuth_steps = 2048;
     params.sensor_height = 1.3;
+  } else if (kind == "airborne") {
+    params.mode = SceneParams::Mode::kAirborne;
+    params.range_noise_sigma = 0.05;
   } else {
     std::string known;
     for (const auto& k : builtinSceneKinds()) known += (known.empty() ? "" : ", ") + k;
@@ -874,7 +992,9 @@ GeneratedScan generateScene(const SceneParams& params) {
   params.validate();
   const Scene scene(params);
   GeneratedScan scan;
-  if (params.mode == SceneParams::Mode::kLidar64) {
+  if (params.mode == SceneParams::Mode::kAirborne) {
+    scan = airborneScan(params);
+  } else if (params.mode == SceneParams::Mode::kLidar64) {
     scan = castPattern(params, scene, lidarPattern(params), true);
   } else {
     // Size the ray grid from the hit ratio of a coarse pre-pass so that the returns come close

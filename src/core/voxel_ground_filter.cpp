@@ -2,10 +2,12 @@
 
 #include <omp.h>
 
+#include <algorithm>
 #include <chrono>
 #include <stdexcept>
 
 #include "ground_filter/param_parse.h"
+#include "morph_ground.h"
 #include "voxel/classify.h"
 #include "voxel/ground_model.h"
 #include "voxel/segments.h"
@@ -38,6 +40,7 @@ struct VoxelGroundFilter::Impl {
   voxel::Classifier classifier;
   voxel::Voter voter;
   voxel::WorkerPool pool;  // threads > 1 only
+  MorphGround morph;       // morph_ground (airborne) only
 };
 
 VoxelGroundFilter::VoxelGroundFilter(const VoxelGroundFilterParams& params)
@@ -68,6 +71,16 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
   labels->assign(cloud.size(), kNonGround);
   const VoxelGroundFilterParams& p = params_;
   const int threads = p.threads > 0 ? p.threads : omp_get_max_threads();
+  if (p.morph_ground) {  // airborne mode: the morphological surface replaces steps 1-8
+    const auto t0 = Clock::now();
+    const MorphGroundSettings ms{p.morph_cell, p.morph_slope, p.morph_window, p.plane_distance,
+                                 p.morph_scale};
+    st.invalid_points = cloud.size() - m.morph.run(cloud, ms, labels);
+    stage("morph", t0);
+    st.ground_points = static_cast<std::size_t>(std::count(labels->begin(), labels->end(), 1));
+    st.total_ms = msSince(t_start);
+    return;
+  }
 
   // ---- 1. valid points, bounds, voxel keys
   auto t0 = Clock::now();

@@ -22,6 +22,11 @@ const ParamTable<VoxelGroundFilterParams>& VoxelGroundFilterParams::table() {
       {"tile_size", &P::tile_size, 0.01, 1000.0, "m", "cell edge, >= 2 voxel_size"},
       {"max_slope_deg", &P::max_slope_deg, 0.0, 89.0, "deg", "steeper planes are rejected"},
       {"majority_vote", &P::majority_vote, 0, 0, "bool", "final 26-neighbourhood vote"},
+      {"morph_ground", &P::morph_ground, 0, 0, "bool", "airborne: morphological ground surface"},
+      {"morph_cell", &P::morph_cell, 0.05, 100.0, "m", "morph: raster cell edge"},
+      {"morph_slope", &P::morph_slope, 0.0, 10.0, "", "morph: slope kept by the opening"},
+      {"morph_window", &P::morph_window, 0.1, 1000.0, "m", "morph: largest opening radius"},
+      {"morph_scale", &P::morph_scale, 0.0, 100.0, "m", "morph: threshold per unit gradient"},
       {"threads", &P::threads, 0, 256, "threads", "worker threads, 0 = all cores"},
   };
   return rows;

@@ -14,12 +14,25 @@
 
 #include "cloud_subscription_helper.h"
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 namespace ground_filter {
 
 namespace {
 
 // Seconds between two log lines of the same kind (rejection reason, stream problem).
 constexpr double kLogPeriodS = 5.0;
+
+// Hands the heap's free pages back to the OS. glibc keeps freed memory of its per-thread arenas
+// (cloud buffers of changing size, filter rebuilds on reconfigure) mapped: without this the
+// manager's RSS crept by ~0.8 MB/min in the 20 Hz soak although nothing leaked (docs/testing.md).
+void releaseFreeHeap() {
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
+}
 
 }  // namespace
 
@@ -82,6 +95,16 @@ void GroundFilterNodelet::onInit() {
   // paused or over (Updater::update() would wait for the simulated period).
   diagnostic_timer_ = nh_->createWallTimer(
       ros::WallDuration(period), [this](const ros::WallTimerEvent&) { updater_->force_update(); });
+  double trim_period = 1.0;
+  pnh_->param("malloc_trim_period", trim_period, 1.0);
+  if (!(trim_period >= 0.0 && trim_period <= 3600.0)) {
+    NODELET_WARN("~malloc_trim_period %g s is outside [0, 3600] s, using 1 s", trim_period);
+    trim_period = 1.0;
+  }
+  if (trim_period > 0.0) {
+    trim_timer_ = nh_->createWallTimer(ros::WallDuration(trim_period),
+                                       [](const ros::WallTimerEvent&) { releaseFreeHeap(); });
+  }
 
   onInitFilter();
   // Build the first filter object now, before the input is subscribed: the first cloud of a

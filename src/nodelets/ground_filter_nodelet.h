@@ -43,7 +43,9 @@ namespace ground_filter {
 /// default "": off) frame whose z axis points up: each cloud is classified after a tf2 transform
 /// into it (outputs keep the input frame, header and records); `~tf_timeout` (double, default
 /// 0.1 s, wall time) wait for that transform before the cloud is dropped and counted;
-/// `~diagnostic_period` (double, default 1 s) of the /diagnostics status.
+/// `~diagnostic_period` (double, default 1 s) of the /diagnostics status;
+/// `~malloc_trim_period` (double, default 1 s, 0 = off; glibc only) period at which the heap's
+/// free pages are handed back to the OS (malloc_trim), so the manager's RSS stays flat.
 /// Extra outputs: `~labeled` (lazy; the input cloud plus a uint8 `ground` field, see
 /// makeLabeledCloud()); `~processing_time_ms` (std_msgs/Float64, callback entry to publish of
 /// the outputs; published only while it has subscribers; not watched by the lazy subscription).
@@ -200,6 +202,7 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
 
   std::unique_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer diagnostic_timer_;
+  ros::WallTimer trim_timer_;  // malloc_trim (glibc) every ~malloc_trim_period
 
   std::mutex monitor_mutex_;  // guards monitor_ (short sections, never held while filtering)
   Monitor monitor_;

@@ -1,0 +1,244 @@
+#include "morph_ground.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace ground_filter {
+
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+// Gauss-Seidel sweeps of the gap filling after the ring-by-ring start (enough to smooth the
+// rings; the surface far inside a wide gap matters little, the opening is taken over it).
+constexpr int kFillSweeps = 50;
+
+// Widens the sliding minimum of every row by one cell on each side: the minimum over
+// [x - w, x + w] is the minimum of those over [x - 1 - (w - 1), x - 1 + (w - 1)] and
+// [x + 1 - (w - 1), x + 1 + (w - 1)]; cells outside the row do not count.
+void widenRowMin(float* t, int nx, int ny) {
+  for (int y = 0; y < ny; ++y) {
+    float* row = t + static_cast<std::size_t>(y) * nx;
+    float prev = kInf;
+    for (int x = 0; x < nx; ++x) {
+      const float here = row[x];
+      const float next = x + 1 < nx ? row[x + 1] : kInf;
+      row[x] = std::min(here, std::min(prev, next));
+      prev = here;
+    }
+  }
+}
+
+}  // namespace
+
+void MorphGround::erode(const std::vector<float>& in, int r, bool dilate, std::vector<float>* out) {
+  // A disk of radius r is a stack of rows: row dy is a segment of half-width
+  // w(dy) = floor(sqrt(r^2 - dy^2)). Going from dy = r to 0, w only grows, so the row minima of
+  // half-width w(dy) come from widening the previous ones (2 comparisons a cell per step).
+  // Dilation = erosion of the negated raster.
+  const std::size_t n = in.size();
+  tmp_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) tmp_[i] = dilate ? -in[i] : in[i];
+  out->assign(n, kInf);
+  float* o = out->data();
+  int w = 0;
+  for (int dy = r; dy >= 0; --dy) {
+    const int want = static_cast<int>(std::floor(std::sqrt(static_cast<double>(r * r - dy * dy))));
+    for (; w < want; ++w) widenRowMin(tmp_.data(), nx_, ny_);
+    for (int y = 0; y < ny_; ++y) {
+      float* oy = o + static_cast<std::size_t>(y) * nx_;
+      for (int sgn = -1; sgn <= 1; sgn += 2) {
+        const int ys = y + sgn * dy;
+        if (ys < 0 || ys >= ny_ || (dy == 0 && sgn > 0)) continue;
+        const float* t = tmp_.data() + static_cast<std::size_t>(ys) * nx_;
+        for (int x = 0; x < nx_; ++x) oy[x] = std::min(oy[x], t[x]);
+      }
+    }
+  }
+  if (dilate) {
+    for (std::size_t i = 0; i < n; ++i) o[i] = -o[i];
+  }
+}
+
+void MorphGround::fill(std::vector<float>* zp) {
+  // Gaps (no return, or cells dropped as objects) get the mean of their known 4-neighbours,
+  // ring by ring from the known cells, then Gauss-Seidel sweeps of Laplace's equation over the
+  // gap cells (a smooth surface between the known ones, like SMRF's inpainting).
+  std::vector<float>& z = *zp;
+  const std::size_t n = z.size();
+  known_.assign(n, 0);
+  frontier_.clear();
+  std::size_t unknown = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (std::isnan(z[i])) {
+      ++unknown;
+    } else {
+      known_[i] = 1;
+    }
+  }
+  if (unknown == 0 || unknown == n) return;
+  const int dx[4] = {-1, 1, 0, 0}, dy[4] = {0, 0, -1, 1};
+  auto neighbourMean = [&](int x, int y, bool only_known, float* v) {
+    double s = 0.0;
+    int c = 0;
+    for (int k = 0; k < 4; ++k) {
+      const int xx = x + dx[k], yy = y + dy[k];
+      if (xx < 0 || yy < 0 || xx >= nx_ || yy >= ny_) continue;
+      const std::size_t j = static_cast<std::size_t>(yy) * nx_ + xx;
+      if (only_known && !known_[j]) continue;
+      s += z[j];
+      ++c;
+    }
+    if (c == 0) return false;
+    *v = static_cast<float>(s / c);
+    return true;
+  };
+  gaps_.clear();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!known_[i]) gaps_.push_back(static_cast<std::int32_t>(i));
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    if (known_[i]) continue;
+    const int x = static_cast<int>(i % nx_), y = static_cast<int>(i / nx_);
+    float v;
+    if (neighbourMean(x, y, true, &v)) frontier_.push_back(static_cast<std::int32_t>(i));
+  }
+  std::vector<float> vals;
+  while (!frontier_.empty()) {
+    vals.resize(frontier_.size());
+    for (std::size_t f = 0; f < frontier_.size(); ++f) {
+      const int i = frontier_[f];
+      neighbourMean(i % nx_, i / nx_, true, &vals[f]);
+    }
+    next_.clear();
+    for (std::size_t f = 0; f < frontier_.size(); ++f) {
+      z[frontier_[f]] = vals[f];
+      known_[frontier_[f]] = 1;
+    }
+    for (std::size_t f = 0; f < frontier_.size(); ++f) {
+      const int i = frontier_[f], x = i % nx_, y = i / nx_;
+      for (int k = 0; k < 4; ++k) {
+        const int xx = x + dx[k], yy = y + dy[k];
+        if (xx < 0 || yy < 0 || xx >= nx_ || yy >= ny_) continue;
+        const std::int32_t j = yy * nx_ + xx;
+        if (!known_[j]) {
+          known_[j] = 2;  // queued once
+          next_.push_back(j);
+        }
+      }
+    }
+    for (std::int32_t j : next_) known_[j] = 0;
+    frontier_.swap(next_);
+  }
+  float* zz = z.data();
+  for (int sweep = 0; sweep < kFillSweeps; ++sweep) {
+    for (const std::int32_t i : gaps_) {
+      const int x = i % nx_, y = i / nx_;
+      if (x > 0 && y > 0 && x + 1 < nx_ && y + 1 < ny_) {
+        zz[i] = 0.25f * (zz[i - 1] + zz[i + 1] + zz[i - nx_] + zz[i + nx_]);
+      } else {
+        float v;
+        if (neighbourMean(x, y, false, &v)) zz[i] = v;
+      }
+    }
+  }
+}
+
+std::size_t MorphGround::run(const CloudView& cloud, const MorphGroundSettings& s,
+                             std::vector<std::uint8_t>* labels) {
+  const std::size_t np = cloud.size();
+  labels->assign(np, 0);
+  double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
+  std::size_t valid = 0;
+  for (std::size_t i = 0; i < np; ++i) {
+    float x, y, z;
+    if (!cloud.get(i, &x, &y, &z)) continue;
+    ++valid;
+    x0 = std::min(x0, static_cast<double>(x));
+    x1 = std::max(x1, static_cast<double>(x));
+    y0 = std::min(y0, static_cast<double>(y));
+    y1 = std::max(y1, static_cast<double>(y));
+  }
+  if (valid == 0) return 0;
+  double c = s.cell;
+  auto cellsFor = [&](double cc) {
+    return (std::floor((x1 - x0) / cc) + 1.0) * (std::floor((y1 - y0) / cc) + 1.0);
+  };
+  while (cellsFor(c) > static_cast<double>(kMaxCells)) c *= 1.25;
+  nx_ = static_cast<int>(std::floor((x1 - x0) / c)) + 1;
+  ny_ = static_cast<int>(std::floor((y1 - y0) / c)) + 1;
+  const std::size_t n = static_cast<std::size_t>(nx_) * ny_;
+
+  // 1. Minimum-elevation raster.
+  zmin_.assign(n, std::numeric_limits<float>::quiet_NaN());
+  cell_of_.assign(np, -1);
+  for (std::size_t i = 0; i < np; ++i) {
+    float x, y, z;
+    if (!cloud.get(i, &x, &y, &z)) continue;
+    const int ix = std::min(nx_ - 1, static_cast<int>((x - x0) / c));
+    const int iy = std::min(ny_ - 1, static_cast<int>((y - y0) / c));
+    const std::int32_t cell = iy * nx_ + ix;
+    cell_of_[i] = cell;
+    if (!(zmin_[cell] <= z)) zmin_[cell] = z;  // NaN compares false: first point wins
+  }
+  std::vector<float>& last = dem_;
+  last = zmin_;
+  fill(&last);
+
+  // 2. Progressive opening: a cell that an opening of radius r lowers by more than the terrain
+  //    could drop over r (slope x r) lies on an object.
+  object_.assign(n, 0);
+  const int rmax = std::max(1, static_cast<int>(std::ceil(s.window / c)));
+  for (int r = 1; r <= rmax; ++r) {
+    erode(last, r, false, &eroded_);
+    erode(eroded_, r, true, &opened_);
+    const float thr = static_cast<float>(s.slope * r * c);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (last[i] - opened_[i] > thr) object_[i] = 1;
+    }
+    last.swap(opened_);
+  }
+
+  // 3. Provisional surface: the minimum raster without object cells, gaps filled.
+  dem_ = zmin_;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (object_[i]) dem_[i] = std::numeric_limits<float>::quiet_NaN();
+  }
+  fill(&dem_);
+  if (std::isnan(dem_[0])) {  // every cell an object: fall back to the minimum raster
+    dem_ = zmin_;
+    fill(&dem_);
+  }
+
+  // 4. Gradient magnitude (central differences, one-sided at the border).
+  grad_.assign(n, 0.0f);
+  for (int y = 0; y < ny_; ++y) {
+    for (int x = 0; x < nx_; ++x) {
+      const int xa = std::max(0, x - 1), xb = std::min(nx_ - 1, x + 1);
+      const int ya = std::max(0, y - 1), yb = std::min(ny_ - 1, y + 1);
+      const float* d = dem_.data();
+      const double gx = xb > xa ? (d[y * nx_ + xb] - d[y * nx_ + xa]) / ((xb - xa) * c) : 0.0;
+      const double gy = yb > ya ? (d[yb * nx_ + x] - d[ya * nx_ + x]) / ((yb - ya) * c) : 0.0;
+      grad_[static_cast<std::size_t>(y) * nx_ + x] = static_cast<float>(std::hypot(gx, gy));
+    }
+  }
+
+  // 5. Per point: distance to the bilinear surface through the cell centres.
+  for (std::size_t i = 0; i < np; ++i) {
+    if (cell_of_[i] < 0) continue;
+    const double fx = (cloud.x(i) - x0) / c - 0.5, fy = (cloud.y(i) - y0) / c - 0.5;
+    const int ia = std::max(0, std::min(nx_ - 1, static_cast<int>(std::floor(fx))));
+    const int ja = std::max(0, std::min(ny_ - 1, static_cast<int>(std::floor(fy))));
+    const int ib = std::min(nx_ - 1, ia + 1), jb = std::min(ny_ - 1, ja + 1);
+    const double tx = std::max(0.0, std::min(1.0, fx - ia));
+    const double ty = std::max(0.0, std::min(1.0, fy - ja));
+    const float* d = dem_.data();
+    const double zs = d[ja * nx_ + ia] * (1 - tx) * (1 - ty) + d[ja * nx_ + ib] * tx * (1 - ty) +
+                      d[jb * nx_ + ia] * (1 - tx) * ty + d[jb * nx_ + ib] * tx * ty;
+    const double limit = s.threshold + s.scale * grad_[cell_of_[i]];
+    (*labels)[i] = std::fabs(cloud.z(i) - zs) <= limit ? 1 : 0;
+  }
+  return valid;
+}
+
+}  // namespace ground_filter

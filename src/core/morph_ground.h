@@ -1,0 +1,52 @@
+#ifndef GROUND_FILTER_SRC_CORE_MORPH_GROUND_H
+#define GROUND_FILTER_SRC_CORE_MORPH_GROUND_H
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "ground_filter/cloud_view.h"
+
+namespace ground_filter {
+
+/// \brief Settings of the morphological ground surface (both filters' `morph_*` parameters).
+struct MorphGroundSettings {
+  double cell = 1.0;       ///< raster cell edge [m]
+  double slope = 0.15;     ///< terrain slope allowed by the opening, rise / run [1]
+  double window = 18.0;    ///< largest opening radius [m] (about the widest building)
+  double threshold = 0.5;  ///< max |z - surface| of a ground point on flat ground [m]
+  double scale = 1.25;     ///< added to threshold per unit of surface gradient [m]
+};
+
+/// \brief Airborne ground model after SMRF (Pingel, Clarke and McBride 2013), written from its
+///        description: a minimum-elevation raster with its gaps filled, opened with disks of
+///        growing radius (cells that drop by more than slope x radius at a step are objects),
+///        the raster without the object cells filled again, and per point the test
+///        |z - bilinear surface| <= threshold + scale x gradient. Works on any cloud; meant for
+///        nadir scans, where the lowest return of a cell is mostly ground. Owns its buffers
+///        (reused across scans).
+class MorphGround {
+ public:
+  /// \brief Labels every point of `cloud`: 1 ground, 0 not (invalid points 0). Returns the
+  ///        number of valid points. The raster cell grows when the cloud's x/y extent would need
+  ///        more than kMaxCells cells.
+  std::size_t run(const CloudView& cloud, const MorphGroundSettings& s,
+                  std::vector<std::uint8_t>* labels);
+
+  /// \brief Upper limit on raster cells (memory and time bound for huge extents).
+  static constexpr std::size_t kMaxCells = std::size_t{1} << 22;
+
+ private:
+  void fill(std::vector<float>* z);  // fill NaN cells (nearest rings, then Laplace sweeps)
+  void erode(const std::vector<float>& in, int r, bool dilate, std::vector<float>* out);
+
+  int nx_ = 0, ny_ = 0;
+  std::vector<std::int32_t> cell_of_;  // per point: cell index, -1 invalid
+  std::vector<float> zmin_, tmp_, eroded_, opened_, dem_, grad_;
+  std::vector<std::uint8_t> object_, known_;
+  std::vector<std::int32_t> frontier_, next_, gaps_;
+};
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_CORE_MORPH_GROUND_H
