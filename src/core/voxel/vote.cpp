@@ -31,7 +31,7 @@ void Voter::vote(const VoxelGrid& g, int t, int range, Classifier* cls) {
   const std::uint32_t* cf = g.col_first.data();
   const std::uint64_t mz = g.mask_z;
   const std::uint32_t* vg = cls->voxel_ground.data();
-  const ZRange* cr = cls->col_range.data();   // + empty sentinel at ncol
+  const ZRange* cr = cls->col_range.data();       // + empty sentinel at ncol
   const std::uint8_t* cm = cls->col_mask.data();  // + 0 at ncol
   std::uint8_t* out = cls->ground.data();
   auto zOf = [&](std::uint32_t v) { return static_cast<std::int32_t>(vk[v] & mz); };
