@@ -1,6 +1,8 @@
 #include "voxel/voxelize.h"
 
+#if defined(__SSE2__)
 #include <emmintrin.h>
+#endif
 
 #include <algorithm>
 #include <limits>
@@ -9,6 +11,68 @@
 
 namespace ground_filter {
 namespace voxel {
+
+namespace {
+
+// Four floats x y z 0 of one point: SSE2 on x86-64 (every such CPU has it), plain floats
+// elsewhere (aarch64: Jetson); both give the same results lane by lane.
+#if defined(__SSE2__)
+using V4 = __m128;
+inline V4 v4Load(const float* p) { return _mm_load_ps(p); }
+inline void v4Store(float* p, V4 v) { _mm_store_ps(p, v); }
+inline V4 v4Set(float x, float y, float z) { return _mm_set_ps(0.f, z, y, x); }
+inline V4 v4Splat(float a) { return _mm_set1_ps(a); }
+inline V4 v4Sub(V4 a, V4 b) { return _mm_sub_ps(a, b); }
+inline V4 v4Min(V4 a, V4 b) { return _mm_min_ps(a, b); }  // a < b ? a : b
+inline V4 v4Max(V4 a, V4 b) { return _mm_max_ps(a, b); }  // a > b ? a : b
+// x - x is 0 for finite x and NaN for NaN/Inf: one test for all lanes.
+inline bool v4Finite(V4 p) {
+  return _mm_movemask_ps(_mm_cmpeq_ps(_mm_sub_ps(p, p), _mm_setzero_ps())) == 0xF;
+}
+// min(int(p * inv), last) per lane (p >= 0 and below 2^22: the axis checks of prepare()).
+inline void v4Cells(V4 p, float inv, const std::int32_t* last, std::uint32_t* out) {
+  const __m128i vlast = _mm_loadu_si128(reinterpret_cast<const __m128i*>(last));
+  __m128i q = _mm_cvttps_epi32(_mm_mul_ps(p, _mm_set1_ps(inv)));
+  const __m128i over = _mm_cmpgt_epi32(q, vlast);
+  q = _mm_or_si128(_mm_and_si128(over, vlast), _mm_andnot_si128(over, q));
+  out[0] = static_cast<std::uint32_t>(_mm_cvtsi128_si32(q));
+  out[1] = static_cast<std::uint32_t>(_mm_cvtsi128_si32(_mm_srli_si128(q, 4)));
+  out[2] = static_cast<std::uint32_t>(_mm_cvtsi128_si32(_mm_srli_si128(q, 8)));
+}
+#else
+struct V4 {
+  float v[4];
+};
+inline V4 v4Load(const float* p) { return V4{{p[0], p[1], p[2], p[3]}}; }
+inline void v4Store(float* p, V4 a) {
+  for (int k = 0; k < 4; ++k) p[k] = a.v[k];
+}
+inline V4 v4Set(float x, float y, float z) { return V4{{x, y, z, 0.f}}; }
+inline V4 v4Splat(float a) { return V4{{a, a, a, a}}; }
+inline V4 v4Sub(V4 a, V4 b) {
+  for (int k = 0; k < 4; ++k) a.v[k] -= b.v[k];
+  return a;
+}
+inline V4 v4Min(V4 a, V4 b) {
+  for (int k = 0; k < 4; ++k) a.v[k] = a.v[k] < b.v[k] ? a.v[k] : b.v[k];
+  return a;
+}
+inline V4 v4Max(V4 a, V4 b) {
+  for (int k = 0; k < 4; ++k) a.v[k] = a.v[k] > b.v[k] ? a.v[k] : b.v[k];
+  return a;
+}
+inline bool v4Finite(V4 p) {
+  return (p.v[0] - p.v[0]) + (p.v[1] - p.v[1]) + (p.v[2] - p.v[2]) == 0.f;
+}
+inline void v4Cells(V4 p, float inv, const std::int32_t* last, std::uint32_t* out) {
+  for (int k = 0; k < 3; ++k) {
+    out[k] =
+        std::min(static_cast<std::uint32_t>(p.v[k] * inv), static_cast<std::uint32_t>(last[k]));
+  }
+}
+#endif
+
+}  // namespace
 
 namespace {
 
@@ -90,27 +154,19 @@ void computeKeysT(const KeyJob job, std::size_t begin, std::size_t end, std::siz
   std::uint32_t* const hist1 = job.hist + (std::size_t{1} << digit);
   float* const pts = job.pts;
   std::uint64_t* const keys = job.keys;
-  const __m128 vmin = _mm_loadu_ps(job.min);
-  const __m128 vinv = _mm_set1_ps(job.inv_vs);
-  const __m128i vlast = _mm_loadu_si128(reinterpret_cast<const __m128i*>(job.last));
-  const __m128 zero = _mm_setzero_ps();
+  const V4 vmin = v4Load(job.min);
   std::size_t s = slot;
   for (std::size_t i = begin; i < end; ++i) {
-    __m128 p = _mm_load_ps(pts + 4 * i);
+    V4 p = v4Load(pts + 4 * i);
     if (!kAllValid) {
-      // x - x is 0 for finite x and NaN for NaN/Inf (w is 0).
-      if (_mm_movemask_ps(_mm_cmpeq_ps(_mm_sub_ps(p, p), zero)) != 0xF) continue;
+      if (!v4Finite(p)) continue;
       job.index[s] = static_cast<std::uint32_t>(i);
     }
-    p = _mm_sub_ps(p, vmin);
-    _mm_store_ps(pts + 4 * i, p);
-    // Truncation of a value >= 0 (below 2^22: the axis checks of prepare()), then min(., last).
-    __m128i q = _mm_cvttps_epi32(_mm_mul_ps(p, vinv));
-    const __m128i over = _mm_cmpgt_epi32(q, vlast);
-    q = _mm_or_si128(_mm_and_si128(over, vlast), _mm_andnot_si128(over, q));
-    const std::uint64_t ix = static_cast<std::uint32_t>(_mm_cvtsi128_si32(q));
-    const std::uint64_t iy = static_cast<std::uint32_t>(_mm_cvtsi128_si32(_mm_srli_si128(q, 4)));
-    const std::uint64_t iz = static_cast<std::uint32_t>(_mm_cvtsi128_si32(_mm_srli_si128(q, 8)));
+    p = v4Sub(p, vmin);
+    v4Store(pts + 4 * i, p);
+    std::uint32_t cell[4];
+    v4Cells(p, job.inv_vs, job.last, cell);
+    const std::uint64_t ix = cell[0], iy = cell[1], iz = cell[2];
     const std::uint64_t key = (ix << shift_x) | (iy << shift_y) | iz;
     std::uint64_t word;
     if (kPacked) {
@@ -149,18 +205,18 @@ void Voxelizer::scanBounds(const CloudView& cloud, float* pts, Chunk* ch) {
   // Copies x y z (w = 0) of every input point to `pts` (one aligned vector a point for the key
   // pass and the gather of build()) and takes the bounds of the valid ones.
   const CloudView view = cloud;  // a local copy: stores cannot alias its fields
-  const __m128 zero = _mm_setzero_ps();
-  __m128 lo = _mm_set1_ps(std::numeric_limits<float>::max());
-  __m128 hi = _mm_set1_ps(-std::numeric_limits<float>::max());
+  V4 lo = v4Splat(std::numeric_limits<float>::max());
+  V4 hi = v4Splat(-std::numeric_limits<float>::max());
   std::size_t valid = 0;
-  auto add = [&](std::size_t i, __m128 p) {
-    _mm_store_ps(pts + 4 * i, p);
-    // x - x is 0 for finite x and NaN for NaN/Inf: one test for all three.
-    if (_mm_movemask_ps(_mm_cmpeq_ps(_mm_sub_ps(p, p), zero)) != 0xF) return;
+  auto add = [&](std::size_t i, V4 p) {
+    v4Store(pts + 4 * i, p);
+    if (!v4Finite(p)) return;
     ++valid;
-    lo = _mm_min_ps(p, lo);  // p < lo ? p : lo, as the scalar code did
-    hi = _mm_max_ps(p, hi);
+    lo = v4Min(p, lo);  // p < lo ? p : lo, as the scalar code did
+    hi = v4Max(p, hi);
   };
+  bool copied = false;
+#if defined(__SSE2__)
   if (view.xyzFollowedByFloat()) {  // x y z ? in every record (KITTI, PCL PointXYZ, most drivers)
     const __m128 xyz_mask = _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1));
     const std::uint8_t* base = view.data() + view.xOffset();
@@ -168,15 +224,17 @@ void Voxelizer::scanBounds(const CloudView& cloud, float* pts, Chunk* ch) {
     for (std::size_t i = ch->begin; i < ch->end; ++i) {
       add(i, _mm_and_ps(_mm_loadu_ps(reinterpret_cast<const float*>(base + i * stride)), xyz_mask));
     }
-  } else {
-    for (std::size_t i = ch->begin; i < ch->end; ++i) {
-      add(i, _mm_set_ps(0.f, view.z(i), view.y(i), view.x(i)));
-    }
+    copied = true;
+  }
+#endif
+  if (!copied) {
+    for (std::size_t i = ch->begin; i < ch->end; ++i)
+      add(i, v4Set(view.x(i), view.y(i), view.z(i)));
   }
   ch->valid = valid;
   alignas(16) float l[4], h[4];
-  _mm_store_ps(l, lo);
-  _mm_store_ps(h, hi);
+  v4Store(l, lo);
+  v4Store(h, hi);
   for (int d = 0; d < 3; ++d) {
     ch->lo[d] = l[d];
     ch->hi[d] = h[d];
