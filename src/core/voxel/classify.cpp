@@ -13,76 +13,87 @@ struct Job {
   const std::uint32_t *vstart, *vcell;
   const std::uint64_t* vkey;
   const std::uint32_t* col_first;
+  const std::uint32_t* pvox;
   const float *x, *y, *z, *vx, *vy;
   const HeightPlane* planes;
-  const float* cosines;
-  const double *mu, *sigma;  // std band per cell, or null
+  const CellCoef* coef;
+  bool band;
+  float* h0;
   std::uint8_t* ground;
   std::uint32_t* voxel_ground;
   ZRange* col_range;
+  std::uint8_t* col_mask;
   std::uint64_t mask_z;
   float dmax;
-  double band_k;
 };
 
-// Labels the points of columns [c0, c1). Every field is copied to a local first: the byte
-// stores of the labels may alias anything in memory, locals not.
-void classifyColumns(const Job& job, std::size_t c0, std::size_t c1) {
+// Labels the points of columns [c0, c1) in three flat passes (voxels, points, columns): voxels
+// hold 1-2 points on average, and loops per voxel over its points mispredict their exits.
+// Every field is copied to a local first: the byte stores of the labels may alias anything in
+// memory, locals not.
+template <bool kBand>
+void classifyColumnsT(const Job& job, std::size_t c0, std::size_t c1) {
   const std::uint32_t* const vs = job.vstart;
   const std::uint32_t* const vcell = job.vcell;
   const std::uint64_t* const vkey = job.vkey;
   const std::uint32_t* const cf = job.col_first;
+  const std::uint32_t* const pvox = job.pvox;
   const float* const px = job.x;
   const float* const py = job.y;
   const float* const pz = job.z;
   const float* const vx = job.vx;
   const float* const vy = job.vy;
   const HeightPlane* const planes = job.planes;
-  const float* const cosines = job.cosines;
-  const double* const mu = job.mu;
-  const double* const sigma = job.sigma;
+  const CellCoef* const coef = job.coef;
+  float* const h0v = job.h0;
   std::uint8_t* const ground = job.ground;
   std::uint32_t* const voxel_ground = job.voxel_ground;
   ZRange* const col_range = job.col_range;
+  std::uint8_t* const col_mask = job.col_mask;
   const std::uint64_t mz = job.mask_z;
   const float dmax = job.dmax;
-  const double band_k = job.band_k;
+  // Plane height at each voxel centroid: distances relative to it keep float precision far from
+  // the origin.
+  const std::uint32_t v0 = cf[c0], v1 = cf[c1];
+  for (std::uint32_t v = v0; v < v1; ++v) {
+    h0v[v] = static_cast<float>(planes[vcell[v]].at(vx[v], vy[v]));
+    voxel_ground[v] = 0;
+  }
+  const std::uint32_t k1 = vs[v1];
+  for (std::uint32_t k = vs[v0]; k < k1; ++k) {
+    const std::uint32_t v = pvox[k];
+    const CellCoef& cc = coef[vcell[v]];
+    const float d = (pz[k] - h0v[v] - cc.a * (px[k] - vx[v]) - cc.b * (py[k] - vy[v])) * cc.cos;
+    const float lo = kBand ? cc.lo : -dmax, hi = kBand ? cc.hi : dmax;
+    const std::uint32_t is_ground = (d > lo) & (d < hi);
+    ground[k] = static_cast<std::uint8_t>(is_ground);
+    voxel_ground[v] += is_ground;
+  }
   for (std::size_t col = c0; col < c1; ++col) {
     ZRange r = kEmptyRange;
     const std::uint32_t v_end = cf[col + 1];
     for (std::uint32_t v = cf[col]; v < v_end; ++v) {
-      const std::uint32_t c = vcell[v];
-      const HeightPlane hp = planes[c];
-      // Distances relative to the voxel centroid keep float precision far from the origin.
-      const float cosf = cosines[c];
-      const float x0 = vx[v], y0 = vy[v];
-      const float h0 = static_cast<float>(hp.at(x0, y0));
-      const float a = static_cast<float>(hp.a), b = static_cast<float>(hp.b);
-      float lo = -dmax, hi = dmax;
-      if (sigma && sigma[c] > 0.0) {
-        lo = std::max(lo, static_cast<float>(mu[c] - band_k * sigma[c]));
-        hi = std::min(hi, static_cast<float>(mu[c] + band_k * sigma[c]));
-      }
-      std::uint32_t gcount = 0;
-      const std::uint32_t k0 = vs[v], k1 = vs[v + 1];
-      for (std::uint32_t k = k0; k < k1; ++k) {
-        const float d = (pz[k] - h0 - a * (px[k] - x0) - b * (py[k] - y0)) * cosf;
-        const std::uint32_t is_ground = (d > lo) & (d < hi);
-        ground[k] = static_cast<std::uint8_t>(is_ground);
-        gcount += is_ground;
-      }
-      voxel_ground[v] = gcount;
+      const std::uint32_t gcount = voxel_ground[v];
       const std::int32_t iz = static_cast<std::int32_t>(vkey[v] & mz);
       if (gcount != 0) {
         r.glo = std::min(r.glo, iz);
         r.ghi = iz;
       }
-      if (gcount != k1 - k0) {
+      if (gcount != vs[v + 1] - vs[v]) {
         r.nlo = std::min(r.nlo, iz);
         r.nhi = iz;
       }
     }
     col_range[col] = r;
+    col_mask[col] = static_cast<std::uint8_t>((r.ghi != kNoHi ? 1 : 0) | (r.nhi != kNoHi ? 2 : 0));
+  }
+}
+
+void classifyColumns(const Job& job, std::size_t c0, std::size_t c1) {
+  if (job.band) {
+    classifyColumnsT<true>(job, c0, c1);
+  } else {
+    classifyColumnsT<false>(job, c0, c1);
   }
 }
 
@@ -137,27 +148,49 @@ void Classifier::run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const
   if (band) bandStats(p, g, nc, model, segs, best);
   ground.resize(n);
   voxel_ground.resize(nv);
-  col_range.resize(g.columns());
+  col_range.resize(g.columns() + 1);  // + an empty sentinel column (the vote's "no column")
+  col_mask.resize(g.columns() + 1);
+  col_range[g.columns()] = kEmptyRange;
+  col_mask[g.columns()] = 0;
+  // Per cell: slope and cosine as the per-point test uses them, and the test's band.
+  coef_.resize(nc);
+  const float dmax = static_cast<float>(p.plane_distance);
+  for (std::size_t c = 0; c < nc; ++c) {
+    if (p.local_planes && !cells.used[c]) continue;
+    const HeightPlane& hp = model.plane(c);
+    CellCoef& cc = coef_[c];
+    cc.a = static_cast<float>(hp.a);
+    cc.b = static_cast<float>(hp.b);
+    cc.cos = model.cosine(c);
+    cc.lo = -dmax;
+    cc.hi = dmax;
+    if (band && sigma_[c] > 0.0) {
+      cc.lo = std::max(cc.lo, static_cast<float>(mu_[c] - p.std_multiplier * sigma_[c]));
+      cc.hi = std::min(cc.hi, static_cast<float>(mu_[c] + p.std_multiplier * sigma_[c]));
+    }
+  }
+  h0_.resize(nv);
   Job job;
   job.vstart = g.vstart.data();
   job.vcell = g.vcell.data();
   job.vkey = g.vkey.data();
   job.col_first = g.col_first.data();
+  job.pvox = g.pvox.data();
   job.x = g.sx.data();
   job.y = g.sy.data();
   job.z = g.sz.data();
   job.vx = g.vx.data();
   job.vy = g.vy.data();
   job.planes = model.planes();
-  job.cosines = model.cosines();
-  job.mu = band ? mu_.data() : nullptr;
-  job.sigma = band ? sigma_.data() : nullptr;
+  job.coef = coef_.data();
+  job.band = band;
+  job.h0 = h0_.data();
   job.ground = ground.data();
   job.voxel_ground = voxel_ground.data();
   job.col_range = col_range.data();
+  job.col_mask = col_mask.data();
   job.mask_z = g.mask_z;
-  job.dmax = static_cast<float>(p.plane_distance);
-  job.band_k = p.std_multiplier;
+  job.dmax = dmax;
   // Column by column (the vote wants each column's z range of voxels with ground and with
   // non-ground points).
   const std::size_t ncol = g.columns();

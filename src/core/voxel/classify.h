@@ -21,6 +21,12 @@ struct ZRange {
 };
 constexpr ZRange kEmptyRange{kNoLo, kNoHi, kNoLo, kNoHi};
 
+/// \brief What the per-point test needs of a cell: its plane's slope and cosine (float) and the
+///        accepted band of signed distances.
+struct CellCoef {
+  float a, b, cos, lo, hi;
+};
+
 /// \brief Step 7: ground = within plane_distance of the cell plane (and, with std_filter, inside
 ///        the cell's mean +- k std band).
 class Classifier {
@@ -35,13 +41,19 @@ class Classifier {
   std::vector<std::uint8_t> ground;
   /// \brief Ground points per voxel.
   std::vector<std::uint32_t> voxel_ground;
-  /// \brief Per column: z range of the voxels with ground / non-ground points.
+  /// \brief Per column: z range of the voxels with ground / non-ground points (+ one empty
+  ///        sentinel column).
   std::vector<ZRange> col_range;
+  /// \brief Per column: 1 when it holds ground points, | 2 when it holds non-ground points
+  ///        (+ 0 for the sentinel).
+  std::vector<std::uint8_t> col_mask;
 
  private:
   void bandStats(const VoxelGroundFilterParams& p, const VoxelGrid& g, std::size_t cells,
                  const GroundModel& model, const Segmenter& segs, std::int64_t best);
   std::vector<double> mu_, sigma_;  // std band per cell
+  std::vector<CellCoef> coef_;
+  std::vector<float> h0_;  // plane height at each voxel's centroid
   std::vector<std::uint64_t> count_;
 };
 

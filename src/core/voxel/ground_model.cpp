@@ -114,8 +114,9 @@ void GroundModel::resetCells(const CellGrid& cells, const HeightPlane& gp) {
   for (std::uint64_t y = 0; y < ncy; ++y) {
     state[y] = state[(ncx - 1) * ncy + y] = CellState::kDone;
   }
-  queue_.clear();
-  queue_far_.clear();
+  queue_.resize(nc + 2);  // one near entry per cell, the start, one store past the end
+  queue_far_.resize(nc + 1);
+  near_end_ = far_end_ = 0;
 }
 
 HeightPlane GroundModel::startPlane(const VoxelGrid& g, const Segmenter& segs, std::int64_t best,
@@ -200,20 +201,36 @@ bool GroundModel::fitCell(const VoxelGroundFilterParams& p, std::uint32_t t) {
 void GroundModel::queueNeighbours(std::uint32_t t, bool seeded) {
   // Two FIFO queues: cells next to a cell with accepted seeds first ("near"), the rest after
   // ("far"), so the model grows where there is evidence and crosses empty stretches (the
-  // sensor's blind circle, shadows) last, from all sides.
-  for (int k = 0; k < 9; ++k) {
-    const std::size_t u = static_cast<std::size_t>(t + geo_.nb_off[k]);
-    const CellState su = state_[u];
-    if (finished(su) || (su == CellState::kQueued && !seeded)) continue;
-    if (seeded) {
-      if (su == CellState::kQueued && near_q_[u]) continue;  // already waiting near seeds
-      near_q_[u] = 1;
-      queue_.push_back(static_cast<std::uint32_t>(u));
-    } else {
-      queue_far_.push_back(static_cast<std::uint32_t>(u));
+  // sensor's blind circle, shadows) last, from all sides. A seeded cell queues every unfinished
+  // neighbour not already waiting near seeds; an unseeded one only new cells. Written without
+  // branches per neighbour (an entry is always stored, and counted when taken): the queues hold
+  // at most one entry per cell each (+ the start), see resetCells().
+  CellState* state = state_.data();
+  std::uint32_t* parent = parent_.data();
+  if (seeded) {
+    std::uint8_t* near_q = near_q_.data();
+    std::uint32_t* q = queue_.data();
+    for (int k = 0; k < 9; ++k) {
+      const std::size_t u = static_cast<std::size_t>(t + geo_.nb_off[k]);
+      const CellState su = state[u];
+      const bool take = !finished(su) && !(su == CellState::kQueued && near_q[u]);
+      q[near_end_] = static_cast<std::uint32_t>(u);
+      near_end_ += take;
+      near_q[u] = static_cast<std::uint8_t>(near_q[u] | take);
+      state[u] = take ? CellState::kQueued : su;
+      parent[u] = take ? t : parent[u];
     }
-    state_[u] = CellState::kQueued;
-    parent_[u] = t;
+  } else {
+    std::uint32_t* q = queue_far_.data();
+    for (int k = 0; k < 9; ++k) {
+      const std::size_t u = static_cast<std::size_t>(t + geo_.nb_off[k]);
+      const CellState su = state[u];
+      const bool take = su == CellState::kNew;
+      q[far_end_] = static_cast<std::uint32_t>(u);
+      far_end_ += take;
+      state[u] = take ? CellState::kQueued : su;
+      parent[u] = take ? t : parent[u];
+    }
   }
 }
 
@@ -238,13 +255,13 @@ void GroundModel::grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, con
   plane_[start] = startPlane(g, segs, best, start, gp);
   parent_[start] = static_cast<std::uint32_t>(start);
   state_[start] = CellState::kQueued;
-  queue_.push_back(static_cast<std::uint32_t>(start));
+  queue_[near_end_++] = static_cast<std::uint32_t>(start);
   std::size_t qn = 0, qf = 0, next_island = 0;
   for (;;) {
     std::uint32_t t;
-    if (qn < queue_.size()) {
+    if (qn < near_end_) {
       t = queue_[qn++];
-    } else if (qf < queue_far_.size()) {
+    } else if (qf < far_end_) {
       t = queue_far_[qf++];
     } else if (!nextIsland(cells, &next_island, &t)) {
       break;

@@ -73,6 +73,7 @@ class GroundModel {
   std::vector<std::uint32_t> parent_;  // cell that queued it
   std::vector<CellState> state_;
   std::vector<std::uint32_t> queue_, queue_far_;  // cells to grow: next to seeds, others
+  std::size_t near_end_ = 0, far_end_ = 0;        // entries in queue_, queue_far_
   std::vector<std::uint8_t> near_q_;              // cell waits in queue_
   std::vector<std::uint8_t> reach_;
   std::vector<HeightPlane> final_;

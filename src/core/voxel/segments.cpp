@@ -33,7 +33,7 @@ void unite(std::uint32_t* uf, std::uint32_t a, std::uint32_t b) {
 }  // namespace
 
 std::int64_t Segmenter::run(const VoxelGroundFilterParams& p, VoxelGrid* g) {
-  std::vector<std::uint32_t>& flat = g->flat;
+  Buffer<std::uint32_t>& flat = g->flat;
   // ---- height filter (paper, global plane only): flat voxels higher than the mean flat-voxel
   // height + margin are not ground seeds. The local model has its own, local, windows.
   if (!p.local_planes && !flat.empty()) {

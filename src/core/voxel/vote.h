@@ -17,31 +17,18 @@ namespace voxel {
 ///        neighbourhood (itself included); ties keep the per-point labels.
 class Voter {
  public:
-  /// \brief Rewrites `cls->ground` (reads the classification only: all sums come first).
-  ///        `threads` > 1 splits the columns into ranges of whole rows.
+  /// \brief Rewrites `cls->ground` (the sums read the per-voxel ground counts of the
+  ///        classification only, so relabelling as it goes is exact). `threads` > 1 splits the
+  ///        columns into ranges of whole rows.
   void run(const VoxelGrid& g, int threads, WorkerPool* pool, Classifier* cls);
 
  private:
-  struct ColInfo {
-    std::int32_t base, ext;    // z prefix range base .. base + ext - 1; ext < 0: scan voxels
-    std::uint32_t pool;        // offset of the prefix sums in pre_ (pairs)
-    std::uint32_t first, end;  // voxels
-  };
-  /// Per column, the z range of the voxels whose vote can change (alo_ > ahi_: none).
-  void votedRanges(const VoxelGrid& g, const Classifier& cls, int t, int range);
-  /// Sums of the voted voxels of the columns of `range`, on thread t.
-  void sums(const VoxelGrid& g, const Classifier& cls, int t, int range, bool lazy);
-  /// Prefix sums of column c into pre_.
-  void buildColumn(const VoxelGrid& g, const Classifier& cls, std::size_t c);
+  /// Votes, on thread t, the voxels of the columns of `range` (whole rows) whose neighbourhood
+  /// holds both labels.
+  void vote(const VoxelGrid& g, int t, int range, Classifier* cls);
 
   std::vector<std::size_t> bounds_;                 // column ranges (whole rows)
-  std::vector<std::vector<ZRange>> range_rows_;     // per thread
   std::vector<std::vector<std::int32_t>> id_rows_;  // per thread
-  std::vector<std::int32_t> alo_, ahi_;
-  std::vector<ColInfo> col_info_;    // + one empty sentinel
-  std::vector<std::uint32_t> pre_;   // z prefix sums of (ground, all) points
-  std::vector<std::uint8_t> built_;  // prefix sums of the column are in pre_
-  std::vector<std::uint32_t> sum_g_, sum_n_;
 };
 
 }  // namespace voxel

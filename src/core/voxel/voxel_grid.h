@@ -6,6 +6,9 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <memory>
+#include <new>
+#include <utility>
 #include <vector>
 
 #include "ground_filter/voxel_ground_filter.h"
@@ -26,6 +29,30 @@ constexpr std::uint8_t kSeed = 2;  // ground seed candidate of the local model
 // "No voxel" ends of a z range.
 constexpr std::int32_t kNoLo = std::numeric_limits<std::int32_t>::max() / 2;
 constexpr std::int32_t kNoHi = -kNoLo;
+
+/// \brief Allocator whose resize() leaves new elements of trivial types uninitialised: buffers
+///        that are written through pointers and cut to length need no zeroing when they grow.
+template <typename T>
+struct UninitAllocator : std::allocator<T> {
+  template <typename U>
+  struct rebind {
+    using other = UninitAllocator<U>;
+  };
+  UninitAllocator() = default;
+  template <typename U>
+  UninitAllocator(const UninitAllocator<U>&) noexcept {}
+  template <typename U>
+  void construct(U* p) noexcept {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
+/// \brief A vector that does not zero what it grows by.
+template <typename T>
+using Buffer = std::vector<T, UninitAllocator<T>>;
 
 /// \brief Weighted first and second moments of (x, y, z) for height-field plane fits.
 struct Moments {
@@ -84,6 +111,7 @@ struct VoxelGrid {
 
   // Per valid point in key order, relative to the cloud's min corner.
   std::vector<float> sx, sy, sz;
+  Buffer<std::uint32_t> pvox;  // voxel of each point
 
   // Per voxel, key order.
   std::vector<std::uint64_t> vkey;
@@ -93,13 +121,13 @@ struct VoxelGrid {
   std::vector<std::uint32_t> vcell;   // ground-model cell
 
   // Columns (x, y): runs of voxels.
-  std::vector<std::uint64_t> col_key;    // voxel key >> shift_y
-  std::vector<std::uint32_t> col_first;  // first voxel, size columns + 1
+  Buffer<std::uint64_t> col_key;    // voxel key >> shift_y
+  Buffer<std::uint32_t> col_first;  // first voxel, size columns + 1
 
   // Flat voxels used for region growing (all of them for the global plane, the flat seed
   // candidates for the local model) and seed candidates, voxel ids in key order.
-  std::vector<std::uint32_t> flat;
-  std::vector<std::uint32_t> seeds;
+  Buffer<std::uint32_t> flat;
+  Buffer<std::uint32_t> seeds;
 
   std::size_t points() const { return sx.size(); }
   std::size_t voxels() const { return vkey.size(); }

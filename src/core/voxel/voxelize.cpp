@@ -1,5 +1,9 @@
 #include "voxel/voxelize.h"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include <algorithm>
 #include <limits>
 #include <sstream>
@@ -7,6 +11,68 @@
 
 namespace ground_filter {
 namespace voxel {
+
+namespace {
+
+// Four floats x y z 0 of one point: SSE2 on x86-64 (every such CPU has it), plain floats
+// elsewhere (aarch64: Jetson); both give the same results lane by lane.
+#if defined(__SSE2__)
+using V4 = __m128;
+inline V4 v4Load(const float* p) { return _mm_load_ps(p); }
+inline void v4Store(float* p, V4 v) { _mm_store_ps(p, v); }
+inline V4 v4Set(float x, float y, float z) { return _mm_set_ps(0.f, z, y, x); }
+inline V4 v4Splat(float a) { return _mm_set1_ps(a); }
+inline V4 v4Sub(V4 a, V4 b) { return _mm_sub_ps(a, b); }
+inline V4 v4Min(V4 a, V4 b) { return _mm_min_ps(a, b); }  // a < b ? a : b
+inline V4 v4Max(V4 a, V4 b) { return _mm_max_ps(a, b); }  // a > b ? a : b
+// x - x is 0 for finite x and NaN for NaN/Inf: one test for all lanes.
+inline bool v4Finite(V4 p) {
+  return _mm_movemask_ps(_mm_cmpeq_ps(_mm_sub_ps(p, p), _mm_setzero_ps())) == 0xF;
+}
+// min(int(p * inv), last) per lane (p >= 0 and below 2^22: the axis checks of prepare()).
+inline void v4Cells(V4 p, float inv, const std::int32_t* last, std::uint32_t* out) {
+  const __m128i vlast = _mm_loadu_si128(reinterpret_cast<const __m128i*>(last));
+  __m128i q = _mm_cvttps_epi32(_mm_mul_ps(p, _mm_set1_ps(inv)));
+  const __m128i over = _mm_cmpgt_epi32(q, vlast);
+  q = _mm_or_si128(_mm_and_si128(over, vlast), _mm_andnot_si128(over, q));
+  out[0] = static_cast<std::uint32_t>(_mm_cvtsi128_si32(q));
+  out[1] = static_cast<std::uint32_t>(_mm_cvtsi128_si32(_mm_srli_si128(q, 4)));
+  out[2] = static_cast<std::uint32_t>(_mm_cvtsi128_si32(_mm_srli_si128(q, 8)));
+}
+#else
+struct V4 {
+  float v[4];
+};
+inline V4 v4Load(const float* p) { return V4{{p[0], p[1], p[2], p[3]}}; }
+inline void v4Store(float* p, V4 a) {
+  for (int k = 0; k < 4; ++k) p[k] = a.v[k];
+}
+inline V4 v4Set(float x, float y, float z) { return V4{{x, y, z, 0.f}}; }
+inline V4 v4Splat(float a) { return V4{{a, a, a, a}}; }
+inline V4 v4Sub(V4 a, V4 b) {
+  for (int k = 0; k < 4; ++k) a.v[k] -= b.v[k];
+  return a;
+}
+inline V4 v4Min(V4 a, V4 b) {
+  for (int k = 0; k < 4; ++k) a.v[k] = a.v[k] < b.v[k] ? a.v[k] : b.v[k];
+  return a;
+}
+inline V4 v4Max(V4 a, V4 b) {
+  for (int k = 0; k < 4; ++k) a.v[k] = a.v[k] > b.v[k] ? a.v[k] : b.v[k];
+  return a;
+}
+inline bool v4Finite(V4 p) {
+  return (p.v[0] - p.v[0]) + (p.v[1] - p.v[1]) + (p.v[2] - p.v[2]) == 0.f;
+}
+inline void v4Cells(V4 p, float inv, const std::int32_t* last, std::uint32_t* out) {
+  for (int k = 0; k < 3; ++k) {
+    out[k] =
+        std::min(static_cast<std::uint32_t>(p.v[k] * inv), static_cast<std::uint32_t>(last[k]));
+  }
+}
+#endif
+
+}  // namespace
 
 namespace {
 
@@ -62,85 +128,116 @@ void radixScatter(int lo, int passes, int digit, std::uint32_t* hist, std::vecto
 
 // What computeKeys() needs, by value (no aliasing with the arrays it writes).
 struct KeyJob {
-  float* out;            // relative x y z per slot
+  float* pts;            // x y z 0 per input point: absolute in, relative to the min corner out
   std::uint64_t* keys;   // key, or key << slot_bits | slot when packed
   std::uint32_t* order;  // slot per key (not packed)
   std::uint32_t* index;  // input index per slot (not all valid)
   std::uint32_t* hist;   // digit counts of every radix pass
-  float min[3];
+  float min[4];
   float inv_vs;
-  std::uint32_t last[3];  // voxels per axis - 1
+  std::int32_t last[4];  // voxels per axis - 1
   int shift_x, shift_y;
   int passes, digit, shift_lo, slot_bits;
   bool packed, all_valid;
 };
 
-// Relative coordinates, keys and digit counts of the valid points among input [begin, end),
-// written from slot `slot` on.
-void computeKeys(const CloudView& cloud, const KeyJob job, std::size_t begin, std::size_t end,
-                 std::size_t slot) {
-  const CloudView view = cloud;  // a local copy: stores cannot alias its fields
+// Coordinates relative to the min corner (in place), keys and digit counts of the valid points
+// among input [begin, end) (copied to job.pts by scanBounds()), written from slot `slot` on.
+// SSE2 (every x86-64): one point per vector; the arithmetic is the scalar one lane by lane.
+template <bool kPacked, bool kAllValid, int kPasses>
+void computeKeysT(const KeyJob job, std::size_t begin, std::size_t end, std::size_t slot) {
   const std::uint32_t dmask = (1u << job.digit) - 1;
+  const int passes = kPasses > 0 ? kPasses : job.passes;
+  const int digit = job.digit, shift_lo = job.shift_lo, slot_bits = job.slot_bits;
+  const int shift_x = job.shift_x, shift_y = job.shift_y;
+  std::uint32_t* const hist = job.hist;
+  std::uint32_t* const hist1 = job.hist + (std::size_t{1} << digit);
+  float* const pts = job.pts;
+  std::uint64_t* const keys = job.keys;
+  const V4 vmin = v4Load(job.min);
   std::size_t s = slot;
   for (std::size_t i = begin; i < end; ++i) {
-    float x = view.x(i), y = view.y(i), z = view.z(i);
-    if (!job.all_valid) {
-      if (!((x - x) + (y - y) + (z - z) == 0.f)) continue;
+    V4 p = v4Load(pts + 4 * i);
+    if (!kAllValid) {
+      if (!v4Finite(p)) continue;
       job.index[s] = static_cast<std::uint32_t>(i);
     }
-    x -= job.min[0];
-    y -= job.min[1];
-    z -= job.min[2];
-    job.out[3 * s] = x;
-    job.out[3 * s + 1] = y;
-    job.out[3 * s + 2] = z;
-    const std::uint64_t ix = std::min(static_cast<std::uint32_t>(x * job.inv_vs), job.last[0]);
-    const std::uint64_t iy = std::min(static_cast<std::uint32_t>(y * job.inv_vs), job.last[1]);
-    const std::uint64_t iz = std::min(static_cast<std::uint32_t>(z * job.inv_vs), job.last[2]);
-    const std::uint64_t key = (ix << job.shift_x) | (iy << job.shift_y) | iz;
+    p = v4Sub(p, vmin);
+    v4Store(pts + 4 * i, p);
+    std::uint32_t cell[4];
+    v4Cells(p, job.inv_vs, job.last, cell);
+    const std::uint64_t ix = cell[0], iy = cell[1], iz = cell[2];
+    const std::uint64_t key = (ix << shift_x) | (iy << shift_y) | iz;
     std::uint64_t word;
-    if (job.packed) {
-      word = (key << job.slot_bits) | s;
-      job.keys[s] = word;
+    if (kPacked) {
+      word = (key << slot_bits) | s;
+      keys[s] = word;
     } else {
       word = key;
-      job.keys[s] = key;
+      keys[s] = key;
       job.order[s] = static_cast<std::uint32_t>(s);
     }
     ++s;
-    word >>= job.shift_lo;
-    ++job.hist[word & dmask];
-    if (job.passes > 1) ++job.hist[(std::size_t{1} << job.digit) + ((word >> job.digit) & dmask)];
-    for (int q = 2; q < job.passes; ++q) {
-      ++job.hist[(static_cast<std::size_t>(q) << job.digit) + ((word >> (q * job.digit)) & dmask)];
+    word >>= shift_lo;
+    ++hist[word & dmask];
+    if (passes > 1) ++hist1[(word >> digit) & dmask];
+    for (int q2 = 2; q2 < passes; ++q2) {
+      ++hist[(static_cast<std::size_t>(q2) << digit) + ((word >> (q2 * digit)) & dmask)];
     }
+  }
+}
+
+void computeKeys(const KeyJob& job, std::size_t begin, std::size_t end, std::size_t slot) {
+  if (job.packed && job.all_valid && job.passes == 2) {  // the common case: one word a point
+    computeKeysT<true, true, 2>(job, begin, end, slot);
+  } else if (job.packed && job.all_valid) {
+    computeKeysT<true, true, 0>(job, begin, end, slot);
+  } else if (job.packed) {
+    computeKeysT<true, false, 0>(job, begin, end, slot);
+  } else {
+    computeKeysT<false, false, 0>(job, begin, end, slot);
   }
 }
 
 }  // namespace
 
-void Voxelizer::scanBounds(const CloudView& cloud, Chunk* ch) {
+void Voxelizer::scanBounds(const CloudView& cloud, float* pts, Chunk* ch) {
+  // Copies x y z (w = 0) of every input point to `pts` (one aligned vector a point for the key
+  // pass and the gather of build()) and takes the bounds of the valid ones.
   const CloudView view = cloud;  // a local copy: stores cannot alias its fields
-  float lo[3], hi[3];
-  lo[0] = lo[1] = lo[2] = std::numeric_limits<float>::max();
-  hi[0] = hi[1] = hi[2] = -std::numeric_limits<float>::max();
+  V4 lo = v4Splat(std::numeric_limits<float>::max());
+  V4 hi = v4Splat(-std::numeric_limits<float>::max());
   std::size_t valid = 0;
-  for (std::size_t i = ch->begin; i < ch->end; ++i) {
-    const float x = view.x(i), y = view.y(i), z = view.z(i);
-    // x - x is 0 for finite x and NaN for NaN/Inf: one test for all three.
-    if (!((x - x) + (y - y) + (z - z) == 0.f)) continue;
+  auto add = [&](std::size_t i, V4 p) {
+    v4Store(pts + 4 * i, p);
+    if (!v4Finite(p)) return;
     ++valid;
-    lo[0] = x < lo[0] ? x : lo[0];
-    lo[1] = y < lo[1] ? y : lo[1];
-    lo[2] = z < lo[2] ? z : lo[2];
-    hi[0] = x > hi[0] ? x : hi[0];
-    hi[1] = y > hi[1] ? y : hi[1];
-    hi[2] = z > hi[2] ? z : hi[2];
+    lo = v4Min(p, lo);  // p < lo ? p : lo, as the scalar code did
+    hi = v4Max(p, hi);
+  };
+  bool copied = false;
+#if defined(__SSE2__)
+  if (view.xyzFollowedByFloat()) {  // x y z ? in every record (KITTI, PCL PointXYZ, most drivers)
+    const __m128 xyz_mask = _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1));
+    const std::uint8_t* base = view.data() + view.xOffset();
+    const std::size_t stride = view.stride();
+    for (std::size_t i = ch->begin; i < ch->end; ++i) {
+      add(i, _mm_and_ps(_mm_loadu_ps(reinterpret_cast<const float*>(base + i * stride)), xyz_mask));
+    }
+    copied = true;
+  }
+#endif
+  if (!copied) {
+    for (std::size_t i = ch->begin; i < ch->end; ++i)
+      add(i, v4Set(view.x(i), view.y(i), view.z(i)));
   }
   ch->valid = valid;
+  alignas(16) float l[4], h[4];
+  v4Store(l, lo);
+  v4Store(h, hi);
   for (int d = 0; d < 3; ++d) {
-    ch->lo[d] = lo[d];
-    ch->hi[d] = hi[d];
+    ch->lo[d] = l[d];
+    ch->hi[d] = h[d];
   }
 }
 
@@ -180,8 +277,9 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
     chunks_[c].begin = n_in * c / nch;
     chunks_[c].end = n_in * (c + 1) / nch;
   }
-  // Pass 1: bounds and number of the valid points of every chunk.
-  pool->run(nt, nch, [&](int, int c) { scanBounds(cloud, &chunks_[c]); });
+  // Pass 1: copies of the points, bounds and number of the valid points of every chunk.
+  pxyz_.resize(4 * n_in);
+  pool->run(nt, nch, [&](int, int c) { scanBounds(cloud, pxyz_.data(), &chunks_[c]); });
   std::size_t n = 0;
   float lo[3], hi[3];
   lo[0] = lo[1] = lo[2] = std::numeric_limits<float>::max();
@@ -224,7 +322,6 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   // Pass 2: coordinates relative to the minimum (keeps float precision far from the origin:
   // UTM, TLS), voxel keys and, on one thread, the digit counts of every radix pass (as few
   // passes as digits of at most kMaxDigitBits allow); several threads count per pass in sort().
-  pxyz_.resize(3 * n);
   g->keys.resize(n);
   if (!g->packed) g->order.resize(n);
   if (!g->all_valid) g->point_index.resize(n);
@@ -236,7 +333,7 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   const std::size_t per = static_cast<std::size_t>(plan_.passes) << plan_.digit;
   hist_.assign(per * static_cast<std::size_t>(nt), 0);
   KeyJob job;
-  job.out = pxyz_.data();
+  job.pts = pxyz_.data();
   job.keys = g->keys.data();
   job.order = g->order.data();
   job.index = g->point_index.data();
@@ -244,10 +341,12 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   job.min[0] = minx;
   job.min[1] = miny;
   job.min[2] = minz;
+  job.min[3] = 0.f;
   job.inv_vs = static_cast<float>(1.0 / vs);
-  job.last[0] = static_cast<std::uint32_t>(nx - 1);
-  job.last[1] = static_cast<std::uint32_t>(ny - 1);
-  job.last[2] = static_cast<std::uint32_t>(nz - 1);
+  job.last[0] = static_cast<std::int32_t>(nx - 1);
+  job.last[1] = static_cast<std::int32_t>(ny - 1);
+  job.last[2] = static_cast<std::int32_t>(nz - 1);
+  job.last[3] = 0;
   job.shift_x = g->shift_x;
   job.shift_y = g->shift_y;
   job.passes = plan_.passes;
@@ -259,7 +358,7 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   pool->run(nt, nch, [&](int t, int c) {
     KeyJob own = job;
     own.hist = job.hist + per * static_cast<std::size_t>(t);
-    computeKeys(cloud, own, chunks_[c].begin, chunks_[c].end, chunks_[c].out);
+    computeKeys(own, chunks_[c].begin, chunks_[c].end, chunks_[c].out);
   });
   for (int t = 1; t < nt; ++t) {
     const std::uint32_t* h = hist_.data() + per * static_cast<std::size_t>(t);
@@ -296,24 +395,30 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
     const int low = g->packed ? g->slot_bits : 0;
     for (std::size_t i = 1; i < n; ++i) runs += (kk[i] >> low) != (kk[i - 1] >> low);
   }
-  g->vkey.resize(runs);
+  g->vkey.resize(runs + 1);  // build() stores one key past the last voxel (cut below)
   g->vstart.resize(runs + 1);
   g->vx.resize(runs);
   g->vy.resize(runs);
   g->vz.resize(runs);
   g->vflags.resize(runs);
   g->vcell.resize(runs);
-  g->col_key.clear();
-  g->col_first.clear();
-  g->flat.clear();
-  g->seeds.clear();
+  // Columns and flat / seed lists: at most one entry a voxel (written through pointers, cut to
+  // length at the end; the buffers do not zero what they grow by).
+  g->col_key.resize(runs);
+  g->col_first.resize(runs + 1);
+  g->flat.resize(runs);
+  g->seeds.resize(runs);
   cells->used.assign(cells->count(), 0);
   const std::uint64_t* k = g->keys.data();
   const std::uint32_t* o = g->order.data();
-  const float* in = pxyz_.data();
+  const float* in = pxyz_.data();  // x y z 0 per input point (relative)
+  const bool av = g->all_valid;
+  const std::uint32_t* pidx = g->point_index.data();
   float* x_out = g->sx.data();
   float* y_out = g->sy.data();
   float* z_out = g->sz.data();
+  g->pvox.resize(n);
+  std::uint32_t* pv = g->pvox.data();
   std::uint64_t* vk = g->vkey.data();
   std::uint32_t* vs = g->vstart.data();
   float* vx = g->vx.data();
@@ -321,6 +426,10 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   float* vz = g->vz.data();
   std::uint8_t* vflags = g->vflags.data();
   std::uint32_t* vcell = g->vcell.data();
+  std::uint64_t* ckey = g->col_key.data();
+  std::uint32_t* cfirst = g->col_first.data();
+  std::uint32_t* flat = g->flat.data();
+  std::uint32_t* seeds = g->seeds.data();
   std::uint8_t* used = cells->used.data();
   const std::uint32_t* cxt = cells->cell_of_x.data();
   const std::uint32_t* cyt = cells->cell_of_y.data();
@@ -328,72 +437,104 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   const float flat_thr = static_cast<float>(p.flatness_threshold);
   const bool pk = g->packed;
   const int slot_bits = g->slot_bits;
+  const int low = pk ? slot_bits : 0;
   const std::uint64_t slot_mask = (std::uint64_t{1} << slot_bits) - 1;
   const int sy_ = g->shift_y, sx_ = g->shift_x;
   const bool local = p.local_planes;
   const std::uint64_t my = g->mask_y, mz = g->mask_z;
-  std::size_t nv = 0;
-  float zmin = 0.f, zmax = 0.f, xsum = 0.f, ysum = 0.f, zsum = 0.f;
-  // Finishes voxel v (points [vs[v], end)); `next` is the key of the following voxel, if any.
-  auto finish = [&](std::size_t v, std::uint32_t end, bool has_next, std::uint64_t next) {
-    const std::uint32_t cnt = end - vs[v];
-    const float inv = 1.f / static_cast<float>(cnt);
-    vx[v] = xsum * inv;
-    vy[v] = ysum * inv;
-    vz[v] = zsum * inv;
-    const std::uint64_t key = vk[v];
-    const std::uint64_t col = key >> sy_;
-    // ---- flat voxels (paper): enough points and a small height range.
-    const bool is_flat = cnt >= min_pts && zmax - zmin < flat_thr;
-    // ---- seed candidates of the local model: the lowest voxel of its column with free space
-    // above it, flat or too sparse to tell (far, sparse ground).
-    const bool lowest = v == 0 || (vk[v - 1] >> sy_) != col;
-    const bool clear =
-        !has_next || (next >> sy_) != col || (next & mz) - (key & mz) > kSeedClearanceVoxels;
-    const bool is_seed = (is_flat || cnt < min_pts) && lowest && clear;
-    vflags[v] = static_cast<std::uint8_t>((is_flat ? kFlat : 0) | (is_seed ? kSeed : 0));
-    const std::uint32_t cell = cxt[key >> sx_] + cyt[col & my];
-    vcell[v] = cell;
-    used[cell] = 1;
-    if (lowest) {
-      g->col_key.push_back(col);
-      g->col_first.push_back(static_cast<std::uint32_t>(v));
-    }
-    // Region growing input: every flat voxel (paper) for the global plane; for the local model
-    // only the flat seed candidates (the same components on the ground, 3x less work, and wall
-    // voxels stacked line over line drop out).
-    if (is_flat && (is_seed || !local)) g->flat.push_back(static_cast<std::uint32_t>(v));
-    if (is_seed) g->seeds.push_back(static_cast<std::uint32_t>(v));
-  };
+  // Two passes without a branch per point or voxel (the runs are 1-2 points long on average:
+  // loops over them mispredict their exits). Pass 1: coordinates in key order, runs of equal
+  // keys become voxels (a store is always made, the counter moves when a run starts), running
+  // sums and z range per voxel.
+  zmin_.resize(runs);
+  zmax_.resize(runs);
+  float* zlo = zmin_.data();
+  float* zhi = zmax_.data();
   constexpr std::size_t kAhead = 16;  // prefetch distance of the random coordinate reads
+  std::size_t nv = 0;
+  std::uint64_t prev = ~std::uint64_t{0};  // no key (keys use at most 63 bits)
+  float xs = 0.f, ys = 0.f, zs = 0.f, zmn = 0.f, zmx = 0.f;
+  const float kKeep[2] = {1.f, 0.f};
+  const float kLowReset[2] = {0.f, std::numeric_limits<float>::infinity()};
+  const float kHighReset[2] = {0.f, -std::numeric_limits<float>::infinity()};
   for (std::size_t i = 0; i < n; ++i) {
     if (i + kAhead < n) {
       const std::uint32_t ps =
           pk ? static_cast<std::uint32_t>(k[i + kAhead] & slot_mask) : o[i + kAhead];
-      __builtin_prefetch(in + 3 * static_cast<std::size_t>(ps));
+      __builtin_prefetch(in + 4 * static_cast<std::size_t>(av ? ps : pidx[ps]));
     }
-    const std::uint64_t key = pk ? k[i] >> slot_bits : k[i];
+    const std::uint64_t key = k[i] >> low;
     const std::uint32_t s = pk ? static_cast<std::uint32_t>(k[i] & slot_mask) : o[i];
-    const float x = in[3 * s], y = in[3 * s + 1], z = in[3 * s + 2];
+    const float* pt = in + 4 * static_cast<std::size_t>(av ? s : pidx[s]);
+    const float x = pt[0], y = pt[1], z = pt[2];
     x_out[i] = x;
     y_out[i] = y;
     z_out[i] = z;
-    if (nv == 0 || key != vk[nv - 1]) {
-      if (nv > 0) finish(nv - 1, static_cast<std::uint32_t>(i), true, key);
-      vk[nv] = key;
-      vs[nv++] = static_cast<std::uint32_t>(i);
-      zmin = zmax = z;
-      xsum = ysum = zsum = 0.f;
-    }
-    zmin = std::min(zmin, z);
-    zmax = std::max(zmax, z);
-    xsum += x;
-    ysum += y;
-    zsum += z;
+    const bool first = key != prev;
+    prev = key;
+    vk[nv] = key;  // kept when the run starts here, overwritten otherwise
+    vs[nv] = static_cast<std::uint32_t>(i);
+    nv += first;
+    const std::size_t v = nv - 1;
+    pv[i] = static_cast<std::uint32_t>(v);
+    // The same sums in the same order as a loop over the run would make (0 + x first), with
+    // arithmetic instead of selects: relative coordinates are >= +0, so s * 0 is +0.
+    const float keep = kKeep[first];
+    xs = xs * keep + x;
+    ys = ys * keep + y;
+    zs = zs * keep + z;
+    zmn = std::min(zmn + kLowReset[first], z);
+    zmx = std::max(zmx + kHighReset[first], z);
+    vx[v] = xs;
+    vy[v] = ys;
+    vz[v] = zs;
+    zlo[v] = zmn;
+    zhi[v] = zmx;
   }
-  finish(nv - 1, static_cast<std::uint32_t>(n), false, 0);
   vs[nv] = static_cast<std::uint32_t>(n);
-  g->col_first.push_back(static_cast<std::uint32_t>(nv));
+  // Pass 2, per voxel: centroid, column, cell, flags and the flat / seed lists.
+  std::size_t ncol = 0, nflat = 0, nseed = 0;
+  std::uint64_t prev_col = ~std::uint64_t{0};
+  std::uint32_t cell = 0;
+  for (std::size_t v = 0; v < nv; ++v) {
+    const std::uint64_t key = vk[v];
+    const std::uint32_t cnt = vs[v + 1] - vs[v];
+    const float inv = 1.f / static_cast<float>(cnt);
+    vx[v] *= inv;
+    vy[v] *= inv;
+    vz[v] *= inv;
+    const std::uint64_t col = key >> sy_;
+    const bool lowest = col != prev_col;
+    prev_col = col;
+    const std::uint32_t col_cell = cxt[key >> sx_] + cyt[col & my];
+    cell = lowest ? col_cell : cell;
+    used[cell] = 1;
+    ckey[ncol] = col;
+    cfirst[ncol] = static_cast<std::uint32_t>(v);
+    ncol += lowest;
+    vcell[v] = cell;
+    // ---- flat voxels (paper): enough points and a small height range.
+    const bool is_flat = (cnt >= min_pts) & (zhi[v] - zlo[v] < flat_thr);
+    // ---- seed candidates of the local model: the lowest voxel of its column with free space
+    // above it, flat or too sparse to tell (far, sparse ground).
+    const std::uint64_t next = v + 1 < nv ? vk[v + 1] : ~std::uint64_t{0};
+    const bool clear = ((next >> sy_) != col) | ((next & mz) - (key & mz) > kSeedClearanceVoxels);
+    const bool is_seed = (is_flat | (cnt < min_pts)) & lowest & clear;
+    vflags[v] = static_cast<std::uint8_t>((is_flat ? kFlat : 0) | (is_seed ? kSeed : 0));
+    // Region growing input: every flat voxel (paper) for the global plane; for the local model
+    // only the flat seed candidates (the same components on the ground, 3x less work, and wall
+    // voxels stacked line over line drop out).
+    flat[nflat] = static_cast<std::uint32_t>(v);
+    nflat += is_flat & (is_seed | !local);
+    seeds[nseed] = static_cast<std::uint32_t>(v);
+    nseed += is_seed;
+  }
+  cfirst[ncol] = static_cast<std::uint32_t>(nv);
+  g->vkey.resize(nv);
+  g->col_key.resize(ncol);
+  g->col_first.resize(ncol + 1);
+  g->flat.resize(nflat);
+  g->seeds.resize(nseed);
 }
 
 }  // namespace voxel

@@ -36,11 +36,14 @@ class Voxelizer {
     std::size_t begin = 0, end = 0, valid = 0, out = 0;  // input range, valid points, first slot
     float lo[3], hi[3];                                  // bounds of its valid points
   };
-  static void scanBounds(const CloudView& cloud, Chunk* ch);
+  static void scanBounds(const CloudView& cloud, float* pts, Chunk* ch);
   void sort(VoxelGrid* g);
 
-  std::vector<float> pxyz_;  // valid points, x y z triplets relative to the min corner
+  // x y z 0 per input point (16-byte aligned vectors), relative to the min corner after
+  // prepare() (invalid points: the input as is, never read again).
+  std::vector<float> pxyz_;
   std::vector<Chunk> chunks_;
+  Buffer<float> zmin_, zmax_;  // z range per voxel
   std::vector<std::uint64_t> keys_tmp_;
   std::vector<std::uint32_t> order_tmp_;
   RadixPlan plan_;
