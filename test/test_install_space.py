@@ -36,7 +36,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
 # types (generated). Everything else is private (src/).
 PUBLIC_HEADERS = {
     "cloud_view.h", "cuda_knn.h", "cuda_normal_pipeline.h", "ground_filter.h",
-    "neighbor_search.h", "normal_ground_filter.h", "normal_ground_filter_params.h",
+    "morph_ground_params.h", "neighbor_search.h", "normal_ground_filter.h",
+    "normal_ground_filter_params.h",
     "param_parse.h", "param_table.h", "voxel_ground_filter.h", "voxel_ground_filter_params.h",
     "working_volume.h", "neighbors/neighbor_search_factory.h", "io/metrics.h", "io/scan_io.h",
     "scene/scene_generator.h",

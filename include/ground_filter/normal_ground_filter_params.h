@@ -3,13 +3,15 @@
 
 #include <string>
 
+#include "ground_filter/morph_ground_params.h"
 #include "ground_filter/param_table.h"
 
 namespace ground_filter {
 
 /// \brief Parameters of the normal-vector method (Diaz et al., section 2.3.1). One line per field:
 ///        meaning [unit] (default; paper value when it differs).
-struct NormalGroundFilterParams : TableParams<NormalGroundFilterParams> {
+///        The airborne mode's morph_* fields come from MorphGroundParams.
+struct NormalGroundFilterParams : TableParams<NormalGroundFilterParams>, MorphGroundParams {
   double cell_size = 0.10;  ///< x/y grid cell ordering points into columns [m] (0.10)
   int k = 64;  ///< neighbours per point, itself included [points] (64; paper 50; GPU k <= 64)
   double min_normal_angle = 75.0;  ///< normal-to-horizontal window, low end [deg] (75; paper 80)
@@ -28,11 +30,6 @@ struct NormalGroundFilterParams : TableParams<NormalGroundFilterParams> {
   int segment_points = 65536;    ///< points per segment, at most [points] (65536, paper)
   std::string knn_backend = "kdtree";  ///< neighbour search: kdtree | gpu [enum] (kdtree)
   int threads = 0;                     ///< worker threads, 0 = all cores [threads] (0)
-  bool morph_ground = false;   ///< airborne: morphological surface, not tile planes [bool] (false)
-  double morph_cell = 1.0;     ///< morph: raster cell edge [m] (1.0)
-  double morph_slope = 0.15;   ///< morph: terrain slope the opening keeps, rise/run [1] (0.15)
-  double morph_window = 18.0;  ///< morph: largest opening radius [m] (18)
-  double morph_scale = 1.25;  ///< morph: plane_distance grows by this x surface gradient [m] (1.25)
 
   /// \brief Checks every field's range (and the rules between fields).
   /// \throws std::invalid_argument naming the first bad field, its value and its range.

@@ -3,6 +3,7 @@
 
 #include <string>
 
+#include "ground_filter/morph_ground_params.h"
 #include "ground_filter/param_table.h"
 
 namespace ground_filter {
@@ -11,7 +12,8 @@ namespace ground_filter {
 ///        meaning [unit] (default; paper value when it differs). docs/voxel_method.md says
 ///        what each step does with them and gives the measurements behind every default that
 ///        differs from the paper (paper: plane_distance 0.10, std_filter on, one global plane).
-struct VoxelGroundFilterParams : TableParams<VoxelGroundFilterParams> {
+///        The airborne mode's morph_* fields come from MorphGroundParams.
+struct VoxelGroundFilterParams : TableParams<VoxelGroundFilterParams>, MorphGroundParams {
   double voxel_size = 0.10;          ///< voxel edge length [m] (0.10, paper)
   double flatness_threshold = 0.04;  ///< flat voxel: max z - min z below this [m] (0.04)
   int min_points_per_voxel = 2;      ///< voxels with fewer points are never flat [points] (2)
@@ -25,11 +27,6 @@ struct VoxelGroundFilterParams : TableParams<VoxelGroundFilterParams> {
   double max_slope_deg = 30.0;       ///< steeper cell / global planes are rejected [deg] (30)
   bool majority_vote = true;         ///< final 26-neighbourhood vote per voxel [bool] (true)
   int threads = 1;                   ///< worker threads, 0 = all cores [threads] (1)
-  bool morph_ground = false;         ///< airborne: morphological surface, not voxels [bool] (false)
-  double morph_cell = 1.0;           ///< morph: raster cell edge [m] (1.0)
-  double morph_slope = 0.15;   ///< morph: terrain slope the opening keeps, rise/run [1] (0.15)
-  double morph_window = 18.0;  ///< morph: largest opening radius [m] (18)
-  double morph_scale = 1.25;  ///< morph: plane_distance grows by this x surface gradient [m] (1.25)
 
   /// \brief Checks every field's range (and the rules between fields).
   /// \throws std::invalid_argument naming the first bad field, its value and its range.

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "ground_filter/neighbors/neighbor_search_factory.h"
+#include "shared_param_rows.h"
 
 namespace ground_filter {
 
@@ -12,7 +13,7 @@ namespace ground_filter {
 // (test_param_tables checks names, ranges, units and defaults).
 const ParamTable<NormalGroundFilterParams>& NormalGroundFilterParams::table() {
   using P = NormalGroundFilterParams;
-  static const ParamTable<P> rows = {
+  static const ParamTable<P> rows = withSharedParamRows<P>({
       {"knn_backend", &P::knn_backend, 0, 0, "enum", "kdtree (CPU) | gpu (whole filter on CUDA)"},
       {"k", &P::k, 3, 256, "points", "neighbours per point, the point itself included"},
       {"cell_size", &P::cell_size, 0.001, 1000.0, "m", "x/y grid cell ordering points"},
@@ -29,13 +30,7 @@ const ParamTable<NormalGroundFilterParams>& NormalGroundFilterParams::table() {
       {"tile_size", &P::tile_size, 0.5, 100000.0, "m", "tile edge for local planes"},
       {"use_segments", &P::use_segments, 0, 0, "bool", "paper's segments of grid columns"},
       {"segment_points", &P::segment_points, 256, 1 << 26, "points", "points per segment"},
-      {"morph_ground", &P::morph_ground, 0, 0, "bool", "airborne: morphological ground surface"},
-      {"morph_cell", &P::morph_cell, 0.05, 100.0, "m", "morph: raster cell edge"},
-      {"morph_slope", &P::morph_slope, 0.0, 10.0, "", "morph: slope kept by the opening"},
-      {"morph_window", &P::morph_window, 0.1, 1000.0, "m", "morph: largest opening radius"},
-      {"morph_scale", &P::morph_scale, 0.0, 100.0, "m", "morph: threshold per unit gradient"},
-      {"threads", &P::threads, 0, 256, "threads", "worker threads, 0 = all cores"},
-  };
+  });
   return rows;
 }
 
