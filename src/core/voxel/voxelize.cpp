@@ -18,7 +18,8 @@ namespace {
 // elsewhere (aarch64: Jetson); both give the same results lane by lane.
 #if defined(__SSE2__)
 using V4 = __m128;
-inline V4 v4Load(const float* p) { return _mm_load_ps(p); }
+inline V4 v4Load(const float* p) { return _mm_load_ps(p); }  // p 16-byte aligned
+inline V4 v4LoadUnaligned(const float* p) { return _mm_loadu_ps(p); }
 inline void v4Store(float* p, V4 v) { _mm_store_ps(p, v); }
 inline V4 v4Set(float x, float y, float z) { return _mm_set_ps(0.f, z, y, x); }
 inline V4 v4Splat(float a) { return _mm_set1_ps(a); }
@@ -44,6 +45,7 @@ struct V4 {
   float v[4];
 };
 inline V4 v4Load(const float* p) { return V4{{p[0], p[1], p[2], p[3]}}; }
+inline V4 v4LoadUnaligned(const float* p) { return v4Load(p); }
 inline void v4Store(float* p, V4 a) {
   for (int k = 0; k < 4; ++k) p[k] = a.v[k];
 }
@@ -154,7 +156,7 @@ void computeKeysT(const KeyJob job, std::size_t begin, std::size_t end, std::siz
   std::uint32_t* const hist1 = job.hist + (std::size_t{1} << digit);
   float* const pts = job.pts;
   std::uint64_t* const keys = job.keys;
-  const V4 vmin = v4Load(job.min);
+  const V4 vmin = v4LoadUnaligned(job.min);  // a member of the by-value job: not aligned
   std::size_t s = slot;
   for (std::size_t i = begin; i < end; ++i) {
     V4 p = v4Load(pts + 4 * i);
