@@ -15,6 +15,21 @@ struct WarpList {
   int ki;
 };
 
+/// The K-th entry (distance, index) of the warp's sorted list, broadcast to every lane: the
+/// bound that insert and merge keep up to date.
+template <bool kTwoHalves>
+__device__ inline void refreshKth(WarpList& w, int k) {
+  const unsigned full = 0xffffffffu;
+  const int kl = (k - 1) & 31;
+  if (!kTwoHalves || k <= 32) {
+    w.kd = __shfl_sync(full, w.dlo, kl);
+    w.ki = __shfl_sync(full, w.ilo, kl);
+  } else {
+    w.kd = __shfl_sync(full, w.dhi, kl);
+    w.ki = __shfl_sync(full, w.ihi, kl);
+  }
+}
+
 template <bool kTwoHalves>
 __device__ inline void warpInsert(WarpList& w, float d, int id, int lane, int k) {
   const unsigned full = 0xffffffffu;
@@ -50,14 +65,7 @@ __device__ inline void warpInsert(WarpList& w, float d, int id, int lane, int k)
       w.ihi = id;
     }
   }
-  const int kl = (k - 1) & 31;
-  if (!kTwoHalves || k <= 32) {
-    w.kd = __shfl_sync(full, w.dlo, kl);
-    w.ki = __shfl_sync(full, w.ilo, kl);
-  } else {
-    w.kd = __shfl_sync(full, w.dhi, kl);
-    w.ki = __shfl_sync(full, w.ihi, kl);
-  }
+  refreshKth<kTwoHalves>(w, k);
 }
 
 /// Bitonic sort of one (key, cell) pair per lane by increasing key, across the warp.
@@ -174,14 +182,7 @@ __device__ inline void warpMerge(WarpList& w, float d, int id, int lane, int k,
     }
     bitonicMerge(w.dlo, w.ilo, lane);
   }
-  const int kl = (k - 1) & 31;
-  if (!kTwoHalves || k <= 32) {
-    w.kd = __shfl_sync(full, w.dlo, kl);
-    w.ki = __shfl_sync(full, w.ilo, kl);
-  } else {
-    w.kd = __shfl_sync(full, w.dhi, kl);
-    w.ki = __shfl_sync(full, w.ihi, kl);
-  }
+  refreshKth<kTwoHalves>(w, k);
 }
 
 /// Per-query work counters of searchQuery (CudaKnnOptions::collect_stats).
