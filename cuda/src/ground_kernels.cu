@@ -5,6 +5,7 @@
 #include "ground_kernels.cuh"
 #include "knn_grid.cuh"
 #include "knn_pca.cuh"
+#include "normal/cpu_gpu_common.h"
 
 namespace ground_filter {
 namespace cuda_impl {
@@ -13,43 +14,16 @@ namespace {
 
 constexpr int kThreads = 256;
 constexpr int kPlaneThreads = 128;
-constexpr unsigned int kEvalMax = 2048;                       // CPU: kRansacEvalPoints
-constexpr unsigned int kMinTilePoints = 10;                   // CPU: kMinTilePoints
-constexpr std::uint64_t kRansacSeed = 0x67f1a3c5d2b9e481ULL;  // CPU: kRansacSeed
 constexpr int kChunk = 256;               // points staged per step of a serial least-squares sum
 constexpr int kPlaneNeedsRefinement = 2;  // PlaneDev::valid of a hypothesis awaiting refinement
 constexpr int kRefineBlocks = 264;        // blocks of the grid-wide refinement
 
-/// CPU: spreadBits of normal_ground_filter.cpp (32 bits over the even bits of 64).
-__device__ inline std::uint64_t spread32(std::uint64_t v) {
-  v &= 0xffffffffULL;
-  v = (v | (v << 16)) & 0x0000ffff0000ffffULL;
-  v = (v | (v << 8)) & 0x00ff00ff00ff00ffULL;
-  v = (v | (v << 4)) & 0x0f0f0f0f0f0f0f0fULL;
-  v = (v | (v << 2)) & 0x3333333333333333ULL;
-  v = (v | (v << 1)) & 0x5555555555555555ULL;
-  return v;
-}
-
-/// CPU: cellIndex (integer cell of v on a grid starting at lo, clamped to 32 bits).
-__device__ inline std::uint32_t cellIndex(double v, double lo, double inv_cell) {
-  const double c = floor((v - lo) * inv_cell);
-  if (!(c > 0.0)) return 0;
-  if (c >= 4294967295.0) return 4294967295U;
-  return static_cast<std::uint32_t>(c);
-}
-
-/// CPU: SplitMix64.
-struct SplitMix64 {
-  std::uint64_t state;
-  __device__ explicit SplitMix64(std::uint64_t seed) : state(seed) {}
-  __device__ std::uint64_t next() {
-    std::uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-  }
-};
+using normal::cellIndex;
+using normal::columnKey;
+using normal::kMinTilePoints;
+using normal::kRansacSeed;
+using normal::SplitMix64;
+constexpr unsigned int kEvalMax = normal::kRansacEvalPoints;
 
 /// Eigen's 3-vector dot order: (a0 b0 + a1 b1) + a2 b2.
 __device__ inline double dot3(const double a[3], const double b[3]) {
@@ -123,7 +97,7 @@ __global__ void columnKeysKernel(const float* __restrict__ xyz, int n, double mi
   const std::size_t s = 3 * static_cast<std::size_t>(i);
   const std::uint32_t cx = cellIndex(xyz[s], min_x, inv_cell);
   const std::uint32_t cy = cellIndex(xyz[s + 1], min_y, inv_cell);
-  keys[i] = spread32(cx) | (spread32(cy) << 1);
+  keys[i] = columnKey(cx, cy);
   vals[i] = static_cast<unsigned int>(i);
 }
 
