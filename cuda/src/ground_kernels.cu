@@ -14,7 +14,7 @@ namespace {
 constexpr int kThreads = 256;
 constexpr int kPlaneThreads = 128;
 constexpr unsigned int kEvalMax = 2048;                       // CPU: kRansacEvalPoints
-constexpr unsigned int kMinTilePoints = 10;                   // CPU: kMinTilePoints
+constexpr unsigned int kMinTilePoints = 3;                    // CPU: kMinTilePoints
 constexpr std::uint64_t kRansacSeed = 0x67f1a3c5d2b9e481ULL;  // CPU: kRansacSeed
 constexpr int kChunk = 256;               // points staged per step of a serial least-squares sum
 constexpr int kPlaneNeedsRefinement = 2;  // PlaneDev::valid of a hypothesis awaiting refinement
