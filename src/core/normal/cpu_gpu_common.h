@@ -58,7 +58,10 @@ struct SplitMix64 {
 
 constexpr std::uint64_t kRansacSeed = 0x67f1a3c5d2b9e481ULL;  // fixed: reproducible output
 constexpr unsigned int kRansacEvalPoints = 2048;  // hypotheses are scored on at most this many
-constexpr unsigned int kMinTilePoints = 10;  // fewer voted points: the tile uses the global plane
+// Fewer voted points: the tile uses the cloud-wide plane. 3 (the fewest a plane needs): even a
+// few voted points of a far tile follow its ground better than the cloud-wide plane, which the
+// near road dominates (docs/normal_method.md, "Sparse tiles").
+constexpr unsigned int kMinTilePoints = 3;
 
 }  // namespace normal
 }  // namespace ground_filter
