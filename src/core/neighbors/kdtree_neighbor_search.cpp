@@ -118,6 +118,7 @@ struct KdTree {
   std::vector<Node> nodes;  // preorder: left child of node i is i + 1; unused slots possible
   std::uint32_t leaf = 16;
   int k = 0;
+  const float* xyz_in = nullptr;  // the cloud of the last build (keptLists() only)
 
   void buildNode(std::uint32_t id, std::uint32_t b, std::uint32_t e);
   void build(const float* xyz, std::size_t n, int k_, int threads);
@@ -176,6 +177,7 @@ void KdTree::buildNode(std::uint32_t id, std::uint32_t b, std::uint32_t e) {
 
 void KdTree::build(const float* xyz, std::size_t n, int k_, int threads) {
   k = k_;
+  xyz_in = xyz;
   pts.resize(n);
   px.resize(n);
   py.resize(n);
@@ -260,7 +262,7 @@ class SortedKeys {
   void write(std::int32_t* idx, float* dist) const {
     for (int j = 0; j < k_; ++j) {
       idx[j] = static_cast<std::int32_t>(static_cast<std::uint32_t>(keys_[j]));
-      dist[j] = keyDist(keys_[j]);
+      if (dist) dist[j] = keyDist(keys_[j]);
     }
   }
 
@@ -321,6 +323,8 @@ GF_KNN_ALWAYS_INLINE void descend(const Tree& t, const float* q, Set* set) {
 }
 
 /// Queries the points at tree positions [pb, pe) in order, each bounded by the previous one.
+/// Row of the point at tree position p: its point index (input order), or p itself when
+/// `out_dist` is null (the kept layout: indices only, written sequentially).
 template <class Set>
 GF_KNN_ALWAYS_INLINE void queryRange(const Tree& t, std::size_t pb, std::size_t pe, int k, Set* set,
                                      std::int32_t* out_idx, float* out_dist) {
@@ -331,11 +335,11 @@ GF_KNN_ALWAYS_INLINE void queryRange(const Tree& t, std::size_t pb, std::size_t 
   std::size_t prev_row = 0;
   for (std::size_t p = pb; p < pe; ++p) {
     alignas(16) const float q[4] = {t.px[p], t.py[p], t.pz[p], 0.f};
-    const std::size_t row = static_cast<std::size_t>(t.pidx[p]) * kk;
+    const std::size_t row = (out_dist ? static_cast<std::size_t>(t.pidx[p]) : p) * kk;
     if (prev_kth >= 0.0 && q[0] == prev[0] && q[1] == prev[1] && q[2] == prev[2]) {
       // The same point again (e.g. a lidar's no-return points at the origin): same list.
       std::copy_n(out_idx + prev_row, kk, out_idx + row);
-      std::copy_n(out_dist + prev_row, kk, out_dist + row);
+      if (out_dist) std::copy_n(out_dist + prev_row, kk, out_dist + row);
       continue;
     }
     float bound = inf;
@@ -354,7 +358,7 @@ GF_KNN_ALWAYS_INLINE void queryRange(const Tree& t, std::size_t pb, std::size_t 
       set->init(k, inf);
       descend(t, q, set);
     }
-    set->write(out_idx + row, out_dist + row);
+    set->write(out_idx + row, out_dist ? out_dist + row : nullptr);
     std::copy_n(q, 3, prev);
     prev_kth = keyDist(set->key(k - 1));
     prev_row = row;
@@ -568,7 +572,7 @@ class TopKAvx512 {
       const __mmask16 m = static_cast<__mmask16>(k_ - j >= 16 ? 0xffff : (1u << (k_ - j)) - 1);
       const __m512i a = _mm512_load_si512(top_ + j), b = _mm512_load_si512(top_ + j + 8);
       _mm512_mask_storeu_epi32(idx + j, m, _mm512_permutex2var_epi32(a, lo_sel, b));
-      _mm512_mask_storeu_epi32(dist + j, m, _mm512_permutex2var_epi32(a, hi_sel, b));
+      if (dist) _mm512_mask_storeu_epi32(dist + j, m, _mm512_permutex2var_epi32(a, hi_sel, b));
     }
   }
 
@@ -676,6 +680,7 @@ void bruteForce(const float* xyz, std::size_t n, int k, NeighborLists* out) {
 
 struct KdTreeNeighborSearch::Impl {
   KdTree tree;
+  std::vector<std::int32_t> rows;  // kept lists: row p = tree position p, indices only
 };
 
 KdTreeNeighborSearch::KdTreeNeighborSearch(int threads, int leaf_size)
@@ -715,8 +720,19 @@ void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborL
   const std::size_t kk = static_cast<std::size_t>(std::max(k, 0));
   out->k = static_cast<int>(kk);
   out->points = n;
-  out->indices.resize(n * kk);
-  out->sq_dists.resize(n * kk);
+  // Kept lists (searchWithPca() after keepListsOnDevice(true)): rows in tree order, written one
+  // after the other and without distances; writing rows in input order scatters them over
+  // 2 * n * K * 4 bytes, a cache miss per row.
+  const bool kept = keep_lists_ && pca != nullptr && n >= kk && kk > 0;
+  lists_kept_ = kept;
+  if (kept) {
+    out->indices.clear();
+    out->sq_dists.clear();
+    impl_->rows.resize(n * kk);
+  } else {
+    out->indices.resize(n * kk);
+    out->sq_dists.resize(n * kk);
+  }
   build_ms_ = query_ms_ = pca_ms_ = 0.0;
   with_pca_ = pca != nullptr;
   if (pca) pca->resize(n);
@@ -748,24 +764,31 @@ void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborL
   const std::int64_t chunks = static_cast<std::int64_t>((n + kChunk - 1) / kChunk);
   const bool avx512 = use_avx512_ && kk <= kMaxAvx512K;
   double knn_cpu = 0.0, pca_cpu = 0.0;  // summed over threads, to split the wall time
+  std::int32_t* const out_idx = kept ? impl_->rows.data() : out->indices.data();
+  float* const out_dist = kept ? nullptr : out->sq_dists.data();
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 1) reduction(+ : knn_cpu, pca_cpu)
   for (std::int64_t c = 0; c < chunks; ++c) {
     const std::size_t pb = static_cast<std::size_t>(c) * kChunk, pe = std::min(n, pb + kChunk);
     const auto tq = Clock::now();
 #if GF_HAVE_AVX512
     if (avx512) {
-      queryRangeAvx512(im, pb, pe, static_cast<int>(kk), out->indices.data(), out->sq_dists.data());
+      queryRangeAvx512(im, pb, pe, static_cast<int>(kk), out_idx, out_dist);
     } else {
-      queryRangeScalar(im, pb, pe, static_cast<int>(kk), out->indices.data(), out->sq_dists.data());
+      queryRangeScalar(im, pb, pe, static_cast<int>(kk), out_idx, out_dist);
     }
 #else
-    queryRangeScalar(im, pb, pe, static_cast<int>(kk), out->indices.data(), out->sq_dists.data());
+    queryRangeScalar(im, pb, pe, static_cast<int>(kk), out_idx, out_dist);
 #endif
     if (pca) {
       const auto tp = Clock::now();
       knn_cpu += std::chrono::duration<double, std::milli>(tp - tq).count();
-      computeRowsPca(xyz, out->indices.data(), static_cast<int>(kk), im.pidx.data() + pb, pe - pb,
-                     pca->data());
+      if (kept) {
+        computeOrderedRowsPca(xyz, out_idx + pb * kk, static_cast<int>(kk), im.pidx.data() + pb,
+                              pe - pb, pca->data());
+      } else {
+        computeRowsPca(xyz, out_idx, static_cast<int>(kk), im.pidx.data() + pb, pe - pb,
+                       pca->data());
+      }
       pca_cpu += msSince(tp);
     }
   }
@@ -775,6 +798,51 @@ void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborL
   const double share = pca && knn_cpu + pca_cpu > 0.0 ? pca_cpu / (knn_cpu + pca_cpu) : 0.0;
   pca_ms_ = wall * share;
   query_ms_ = wall - pca_ms_;
+}
+
+bool KdTreeNeighborSearch::keepListsOnDevice(bool keep) {
+  keep_lists_ = keep;
+  return keep;
+}
+
+bool KdTreeNeighborSearch::countFlaggedNeighbors(const std::uint8_t* flags, std::uint16_t* flagged,
+                                                 std::uint16_t* neighbors) {
+  if (!lists_kept_) return false;
+  const KdTree& t = impl_->tree;
+  const std::size_t n = t.pidx.size(), kk = static_cast<std::size_t>(t.k);
+  const std::int32_t* rows = impl_->rows.data();
+  const int nt = static_cast<int>(std::min<std::size_t>(threads_, n / 4096 + 1));
+#pragma omp parallel for num_threads(nt) schedule(static, 4096)
+  for (std::int64_t p = 0; p < static_cast<std::int64_t>(n); ++p) {
+    const std::int32_t* row = rows + static_cast<std::size_t>(p) * kk;
+    int u = 0;
+    for (std::size_t j = 0; j < kk; ++j) u += flags[row[j]];
+    flagged[t.pidx[p]] = static_cast<std::uint16_t>(u);
+    neighbors[t.pidx[p]] = static_cast<std::uint16_t>(kk);  // n >= K: every row is full
+  }
+  return true;
+}
+
+bool KdTreeNeighborSearch::keptLists(NeighborLists* out) const {
+  if (!lists_kept_) return false;
+  const KdTree& t = impl_->tree;
+  const std::size_t n = t.pidx.size(), kk = static_cast<std::size_t>(t.k);
+  out->k = static_cast<int>(kk);
+  out->points = n;
+  out->indices.resize(n * kk);
+  out->sq_dists.assign(n * kk, 0.f);
+  for (std::size_t p = 0; p < n; ++p) {
+    const std::int32_t* row = impl_->rows.data() + p * kk;
+    const std::size_t i = t.pidx[p];
+    std::copy_n(row, kk, &out->indices[i * kk]);
+    for (std::size_t j = 0; j < kk; ++j) {
+      const float* a = t.xyz_in + 3 * i;
+      const float* b = t.xyz_in + 3 * static_cast<std::size_t>(row[j]);
+      const float dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
+      out->sq_dists[i * kk + j] = dx * dx + dy * dy + dz * dz;
+    }
+  }
+  return true;
 }
 
 }  // namespace ground_filter

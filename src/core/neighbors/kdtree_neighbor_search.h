@@ -2,6 +2,7 @@
 #define GROUND_FILTER_SRC_CORE_NEIGHBORS_KDTREE_NEIGHBOR_SEARCH_H
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <utility>
@@ -36,6 +37,19 @@ class KdTreeNeighborSearch : public NeighborSearch {
   ///        split by the threads' time in each part.
   std::vector<std::pair<std::string, double>> lastStageMs() const override;
 
+  /// \brief With `keep` true, searchWithPca() keeps the lists itself (rows in tree order,
+  ///        indices only: no scattered writes) and leaves `out->indices`/`sq_dists` empty;
+  ///        countFlaggedNeighbors() then counts on them. search() always fills `out`.
+  /// \return `keep`.
+  bool keepListsOnDevice(bool keep) override;
+  /// \brief See NeighborSearch::countFlaggedNeighbors(); false unless the last call was a
+  ///        searchWithPca() with kept lists (of at least K points).
+  bool countFlaggedNeighbors(const std::uint8_t* flags, std::uint16_t* flagged,
+                             std::uint16_t* neighbors) override;
+  /// \brief The kept lists of the last searchWithPca() in input order (distances recomputed
+  ///        from the cloud, which must still be alive), for tests; false when none are kept.
+  bool keptLists(NeighborLists* out) const;
+
   /// \brief Wall time of the tree build in the last search() [ms].
   double lastBuildMs() const { return build_ms_; }
   /// \brief Wall time of the queries in the last search() [ms] (without the PCA part).
@@ -57,6 +71,8 @@ class KdTreeNeighborSearch : public NeighborSearch {
   double query_ms_ = 0.0;
   double pca_ms_ = 0.0;
   bool with_pca_ = false;
+  bool keep_lists_ = false;  // keepListsOnDevice()
+  bool lists_kept_ = false;  // the last call's lists are in impl_->rows
 };
 
 }  // namespace ground_filter

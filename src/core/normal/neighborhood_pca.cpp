@@ -151,6 +151,15 @@ void computeRowsPca(const float* xyz, const std::int32_t* indices, int k, const 
   }
 }
 
+void computeOrderedRowsPca(const float* xyz, const std::int32_t* rows, int k,
+                           const std::uint32_t* query, std::size_t count, PointPca* out) {
+  const std::size_t kk = static_cast<std::size_t>(k);
+  const bool avx512 = haveAvx512();
+  for (std::size_t j = 0; j < count; ++j) {
+    pcaOne(xyz, rows + j * kk, k, query[j], avx512, &out[query[j]]);
+  }
+}
+
 void computeNeighborhoodPca(const float* xyz, const NeighborLists& lists, int threads,
                             std::vector<PointPca>* out) {
   const std::size_t n = lists.points;

@@ -28,6 +28,11 @@ void computeNeighborhoodPca(const float* xyz, const NeighborLists& lists, int th
 void computeRowsPca(const float* xyz, const std::int32_t* indices, int k, const std::uint32_t* rows,
                     std::size_t count, PointPca* out);
 
+/// \brief The same PCA for `count` consecutive `k`-wide rows `rows` (row j holds the neighbours
+///        of point `query[j]`; result in `out[query[j]]`), on the calling thread; same bits.
+void computeOrderedRowsPca(const float* xyz, const std::int32_t* rows, int k,
+                           const std::uint32_t* query, std::size_t count, PointPca* out);
+
 }  // namespace ground_filter
 
 #endif  // GROUND_FILTER_SRC_CORE_NORMAL_NEIGHBORHOOD_PCA_H
