@@ -3,6 +3,9 @@
 
 #include "order.h"
 
+#include <omp.h>
+
+#include <cstring>
 #include <limits>
 
 #include "cpu_gpu_common.h"
@@ -16,18 +19,45 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
   const std::size_t total = cloud.size();
   raw_xyz_.resize(3 * total);
   raw_source_.resize(total);
-  double min_x = std::numeric_limits<double>::infinity(), min_y = min_x;
-  double max_x = -min_x, max_y = -min_x;
-  std::size_t valid = 0;
-  for (std::size_t i = 0; i < total; ++i) {
-    float* o = &raw_xyz_[3 * valid];
-    if (!cloud.get(i, o, o + 1, o + 2)) continue;
-    raw_source_[valid++] = static_cast<std::uint32_t>(i);
-    min_x = std::min<double>(min_x, o[0]);
-    min_y = std::min<double>(min_y, o[1]);
-    max_x = std::max<double>(max_x, o[0]);
-    max_y = std::max<double>(max_y, o[1]);
+  // Compaction per block of points, each into its own place, then the blocks moved down one
+  // after the other: the same order as one serial pass. min/max are exact, so the split does
+  // not matter.
+  const int ct = static_cast<int>(std::min<std::size_t>(threads > 0 ? threads : 1,
+                                                        total / 32768 + 1));
+  block_count_.assign(static_cast<std::size_t>(ct) + 1, 0);
+  const double inf = std::numeric_limits<double>::infinity();
+  double min_x = inf, min_y = inf, max_x = -inf, max_y = -inf;
+#pragma omp parallel num_threads(ct) reduction(min : min_x, min_y) reduction(max : max_x, max_y)
+  {
+    const int t = omp_get_thread_num(), nt_run = omp_get_num_threads();
+    const std::size_t b = total * t / nt_run, e = total * (t + 1) / nt_run;
+    std::size_t out = b;
+    for (std::size_t i = b; i < e; ++i) {
+      float* o = &raw_xyz_[3 * out];
+      if (!cloud.get(i, o, o + 1, o + 2)) continue;
+      raw_source_[out++] = static_cast<std::uint32_t>(i);
+      min_x = std::min<double>(min_x, o[0]);
+      min_y = std::min<double>(min_y, o[1]);
+      max_x = std::max<double>(max_x, o[0]);
+      max_y = std::max<double>(max_y, o[1]);
+    }
+    block_count_[t + 1] = out - b;
+#pragma omp barrier
+#pragma omp single
+    {
+      std::size_t dst = 0;
+      for (int i = 0; i < nt_run; ++i) {
+        const std::size_t src = total * i / nt_run, cnt = block_count_[i + 1];
+        if (dst != src) {
+          std::memmove(&raw_xyz_[3 * dst], &raw_xyz_[3 * src], 3 * cnt * sizeof(float));
+          std::memmove(&raw_source_[dst], &raw_source_[src], cnt * sizeof(std::uint32_t));
+        }
+        dst += cnt;
+      }
+      block_count_[0] = dst;
+    }
   }
+  const std::size_t valid = block_count_[0];
   raw_xyz_.resize(3 * valid);
   raw_source_.resize(valid);
   extent_ = Extent{min_x, min_y, max_x, max_y};

@@ -45,6 +45,7 @@ class OrderStage {
   std::vector<std::uint32_t> raw_source_, source_;
   std::vector<std::uint64_t> keys_;
   std::vector<std::uint32_t> order_, sort_scratch_;
+  std::vector<std::size_t> block_count_;  // compaction: valid points before each block
   std::vector<std::pair<std::size_t, std::size_t>> segments_;
   Extent extent_;
 };
