@@ -22,8 +22,8 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
   // Compaction per block of points, each into its own place, then the blocks moved down one
   // after the other: the same order as one serial pass. min/max are exact, so the split does
   // not matter.
-  const int ct = static_cast<int>(std::min<std::size_t>(threads > 0 ? threads : 1,
-                                                        total / 32768 + 1));
+  const int ct =
+      static_cast<int>(std::min<std::size_t>(threads > 0 ? threads : 1, total / 32768 + 1));
   block_count_.assign(static_cast<std::size_t>(ct) + 1, 0);
   const double inf = std::numeric_limits<double>::infinity();
   double min_x = inf, min_y = inf, max_x = -inf, max_y = -inf;
