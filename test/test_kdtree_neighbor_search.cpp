@@ -130,9 +130,11 @@ TEST(KdTreeNeighborSearchExact, RandomCloudsEveryK) {
   }
 }
 
-TEST(KdTreeNeighborSearchExact, ManyCoincidentPoints) {
-  // A lidar's no-return points all at the origin (more than a leaf and more than K), some points
-  // on top of each other elsewhere, and scattered points around.
+namespace {
+
+// A lidar's no-return points all at the origin (more than a leaf and more than K), some points
+// on top of each other elsewhere, and scattered points around.
+Cloud coincidentCloud() {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> u(-3.f, 3.f);
   Cloud c;
@@ -145,6 +147,25 @@ TEST(KdTreeNeighborSearchExact, ManyCoincidentPoints) {
       c.insert(c.end(), {u(rng), u(rng), u(rng)});
     }
   }
+  return c;
+}
+
+// The finite points of a scan file, xyz packed.
+Cloud finitePointsOf(const std::string& file) {
+  const gf::Scan scan = gf::loadScan(file);
+  const gf::CloudView view = gf::viewOf(scan.cloud);
+  Cloud c;
+  for (std::size_t i = 0; i < view.size(); ++i) {
+    float x, y, z;
+    if (view.get(i, &x, &y, &z)) c.insert(c.end(), {x, y, z});
+  }
+  return c;
+}
+
+}  // namespace
+
+TEST(KdTreeNeighborSearchExact, ManyCoincidentPoints) {
+  const Cloud c = coincidentCloud();
   for (bool avx512 : codePaths()) {
     for (int leaf : {4, 32}) {
       gf::KdTreeNeighborSearch search(2, leaf);
@@ -205,13 +226,7 @@ TEST(KdTreeNeighborSearchExact, KittiFrameMatchesNanoflann) {
 #else
   const std::string file = std::string(GF_DATA_DIR) + "/semantickitti/seq00/000000.bin";
   GF_SKIP_WITHOUT_DATA(file);
-  const gf::Scan scan = gf::loadScan(file);
-  const gf::CloudView view = gf::viewOf(scan.cloud);
-  Cloud c;
-  for (std::size_t i = 0; i < view.size(); ++i) {
-    float x, y, z;
-    if (view.get(i, &x, &y, &z)) c.insert(c.end(), {x, y, z});
-  }
+  const Cloud c = finitePointsOf(file);
   const std::size_t n = c.size() / 3;
   ASSERT_GT(n, 100000u);
   constexpr int k = 50;
@@ -306,18 +321,7 @@ void expectKeptListsSame(const Cloud& c, int k, bool avx512, int leaf) {
 }  // namespace
 
 TEST(KdTreeNeighborSearchExact, KeptListsSameAsReference) {
-  std::mt19937 rng(11);
-  std::uniform_real_distribution<float> u(-3.f, 3.f);
-  Cloud coincident;  // no-return points at the origin, duplicates, scattered points
-  for (int i = 0; i < 1500; ++i) {
-    if (i % 3 == 0) {
-      coincident.insert(coincident.end(), {0.f, 0.f, 0.f});
-    } else if (i % 7 == 0) {
-      coincident.insert(coincident.end(), {1.f, 2.f, -0.5f});
-    } else {
-      coincident.insert(coincident.end(), {u(rng), u(rng), u(rng)});
-    }
-  }
+  const Cloud coincident = coincidentCloud();
   for (bool avx512 : codePaths()) {
     for (bool clustered : {false, true}) {
       const Cloud c = randomCloud(3000, clustered ? 7u : 3u, clustered);
@@ -344,13 +348,7 @@ TEST(KdTreeNeighborSearchExact, KeptListsSameOnRealScans) {
   std::size_t tested = 0;
   for (const std::string& file : files) {
     if (!gf_test::dataExists(file)) continue;
-    const gf::Scan scan = gf::loadScan(file);
-    const gf::CloudView view = gf::viewOf(scan.cloud);
-    Cloud c;
-    for (std::size_t i = 0; i < view.size(); ++i) {
-      float x, y, z;
-      if (view.get(i, &x, &y, &z)) c.insert(c.end(), {x, y, z});
-    }
+    const Cloud c = finitePointsOf(file);
     SCOPED_TRACE(file);
     expectKeptListsSame(c, 64, codePaths().back(), 64);
     ++tested;
