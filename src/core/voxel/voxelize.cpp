@@ -452,7 +452,7 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   zmax_.resize(runs);
   float* zlo = zmin_.data();
   float* zhi = zmax_.data();
-  constexpr std::size_t kAhead = 16;  // prefetch distance of the random coordinate reads
+  constexpr std::size_t kAhead = 48;  // prefetch distance of the random coordinate reads
   std::size_t nv = 0;
   std::uint64_t prev = ~std::uint64_t{0};  // no key (keys use at most 63 bits)
   float xs = 0.f, ys = 0.f, zs = 0.f, zmn = 0.f, zmx = 0.f;
