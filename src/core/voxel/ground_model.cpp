@@ -257,11 +257,22 @@ void GroundModel::grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, con
   state_[start] = CellState::kQueued;
   queue_[near_end_++] = static_cast<std::uint32_t>(start);
   std::size_t qn = 0, qf = 0, next_island = 0;
+  // The cells are taken in queue order, scattered over a grid of moments larger than L2:
+  // prefetch the moments of the cell 4 entries on.
+  auto prefetchCell = [&](const std::uint32_t* q, std::size_t i, std::size_t end) {
+    if (i + 4 < end) {
+      const char* m = reinterpret_cast<const char*>(&nbsum_[q[i + 4]]);
+      __builtin_prefetch(m);
+      __builtin_prefetch(m + sizeof(Moments) - 1);
+    }
+  };
   for (;;) {
     std::uint32_t t;
     if (qn < near_end_) {
+      prefetchCell(queue_.data(), qn, near_end_);
       t = queue_[qn++];
     } else if (qf < far_end_) {
+      prefetchCell(queue_far_.data(), qf, far_end_);
       t = queue_far_[qf++];
     } else if (!nextIsland(cells, &next_island, &t)) {
       break;
