@@ -29,6 +29,7 @@ class Voter {
 
   std::vector<std::size_t> bounds_;                 // column ranges (whole rows)
   std::vector<std::vector<std::int32_t>> id_rows_;  // per thread
+  std::vector<std::vector<std::uint64_t>> acc_;     // per thread: ground << 32 | points per z
 };
 
 }  // namespace voxel
