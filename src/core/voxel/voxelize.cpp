@@ -563,17 +563,21 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   const float* zlo = zmin_.data();
   const float* zhi = zmax_.data();
   vs[nv] = static_cast<std::uint32_t>(n);
-  // Pass 2, per voxel: centroid, column, cell, flags and the flat / seed lists.
+  // Pass 2, per voxel: centroids (a loop of its own, which the compiler vectorises: counts are
+  // below 2^31, so the signed conversion is exact), then column, cell, flags and the flat / seed
+  // lists.
+  for (std::size_t v = 0; v < nv; ++v) {
+    const float inv = 1.f / static_cast<float>(static_cast<std::int32_t>(vs[v + 1] - vs[v]));
+    vx[v] *= inv;
+    vy[v] *= inv;
+    vz[v] *= inv;
+  }
   std::size_t ncol = 0, nflat = 0, nseed = 0;
   std::uint64_t prev_col = ~std::uint64_t{0};
   std::uint32_t cell = 0;
   for (std::size_t v = 0; v < nv; ++v) {
     const std::uint64_t key = vk[v];
     const std::uint32_t cnt = vs[v + 1] - vs[v];
-    const float inv = 1.f / static_cast<float>(cnt);
-    vx[v] *= inv;
-    vy[v] *= inv;
-    vz[v] *= inv;
     const std::uint64_t col = key >> sy_;
     const bool lowest = col != prev_col;
     prev_col = col;
