@@ -36,19 +36,27 @@ void Voter::vote(const VoxelGrid& g, int t, int range, Classifier* cls) {
   std::uint8_t* out = cls->ground.data();
   auto zOf = [&](std::uint32_t v) { return static_cast<std::int32_t>(vk[v] & mz); };
   std::uint64_t* acc = acc_[t].data();  // nz + 2 zeros
-  // Rows of column ids (the sentinel `ncol` where there is none).
+  // Rows of column ids with the column's label mask in the low 2 bits (id << 2 | mask; the
+  // sentinel `ncol`, mask 0, where there is none): the test of a column reads its 9 entries
+  // only, not their masks behind them.
   const std::int32_t none = static_cast<std::int32_t>(ncol);
   sweepColumns(
-      g, bounds_[range], bounds_[range + 1], &id_rows_[t], none,
-      [&](std::int32_t* row, std::size_t q) {
-        row[(ck[q] & y_mask) + 1] = static_cast<std::int32_t>(q);
+      g, bounds_[range], bounds_[range + 1], &id_rows_[t], std::int64_t{none} << 2,
+      [&](std::int64_t* row, std::size_t q) {
+        row[(ck[q] & y_mask) + 1] = static_cast<std::int64_t>(q << 2 | cm[q]);
       },
-      [&](std::int32_t* row, std::size_t q) { row[(ck[q] & y_mask) + 1] = none; },
-      [&](std::size_t q, const std::int32_t* r0, const std::int32_t* r1, const std::int32_t* r2) {
-        const std::int32_t ids[9] = {r0[0], r0[1], r0[2], r1[0], r1[1], r1[2], r2[0], r2[1], r2[2]};
-        std::uint32_t mask = 0;
-        for (int k = 0; k < 9; ++k) mask |= cm[ids[k]];
+      [&](std::int64_t* row, std::size_t q) {
+        row[(ck[q] & y_mask) + 1] = std::int64_t{none} << 2;
+      },
+      [&](std::size_t q, const std::int64_t* e0, const std::int64_t* e1, const std::int64_t* e2) {
+        const std::int64_t mask =
+            (e0[0] | e0[1] | e0[2] | e1[0] | e1[1] | e1[2] | e2[0] | e2[1] | e2[2]) & 3;
         if (mask != 3) return;
+        auto id = [](std::int64_t e) { return static_cast<std::int32_t>(e >> 2); };
+        const std::int32_t r0[3] = {id(e0[0]), id(e0[1]), id(e0[2])};
+        const std::int32_t r1[3] = {id(e1[0]), id(e1[1]), id(e1[2])};
+        const std::int32_t r2[3] = {id(e2[0]), id(e2[1]), id(e2[2])};
+        const std::int32_t ids[9] = {r0[0], r0[1], r0[2], r1[0], r1[1], r1[2], r2[0], r2[1], r2[2]};
         ZRange r = kEmptyRange;
         for (int k = 0; k < 9; ++k) merge(&r, cr[ids[k]]);
         const std::int32_t alo = std::max(r.glo, r.nlo) - 1;
