@@ -61,7 +61,11 @@ void Voter::vote(const VoxelGrid& g, int t, int range, Classifier* cls) {
         for (int k = 0; k < 9; ++k) merge(&r, cr[ids[k]]);
         const std::int32_t alo = std::max(r.glo, r.nlo) - 1;
         const std::int32_t ahi = std::min(r.ghi, r.nhi) + 1;
-        if (alo > ahi) return;
+        // Nothing to vote unless the column's own voxels reach into [alo, ahi].
+        const ZRange& own = cr[q];
+        if (alo > ahi || std::max(own.ghi, own.nhi) < alo || std::min(own.glo, own.nlo) > ahi) {
+          return;
+        }
         // Ground and point counts per z of the 3 x 3 columns (packed ground << 32 | points,
         // dense over z, this thread's buffer), then each voted voxel sums three z entries: the
         // same integer sums as a search per column, without its data-dependent branches. In
