@@ -146,7 +146,7 @@ std::int64_t Segmenter::run(const VoxelGroundFilterParams& p, VoxelGrid* g) {
 }
 
 bool Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g,
-                            std::int64_t* best, HeightPlane* gp) const {
+                            std::int64_t* best, HeightPlane* gp) {
   if (*best < 0) return false;
   // The plane of the largest segment that is not steeper than max_slope_deg: the largest one can
   // be a wall scanned line by line (its flat voxels stack up), see the docs.
@@ -169,10 +169,11 @@ bool Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
   }
   std::array<PlaneAccumulator, kCandidates> acc;
   std::array<double, kCandidates> zsum{}, cnt{};
+  rank_.assign(nf, -1);  // a lookup instead of a search of the candidates per flat voxel
+  for (int q = 0; q < ncand; ++q) rank_[cand[q]] = static_cast<std::int8_t>(q);
   for (std::size_t j = 0; j < nf; ++j) {
-    int q = 0;
-    while (q < ncand && cand[q] != uf_[j]) ++q;
-    if (q == ncand) continue;
+    const int q = rank_[uf_[j]];
+    if (q < 0) continue;
     const std::uint32_t v = g.flat[j];
     for (std::uint32_t k = g.vstart[v]; k < g.vstart[v + 1]; ++k) {
       acc[q].add(g.sx[k], g.sy[k], g.sz[k]);
