@@ -194,34 +194,34 @@ class JsonParser {
     expect('"');
     return out;
   }
+  // The items of an object or array up to `close` (the opening bracket already read).
+  template <typename Item>
+  void parseList(char close, Item item) {
+    if (peek() == close) {
+      ++pos_;
+      return;
+    }
+    do {
+      item();
+    } while (peek() == ',' && ++pos_);
+    expect(close);
+  }
   Json parseValue() {
     Json v;
     const char c = peek();
     if (c == '{') {
       v.type = Json::kObject;
       ++pos_;
-      if (peek() == '}') {
-        ++pos_;
-        return v;
-      }
-      do {
+      parseList('}', [&] {
         const std::string key = parseString();
         expect(':');
         if (v.obj.count(key)) throw std::runtime_error("duplicate key " + key);
         v.obj[key] = parseValue();
-      } while (peek() == ',' && ++pos_);
-      expect('}');
+      });
     } else if (c == '[') {
       v.type = Json::kArray;
       ++pos_;
-      if (peek() == ']') {
-        ++pos_;
-        return v;
-      }
-      do {
-        v.arr.push_back(parseValue());
-      } while (peek() == ',' && ++pos_);
-      expect(']');
+      parseList(']', [&] { v.arr.push_back(parseValue()); });
     } else if (c == '"') {
       v.type = Json::kString;
       v.str = parseString();

@@ -25,6 +25,7 @@
 #include "ground_filter/scene/scene_generator.h"
 #include "neighbors/kdtree_neighbor_search.h"
 #include "normal/neighborhood_pca.h"
+#include "normal/plane.h"
 
 namespace gf = ground_filter;
 
@@ -642,6 +643,45 @@ TEST(NormalGroundFilter, StageTimesNameEveryStage) {
   }
   const std::vector<std::string> expected = {"sort", "kdtree_build", "knn", "pca", "vote", "plane"};
   EXPECT_EQ(names, expected);
+}
+
+TEST(NormalPlaneStage, SparseTileFitsItsOwnPlaneFromThreeVotedPoints) {
+  // Dense voted ground at z = 0 over x, y in [0, 8) (four 4 m tiles) and two far tiles on a
+  // terrace 0.5 m higher: one with 4 voted points, one with 2. A tile with >= 3 voted points
+  // fits its own plane (the terrace is ground); with fewer it falls back to the cloud-wide plane
+  // (z = 0), which leaves the terrace 0.5 m off: not ground.
+  std::vector<float> xyz;
+  std::vector<std::uint8_t> voted;
+  auto add = [&](float x, float y, float z, bool v) {
+    xyz.insert(xyz.end(), {x, y, z});
+    voted.push_back(v);
+  };
+  for (int i = 0; i < 80; ++i) {
+    for (int j = 0; j < 80; ++j) add(0.05f + 0.1f * i, 0.05f + 0.1f * j, 0.0f, true);
+  }
+  const std::size_t dense = voted.size();
+  const float terrace = 0.5f;
+  // Tile x in [20, 24): 4 voted points (not collinear) and 6 unvoted ones, all on the terrace.
+  for (float x : {20.5f, 21.5f, 22.5f}) add(x, 1.0f, terrace, true);
+  add(21.0f, 3.0f, terrace, true);
+  for (int i = 0; i < 6; ++i) add(20.2f + 0.5f * i, 2.0f, terrace, false);
+  const std::size_t sparse_end = voted.size();
+  // Tile x in [28, 32): 2 voted points and 6 unvoted ones on the terrace.
+  add(28.5f, 1.0f, terrace, true);
+  add(29.5f, 3.0f, terrace, true);
+  for (int i = 0; i < 6; ++i) add(28.2f + 0.5f * i, 2.0f, terrace, false);
+
+  gf::NormalGroundFilterParams p;
+  gf::normal::Extent extent;
+  extent.max_x = 32.0;
+  extent.max_y = 8.0;
+  gf::normal::PlaneStage stage;
+  std::vector<std::uint8_t> ground;
+  stage.run(xyz, voted, extent, p, std::cos(15.0 * M_PI / 180.0), 1, &ground);
+  ASSERT_EQ(ground.size(), voted.size());
+  for (std::size_t i = 0; i < dense; ++i) ASSERT_EQ(ground[i], 1) << i;
+  for (std::size_t i = dense; i < sparse_end; ++i) EXPECT_EQ(ground[i], 1) << i;
+  for (std::size_t i = sparse_end; i < voted.size(); ++i) EXPECT_EQ(ground[i], 0) << i;
 }
 
 // ------------------------------------------------------------------------ real data

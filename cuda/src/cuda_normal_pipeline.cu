@@ -23,20 +23,13 @@
 #include "ground_kernels.cuh"
 #include "knn_grid.cuh"
 #include "knn_impl.cuh"
+#include "normal/cpu_gpu_common.h"
 
 namespace ground_filter {
 
 using namespace cuda_impl;  // NOLINT: private .cu file
 
 namespace {
-
-/// CPU: cellIndex of normal_ground_filter.cpp.
-std::uint32_t cellIndexHost(double v, double lo, double inv_cell) {
-  const double c = std::floor((v - lo) * inv_cell);
-  if (!(c > 0.0)) return 0;
-  if (c >= 4294967295.0) return 4294967295U;
-  return static_cast<std::uint32_t>(c);
-}
 
 int bitLength(std::uint64_t v) {
   int b = 0;
@@ -198,7 +191,7 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   const double cell = std::max(prm.cell_size, extent / 4.0e9);
   const double inv_cell = 1.0 / cell;
   const int col_bits = bitLength(
-      std::max(cellIndexHost(max_x, min_x, inv_cell), cellIndexHost(max_y, min_y, inv_cell)));
+      std::max(normal::cellIndex(max_x, min_x, inv_cell), normal::cellIndex(max_y, min_y, inv_cell)));
   launchColumnKeys(pl.raw_xyz.as<float>(), n, min_x, min_y, inv_cell,
                    pl.keys_a.as<unsigned long long>(), pl.vals_a.as<unsigned int>(), st);
   {
@@ -247,8 +240,8 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   // ---- tiles, planes, distance test
   const double tile = std::max(prm.tile_size, extent / 4.0e9);
   const double inv_tile = 1.0 / tile;
-  const std::uint64_t tx_max = cellIndexHost(max_x, min_x, inv_tile);
-  const std::uint64_t ty_max = cellIndexHost(max_y, min_y, inv_tile);
+  const std::uint64_t tx_max = normal::cellIndex(max_x, min_x, inv_tile);
+  const std::uint64_t ty_max = normal::cellIndex(max_y, min_y, inv_tile);
   const int tile_bits = prm.local_planes ? 32 + bitLength(tx_max) : 1;
   std::uint64_t tiles_max = 1;
   if (prm.local_planes) {  // occupied tiles, at most: min(points, tiles of the bounding box)

@@ -5,6 +5,7 @@
 #include "ground_kernels.cuh"
 #include "knn_grid.cuh"
 #include "knn_pca.cuh"
+#include "normal/cpu_gpu_common.h"
 
 namespace ground_filter {
 namespace cuda_impl {
@@ -13,43 +14,16 @@ namespace {
 
 constexpr int kThreads = 256;
 constexpr int kPlaneThreads = 128;
-constexpr unsigned int kEvalMax = 2048;                       // CPU: kRansacEvalPoints
-constexpr unsigned int kMinTilePoints = 10;                   // CPU: kMinTilePoints
-constexpr std::uint64_t kRansacSeed = 0x67f1a3c5d2b9e481ULL;  // CPU: kRansacSeed
 constexpr int kChunk = 256;               // points staged per step of a serial least-squares sum
 constexpr int kPlaneNeedsRefinement = 2;  // PlaneDev::valid of a hypothesis awaiting refinement
 constexpr int kRefineBlocks = 264;        // blocks of the grid-wide refinement
 
-/// CPU: spreadBits of normal_ground_filter.cpp (32 bits over the even bits of 64).
-__device__ inline std::uint64_t spread32(std::uint64_t v) {
-  v &= 0xffffffffULL;
-  v = (v | (v << 16)) & 0x0000ffff0000ffffULL;
-  v = (v | (v << 8)) & 0x00ff00ff00ff00ffULL;
-  v = (v | (v << 4)) & 0x0f0f0f0f0f0f0f0fULL;
-  v = (v | (v << 2)) & 0x3333333333333333ULL;
-  v = (v | (v << 1)) & 0x5555555555555555ULL;
-  return v;
-}
-
-/// CPU: cellIndex (integer cell of v on a grid starting at lo, clamped to 32 bits).
-__device__ inline std::uint32_t cellIndex(double v, double lo, double inv_cell) {
-  const double c = floor((v - lo) * inv_cell);
-  if (!(c > 0.0)) return 0;
-  if (c >= 4294967295.0) return 4294967295U;
-  return static_cast<std::uint32_t>(c);
-}
-
-/// CPU: SplitMix64.
-struct SplitMix64 {
-  std::uint64_t state;
-  __device__ explicit SplitMix64(std::uint64_t seed) : state(seed) {}
-  __device__ std::uint64_t next() {
-    std::uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-  }
-};
+using normal::cellIndex;
+using normal::columnKey;
+using normal::kMinTilePoints;
+using normal::kRansacSeed;
+using normal::SplitMix64;
+constexpr unsigned int kEvalMax = normal::kRansacEvalPoints;
 
 /// Eigen's 3-vector dot order: (a0 b0 + a1 b1) + a2 b2.
 __device__ inline double dot3(const double a[3], const double b[3]) {
@@ -123,7 +97,7 @@ __global__ void columnKeysKernel(const float* __restrict__ xyz, int n, double mi
   const std::size_t s = 3 * static_cast<std::size_t>(i);
   const std::uint32_t cx = cellIndex(xyz[s], min_x, inv_cell);
   const std::uint32_t cy = cellIndex(xyz[s + 1], min_y, inv_cell);
-  keys[i] = spread32(cx) | (spread32(cy) << 1);
+  keys[i] = columnKey(cx, cy);
   vals[i] = static_cast<unsigned int>(i);
 }
 
@@ -252,6 +226,60 @@ __device__ inline void offsetOf(const float* __restrict__ xyz, unsigned int i, c
   q[2] = p[2] - o[2];
 }
 
+/// Sums W values per point over the points i in [0, m) for which term(i, v) (it writes the W
+/// values to v) returns true; the sums reach thread 0 (acc) and the count is returned there.
+/// serial: the CPU's order, kChunk points staged at a time and thread 0 adding in index order;
+/// else a fixed-order parallel sum (each thread ascending, then thread 0 over the threads).
+/// `stage` holds (W + 1) * max(kChunk, blockDim.x) doubles.
+template <int W, typename Term>
+__device__ inline unsigned long long blockInlierSum(unsigned int m, bool serial, double* stage,
+                                                   double acc[W], Term term) {
+  const unsigned int tid = threadIdx.x, bd = blockDim.x;
+  for (int w = 0; w < W; ++w) acc[w] = 0.0;
+  unsigned long long count = 0;
+  if (serial) {
+    for (unsigned int base = 0; base < m; base += kChunk) {
+      const unsigned int cnt = min(static_cast<unsigned int>(kChunk), m - base);
+      __syncthreads();
+      for (unsigned int t = tid; t < cnt; t += bd) {
+        double* s = stage + (W + 1) * t;
+        s[W] = term(base + t, s) ? 1.0 : 0.0;
+      }
+      __syncthreads();
+      if (tid == 0) {
+        for (unsigned int t = 0; t < cnt; ++t) {
+          const double* s = stage + (W + 1) * t;
+          if (s[W] == 0.0) continue;
+          for (int w = 0; w < W; ++w) acc[w] += s[w];
+          ++count;
+        }
+      }
+    }
+    return count;
+  }
+  for (unsigned int t = tid; t < m; t += bd) {
+    double v[W];
+    if (!term(t, v)) continue;
+    for (int w = 0; w < W; ++w) acc[w] += v[w];
+    ++count;
+  }
+  __syncthreads();
+  for (int w = 0; w < W; ++w) stage[(W + 1) * tid + w] = acc[w];
+  stage[(W + 1) * tid + W] = static_cast<double>(count);
+  __syncthreads();
+  if (tid == 0) {
+    double n = 0.0;
+    for (int w = 0; w < W; ++w) acc[w] = 0.0;
+    for (unsigned int t = 0; t < bd; ++t) {
+      for (int w = 0; w < W; ++w) acc[w] += stage[(W + 1) * t + w];
+      n += stage[(W + 1) * t + W];
+    }
+    count = static_cast<unsigned long long>(n);
+  }
+  return count;
+}
+
+
 /// CPU: fitPlaneRansac, one block per plane; the result is valid in thread 0.
 __device__ void fitPlaneBlock(const float* __restrict__ xyz, const unsigned int* __restrict__ idx,
                               unsigned int m, const GroundParamsDev& p, std::uint64_t seed,
@@ -340,63 +368,16 @@ __device__ void fitPlaneBlock(const float* __restrict__ xyz, const unsigned int*
   }
 
   // Least-squares refinement on all inliers: mean, then centred covariance.
-  double mean[3] = {0.0, 0.0, 0.0};
-  unsigned long long inliers = 0;
   const bool serial = m <= kSerialRefineMax;
-  if (serial) {  // the CPU's order, one thread adding
-    for (unsigned int base = 0; base < m; base += kChunk) {
-      const unsigned int cnt = min(static_cast<unsigned int>(kChunk), m - base);
-      __syncthreads();
-      for (unsigned int t = tid; t < cnt; t += bd) {
-        double q[3];
-        offsetOf(xyz, idx[base + t], best.o, q);
-        const bool in = fabs(dot3(best_n, q) + best_d) <= thr;
-        stage[4 * t] = q[0];
-        stage[4 * t + 1] = q[1];
-        stage[4 * t + 2] = q[2];
-        stage[4 * t + 3] = in ? 1.0 : 0.0;
-      }
-      __syncthreads();
-      if (tid == 0) {
-        for (unsigned int t = 0; t < cnt; ++t) {
-          if (stage[4 * t + 3] != 0.0) {
-            mean[0] += stage[4 * t];
-            mean[1] += stage[4 * t + 1];
-            mean[2] += stage[4 * t + 2];
-            ++inliers;
-          }
-        }
-      }
-    }
-  } else {  // fixed-order parallel sum: per thread ascending, then thread 0 over the threads
-    for (unsigned int t = tid; t < m; t += bd) {
-      double q[3];
-      offsetOf(xyz, idx[t], best.o, q);
-      if (fabs(dot3(best_n, q) + best_d) <= thr) {
-        mean[0] += q[0];
-        mean[1] += q[1];
-        mean[2] += q[2];
-        ++inliers;
-      }
-    }
-    __syncthreads();
-    stage[4 * tid] = mean[0];
-    stage[4 * tid + 1] = mean[1];
-    stage[4 * tid + 2] = mean[2];
-    stage[4 * tid + 3] = static_cast<double>(inliers);
-    __syncthreads();
-    if (tid == 0) {
-      mean[0] = mean[1] = mean[2] = 0.0;
-      double cnt = 0.0;
-      for (int t = 0; t < bd; ++t) {
-        mean[0] += stage[4 * t];
-        mean[1] += stage[4 * t + 1];
-        mean[2] += stage[4 * t + 2];
-        cnt += stage[4 * t + 3];
-      }
-      inliers = static_cast<unsigned long long>(cnt);
-    }
-  }
+  const auto inlier = [&](unsigned int i, double q[3]) {
+    offsetOf(xyz, idx[i], best.o, q);
+    return fabs(dot3(best_n, q) + best_d) <= thr;
+  };
+  double mean[3];
+  const unsigned long long inliers =
+      blockInlierSum<3>(m, serial, stage, mean, [&](unsigned int i, double* v) {
+        return inlier(i, v);
+      });
   best.n[0] = best_n[0];
   best.n[1] = best_n[1];
   best.n[2] = best_n[2];
@@ -418,59 +399,19 @@ __device__ void fitPlaneBlock(const float* __restrict__ xyz, const unsigned int*
     return;
   }
   const double mu[3] = {shd[1], shd[2], shd[3]};
-  double cov[6] = {0, 0, 0, 0, 0, 0};  // xx xy xz yy yz zz
-  if (serial) {
-    for (unsigned int base = 0; base < m; base += kChunk) {
-      const unsigned int cnt = min(static_cast<unsigned int>(kChunk), m - base);
-      __syncthreads();
-      for (unsigned int t = tid; t < cnt; t += bd) {
-        double q[3];
-        offsetOf(xyz, idx[base + t], best.o, q);
-        const bool in = fabs(dot3(best_n, q) + best_d) <= thr;
-        const double r[3] = {q[0] - mu[0], q[1] - mu[1], q[2] - mu[2]};
-        double* s = stage + 7 * t;
-        s[0] = r[0] * r[0];
-        s[1] = r[0] * r[1];
-        s[2] = r[0] * r[2];
-        s[3] = r[1] * r[1];
-        s[4] = r[1] * r[2];
-        s[5] = r[2] * r[2];
-        s[6] = in ? 1.0 : 0.0;
-      }
-      __syncthreads();
-      if (tid == 0) {
-        for (unsigned int t = 0; t < cnt; ++t) {
-          const double* s = stage + 7 * t;
-          if (s[6] != 0.0) {
-            for (int c = 0; c < 6; ++c) cov[c] += s[c];
-          }
-        }
-      }
-    }
-  } else {
-    for (unsigned int t = tid; t < m; t += bd) {
-      double q[3];
-      offsetOf(xyz, idx[t], best.o, q);
-      if (fabs(dot3(best_n, q) + best_d) <= thr) {
-        const double r[3] = {q[0] - mu[0], q[1] - mu[1], q[2] - mu[2]};
-        cov[0] += r[0] * r[0];
-        cov[1] += r[0] * r[1];
-        cov[2] += r[0] * r[2];
-        cov[3] += r[1] * r[1];
-        cov[4] += r[1] * r[2];
-        cov[5] += r[2] * r[2];
-      }
-    }
-    __syncthreads();
-    for (int c = 0; c < 6; ++c) stage[7 * tid + c] = cov[c];
-    __syncthreads();
-    if (tid == 0) {
-      for (int c = 0; c < 6; ++c) cov[c] = 0.0;
-      for (int t = 0; t < bd; ++t) {
-        for (int c = 0; c < 6; ++c) cov[c] += stage[7 * t + c];
-      }
-    }
-  }
+  double cov[6];  // xx xy xz yy yz zz
+  blockInlierSum<6>(m, serial, stage, cov, [&](unsigned int i, double* v) {
+    double q[3];
+    const bool in = inlier(i, q);
+    const double r[3] = {q[0] - mu[0], q[1] - mu[1], q[2] - mu[2]};
+    v[0] = r[0] * r[0];
+    v[1] = r[0] * r[1];
+    v[2] = r[0] * r[2];
+    v[3] = r[1] * r[1];
+    v[4] = r[1] * r[2];
+    v[5] = r[2] * r[2];
+    return in;
+  });
   if (tid == 0) {
     const double a[3][3] = {
         {cov[0], cov[1], cov[2]}, {cov[1], cov[3], cov[4]}, {cov[2], cov[4], cov[5]}};

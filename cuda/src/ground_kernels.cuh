@@ -76,7 +76,7 @@ void launchTileLists(const unsigned int* heads, const unsigned int* tile_idx,
                      const unsigned int* order, const std::uint8_t* voted, const unsigned int* vpos,
                      const unsigned int* gpos, int n, unsigned int* tile_begin, unsigned int* vlist,
                      unsigned int* glist, cudaStream_t st);
-/// RANSAC planes: item 0 the cloud-wide plane (when a tile has < 10 voted points or without
+/// RANSAC planes: item 0 the cloud-wide plane (when a tile has < 3 voted points or without
 /// local planes; refined grid-wide when large), item 1 + t tile t. `work` and `need_global` are
 /// zeroed counters, `partial` holds refinePartialBytes(); `tiles_max` bounds the tile count.
 void launchPlanes(const float* xyz, const unsigned long long* sorted_keys,

@@ -1,9 +1,6 @@
 #include "ground_filter_nodelet.h"
 
-#include <diagnostic_msgs/DiagnosticStatus.h>
-#include <geometry_msgs/TransformStamped.h>
 #include <std_msgs/Float64.h>
-#include <tf2/exceptions.h>
 
 #include <algorithm>
 #include <boost/make_shared.hpp>
@@ -22,8 +19,7 @@ namespace ground_filter {
 
 namespace {
 
-// Seconds between two log lines of the same kind (rejection reason, stream problem).
-constexpr double kLogPeriodS = 5.0;
+constexpr double kLogPeriodS = NodeletMonitor::kLogPeriodS;
 
 // Hands the heap's free pages back to the OS. glibc keeps freed memory of its per-thread arenas
 // (cloud buffers of changing size, filter rebuilds on reconfigure) mapped: without this the
@@ -39,13 +35,6 @@ void releaseFreeHeap() {
 GroundFilterNodelet::GroundFilterNodelet() = default;
 GroundFilterNodelet::~GroundFilterNodelet() = default;
 
-GroundFilterNodelet::CounterValues GroundFilterNodelet::Counters::values() const {
-  CounterValues v;
-  const auto& live = CounterSet<std::atomic<std::uint64_t>>::all();
-  for (std::size_t i = 0; i < live.size(); ++i) v.*CounterValues::all()[i] = this->*live[i];
-  return v;
-}
-
 void GroundFilterNodelet::onInit() {
   NodeletLazy::onInit();
   pnh_->param("queue_size", queue_size_, 3);
@@ -59,19 +48,20 @@ void GroundFilterNodelet::onInit() {
   pub_time_ = pnh_->advertise<std_msgs::Float64>("processing_time_ms", 10);
   pub_labeled_ = advertise<sensor_msgs::PointCloud2>(*pnh_, "labeled", 1);
 
-  pnh_->param<std::string>("gravity_frame", gravity_frame_, "");
-  pnh_->param("tf_timeout", tf_timeout_, 0.1);
-  if (!(tf_timeout_ >= 0.0 && tf_timeout_ <= 10.0)) {
-    NODELET_WARN("~tf_timeout %g s is outside [0, 10] s, using 0.1 s", tf_timeout_);
-    tf_timeout_ = 0.1;
+  std::string gravity_frame;
+  double tf_timeout = 0.1;
+  pnh_->param<std::string>("gravity_frame", gravity_frame, "");
+  pnh_->param("tf_timeout", tf_timeout, 0.1);
+  if (!(tf_timeout >= 0.0 && tf_timeout <= 10.0)) {
+    NODELET_WARN("~tf_timeout %g s is outside [0, 10] s, using 0.1 s", tf_timeout);
+    tf_timeout = 0.1;
   }
-  if (!gravity_frame_.empty()) {
-    tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
-    tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, *nh_);
+  if (!gravity_frame.empty()) {
+    gravity_ = std::make_unique<GravityTransform>(*nh_, gravity_frame, tf_timeout);
     NODELET_INFO(
         "%s: clouds are classified in gravity frame '%s' (tf timeout %.3f s); outputs "
         "keep the input frame",
-        methodName().c_str(), gravity_frame_.c_str(), tf_timeout_);
+        methodName().c_str(), gravity_frame.c_str(), tf_timeout);
   }
 
   double period = 1.0;
@@ -79,8 +69,11 @@ void GroundFilterNodelet::onInit() {
   if (!(period > 0.0)) period = 1.0;
   updater_ = std::make_unique<diagnostic_updater::Updater>(*nh_, *pnh_, getName());
   updater_->setHardwareID("none");
-  updater_->add(methodName() + " ground filter", this, &GroundFilterNodelet::diagnose);
-  monitor_.last_diagnose = ros::WallTime::now();
+  updater_->add(methodName() + " ground filter",
+                [this](diagnostic_updater::DiagnosticStatusWrapper& status) {
+                  monitor_.diagnose(status, methodName(), gravity_ ? gravity_->frame() : "",
+                                    haveConfig());
+                });
   // Wall time and force_update(): the status keeps coming while a bag's simulated clock is
   // paused or over (Updater::update() would wait for the simulated period).
   diagnostic_timer_ = nh_->createWallTimer(
@@ -123,7 +116,7 @@ void GroundFilterNodelet::setFilterFactory(FilterFactory factory, const WorkingV
 }
 
 void GroundFilterNodelet::reportRejectedConfig(const std::string& what) {
-  ++counters_.config_rejected;
+  ++monitor_.counters().config_rejected;
   NODELET_ERROR("%s: parameters refused, keeping the previous ones: %s", methodName().c_str(),
                 what.c_str());
 }
@@ -142,23 +135,9 @@ void GroundFilterNodelet::subscribe() {
 
 void GroundFilterNodelet::unsubscribe() { sub_input_.shutdown(); }
 
-bool GroundFilterNodelet::logNow(int slot, std::uint64_t* suppressed) {
-  const ros::WallTime now = ros::WallTime::now();
-  std::lock_guard<std::mutex> lock(monitor_mutex_);
-  ros::WallTime& last = monitor_.last_log[slot];
-  if (!last.isZero() && (now - last).toSec() < kLogPeriodS) {
-    ++monitor_.suppressed[slot];
-    return false;
-  }
-  last = now;
-  if (suppressed) *suppressed = monitor_.suppressed[slot];
-  monitor_.suppressed[slot] = 0;
-  return true;
-}
-
 void GroundFilterNodelet::logRejected(CloudRejectReason reason, const std::string& message) {
   std::uint64_t suppressed = 0;
-  if (!logNow(static_cast<int>(reason), &suppressed)) return;
+  if (!monitor_.logNow(static_cast<int>(reason), &suppressed)) return;
   std::string more;
   if (suppressed) {
     more = " (" + std::to_string(suppressed) + " more with this reason since the last message)";
@@ -170,72 +149,41 @@ void GroundFilterNodelet::logRejected(CloudRejectReason reason, const std::strin
 void GroundFilterNodelet::countAndWarn(std::atomic<std::uint64_t>* counter, int slot,
                                        const std::string& what, const char* then) {
   const auto n = ++*counter;
-  if (logNow(slot)) {
+  if (monitor_.logNow(slot)) {
     NODELET_WARN("%s: %s (%llu so far)%s", methodName().c_str(), what.c_str(),
                  static_cast<unsigned long long>(n), then);
   }
 }
 
 void GroundFilterNodelet::checkStream(const std_msgs::Header& header) {
-  std::string old_frame;
-  double back_s = 0.0;
-  bool frame_changed = false, went_back = false;
-  {
-    std::lock_guard<std::mutex> lock(monitor_mutex_);
-    if (monitor_.have_last) {
-      frame_changed = header.frame_id != monitor_.last_frame_id;
-      went_back = header.stamp < monitor_.last_stamp;
-      if (frame_changed) old_frame = monitor_.last_frame_id;
-      if (went_back) back_s = (monitor_.last_stamp - header.stamp).toSec();
-    }
-    monitor_.last_frame_id = header.frame_id;
-    monitor_.last_stamp = header.stamp;
-    monitor_.have_last = true;
-  }
-  if (frame_changed) {
-    countAndWarn(&counters_.frame_changes, kFrameChange,
-                 "input frame_id changed from '" + old_frame + "' to '" + header.frame_id + "'",
+  const NodeletMonitor::StreamChange change = monitor_.checkStream(header);
+  if (change.frame_changed) {
+    countAndWarn(&monitor_.counters().frame_changes, NodeletMonitor::kFrameChange,
+                 "input frame_id changed from '" + change.old_frame + "' to '" + header.frame_id +
+                     "'",
                  "; every cloud is processed and published in its own frame");
   }
-  if (went_back) {
+  if (change.went_back) {
     char by[64];
-    std::snprintf(by, sizeof(by), "%.3f s", back_s);
+    std::snprintf(by, sizeof(by), "%.3f s", change.back_s);
     countAndWarn(
-        &counters_.stamps_backwards, kStampBack,
+        &monitor_.counters().stamps_backwards, NodeletMonitor::kStampBack,
         std::string("input stamp went back by ") + by + " (a bag loop or a restarted driver?)",
         "; the cloud is processed as usual");
   }
 }
 
-bool GroundFilterNodelet::lookupGravityTransform(const std_msgs::Header& header,
-                                                 Eigen::Isometry3d* transform, std::string* error) {
-  // Polled against wall time: tf2's own timeout runs on ros::Time, which never advances while a
-  // bag's simulated clock is paused or over, and the nodelet would hang in this callback.
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(tf_timeout_);
-  while (true) {
-    try {
-      const geometry_msgs::TransformStamped t =
-          tf_buffer_->lookupTransform(gravity_frame_, header.frame_id, header.stamp);
-      const auto& q = t.transform.rotation;
-      const auto& v = t.transform.translation;
-      transform->linear() = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().toRotationMatrix();
-      transform->translation() = Eigen::Vector3d(v.x, v.y, v.z);
-      transform->makeAffine();
-      return true;
-    } catch (const tf2::TransformException& e) {
-      *error = e.what();
-    }
-    if (ros::WallTime::now() >= deadline || !ros::ok()) return false;
-    ros::WallDuration(0.005).sleep();
-  }
-}
-
 void GroundFilterNodelet::onNotCloud(const std::string& what, const std::string& publisher) {
-  countAndWarn(&counters_.not_cloud, kNotCloud,
+  countAndWarn(&monitor_.counters().not_cloud, NodeletMonitor::kNotCloud,
                "dropped a message on " + sub_input_.getTopic() + " from " +
                    (publisher.empty() ? std::string("an unknown publisher") : publisher) + ": " +
                    what,
                "");
+}
+
+bool GroundFilterNodelet::haveConfig() {
+  std::lock_guard<std::mutex> lock(config_mutex_);
+  return static_cast<bool>(config_);
 }
 
 void GroundFilterNodelet::updateFilter() {
@@ -256,28 +204,29 @@ void GroundFilterNodelet::updateFilter() {
 
 void GroundFilterNodelet::cloudCallback(const sensor_msgs::PointCloud2ConstPtr& msg) {
   const auto t0 = std::chrono::steady_clock::now();
-  ++counters_.clouds_in;
+  NodeletMonitor::Counters& counters = monitor_.counters();
+  ++counters.clouds_in;
   checkStream(msg->header);
 
   CloudLayout layout;
   std::string why;
   const CloudRejectReason reason = checkPointCloud2(*msg, &layout, &why);
   if (reason != CloudRejectReason::kNone) {
-    ++counters_.clouds_rejected;
+    ++counters.clouds_rejected;
     logRejected(reason, why);
     return;
   }
 
-  // Looked up before the filter lock: it may wait up to tf_timeout_.
+  // Looked up before the filter lock: it may wait up to the transform timeout.
   Eigen::Isometry3d to_gravity = Eigen::Isometry3d::Identity();
-  const bool transform = !gravity_frame_.empty() && msg->header.frame_id != gravity_frame_;
-  if (transform && !lookupGravityTransform(msg->header, &to_gravity, &why)) {
+  const bool transform = gravity_ && msg->header.frame_id != gravity_->frame();
+  if (transform && !gravity_->lookup(msg->header, &to_gravity, &why)) {
     char when[96];
     std::snprintf(when, sizeof(when), "' at t=%.3f within %.3f s: ", msg->header.stamp.toSec(),
-                  tf_timeout_);
-    countAndWarn(&counters_.clouds_no_transform, kNoTransform,
+                  gravity_->timeout());
+    countAndWarn(&counters.clouds_no_transform, NodeletMonitor::kNoTransform,
                  "no transform from '" + msg->header.frame_id + "' to gravity frame '" +
-                     gravity_frame_ + when + why + "; cloud dropped",
+                     gravity_->frame() + when + why + "; cloud dropped",
                  "");
     return;
   }
@@ -311,23 +260,24 @@ void GroundFilterNodelet::publish(const ProcessedCloud& out, double ms) {
   pub_ground_.publish(sensor_msgs::PointCloud2ConstPtr(out.ground));
   pub_nonground_.publish(sensor_msgs::PointCloud2ConstPtr(out.nonground));
   if (out.labeled) pub_labeled_.publish(sensor_msgs::PointCloud2ConstPtr(out.labeled));
-  ++counters_.clouds_out;
-  counters_.invalid_points += out.counts.invalid;
-  counters_.out_of_range_points += out.stats.out_of_range_points;
+  NodeletMonitor::Counters& counters = monitor_.counters();
+  ++counters.clouds_out;
+  counters.invalid_points += out.counts.invalid;
+  counters.out_of_range_points += out.stats.out_of_range_points;
   const std::size_t points = out.counts.ground + out.counts.nonground;
   if (!out.filter_error.empty()) {
-    ++counters_.filter_errors;
+    ++counters.filter_errors;
     NODELET_ERROR_THROTTLE(kLogPeriodS,
                            "%s filter failed on a %zu-point cloud (published as all "
                            "non-ground): %s",
                            methodName().c_str(), points, out.filter_error.c_str());
   }
-  if (!out.labeled_error.empty() && logNow(kLabeled)) {
+  if (!out.labeled_error.empty() && monitor_.logNow(NodeletMonitor::kLabeled)) {
     NODELET_WARN("%s: ~labeled not published: %s", methodName().c_str(), out.labeled_error.c_str());
   }
   const std::string& note = out.stats.note;
   if (!note.empty()) {
-    ++counters_.fallbacks;
+    ++counters.fallbacks;
     // A new reason (no device, a CUDA error) is logged at once; a repeated one once a minute.
     if (note != logged_note_) {
       NODELET_WARN("%s: %s", methodName().c_str(), note.c_str());
@@ -343,14 +293,7 @@ void GroundFilterNodelet::publish(const ProcessedCloud& out, double ms) {
                           methodName().c_str(), out.stats.out_of_range_points, points,
                           kWorkingVolumeHardLimit);
   }
-  {
-    std::lock_guard<std::mutex> lock(monitor_mutex_);
-    monitor_.window_ms_sum += ms;
-    monitor_.window_ms_max = std::max(monitor_.window_ms_max, ms);
-    ++monitor_.window_clouds;
-    monitor_.backend = out.stats.backend;
-    if (!note.empty()) monitor_.fallback_note = note;
-  }
+  monitor_.recordCloud(ms, out.stats.backend, note);
   NODELET_DEBUG(
       "%s: %zu points in, %zu ground, %zu non-ground (%zu NaN/Inf, %zu out of range), filter "
       "%.2f ms, total %.2f ms",
@@ -361,106 +304,6 @@ void GroundFilterNodelet::publish(const ProcessedCloud& out, double ms) {
     t->data = ms;
     pub_time_.publish(std_msgs::Float64ConstPtr(t));
   }
-}
-
-void GroundFilterNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) {
-  using ull = unsigned long long;
-  const ros::WallTime now = ros::WallTime::now();
-  const CounterValues total = counters_.values();
-  CounterValues last;
-  double ms_sum, ms_max, dt;
-  std::uint64_t clouds;
-  std::string backend, note;
-  {
-    std::lock_guard<std::mutex> lock(monitor_mutex_);
-    ms_sum = monitor_.window_ms_sum;
-    ms_max = monitor_.window_ms_max;
-    clouds = monitor_.window_clouds;
-    monitor_.window_ms_sum = monitor_.window_ms_max = 0.0;
-    monitor_.window_clouds = 0;
-    backend = monitor_.backend;
-    note = monitor_.fallback_note;
-    dt = std::max(1e-6, (now - monitor_.last_diagnose).toSec());
-    monitor_.last_diagnose = now;
-    last = monitor_.last_counts;
-    monitor_.last_counts = total;
-  }
-  bool have_config;
-  {
-    std::lock_guard<std::mutex> lock(config_mutex_);
-    have_config = static_cast<bool>(config_);
-  }
-  // Drop reasons and stream irregularities: name, count since start, count since last update.
-  struct Item {
-    const char* name;
-    std::uint64_t total;
-    std::uint64_t delta;
-  };
-  auto item = [](const char* name, std::uint64_t CounterValues::*field, const CounterValues& t,
-                 const CounterValues& l) {
-    return Item{name, t.*field, t.*field - l.*field};
-  };
-  const Item drops[] = {
-      item("malformed", &CounterValues::clouds_rejected, total, last),
-      item("no transform", &CounterValues::clouds_no_transform, total, last),
-      item("not PointCloud2", &CounterValues::not_cloud, total, last),
-  };
-  const Item stream[] = {
-      item("frame_id changes", &CounterValues::frame_changes, total, last),
-      item("stamps going back", &CounterValues::stamps_backwards, total, last),
-  };
-  const double in_hz = (total.clouds_in - last.clouds_in) / dt;
-  const double out_hz = (total.clouds_out - last.clouds_out) / dt;
-
-  char head[128];
-  std::snprintf(head, sizeof(head), "%.1f Hz in, %.1f Hz out", in_hz, out_hz);
-  std::string problems;
-  for (const Item& d : drops) {
-    if (d.delta) {
-      problems +=
-          (problems.empty() ? "" : ", ") + std::to_string(d.delta) + " dropped (" + d.name + ")";
-    }
-  }
-  for (const Item& s : stream) {
-    if (s.delta)
-      problems += (problems.empty() ? "" : ", ") + std::to_string(s.delta) + " " + s.name;
-  }
-  if (!have_config) {
-    status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "no filter configuration");
-  } else if (!problems.empty()) {
-    char since[48];
-    std::snprintf(since, sizeof(since), " in the last %.1f s", dt);
-    status.summary(diagnostic_msgs::DiagnosticStatus::WARN,
-                   std::string(head) + "; " + problems + since);
-  } else {
-    status.summary(diagnostic_msgs::DiagnosticStatus::OK, head);
-  }
-
-  status.add("method", methodName());
-  status.add("backend", backend.empty() ? std::string("n/a (no neighbour search)") : backend);
-  status.add("gravity frame",
-             gravity_frame_.empty() ? std::string("(input frame)") : gravity_frame_);
-  status.addf("input rate [Hz]", "%.2f", in_hz);
-  status.addf("output rate [Hz]", "%.2f", out_hz);
-  if (clouds) {
-    status.addf("processing time mean [ms]", "%.2f", ms_sum / clouds);
-    status.addf("processing time max [ms]", "%.2f", ms_max);
-  } else {
-    status.add("processing time mean [ms]", "n/a (no cloud)");
-    status.add("processing time max [ms]", "n/a (no cloud)");
-  }
-  status.add("clouds in", static_cast<ull>(total.clouds_in));
-  status.add("clouds out", static_cast<ull>(total.clouds_out));
-  status.add("dropped", static_cast<ull>(total.dropped()));
-  for (const Item& d : drops)
-    status.add(std::string("dropped: ") + d.name, static_cast<ull>(d.total));
-  status.add("invalid points (NaN/Inf)", static_cast<ull>(total.invalid_points));
-  status.add("out of range points", static_cast<ull>(total.out_of_range_points));
-  status.add("filter errors (published as non-ground)", static_cast<ull>(total.filter_errors));
-  status.add("fallbacks", static_cast<ull>(total.fallbacks));
-  status.add("last fallback", note.empty() ? std::string("none") : note);
-  for (const Item& s : stream) status.add(s.name, static_cast<ull>(s.total));
-  status.add("refused parameter sets", static_cast<ull>(total.config_rejected));
 }
 
 }  // namespace ground_filter

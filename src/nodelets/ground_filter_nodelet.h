@@ -6,14 +6,7 @@
 #include <nodelet_topic_tools/nodelet_lazy.h>
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
-#include <tf2_ros/buffer.h>
-#include <tf2_ros/transform_listener.h>
 
-#include <Eigen/Geometry>
-#include <array>
-#include <atomic>
-#include <cstddef>
-#include <cstdint>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -23,6 +16,8 @@
 
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/working_volume.h"
+#include "gravity_transform.h"
+#include "nodelet_monitor.h"
 #include "params_from_config.h"
 #include "point_cloud2.h"
 
@@ -77,45 +72,8 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   GroundFilterNodelet();
   ~GroundFilterNodelet() override;
 
-  /// \brief The nodelet's counters by name: T = std::uint64_t for values at one moment (copied,
-  ///        subtracted, logged), T = std::atomic<std::uint64_t> for the live counters.
-  template <class T>
-  struct CounterSet {
-    T clouds_in{0};            ///< clouds received
-    T clouds_out{0};           ///< clouds split and published
-    T clouds_rejected{0};      ///< dropped: malformed clouds
-    T clouds_no_transform{0};  ///< dropped: no transform to the gravity frame
-    T not_cloud{0};            ///< dropped: input messages that are no PointCloud2
-    T filter_errors{0};        ///< filter threw: published all non-ground
-    T invalid_points{0};       ///< NaN/Inf points sent to non-ground
-    T out_of_range_points{0};  ///< points outside the working volume -> non-ground
-    T config_rejected{0};      ///< parameter sets refused by validation
-    T frame_changes{0};        ///< clouds whose frame_id differs from the last
-    T stamps_backwards{0};     ///< clouds stamped before the previous one
-    T fallbacks{0};            ///< clouds with a FilterStats::note (fallback)
-
-    /// \brief Every counter above, in order (copies walk this list).
-    static const std::array<T CounterSet::*, 12>& all() {
-      static const std::array<T CounterSet::*, 12> members = {
-          &CounterSet::clouds_in,        &CounterSet::clouds_out,
-          &CounterSet::clouds_rejected,  &CounterSet::clouds_no_transform,
-          &CounterSet::not_cloud,        &CounterSet::filter_errors,
-          &CounterSet::invalid_points,   &CounterSet::out_of_range_points,
-          &CounterSet::config_rejected,  &CounterSet::frame_changes,
-          &CounterSet::stamps_backwards, &CounterSet::fallbacks};
-      return members;
-    }
-    /// \brief Clouds received but not published, all reasons.
-    std::uint64_t dropped() const { return clouds_rejected + clouds_no_transform + not_cloud; }
-  };
-  /// \brief Counter values at one moment.
-  using CounterValues = CounterSet<std::uint64_t>;
-
-  /// \brief Counters since start (updated and read from any thread).
-  struct Counters : CounterSet<std::atomic<std::uint64_t>> {
-    /// \brief The current values (each read atomically; not one snapshot of all).
-    CounterValues values() const;
-  };
+  /// \brief Counters since start (see NodeletMonitor).
+  using Counters = NodeletMonitor::Counters;
 
  protected:
   /// \brief Sets up node handles, outputs, the leaf (onInitFilter), builds the first filter
@@ -142,7 +100,7 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   void unsubscribe() override;
 
   /// \brief Counters for logs and diagnostics.
-  const Counters& counters() const { return counters_; }
+  const Counters& counters() const { return monitor_.counters(); }
 
  private:
   /// One installed configuration; its address identifies it, so the cloud callback can tell
@@ -152,51 +110,21 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
     WorkingVolume volume;
     std::string description;
   };
-  // Stream problems and rejection reasons, each with its own log throttle (wall time).
-  enum LogSlot : int {
-    kNoTransform = static_cast<int>(CloudRejectReason::kCount),
-    kNotCloud,
-    kFrameChange,
-    kStampBack,
-    kLabeled,
-    kLogSlotCount
-  };
-  // Everything the cloud callback reports, shared with diagnose() and the logs.
-  struct Monitor {
-    std::string last_frame_id;  // stream checks
-    ros::Time last_stamp;
-    bool have_last = false;
-    double window_ms_sum = 0.0;  // processing times since the last diagnostic update
-    double window_ms_max = 0.0;
-    std::uint64_t window_clouds = 0;
-    std::string backend;        // FilterStats::backend of the last cloud
-    std::string fallback_note;  // last non-empty FilterStats::note
-    ros::WallTime last_diagnose;
-    CounterValues last_counts;  // at the previous diagnostic update
-    ros::WallTime last_log[kLogSlotCount];
-    std::uint64_t suppressed[kLogSlotCount] = {};
-  };
-
   void cloudCallback(const sensor_msgs::PointCloud2ConstPtr& msg);
   // Builds the filter object of the installed configuration when it changed (process_mutex_).
   void updateFilter();
   // Publishes one processed cloud and records its counts, time and backend.
   void publish(const ProcessedCloud& out, double ms);
   void logRejected(CloudRejectReason reason, const std::string& message);
-  // True when a message of this slot may be logged now; counts the suppressed ones.
-  bool logNow(int slot, std::uint64_t* suppressed = nullptr);
   // Counts one stream event in `counter` and warns "<method>: <what> (N so far)<then>" when
   // logNow(slot) allows it.
   void countAndWarn(std::atomic<std::uint64_t>* counter, int slot, const std::string& what,
                     const char* then);
   // Counts and warns about frame_id changes and stamps going back between consecutive clouds.
   void checkStream(const std_msgs::Header& header);
-  // Transform gravity_frame_ <- header.frame_id at header.stamp, waiting up to tf_timeout_.
-  bool lookupGravityTransform(const std_msgs::Header& header, Eigen::Isometry3d* transform,
-                              std::string* error);
   // An input message that is no PointCloud2 (see CloudSubscriptionHelper).
   void onNotCloud(const std::string& what, const std::string& publisher);
-  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
+  bool haveConfig();
 
   ros::Subscriber sub_input_;
   ros::Publisher pub_ground_;
@@ -205,17 +133,13 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   ros::Publisher pub_labeled_;
   int queue_size_ = 3;
 
-  std::string gravity_frame_;  // empty: classify in the input frame
-  double tf_timeout_ = 0.1;    // [s] wall time
-  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
-  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  std::unique_ptr<GravityTransform> gravity_;  // null: classify in the input frame
 
   std::unique_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer diagnostic_timer_;
   ros::WallTimer trim_timer_;  // malloc_trim (glibc) every ~malloc_trim_period
 
-  std::mutex monitor_mutex_;  // guards monitor_ (short sections, never held while filtering)
-  Monitor monitor_;
+  NodeletMonitor monitor_;  // counters, log throttles, diagnostics
 
   std::mutex config_mutex_;  // guards config_ (set by reconfigure, read by the cloud callback)
   std::shared_ptr<const FilterConfig> config_;
@@ -227,8 +151,6 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   std::unique_ptr<WorkingVolumeFilter> filter_;
   CloudProcessingBuffers buffers_;
   std::string logged_note_;  // last backend note written to the log
-
-  Counters counters_;
 };
 
 /// \brief A leaf's parameter plumbing, shared by every filter nodelet: a dynamic_reconfigure

@@ -150,26 +150,23 @@ double readAs(const std::uint8_t* p) {
 }
 
 double readNumber(const std::uint8_t* p, std::uint8_t datatype) {
-  switch (datatype) {
-    case pcl::PCLPointField::INT8:
-      return readAs<std::int8_t>(p);
-    case pcl::PCLPointField::UINT8:
-      return readAs<std::uint8_t>(p);
-    case pcl::PCLPointField::INT16:
-      return readAs<std::int16_t>(p);
-    case pcl::PCLPointField::UINT16:
-      return readAs<std::uint16_t>(p);
-    case pcl::PCLPointField::INT32:
-      return readAs<std::int32_t>(p);
-    case pcl::PCLPointField::UINT32:
-      return readAs<std::uint32_t>(p);
-    case pcl::PCLPointField::FLOAT32:
-      return readAs<float>(p);
-    case pcl::PCLPointField::FLOAT64:
-      return readAs<double>(p);
-    default:
-      return std::nan("");  // unknown type: isprsTruth() maps it to "ignored"
+  // Indexed by pcl::PCLPointField's datatype codes INT8 (1) ... FLOAT64 (8).
+  using Reader = double (*)(const std::uint8_t*);
+  static const Reader kReaders[] = {nullptr,
+                                    readAs<std::int8_t>,
+                                    readAs<std::uint8_t>,
+                                    readAs<std::int16_t>,
+                                    readAs<std::uint16_t>,
+                                    readAs<std::int32_t>,
+                                    readAs<std::uint32_t>,
+                                    readAs<float>,
+                                    readAs<double>};
+  static_assert(pcl::PCLPointField::INT8 == 1 && pcl::PCLPointField::FLOAT64 == 8,
+                "PCL datatype codes");
+  if (datatype == 0 || datatype >= sizeof(kReaders) / sizeof(kReaders[0])) {
+    return std::nan("");  // unknown type: isprsTruth() maps it to "ignored"
   }
+  return kReaders[datatype](p);
 }
 
 const pcl::PCLPointField* findField(const pcl::PCLPointCloud2& cloud, const std::string& name) {

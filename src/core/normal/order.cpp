@@ -5,25 +5,11 @@
 
 #include <limits>
 
+#include "cpu_gpu_common.h"
 #include "radix_sort.h"
 
 namespace ground_filter {
 namespace normal {
-
-namespace {
-
-/// Spreads the 32 bits of v over the even bits of a 64-bit word (Morton interleave).
-std::uint64_t spreadBits(std::uint64_t v) {
-  v &= 0xffffffffULL;
-  v = (v | (v << 16)) & 0x0000ffff0000ffffULL;
-  v = (v | (v << 8)) & 0x00ff00ff00ff00ffULL;
-  v = (v | (v << 4)) & 0x0f0f0f0f0f0f0f0fULL;
-  v = (v | (v << 2)) & 0x3333333333333333ULL;
-  v = (v | (v << 1)) & 0x5555555555555555ULL;
-  return v;
-}
-
-}  // namespace
 
 std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_segments,
                             int segment_points, int threads) {
@@ -58,7 +44,7 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
   for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
     const std::uint32_t cx = cellIndex(raw_xyz_[3 * i], min_x, 1.0 / cell);
     const std::uint32_t cy = cellIndex(raw_xyz_[3 * i + 1], min_y, 1.0 / cell);
-    keys_[i] = spreadBits(cx) | (spreadBits(cy) << 1);
+    keys_[i] = columnKey(cx, cy);
   }
   radixSortByKey(keys_, &order_, &sort_scratch_);
 #pragma omp parallel for num_threads(nt) schedule(static)

@@ -8,29 +8,13 @@
 #include <algorithm>
 #include <cmath>
 
+#include "cpu_gpu_common.h"
 #include "radix_sort.h"
 
 namespace ground_filter {
 namespace normal {
 
 namespace {
-
-/// Small deterministic generator (splitmix64): same sequence on every platform and library.
-struct SplitMix64 {
-  std::uint64_t state;
-  explicit SplitMix64(std::uint64_t seed) : state(seed) {}
-  std::uint64_t next() {
-    std::uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-  }
-  std::size_t below(std::size_t n) { return static_cast<std::size_t>(next() % n); }
-};
-
-constexpr std::uint64_t kRansacSeed = 0x67f1a3c5d2b9e481ULL;  // fixed: reproducible output
-constexpr std::size_t kRansacEvalPoints = 2048;  // hypotheses are scored on at most this many
-constexpr std::size_t kMinTilePoints = 10;  // fewer voted points: the tile uses the global plane
 
 double distanceOf(const Plane& plane, const float* p) { return plane.distance(p[0], p[1], p[2]); }
 

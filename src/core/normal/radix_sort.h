@@ -2,7 +2,6 @@
 #define GROUND_FILTER_SRC_CORE_NORMAL_RADIX_SORT_H
 
 #include <array>
-#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -39,14 +38,6 @@ inline void radixSortByKey(const std::vector<std::uint64_t>& keys,
     }
     order->swap(*scratch);
   }
-}
-
-/// \brief Integer cell coordinate of `v` on a grid starting at `lo`, clamped to 32 bits.
-inline std::uint32_t cellIndex(double v, double lo, double inv_cell) {
-  const double c = std::floor((v - lo) * inv_cell);
-  if (!(c > 0.0)) return 0;
-  if (c >= 4294967295.0) return 4294967295U;
-  return static_cast<std::uint32_t>(c);
 }
 
 }  // namespace normal

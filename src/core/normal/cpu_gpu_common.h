@@ -1,0 +1,69 @@
+#ifndef GROUND_FILTER_SRC_CORE_NORMAL_CPU_GPU_COMMON_H
+#define GROUND_FILTER_SRC_CORE_NORMAL_CPU_GPU_COMMON_H
+
+// Helpers and constants of the normal filter that the CPU code and the CUDA pipeline (cuda/src)
+// must compute alike: one source, compiled by the host compiler and by nvcc.
+
+#include <math.h>
+
+#include <cstddef>
+#include <cstdint>
+
+#ifdef __CUDACC__
+#define GF_HOST_DEVICE __host__ __device__
+#else
+#define GF_HOST_DEVICE
+#endif
+
+namespace ground_filter {
+namespace normal {
+
+/// \brief Integer cell coordinate of `v` on a grid starting at `lo`, clamped to 32 bits.
+GF_HOST_DEVICE inline std::uint32_t cellIndex(double v, double lo, double inv_cell) {
+  const double c = floor((v - lo) * inv_cell);
+  if (!(c > 0.0)) return 0;
+  if (c >= 4294967295.0) return 4294967295U;
+  return static_cast<std::uint32_t>(c);
+}
+
+/// \brief Spreads the 32 bits of v over the even bits of a 64-bit word (Morton interleave).
+GF_HOST_DEVICE inline std::uint64_t spreadBits(std::uint64_t v) {
+  v &= 0xffffffffULL;
+  v = (v | (v << 16)) & 0x0000ffff0000ffffULL;
+  v = (v | (v << 8)) & 0x00ff00ff00ff00ffULL;
+  v = (v | (v << 4)) & 0x0f0f0f0f0f0f0f0fULL;
+  v = (v | (v << 2)) & 0x3333333333333333ULL;
+  v = (v | (v << 1)) & 0x5555555555555555ULL;
+  return v;
+}
+
+/// \brief Morton key of the grid column (cx, cy).
+GF_HOST_DEVICE inline std::uint64_t columnKey(std::uint32_t cx, std::uint32_t cy) {
+  return spreadBits(cx) | (spreadBits(cy) << 1);
+}
+
+/// \brief Small deterministic generator (splitmix64): the same sequence on every platform,
+///        library and device, so RANSAC draws the same samples on the CPU and the GPU.
+struct SplitMix64 {
+  std::uint64_t state;
+  GF_HOST_DEVICE explicit SplitMix64(std::uint64_t seed) : state(seed) {}
+  GF_HOST_DEVICE std::uint64_t next() {
+    std::uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+  }
+  GF_HOST_DEVICE std::size_t below(std::size_t n) { return static_cast<std::size_t>(next() % n); }
+};
+
+constexpr std::uint64_t kRansacSeed = 0x67f1a3c5d2b9e481ULL;  // fixed: reproducible output
+constexpr unsigned int kRansacEvalPoints = 2048;  // hypotheses are scored on at most this many
+// Fewer voted points: the tile uses the cloud-wide plane. 3 (the fewest a plane needs): even a
+// few voted points of a far tile follow its ground better than the cloud-wide plane, which the
+// near road dominates (docs/normal_method.md, "Sparse tiles").
+constexpr unsigned int kMinTilePoints = 3;
+
+}  // namespace normal
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_CORE_NORMAL_CPU_GPU_COMMON_H

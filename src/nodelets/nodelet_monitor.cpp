@@ -1,0 +1,154 @@
+#include "nodelet_monitor.h"
+
+#include <diagnostic_msgs/DiagnosticStatus.h>
+
+#include <algorithm>
+#include <cstdio>
+
+namespace ground_filter {
+
+constexpr double NodeletMonitor::kLogPeriodS;
+
+NodeletMonitor::CounterValues NodeletMonitor::Counters::values() const {
+  CounterValues v;
+  const auto& live = CounterSet<std::atomic<std::uint64_t>>::all();
+  for (std::size_t i = 0; i < live.size(); ++i) v.*CounterValues::all()[i] = this->*live[i];
+  return v;
+}
+
+NodeletMonitor::NodeletMonitor() : last_diagnose_(ros::WallTime::now()) {}
+
+bool NodeletMonitor::logNow(int slot, std::uint64_t* suppressed) {
+  const ros::WallTime now = ros::WallTime::now();
+  std::lock_guard<std::mutex> lock(mutex_);
+  ros::WallTime& last = last_log_[slot];
+  if (!last.isZero() && (now - last).toSec() < kLogPeriodS) {
+    ++suppressed_[slot];
+    return false;
+  }
+  last = now;
+  if (suppressed) *suppressed = suppressed_[slot];
+  suppressed_[slot] = 0;
+  return true;
+}
+
+NodeletMonitor::StreamChange NodeletMonitor::checkStream(const std_msgs::Header& header) {
+  StreamChange change;
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (have_last_) {
+    change.frame_changed = header.frame_id != last_frame_id_;
+    change.went_back = header.stamp < last_stamp_;
+    if (change.frame_changed) change.old_frame = last_frame_id_;
+    if (change.went_back) change.back_s = (last_stamp_ - header.stamp).toSec();
+  }
+  last_frame_id_ = header.frame_id;
+  last_stamp_ = header.stamp;
+  have_last_ = true;
+  return change;
+}
+
+void NodeletMonitor::recordCloud(double ms, const std::string& backend, const std::string& note) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  window_ms_sum_ += ms;
+  window_ms_max_ = std::max(window_ms_max_, ms);
+  ++window_clouds_;
+  backend_ = backend;
+  if (!note.empty()) fallback_note_ = note;
+}
+
+void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status,
+                              const std::string& method, const std::string& gravity_frame,
+                              bool have_config) {
+  using ull = unsigned long long;
+  const ros::WallTime now = ros::WallTime::now();
+  const CounterValues total = counters_.values();
+  CounterValues last;
+  double ms_sum, ms_max, dt;
+  std::uint64_t clouds;
+  std::string backend, note;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ms_sum = window_ms_sum_;
+    ms_max = window_ms_max_;
+    clouds = window_clouds_;
+    window_ms_sum_ = window_ms_max_ = 0.0;
+    window_clouds_ = 0;
+    backend = backend_;
+    note = fallback_note_;
+    dt = std::max(1e-6, (now - last_diagnose_).toSec());
+    last_diagnose_ = now;
+    last = last_counts_;
+    last_counts_ = total;
+  }
+  // Drop reasons and stream irregularities: name, count since start, count since last update.
+  struct Item {
+    const char* name;
+    std::uint64_t total;
+    std::uint64_t delta;
+  };
+  auto item = [&](const char* name, std::uint64_t CounterValues::*field) {
+    return Item{name, total.*field, total.*field - last.*field};
+  };
+  const Item drops[] = {
+      item("malformed", &CounterValues::clouds_rejected),
+      item("no transform", &CounterValues::clouds_no_transform),
+      item("not PointCloud2", &CounterValues::not_cloud),
+  };
+  const Item stream[] = {
+      item("frame_id changes", &CounterValues::frame_changes),
+      item("stamps going back", &CounterValues::stamps_backwards),
+  };
+  const double in_hz = (total.clouds_in - last.clouds_in) / dt;
+  const double out_hz = (total.clouds_out - last.clouds_out) / dt;
+
+  char head[128];
+  std::snprintf(head, sizeof(head), "%.1f Hz in, %.1f Hz out", in_hz, out_hz);
+  std::string problems;
+  for (const Item& d : drops) {
+    if (d.delta) {
+      problems +=
+          (problems.empty() ? "" : ", ") + std::to_string(d.delta) + " dropped (" + d.name + ")";
+    }
+  }
+  for (const Item& s : stream) {
+    if (s.delta)
+      problems += (problems.empty() ? "" : ", ") + std::to_string(s.delta) + " " + s.name;
+  }
+  if (!have_config) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "no filter configuration");
+  } else if (!problems.empty()) {
+    char since[48];
+    std::snprintf(since, sizeof(since), " in the last %.1f s", dt);
+    status.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                   std::string(head) + "; " + problems + since);
+  } else {
+    status.summary(diagnostic_msgs::DiagnosticStatus::OK, head);
+  }
+
+  status.add("method", method);
+  status.add("backend", backend.empty() ? std::string("n/a (no neighbour search)") : backend);
+  status.add("gravity frame", gravity_frame.empty() ? std::string("(input frame)") : gravity_frame);
+  status.addf("input rate [Hz]", "%.2f", in_hz);
+  status.addf("output rate [Hz]", "%.2f", out_hz);
+  if (clouds) {
+    status.addf("processing time mean [ms]", "%.2f", ms_sum / clouds);
+    status.addf("processing time max [ms]", "%.2f", ms_max);
+  } else {
+    status.add("processing time mean [ms]", "n/a (no cloud)");
+    status.add("processing time max [ms]", "n/a (no cloud)");
+  }
+  status.add("clouds in", static_cast<ull>(total.clouds_in));
+  status.add("clouds out", static_cast<ull>(total.clouds_out));
+  status.add("dropped", static_cast<ull>(total.dropped()));
+  for (const Item& d : drops)
+    status.add(std::string("dropped: ") + d.name, static_cast<ull>(d.total));
+  status.add("invalid points (NaN/Inf)", static_cast<ull>(total.invalid_points));
+  status.add("out of range points", static_cast<ull>(total.out_of_range_points));
+  status.add("filter errors (published as non-ground)", static_cast<ull>(total.filter_errors));
+  status.add("fallbacks", static_cast<ull>(total.fallbacks));
+  status.add("last fallback", note.empty() ? std::string("none") : note);
+  for (const Item& s : stream) status.add(s.name, static_cast<ull>(s.total));
+  status.add("refused parameter sets", static_cast<ull>(total.config_rejected));
+}
+
+}  // namespace ground_filter

@@ -1,0 +1,126 @@
+#ifndef GROUND_FILTER_SRC_NODELETS_NODELET_MONITOR_H
+#define GROUND_FILTER_SRC_NODELETS_NODELET_MONITOR_H
+
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <ros/time.h>
+#include <std_msgs/Header.h>
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <mutex>
+#include <string>
+
+#include "point_cloud2.h"
+
+namespace ground_filter {
+
+/// \brief What a ground filter nodelet counts and reports: counters, per-kind log throttles,
+///        stream checks and the /diagnostics status. Thread-safe; publishes and logs nothing
+///        itself (the nodelet logs under its own name).
+class NodeletMonitor {
+ public:
+  /// \brief The counters by name: T = std::uint64_t for values at one moment (copied,
+  ///        subtracted, logged), T = std::atomic<std::uint64_t> for the live counters.
+  template <class T>
+  struct CounterSet {
+    T clouds_in{0};            ///< clouds received
+    T clouds_out{0};           ///< clouds split and published
+    T clouds_rejected{0};      ///< dropped: malformed clouds
+    T clouds_no_transform{0};  ///< dropped: no transform to the gravity frame
+    T not_cloud{0};            ///< dropped: input messages that are no PointCloud2
+    T filter_errors{0};        ///< filter threw: published all non-ground
+    T invalid_points{0};       ///< NaN/Inf points sent to non-ground
+    T out_of_range_points{0};  ///< points outside the working volume -> non-ground
+    T config_rejected{0};      ///< parameter sets refused by validation
+    T frame_changes{0};        ///< clouds whose frame_id differs from the last
+    T stamps_backwards{0};     ///< clouds stamped before the previous one
+    T fallbacks{0};            ///< clouds with a FilterStats::note (fallback)
+
+    /// \brief Every counter above, in order (copies walk this list).
+    static const std::array<T CounterSet::*, 12>& all() {
+      static const std::array<T CounterSet::*, 12> members = {
+          &CounterSet::clouds_in,        &CounterSet::clouds_out,
+          &CounterSet::clouds_rejected,  &CounterSet::clouds_no_transform,
+          &CounterSet::not_cloud,        &CounterSet::filter_errors,
+          &CounterSet::invalid_points,   &CounterSet::out_of_range_points,
+          &CounterSet::config_rejected,  &CounterSet::frame_changes,
+          &CounterSet::stamps_backwards, &CounterSet::fallbacks};
+      return members;
+    }
+    /// \brief Clouds received but not published, all reasons.
+    std::uint64_t dropped() const { return clouds_rejected + clouds_no_transform + not_cloud; }
+  };
+  /// \brief Counter values at one moment.
+  using CounterValues = CounterSet<std::uint64_t>;
+
+  /// \brief Counters since start (updated and read from any thread).
+  struct Counters : CounterSet<std::atomic<std::uint64_t>> {
+    /// \brief The current values (each read atomically; not one snapshot of all).
+    CounterValues values() const;
+  };
+
+  /// \brief Log throttle slots: one per CloudRejectReason, then the stream problems.
+  enum LogSlot : int {
+    kNoTransform = static_cast<int>(CloudRejectReason::kCount),
+    kNotCloud,
+    kFrameChange,
+    kStampBack,
+    kLabeled,
+    kLogSlotCount
+  };
+
+  /// \brief How a cloud's header differs from the previous cloud's.
+  struct StreamChange {
+    bool frame_changed = false;
+    std::string old_frame;   ///< previous frame_id, when it changed
+    bool went_back = false;  ///< stamp before the previous one
+    double back_s = 0.0;     ///< by how much [s]
+  };
+
+  /// \brief Seconds between two log lines of the same slot.
+  static constexpr double kLogPeriodS = 5.0;
+
+  NodeletMonitor();
+
+  /// \brief Live counters (callers increment them directly).
+  Counters& counters() { return counters_; }
+  const Counters& counters() const { return counters_; }
+
+  /// \brief True when a message of this slot may be logged now (wall time); counts the
+  ///        suppressed ones and returns their number since the last message in `suppressed`.
+  bool logNow(int slot, std::uint64_t* suppressed = nullptr);
+
+  /// \brief Compares `header` with the previous cloud's and remembers it.
+  StreamChange checkStream(const std_msgs::Header& header);
+
+  /// \brief Records one published cloud: callback-to-publish time [ms], the backend that ran
+  ///        and its fallback note (empty: none).
+  void recordCloud(double ms, const std::string& backend, const std::string& note);
+
+  /// \brief Fills the status: rates and times since the previous call, drops and stream
+  ///        problems (WARN while they occur), totals; ERROR without a filter configuration.
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status, const std::string& method,
+                const std::string& gravity_frame, bool have_config);
+
+ private:
+  std::mutex mutex_;  // guards everything below (short sections, never held while filtering)
+  std::string last_frame_id_;  // stream checks
+  ros::Time last_stamp_;
+  bool have_last_ = false;
+  double window_ms_sum_ = 0.0;  // processing times since the last diagnostic update
+  double window_ms_max_ = 0.0;
+  std::uint64_t window_clouds_ = 0;
+  std::string backend_;        // FilterStats::backend of the last cloud
+  std::string fallback_note_;  // last non-empty FilterStats::note
+  ros::WallTime last_diagnose_;
+  CounterValues last_counts_;  // at the previous diagnostic update
+  ros::WallTime last_log_[kLogSlotCount];
+  std::uint64_t suppressed_[kLogSlotCount] = {};
+
+  Counters counters_;
+};
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_NODELETS_NODELET_MONITOR_H
