@@ -112,7 +112,7 @@ void Voter::run(const VoxelGrid& g, int threads, WorkerPool* workers, Classifier
   acc_.resize(static_cast<std::size_t>(nt));
   for (int t = 0; t < nt; ++t) {  // here: a worker may first run a chunk in a later scan
     id_rows_[t].reserve(3 * (g.ny + 2));
-    acc_[t].assign(g.nz + 2, 0);
+    acc_[t].resize(g.nz + 2, 0);  // all zero between scans: the vote clears what it adds to
   }
   workers->run(nt, nch, [&](int t, int c) { vote(g, t, c, cls); });
 }
