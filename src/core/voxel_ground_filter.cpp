@@ -139,10 +139,18 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
   const std::uint32_t* idx = g.point_index.data();
   const std::uint8_t* gr = m.classifier.ground.data();
   std::uint8_t* out = labels->data();
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::uint32_t slot = g.packed ? static_cast<std::uint32_t>(keys[i] & slot_mask) : ord[i];
-    out[g.all_valid ? slot : idx[slot]] = gr[i];
-    ground_count += gr[i];
+  if (g.packed && g.all_valid) {  // the common case, without the layout tests per point
+    for (std::size_t i = 0; i < n; ++i) {
+      out[keys[i] & slot_mask] = gr[i];
+      ground_count += gr[i];
+    }
+  } else {
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint32_t slot =
+          g.packed ? static_cast<std::uint32_t>(keys[i] & slot_mask) : ord[i];
+      out[g.all_valid ? slot : idx[slot]] = gr[i];
+      ground_count += gr[i];
+    }
   }
   st.ground_points = ground_count;
   st.total_ms = msSince(t_start);

@@ -41,32 +41,43 @@ void GroundModel::setGlobal(const HeightPlane& gp) {
 }
 
 void GroundModel::markReach(const CellGrid& cells) {
-  const std::uint64_t ncx = cells.ncx, ncy = cells.ncy;
+  // Dilation along y (bit 1), then along x (bit 2), by kReachCells; every sweep runs along the
+  // rows (x major) with selects instead of branches on the data, so the compiler vectorises the
+  // x sweeps (one "last cell seen" per y).
+  const std::int64_t ncx = static_cast<std::int64_t>(cells.ncx);
+  const std::int64_t ncy = static_cast<std::int64_t>(cells.ncy);
   reach_.assign(cells.count(), 0);
-  for (std::uint64_t x = 0; x < ncx; ++x) {  // dilate along y (bit 1), then along x (bit 2)
+  for (std::int64_t x = 0; x < ncx; ++x) {
     const std::uint8_t* used = cells.used.data() + x * ncy;
     std::uint8_t* r = reach_.data() + x * ncy;
     std::int64_t last = -(kReachCells + 1);
-    for (std::int64_t y = 0; y < static_cast<std::int64_t>(ncy); ++y) {
-      if (used[y]) last = y;
-      if (y - last <= kReachCells) r[y] = 1;
+    for (std::int64_t y = 0; y < ncy; ++y) {
+      last = used[y] ? y : last;
+      r[y] = static_cast<std::uint8_t>(y - last <= kReachCells);
     }
-    last = static_cast<std::int64_t>(ncy) + kReachCells + 1;
-    for (std::int64_t y = static_cast<std::int64_t>(ncy) - 1; y >= 0; --y) {
-      if (used[y]) last = y;
-      if (last - y <= kReachCells) r[y] = 1;
+    last = ncy + kReachCells + 1;
+    for (std::int64_t y = ncy - 1; y >= 0; --y) {
+      last = used[y] ? y : last;
+      r[y] = static_cast<std::uint8_t>(r[y] | (last - y <= kReachCells));
     }
   }
-  for (std::uint64_t y = 0; y < ncy; ++y) {
-    std::int64_t last = -(kReachCells + 1);
-    for (std::int64_t x = 0; x < static_cast<std::int64_t>(ncx); ++x) {
-      if (reach_[x * ncy + y] & 1) last = x;
-      if (x - last <= kReachCells) reach_[x * ncy + y] |= 2;
+  last_x_.assign(static_cast<std::size_t>(ncy), static_cast<std::int32_t>(-(kReachCells + 1)));
+  std::int32_t* const last_x = last_x_.data();
+  for (std::int64_t x = 0; x < ncx; ++x) {
+    std::uint8_t* r = reach_.data() + x * ncy;
+    const std::int32_t xi = static_cast<std::int32_t>(x);
+    for (std::int64_t y = 0; y < ncy; ++y) {
+      last_x[y] = (r[y] & 1) ? xi : last_x[y];
+      r[y] = static_cast<std::uint8_t>(r[y] | (xi - last_x[y] <= kReachCells ? 2 : 0));
     }
-    last = static_cast<std::int64_t>(ncx) + kReachCells + 1;
-    for (std::int64_t x = static_cast<std::int64_t>(ncx) - 1; x >= 0; --x) {
-      if (reach_[x * ncy + y] & 1) last = x;
-      if (last - x <= kReachCells) reach_[x * ncy + y] |= 2;
+  }
+  std::fill(last_x_.begin(), last_x_.end(), static_cast<std::int32_t>(ncx + kReachCells + 1));
+  for (std::int64_t x = ncx - 1; x >= 0; --x) {
+    std::uint8_t* r = reach_.data() + x * ncy;
+    const std::int32_t xi = static_cast<std::int32_t>(x);
+    for (std::int64_t y = 0; y < ncy; ++y) {
+      last_x[y] = (r[y] & 1) ? xi : last_x[y];
+      r[y] = static_cast<std::uint8_t>(r[y] | (last_x[y] - xi <= kReachCells ? 2 : 0));
     }
   }
 }
@@ -257,11 +268,22 @@ void GroundModel::grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, con
   state_[start] = CellState::kQueued;
   queue_[near_end_++] = static_cast<std::uint32_t>(start);
   std::size_t qn = 0, qf = 0, next_island = 0;
+  // The cells are taken in queue order, scattered over a grid of moments larger than L2:
+  // prefetch the moments of the cell 4 entries on.
+  auto prefetchCell = [&](const std::uint32_t* q, std::size_t i, std::size_t end) {
+    if (i + 4 < end) {
+      const char* m = reinterpret_cast<const char*>(&nbsum_[q[i + 4]]);
+      __builtin_prefetch(m);
+      __builtin_prefetch(m + sizeof(Moments) - 1);
+    }
+  };
   for (;;) {
     std::uint32_t t;
     if (qn < near_end_) {
+      prefetchCell(queue_.data(), qn, near_end_);
       t = queue_[qn++];
     } else if (qf < far_end_) {
+      prefetchCell(queue_far_.data(), qf, far_end_);
       t = queue_far_[qf++];
     } else if (!nextIsland(cells, &next_island, &t)) {
       break;

@@ -76,6 +76,7 @@ class GroundModel {
   std::size_t near_end_ = 0, far_end_ = 0;        // entries in queue_, queue_far_
   std::vector<std::uint8_t> near_q_;              // cell waits in queue_
   std::vector<std::uint8_t> reach_;
+  std::vector<std::int32_t> last_x_;  // markReach(): last x with bit 1 per y
   std::vector<HeightPlane> final_;
   std::vector<float> cos_;
 };

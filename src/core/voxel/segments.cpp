@@ -63,6 +63,7 @@ std::int64_t Segmenter::run(const VoxelGroundFilterParams& p, VoxelGrid* g) {
   std::array<std::size_t, 2> held_b{}, held_e{};  // flat index range of the row a buffer holds
   const int sy_ = g->shift_y;
   const std::uint64_t my = g->mask_y, mz = g->mask_z;
+  const bool one_per_column = p.local_planes;  // see Voxelizer::build()
   std::size_t i = 0;
   while (i < nf) {
     const std::uint64_t x = vk[fl[i]] >> g->shift_x;
@@ -78,6 +79,26 @@ std::int64_t Segmenter::run(const VoxelGroundFilterParams& p, VoxelGrid* g) {
     held_e[k] = e;
     const bool has_prev = x > 0 && held_x[k ^ 1] == static_cast<std::int64_t>(x - 1);
     const std::int32_t* prev = rows + (k ^ 1) * stride + 1;
+    if (one_per_column) {
+      // At most one flat voxel a column (the local model's seeds are the lowest voxel of their
+      // column): a neighbour column holds one candidate, joined when within one z step.
+      for (std::size_t a = i; a < e; ++a) {
+        const std::uint64_t key = vk[fl[a]];
+        const std::int64_t y = static_cast<std::int64_t>((key >> sy_) & my);
+        const std::int64_t z = static_cast<std::int64_t>(key & mz);
+        const std::int32_t nbs[4] = {cur[y - 1], has_prev ? prev[y - 1] : -1,
+                                     has_prev ? prev[y] : -1, has_prev ? prev[y + 1] : -1};
+        for (std::int32_t f : nbs) {
+          const std::size_t b = f < 0 ? a : static_cast<std::size_t>(f);  // a: never joined
+          const std::int64_t dz = static_cast<std::int64_t>(vk[fl[b]] & mz) - z;
+          if ((f >= 0) & (dz >= -1) & (dz <= 1)) {
+            unite(u, static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
+          }
+        }
+      }
+      i = e;
+      continue;
+    }
     for (std::size_t a = i; a < e; ++a) {
       const std::uint64_t key = vk[fl[a]];
       const std::uint64_t col = key >> sy_;
@@ -125,7 +146,7 @@ std::int64_t Segmenter::run(const VoxelGroundFilterParams& p, VoxelGrid* g) {
 }
 
 bool Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g,
-                            std::int64_t* best, HeightPlane* gp) const {
+                            std::int64_t* best, HeightPlane* gp) {
   if (*best < 0) return false;
   // The plane of the largest segment that is not steeper than max_slope_deg: the largest one can
   // be a wall scanned line by line (its flat voxels stack up), see the docs.
@@ -148,10 +169,11 @@ bool Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
   }
   std::array<PlaneAccumulator, kCandidates> acc;
   std::array<double, kCandidates> zsum{}, cnt{};
+  rank_.assign(nf, -1);  // a lookup instead of a search of the candidates per flat voxel
+  for (int q = 0; q < ncand; ++q) rank_[cand[q]] = static_cast<std::int8_t>(q);
   for (std::size_t j = 0; j < nf; ++j) {
-    int q = 0;
-    while (q < ncand && cand[q] != uf_[j]) ++q;
-    if (q == ncand) continue;
+    const int q = rank_[uf_[j]];
+    if (q < 0) continue;
     const std::uint32_t v = g.flat[j];
     for (std::uint32_t k = g.vstart[v]; k < g.vstart[v + 1]; ++k) {
       acc[q].add(g.sx[k], g.sy[k], g.sz[k]);

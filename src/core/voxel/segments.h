@@ -22,7 +22,7 @@ class Segmenter {
   /// \brief Step 5: plane of the largest segment not steeper than max_slope_deg; sets `best` to
   ///        its id. Returns false when there is no flat segment.
   bool globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g, std::int64_t* best,
-                   HeightPlane* plane) const;
+                   HeightPlane* plane);
   /// \brief Segment id (its root) of flat voxel `i` (index into VoxelGrid::flat), after run().
   std::uint32_t segmentOf(std::size_t i) const { return uf_[i]; }
 
@@ -31,6 +31,7 @@ class Segmenter {
   std::vector<std::uint32_t> seg_voxels_;
   std::vector<std::uint64_t> seg_points_;
   std::vector<std::int32_t> rows_;  // two dense rows of flat ids (x parity)
+  std::vector<std::int8_t> rank_;   // globalPlane(): candidate index per segment id, or -1
 };
 
 }  // namespace voxel

@@ -28,7 +28,8 @@ class Voter {
   void vote(const VoxelGrid& g, int t, int range, Classifier* cls);
 
   std::vector<std::size_t> bounds_;                 // column ranges (whole rows)
-  std::vector<std::vector<std::int32_t>> id_rows_;  // per thread
+  std::vector<std::vector<std::int64_t>> id_rows_;  // per thread: column id << 2 | label mask
+  std::vector<std::vector<std::uint64_t>> acc_;     // per thread: ground << 32 | points per z
 };
 
 }  // namespace voxel

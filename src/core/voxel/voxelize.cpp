@@ -201,6 +201,90 @@ void computeKeys(const KeyJob& job, std::size_t begin, std::size_t end, std::siz
   }
 }
 
+// What gatherRuns() needs, by value (no aliasing with the arrays it writes).
+struct RunJob {
+  const std::uint64_t* keys;   // sorted
+  const std::uint32_t* order;  // slot per sorted key (not packed)
+  const std::uint32_t* pidx;   // input index per slot (not all valid)
+  const float* pts;            // x y z 0 per input point (relative)
+  float *x, *y, *z;            // out: coordinates in key order
+  std::uint32_t* pvox;         // out: voxel of each point
+  std::uint64_t* vkey;         // out: key per voxel (+ one store past the last)
+  std::uint32_t* vstart;       // out: first point per voxel
+  float *sx, *sy, *sz;         // out: coordinate sums per voxel
+  float *zlo, *zhi;            // out: z range per voxel
+  std::uint64_t slot_mask;
+  int low;  // key bits below the voxel key (slot bits when packed)
+};
+
+// Pass 1 of build(), without a branch per point or voxel (the runs are 1-2 points long on
+// average: loops over them mispredict their exits): coordinates in key order, runs of equal
+// keys become voxels (a store is always made, the counter moves when a run starts), running sums
+// and z range per voxel. Returns the number of voxels.
+template <bool kPacked, bool kAllValid>
+std::size_t gatherRuns(const RunJob job, std::size_t n) {
+  const std::uint64_t* const k = job.keys;
+  const std::uint32_t* const o = job.order;
+  const std::uint32_t* const pidx = job.pidx;
+  const float* const in = job.pts;
+  float* const x_out = job.x;
+  float* const y_out = job.y;
+  float* const z_out = job.z;
+  std::uint32_t* const pv = job.pvox;
+  std::uint64_t* const vk = job.vkey;
+  std::uint32_t* const vs = job.vstart;
+  float* const vx = job.sx;
+  float* const vy = job.sy;
+  float* const vz = job.sz;
+  float* const zlo = job.zlo;
+  float* const zhi = job.zhi;
+  const std::uint64_t slot_mask = job.slot_mask;
+  const int low = job.low;
+  auto slotOf = [&](std::size_t i) {
+    return kPacked ? static_cast<std::uint32_t>(k[i] & slot_mask) : o[i];
+  };
+  auto pointOf = [&](std::uint32_t s) {
+    return in + 4 * static_cast<std::size_t>(kAllValid ? s : pidx[s]);
+  };
+  constexpr std::size_t kAhead = 48;  // prefetch distance of the random coordinate reads
+  std::size_t nv = 0;
+  std::uint64_t prev = ~std::uint64_t{0};  // no key (keys use at most 63 bits)
+  float xs = 0.f, ys = 0.f, zs = 0.f, zmn = 0.f, zmx = 0.f;
+  const float kKeep[2] = {1.f, 0.f};
+  const float kLowReset[2] = {0.f, std::numeric_limits<float>::infinity()};
+  const float kHighReset[2] = {0.f, -std::numeric_limits<float>::infinity()};
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i + kAhead < n) __builtin_prefetch(pointOf(slotOf(i + kAhead)));
+    const std::uint64_t key = k[i] >> low;
+    const float* pt = pointOf(slotOf(i));
+    const float x = pt[0], y = pt[1], z = pt[2];
+    x_out[i] = x;
+    y_out[i] = y;
+    z_out[i] = z;
+    const bool first = key != prev;
+    prev = key;
+    vk[nv] = key;  // kept when the run starts here, overwritten otherwise
+    vs[nv] = static_cast<std::uint32_t>(i);
+    nv += first;
+    const std::size_t v = nv - 1;
+    pv[i] = static_cast<std::uint32_t>(v);
+    // The same sums in the same order as a loop over the run would make (0 + x first), with
+    // arithmetic instead of selects: relative coordinates are >= +0, so s * 0 is +0.
+    const float keep = kKeep[first];
+    xs = xs * keep + x;
+    ys = ys * keep + y;
+    zs = zs * keep + z;
+    zmn = std::min(zmn + kLowReset[first], z);
+    zmx = std::max(zmx + kHighReset[first], z);
+    vx[v] = xs;
+    vy[v] = ys;
+    vz[v] = zs;
+    zlo[v] = zmn;
+    zhi[v] = zmx;
+  }
+  return nv;
+}
+
 }  // namespace
 
 void Voxelizer::scanBounds(const CloudView& cloud, float* pts, Chunk* ch) {
@@ -444,67 +528,56 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   const int sy_ = g->shift_y, sx_ = g->shift_x;
   const bool local = p.local_planes;
   const std::uint64_t my = g->mask_y, mz = g->mask_z;
-  // Two passes without a branch per point or voxel (the runs are 1-2 points long on average:
-  // loops over them mispredict their exits). Pass 1: coordinates in key order, runs of equal
-  // keys become voxels (a store is always made, the counter moves when a run starts), running
-  // sums and z range per voxel.
+  // Two passes without a branch per point or voxel. Pass 1 (gatherRuns(), specialised for the
+  // key layout): coordinates in key order, voxels, running sums and z ranges.
   zmin_.resize(runs);
   zmax_.resize(runs);
-  float* zlo = zmin_.data();
-  float* zhi = zmax_.data();
-  constexpr std::size_t kAhead = 16;  // prefetch distance of the random coordinate reads
-  std::size_t nv = 0;
-  std::uint64_t prev = ~std::uint64_t{0};  // no key (keys use at most 63 bits)
-  float xs = 0.f, ys = 0.f, zs = 0.f, zmn = 0.f, zmx = 0.f;
-  const float kKeep[2] = {1.f, 0.f};
-  const float kLowReset[2] = {0.f, std::numeric_limits<float>::infinity()};
-  const float kHighReset[2] = {0.f, -std::numeric_limits<float>::infinity()};
-  for (std::size_t i = 0; i < n; ++i) {
-    if (i + kAhead < n) {
-      const std::uint32_t ps =
-          pk ? static_cast<std::uint32_t>(k[i + kAhead] & slot_mask) : o[i + kAhead];
-      __builtin_prefetch(in + 4 * static_cast<std::size_t>(av ? ps : pidx[ps]));
-    }
-    const std::uint64_t key = k[i] >> low;
-    const std::uint32_t s = pk ? static_cast<std::uint32_t>(k[i] & slot_mask) : o[i];
-    const float* pt = in + 4 * static_cast<std::size_t>(av ? s : pidx[s]);
-    const float x = pt[0], y = pt[1], z = pt[2];
-    x_out[i] = x;
-    y_out[i] = y;
-    z_out[i] = z;
-    const bool first = key != prev;
-    prev = key;
-    vk[nv] = key;  // kept when the run starts here, overwritten otherwise
-    vs[nv] = static_cast<std::uint32_t>(i);
-    nv += first;
-    const std::size_t v = nv - 1;
-    pv[i] = static_cast<std::uint32_t>(v);
-    // The same sums in the same order as a loop over the run would make (0 + x first), with
-    // arithmetic instead of selects: relative coordinates are >= +0, so s * 0 is +0.
-    const float keep = kKeep[first];
-    xs = xs * keep + x;
-    ys = ys * keep + y;
-    zs = zs * keep + z;
-    zmn = std::min(zmn + kLowReset[first], z);
-    zmx = std::max(zmx + kHighReset[first], z);
-    vx[v] = xs;
-    vy[v] = ys;
-    vz[v] = zs;
-    zlo[v] = zmn;
-    zhi[v] = zmx;
+  RunJob job;
+  job.keys = k;
+  job.order = o;
+  job.pidx = pidx;
+  job.pts = in;
+  job.x = x_out;
+  job.y = y_out;
+  job.z = z_out;
+  job.pvox = pv;
+  job.vkey = vk;
+  job.vstart = vs;
+  job.sx = vx;
+  job.sy = vy;
+  job.sz = vz;
+  job.zlo = zmin_.data();
+  job.zhi = zmax_.data();
+  job.slot_mask = slot_mask;
+  job.low = low;
+  std::size_t nv;
+  if (pk && av) {  // the common case: one word a point, every point valid
+    nv = gatherRuns<true, true>(job, n);
+  } else if (pk) {
+    nv = gatherRuns<true, false>(job, n);
+  } else if (av) {
+    nv = gatherRuns<false, true>(job, n);
+  } else {
+    nv = gatherRuns<false, false>(job, n);
   }
+  const float* zlo = zmin_.data();
+  const float* zhi = zmax_.data();
   vs[nv] = static_cast<std::uint32_t>(n);
-  // Pass 2, per voxel: centroid, column, cell, flags and the flat / seed lists.
+  // Pass 2, per voxel: centroids (a loop of its own, which the compiler vectorises: counts are
+  // below 2^31, so the signed conversion is exact), then column, cell, flags and the flat / seed
+  // lists.
+  for (std::size_t v = 0; v < nv; ++v) {
+    const float inv = 1.f / static_cast<float>(static_cast<std::int32_t>(vs[v + 1] - vs[v]));
+    vx[v] *= inv;
+    vy[v] *= inv;
+    vz[v] *= inv;
+  }
   std::size_t ncol = 0, nflat = 0, nseed = 0;
   std::uint64_t prev_col = ~std::uint64_t{0};
   std::uint32_t cell = 0;
   for (std::size_t v = 0; v < nv; ++v) {
     const std::uint64_t key = vk[v];
     const std::uint32_t cnt = vs[v + 1] - vs[v];
-    const float inv = 1.f / static_cast<float>(cnt);
-    vx[v] *= inv;
-    vy[v] *= inv;
-    vz[v] *= inv;
     const std::uint64_t col = key >> sy_;
     const bool lowest = col != prev_col;
     prev_col = col;
