@@ -532,34 +532,13 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   // key layout): coordinates in key order, voxels, running sums and z ranges.
   zmin_.resize(runs);
   zmax_.resize(runs);
-  RunJob job;
-  job.keys = k;
-  job.order = o;
-  job.pidx = pidx;
-  job.pts = in;
-  job.x = x_out;
-  job.y = y_out;
-  job.z = z_out;
-  job.pvox = pv;
-  job.vkey = vk;
-  job.vstart = vs;
-  job.sx = vx;
-  job.sy = vy;
-  job.sz = vz;
-  job.zlo = zmin_.data();
-  job.zhi = zmax_.data();
-  job.slot_mask = slot_mask;
-  job.low = low;
-  std::size_t nv;
-  if (pk && av) {  // the common case: one word a point, every point valid
-    nv = gatherRuns<true, true>(job, n);
-  } else if (pk) {
-    nv = gatherRuns<true, false>(job, n);
-  } else if (av) {
-    nv = gatherRuns<false, true>(job, n);
-  } else {
-    nv = gatherRuns<false, false>(job, n);
-  }
+  // Fields in RunJob's order: inputs, point outputs, voxel outputs, key layout.
+  const RunJob job = {k,  o,  pidx, in, x_out,        y_out,        z_out,     pv,  vk,
+                      vs, vx, vy,   vz, zmin_.data(), zmax_.data(), slot_mask, low};
+  using Gather = std::size_t (*)(const RunJob, std::size_t);
+  static const Gather kGather[2][2] = {{gatherRuns<false, false>, gatherRuns<false, true>},
+                                       {gatherRuns<true, false>, gatherRuns<true, true>}};
+  const std::size_t nv = kGather[pk][av](job, n);  // [packed keys][every point valid]
   const float* zlo = zmin_.data();
   const float* zhi = zmax_.data();
   vs[nv] = static_cast<std::uint32_t>(n);
