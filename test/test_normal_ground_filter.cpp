@@ -25,6 +25,7 @@
 #include "ground_filter/scene/scene_generator.h"
 #include "neighbors/kdtree_neighbor_search.h"
 #include "normal/neighborhood_pca.h"
+#include "radix_sort.h"
 #include "normal/plane.h"
 
 namespace gf = ground_filter;
@@ -704,4 +705,25 @@ TEST(NormalGroundFilterKitti, PooledF1AboveFloor) {
   RecordProperty("pooled_recall", std::to_string(m.recall));
   // Floor = measured pooled F1 with the defaults minus one point (README, "normal").
   EXPECT_GE(m.f1, kNormalF1Floor);
+}
+
+TEST(RadixSort, SortByKeyIsStableAndMatchesStdStableSort) {
+  // The core's one sort (voxel keys, grid-column and tile keys): narrow and full-width keys,
+  // many duplicates, constant keys, empty and single inputs; the same buffers reused.
+  std::mt19937_64 rng(3);
+  gf::RadixSortScratch scratch;
+  std::vector<std::uint32_t> order;
+  for (int bits : {0, 1, 8, 15, 16, 22, 31, 45, 64}) {
+    for (std::size_t n : {0u, 1u, 2u, 17u, 5000u}) {
+      std::vector<std::uint64_t> keys(n);
+      const std::uint64_t mask = bits == 64 ? ~0ULL : (std::uint64_t{1} << bits) - 1;
+      for (auto& k : keys) k = rng() & mask & (rng() % 4 == 0 ? ~0ULL : ~0xffULL);
+      std::vector<std::uint32_t> want(n);
+      for (std::size_t i = 0; i < n; ++i) want[i] = static_cast<std::uint32_t>(i);
+      std::stable_sort(want.begin(), want.end(),
+                       [&](std::uint32_t a, std::uint32_t b) { return keys[a] < keys[b]; });
+      gf::radixSortByKey(keys, &order, &scratch);
+      EXPECT_EQ(order, want) << "bits " << bits << ", n " << n;
+    }
+  }
 }

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "ground_filter/cloud_view.h"
+#include "radix_sort.h"
 
 namespace ground_filter {
 namespace normal {
@@ -44,7 +45,8 @@ class OrderStage {
   std::vector<float> raw_xyz_, xyz_;
   std::vector<std::uint32_t> raw_source_, source_;
   std::vector<std::uint64_t> keys_;
-  std::vector<std::uint32_t> order_, sort_scratch_;
+  std::vector<std::uint32_t> order_;
+  RadixSortScratch sort_scratch_;
   std::vector<std::size_t> block_count_;  // compaction: valid points before each block
   std::vector<std::pair<std::size_t, std::size_t>> segments_;
   Extent extent_;

@@ -32,7 +32,8 @@ class PlaneStage {
 
  private:
   std::vector<std::uint64_t> keys_;
-  std::vector<std::uint32_t> tile_order_, sort_scratch_;
+  std::vector<std::uint32_t> tile_order_;
+  RadixSortScratch sort_scratch_;
   std::vector<std::pair<std::size_t, std::size_t>> tiles_;  // [begin, end) in tile_order_
   std::vector<std::vector<std::uint32_t>> thread_idx_, thread_eval_;
 };

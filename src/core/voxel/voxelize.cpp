@@ -9,6 +9,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "radix_sort.h"
+
 namespace ground_filter {
 namespace voxel {
 
@@ -78,7 +80,6 @@ inline void v4Cells(V4 p, float inv, const std::int32_t* last, std::uint32_t* ou
 
 namespace {
 
-constexpr int kMaxDigitBits = 15;  // radix digits: at most 32 k buckets (the histograms fit L2)
 // A ground seed needs this many empty voxels above it in its column: the foot of a wall, a car
 // side or a fence has occupied voxels right above it, the ground does not.
 constexpr std::uint32_t kSeedClearanceVoxels = 3;
@@ -87,45 +88,6 @@ int bitsFor(std::uint64_t max_value) {
   int bits = 1;
   while ((max_value >> bits) != 0) ++bits;
   return bits;
-}
-
-// Scatter passes of an LSD radix sort of `a` (with `b` alongside when not null) over the bits
-// [lo, lo + passes * digit); `hist` holds the digit counts of every pass (passes << digit
-// entries, counted by the caller while it wrote the keys). Passes whose digit is constant are
-// skipped.
-template <typename B>
-void radixScatter(int lo, int passes, int digit, std::uint32_t* hist, std::vector<std::uint64_t>* a,
-                  std::vector<std::uint64_t>* a_tmp, std::vector<B>* b, std::vector<B>* b_tmp) {
-  const std::size_t n = a->size();
-  const std::uint32_t mask = (1u << digit) - 1;
-  a_tmp->resize(n);
-  if (b) b_tmp->resize(n);
-  for (int q = 0; q < passes; ++q) {
-    const int shift = lo + q * digit;
-    std::uint32_t* h = hist + (static_cast<std::size_t>(q) << digit);
-    if (h[((*a)[0] >> shift) & mask] == n) continue;  // every key has this digit
-    std::uint32_t sum = 0;
-    for (std::uint32_t j = 0; j <= mask; ++j) {
-      const std::uint32_t cnt = h[j];
-      h[j] = sum;
-      sum += cnt;
-    }
-    const std::uint64_t* k = a->data();
-    std::uint64_t* kt = a_tmp->data();
-    if (b) {
-      const B* o = b->data();
-      B* ot = b_tmp->data();
-      for (std::size_t i = 0; i < n; ++i) {
-        const std::uint32_t dst = h[(k[i] >> shift) & mask]++;
-        kt[dst] = k[i];
-        ot[dst] = o[i];
-      }
-      b->swap(*b_tmp);
-    } else {
-      for (std::size_t i = 0; i < n; ++i) kt[h[(k[i] >> shift) & mask]++] = k[i];
-    }
-    a->swap(*a_tmp);
-  }
 }
 
 // What computeKeys() needs, by value (no aliasing with the arrays it writes).
@@ -407,13 +369,13 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
 
   // Pass 2: coordinates relative to the minimum (keeps float precision far from the origin:
   // UTM, TLS), voxel keys and, on one thread, the digit counts of every radix pass (as few
-  // passes as digits of at most kMaxDigitBits allow); several threads count per pass in sort().
+  // passes as digits of at most kRadixMaxDigitBits allow); several threads count per pass in sort().
   g->keys.resize(n);
   if (!g->packed) g->order.resize(n);
   if (!g->all_valid) g->point_index.resize(n);
   const int key_bits = bx + by + bz;
   plan_.lo = g->packed ? g->slot_bits : 0;
-  plan_.passes = std::max(1, (key_bits + kMaxDigitBits - 1) / kMaxDigitBits);
+  plan_.passes = std::max(1, (key_bits + kRadixMaxDigitBits - 1) / kRadixMaxDigitBits);
   plan_.digit = std::max(1, (key_bits + plan_.passes - 1) / plan_.passes);
   // Digit counts of every pass, one histogram per thread (summed below).
   const std::size_t per = static_cast<std::size_t>(plan_.passes) << plan_.digit;

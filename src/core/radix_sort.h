@@ -1,0 +1,90 @@
+#ifndef GROUND_FILTER_SRC_CORE_RADIX_SORT_H
+#define GROUND_FILTER_SRC_CORE_RADIX_SORT_H
+
+// The one sort of the core: an LSD radix sort of 64-bit keys (the voxel keys of the voxel filter,
+// the grid-column and tile keys of the normal filter).
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace ground_filter {
+
+/// Radix digits of at most this many bits: at most 32 k buckets, the histograms fit L2.
+constexpr int kRadixMaxDigitBits = 15;
+
+/// \brief Scatter passes of a stable LSD radix sort of `a` (with `b` alongside when not null)
+///        over the bits [lo, lo + passes * digit); `hist` holds the digit counts of every pass
+///        (passes << digit entries, counted by the caller, e.g. while it wrote the keys) and is
+///        overwritten. Passes whose digit is the same for every key are skipped.
+template <typename B>
+void radixScatter(int lo, int passes, int digit, std::uint32_t* hist, std::vector<std::uint64_t>* a,
+                  std::vector<std::uint64_t>* a_tmp, std::vector<B>* b, std::vector<B>* b_tmp) {
+  const std::size_t n = a->size();
+  if (n == 0) return;
+  const std::uint32_t mask = (1u << digit) - 1;
+  a_tmp->resize(n);
+  if (b) b_tmp->resize(n);
+  for (int q = 0; q < passes; ++q) {
+    const int shift = lo + q * digit;
+    std::uint32_t* h = hist + (static_cast<std::size_t>(q) << digit);
+    if (h[((*a)[0] >> shift) & mask] == n) continue;  // every key has this digit
+    std::uint32_t sum = 0;
+    for (std::uint32_t j = 0; j <= mask; ++j) {
+      const std::uint32_t cnt = h[j];
+      h[j] = sum;
+      sum += cnt;
+    }
+    const std::uint64_t* k = a->data();
+    std::uint64_t* kt = a_tmp->data();
+    if (b) {
+      const B* o = b->data();
+      B* ot = b_tmp->data();
+      for (std::size_t i = 0; i < n; ++i) {
+        const std::uint32_t dst = h[(k[i] >> shift) & mask]++;
+        kt[dst] = k[i];
+        ot[dst] = o[i];
+      }
+      b->swap(*b_tmp);
+    } else {
+      for (std::size_t i = 0; i < n; ++i) kt[h[(k[i] >> shift) & mask]++] = k[i];
+    }
+    a->swap(*a_tmp);
+  }
+}
+
+/// \brief Buffers of radixSortByKey(), reused between calls.
+struct RadixSortScratch {
+  std::vector<std::uint64_t> keys, keys_tmp;
+  std::vector<std::uint32_t> order_tmp, hist;
+};
+
+/// \brief `order` = 0 .. n-1 sorted by `keys` (stable: equal keys keep index order), through
+///        radixScatter() on a copy of the keys; digits as wide as the largest key needs.
+inline void radixSortByKey(const std::vector<std::uint64_t>& keys,
+                           std::vector<std::uint32_t>* order, RadixSortScratch* s) {
+  const std::size_t n = keys.size();
+  order->resize(n);
+  for (std::size_t i = 0; i < n; ++i) (*order)[i] = static_cast<std::uint32_t>(i);
+  if (n < 2) return;
+  std::uint64_t any = 0;
+  for (const std::uint64_t k : keys) any |= k;
+  int bits = 1;
+  while (bits < 64 && (any >> bits) != 0) ++bits;
+  const int passes = (bits + kRadixMaxDigitBits - 1) / kRadixMaxDigitBits;
+  const int digit = (bits + passes - 1) / passes;
+  const std::uint32_t mask = (1u << digit) - 1;
+  s->hist.assign(static_cast<std::size_t>(passes) << digit, 0);
+  std::uint32_t* hist = s->hist.data();
+  for (const std::uint64_t k : keys) {
+    for (int q = 0; q < passes; ++q) {
+      ++hist[(static_cast<std::size_t>(q) << digit) + ((k >> (q * digit)) & mask)];
+    }
+  }
+  s->keys = keys;
+  radixScatter(0, passes, digit, hist, &s->keys, &s->keys_tmp, order, &s->order_tmp);
+}
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_CORE_RADIX_SORT_H
