@@ -13,6 +13,13 @@ namespace ground_filter {
 /// Radix digits of at most this many bits: at most 32 k buckets, the histograms fit L2.
 constexpr int kRadixMaxDigitBits = 15;
 
+/// \brief Bits needed for the values 0 .. max_value (at least 1).
+inline int radixBitsFor(std::uint64_t max_value) {
+  int bits = 1;
+  while (bits < 64 && (max_value >> bits) != 0) ++bits;
+  return bits;
+}
+
 /// \brief Scatter passes of a stable LSD radix sort of `a` (with `b` alongside when not null)
 ///        over the bits [lo, lo + passes * digit); `hist` holds the digit counts of every pass
 ///        (passes << digit entries, counted by the caller, e.g. while it wrote the keys) and is
@@ -69,8 +76,7 @@ inline void radixSortByKey(const std::vector<std::uint64_t>& keys,
   if (n < 2) return;
   std::uint64_t any = 0;
   for (const std::uint64_t k : keys) any |= k;
-  int bits = 1;
-  while (bits < 64 && (any >> bits) != 0) ++bits;
+  const int bits = radixBitsFor(any);
   const int passes = (bits + kRadixMaxDigitBits - 1) / kRadixMaxDigitBits;
   const int digit = (bits + passes - 1) / passes;
   const std::uint32_t mask = (1u << digit) - 1;

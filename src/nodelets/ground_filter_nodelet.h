@@ -124,6 +124,7 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   void checkStream(const std_msgs::Header& header);
   // An input message that is no PointCloud2 (see CloudSubscriptionHelper).
   void onNotCloud(const std::string& what, const std::string& publisher);
+  // True once the leaf installed a filter configuration (diagnostics: ERROR without one).
   bool haveConfig();
 
   ros::Subscriber sub_input_;

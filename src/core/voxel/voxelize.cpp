@@ -84,12 +84,6 @@ namespace {
 // side or a fence has occupied voxels right above it, the ground does not.
 constexpr std::uint32_t kSeedClearanceVoxels = 3;
 
-int bitsFor(std::uint64_t max_value) {
-  int bits = 1;
-  while ((max_value >> bits) != 0) ++bits;
-  return bits;
-}
-
 // What computeKeys() needs, by value (no aliasing with the arrays it writes).
 struct KeyJob {
   float* pts;            // x y z 0 per input point: absolute in, relative to the min corner out
@@ -347,7 +341,7 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   const std::uint64_t nx = static_cast<std::uint64_t>((static_cast<double>(maxx) - minx) / vs) + 1;
   const std::uint64_t ny = static_cast<std::uint64_t>((static_cast<double>(maxy) - miny) / vs) + 1;
   const std::uint64_t nz = static_cast<std::uint64_t>((static_cast<double>(maxz) - minz) / vs) + 1;
-  const int bx = bitsFor(nx), by = bitsFor(ny), bz = bitsFor(nz);
+  const int bx = radixBitsFor(nx), by = radixBitsFor(ny), bz = radixBitsFor(nz);
   if (bx > kMaxAxisBits || by > kMaxAxisBits || bz > kMaxAxisBits) {
     std::ostringstream os;
     os << "cloud extent " << (maxx - minx) << " x " << (maxy - miny) << " x " << (maxz - minz)
