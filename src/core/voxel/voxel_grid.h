@@ -109,9 +109,11 @@ struct VoxelGrid {
   std::vector<std::uint32_t> order;
   std::vector<std::uint32_t> point_index;
 
-  // Per valid point in key order, relative to the cloud's min corner.
-  std::vector<float> sx, sy, sz;
-  Buffer<std::uint32_t> pvox;  // voxel of each point
+  // x y z v per input point, 16-byte aligned (owned by Voxelizer): coordinates relative to the
+  // cloud's min corner, v the bits of the point's voxel id (written by build(); invalid points:
+  // never read). Stages read the points in input order here, or in key order through
+  // pointAt(): there are no sorted copies.
+  float* pts = nullptr;
 
   // Per voxel, key order.
   std::vector<std::uint64_t> vkey;
@@ -129,7 +131,16 @@ struct VoxelGrid {
   Buffer<std::uint32_t> flat;
   Buffer<std::uint32_t> seeds;
 
-  std::size_t points() const { return sx.size(); }
+  std::size_t points() const { return keys.size(); }
+  /// \brief Input index of the point at sorted position k.
+  std::size_t inputAt(std::size_t k) const {
+    const std::uint32_t slot =
+        packed ? static_cast<std::uint32_t>(keys[k] & ((std::uint64_t{1} << slot_bits) - 1))
+               : order[k];
+    return all_valid ? slot : point_index[slot];
+  }
+  /// \brief x y z v of the point at sorted position k.
+  const float* pointAt(std::size_t k) const { return pts + 4 * inputAt(k); }
   std::size_t voxels() const { return vkey.size(); }
   std::size_t columns() const { return col_key.size(); }
   std::uint32_t pointsIn(std::size_t v) const { return vstart[v + 1] - vstart[v]; }
