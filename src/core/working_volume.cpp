@@ -40,6 +40,13 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
   using Clock = std::chrono::steady_clock;
   const auto t0 = Clock::now();
   const std::size_t n = cloud.size();
+  if (inner_->filterInside(cloud, volume_, labels, stats)) {  // the usual case, no pass here
+    if (stats) {
+      stats->out_of_range_points = 0;
+      stats->total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    }
+    return;
+  }
   // Cheap first pass: most scans have no far point and go to the inner filter without a copy.
   std::size_t out_of_range = 0;
   for (std::size_t i = 0; i < n; ++i) {

@@ -241,7 +241,8 @@ void Classifier::run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const
   // only.
   const int nch = 4 * nt;
   pool->run(nt, nch, [&](int, int c) { voxelHeights(job, ncol * c / nch, ncol * (c + 1) / nch); });
-  pool->run(nt, nch, [&](int, int c) { classifyPoints(job, false, n * c / nch, n * (c + 1) / nch); });
+  pool->run(nt, nch,
+            [&](int, int c) { classifyPoints(job, false, n * c / nch, n * (c + 1) / nch); });
   pool->run(nt, nch, [&](int, int c) {
     const std::size_t c0 = ncol * c / nch, c1 = ncol * (c + 1) / nch;
     countGround(job, g, c0, c1);
