@@ -93,10 +93,11 @@ void countGround(const Job& job, const VoxelGrid& g, std::size_t c0, std::size_t
   const std::uint32_t* const vs = job.vstart;
   const std::uint8_t* const labels = job.labels;
   std::uint32_t* const voxel_ground = job.voxel_ground;
+  const VoxelGrid::InputIndex at = g.inputIndex();
   const std::uint32_t v0 = job.col_first[c0], v1 = job.col_first[c1];
   for (std::uint32_t v = v0; v < v1; ++v) {
     std::uint32_t c = 0;
-    for (std::uint32_t k = vs[v]; k < vs[v + 1]; ++k) c += labels[g.inputAt(k)];
+    for (std::uint32_t k = vs[v]; k < vs[v + 1]; ++k) c += labels[at(k)];
     voxel_ground[v] = c;
   }
 }

@@ -171,12 +171,18 @@ bool Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
   std::array<double, kCandidates> zsum{}, cnt{};
   rank_.assign(nf, -1);  // a lookup instead of a search of the candidates per flat voxel
   for (int q = 0; q < ncand; ++q) rank_[cand[q]] = static_cast<std::int8_t>(q);
+  const VoxelGrid::InputIndex at = g.inputIndex();
+  const float* const pts = g.pts;
+  const std::uint32_t* const vs = g.vstart.data();
+  const std::uint32_t* const fl = g.flat.data();
+  constexpr std::size_t kAhead = 8;  // the points are read from the input-order copy: prefetch
   for (std::size_t j = 0; j < nf; ++j) {
+    if (j + kAhead < nf) __builtin_prefetch(pts + 4 * at(vs[fl[j + kAhead]]));
     const int q = rank_[uf_[j]];
     if (q < 0) continue;
-    const std::uint32_t v = g.flat[j];
-    for (std::uint32_t k = g.vstart[v]; k < g.vstart[v + 1]; ++k) {
-      const float* pt = g.pointAt(k);
+    const std::uint32_t v = fl[j];
+    for (std::uint32_t k = vs[v]; k < vs[v + 1]; ++k) {
+      const float* pt = pts + 4 * at(k);
       acc[q].add(pt[0], pt[1], pt[2]);
       zsum[q] += pt[2];
       cnt[q] += 1.0;

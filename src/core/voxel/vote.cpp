@@ -34,6 +34,7 @@ void Voter::vote(const VoxelGrid& g, int t, int range, Classifier* cls, std::uin
   const ZRange* cr = cls->col_range.data();       // + empty sentinel at ncol
   const std::uint8_t* cm = cls->col_mask.data();  // + 0 at ncol
   std::uint8_t* out = labels;
+  const VoxelGrid::InputIndex at = g.inputIndex();
   auto zOf = [&](std::uint32_t v) { return static_cast<std::int32_t>(vk[v] & mz); };
   std::uint64_t* acc = acc_[t].data();  // nz + 2 zeros
   // Rows of column ids with the column's label mask in the low 2 bits (id << 2 | mask; the
@@ -94,7 +95,7 @@ void Voter::vote(const VoxelGrid& g, int t, int range, Classifier* cls, std::uin
           const std::uint32_t ts = static_cast<std::uint32_t>(sum);
           if (2 * gs == ts) continue;  // tie: keep the per-point labels
           const std::uint8_t label = 2 * gs > ts ? 1 : 0;
-          for (std::uint32_t i = vs[v]; i < vs[v + 1]; ++i) out[g.inputAt(i)] = label;
+          for (std::uint32_t i = vs[v]; i < vs[v + 1]; ++i) out[at(i)] = label;
         }
         // Every voxel holds ground or non-ground points: all of them lie in the merged ranges.
         std::fill(acc + std::min(r.glo, r.nlo) + 1, acc + std::max(r.ghi, r.nhi) + 2,

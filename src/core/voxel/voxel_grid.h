@@ -132,13 +132,25 @@ struct VoxelGrid {
   Buffer<std::uint32_t> seeds;
 
   std::size_t points() const { return keys.size(); }
-  /// \brief Input index of the point at sorted position k.
-  std::size_t inputAt(std::size_t k) const {
-    const std::uint32_t slot =
-        packed ? static_cast<std::uint32_t>(keys[k] & ((std::uint64_t{1} << slot_bits) - 1))
-               : order[k];
-    return all_valid ? slot : point_index[slot];
+  /// \brief Sorted position -> input index, with the layout read once (for loops).
+  struct InputIndex {
+    const std::uint64_t* keys;
+    const std::uint32_t *order, *point_index;
+    std::uint64_t slot_mask;
+    bool packed, all_valid;
+    std::size_t operator()(std::size_t k) const {
+      const std::uint32_t slot =
+          packed ? static_cast<std::uint32_t>(keys[k] & slot_mask) : order[k];
+      return all_valid ? slot : point_index[slot];
+    }
+  };
+  InputIndex inputIndex() const {
+    return InputIndex{
+        keys.data(), order.data(), point_index.data(), (std::uint64_t{1} << slot_bits) - 1,
+        packed,      all_valid};
   }
+  /// \brief Input index of the point at sorted position k.
+  std::size_t inputAt(std::size_t k) const { return inputIndex()(k); }
   /// \brief x y z v of the point at sorted position k.
   const float* pointAt(std::size_t k) const { return pts + 4 * inputAt(k); }
   std::size_t voxels() const { return vkey.size(); }
