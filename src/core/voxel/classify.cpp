@@ -21,85 +21,78 @@ struct Job {
   const HeightPlane* planes;
   const CellCoef* coef;
   bool band, all_valid;
-  float* h0;
-  std::uint8_t* labels;  // per input point
-  std::uint32_t* voxel_ground;
+  VoxelRef* ref;
+  std::uint8_t* labels;          // per input point
+  std::uint32_t* const* counts;  // ground points per voxel, one array per thread
+  int count_arrays;              // threads
+  std::uint32_t* voxel_ground;   // = counts[0]; the sum of all after columnRanges()
   ZRange* col_range;
   std::uint8_t* col_mask;
   std::uint64_t mask_z;
   float dmax;
 };
 
-// Plane height at each voxel centroid of columns [c0, c1) (distances relative to it keep float
-// precision far from the origin); clears the voxels' ground counts.
+// Per voxel of columns [c0, c1): the plane height at its centroid (distances relative to it keep
+// float precision far from the origin), its centroid's x y and its cell, in one record; clears
+// the voxels' ground counts of every thread.
 void voxelHeights(const Job& job, std::size_t c0, std::size_t c1) {
   const std::uint32_t* const vcell = job.vcell;
   const float* const vx = job.vx;
   const float* const vy = job.vy;
   const HeightPlane* const planes = job.planes;
-  float* const h0v = job.h0;
-  std::uint32_t* const voxel_ground = job.voxel_ground;
+  VoxelRef* const ref = job.ref;
   const std::uint32_t v0 = job.col_first[c0], v1 = job.col_first[c1];
   for (std::uint32_t v = v0; v < v1; ++v) {
-    h0v[v] = static_cast<float>(planes[vcell[v]].at(vx[v], vy[v]));
-    voxel_ground[v] = 0;
+    const std::uint32_t c = vcell[v];
+    ref[v] = VoxelRef{static_cast<float>(planes[c].at(vx[v], vy[v])), vx[v], vy[v], c};
+  }
+  for (int t = 0; t < job.count_arrays; ++t) {
+    std::fill(job.counts[t] + v0, job.counts[t] + v1, 0u);
   }
 }
 
 // Labels the valid points of slots [s0, s1) in input order, straight from the x y z v vectors
-// (no sorted copies, no way back to input order); counts the ground points per voxel when
-// kCount (one thread: a voxel's points may lie in several chunks).
+// (no sorted copies, no way back to input order), and counts the ground points per voxel into
+// `counts` (this thread's array). The points' voxels are far apart: their records are
+// prefetched a few points ahead.
 // Every field is copied to a local first: the byte stores of the labels may alias anything in
 // memory, locals not.
-template <bool kBand, bool kAllValid, bool kCount>
-void classifyPointsT(const Job& job, std::size_t s0, std::size_t s1) {
-  const std::uint32_t* const vcell = job.vcell;
+template <bool kBand, bool kAllValid>
+void classifyPointsT(const Job& job, std::uint32_t* counts, std::size_t s0, std::size_t s1) {
   const std::uint32_t* const pidx = job.point_index;
   const float* const pts = job.pts;
-  const float* const vx = job.vx;
-  const float* const vy = job.vy;
   const CellCoef* const coef = job.coef;
-  const float* const h0v = job.h0;
+  const VoxelRef* const ref = job.ref;
   std::uint8_t* const labels = job.labels;
-  std::uint32_t* const voxel_ground = job.voxel_ground;
   const float dmax = job.dmax;
+  constexpr std::size_t kAhead = 16;
   for (std::size_t s = s0; s < s1; ++s) {
+    if (s + kAhead < s1) {
+      const std::size_t ia = kAllValid ? s + kAhead : pidx[s + kAhead];
+      std::uint32_t va;
+      std::memcpy(&va, pts + 4 * ia + 3, sizeof va);
+      __builtin_prefetch(ref + va);
+      __builtin_prefetch(counts + va, 1);
+    }
     const std::size_t i = kAllValid ? s : pidx[s];
     const float* p = pts + 4 * i;
     std::uint32_t v;
     std::memcpy(&v, p + 3, sizeof v);
-    const CellCoef& cc = coef[vcell[v]];
-    const float d = (p[2] - h0v[v] - cc.a * (p[0] - vx[v]) - cc.b * (p[1] - vy[v])) * cc.cos;
+    const VoxelRef r = ref[v];
+    const CellCoef& cc = coef[r.cell];
+    const float d = (p[2] - r.h0 - cc.a * (p[0] - r.x) - cc.b * (p[1] - r.y)) * cc.cos;
     const float lo = kBand ? cc.lo : -dmax, hi = kBand ? cc.hi : dmax;
     const std::uint32_t is_ground = (d > lo) & (d < hi);
     labels[i] = static_cast<std::uint8_t>(is_ground);
-    if (kCount) voxel_ground[v] += is_ground;
+    counts[v] += is_ground;
   }
 }
 
-void classifyPoints(const Job& job, bool count, std::size_t s0, std::size_t s1) {
-  using Fn = void (*)(const Job&, std::size_t, std::size_t);
-  static const Fn kFn[2][2][2] = {
-      {{classifyPointsT<false, false, false>, classifyPointsT<false, false, true>},
-       {classifyPointsT<false, true, false>, classifyPointsT<false, true, true>}},
-      {{classifyPointsT<true, false, false>, classifyPointsT<true, false, true>},
-       {classifyPointsT<true, true, false>, classifyPointsT<true, true, true>}}};
-  kFn[job.band][job.all_valid][count](job, s0, s1);  // [band][all valid][count per voxel]
-}
-
-// Ground points per voxel of columns [c0, c1) from the labels (several threads: the point pass
-// could not count them), the same integers as classifyPointsT<..., true>.
-void countGround(const Job& job, const VoxelGrid& g, std::size_t c0, std::size_t c1) {
-  const std::uint32_t* const vs = job.vstart;
-  const std::uint8_t* const labels = job.labels;
-  std::uint32_t* const voxel_ground = job.voxel_ground;
-  const VoxelGrid::InputIndex at = g.inputIndex();
-  const std::uint32_t v0 = job.col_first[c0], v1 = job.col_first[c1];
-  for (std::uint32_t v = v0; v < v1; ++v) {
-    std::uint32_t c = 0;
-    for (std::uint32_t k = vs[v]; k < vs[v + 1]; ++k) c += labels[at(k)];
-    voxel_ground[v] = c;
-  }
+void classifyPoints(const Job& job, int t, std::size_t s0, std::size_t s1) {
+  using Fn = void (*)(const Job&, std::uint32_t*, std::size_t, std::size_t);
+  static const Fn kFn[2][2] = {{classifyPointsT<false, false>, classifyPointsT<false, true>},
+                               {classifyPointsT<true, false>, classifyPointsT<true, true>}};
+  kFn[job.band][job.all_valid](job, job.counts[t], s0, s1);  // [band][all valid]
 }
 
 // z ranges of the voxels with ground / non-ground points and label mask of columns [c0, c1), in
@@ -110,7 +103,8 @@ void columnRanges(const Job& job, std::size_t c0, std::size_t c1) {
   const std::uint32_t* const vs = job.vstart;
   const std::uint64_t* const vkey = job.vkey;
   const std::uint32_t* const cf = job.col_first;
-  const std::uint32_t* const voxel_ground = job.voxel_ground;
+  std::uint32_t* const voxel_ground = job.voxel_ground;
+  const std::uint32_t* const more = job.count_arrays > 1 ? job.counts[1] : nullptr;
   ZRange* const col_range = job.col_range;
   std::uint8_t* const col_mask = job.col_mask;
   const std::uint64_t mz = job.mask_z;
@@ -124,7 +118,11 @@ void columnRanges(const Job& job, std::size_t c0, std::size_t c1) {
     r.ghi = next ? kNoHi : r.ghi;
     r.nlo = next ? kNoLo : r.nlo;
     r.nhi = next ? kNoHi : r.nhi;
-    const std::uint32_t gcount = voxel_ground[v];
+    std::uint32_t gcount = voxel_ground[v];
+    if (more) {  // several threads counted (integer sums: the same for any split)
+      for (int t = 1; t < job.count_arrays; ++t) gcount += job.counts[t][v];
+      voxel_ground[v] = gcount;
+    }
     const std::int32_t iz = static_cast<std::int32_t>(vkey[v] & mz);
     const bool has_g = gcount != 0, has_n = gcount != vs[v + 1] - vs[v];
     r.glo = std::min(r.glo, has_g ? iz : kNoLo);
@@ -208,7 +206,17 @@ void Classifier::run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const
       cc.hi = std::min(cc.hi, static_cast<float>(mu_[c] + p.std_multiplier * sigma_[c]));
     }
   }
-  h0_.resize(nv);
+  ref_.resize(nv);
+  const std::size_t ncol = g.columns();
+  const int nt = threads > 1 && n >= kParallelMinPoints ? threads : 1;
+  // Ground counts per voxel: voxel_ground for thread 0, one more array per further thread.
+  more_counts_.resize(static_cast<std::size_t>(nt - 1));
+  count_ptrs_.resize(static_cast<std::size_t>(nt));
+  count_ptrs_[0] = voxel_ground.data();
+  for (int t = 1; t < nt; ++t) {
+    more_counts_[t - 1].resize(nv);
+    count_ptrs_[t] = more_counts_[t - 1].data();
+  }
   Job job;
   job.vstart = g.vstart.data();
   job.vcell = g.vcell.data();
@@ -222,33 +230,28 @@ void Classifier::run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const
   job.coef = coef_.data();
   job.band = band;
   job.all_valid = g.all_valid;
-  job.h0 = h0_.data();
+  job.ref = ref_.data();
   job.labels = labels;
+  job.counts = count_ptrs_.data();
+  job.count_arrays = nt;
   job.voxel_ground = voxel_ground.data();
   job.col_range = col_range.data();
   job.col_mask = col_mask.data();
   job.mask_z = g.mask_z;
   job.dmax = dmax;
-  const std::size_t ncol = g.columns();
-  const int nt = threads > 1 && n >= kParallelMinPoints ? threads : 1;
   if (nt == 1) {
     voxelHeights(job, 0, ncol);
-    classifyPoints(job, true, 0, n);
+    classifyPoints(job, 0, 0, n);
     columnRanges(job, 0, ncol);
     return;
   }
-  // Several threads: heights per voxel (chunks of columns), labels (chunks of the input), then
-  // ground counts and z ranges (chunks of columns). Each chunk's results depend on its range
-  // only.
+  // Several threads: voxel records (chunks of columns), labels and per-thread ground counts
+  // (chunks of the input), then the counts summed and the z ranges (chunks of columns). The
+  // labels of a chunk depend on its range only, the counts are integer sums.
   const int nch = 4 * nt;
   pool->run(nt, nch, [&](int, int c) { voxelHeights(job, ncol * c / nch, ncol * (c + 1) / nch); });
-  pool->run(nt, nch,
-            [&](int, int c) { classifyPoints(job, false, n * c / nch, n * (c + 1) / nch); });
-  pool->run(nt, nch, [&](int, int c) {
-    const std::size_t c0 = ncol * c / nch, c1 = ncol * (c + 1) / nch;
-    countGround(job, g, c0, c1);
-    columnRanges(job, c0, c1);
-  });
+  pool->run(nt, nch, [&](int t, int c) { classifyPoints(job, t, n * c / nch, n * (c + 1) / nch); });
+  pool->run(nt, nch, [&](int, int c) { columnRanges(job, ncol * c / nch, ncol * (c + 1) / nch); });
 }
 
 }  // namespace voxel
