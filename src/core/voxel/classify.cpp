@@ -15,84 +15,87 @@ struct Job {
   const std::uint32_t *vstart, *vcell;
   const std::uint64_t* vkey;
   const std::uint32_t* col_first;
-  const std::uint32_t* point_index;  // input index per slot (not all valid)
-  const float* pts;                  // x y z v per input point
+  VoxelGrid::InputIndex at;  // sorted position -> input index
+  const float* pts;          // x y z v per input point
   const float *vx, *vy;
   const HeightPlane* planes;
   const CellCoef* coef;
-  bool band, all_valid;
-  VoxelRef* ref;
-  std::uint8_t* labels;          // per input point
-  std::uint32_t* const* counts;  // ground points per voxel, one array per thread
-  int count_arrays;              // threads
-  std::uint32_t* voxel_ground;   // = counts[0]; the sum of all after columnRanges()
+  bool band;
+  float* h0;
+  std::uint8_t* labels;  // per input point
+  std::uint32_t* voxel_ground;
   ZRange* col_range;
   std::uint8_t* col_mask;
   std::uint64_t mask_z;
   float dmax;
 };
 
-// Per voxel of columns [c0, c1): the plane height at its centroid (distances relative to it keep
-// float precision far from the origin), its centroid's x y and its cell, in one record; clears
-// the voxels' ground counts of every thread.
+// Plane height at each voxel centroid of columns [c0, c1) (distances relative to it keep float
+// precision far from the origin); clears the voxels' ground counts.
 void voxelHeights(const Job& job, std::size_t c0, std::size_t c1) {
   const std::uint32_t* const vcell = job.vcell;
   const float* const vx = job.vx;
   const float* const vy = job.vy;
   const HeightPlane* const planes = job.planes;
-  VoxelRef* const ref = job.ref;
+  float* const h0v = job.h0;
+  std::uint32_t* const voxel_ground = job.voxel_ground;
   const std::uint32_t v0 = job.col_first[c0], v1 = job.col_first[c1];
   for (std::uint32_t v = v0; v < v1; ++v) {
-    const std::uint32_t c = vcell[v];
-    ref[v] = VoxelRef{static_cast<float>(planes[c].at(vx[v], vy[v])), vx[v], vy[v], c};
-  }
-  for (int t = 0; t < job.count_arrays; ++t) {
-    std::fill(job.counts[t] + v0, job.counts[t] + v1, 0u);
+    h0v[v] = static_cast<float>(planes[vcell[v]].at(vx[v], vy[v]));
+    voxel_ground[v] = 0;
   }
 }
 
-// Labels the valid points of slots [s0, s1) in input order, straight from the x y z v vectors
-// (no sorted copies, no way back to input order), and counts the ground points per voxel into
-// `counts` (this thread's array). The points' voxels are far apart: their records are
-// prefetched a few points ahead.
+// Labels the points of columns [c0, c1) in key order (the voxel values are read in order), their
+// coordinates and voxel read from the input-order x y z v vectors through the sort words (as
+// build() gathers them, with a prefetch well ahead), each label written straight to its input
+// position: no sorted coordinate copies, no way back to input order. Counts ground per voxel.
 // Every field is copied to a local first: the byte stores of the labels may alias anything in
 // memory, locals not.
-template <bool kBand, bool kAllValid>
-void classifyPointsT(const Job& job, std::uint32_t* counts, std::size_t s0, std::size_t s1) {
-  const std::uint32_t* const pidx = job.point_index;
+template <bool kBand, bool kPacked, bool kAllValid>
+void classifyPointsT(const Job& job, std::size_t c0, std::size_t c1) {
+  const std::uint64_t* const keys = job.at.keys;
+  const std::uint32_t* const order = job.at.order;
+  const std::uint32_t* const pidx = job.at.point_index;
+  const std::uint64_t slot_mask = job.at.slot_mask;
+  const std::uint32_t* const vcell = job.vcell;
   const float* const pts = job.pts;
+  const float* const vx = job.vx;
+  const float* const vy = job.vy;
   const CellCoef* const coef = job.coef;
-  const VoxelRef* const ref = job.ref;
+  const float* const h0v = job.h0;
   std::uint8_t* const labels = job.labels;
+  std::uint32_t* const voxel_ground = job.voxel_ground;
   const float dmax = job.dmax;
-  constexpr std::size_t kAhead = 16;
-  for (std::size_t s = s0; s < s1; ++s) {
-    if (s + kAhead < s1) {
-      const std::size_t ia = kAllValid ? s + kAhead : pidx[s + kAhead];
-      std::uint32_t va;
-      std::memcpy(&va, pts + 4 * ia + 3, sizeof va);
-      __builtin_prefetch(ref + va);
-      __builtin_prefetch(counts + va, 1);
-    }
-    const std::size_t i = kAllValid ? s : pidx[s];
+  auto inputAt = [&](std::size_t k) -> std::size_t {
+    const std::uint32_t slot = kPacked ? static_cast<std::uint32_t>(keys[k] & slot_mask) : order[k];
+    return kAllValid ? slot : pidx[slot];
+  };
+  const std::size_t k0 = job.vstart[job.col_first[c0]], k1 = job.vstart[job.col_first[c1]];
+  constexpr std::size_t kAhead = 48;  // as build()'s gather
+  for (std::size_t k = k0; k < k1; ++k) {
+    if (k + kAhead < k1) __builtin_prefetch(pts + 4 * inputAt(k + kAhead));
+    const std::size_t i = inputAt(k);
     const float* p = pts + 4 * i;
     std::uint32_t v;
     std::memcpy(&v, p + 3, sizeof v);
-    const VoxelRef r = ref[v];
-    const CellCoef& cc = coef[r.cell];
-    const float d = (p[2] - r.h0 - cc.a * (p[0] - r.x) - cc.b * (p[1] - r.y)) * cc.cos;
+    const CellCoef& cc = coef[vcell[v]];
+    const float d = (p[2] - h0v[v] - cc.a * (p[0] - vx[v]) - cc.b * (p[1] - vy[v])) * cc.cos;
     const float lo = kBand ? cc.lo : -dmax, hi = kBand ? cc.hi : dmax;
     const std::uint32_t is_ground = (d > lo) & (d < hi);
     labels[i] = static_cast<std::uint8_t>(is_ground);
-    counts[v] += is_ground;
+    voxel_ground[v] += is_ground;
   }
 }
 
-void classifyPoints(const Job& job, int t, std::size_t s0, std::size_t s1) {
-  using Fn = void (*)(const Job&, std::uint32_t*, std::size_t, std::size_t);
-  static const Fn kFn[2][2] = {{classifyPointsT<false, false>, classifyPointsT<false, true>},
-                               {classifyPointsT<true, false>, classifyPointsT<true, true>}};
-  kFn[job.band][job.all_valid](job, job.counts[t], s0, s1);  // [band][all valid]
+void classifyPoints(const Job& job, std::size_t c0, std::size_t c1) {
+  using Fn = void (*)(const Job&, std::size_t, std::size_t);
+  static const Fn kFn[2][2][2] = {
+      {{classifyPointsT<false, false, false>, classifyPointsT<false, false, true>},
+       {classifyPointsT<false, true, false>, classifyPointsT<false, true, true>}},
+      {{classifyPointsT<true, false, false>, classifyPointsT<true, false, true>},
+       {classifyPointsT<true, true, false>, classifyPointsT<true, true, true>}}};
+  kFn[job.band][job.at.packed][job.at.all_valid](job, c0, c1);  // [band][packed][all valid]
 }
 
 // z ranges of the voxels with ground / non-ground points and label mask of columns [c0, c1), in
@@ -103,8 +106,7 @@ void columnRanges(const Job& job, std::size_t c0, std::size_t c1) {
   const std::uint32_t* const vs = job.vstart;
   const std::uint64_t* const vkey = job.vkey;
   const std::uint32_t* const cf = job.col_first;
-  std::uint32_t* const voxel_ground = job.voxel_ground;
-  const std::uint32_t* const more = job.count_arrays > 1 ? job.counts[1] : nullptr;
+  const std::uint32_t* const voxel_ground = job.voxel_ground;
   ZRange* const col_range = job.col_range;
   std::uint8_t* const col_mask = job.col_mask;
   const std::uint64_t mz = job.mask_z;
@@ -118,11 +120,7 @@ void columnRanges(const Job& job, std::size_t c0, std::size_t c1) {
     r.ghi = next ? kNoHi : r.ghi;
     r.nlo = next ? kNoLo : r.nlo;
     r.nhi = next ? kNoHi : r.nhi;
-    std::uint32_t gcount = voxel_ground[v];
-    if (more) {  // several threads counted (integer sums: the same for any split)
-      for (int t = 1; t < job.count_arrays; ++t) gcount += job.counts[t][v];
-      voxel_ground[v] = gcount;
-    }
+    const std::uint32_t gcount = voxel_ground[v];
     const std::int32_t iz = static_cast<std::int32_t>(vkey[v] & mz);
     const bool has_g = gcount != 0, has_n = gcount != vs[v + 1] - vs[v];
     r.glo = std::min(r.glo, has_g ? iz : kNoLo);
@@ -206,52 +204,37 @@ void Classifier::run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const
       cc.hi = std::min(cc.hi, static_cast<float>(mu_[c] + p.std_multiplier * sigma_[c]));
     }
   }
-  ref_.resize(nv);
-  const std::size_t ncol = g.columns();
-  const int nt = threads > 1 && n >= kParallelMinPoints ? threads : 1;
-  // Ground counts per voxel: voxel_ground for thread 0, one more array per further thread.
-  more_counts_.resize(static_cast<std::size_t>(nt - 1));
-  count_ptrs_.resize(static_cast<std::size_t>(nt));
-  count_ptrs_[0] = voxel_ground.data();
-  for (int t = 1; t < nt; ++t) {
-    more_counts_[t - 1].resize(nv);
-    count_ptrs_[t] = more_counts_[t - 1].data();
-  }
+  h0_.resize(nv);
   Job job;
   job.vstart = g.vstart.data();
   job.vcell = g.vcell.data();
   job.vkey = g.vkey.data();
   job.col_first = g.col_first.data();
-  job.point_index = g.point_index.data();
+  job.at = g.inputIndex();
   job.pts = g.pts;
   job.vx = g.vx.data();
   job.vy = g.vy.data();
   job.planes = model.planes();
   job.coef = coef_.data();
   job.band = band;
-  job.all_valid = g.all_valid;
-  job.ref = ref_.data();
+  job.h0 = h0_.data();
   job.labels = labels;
-  job.counts = count_ptrs_.data();
-  job.count_arrays = nt;
   job.voxel_ground = voxel_ground.data();
   job.col_range = col_range.data();
   job.col_mask = col_mask.data();
   job.mask_z = g.mask_z;
   job.dmax = dmax;
-  if (nt == 1) {
-    voxelHeights(job, 0, ncol);
-    classifyPoints(job, 0, 0, n);
-    columnRanges(job, 0, ncol);
-    return;
-  }
-  // Several threads: voxel records (chunks of columns), labels and per-thread ground counts
-  // (chunks of the input), then the counts summed and the z ranges (chunks of columns). The
-  // labels of a chunk depend on its range only, the counts are integer sums.
-  const int nch = 4 * nt;
-  pool->run(nt, nch, [&](int, int c) { voxelHeights(job, ncol * c / nch, ncol * (c + 1) / nch); });
-  pool->run(nt, nch, [&](int t, int c) { classifyPoints(job, t, n * c / nch, n * (c + 1) / nch); });
-  pool->run(nt, nch, [&](int, int c) { columnRanges(job, ncol * c / nch, ncol * (c + 1) / nch); });
+  // Column by column (the vote wants each column's z range of voxels with ground and with
+  // non-ground points); a chunk's results depend on its columns only.
+  const std::size_t ncol = g.columns();
+  const int nt = threads > 1 && n >= kParallelMinPoints ? threads : 1;
+  const int nch = nt == 1 ? 1 : 4 * nt;
+  pool->run(nt, nch, [&](int, int c) {
+    const std::size_t c0 = ncol * c / nch, c1 = ncol * (c + 1) / nch;
+    voxelHeights(job, c0, c1);
+    classifyPoints(job, c0, c1);
+    columnRanges(job, c0, c1);
+  });
 }
 
 }  // namespace voxel

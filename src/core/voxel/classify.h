@@ -27,21 +27,13 @@ struct CellCoef {
   float a, b, cos, lo, hi;
 };
 
-/// \brief What the per-point test needs of a voxel, in one 16-byte record (the points are taken
-///        in input order, so their voxels are far apart): the plane height at its centroid, the
-///        centroid's x y and the voxel's cell.
-struct VoxelRef {
-  float h0, x, y;
-  std::uint32_t cell;
-};
-
 /// \brief Step 7: ground = within plane_distance of the cell plane (and, with std_filter, inside
 ///        the cell's mean +- k std band).
 class Classifier {
  public:
   /// \brief Writes the label (1 ground) of every valid point of `g` to `labels` (input order,
   ///        one byte per input point). `best` is the largest segment (global mode std band);
-  ///        `threads` > 1 splits the input and the columns.
+  ///        `threads` > 1 splits the columns.
   void run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const CellGrid& cells,
            const GroundModel& model, const Segmenter& segs, std::int64_t best, int threads,
            WorkerPool* pool, std::uint8_t* labels);
@@ -59,9 +51,7 @@ class Classifier {
                  const GroundModel& model, const Segmenter& segs, std::int64_t best);
   std::vector<double> mu_, sigma_;  // std band per cell
   std::vector<CellCoef> coef_;
-  std::vector<VoxelRef> ref_;
-  std::vector<Buffer<std::uint32_t>> more_counts_;  // ground per voxel of threads 1, 2, ...
-  std::vector<std::uint32_t*> count_ptrs_;
+  std::vector<float> h0_;  // plane height at each voxel's centroid
   std::vector<std::uint64_t> count_;
 };
 
