@@ -128,23 +128,42 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
   }
   stage("ground_model", t0);
 
-  // ---- 7. per-point distance to the (cell) plane, optional mean +- std band; labels in input
-  // order (invalid points keep kNonGround)
+  // ---- 7. per-point distance to the (cell) plane, optional mean +- std band
   t0 = Clock::now();
-  std::uint8_t* out = labels->data();
   if (have_plane) {
-    m.classifier.run(p, g, m.cells, m.model, m.segmenter, best, threads, &m.pool, out);
+    m.classifier.run(p, g, m.cells, m.model, m.segmenter, best, threads, &m.pool);
+  } else {
+    m.classifier.ground.assign(n, 0);
   }
   stage("classify", t0);
 
   // ---- 8. final 26-neighbourhood majority vote per voxel (point-weighted)
   t0 = Clock::now();
-  if (p.majority_vote && have_plane) m.voter.run(g, threads, &m.pool, &m.classifier, out);
+  if (p.majority_vote && have_plane) m.voter.run(g, threads, &m.pool, &m.classifier);
   stage("vote", t0);
 
+  // Labels back to input order: sorted position -> slot (low bits of a packed key, or `order`)
+  // -> input index (identity when every point is valid).
   std::size_t ground_count = 0;
-  const std::size_t n_in = cloud.size();
-  for (std::size_t i = 0; i < n_in; ++i) ground_count += out[i];
+  const std::uint64_t* keys = g.keys.data();
+  const std::uint64_t slot_mask = (std::uint64_t{1} << g.slot_bits) - 1;
+  const std::uint32_t* ord = g.order.data();
+  const std::uint32_t* idx = g.point_index.data();
+  const std::uint8_t* gr = m.classifier.ground.data();
+  std::uint8_t* out = labels->data();
+  if (g.packed && g.all_valid) {  // the common case, without the layout tests per point
+    for (std::size_t i = 0; i < n; ++i) {
+      out[keys[i] & slot_mask] = gr[i];
+      ground_count += gr[i];
+    }
+  } else {
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint32_t slot =
+          g.packed ? static_cast<std::uint32_t>(keys[i] & slot_mask) : ord[i];
+      out[g.all_valid ? slot : idx[slot]] = gr[i];
+      ground_count += gr[i];
+    }
+  }
   st.ground_points = ground_count;
   st.total_ms = msSince(t_start);
   return true;

@@ -31,12 +31,14 @@ struct CellCoef {
 ///        the cell's mean +- k std band).
 class Classifier {
  public:
-  /// \brief Writes the label (1 ground) of every valid point of `g` to `labels` (input order,
-  ///        one byte per input point). `best` is the largest segment (global mode std band);
-  ///        `threads` > 1 splits the columns.
+  /// \brief Labels every point of `g` (key order). `best` is the largest segment (global mode
+  ///        std band); `threads` > 1 splits the columns.
   void run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const CellGrid& cells,
            const GroundModel& model, const Segmenter& segs, std::int64_t best, int threads,
-           WorkerPool* pool, std::uint8_t* labels);
+           WorkerPool* pool);
+
+  /// \brief Label per point in key order (1 ground).
+  std::vector<std::uint8_t> ground;
   /// \brief Ground points per voxel.
   std::vector<std::uint32_t> voxel_ground;
   /// \brief Per column: z range of the voxels with ground / non-ground points (+ one empty

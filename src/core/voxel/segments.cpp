@@ -171,42 +171,15 @@ bool Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
   std::array<double, kCandidates> zsum{}, cnt{};
   rank_.assign(nf, -1);  // a lookup instead of a search of the candidates per flat voxel
   for (int q = 0; q < ncand; ++q) rank_[cand[q]] = static_cast<std::int8_t>(q);
-  // The points of the candidates' voxels, in the order of a loop over the voxels: their input
-  // indices first (a list, no point read), then the sums over the list with a prefetch well
-  // ahead (the points are read from the input-order copy, far apart).
-  const VoxelGrid::InputIndex at = g.inputIndex();
-  const std::uint32_t* const vs = g.vstart.data();
-  const std::uint32_t* const fl = g.flat.data();
-  std::size_t np = 0;
   for (std::size_t j = 0; j < nf; ++j) {
     const int q = rank_[uf_[j]];
     if (q < 0) continue;
-    const std::uint32_t v = fl[j];
-    np += vs[v + 1] - vs[v];
-  }
-  pidx_.resize(np);
-  pcand_.resize(np);
-  std::uint32_t* const pi = pidx_.data();
-  std::uint8_t* const pc = pcand_.data();
-  std::size_t m = 0;
-  for (std::size_t j = 0; j < nf; ++j) {
-    const int q = rank_[uf_[j]];
-    if (q < 0) continue;
-    const std::uint32_t v = fl[j];
-    for (std::uint32_t k = vs[v]; k < vs[v + 1]; ++k, ++m) {
-      pi[m] = static_cast<std::uint32_t>(at(k));
-      pc[m] = static_cast<std::uint8_t>(q);
+    const std::uint32_t v = g.flat[j];
+    for (std::uint32_t k = g.vstart[v]; k < g.vstart[v + 1]; ++k) {
+      acc[q].add(g.sx[k], g.sy[k], g.sz[k]);
+      zsum[q] += g.sz[k];
+      cnt[q] += 1.0;
     }
-  }
-  const float* const pts = g.pts;
-  constexpr std::size_t kAhead = 32;
-  for (std::size_t i = 0; i < np; ++i) {
-    if (i + kAhead < np) __builtin_prefetch(pts + 4 * static_cast<std::size_t>(pi[i + kAhead]));
-    const float* pt = pts + 4 * static_cast<std::size_t>(pi[i]);
-    const int q = pc[i];
-    acc[q].add(pt[0], pt[1], pt[2]);
-    zsum[q] += pt[2];
-    cnt[q] += 1.0;
   }
   const double min_nz = std::cos(p.max_slope_deg * M_PI / 180.0);
   Plane plane;

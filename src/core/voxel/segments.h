@@ -32,8 +32,6 @@ class Segmenter {
   std::vector<std::uint64_t> seg_points_;
   std::vector<std::int32_t> rows_;  // two dense rows of flat ids (x parity)
   std::vector<std::int8_t> rank_;   // globalPlane(): candidate index per segment id, or -1
-  Buffer<std::uint32_t> pidx_;      // globalPlane(): input index of each candidate point
-  Buffer<std::uint8_t> pcand_;      // globalPlane(): its candidate
 };
 
 }  // namespace voxel

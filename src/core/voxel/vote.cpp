@@ -18,7 +18,7 @@ void merge(ZRange* r, const ZRange& o) {
 
 }  // namespace
 
-void Voter::vote(const VoxelGrid& g, int t, int range, Classifier* cls, std::uint8_t* labels) {
+void Voter::vote(const VoxelGrid& g, int t, int range, Classifier* cls) {
   // A voxel's vote can differ from its own points' labels only when its neighbourhood holds
   // both ground and non-ground points: a column is looked at only when its 3 x 3 columns hold
   // both labels (OR of their label masks), and then only its voxels within one z step of a
@@ -33,8 +33,7 @@ void Voter::vote(const VoxelGrid& g, int t, int range, Classifier* cls, std::uin
   const std::uint32_t* vg = cls->voxel_ground.data();
   const ZRange* cr = cls->col_range.data();       // + empty sentinel at ncol
   const std::uint8_t* cm = cls->col_mask.data();  // + 0 at ncol
-  std::uint8_t* out = labels;
-  const VoxelGrid::InputIndex at = g.inputIndex();
+  std::uint8_t* out = cls->ground.data();
   auto zOf = [&](std::uint32_t v) { return static_cast<std::int32_t>(vk[v] & mz); };
   std::uint64_t* acc = acc_[t].data();  // nz + 2 zeros
   // Rows of column ids with the column's label mask in the low 2 bits (id << 2 | mask; the
@@ -95,7 +94,7 @@ void Voter::vote(const VoxelGrid& g, int t, int range, Classifier* cls, std::uin
           const std::uint32_t ts = static_cast<std::uint32_t>(sum);
           if (2 * gs == ts) continue;  // tie: keep the per-point labels
           const std::uint8_t label = 2 * gs > ts ? 1 : 0;
-          for (std::uint32_t i = vs[v]; i < vs[v + 1]; ++i) out[at(i)] = label;
+          for (std::uint32_t i = vs[v]; i < vs[v + 1]; ++i) out[i] = label;
         }
         // Every voxel holds ground or non-ground points: all of them lie in the merged ranges.
         std::fill(acc + std::min(r.glo, r.nlo) + 1, acc + std::max(r.ghi, r.nhi) + 2,
@@ -103,8 +102,7 @@ void Voter::vote(const VoxelGrid& g, int t, int range, Classifier* cls, std::uin
       });
 }
 
-void Voter::run(const VoxelGrid& g, int threads, WorkerPool* workers, Classifier* cls,
-                std::uint8_t* labels) {
+void Voter::run(const VoxelGrid& g, int threads, WorkerPool* workers, Classifier* cls) {
   const int nt = threads > 1 && g.points() >= kParallelMinPoints ? threads : 1;
   const int nch = nt == 1 ? 1 : 4 * nt;  // ranges of whole rows
   splitRows(g, nch, &bounds_);
@@ -116,7 +114,7 @@ void Voter::run(const VoxelGrid& g, int threads, WorkerPool* workers, Classifier
     id_rows_[t].reserve(3 * (g.ny + 2));
     acc_[t].resize(g.nz + 2, 0);  // all zero between scans: the vote clears what it adds to
   }
-  workers->run(nt, nch, [&](int t, int c) { vote(g, t, c, cls, labels); });
+  workers->run(nt, nch, [&](int t, int c) { vote(g, t, c, cls); });
 }
 
 }  // namespace voxel

@@ -17,16 +17,15 @@ namespace voxel {
 ///        neighbourhood (itself included); ties keep the per-point labels.
 class Voter {
  public:
-  /// \brief Rewrites `labels` (input order; the sums read the per-voxel ground counts of the
+  /// \brief Rewrites `cls->ground` (the sums read the per-voxel ground counts of the
   ///        classification only, so relabelling as it goes is exact). `threads` > 1 splits the
   ///        columns into ranges of whole rows.
-  void run(const VoxelGrid& g, int threads, WorkerPool* pool, Classifier* cls,
-           std::uint8_t* labels);
+  void run(const VoxelGrid& g, int threads, WorkerPool* pool, Classifier* cls);
 
  private:
   /// Votes, on thread t, the voxels of the columns of `range` (whole rows) whose neighbourhood
   /// holds both labels.
-  void vote(const VoxelGrid& g, int t, int range, Classifier* cls, std::uint8_t* labels);
+  void vote(const VoxelGrid& g, int t, int range, Classifier* cls);
 
   std::vector<std::size_t> bounds_;                 // column ranges (whole rows)
   std::vector<std::vector<std::int64_t>> id_rows_;  // per thread: column id << 2 | label mask

@@ -109,11 +109,9 @@ struct VoxelGrid {
   std::vector<std::uint32_t> order;
   std::vector<std::uint32_t> point_index;
 
-  // x y z v per input point, 16-byte aligned (owned by Voxelizer): coordinates relative to the
-  // cloud's min corner, v the bits of the point's voxel id (written by build(); invalid points:
-  // never read). Stages read the points in input order here, or in key order through
-  // pointAt(): there are no sorted copies.
-  float* pts = nullptr;
+  // Per valid point in key order, relative to the cloud's min corner.
+  std::vector<float> sx, sy, sz;
+  Buffer<std::uint32_t> pvox;  // voxel of each point
 
   // Per voxel, key order.
   std::vector<std::uint64_t> vkey;
@@ -131,28 +129,7 @@ struct VoxelGrid {
   Buffer<std::uint32_t> flat;
   Buffer<std::uint32_t> seeds;
 
-  std::size_t points() const { return keys.size(); }
-  /// \brief Sorted position -> input index, with the layout read once (for loops).
-  struct InputIndex {
-    const std::uint64_t* keys;
-    const std::uint32_t *order, *point_index;
-    std::uint64_t slot_mask;
-    bool packed, all_valid;
-    std::size_t operator()(std::size_t k) const {
-      const std::uint32_t slot =
-          packed ? static_cast<std::uint32_t>(keys[k] & slot_mask) : order[k];
-      return all_valid ? slot : point_index[slot];
-    }
-  };
-  InputIndex inputIndex() const {
-    return InputIndex{
-        keys.data(), order.data(), point_index.data(), (std::uint64_t{1} << slot_bits) - 1,
-        packed,      all_valid};
-  }
-  /// \brief Input index of the point at sorted position k.
-  std::size_t inputAt(std::size_t k) const { return inputIndex()(k); }
-  /// \brief x y z v of the point at sorted position k.
-  const float* pointAt(std::size_t k) const { return pts + 4 * inputAt(k); }
+  std::size_t points() const { return sx.size(); }
   std::size_t voxels() const { return vkey.size(); }
   std::size_t columns() const { return col_key.size(); }
   std::uint32_t pointsIn(std::size_t v) const { return vstart[v + 1] - vstart[v]; }

@@ -5,7 +5,6 @@
 #endif
 
 #include <algorithm>
-#include <cstring>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -163,7 +162,9 @@ struct RunJob {
   const std::uint64_t* keys;   // sorted
   const std::uint32_t* order;  // slot per sorted key (not packed)
   const std::uint32_t* pidx;   // input index per slot (not all valid)
-  float* pts;                  // x y z 0 per input point (relative); out: lane 3 = voxel id
+  const float* pts;            // x y z 0 per input point (relative)
+  float *x, *y, *z;            // out: coordinates in key order
+  std::uint32_t* pvox;         // out: voxel of each point
   std::uint64_t* vkey;         // out: key per voxel (+ one store past the last)
   std::uint32_t* vstart;       // out: first point per voxel
   float *sx, *sy, *sz;         // out: coordinate sums per voxel
@@ -173,16 +174,19 @@ struct RunJob {
 };
 
 // Pass 1 of build(), without a branch per point or voxel (the runs are 1-2 points long on
-// average: loops over them mispredict their exits): runs of equal keys become voxels (a store
-// is always made, the counter moves when a run starts), running sums and z range per voxel, and
-// each point's voxel id into lane 3 of its x y z 0 vector (the line the gather just read; the
-// later stages read the points in input order from there). Returns the number of voxels.
+// average: loops over them mispredict their exits): coordinates in key order, runs of equal
+// keys become voxels (a store is always made, the counter moves when a run starts), running sums
+// and z range per voxel. Returns the number of voxels.
 template <bool kPacked, bool kAllValid>
 std::size_t gatherRuns(const RunJob job, std::size_t n) {
   const std::uint64_t* const k = job.keys;
   const std::uint32_t* const o = job.order;
   const std::uint32_t* const pidx = job.pidx;
-  float* const in = job.pts;
+  const float* const in = job.pts;
+  float* const x_out = job.x;
+  float* const y_out = job.y;
+  float* const z_out = job.z;
+  std::uint32_t* const pv = job.pvox;
   std::uint64_t* const vk = job.vkey;
   std::uint32_t* const vs = job.vstart;
   float* const vx = job.sx;
@@ -208,16 +212,18 @@ std::size_t gatherRuns(const RunJob job, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i) {
     if (i + kAhead < n) __builtin_prefetch(pointOf(slotOf(i + kAhead)));
     const std::uint64_t key = k[i] >> low;
-    float* pt = pointOf(slotOf(i));
+    const float* pt = pointOf(slotOf(i));
     const float x = pt[0], y = pt[1], z = pt[2];
+    x_out[i] = x;
+    y_out[i] = y;
+    z_out[i] = z;
     const bool first = key != prev;
     prev = key;
     vk[nv] = key;  // kept when the run starts here, overwritten otherwise
     vs[nv] = static_cast<std::uint32_t>(i);
     nv += first;
     const std::size_t v = nv - 1;
-    const std::uint32_t v32 = static_cast<std::uint32_t>(v);
-    std::memcpy(pt + 3, &v32, sizeof v32);
+    pv[i] = static_cast<std::uint32_t>(v);
     // The same sums in the same order as a loop over the run would make (0 + x first), with
     // arithmetic instead of selects: relative coordinates are >= +0, so s * 0 is +0.
     const float keep = kKeep[first];
@@ -420,8 +426,11 @@ void Voxelizer::sort(VoxelGrid* g) {
 void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* cells) {
   sort(g);
   const std::size_t n = g->keys.size();
-  // One pass over the sorted points: runs of equal keys become voxels. A voxel is finished when
-  // the next one starts (its flags need the next key).
+  // One pass over the sorted points: coordinates in key order, runs of equal keys become voxels.
+  // A voxel is finished when the next one starts (its flags need the next key).
+  g->sx.resize(n);
+  g->sy.resize(n);
+  g->sz.resize(n);
   // Voxels = runs of equal keys, counted first so the per-voxel arrays take what they need.
   std::size_t runs = 1;
   {
@@ -445,10 +454,14 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   cells->used.assign(cells->count(), 0);
   const std::uint64_t* k = g->keys.data();
   const std::uint32_t* o = g->order.data();
-  float* in = pxyz_.data();  // x y z 0 per input point (relative)
-  g->pts = in;
+  const float* in = pxyz_.data();  // x y z 0 per input point (relative)
   const bool av = g->all_valid;
   const std::uint32_t* pidx = g->point_index.data();
+  float* x_out = g->sx.data();
+  float* y_out = g->sy.data();
+  float* z_out = g->sz.data();
+  g->pvox.resize(n);
+  std::uint32_t* pv = g->pvox.data();
   std::uint64_t* vk = g->vkey.data();
   std::uint32_t* vs = g->vstart.data();
   float* vx = g->vx.data();
@@ -473,12 +486,12 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   const bool local = p.local_planes;
   const std::uint64_t my = g->mask_y, mz = g->mask_z;
   // Two passes without a branch per point or voxel. Pass 1 (gatherRuns(), specialised for the
-  // key layout): voxels, running sums and z ranges, each point's voxel.
+  // key layout): coordinates in key order, voxels, running sums and z ranges.
   zmin_.resize(runs);
   zmax_.resize(runs);
   // Fields in RunJob's order: inputs, point outputs, voxel outputs, key layout.
-  const RunJob job = {k,  o,  pidx,         in,           vk,        vs, vx,
-                      vy, vz, zmin_.data(), zmax_.data(), slot_mask, low};
+  const RunJob job = {k,  o,  pidx, in, x_out,        y_out,        z_out,     pv,  vk,
+                      vs, vx, vy,   vz, zmin_.data(), zmax_.data(), slot_mask, low};
   using Gather = std::size_t (*)(const RunJob, std::size_t);
   static const Gather kGather[2][2] = {{gatherRuns<false, false>, gatherRuns<false, true>},
                                        {gatherRuns<true, false>, gatherRuns<true, true>}};
