@@ -279,6 +279,21 @@ TEST(WorkingVolume, VolumeTestedOnTheBounds) {
   wrapped.filter(view, &labels, &stats);
   EXPECT_EQ(stats.out_of_range_points, 0u);
   EXPECT_EQ(labels, reference);
+  // Reused: the wrapper asks the inner filter again, or not, after a scan with a far point; the
+  // labels never depend on it.
+  std::vector<float> far = xyz;
+  far.insert(far.end(), {300e3f, 0.f, 0.f});
+  for (int round = 0; round < 3; ++round) {
+    SCOPED_TRACE(round);
+    wrapped.filter(gf::CloudView::packedXyz(far.data(), n + 1), &labels, &stats);
+    EXPECT_EQ(stats.out_of_range_points, 1u);
+    EXPECT_EQ(std::vector<std::uint8_t>(labels.begin(), labels.end() - 1), reference);
+    for (int again = 0; again < 2; ++again) {
+      wrapped.filter(view, &labels, &stats);
+      EXPECT_EQ(stats.out_of_range_points, 0u);
+      EXPECT_EQ(labels, reference);
+    }
+  }
   // The box test agrees with contains() at the corners, float rounding included.
   gf::WorkingVolume v;
   v.max_range = 100.0;

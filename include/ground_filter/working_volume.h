@@ -90,6 +90,7 @@ class WorkingVolumeFilter : public GroundFilter {
   std::vector<float> xyz_;         // packed in-range points
   std::vector<std::size_t> kept_;  // their input indices
   std::vector<std::uint8_t> inner_labels_;
+  bool ask_inner_ = true;  // try GroundFilter::filterInside() first (see filter())
 };
 
 }  // namespace ground_filter

@@ -40,7 +40,11 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
   using Clock = std::chrono::steady_clock;
   const auto t0 = Clock::now();
   const std::size_t n = cloud.size();
-  if (inner_->filterInside(cloud, volume_, labels, stats)) {  // the usual case, no pass here
+  // The usual case: the inner filter tests the volume on its way, no pass here. Not asked again
+  // after it declined until the wrapper's own pass finds every point inside (a stream of scans
+  // with far points would pay the inner filter's first pass twice).
+  const bool asked = ask_inner_;
+  if (asked && inner_->filterInside(cloud, volume_, labels, stats)) {
     if (stats) {
       stats->out_of_range_points = 0;
       stats->total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
@@ -56,6 +60,7 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
       ++out_of_range;
     }
   }
+  ask_inner_ = !asked && out_of_range == 0;
   if (out_of_range == 0) {
     inner_->filter(cloud, labels, stats);
     if (stats) {
