@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "ground_filter/neighbor_search.h"
+#include "normal/neighborhood_pca.h"
 
 namespace ground_filter {
 
@@ -33,6 +34,13 @@ class KdTreeNeighborSearch : public NeighborSearch {
   ///        computeNeighborhoodPca()); always true.
   bool searchWithPca(const float* xyz, std::size_t n, int k, NeighborLists* out,
                      std::vector<PointPca>* pca) override;
+  /// \brief Queries and candidate flags interleaved chunk by chunk (computeRowsCandidates():
+  ///        the same bytes as searchWithPca() followed by isCandidatePca()); always true.
+  bool searchWithCandidates(const float* xyz, std::size_t n, int k, const CandidateTest& test,
+                            NeighborLists* out, std::uint8_t* candidate) override;
+  /// \brief How the last searchWithCandidates() decided its points (how many took the exact
+  ///        Eigen path: `exact`).
+  const CandidateCounts& lastCandidateCounts() const { return counts_; }
   /// \brief {"kdtree_build", "knn"} and, after searchWithPca(), "pca": the query wall time
   ///        split by the threads' time in each part.
   std::vector<std::pair<std::string, double>> lastStageMs() const override;
@@ -62,7 +70,8 @@ class KdTreeNeighborSearch : public NeighborSearch {
 
  private:
   struct Impl;
-  void run(const float* xyz, std::size_t n, int k, NeighborLists* out, std::vector<PointPca>* pca);
+  void run(const float* xyz, std::size_t n, int k, NeighborLists* out, std::vector<PointPca>* pca,
+           const CandidateTest* test = nullptr, std::uint8_t* candidate = nullptr);
   std::unique_ptr<Impl> impl_;
   int threads_;
   int leaf_size_;
@@ -71,6 +80,7 @@ class KdTreeNeighborSearch : public NeighborSearch {
   double query_ms_ = 0.0;
   double pca_ms_ = 0.0;
   bool with_pca_ = false;
+  CandidateCounts counts_;  // of the last searchWithCandidates()
   bool keep_lists_ = false;  // keepListsOnDevice()
   bool lists_kept_ = false;  // the last call's lists are in impl_->rows
 };
