@@ -197,19 +197,25 @@ inline int fastCandidate(const Covariance& c, const CandidateTest& t, CandidateC
                    c.yz * c.yz;
   const double det = b00 * (b11 * b22 - c.yz * c.yz) - c.xy * (c.xy * b22 - c.yz * c.xz) +
                      c.xz * (c.xy * c.yz - b11 * c.xz);
-  // Smallest root by Newton from x = -m (lambda = 0 <= lambda0, C is PSD). p is increasing and
-  // concave left of its smallest root (p'' = 6x < 0, that root is <= -sqrt(a/3) < 0), so the
-  // iterates rise monotonically towards it and never pass it.
+  // Smallest root x0 by Newton from x = -m (lambda = 0 <= lambda0, C is PSD). p is increasing
+  // and concave left of x0 (p'' = 6x < 0 and x0 <= -sqrt(a/3) < 0), so the iterates rise
+  // monotonically towards x0 and never pass it. Once the steps are small, p(x + w) >= 0 proves
+  // x0 <= x + wb (p < 0 on [x, x0)): x0 is then known to wb = 1e-8 trace, far inside the margins.
+  const double wb = 1e-8 * tr;
   double x = -m;
   bool converged = false;
-  for (int it = 0; it < 12; ++it) {
+  for (int it = 0; it < 16; ++it) {
     const double p = (x * x - a) * x - det, dp = 3.0 * x * x - a;
     if (!(dp > 0.0)) break;
     const double step = p / dp;
     x -= step;
-    if (std::abs(step) <= 1e-10 * tr) {
-      converged = true;
-      break;
+    if (std::abs(step) <= 1e-5 * tr) {
+      const double y = x + wb;
+      if ((y * y - a) * y - det >= 0.0) {
+        x += 0.5 * wb;  // the middle of [x, x + wb]
+        converged = true;
+        break;
+      }
     }
   }
   if (!converged) return -1;
