@@ -82,6 +82,49 @@ GF_TARGET_AVX512 void sumsAvx512(const float* xyz, const std::int32_t* row, int 
   *s = Moments{a[0], a[1], a[2], b[0], b[1], b[2], b[3], b[4], b[5], k};
 }
 
+/// Sums of a full row for the candidate decision only: two accumulator pairs (even and odd
+/// neighbours) so the additions do not wait on each other; NOT the reference bits (a different
+/// addition order), so a point the fast decision cannot certify recomputes sumsAvx512().
+GF_TARGET_AVX512 void sumsAvx512Fast(const float* xyz, const std::int32_t* row, int k,
+                                     std::size_t query, Moments* s) {
+  const __mmask16 three = 0x7;
+  const __m512d o = _mm512_cvtps_pd(_mm256_castps128_ps256(
+      _mm_castsi128_ps(_mm512_castsi512_si128(_mm512_maskz_loadu_epi32(three, xyz + 3 * query)))));
+  const __m512i pa = _mm512_set_epi64(3, 3, 2, 1, 1, 0, 0, 0);  // dx dx dx dy dy dz
+  const __m512i pb = _mm512_set_epi64(3, 3, 2, 2, 1, 2, 1, 0);  // dx dy dz dy dz dz
+  __m512d s1 = _mm512_setzero_pd(), s2 = _mm512_setzero_pd();
+  __m512d t1 = _mm512_setzero_pd(), t2 = _mm512_setzero_pd();
+  int j = 0;
+  for (; j + 1 < k; j += 2) {
+    const float* p = xyz + 3 * static_cast<std::size_t>(row[j]);
+    const float* q = xyz + 3 * static_cast<std::size_t>(row[j + 1]);
+    const __m512d v = _mm512_cvtps_pd(_mm256_castps128_ps256(
+        _mm_castsi128_ps(_mm512_castsi512_si128(_mm512_maskz_loadu_epi32(three, p)))));
+    const __m512d u = _mm512_cvtps_pd(_mm256_castps128_ps256(
+        _mm_castsi128_ps(_mm512_castsi512_si128(_mm512_maskz_loadu_epi32(three, q)))));
+    const __m512d d = _mm512_maskz_sub_pd(0x7, v, o);
+    const __m512d e = _mm512_maskz_sub_pd(0x7, u, o);
+    s1 = _mm512_add_pd(s1, d);
+    t1 = _mm512_add_pd(t1, e);
+    s2 = _mm512_add_pd(s2, _mm512_mul_pd(_mm512_permutexvar_pd(pa, d), _mm512_permutexvar_pd(pb, d)));
+    t2 = _mm512_add_pd(t2, _mm512_mul_pd(_mm512_permutexvar_pd(pa, e), _mm512_permutexvar_pd(pb, e)));
+  }
+  for (; j < k; ++j) {
+    const float* p = xyz + 3 * static_cast<std::size_t>(row[j]);
+    const __m512d v = _mm512_cvtps_pd(_mm256_castps128_ps256(
+        _mm_castsi128_ps(_mm512_castsi512_si128(_mm512_maskz_loadu_epi32(three, p)))));
+    const __m512d d = _mm512_maskz_sub_pd(0x7, v, o);
+    s1 = _mm512_add_pd(s1, d);
+    s2 = _mm512_add_pd(s2, _mm512_mul_pd(_mm512_permutexvar_pd(pa, d), _mm512_permutexvar_pd(pb, d)));
+  }
+  s1 = _mm512_add_pd(s1, t1);
+  s2 = _mm512_add_pd(s2, t2);
+  alignas(64) double a[8], b[8];
+  _mm512_store_pd(a, s1);
+  _mm512_store_pd(b, s2);
+  *s = Moments{a[0], a[1], a[2], b[0], b[1], b[2], b[3], b[4], b[5], k};
+}
+
 #pragma GCC diagnostic pop
 
 bool haveAvx512() {
@@ -283,20 +326,51 @@ inline int fastCandidate(const Covariance& c, const CandidateTest& t, CandidateC
   return -1;
 }
 
-/// Candidate flag of one neighbourhood: fastCandidate() where certain, else the reference.
+/// Candidate flag of one neighbourhood: fastCandidate() where certain, else the reference
+/// (sums in list order, Eigen's solver, isCandidatePca()).
 inline std::uint8_t candidateOne(const float* xyz, const std::int32_t* row, int k,
                                  std::size_t query, bool avx512, const CandidateTest& t,
                                  CandidateCounts* counts) {
   Moments s;
-  sumsOf(xyz, row, k, query, avx512, &s);
   Covariance c;
+  bool reference_sums = true;
+  if (!t.exact_only) {
+#if GF_HAVE_AVX512
+    if (avx512 && k >= 3 && row[k - 1] >= 0) {
+      sumsAvx512Fast(xyz, row, k, query, &s);
+      // Another addition order moves the covariance by <= ~2 k eps (mean squared offset from
+      // the query); trusted when that is < 1e-4 of the trace (so < 3e-10 trace, far inside the
+      // margins) and away from the reference's validity threshold. All squares exactly 0 means
+      // every offset is 0 (a float difference squared in double cannot underflow): the
+      // reference's trace is 0 too.
+      const bool all_same = s.sxx == 0.0 && s.syy == 0.0 && s.szz == 0.0;
+      const bool trusted = all_same || (covarianceOf(s, &c) && c.trace > 1e-11 &&
+                                        s.sxx + s.syy + s.szz <= 1e4 * s.m * c.trace);
+      if (trusted) {
+        if (all_same) {
+          ++counts->invalid;
+          return 0;
+        }
+        const int d = fastCandidate(c, t, counts);
+        if (d >= 0) return static_cast<std::uint8_t>(d);
+        reference_sums = false;
+      }
+    }
+#endif
+    if (reference_sums) {
+      sumsOf(xyz, row, k, query, avx512, &s);
+      if (!covarianceOf(s, &c)) {
+        ++counts->invalid;
+        return 0;
+      }
+      const int d = fastCandidate(c, t, counts);
+      if (d >= 0) return static_cast<std::uint8_t>(d);
+    }
+  }
+  if (t.exact_only || !reference_sums) sumsOf(xyz, row, k, query, avx512, &s);
   if (!covarianceOf(s, &c)) {
     ++counts->invalid;
     return 0;
-  }
-  if (!t.exact_only) {
-    const int d = fastCandidate(c, t, counts);
-    if (d >= 0) return static_cast<std::uint8_t>(d);
   }
   ++counts->exact;
   PointPca r;
