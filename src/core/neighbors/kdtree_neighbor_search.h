@@ -80,7 +80,7 @@ class KdTreeNeighborSearch : public NeighborSearch {
   double query_ms_ = 0.0;
   double pca_ms_ = 0.0;
   bool with_pca_ = false;
-  CandidateCounts counts_;  // of the last searchWithCandidates()
+  CandidateCounts counts_;   // of the last searchWithCandidates()
   bool keep_lists_ = false;  // keepListsOnDevice()
   bool lists_kept_ = false;  // the last call's lists are in impl_->rows
 };

@@ -106,8 +106,10 @@ GF_TARGET_AVX512 void sumsAvx512Fast(const float* xyz, const std::int32_t* row, 
     const __m512d e = _mm512_maskz_sub_pd(0x7, u, o);
     s1 = _mm512_add_pd(s1, d);
     t1 = _mm512_add_pd(t1, e);
-    s2 = _mm512_add_pd(s2, _mm512_mul_pd(_mm512_permutexvar_pd(pa, d), _mm512_permutexvar_pd(pb, d)));
-    t2 = _mm512_add_pd(t2, _mm512_mul_pd(_mm512_permutexvar_pd(pa, e), _mm512_permutexvar_pd(pb, e)));
+    s2 = _mm512_add_pd(s2,
+                       _mm512_mul_pd(_mm512_permutexvar_pd(pa, d), _mm512_permutexvar_pd(pb, d)));
+    t2 = _mm512_add_pd(t2,
+                       _mm512_mul_pd(_mm512_permutexvar_pd(pa, e), _mm512_permutexvar_pd(pb, e)));
   }
   for (; j < k; ++j) {
     const float* p = xyz + 3 * static_cast<std::size_t>(row[j]);
@@ -115,7 +117,8 @@ GF_TARGET_AVX512 void sumsAvx512Fast(const float* xyz, const std::int32_t* row, 
         _mm_castsi128_ps(_mm512_castsi512_si128(_mm512_maskz_loadu_epi32(three, p)))));
     const __m512d d = _mm512_maskz_sub_pd(0x7, v, o);
     s1 = _mm512_add_pd(s1, d);
-    s2 = _mm512_add_pd(s2, _mm512_mul_pd(_mm512_permutexvar_pd(pa, d), _mm512_permutexvar_pd(pb, d)));
+    s2 = _mm512_add_pd(s2,
+                       _mm512_mul_pd(_mm512_permutexvar_pd(pa, d), _mm512_permutexvar_pd(pb, d)));
   }
   s1 = _mm512_add_pd(s1, t1);
   s2 = _mm512_add_pd(s2, t2);
@@ -236,8 +239,8 @@ inline int fastCandidate(const Covariance& c, const CandidateTest& t, CandidateC
   // det(x I - B) = x^3 - a x - det(B), a = sum of B_ij^2 / 2 >= 0.
   const double m = tr / 3.0;
   const double b00 = c.xx - m, b11 = c.yy - m, b22 = c.zz - m;
-  const double a = 0.5 * (b00 * b00 + b11 * b11 + b22 * b22) + c.xy * c.xy + c.xz * c.xz +
-                   c.yz * c.yz;
+  const double a =
+      0.5 * (b00 * b00 + b11 * b11 + b22 * b22) + c.xy * c.xy + c.xz * c.xz + c.yz * c.yz;
   const double det = b00 * (b11 * b22 - c.yz * c.yz) - c.xy * (c.xy * b22 - c.yz * c.xz) +
                      c.xz * (c.xy * c.yz - b11 * c.xz);
   // Smallest root x0 by Newton from x = -m (lambda = 0 <= lambda0, C is PSD). p is increasing

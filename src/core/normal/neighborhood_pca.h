@@ -33,7 +33,8 @@ void computeRowsPca(const float* xyz, const std::int32_t* indices, int k, const 
 void computeOrderedRowsPca(const float* xyz, const std::int32_t* rows, int k,
                            const std::uint32_t* query, std::size_t count, PointPca* out);
 
-/// \brief isFlat() of the normal filter: planarity dominant (Demantke et al.) and >= `min_planarity`.
+/// \brief isFlat() of the normal filter: planarity dominant (Demantke et al.) and at least
+///        `min_planarity`.
 bool isFlatPca(const PointPca& r, double min_planarity);
 
 /// \brief The ground-candidate decision on a PCA result: valid, flat and |normal z| >= `min_abs_nz`
