@@ -728,9 +728,9 @@ void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborL
   const std::size_t kk = static_cast<std::size_t>(std::max(k, 0));
   out->k = static_cast<int>(kk);
   out->points = n;
-  // Kept lists (searchWithPca() after keepListsOnDevice(true)): rows in tree order, written one
-  // after the other and without distances; writing rows in input order scatters them over
-  // 2 * n * K * 4 bytes, a cache miss per row.
+  // Kept lists (searchWithPca() or searchWithCandidates() after keepListsOnDevice(true)): rows in
+  // tree order, written one after the other and without distances; writing rows in input order
+  // scatters them over 2 * n * K * 4 bytes, a cache miss per row.
   const bool cand = test != nullptr;  // candidate flags instead of the PCA
   const bool kept = keep_lists_ && (pca != nullptr || cand) && n >= kk && kk > 0;
   lists_kept_ = kept;

@@ -41,17 +41,18 @@ class KdTreeNeighborSearch : public NeighborSearch {
   /// \brief How the last searchWithCandidates() decided its points (how many took the exact
   ///        Eigen path: `exact`).
   const CandidateCounts& lastCandidateCounts() const { return counts_; }
-  /// \brief {"kdtree_build", "knn"} and, after searchWithPca(), "pca": the query wall time
-  ///        split by the threads' time in each part.
+  /// \brief {"kdtree_build", "knn"} and, after searchWithPca() or searchWithCandidates(),
+  ///        "pca": the query wall time split by the threads' time in each part.
   std::vector<std::pair<std::string, double>> lastStageMs() const override;
 
-  /// \brief With `keep` true, searchWithPca() keeps the lists itself (rows in tree order,
-  ///        indices only: no scattered writes) and leaves `out->indices`/`sq_dists` empty;
-  ///        countFlaggedNeighbors() then counts on them. search() always fills `out`.
+  /// \brief With `keep` true, searchWithPca() and searchWithCandidates() keep the lists
+  ///        themselves (rows in tree order, indices only: no scattered writes) and leave
+  ///        `out->indices`/`sq_dists` empty; countFlaggedNeighbors() then counts on them.
+  ///        search() always fills `out`.
   /// \return `keep`.
   bool keepListsOnDevice(bool keep) override;
   /// \brief See NeighborSearch::countFlaggedNeighbors(); false unless the last call was a
-  ///        searchWithPca() with kept lists (of at least K points).
+  ///        searchWithPca() or searchWithCandidates() with kept lists (of at least K points).
   bool countFlaggedNeighbors(const std::uint8_t* flags, std::uint16_t* flagged,
                              std::uint16_t* neighbors) override;
   /// \brief The kept lists of the last searchWithPca() in input order (distances recomputed
