@@ -2,6 +2,8 @@
 // decomposition, in double. With AVX-512 the nine sums of a neighbourhood are kept in two
 // registers (lane by lane the same additions in the same order, products not fused: the same
 // bits as the scalar code). One neighbourhood per lane with gathers was 1.5x slower on Zen 4.
+// The filter itself only needs each point's candidate bit: computeRowsCandidates() and friends
+// decide it without the eigen solver where that is certain (see "Candidate decision" below).
 
 #include "normal/neighborhood_pca.h"
 
@@ -210,14 +212,15 @@ inline void sumsOf(const float* xyz, const std::int32_t* row, int k, std::size_t
 // margins is far beyond the error of both computations; otherwise eigenPca() decides.
 //
 // Error budget, in units of the trace: Eigen's closed form errs by about sqrt(eps) ~ 1.5e-8 at
-// worst (near a double root), the Newton/quadratic solution below by less, the float rounding
-// of the stored values by 6e-8 relative. kEigenTol (1e-6) covers all of them with a factor > 10.
+// worst (near a double root), the Newton/quadratic solution below by about as much, the float
+// rounding of the stored values by 6e-8 relative. CandidateTest::eigen_tol (default 1e-6) covers
+// all of them with a factor > 10.
 //
 // The normal only matters when the point is certainly flat. Flat means s2 >= 2 s3 and
 // 2 s2 >= s1 + s3 (s = sqrt of the eigenvalues, descending), i.e. lambda1 >= 4 lambda0 and
 // lambda1 >= lambda2 / 4 >= trace / 12, so the gap lambda1 - lambda0 >= trace / 16: the
 // eigenvector of lambda0 is well conditioned (error <= ~16x the eigenvalue error) and
-// kNormalTol = 100 kEigenTol covers both normals.
+// normalTol() = 100 eigen_tol covers both normals.
 
 /// Decision margin of the normal-z test beyond the errors (see above) [1].
 inline double normalTol(double eigen_tol) { return 100.0 * eigen_tol; }
