@@ -30,6 +30,7 @@ struct VoxelGroundFilterParams : TableParams<VoxelGroundFilterParams>, MorphGrou
   double veg_min_height = 0.2;       ///< veg: clutter band starts this far above ground [m] (0.2)
   double veg_max_height = 1.2;       ///< veg: clutter band ends this far above ground [m] (1.2)
   double veg_max_gap = 1.2;          ///< veg: lowest clutter point at most this high [m] (1.2)
+  int veg_radius = 1;                ///< veg: window of 2 r + 1 voxel columns a side [voxels] (1)
   int veg_min_points = 3;            ///< veg: clutter points in the 3 x 3 columns [points] (3)
   double veg_min_spread = 0.0;       ///< veg: clutter thickness across its sheet, std [m] (0.0)
   double veg_min_base = -10.0;       ///< veg: relabel points at least this high [m] (-10: all)

@@ -41,8 +41,8 @@ struct VoxelGroundFilter::Impl {
   voxel::Classifier classifier;
   voxel::Voter voter;
   voxel::VegetationRule vegetation;  // veg_filter only
-  voxel::WorkerPool pool;  // threads > 1 only
-  MorphGround morph;       // morph_ground (airborne) only
+  voxel::WorkerPool pool;            // threads > 1 only
+  MorphGround morph;                 // morph_ground (airborne) only
 };
 
 VoxelGroundFilter::VoxelGroundFilter(const VoxelGroundFilterParams& params)

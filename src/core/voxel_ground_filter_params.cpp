@@ -28,6 +28,7 @@ const ParamTable<VoxelGroundFilterParams>& VoxelGroundFilterParams::table() {
       {"veg_min_height", &P::veg_min_height, 0.0, 10.0, "m", "veg: clutter band bottom"},
       {"veg_max_height", &P::veg_max_height, 0.0, 10.0, "m", "veg: clutter band top"},
       {"veg_max_gap", &P::veg_max_gap, 0.0, 10.0, "m", "veg: lowest clutter point at most"},
+      {"veg_radius", &P::veg_radius, 1, 10, "voxels", "veg: window half-width"},
       {"veg_min_points", &P::veg_min_points, 1, 100000, "points", "veg: clutter points needed"},
       {"veg_min_spread", &P::veg_min_spread, 0.0, 10.0, "m", "veg: min clutter thickness"},
       {"veg_min_base", &P::veg_min_base, -10.0, 10.0, "m", "veg: relabel from this height"},

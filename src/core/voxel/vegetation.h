@@ -16,12 +16,12 @@ namespace voxel {
 
 /// \brief Step 9 (added, veg_filter): ground points under porous, volumetric clutter (bush
 ///        bases, undergrowth) become non-ground. A column's ground points are relabelled when
-///        its 3 x 3 columns hold at least veg_min_points points veg_min_height..veg_max_height
-///        above the ground model, the lowest of them at most veg_max_gap above it (clutter that
-///        grows from the ground, not a car body), spread horizontally at least veg_min_spread
-///        across their main direction (a volume, not the sheet of a wall or a car's side), with
-///        at most veg_max_density of them per voxel they occupy (porous: a solid surface near
-///        the sensor packs its returns into few voxels).
+///        its (2 veg_radius + 1)^2 columns hold at least veg_min_points points
+///        veg_min_height..veg_max_height above the ground model, the lowest of them at most
+///        veg_max_gap above it (clutter that grows from the ground, not a car body), spread
+///        horizontally at least veg_min_spread across their main direction (a volume, not the sheet
+///        of a wall or a car's side), with at most veg_max_density of them per voxel they occupy
+///        (porous: a solid surface near the sensor packs its returns into few voxels).
 class VegetationRule {
  public:
   /// \brief Rewrites `ground` (per point, key order). `threads` > 1 splits the columns into
@@ -43,7 +43,9 @@ class VegetationRule {
 
   std::vector<Above> above_;  // per column + an empty sentinel
   std::vector<std::size_t> bounds_;
-  std::vector<std::vector<std::int32_t>> id_rows_;  // per thread: column ids
+  std::vector<std::uint32_t> row_first_;            // first column of each row x, nx + 1
+  std::vector<std::vector<std::int32_t>> id_rows_;  // per thread: 2 r + 1 rows of column ids
+  std::vector<std::vector<std::int64_t>> held_;     // per thread: row x held by each slot
 };
 
 }  // namespace voxel
