@@ -121,13 +121,10 @@ std::vector<std::uint8_t> run(const Cloud& c, const gf::VoxelGroundFilterParams&
   return labels;
 }
 
-/// The defaults with the vegetation rule on (veg_filter, with the values of config/offroad.yaml's
-/// rule) or off.
+/// The defaults with the vegetation rule (veg_filter, its own defaults) on or off.
 gf::VoxelGroundFilterParams vegetationRule(bool on) {
   gf::VoxelGroundFilterParams p;
   p.veg_filter = on;
-  p.veg_min_base = 0.05;
-  p.veg_max_density = 2.0;
   return p;
 }
 

@@ -135,7 +135,7 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
   // ---- 9. (added, veg_filter) ground points under porous clutter become non-ground
   if (p.veg_filter && have_plane) {
     t0 = Clock::now();
-    m.vegetation.run(p, g, m.model, threads, &m.pool, &m.classifier.ground);
+    m.vegetation.run(p, g, m.model, m.classifier, threads, &m.pool, &m.classifier.ground);
     stage("vegetation", t0);
   }
 

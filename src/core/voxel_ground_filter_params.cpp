@@ -27,10 +27,8 @@ const ParamTable<VoxelGroundFilterParams>& VoxelGroundFilterParams::table() {
       {"veg_filter", &P::veg_filter, 0, 0, "bool", "ground under porous clutter is non-ground"},
       {"veg_min_height", &P::veg_min_height, 0.0, 10.0, "m", "veg: clutter band bottom"},
       {"veg_max_height", &P::veg_max_height, 0.0, 10.0, "m", "veg: clutter band top"},
-      {"veg_max_gap", &P::veg_max_gap, 0.0, 10.0, "m", "veg: lowest clutter point at most"},
       {"veg_radius", &P::veg_radius, 1, 10, "voxels", "veg: window half-width"},
       {"veg_min_points", &P::veg_min_points, 1, 100000, "points", "veg: clutter points needed"},
-      {"veg_min_spread", &P::veg_min_spread, 0.0, 10.0, "m", "veg: min clutter thickness"},
       {"veg_min_base", &P::veg_min_base, -10.0, 10.0, "m", "veg: relabel from this height"},
       {"veg_max_density", &P::veg_max_density, 0.0, 1000.0, "points", "veg: clutter pts per voxel"},
   });
@@ -41,9 +39,6 @@ void VoxelGroundFilterParams::validate() const {
   checkParamRanges(table(), *this);
   if (tile_size < 2.0 * voxel_size) {
     throw std::invalid_argument("parameter 'tile_size' must be at least 2 * voxel_size");
-  }
-  if (veg_max_height < veg_min_height) {
-    throw std::invalid_argument("parameter 'veg_max_height' must be at least veg_min_height");
   }
 }
 
