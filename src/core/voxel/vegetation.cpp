@@ -13,18 +13,30 @@ void VegetationRule::stats(const VoxelGroundFilterParams& p, const VoxelGrid& g,
   const float hmax = static_cast<float>(p.veg_max_height);
   const std::uint32_t* cf = g.col_first.data();
   const std::uint32_t* vs = g.vstart.data();
+  const std::uint32_t* pvox = g.pvox.data();
   const float* vz = g.vz.data();
-  for (std::size_t q = c0; q < c1; ++q) {
-    std::uint64_t clutter = 0;
-    for (std::uint32_t v = cf[q]; v < cf[q + 1]; ++v) {
-      const float h = vz[v] - h0[v];  // centroid over the cell plane
-      const bool in = h >= hmin && h <= hmax;
-      clutter += in ? (static_cast<std::uint64_t>(vs[v + 1] - vs[v]) << 32 | 1u) : 0u;
-    }
-    std::uint8_t any = 0;
-    for (std::uint32_t k = vs[cf[q]]; k < vs[cf[q + 1]]; ++k) any |= ground[k];
-    clutter_[q] = clutter;
-    has_ground_[q] = any;
+  std::uint8_t* vg = voxel_has_ground_.data();
+  std::uint64_t* clutter = clutter_.data();
+  std::uint8_t* has_ground = has_ground_.data();
+  // Flat passes over points, then voxels (voxels hold 1-2 points and columns 1-2 voxels on
+  // average: loops per voxel or per column mispredict their exits).
+  const std::uint32_t v0 = cf[c0], v1 = cf[c1];
+  std::fill(vg + v0, vg + v1, std::uint8_t{0});
+  for (std::uint32_t k = vs[v0]; k < vs[v1]; ++k) vg[pvox[k]] |= ground[k];
+  std::size_t col = c0;
+  std::uint64_t acc = 0;
+  std::uint8_t any = 0;
+  for (std::uint32_t v = v0; v < v1; ++v) {
+    const bool next = v == cf[col + 1];
+    col += next;
+    acc = next ? 0 : acc;
+    any = next ? 0 : any;
+    const float h = vz[v] - h0[v];  // centroid over the cell plane
+    const bool in = h >= hmin && h <= hmax;
+    acc += in ? (static_cast<std::uint64_t>(vs[v + 1] - vs[v]) << 32 | 1u) : 0u;
+    any |= vg[v];
+    clutter[col] = acc;
+    has_ground[col] = any;
   }
 }
 
@@ -67,7 +79,6 @@ void VegetationRule::relabel(const VoxelGroundFilterParams& p, const VoxelGrid& 
   const std::int32_t* win[2 * 10 + 1];  // the window's rows (veg_radius <= 10)
   int nrows = 0;
   for (std::size_t q = bounds_[range]; q < bounds_[range + 1]; ++q) {
-    if (!has_ground_[q]) continue;
     const std::int64_t x = static_cast<std::int64_t>(ck[q] >> y_bits);
     if (x != loaded) {
       nrows = 0;
@@ -84,8 +95,12 @@ void VegetationRule::relabel(const VoxelGroundFilterParams& p, const VoxelGrid& 
       const std::int32_t* row = win[i] + y;
       for (int j = 0; j < w; ++j) sum += cl[row[j]];
     }
+    // Every column's window is summed (a test per column first would mispredict).
     const std::uint64_t n = sum >> 32, nv = sum & 0xFFFFFFFFu;
-    if (n < min_n || (max_density > 0.0 && static_cast<double>(n) > max_density * nv)) continue;
+    if (!has_ground_[q] || n < min_n) continue;
+    if (max_density > 0.0 && static_cast<double>(n) > max_density * static_cast<double>(nv)) {
+      continue;
+    }
     // Only points above the model's surface: clutter bases, not the ground under them.
     for (std::uint32_t v = g.col_first[q]; v < g.col_first[q + 1]; ++v) {
       const HeightPlane& hp = model.plane(g.vcell[v]);
@@ -102,6 +117,7 @@ void VegetationRule::run(const VoxelGroundFilterParams& p, const VoxelGrid& g,
   const std::size_t ncol = g.columns();
   clutter_.resize(ncol + 1);
   has_ground_.resize(ncol);
+  voxel_has_ground_.resize(g.voxels());
   clutter_[ncol] = 0;
   const int nt = threads > 1 && g.points() >= kParallelMinPoints ? threads : 1;
   const int nch = nt == 1 ? 1 : 4 * nt;

@@ -40,6 +40,7 @@ class VegetationRule {
   // it holds ground points.
   std::vector<std::uint64_t> clutter_;
   std::vector<std::uint8_t> has_ground_;
+  std::vector<std::uint8_t> voxel_has_ground_;      // per voxel
   std::vector<std::uint32_t> row_first_;            // first column of each row x, nx + 1
   std::vector<std::size_t> bounds_;                 // column ranges (whole rows)
   std::vector<std::vector<std::int32_t>> id_rows_;  // per thread: 2 r + 1 rows of column ids
