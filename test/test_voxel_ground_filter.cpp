@@ -618,6 +618,7 @@ TEST(VoxelGroundFilterParams, ValidationRejectsBadValues) {
   expectBad("min_points_per_voxel", "0");
   expectBad("tile_size", "0.1");
   expectBad("threads", "-1");
+  expectBad("veg_min_height", "1.5");  // above veg_max_height (1.2): an inverted clutter band
   gf::VoxelGroundFilterParams p;
   EXPECT_NO_THROW(p.validate());
   EXPECT_THROW(p.set("no_such_parameter", "1"), std::invalid_argument);

@@ -40,6 +40,9 @@ void VoxelGroundFilterParams::validate() const {
   if (tile_size < 2.0 * voxel_size) {
     throw std::invalid_argument("parameter 'tile_size' must be at least 2 * voxel_size");
   }
+  if (veg_min_height > veg_max_height) {
+    throw std::invalid_argument("parameter 'veg_min_height' must not exceed veg_max_height");
+  }
 }
 
 }  // namespace ground_filter
