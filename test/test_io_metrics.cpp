@@ -970,7 +970,7 @@ TEST(Presets, EveryConfigLoadsIntoItsMethod) {
   const std::string dir = GF_CONFIG_DIR;
   const std::string cfg_dir = dir + "/../cfg";
   std::size_t files = 0;
-  for (const char* required : {"vehicle_lidar.yaml", "tls.yaml", "airborne.yaml"}) {
+  for (const char* required : {"vehicle_lidar.yaml", "tls.yaml", "airborne.yaml", "offroad.yaml"}) {
     EXPECT_TRUE(fs::exists(dir + "/" + required)) << required;
   }
   for (const auto& entry : fs::directory_iterator(dir)) {

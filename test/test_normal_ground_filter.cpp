@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <initializer_list>
 #include <limits>
 #include <random>
@@ -629,6 +630,211 @@ TEST(KdTreeNeighborSearch, SearchWithPcaMatchesSearchThenPca) {
       EXPECT_EQ(parts[1].first, "knn");
       EXPECT_EQ(parts[2].first, "pca");
       for (const auto& e : parts) EXPECT_GE(e.second, 0.0) << e.first;
+    }
+  }
+}
+
+// ------------------------------------------------------------------ candidate-only PCA
+
+namespace {
+
+/// The reference: Eigen's PCA of every row, then isCandidatePca() on its float output.
+std::vector<std::uint8_t> referenceCandidates(const Cloud& c, const gf::NeighborLists& lists,
+                                              const gf::CandidateTest& t) {
+  std::vector<gf::PointPca> pca;
+  gf::computeNeighborhoodPca(c.data(), lists, 2, &pca);
+  std::vector<std::uint8_t> out(pca.size());
+  for (std::size_t i = 0; i < pca.size(); ++i) {
+    out[i] = gf::isCandidatePca(pca[i], t.min_planarity, t.min_abs_nz);
+  }
+  return out;
+}
+
+/// Fast candidate flags of every row == the reference, for a few decision settings; returns the
+/// counts of the default settings.
+gf::CandidateCounts expectFastCandidatesExact(const Cloud& c, int k) {
+  const std::size_t n = c.size() / 3;
+  gf::NeighborLists lists;
+  gf::KdTreeNeighborSearch(2).search(c.data(), n, k, &lists);
+  gf::CandidateCounts first;
+  bool have_first = false;
+  // (min_planarity, max tilt [deg]): the defaults first, then a planarity bound and windows.
+  const std::vector<std::pair<double, double>> settings = {
+      {0.0, 15.0}, {0.3, 15.0}, {0.0, 10.0}, {0.1, 30.0}, {0.0, 90.0}};
+  for (const auto& st : settings) {
+    gf::CandidateTest t;
+    t.min_planarity = st.first;
+    t.min_abs_nz = std::cos(st.second * M_PI / 180.0);
+    SCOPED_TRACE("min_planarity " + std::to_string(st.first) + " tilt " +
+                 std::to_string(st.second));
+    const std::vector<std::uint8_t> want = referenceCandidates(c, lists, t);
+    std::vector<std::uint8_t> got(n, 7);
+    gf::CandidateCounts counts;
+    gf::computeNeighborhoodCandidates(c.data(), lists, 2, t, got.data(), &counts);
+    std::size_t diff = 0, cand = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      diff += got[i] != want[i];
+      cand += want[i];
+    }
+    EXPECT_EQ(diff, 0u) << "points whose fast candidate flag differs from Eigen's";
+    EXPECT_EQ(counts.invalid + counts.early + counts.fast + counts.exact, n);
+    if (!have_first) {
+      first = counts;
+      have_first = true;
+      ::testing::Test::RecordProperty("candidates", std::to_string(cand));
+    }
+  }
+  return first;
+}
+
+Cloud finiteXyzOf(const std::string& file) {
+  const gf::Scan scan = gf::loadScan(file);
+  const gf::CloudView view = gf::viewOf(scan.cloud);
+  Cloud c;
+  for (std::size_t i = 0; i < view.size(); ++i) {
+    float x, y, z;
+    if (view.get(i, &x, &y, &z)) c.insert(c.end(), {x, y, z});
+  }
+  return c;
+}
+
+/// Points on a line along (1, 1, 0.2) with `noise` [m] of scatter.
+Cloud lineCloud(std::size_t n, double noise, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> g(0.0, noise);
+  Cloud c;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double s = 0.01 * static_cast<double>(i);
+    add(&c, s + g(rng), s + g(rng), 0.2 * s + g(rng));
+  }
+  return c;
+}
+
+}  // namespace
+
+TEST(CandidatePca, FastDecisionMatchesEigenOnSyntheticClouds) {
+  std::vector<std::pair<std::string, Cloud>> clouds;
+  clouds.emplace_back("random", gf_test::randomCloud(20000, 41, false, 0.2f));
+  clouds.emplace_back("clustered", gf_test::randomCloud(20000, 42, true, 0.2f));
+  Cloud coincident;
+  for (int i = 0; i < 3000; ++i) add(&coincident, (i % 7) * 0.5, (i % 5) * 0.5, 0.0);
+  clouds.emplace_back("coincident", coincident);
+  clouds.emplace_back("planar", plane(10.0, 0.1, -1.7, 0.0, 0.01));
+  clouds.emplace_back("planar, no noise", plane(6.0, 0.1, 0.0));
+  // Tilts at and around the 15 degree window edge (tan 15 deg = 0.2679).
+  for (double slope : {0.2679, 0.26795, 0.268, 0.18, 0.364}) {
+    clouds.emplace_back("slope " + std::to_string(slope), plane(6.0, 0.1, 0.0, slope, 0.003, 3));
+  }
+  clouds.emplace_back("linear", lineCloud(5000, 0.001, 5));
+  clouds.emplace_back("linear, no noise", lineCloud(2000, 0.0, 5));
+  for (const auto& e : clouds) {
+    SCOPED_TRACE(e.first);
+    for (int k : {3, 20, 64}) {
+      SCOPED_TRACE("k " + std::to_string(k));
+      expectFastCandidatesExact(e.second, k);
+    }
+  }
+}
+
+TEST(CandidatePca, FastDecisionMatchesEigenOnRealScans) {
+  // Every point of the dev frames the speed goal is measured on, K = 64 (the default).
+  const std::vector<std::string> files = {
+      std::string(GF_DATA_DIR) + "/semantickitti/seq00/000000.bin",
+      std::string(GF_DATA_DIR) + "/semantickitti/seq00/000001.bin",
+      std::string(GF_DATA_DIR) + "/semantickitti/seq00/000002.bin",
+      std::string(GF_DATA_DIR) + "/unlabelled/os128_000000.pcd"};
+  std::size_t tested = 0;
+  for (const std::string& file : files) {
+    if (!gf_test::dataExists(file)) continue;
+    SCOPED_TRACE(file);
+    const Cloud c = finiteXyzOf(file);
+    const gf::CandidateCounts n = expectFastCandidatesExact(c, 64);
+    // The fallback is rare: the fast path must decide nearly every point.
+    const std::size_t points = c.size() / 3;
+    EXPECT_LT(n.exact, points / 100) << "exact path";
+    EXPECT_GT(n.early, points / 10) << "early rejects";
+    std::printf("%s: %zu points, %zu invalid, %zu early reject, %zu fast, %zu exact (fallback)\n",
+                file.c_str(), points, n.invalid, n.early, n.fast, n.exact);
+    ++tested;
+  }
+  if (tested == 0) GTEST_SKIP() << "no dev frames under " << GF_DATA_DIR;
+}
+
+TEST(CandidatePca, ExactOnlyCountsEveryValidPointAsFallback) {
+  const Cloud c = gf_test::randomCloud(5000, 43, true, 0.2f);
+  gf::NeighborLists lists;
+  gf::KdTreeNeighborSearch(1).search(c.data(), c.size() / 3, 20, &lists);
+  gf::CandidateTest t;
+  t.min_abs_nz = std::cos(15.0 * M_PI / 180.0);
+  t.exact_only = true;
+  std::vector<std::uint8_t> got(lists.points);
+  gf::CandidateCounts counts;
+  gf::computeNeighborhoodCandidates(c.data(), lists, 1, t, got.data(), &counts);
+  EXPECT_EQ(counts.early + counts.fast, 0u);
+  EXPECT_EQ(counts.invalid + counts.exact, lists.points);
+  EXPECT_GT(counts.exact, 0u);
+  EXPECT_EQ(got, referenceCandidates(c, lists, t));
+}
+
+TEST(CandidatePca, ZeroMarginDisagreesOnABorderlineNormal) {
+  // min_abs_nz set to the float |normal z| of a flat point: the reference (float) says
+  // candidate; the double normal is below that float in about half the cases, and a fast path
+  // without its margin then says no. With the margin it must fall back and agree.
+  const Cloud c = plane(6.0, 0.1, 0.0, 0.25, 0.003, 9);
+  const std::size_t n = c.size() / 3;
+  gf::NeighborLists lists;
+  gf::KdTreeNeighborSearch(1).search(c.data(), n, 20, &lists);
+  std::vector<gf::PointPca> pca;
+  gf::computeNeighborhoodPca(c.data(), lists, 1, &pca);
+  std::size_t tried = 0, zero_margin_wrong = 0, default_wrong = 0, default_exact = 0;
+  for (std::uint32_t i = 0; i < n && tried < 200; i += 7) {
+    if (!pca[i].valid || !gf::isFlatPca(pca[i], 0.0)) continue;
+    ++tried;
+    gf::CandidateTest t;
+    t.min_abs_nz = std::abs(static_cast<double>(pca[i].normal[2]));
+    ASSERT_TRUE(gf::isCandidatePca(pca[i], t.min_planarity, t.min_abs_nz));
+    std::vector<std::uint8_t> flag(n, 0);
+    gf::CandidateCounts counts;
+    gf::computeRowsCandidates(c.data(), lists.indices.data(), lists.k, &i, 1, t, flag.data(),
+                              &counts);
+    default_wrong += flag[i] != 1;
+    default_exact += counts.exact;
+    t.eigen_tol = 0.0;
+    gf::computeRowsCandidates(c.data(), lists.indices.data(), lists.k, &i, 1, t, flag.data(),
+                              &counts);
+    zero_margin_wrong += flag[i] != 1;
+  }
+  ASSERT_GT(tried, 50u);
+  EXPECT_EQ(default_wrong, 0u);
+  EXPECT_EQ(default_exact, tried) << "every borderline normal must take the exact path";
+  EXPECT_GT(zero_margin_wrong, 0u) << "the margin is what keeps the fast path exact";
+}
+
+TEST(KdTreeNeighborSearch, SearchWithCandidatesMatchesSearchWithPca) {
+  for (std::size_t n : {std::size_t{0}, std::size_t{20}, std::size_t{30000}}) {
+    for (int threads : {1, 2}) {
+      for (bool keep : {false, true}) {
+        SCOPED_TRACE("n " + std::to_string(n) + " threads " + std::to_string(threads) +
+                     (keep ? " kept lists" : ""));
+        const Cloud c = gf_test::randomCloud(n, 32, true, 0.2f);
+        gf::KdTreeNeighborSearch search(threads);
+        search.keepListsOnDevice(keep);
+        gf::NeighborLists a, b;
+        std::vector<gf::PointPca> pca;
+        ASSERT_TRUE(search.searchWithPca(c.data(), n, 50, &a, &pca));
+        gf::CandidateTest t;
+        t.min_abs_nz = std::cos(15.0 * M_PI / 180.0);
+        std::vector<std::uint8_t> want(n), got(n, 7);
+        for (std::size_t i = 0; i < n; ++i) {
+          want[i] = gf::isCandidatePca(pca[i], t.min_planarity, t.min_abs_nz);
+        }
+        ASSERT_TRUE(search.searchWithCandidates(c.data(), n, 50, t, &b, got.data()));
+        EXPECT_EQ(got, want);
+        EXPECT_EQ(a.indices, b.indices);
+        const gf::CandidateCounts& cc = search.lastCandidateCounts();
+        EXPECT_EQ(cc.invalid + cc.early + cc.fast + cc.exact, n);
+        EXPECT_EQ(search.lastStageMs().size(), 3u);
+      }
     }
   }
 }

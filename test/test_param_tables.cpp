@@ -78,7 +78,7 @@ void expectRangesEnforced(Fixup fixup) {
     const bool is_int = spec.type == Type::kInt;
     auto with = [&](double v) {
       Params p;
-      // The cross-field rule tile_size >= 2 * voxel_size is not what this test is about.
+      // The cross-field rules (tile_size >= 2 voxel_size, the vegetation band) are not tested here.
       fixup(spec.name, &p);
       if (is_int) {
         p.*spec.as_int = static_cast<int>(v);
@@ -111,6 +111,8 @@ TEST(ParamTables, VoxelRangesEnforced) {
       [](const std::string& name, gf::VoxelGroundFilterParams* p) {
         if (name == "voxel_size") p->tile_size = 1000.0;
         if (name == "tile_size") p->voxel_size = 0.005;
+        if (name == "veg_min_height") p->veg_max_height = 10.0;  // the band's rule
+        if (name == "veg_max_height") p->veg_min_height = 0.0;
       });
 }
 

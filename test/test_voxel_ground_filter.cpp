@@ -121,6 +121,41 @@ std::vector<std::uint8_t> run(const Cloud& c, const gf::VoxelGroundFilterParams&
   return labels;
 }
 
+/// The defaults with the vegetation rule (veg_filter, its own defaults) on or off.
+gf::VoxelGroundFilterParams vegetationRule(bool on) {
+  gf::VoxelGroundFilterParams p;
+  p.veg_filter = on;
+  return p;
+}
+
+/// Share of the points `idx` labelled ground.
+double groundShare(const std::vector<std::uint8_t>& labels, const std::vector<std::size_t>& idx) {
+  std::size_t g = 0;
+  for (std::size_t i : idx) g += labels[i];
+  return idx.empty() ? 0.0 : static_cast<double>(g) / idx.size();
+}
+
+/// A porous bush at (x, y) on the ground at z0: scattered non-ground returns through its volume
+/// (radius r, height h, about one per litre) above 0.2 m and a base layer 0.06-0.14 m above the
+/// ground; the indices of the base points go to `base` when given.
+void addPorousBush(Cloud* c, float x0, float y0, float z0, float r, float h, std::mt19937* rng,
+                   std::vector<std::size_t>* base = nullptr) {
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  const int volume = static_cast<int>(4000.f * r * r * h);
+  for (int i = 0; i < volume; ++i) {
+    const float x = r * u(*rng), y = r * u(*rng), z = 0.5f * h * (1.f + u(*rng));
+    if (x * x + y * y > r * r || z < 0.2f) continue;
+    c->add(x0 + x, y0 + y, z0 + z, false);
+  }
+  const int twigs = static_cast<int>(1100.f * r * r);
+  for (int i = 0; i < twigs; ++i) {
+    const float x = r * u(*rng), y = r * u(*rng);
+    if (x * x + y * y > r * r) continue;
+    if (base) base->push_back(c->size());
+    c->add(x0 + x, y0 + y, z0 + 0.1f + 0.04f * u(*rng), false);
+  }
+}
+
 }  // namespace
 
 TEST(VoxelGroundFilter, FlatPlaneIsGround) {
@@ -385,12 +420,14 @@ TEST(VoxelGroundFilter, DeterministicForAnyThreadCount) {
       &c, -10, 10, -10, 10, 0.04f, [](float x, float y) { return 0.05f * x - 0.02f * y; }, 0.02f,
       &rng);
   addBox(&c, -3.f, 4.f, 3.f, 2.f, 0.f, 2.f, 0.05f);
-  gf::VoxelGroundFilterParams p1, p2;
-  p1.threads = 1;
-  p2.threads = 2;
-  const auto a = run(c, p1);
-  EXPECT_EQ(a, run(c, p2));
-  EXPECT_EQ(a, run(c, p1));
+  for (bool veg : {false, true}) {
+    gf::VoxelGroundFilterParams p1 = vegetationRule(veg), p2 = vegetationRule(veg);
+    p1.threads = 1;
+    p2.threads = 2;
+    const auto a = run(c, p1);
+    EXPECT_EQ(a, run(c, p2)) << "veg_filter " << veg;
+    EXPECT_EQ(a, run(c, p1)) << "veg_filter " << veg;
+  }
 }
 
 namespace {
@@ -437,6 +474,22 @@ TEST(VoxelGroundFilter, SameLabelsForAnyThreadCountOnLargeClouds) {
       EXPECT_EQ(ref, run(c, p)) << "threads " << threads << ", wide " << wide;
     }
   }
+  {  // the vegetation rule (its own parallel passes) on a large scene with bushes
+    Cloud c = largeScene(false);
+    std::mt19937 rng(22);
+    std::vector<std::size_t> base;
+    auto ground = [](float x, float y) { return 0.03f * x - 0.01f * y; };
+    for (float x = -9.f; x < 10.f; x += 4.5f)
+      addPorousBush(&c, x, -8.f, ground(x, -8.f), 0.7f, 0.8f, &rng, &base);
+    gf::VoxelGroundFilterParams p = vegetationRule(true);
+    p.threads = 1;
+    const auto ref = run(c, p);
+    EXPECT_LT(groundShare(ref, base), 0.1);  // the rule acts
+    for (int threads : {2, 3, 4, 0}) {
+      p.threads = threads;
+      EXPECT_EQ(ref, run(c, p)) << "threads " << threads << ", vegetation rule";
+    }
+  }
   const Cloud c = largeScene(false, true);
   gf::VoxelGroundFilterParams p;
   p.threads = 1;
@@ -451,21 +504,104 @@ TEST(VoxelGroundFilter, SameLabelsForAnyThreadCountOnLargeClouds) {
 TEST(VoxelGroundFilter, NoAllocationAfterTheFirstScanOfASize) {
   const Cloud c = largeScene(false);
   for (int threads : {1, 2}) {
-    gf::VoxelGroundFilterParams p;
-    p.threads = threads;
-    gf::VoxelGroundFilter f(p);
-    std::vector<std::uint8_t> first;
-    gf::FilterStats stats;
-    f.filter(c.view(), &first, &stats);
-    ASSERT_EQ(stats.stage_ms.size(), 6u);
-    std::vector<std::uint8_t> labels(c.size(), 2);  // allocated before counting
-    const std::size_t before = allocationCount().load();
-    f.filter(c.view(), &labels, &stats);  // reused labels and stats
-    f.filter(c.view(), &labels, nullptr);
-    EXPECT_EQ(allocationCount().load() - before, 0u) << "threads " << threads;
-    EXPECT_EQ(first, labels);
-    EXPECT_EQ(stats.stage_ms.size(), 6u);
+    for (bool veg : {false, true}) {
+      gf::VoxelGroundFilterParams p = vegetationRule(veg);
+      p.threads = threads;
+      gf::VoxelGroundFilter f(p);
+      std::vector<std::uint8_t> first;
+      gf::FilterStats stats;
+      f.filter(c.view(), &first, &stats);
+      const std::size_t stages = veg ? 7u : 6u;  // + "vegetation"
+      ASSERT_EQ(stats.stage_ms.size(), stages);
+      std::vector<std::uint8_t> labels(c.size(), 2);  // allocated before counting
+      const std::size_t before = allocationCount().load();
+      f.filter(c.view(), &labels, &stats);  // reused labels and stats
+      f.filter(c.view(), &labels, nullptr);
+      EXPECT_EQ(allocationCount().load() - before, 0u) << "threads " << threads << ", veg " << veg;
+      EXPECT_EQ(first, labels);
+      EXPECT_EQ(stats.stage_ms.size(), stages);
+    }
   }
+}
+
+// ------------------------------------------------------------------ vegetation rule (veg_filter)
+
+namespace {
+
+/// Flat noisy ground (z = 0, 5 cm grid) with a porous bush at (2, 0) (radius 0.6 m, 0.9 m
+/// high, addPorousBush) and a car-like box (4 x 1.8 x 1.2 m on 0.3 m of clearance, faces
+/// on a 5 cm grid) beside the road at (-5, 4). Marks the bush base points and the road points
+/// within 0.3 m of the box's footprint.
+struct BushAndCar {
+  Cloud c;
+  std::vector<std::size_t> bush_base, road_by_car;
+};
+
+BushAndCar bushAndCar(unsigned seed) {
+  std::mt19937 rng(seed);
+  BushAndCar s;
+  Cloud& c = s.c;
+  addSurface(
+      &c, -10, 10, -10, 10, 0.05f, [](float, float) { return 0.f; }, 0.005f, &rng);
+  addPorousBush(&c, 2.f, 0.f, 0.f, 0.6f, 0.9f, &rng, &s.bush_base);
+  const float cx = -5.f, cy = 4.f, sx = 4.f, sy = 1.8f;
+  addBox(&c, cx, cy, sx, sy, 0.3f, 1.2f, 0.05f);
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    const float dx = std::abs(c.xyz[3 * i] - cx) - sx / 2,
+                dy = std::abs(c.xyz[3 * i + 1] - cy) - sy / 2;
+    if (c.truth[i] && dx < 0.3f && dy < 0.3f) s.road_by_car.push_back(i);
+  }
+  return s;
+}
+
+}  // namespace
+
+TEST(VoxelGroundFilterVegetation, BushBaseIsNonGroundRoadBesideACarStaysGround) {
+  const BushAndCar s = bushAndCar(31);
+  ASSERT_GT(s.bush_base.size(), 250u);
+  ASSERT_GT(s.road_by_car.size(), 500u);
+  const auto off = run(s.c, vegetationRule(false));
+  const auto on = run(s.c, vegetationRule(true));
+  // Without the rule the bush base lies inside the ground band (what the rule is for).
+  EXPECT_GT(groundShare(off, s.bush_base), 0.8);
+  EXPECT_LT(groundShare(on, s.bush_base), 0.1);
+  // The road beside the car, and the ground under the bush (within 5 cm of the model), stay.
+  EXPECT_GT(groundShare(on, s.road_by_car), 0.99);
+  EXPECT_EQ(groundShare(on, s.road_by_car), groundShare(off, s.road_by_car));
+  std::size_t ground = 0, ground_kept = 0;
+  for (std::size_t i = 0; i < s.c.size(); ++i) {
+    if (!s.c.truth[i]) continue;
+    ++ground;
+    ground_kept += on[i];
+  }
+  EXPECT_GT(static_cast<double>(ground_kept) / ground, 0.99);
+  expectNoGroundAbove(s.c, on, 0.2f, 1000u);
+}
+
+TEST(VoxelGroundFilterVegetation, GroundBesideADenseSheetStays) {
+  // A 10 cm high, 0.4 m wide strip of ground (a kerb stone, inside the ground band but above
+  // veg_min_base) under a solid sheet from 0.25 to 1.1 m (returns 2 cm apart: a car's side, a
+  // wall): the sheet is dense, so veg_max_density keeps the ground beside it; allowing any density
+  // removes it.
+  std::mt19937 rng(32);
+  Cloud c;
+  addSurface(
+      &c, -6, 6, -6, 6, 0.05f, [](float x, float) { return x >= 1.7f && x < 2.1f ? 0.1f : 0.f; },
+      0.005f, &rng);
+  std::vector<std::size_t> beside;
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    const float x = c.xyz[3 * i], y = c.xyz[3 * i + 1];
+    if (x >= 1.9f && x < 2.f && std::abs(y) < 0.9f) beside.push_back(i);  // in reach
+  }
+  for (float y = -1.f; y <= 1.f; y += 0.02f) {
+    for (float z = 0.25f; z <= 1.1f; z += 0.02f) c.add(2.02f, y, z, false);
+  }
+  ASSERT_GT(beside.size(), 50u);
+  EXPECT_GT(groundShare(run(c, vegetationRule(false)), beside), 0.9);
+  gf::VoxelGroundFilterParams p = vegetationRule(true);
+  EXPECT_GT(groundShare(run(c, p), beside), 0.9);
+  p.veg_max_density = 0.0;
+  EXPECT_LT(groundShare(run(c, p), beside), 0.2);
 }
 
 TEST(VoxelGroundFilterParams, ValidationRejectsBadValues) {
@@ -482,6 +618,7 @@ TEST(VoxelGroundFilterParams, ValidationRejectsBadValues) {
   expectBad("min_points_per_voxel", "0");
   expectBad("tile_size", "0.1");
   expectBad("threads", "-1");
+  expectBad("veg_min_height", "1.5");  // above veg_max_height (1.2): an inverted clutter band
   gf::VoxelGroundFilterParams p;
   EXPECT_NO_THROW(p.validate());
   EXPECT_THROW(p.set("no_such_parameter", "1"), std::invalid_argument);

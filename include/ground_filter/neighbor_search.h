@@ -9,7 +9,8 @@
 
 namespace ground_filter {
 
-struct PointPca;  // per-point PCA (private: src/core/normal/neighborhood_pca.h)
+struct PointPca;       // per-point PCA (private: src/core/normal/neighborhood_pca.h)
+struct CandidateTest;  // ground-candidate settings (private: the same header)
 
 /// \brief K-nearest-neighbour lists of every point of a packed xyz cloud (the point itself
 ///        included, at distance 0).
@@ -51,6 +52,16 @@ class NeighborSearch {
   ///        neighborhoodPca()/computeNeighborhoodPca() instead).
   virtual bool searchWithPca(const float* /*xyz*/, std::size_t /*n*/, int /*k*/,
                              NeighborLists* /*out*/, std::vector<PointPca>* /*pca*/) {
+    return false;
+  }
+
+  /// \brief search() and the ground-candidate flag of every list (`candidate[i]`, `n` bytes: the
+  ///        same bytes as isCandidatePca() on computeNeighborhoodPca()'s result, see
+  ///        neighborhood_pca.h) in one go; `out` as after searchWithPca().
+  /// \return false when the backend does not do this (nothing done).
+  virtual bool searchWithCandidates(const float* /*xyz*/, std::size_t /*n*/, int /*k*/,
+                                    const CandidateTest& /*test*/, NeighborLists* /*out*/,
+                                    std::uint8_t* /*candidate*/) {
     return false;
   }
 

@@ -26,6 +26,13 @@ struct VoxelGroundFilterParams : TableParams<VoxelGroundFilterParams>, MorphGrou
   double tile_size = 1.0;            ///< cell edge of the local model, >= 2 voxel_size [m] (1.0)
   double max_slope_deg = 30.0;       ///< steeper cell / global planes are rejected [deg] (30)
   bool majority_vote = true;         ///< final 26-neighbourhood vote per voxel [bool] (true)
+  bool veg_filter = false;           ///< vegetation rule: ground under clutter out [bool] (false)
+  double veg_min_height = 0.2;       ///< veg: clutter band starts this far above ground [m] (0.2)
+  double veg_max_height = 1.2;       ///< veg: clutter band ends this far above ground [m] (1.2)
+  int veg_radius = 1;                ///< veg: window of 2 r + 1 voxel columns a side [voxels] (1)
+  int veg_min_points = 3;            ///< veg: clutter points in the window [points] (3)
+  double veg_min_base = 0.05;        ///< veg: relabel ground points this high or more [m] (0.05)
+  double veg_max_density = 2.0;      ///< veg: clutter points per voxel, 0 = any [points] (2.0)
   int threads = 1;                   ///< worker threads, 0 = all cores [threads] (1)
 
   /// \brief Checks every field's range (and the rules between fields).

@@ -12,6 +12,7 @@
 #include "voxel/classify.h"
 #include "voxel/ground_model.h"
 #include "voxel/segments.h"
+#include "voxel/vegetation.h"
 #include "voxel/vote.h"
 #include "voxel/voxel_grid.h"
 #include "voxel/voxelize.h"
@@ -40,8 +41,9 @@ struct VoxelGroundFilter::Impl {
   voxel::GroundModel model;
   voxel::Classifier classifier;
   voxel::Voter voter;
-  voxel::WorkerPool pool;  // threads > 1 only
-  MorphGround morph;       // morph_ground (airborne) only
+  voxel::VegetationRule vegetation;  // veg_filter only
+  voxel::WorkerPool pool;            // threads > 1 only
+  MorphGround morph;                 // morph_ground (airborne) only
 };
 
 VoxelGroundFilter::VoxelGroundFilter(const VoxelGroundFilterParams& params)
@@ -141,6 +143,13 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
   t0 = Clock::now();
   if (p.majority_vote && have_plane) m.voter.run(g, threads, &m.pool, &m.classifier);
   stage("vote", t0);
+
+  // ---- 9. (added, veg_filter) ground points under porous clutter become non-ground
+  if (p.veg_filter && have_plane) {
+    t0 = Clock::now();
+    m.vegetation.run(p, g, m.model, m.classifier, threads, &m.pool, &m.classifier.ground);
+    stage("vegetation", t0);
+  }
 
   // Labels back to input order: sorted position -> slot (low bits of a packed key, or `order`)
   // -> input index (identity when every point is valid).

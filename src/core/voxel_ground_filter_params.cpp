@@ -24,6 +24,13 @@ const ParamTable<VoxelGroundFilterParams>& VoxelGroundFilterParams::table() {
       {"tile_size", &P::tile_size, 0.01, 1000.0, "m", "cell edge, >= 2 voxel_size"},
       {"max_slope_deg", &P::max_slope_deg, 0.0, 89.0, "deg", "steeper planes are rejected"},
       {"majority_vote", &P::majority_vote, 0, 0, "bool", "final 26-neighbourhood vote"},
+      {"veg_filter", &P::veg_filter, 0, 0, "bool", "ground under porous clutter is non-ground"},
+      {"veg_min_height", &P::veg_min_height, 0.0, 10.0, "m", "veg: clutter band bottom"},
+      {"veg_max_height", &P::veg_max_height, 0.0, 10.0, "m", "veg: clutter band top"},
+      {"veg_radius", &P::veg_radius, 1, 10, "voxels", "veg: window half-width"},
+      {"veg_min_points", &P::veg_min_points, 1, 100000, "points", "veg: clutter points needed"},
+      {"veg_min_base", &P::veg_min_base, -10.0, 10.0, "m", "veg: relabel from this height"},
+      {"veg_max_density", &P::veg_max_density, 0.0, 1000.0, "points", "veg: clutter pts per voxel"},
   });
   return rows;
 }
@@ -32,6 +39,9 @@ void VoxelGroundFilterParams::validate() const {
   checkParamRanges(table(), *this);
   if (tile_size < 2.0 * voxel_size) {
     throw std::invalid_argument("parameter 'tile_size' must be at least 2 * voxel_size");
+  }
+  if (veg_min_height > veg_max_height) {
+    throw std::invalid_argument("parameter 'veg_min_height' must not exceed veg_max_height");
   }
 }
 

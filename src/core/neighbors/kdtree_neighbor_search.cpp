@@ -703,6 +703,13 @@ bool KdTreeNeighborSearch::searchWithPca(const float* xyz, std::size_t n, int k,
   return true;
 }
 
+bool KdTreeNeighborSearch::searchWithCandidates(const float* xyz, std::size_t n, int k,
+                                                const CandidateTest& test, NeighborLists* out,
+                                                std::uint8_t* candidate) {
+  run(xyz, n, k, out, nullptr, &test, candidate);
+  return true;
+}
+
 std::vector<std::pair<std::string, double>> KdTreeNeighborSearch::lastStageMs() const {
   std::vector<std::pair<std::string, double>> st = {{"kdtree_build", build_ms_},
                                                     {"knn", query_ms_}};
@@ -711,7 +718,8 @@ std::vector<std::pair<std::string, double>> KdTreeNeighborSearch::lastStageMs() 
 }
 
 void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborLists* out,
-                               std::vector<PointPca>* pca) {
+                               std::vector<PointPca>* pca, const CandidateTest* test,
+                               std::uint8_t* candidate) {
   if (n > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
     throw std::invalid_argument("KdTreeNeighborSearch: " + std::to_string(n) +
                                 " points, more than the int32 neighbour indices can address");
@@ -720,10 +728,11 @@ void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborL
   const std::size_t kk = static_cast<std::size_t>(std::max(k, 0));
   out->k = static_cast<int>(kk);
   out->points = n;
-  // Kept lists (searchWithPca() after keepListsOnDevice(true)): rows in tree order, written one
-  // after the other and without distances; writing rows in input order scatters them over
-  // 2 * n * K * 4 bytes, a cache miss per row.
-  const bool kept = keep_lists_ && pca != nullptr && n >= kk && kk > 0;
+  // Kept lists (searchWithPca() or searchWithCandidates() after keepListsOnDevice(true)): rows in
+  // tree order, written one after the other and without distances; writing rows in input order
+  // scatters them over 2 * n * K * 4 bytes, a cache miss per row.
+  const bool cand = test != nullptr;  // candidate flags instead of the PCA
+  const bool kept = keep_lists_ && (pca != nullptr || cand) && n >= kk && kk > 0;
   lists_kept_ = kept;
   if (kept) {
     out->indices.clear();
@@ -734,10 +743,12 @@ void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborL
     out->sq_dists.resize(n * kk);
   }
   build_ms_ = query_ms_ = pca_ms_ = 0.0;
-  with_pca_ = pca != nullptr;
+  with_pca_ = pca != nullptr || cand;
+  counts_ = CandidateCounts();
   if (pca) pca->resize(n);
   if (n == 0 || kk == 0) {
     if (pca) std::fill(pca->begin(), pca->end(), PointPca());
+    if (cand) std::fill(candidate, candidate + n, std::uint8_t{0});
     return;
   }
   if (n < kk) {  // every row holds the whole cloud
@@ -746,6 +757,11 @@ void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborL
     if (pca) {
       const auto t1 = Clock::now();
       computeNeighborhoodPca(xyz, *out, 1, pca);
+      pca_ms_ = msSince(t1);
+    }
+    if (cand) {
+      const auto t1 = Clock::now();
+      computeNeighborhoodCandidates(xyz, *out, 1, *test, candidate, &counts_);
       pca_ms_ = msSince(t1);
     }
     return;
@@ -764,9 +780,11 @@ void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborL
   const std::int64_t chunks = static_cast<std::int64_t>((n + kChunk - 1) / kChunk);
   const bool avx512 = use_avx512_ && kk <= kMaxAvx512K;
   double knn_cpu = 0.0, pca_cpu = 0.0;  // summed over threads, to split the wall time
+  std::size_t c_invalid = 0, c_early = 0, c_fast = 0, c_exact = 0;
   std::int32_t* const out_idx = kept ? impl_->rows.data() : out->indices.data();
   float* const out_dist = kept ? nullptr : out->sq_dists.data();
-#pragma omp parallel for num_threads(threads) schedule(dynamic, 1) reduction(+ : knn_cpu, pca_cpu)
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 1) \
+    reduction(+ : knn_cpu, pca_cpu, c_invalid, c_early, c_fast, c_exact)
   for (std::int64_t c = 0; c < chunks; ++c) {
     const std::size_t pb = static_cast<std::size_t>(c) * kChunk, pe = std::min(n, pb + kChunk);
     const auto tq = Clock::now();
@@ -790,12 +808,29 @@ void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborL
                        pca->data());
       }
       pca_cpu += msSince(tp);
+    } else if (cand) {
+      const auto tp = Clock::now();
+      knn_cpu += std::chrono::duration<double, std::milli>(tp - tq).count();
+      CandidateCounts cc;
+      if (kept) {
+        computeOrderedRowsCandidates(xyz, out_idx + pb * kk, static_cast<int>(kk),
+                                     im.pidx.data() + pb, pe - pb, *test, candidate, &cc);
+      } else {
+        computeRowsCandidates(xyz, out_idx, static_cast<int>(kk), im.pidx.data() + pb, pe - pb,
+                              *test, candidate, &cc);
+      }
+      c_invalid += cc.invalid;
+      c_early += cc.early;
+      c_fast += cc.fast;
+      c_exact += cc.exact;
+      pca_cpu += msSince(tp);
     }
   }
+  counts_ = CandidateCounts{c_invalid, c_early, c_fast, c_exact};
   (void)avx512;
   const double wall = msSince(t1);
   // Fused: the parts' shares of the thread time, applied to the wall time.
-  const double share = pca && knn_cpu + pca_cpu > 0.0 ? pca_cpu / (knn_cpu + pca_cpu) : 0.0;
+  const double share = with_pca_ && knn_cpu + pca_cpu > 0.0 ? pca_cpu / (knn_cpu + pca_cpu) : 0.0;
   pca_ms_ = wall * share;
   query_ms_ = wall - pca_ms_;
 }

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "ground_filter/neighbor_search.h"
+#include "normal/neighborhood_pca.h"
 
 namespace ground_filter {
 
@@ -33,17 +34,25 @@ class KdTreeNeighborSearch : public NeighborSearch {
   ///        computeNeighborhoodPca()); always true.
   bool searchWithPca(const float* xyz, std::size_t n, int k, NeighborLists* out,
                      std::vector<PointPca>* pca) override;
-  /// \brief {"kdtree_build", "knn"} and, after searchWithPca(), "pca": the query wall time
-  ///        split by the threads' time in each part.
+  /// \brief Queries and candidate flags interleaved chunk by chunk (computeRowsCandidates():
+  ///        the same bytes as searchWithPca() followed by isCandidatePca()); always true.
+  bool searchWithCandidates(const float* xyz, std::size_t n, int k, const CandidateTest& test,
+                            NeighborLists* out, std::uint8_t* candidate) override;
+  /// \brief How the last searchWithCandidates() decided its points (how many took the exact
+  ///        Eigen path: `exact`).
+  const CandidateCounts& lastCandidateCounts() const { return counts_; }
+  /// \brief {"kdtree_build", "knn"} and, after searchWithPca() or searchWithCandidates(),
+  ///        "pca": the query wall time split by the threads' time in each part.
   std::vector<std::pair<std::string, double>> lastStageMs() const override;
 
-  /// \brief With `keep` true, searchWithPca() keeps the lists itself (rows in tree order,
-  ///        indices only: no scattered writes) and leaves `out->indices`/`sq_dists` empty;
-  ///        countFlaggedNeighbors() then counts on them. search() always fills `out`.
+  /// \brief With `keep` true, searchWithPca() and searchWithCandidates() keep the lists
+  ///        themselves (rows in tree order, indices only: no scattered writes) and leave
+  ///        `out->indices`/`sq_dists` empty; countFlaggedNeighbors() then counts on them.
+  ///        search() always fills `out`.
   /// \return `keep`.
   bool keepListsOnDevice(bool keep) override;
   /// \brief See NeighborSearch::countFlaggedNeighbors(); false unless the last call was a
-  ///        searchWithPca() with kept lists (of at least K points).
+  ///        searchWithPca() or searchWithCandidates() with kept lists (of at least K points).
   bool countFlaggedNeighbors(const std::uint8_t* flags, std::uint16_t* flagged,
                              std::uint16_t* neighbors) override;
   /// \brief The kept lists of the last searchWithPca() in input order (distances recomputed
@@ -62,7 +71,8 @@ class KdTreeNeighborSearch : public NeighborSearch {
 
  private:
   struct Impl;
-  void run(const float* xyz, std::size_t n, int k, NeighborLists* out, std::vector<PointPca>* pca);
+  void run(const float* xyz, std::size_t n, int k, NeighborLists* out, std::vector<PointPca>* pca,
+           const CandidateTest* test = nullptr, std::uint8_t* candidate = nullptr);
   std::unique_ptr<Impl> impl_;
   int threads_;
   int leaf_size_;
@@ -71,6 +81,7 @@ class KdTreeNeighborSearch : public NeighborSearch {
   double query_ms_ = 0.0;
   double pca_ms_ = 0.0;
   bool with_pca_ = false;
+  CandidateCounts counts_;   // of the last searchWithCandidates()
   bool keep_lists_ = false;  // keepListsOnDevice()
   bool lists_kept_ = false;  // the last call's lists are in impl_->rows
 };

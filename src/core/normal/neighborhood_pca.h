@@ -33,6 +33,50 @@ void computeRowsPca(const float* xyz, const std::int32_t* indices, int k, const 
 void computeOrderedRowsPca(const float* xyz, const std::int32_t* rows, int k,
                            const std::uint32_t* query, std::size_t count, PointPca* out);
 
+/// \brief isFlat() of the normal filter: planarity dominant (Demantke et al.) and at least
+///        `min_planarity`.
+bool isFlatPca(const PointPca& r, double min_planarity);
+
+/// \brief The ground-candidate decision on a PCA result: valid, flat and |normal z| >= `min_abs_nz`
+///        (the reference the candidate-only functions below reproduce).
+bool isCandidatePca(const PointPca& r, double min_planarity, double min_abs_nz);
+
+/// \brief Settings of the candidate-only PCA.
+struct CandidateTest {
+  double min_planarity = 0.0;  ///< isFlatPca()'s bound [1] (0)
+  double min_abs_nz = 0.0;     ///< least |normal z| of a candidate [1] (0)
+  double eigen_tol = 1e-6;     ///< margin of the fast decision, in units of the trace [1] (1e-6)
+  bool exact_only = false;     ///< always take the Eigen path (reference) [bool] (false)
+};
+
+/// \brief How the candidate-only PCA decided its points.
+struct CandidateCounts {
+  std::size_t invalid = 0;  ///< fewer than 3 neighbours or no spread: not candidates
+  std::size_t early = 0;    ///< rejected from the covariance's zz entry alone
+  std::size_t fast = 0;     ///< decided by the characteristic polynomial with certain margins
+  std::size_t exact = 0;    ///< decided by Eigen's solver (the fallback)
+};
+
+/// \brief candidate[i] = isCandidatePca(PCA of row i, ...) for every row of `lists`, the same
+///        bytes as computeNeighborhoodPca() followed by isCandidatePca(), but the eigen solver
+///        runs only where the cheap decision's margins are not certain. `counts` may be null.
+void computeNeighborhoodCandidates(const float* xyz, const NeighborLists& lists, int threads,
+                                   const CandidateTest& t, std::uint8_t* candidate,
+                                   CandidateCounts* counts);
+
+/// \brief computeRowsPca() writing the candidate byte `candidate[r]` instead of the PCA; counts
+///        are added to `counts`.
+void computeRowsCandidates(const float* xyz, const std::int32_t* indices, int k,
+                           const std::uint32_t* rows, std::size_t count, const CandidateTest& t,
+                           std::uint8_t* candidate, CandidateCounts* counts);
+
+/// \brief computeOrderedRowsPca() writing the candidate byte `candidate[query[j]]` instead of the
+///        PCA; counts are added to `counts`.
+void computeOrderedRowsCandidates(const float* xyz, const std::int32_t* rows, int k,
+                                  const std::uint32_t* query, std::size_t count,
+                                  const CandidateTest& t, std::uint8_t* candidate,
+                                  CandidateCounts* counts);
+
 }  // namespace ground_filter
 
 #endif  // GROUND_FILTER_SRC_CORE_NORMAL_NEIGHBORHOOD_PCA_H

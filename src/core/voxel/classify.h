@@ -47,6 +47,8 @@ class Classifier {
   /// \brief Per column: 1 when it holds ground points, | 2 when it holds non-ground points
   ///        (+ 0 for the sentinel).
   std::vector<std::uint8_t> col_mask;
+  /// \brief Per voxel: height of its cell's plane at the voxel's centroid.
+  const std::vector<float>& planeHeight() const { return h0_; }
 
  private:
   void bandStats(const VoxelGroundFilterParams& p, const VoxelGrid& g, std::size_t cells,
