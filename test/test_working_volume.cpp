@@ -3,6 +3,7 @@
 // and both KNN backends.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -247,4 +248,59 @@ TEST(WorkingVolume, OriginMovesTheVolume) {
   EXPECT_GT(stats.ground_points, n / 3);
   EXPECT_THROW(filter.setOrigin(std::nanf(""), 0.f, 0.f), std::invalid_argument);
   EXPECT_EQ(filter.name(), "voxel");
+}
+
+// The voxel filter tests the volume on the bounds it takes anyway (filterInside()); when the
+// box of the points reaches outside the ball although every point is inside (a KITTI frame with
+// max_range just above its farthest point: the box corners are farther), the wrapper checks the
+// points itself. Labels equal the bare filter's in both cases.
+TEST(WorkingVolume, VolumeTestedOnTheBounds) {
+  const std::vector<float>& xyz = kittiFrame();
+  const std::size_t n = xyz.size() / 3;
+  const gf::CloudView view = gf::CloudView::packedXyz(xyz.data(), n);
+  double farthest = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double x = xyz[3 * i], y = xyz[3 * i + 1], z = xyz[3 * i + 2];
+    farthest = std::max(farthest, std::sqrt(x * x + y * y + z * z));
+  }
+  gf::VoxelGroundFilter bare;
+  std::vector<std::uint8_t> reference, labels;
+  bare.filter(view, &reference);
+  gf::WorkingVolume whole;
+  whole.max_range = 0.0;
+  EXPECT_TRUE(bare.filterInside(view, whole, &labels));
+  EXPECT_EQ(labels, reference);
+  gf::WorkingVolume ball;
+  ball.max_range = std::ceil(farthest) + 1.0;
+  ASSERT_GT(farthest, 50.0);                             // a real frame
+  EXPECT_FALSE(bare.filterInside(view, ball, &labels));  // the box's corners lie outside
+  gf::WorkingVolumeFilter wrapped(std::make_unique<gf::VoxelGroundFilter>(), ball);
+  gf::FilterStats stats;
+  wrapped.filter(view, &labels, &stats);
+  EXPECT_EQ(stats.out_of_range_points, 0u);
+  EXPECT_EQ(labels, reference);
+  // Reused: the wrapper asks the inner filter again, or not, after a scan with a far point; the
+  // labels never depend on it.
+  std::vector<float> far = xyz;
+  far.insert(far.end(), {300e3f, 0.f, 0.f});
+  for (int round = 0; round < 3; ++round) {
+    SCOPED_TRACE(round);
+    wrapped.filter(gf::CloudView::packedXyz(far.data(), n + 1), &labels, &stats);
+    EXPECT_EQ(stats.out_of_range_points, 1u);
+    EXPECT_EQ(std::vector<std::uint8_t>(labels.begin(), labels.end() - 1), reference);
+    for (int again = 0; again < 2; ++again) {
+      wrapped.filter(view, &labels, &stats);
+      EXPECT_EQ(stats.out_of_range_points, 0u);
+      EXPECT_EQ(labels, reference);
+    }
+  }
+  // The box test agrees with contains() at the corners, float rounding included.
+  gf::WorkingVolume v;
+  v.max_range = 100.0;
+  const float a[3] = {-70.f, -70.f, -10.f}, b[3] = {100.f, 0.f, 0.f};
+  const float c[3] = {70.f, 70.f, 10.f}, d[3] = {71.f, 50.f, 10.f};
+  EXPECT_EQ(v.containsBox(a, b), v.contains(100.f, -70.f, -10.f));
+  EXPECT_FALSE(v.containsBox(a, b));
+  EXPECT_TRUE(v.containsBox(a, c));   // corner 99.5 m away
+  EXPECT_FALSE(v.containsBox(a, d));  // corner (71, -70, -10): 100.2 m
 }

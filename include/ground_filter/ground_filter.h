@@ -34,6 +34,8 @@ struct FilterStats {
   std::vector<std::pair<std::string, double>> stage_ms;
 };
 
+struct WorkingVolume;  // working_volume.h
+
 /// \brief A ground segmentation algorithm: one label per input point.
 ///
 /// Contract shared by all filters: `labels` is resized to `cloud.size()`; NaN/Inf points are
@@ -45,6 +47,16 @@ class GroundFilter {
   /// \brief Labels every point of `cloud`; fills `stats` when not null.
   virtual void filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
                       FilterStats* stats = nullptr) = 0;
+  /// \brief filter(), for a caller that needs every finite point inside `volume`
+  ///        (WorkingVolumeFilter): a filter that takes the bounds of the points anyway can test
+  ///        that there instead of the caller's own pass over the points.
+  /// \return false (labels and stats unspecified) when a finite point may lie outside, or when
+  ///         the filter does not test it (the default): the caller checks the points itself.
+  virtual bool filterInside(const CloudView& /*cloud*/, const WorkingVolume& /*volume*/,
+                            std::vector<std::uint8_t>* /*labels*/,
+                            FilterStats* /*stats*/ = nullptr) {
+    return false;
+  }
   /// \brief Short method name ("voxel", "normal").
   virtual std::string name() const = 0;
 };

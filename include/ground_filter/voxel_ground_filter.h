@@ -35,12 +35,19 @@ class VoxelGroundFilter : public GroundFilter {
   /// \throws std::runtime_error when the cloud spans more than 2^21 voxels along an axis.
   void filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
               FilterStats* stats = nullptr) override;
+  /// \brief filter(), when the bounds of the finite points (taken in the first pass anyway)
+  ///        lie inside `volume`; false otherwise, and always in the morph_ground mode.
+  bool filterInside(const CloudView& cloud, const WorkingVolume& volume,
+                    std::vector<std::uint8_t>* labels, FilterStats* stats = nullptr) override;
   std::string name() const override { return "voxel"; }
 
   /// \brief The parameters in use.
   const VoxelGroundFilterParams& params() const { return params_; }
 
  private:
+  // filter() with the volume test of filterInside() when `volume` is given.
+  bool run(const CloudView& cloud, const WorkingVolume* volume, std::vector<std::uint8_t>* labels,
+           FilterStats* stats);
   struct Impl;
   VoxelGroundFilterParams params_;
   std::unique_ptr<Impl> impl_;  // scratch buffers reused between calls

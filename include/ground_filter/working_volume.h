@@ -44,14 +44,26 @@ struct WorkingVolume {
     const float r = static_cast<float>(max_range);
     return r == 0.f || dx * dx + dy * dy + dz * dz <= r * r;
   }
+  /// \brief True when every point of the box [lo, hi] (finite bounds) lies inside: the test of
+  ///        contains() rises with |x - origin| per axis, float rounding included, so the
+  ///        corner farthest from the origin along every axis decides for all points.
+  bool containsBox(const float lo[3], const float hi[3]) const {
+    float corner[3];
+    for (int d = 0; d < 3; ++d) {
+      corner[d] = std::fabs(lo[d] - origin[d]) > std::fabs(hi[d] - origin[d]) ? lo[d] : hi[d];
+    }
+    return contains(corner[0], corner[1], corner[2]);
+  }
 };
 
 /// \brief A GroundFilter that runs another one on the points inside a WorkingVolume only.
 ///
 /// Points outside the volume (one far echo, a corrupt 1e30 m value) are labelled kNonGround one
-/// by one and counted in FilterStats::out_of_range_points; the inner filter sees the rest. A
-/// first pass checks every point; when all finite points are inside (the usual case) the view
-/// goes to the inner filter as it is, without a copy. Otherwise the finite in-range points are
+/// by one and counted in FilterStats::out_of_range_points; the inner filter sees the rest. The
+/// inner filter may check the volume on its way (GroundFilter::filterInside(); the voxel filter
+/// tests the bounds it takes anyway), else a first pass checks every point; when all finite
+/// points are inside (the usual case) the view goes to the inner filter as it is, without a
+/// copy. Otherwise the finite in-range points are
 /// packed, in input order, into a scratch xyz buffer, filtered, and their labels scattered
 /// back, so every other point gets the label it would get without the far points.
 class WorkingVolumeFilter : public GroundFilter {
@@ -78,6 +90,7 @@ class WorkingVolumeFilter : public GroundFilter {
   std::vector<float> xyz_;         // packed in-range points
   std::vector<std::size_t> kept_;  // their input indices
   std::vector<std::uint8_t> inner_labels_;
+  bool ask_inner_ = true;  // try GroundFilter::filterInside() first (see filter())
 };
 
 }  // namespace ground_filter

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "ground_filter/param_parse.h"
+#include "ground_filter/working_volume.h"
 #include "morph_ground.h"
 #include "voxel/classify.h"
 #include "voxel/ground_model.h"
@@ -54,6 +55,16 @@ VoxelGroundFilter::~VoxelGroundFilter() = default;
 
 void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
                                FilterStats* stats) {
+  run(cloud, nullptr, labels, stats);
+}
+
+bool VoxelGroundFilter::filterInside(const CloudView& cloud, const WorkingVolume& volume,
+                                     std::vector<std::uint8_t>* labels, FilterStats* stats) {
+  return !params_.morph_ground && run(cloud, &volume, labels, stats);
+}
+
+bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
+                            std::vector<std::uint8_t>* labels, FilterStats* stats) {
   const auto t_start = Clock::now();
   Impl& m = *impl_;
   voxel::VoxelGrid& g = m.grid;
@@ -81,17 +92,18 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
     stage("morph", t0);
     st.ground_points = static_cast<std::size_t>(std::count(labels->begin(), labels->end(), 1));
     st.total_ms = msSince(t_start);
-    return;
+    return true;
   }
 
-  // ---- 1. valid points, bounds, voxel keys
+  // ---- 1. valid points, bounds (inside `volume`?), voxel keys
   auto t0 = Clock::now();
-  const std::size_t n = m.voxelizer.prepare(cloud, p.voxel_size, threads, &m.pool, &g);
+  const std::size_t n = m.voxelizer.prepare(cloud, p.voxel_size, threads, &m.pool, volume, &g);
+  if (n == voxel::Voxelizer::kOutside) return false;
   st.invalid_points = cloud.size() - n;
   stage("prepare", t0);
   if (n == 0) {
     st.total_ms = msSince(t_start);
-    return;
+    return true;
   }
   m.cells.setup(p, g.nx, g.ny);
 
@@ -163,6 +175,7 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
   }
   st.ground_points = ground_count;
   st.total_ms = msSince(t_start);
+  return true;
 }
 
 }  // namespace ground_filter

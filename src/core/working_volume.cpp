@@ -40,6 +40,17 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
   using Clock = std::chrono::steady_clock;
   const auto t0 = Clock::now();
   const std::size_t n = cloud.size();
+  // The usual case: the inner filter tests the volume on its way, no pass here. Not asked again
+  // after it declined until the wrapper's own pass finds every point inside (a stream of scans
+  // with far points would pay the inner filter's first pass twice).
+  const bool asked = ask_inner_;
+  if (asked && inner_->filterInside(cloud, volume_, labels, stats)) {
+    if (stats) {
+      stats->out_of_range_points = 0;
+      stats->total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    }
+    return;
+  }
   // Cheap first pass: most scans have no far point and go to the inner filter without a copy.
   std::size_t out_of_range = 0;
   for (std::size_t i = 0; i < n; ++i) {
@@ -49,6 +60,7 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
       ++out_of_range;
     }
   }
+  ask_inner_ = !asked && out_of_range == 0;
   if (out_of_range == 0) {
     inner_->filter(cloud, labels, stats);
     if (stats) {

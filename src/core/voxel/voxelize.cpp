@@ -310,7 +310,7 @@ void CellGrid::setup(const VoxelGroundFilterParams& p, std::uint64_t nx, std::ui
 }
 
 std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, WorkerPool* pool,
-                               VoxelGrid* g) {
+                               const WorkingVolume* volume, VoxelGrid* g) {
   const std::size_t n_in = cloud.size();
   const int nt = threads > 1 && n_in >= kParallelMinPoints ? threads : 1;
   const int nch = nt == 1 ? 1 : 4 * nt;  // chunks of the input
@@ -334,6 +334,7 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
       hi[d] = std::max(hi[d], ch.hi[d]);
     }
   }
+  if (volume && n > 0 && !volume->containsBox(lo, hi)) return kOutside;
   g->all_valid = n == n_in;
   if (n == 0) return 0;
   const float minx = lo[0], miny = lo[1], minz = lo[2];

@@ -8,6 +8,7 @@
 
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/voxel_ground_filter.h"
+#include "ground_filter/working_volume.h"
 #include "voxel/voxel_grid.h"
 #include "voxel/worker_pool.h"
 
@@ -18,11 +19,14 @@ namespace voxel {
 ///        builds the voxels, their flags, cells and the columns of a VoxelGrid.
 class Voxelizer {
  public:
+  /// \brief prepare()'s answer when a valid point may lie outside the volume.
+  static constexpr std::size_t kOutside = ~std::size_t{0};
   /// \brief Finds the valid points and their bounds, sizes the key layout of `g` and computes
-  ///        the keys. Returns the number of valid points (0: `g` is left as is).
+  ///        the keys. Returns the number of valid points (0: `g` is left as is), or kOutside
+  ///        (nothing else done) when `volume` is given and the bounds are not inside it.
   /// \throws std::runtime_error when an axis needs more than 2^21 voxels.
   std::size_t prepare(const CloudView& cloud, double voxel_size, int threads, WorkerPool* pool,
-                      VoxelGrid* g);
+                      const WorkingVolume* volume, VoxelGrid* g);
   /// \brief Sorts the keys and fills the points, voxels, columns, `flat` and `seeds` of `g`;
   ///        marks the cells holding voxels in `cells`.
   void build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* cells);
