@@ -332,7 +332,10 @@ TEST(VoxelCfg, EveryParameterMapsToItsFieldAndItsRangeValidates) {
           << "cfg parameter '" << d->name << "' is not a VoxelGroundFilterParams field";
       EXPECT_EQ(mapped.describe(), by_name.describe())
           << "cfg parameter '" << d->name << "' not mapped onto its field";
-      if (d->name == "tile_size" || d->name == "voxel_size") continue;  // cross-field rule below
+      if (d->name == "tile_size" || d->name == "voxel_size" || d->name == "veg_min_height" ||
+          d->name == "veg_max_height") {
+        continue;  // cross-field rules below
+      }
       EXPECT_NO_THROW(mapped.validate()) << d->name << " = " << valueText(*d, config);
     }
   }
@@ -344,6 +347,19 @@ TEST(VoxelCfg, EveryParameterMapsToItsFieldAndItsRangeValidates) {
   c.voxel_size = gf::VoxelGroundFilterConfig::__getMax__().voxel_size;
   c.tile_size = gf::VoxelGroundFilterConfig::__getMax__().tile_size;
   EXPECT_NO_THROW(gf::paramsFromConfigTable<gf::VoxelGroundFilterParams>(c).validate());
+  // veg_min_height <= veg_max_height: both ends of the band at either extreme validate, an
+  // inverted band does not.
+  for (const auto* bound :
+       {&gf::VoxelGroundFilterConfig::__getMin__(), &gf::VoxelGroundFilterConfig::__getMax__()}) {
+    c = defaults;
+    c.veg_min_height = bound->veg_min_height;
+    c.veg_max_height = bound->veg_max_height;
+    EXPECT_NO_THROW(gf::paramsFromConfigTable<gf::VoxelGroundFilterParams>(c).validate());
+  }
+  c = defaults;
+  c.veg_min_height = c.veg_max_height + 0.1;
+  EXPECT_THROW(gf::paramsFromConfigTable<gf::VoxelGroundFilterParams>(c).validate(),
+               std::invalid_argument);
 }
 
 // max_range: the cfg default is the library's and its whole range is a valid WorkingVolume.
