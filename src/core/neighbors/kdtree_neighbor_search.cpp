@@ -1,6 +1,7 @@
 #include "neighbors/kdtree_neighbor_search.h"
 
 #include <omp.h>
+#include <xmmintrin.h>
 
 #include <algorithm>
 #include <chrono>
@@ -126,17 +127,17 @@ struct KdTree {
 
 void KdTree::buildNode(std::uint32_t id, std::uint32_t b, std::uint32_t e) {
   Node& nd = nodes[id];
-  float lo[3] = {pts[b].x, pts[b].y, pts[b].z};
-  float hi[3] = {lo[0], lo[1], lo[2]};
+  // One SSE register per point (x, y, z, index bits; lane 3 unused). min_ps(p, lo) is
+  // p < lo ? p : lo, the same value as std::min(lo, p), also for signed zeros.
+  __m128 lo4 = _mm_loadu_ps(&pts[b].x), hi4 = lo4;
   for (std::uint32_t i = b + 1; i < e; ++i) {
-    const Point& p = pts[i];
-    lo[0] = std::min(lo[0], p.x);
-    hi[0] = std::max(hi[0], p.x);
-    lo[1] = std::min(lo[1], p.y);
-    hi[1] = std::max(hi[1], p.y);
-    lo[2] = std::min(lo[2], p.z);
-    hi[2] = std::max(hi[2], p.z);
+    const __m128 p = _mm_loadu_ps(&pts[i].x);
+    lo4 = _mm_min_ps(p, lo4);
+    hi4 = _mm_max_ps(p, hi4);
   }
+  alignas(16) float lo[4], hi[4];
+  _mm_store_ps(lo, lo4);
+  _mm_store_ps(hi, hi4);
   for (int d = 0; d < 3; ++d) {
     nd.lo[d] = lo[d];
     nd.hi[d] = hi[d];
