@@ -116,6 +116,8 @@ struct KdTree {
   std::vector<Point> pts;  // tree order
   std::vector<float> px, py, pz;
   std::vector<std::uint32_t> pidx;
+  std::vector<std::uint32_t> leaf_of;  // build only: first tree position of each point's leaf
+  std::vector<std::uint32_t> cursor;   // build only: next free position of the leaf at [begin]
   std::vector<Node> nodes;  // preorder: left child of node i is i + 1; unused slots possible
   std::uint32_t leaf = 16;
   int k = 0;
@@ -151,8 +153,9 @@ void KdTree::buildNode(std::uint32_t id, std::uint32_t b, std::uint32_t e) {
   const int dim = ext[0] >= ext[1] ? (ext[0] >= ext[2] ? 0 : 2) : (ext[1] >= ext[2] ? 1 : 2);
   const bool same_point = !(ext[dim] > 0.f);
   if (same_point || e - b <= leaf) {
-    std::sort(pts.begin() + b, pts.begin() + e,
-              [](const Point& p, const Point& r) { return p.idx < r.idx; });
+    // Leaf points go in index order; build() places them (one pass, no sort per leaf).
+    for (std::uint32_t i = b; i < e; ++i) leaf_of[pts[i].idx] = b;
+    cursor[b] = b;
     if (same_point) {
       nd.scan_end = std::min<std::uint32_t>(e, b + static_cast<std::uint32_t>(k));
       nd.right = kSamePoint;
@@ -184,6 +187,8 @@ void KdTree::build(const float* xyz, std::size_t n, int k_, int threads) {
   py.resize(n);
   pz.resize(n);
   pidx.resize(n);
+  leaf_of.resize(n);
+  cursor.resize(n);
   nodes.assign(subtreeNodes(static_cast<std::uint32_t>(n), leaf), Node());
 #pragma omp parallel num_threads(threads)
   {
@@ -194,13 +199,14 @@ void KdTree::build(const float* xyz, std::size_t n, int k_, int threads) {
 #pragma omp single
     buildNode(0, 0, static_cast<std::uint32_t>(n));
     // (implicit barrier: all tasks are done)
-#pragma omp for schedule(static)
-    for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
-      px[i] = pts[i].x;
-      py[i] = pts[i].y;
-      pz[i] = pts[i].z;
-      pidx[i] = pts[i].idx;
-    }
+  }
+  // Points in index order into their leaves: every leaf ends up sorted by index.
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint32_t p = cursor[leaf_of[i]]++;
+    px[p] = xyz[3 * i];
+    py[p] = xyz[3 * i + 1];
+    pz[p] = xyz[3 * i + 2];
+    pidx[p] = static_cast<std::uint32_t>(i);
   }
 }
 
