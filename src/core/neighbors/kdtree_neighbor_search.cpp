@@ -118,6 +118,7 @@ struct KdTree {
   std::vector<std::uint32_t> pidx;
   std::vector<std::uint32_t> leaf_of;  // build only: first tree position of each point's leaf
   std::vector<std::uint32_t> cursor;   // build only: next free position of the leaf at [begin]
+  std::vector<std::uint32_t> cursor_end;  // build only: end of the free positions of that leaf
   std::vector<Node> nodes;  // preorder: left child of node i is i + 1; unused slots possible
   std::uint32_t leaf = 16;
   int k = 0;
@@ -125,6 +126,12 @@ struct KdTree {
 
   void buildNode(std::uint32_t id, std::uint32_t b, std::uint32_t e);
   void build(const float* xyz, std::size_t n, int k_, int threads);
+  void place(const float* xyz, std::size_t i, std::uint32_t p) {
+    px[p] = xyz[3 * i];
+    py[p] = xyz[3 * i + 1];
+    pz[p] = xyz[3 * i + 2];
+    pidx[p] = static_cast<std::uint32_t>(i);
+  }
 };
 
 void KdTree::buildNode(std::uint32_t id, std::uint32_t b, std::uint32_t e) {
@@ -156,6 +163,7 @@ void KdTree::buildNode(std::uint32_t id, std::uint32_t b, std::uint32_t e) {
     // Leaf points go in index order; build() places them (one pass, no sort per leaf).
     for (std::uint32_t i = b; i < e; ++i) leaf_of[pts[i].idx] = b;
     cursor[b] = b;
+    cursor_end[b] = e;
     if (same_point) {
       nd.scan_end = std::min<std::uint32_t>(e, b + static_cast<std::uint32_t>(k));
       nd.right = kSamePoint;
@@ -189,6 +197,7 @@ void KdTree::build(const float* xyz, std::size_t n, int k_, int threads) {
   pidx.resize(n);
   leaf_of.resize(n);
   cursor.resize(n);
+  cursor_end.resize(n);
   nodes.assign(subtreeNodes(static_cast<std::uint32_t>(n), leaf), Node());
 #pragma omp parallel num_threads(threads)
   {
@@ -199,14 +208,20 @@ void KdTree::build(const float* xyz, std::size_t n, int k_, int threads) {
 #pragma omp single
     buildNode(0, 0, static_cast<std::uint32_t>(n));
     // (implicit barrier: all tasks are done)
-  }
-  // Points in index order into their leaves: every leaf ends up sorted by index.
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::uint32_t p = cursor[leaf_of[i]]++;
-    px[p] = xyz[3 * i];
-    py[p] = xyz[3 * i + 1];
-    pz[p] = xyz[3 * i + 2];
-    pidx[p] = static_cast<std::uint32_t>(i);
+    // Points into their leaves in index order, so that every leaf is sorted by index: the lower
+    // half of the indices ascending from each leaf's start, the upper half descending from its
+    // end (two threads; they meet where the halves meet).
+#pragma omp sections
+    {
+#pragma omp section
+      {
+        for (std::size_t i = 0; i < n / 2; ++i) place(xyz, i, cursor[leaf_of[i]]++);
+      }
+#pragma omp section
+      {
+        for (std::size_t i = n; i-- > n / 2;) place(xyz, i, --cursor_end[leaf_of[i]]);
+      }
+    }
   }
 }
 
