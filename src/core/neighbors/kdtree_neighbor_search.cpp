@@ -171,8 +171,15 @@ void KdTree::buildNode(std::uint32_t id, std::uint32_t b, std::uint32_t e) {
     return;
   }
   const std::uint32_t m = b + (e - b) / 2;
-  std::nth_element(pts.begin() + b, pts.begin() + m, pts.begin() + e,
-                   [dim](const Point& p, const Point& r) { return (&p.x)[dim] < (&r.x)[dim]; });
+  // One comparator per axis: a fixed offset instead of an indexed load in the inner loop.
+  const auto first = pts.begin() + b, mid = pts.begin() + m, last = pts.begin() + e;
+  if (dim == 0) {
+    std::nth_element(first, mid, last, [](const Point& p, const Point& r) { return p.x < r.x; });
+  } else if (dim == 1) {
+    std::nth_element(first, mid, last, [](const Point& p, const Point& r) { return p.y < r.y; });
+  } else {
+    std::nth_element(first, mid, last, [](const Point& p, const Point& r) { return p.z < r.z; });
+  }
   const std::uint32_t l = id + 1, r = id + 1 + subtreeNodes(m - b, leaf);
   nd.left = static_cast<std::int32_t>(l);
   nd.right = static_cast<std::int32_t>(r);
