@@ -579,8 +579,9 @@ class TopKAvx512 {
         pending_ = kSlots;
         flush();
         // Move the candidates past the flushed block to the front.
-        std::memmove(cand_d_, cand_d_ + kSlots, sizeof(std::uint32_t) * extra);
-        std::memmove(cand_i_, cand_i_ + kSlots, sizeof(std::uint32_t) * extra);
+        // (extra < 16: one register each, from the 16 slots past kSlots)
+        _mm512_store_si512(cand_d_, _mm512_load_si512(cand_d_ + kSlots));
+        _mm512_store_si512(cand_i_, _mm512_load_si512(cand_i_ + kSlots));
         pending_ = extra;
       }
     }
