@@ -601,8 +601,15 @@ class TopKAvx512 {
     for (int j = 0; j < k_; j += 16) {
       const __mmask16 m = static_cast<__mmask16>(k_ - j >= 16 ? 0xffff : (1u << (k_ - j)) - 1);
       const __m512i a = _mm512_load_si512(top_ + j), b = _mm512_load_si512(top_ + j + 8);
-      _mm512_mask_storeu_epi32(idx + j, m, _mm512_permutex2var_epi32(a, lo_sel, b));
-      if (dist) _mm512_mask_storeu_epi32(dist + j, m, _mm512_permutex2var_epi32(a, hi_sel, b));
+      const __m512i ids = _mm512_permutex2var_epi32(a, lo_sel, b);
+      // Plain stores for full blocks: masked stores to memory are slow on Zen 4.
+      if (m == 0xffff) {
+        _mm512_storeu_si512(idx + j, ids);
+        if (dist) _mm512_storeu_si512(dist + j, _mm512_permutex2var_epi32(a, hi_sel, b));
+      } else {
+        _mm512_mask_storeu_epi32(idx + j, m, ids);
+        if (dist) _mm512_mask_storeu_epi32(dist + j, m, _mm512_permutex2var_epi32(a, hi_sel, b));
+      }
     }
   }
 
