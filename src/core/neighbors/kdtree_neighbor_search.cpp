@@ -1,7 +1,9 @@
 #include "neighbors/kdtree_neighbor_search.h"
 
 #include <omp.h>
+#if defined(__SSE__)
 #include <xmmintrin.h>
+#endif
 
 #include <algorithm>
 #include <chrono>
@@ -116,8 +118,8 @@ struct KdTree {
   std::vector<Point> pts;  // tree order
   std::vector<float> px, py, pz;
   std::vector<std::uint32_t> pidx;
-  std::vector<std::uint32_t> leaf_of;  // build only: first tree position of each point's leaf
-  std::vector<std::uint32_t> cursor;   // build only: next free position of the leaf at [begin]
+  std::vector<std::uint32_t> leaf_of;     // build only: first tree position of each point's leaf
+  std::vector<std::uint32_t> cursor;      // build only: next free position of the leaf at [begin]
   std::vector<std::uint32_t> cursor_end;  // build only: end of the free positions of that leaf
   std::vector<Node> nodes;  // preorder: left child of node i is i + 1; unused slots possible
   std::uint32_t leaf = 16;
@@ -136,6 +138,8 @@ struct KdTree {
 
 void KdTree::buildNode(std::uint32_t id, std::uint32_t b, std::uint32_t e) {
   Node& nd = nodes[id];
+  alignas(16) float lo[4], hi[4];
+#if defined(__SSE__)
   // One SSE register per point (x, y, z, index bits; lane 3 unused). min_ps(p, lo) is
   // p < lo ? p : lo, the same value as std::min(lo, p), also for signed zeros.
   __m128 lo4 = _mm_loadu_ps(&pts[b].x), hi4 = lo4;
@@ -144,9 +148,22 @@ void KdTree::buildNode(std::uint32_t id, std::uint32_t b, std::uint32_t e) {
     lo4 = _mm_min_ps(p, lo4);
     hi4 = _mm_max_ps(p, hi4);
   }
-  alignas(16) float lo[4], hi[4];
   _mm_store_ps(lo, lo4);
   _mm_store_ps(hi, hi4);
+#else
+  lo[0] = hi[0] = pts[b].x;
+  lo[1] = hi[1] = pts[b].y;
+  lo[2] = hi[2] = pts[b].z;
+  for (std::uint32_t i = b + 1; i < e; ++i) {
+    const Point& p = pts[i];
+    lo[0] = std::min(lo[0], p.x);
+    hi[0] = std::max(hi[0], p.x);
+    lo[1] = std::min(lo[1], p.y);
+    hi[1] = std::max(hi[1], p.y);
+    lo[2] = std::min(lo[2], p.z);
+    hi[2] = std::max(hi[2], p.z);
+  }
+#endif
   for (int d = 0; d < 3; ++d) {
     nd.lo[d] = lo[d];
     nd.hi[d] = hi[d];
