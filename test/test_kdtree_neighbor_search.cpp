@@ -181,6 +181,31 @@ TEST(KdTreeNeighborSearchExact, ManyCoincidentPoints) {
   }
 }
 
+TEST(KdTreeNeighborSearchExact, OneAndTwoBuildThreadsAgree) {
+  // The build places each leaf's points in index order, with two threads from both ends of every
+  // leaf: odd sizes, coincident points on both sides of n / 2, default leaf size.
+  for (bool avx512 : codePaths()) {
+    for (std::size_t n : {257u, 1001u, 4099u}) {
+      Cloud c = randomCloud(n, 5u, true);
+      for (std::size_t i = 0; i < n; i += 5) c[3 * i] = c[3 * i + 1] = c[3 * i + 2] = 0.f;
+      for (int threads : {1, 2}) {
+        for (int leaf : {8, 64}) {
+          gf::KdTreeNeighborSearch search(threads, leaf);
+          search.setUseAvx512(avx512);
+          gf::NeighborLists got;
+          for (int k : {1, 64, 129}) {
+            SCOPED_TRACE("avx512 " + std::to_string(avx512) + " n " + std::to_string(n) +
+                         " threads " + std::to_string(threads) + " leaf " + std::to_string(leaf) +
+                         " k " + std::to_string(k));
+            search.search(c.data(), n, k, &got);
+            expectSameLists(bruteForce(c, k), got);
+          }
+        }
+      }
+    }
+  }
+}
+
 TEST(KdTreeNeighborSearchExact, RegularGridTiesAndLine) {
   // Many neighbours at exactly the same distance: the lower index must win every tie.
   Cloud grid, line;

@@ -1,6 +1,9 @@
 #include "neighbors/kdtree_neighbor_search.h"
 
 #include <omp.h>
+#if defined(__SSE__)
+#include <xmmintrin.h>
+#endif
 
 #include <algorithm>
 #include <chrono>
@@ -115,6 +118,9 @@ struct KdTree {
   std::vector<Point> pts;  // tree order
   std::vector<float> px, py, pz;
   std::vector<std::uint32_t> pidx;
+  std::vector<std::uint32_t> leaf_of;     // build only: first tree position of each point's leaf
+  std::vector<std::uint32_t> cursor;      // build only: next free position of the leaf at [begin]
+  std::vector<std::uint32_t> cursor_end;  // build only: end of the free positions of that leaf
   std::vector<Node> nodes;  // preorder: left child of node i is i + 1; unused slots possible
   std::uint32_t leaf = 16;
   int k = 0;
@@ -122,12 +128,32 @@ struct KdTree {
 
   void buildNode(std::uint32_t id, std::uint32_t b, std::uint32_t e);
   void build(const float* xyz, std::size_t n, int k_, int threads);
+  void place(const float* xyz, std::size_t i, std::uint32_t p) {
+    px[p] = xyz[3 * i];
+    py[p] = xyz[3 * i + 1];
+    pz[p] = xyz[3 * i + 2];
+    pidx[p] = static_cast<std::uint32_t>(i);
+  }
 };
 
 void KdTree::buildNode(std::uint32_t id, std::uint32_t b, std::uint32_t e) {
   Node& nd = nodes[id];
-  float lo[3] = {pts[b].x, pts[b].y, pts[b].z};
-  float hi[3] = {lo[0], lo[1], lo[2]};
+  alignas(16) float lo[4], hi[4];
+#if defined(__SSE__)
+  // One SSE register per point (x, y, z, index bits; lane 3 unused). min_ps(p, lo) is
+  // p < lo ? p : lo, the same value as std::min(lo, p), also for signed zeros.
+  __m128 lo4 = _mm_loadu_ps(&pts[b].x), hi4 = lo4;
+  for (std::uint32_t i = b + 1; i < e; ++i) {
+    const __m128 p = _mm_loadu_ps(&pts[i].x);
+    lo4 = _mm_min_ps(p, lo4);
+    hi4 = _mm_max_ps(p, hi4);
+  }
+  _mm_store_ps(lo, lo4);
+  _mm_store_ps(hi, hi4);
+#else
+  lo[0] = hi[0] = pts[b].x;
+  lo[1] = hi[1] = pts[b].y;
+  lo[2] = hi[2] = pts[b].z;
   for (std::uint32_t i = b + 1; i < e; ++i) {
     const Point& p = pts[i];
     lo[0] = std::min(lo[0], p.x);
@@ -137,6 +163,7 @@ void KdTree::buildNode(std::uint32_t id, std::uint32_t b, std::uint32_t e) {
     lo[2] = std::min(lo[2], p.z);
     hi[2] = std::max(hi[2], p.z);
   }
+#endif
   for (int d = 0; d < 3; ++d) {
     nd.lo[d] = lo[d];
     nd.hi[d] = hi[d];
@@ -150,8 +177,10 @@ void KdTree::buildNode(std::uint32_t id, std::uint32_t b, std::uint32_t e) {
   const int dim = ext[0] >= ext[1] ? (ext[0] >= ext[2] ? 0 : 2) : (ext[1] >= ext[2] ? 1 : 2);
   const bool same_point = !(ext[dim] > 0.f);
   if (same_point || e - b <= leaf) {
-    std::sort(pts.begin() + b, pts.begin() + e,
-              [](const Point& p, const Point& r) { return p.idx < r.idx; });
+    // Leaf points go in index order; build() places them (one pass, no sort per leaf).
+    for (std::uint32_t i = b; i < e; ++i) leaf_of[pts[i].idx] = b;
+    cursor[b] = b;
+    cursor_end[b] = e;
     if (same_point) {
       nd.scan_end = std::min<std::uint32_t>(e, b + static_cast<std::uint32_t>(k));
       nd.right = kSamePoint;
@@ -159,8 +188,15 @@ void KdTree::buildNode(std::uint32_t id, std::uint32_t b, std::uint32_t e) {
     return;
   }
   const std::uint32_t m = b + (e - b) / 2;
-  std::nth_element(pts.begin() + b, pts.begin() + m, pts.begin() + e,
-                   [dim](const Point& p, const Point& r) { return (&p.x)[dim] < (&r.x)[dim]; });
+  // One comparator per axis: a fixed offset instead of an indexed load in the inner loop.
+  const auto first = pts.begin() + b, mid = pts.begin() + m, last = pts.begin() + e;
+  if (dim == 0) {
+    std::nth_element(first, mid, last, [](const Point& p, const Point& r) { return p.x < r.x; });
+  } else if (dim == 1) {
+    std::nth_element(first, mid, last, [](const Point& p, const Point& r) { return p.y < r.y; });
+  } else {
+    std::nth_element(first, mid, last, [](const Point& p, const Point& r) { return p.z < r.z; });
+  }
   const std::uint32_t l = id + 1, r = id + 1 + subtreeNodes(m - b, leaf);
   nd.left = static_cast<std::int32_t>(l);
   nd.right = static_cast<std::int32_t>(r);
@@ -183,6 +219,9 @@ void KdTree::build(const float* xyz, std::size_t n, int k_, int threads) {
   py.resize(n);
   pz.resize(n);
   pidx.resize(n);
+  leaf_of.resize(n);
+  cursor.resize(n);
+  cursor_end.resize(n);
   nodes.assign(subtreeNodes(static_cast<std::uint32_t>(n), leaf), Node());
 #pragma omp parallel num_threads(threads)
   {
@@ -193,12 +232,19 @@ void KdTree::build(const float* xyz, std::size_t n, int k_, int threads) {
 #pragma omp single
     buildNode(0, 0, static_cast<std::uint32_t>(n));
     // (implicit barrier: all tasks are done)
-#pragma omp for schedule(static)
-    for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
-      px[i] = pts[i].x;
-      py[i] = pts[i].y;
-      pz[i] = pts[i].z;
-      pidx[i] = pts[i].idx;
+    // Points into their leaves in index order, so that every leaf is sorted by index: the lower
+    // half of the indices ascending from each leaf's start, the upper half descending from its
+    // end (two threads; they meet where the halves meet).
+#pragma omp sections
+    {
+#pragma omp section
+      {
+        for (std::size_t i = 0; i < n / 2; ++i) place(xyz, i, cursor[leaf_of[i]]++);
+      }
+#pragma omp section
+      {
+        for (std::size_t i = n; i-- > n / 2;) place(xyz, i, --cursor_end[leaf_of[i]]);
+      }
     }
   }
 }
@@ -550,8 +596,9 @@ class TopKAvx512 {
         pending_ = kSlots;
         flush();
         // Move the candidates past the flushed block to the front.
-        std::memmove(cand_d_, cand_d_ + kSlots, sizeof(std::uint32_t) * extra);
-        std::memmove(cand_i_, cand_i_ + kSlots, sizeof(std::uint32_t) * extra);
+        // (extra < 16: one register each, from the 16 slots past kSlots)
+        _mm512_store_si512(cand_d_, _mm512_load_si512(cand_d_ + kSlots));
+        _mm512_store_si512(cand_i_, _mm512_load_si512(cand_i_ + kSlots));
         pending_ = extra;
       }
     }
@@ -571,8 +618,15 @@ class TopKAvx512 {
     for (int j = 0; j < k_; j += 16) {
       const __mmask16 m = static_cast<__mmask16>(k_ - j >= 16 ? 0xffff : (1u << (k_ - j)) - 1);
       const __m512i a = _mm512_load_si512(top_ + j), b = _mm512_load_si512(top_ + j + 8);
-      _mm512_mask_storeu_epi32(idx + j, m, _mm512_permutex2var_epi32(a, lo_sel, b));
-      if (dist) _mm512_mask_storeu_epi32(dist + j, m, _mm512_permutex2var_epi32(a, hi_sel, b));
+      const __m512i ids = _mm512_permutex2var_epi32(a, lo_sel, b);
+      // Plain stores for full blocks: masked stores to memory are slow on Zen 4.
+      if (m == 0xffff) {
+        _mm512_storeu_si512(idx + j, ids);
+        if (dist) _mm512_storeu_si512(dist + j, _mm512_permutex2var_epi32(a, hi_sel, b));
+      } else {
+        _mm512_mask_storeu_epi32(idx + j, m, ids);
+        if (dist) _mm512_mask_storeu_epi32(dist + j, m, _mm512_permutex2var_epi32(a, hi_sel, b));
+      }
     }
   }
 
