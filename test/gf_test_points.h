@@ -4,7 +4,11 @@
 
 #include <cstddef>
 #include <random>
+#include <string>
 #include <vector>
+
+#include "ground_filter/cloud_view.h"
+#include "ground_filter/io/scan_io.h"
 
 namespace gf_test {
 
@@ -26,6 +30,18 @@ inline std::vector<float> randomCloud(std::size_t n, unsigned seed, bool cluster
     } else {
       c.insert(c.end(), {u(rng), u(rng), 0.2f * u(rng)});
     }
+  }
+  return c;
+}
+
+/// \brief The finite points of a scan file (ground_filter::loadScan()), x y z packed.
+inline std::vector<float> finiteXyzOf(const std::string& file) {
+  const ground_filter::Scan scan = ground_filter::loadScan(file);
+  const ground_filter::CloudView view = ground_filter::viewOf(scan.cloud);
+  std::vector<float> c;
+  for (std::size_t i = 0; i < view.size(); ++i) {
+    float x, y, z;
+    if (view.get(i, &x, &y, &z)) c.insert(c.end(), {x, y, z});
   }
   return c;
 }

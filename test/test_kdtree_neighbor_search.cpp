@@ -150,18 +150,6 @@ Cloud coincidentCloud() {
   return c;
 }
 
-// The finite points of a scan file, xyz packed.
-Cloud finitePointsOf(const std::string& file) {
-  const gf::Scan scan = gf::loadScan(file);
-  const gf::CloudView view = gf::viewOf(scan.cloud);
-  Cloud c;
-  for (std::size_t i = 0; i < view.size(); ++i) {
-    float x, y, z;
-    if (view.get(i, &x, &y, &z)) c.insert(c.end(), {x, y, z});
-  }
-  return c;
-}
-
 }  // namespace
 
 TEST(KdTreeNeighborSearchExact, ManyCoincidentPoints) {
@@ -251,7 +239,7 @@ TEST(KdTreeNeighborSearchExact, KittiFrameMatchesNanoflann) {
 #else
   const std::string file = std::string(GF_DATA_DIR) + "/semantickitti/seq00/000000.bin";
   GF_SKIP_WITHOUT_DATA(file);
-  const Cloud c = finitePointsOf(file);
+  const Cloud c = gf_test::finiteXyzOf(file);
   const std::size_t n = c.size() / 3;
   ASSERT_GT(n, 100000u);
   constexpr int k = 50;
@@ -373,7 +361,7 @@ TEST(KdTreeNeighborSearchExact, KeptListsSameOnRealScans) {
   std::size_t tested = 0;
   for (const std::string& file : files) {
     if (!gf_test::dataExists(file)) continue;
-    const Cloud c = finitePointsOf(file);
+    const Cloud c = gf_test::finiteXyzOf(file);
     SCOPED_TRACE(file);
     expectKeptListsSame(c, 64, codePaths().back(), 64);
     ++tested;

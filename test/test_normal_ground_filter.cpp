@@ -687,17 +687,6 @@ gf::CandidateCounts expectFastCandidatesExact(const Cloud& c, int k) {
   return first;
 }
 
-Cloud finiteXyzOf(const std::string& file) {
-  const gf::Scan scan = gf::loadScan(file);
-  const gf::CloudView view = gf::viewOf(scan.cloud);
-  Cloud c;
-  for (std::size_t i = 0; i < view.size(); ++i) {
-    float x, y, z;
-    if (view.get(i, &x, &y, &z)) c.insert(c.end(), {x, y, z});
-  }
-  return c;
-}
-
 /// Points on a line along (1, 1, 0.2) with `noise` [m] of scatter.
 Cloud lineCloud(std::size_t n, double noise, unsigned seed) {
   std::mt19937 rng(seed);
@@ -747,7 +736,7 @@ TEST(CandidatePca, FastDecisionMatchesEigenOnRealScans) {
   for (const std::string& file : files) {
     if (!gf_test::dataExists(file)) continue;
     SCOPED_TRACE(file);
-    const Cloud c = finiteXyzOf(file);
+    const Cloud c = gf_test::finiteXyzOf(file);
     const gf::CandidateCounts n = expectFastCandidatesExact(c, 64);
     // The fallback is rare: the fast path must decide nearly every point.
     const std::size_t points = c.size() / 3;
