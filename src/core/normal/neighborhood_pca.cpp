@@ -58,30 +58,44 @@ inline void sumsScalar(const float* xyz, const std::int32_t* row, int k, std::si
 
 using simd::opaque;
 
+/// x y z of the point at `p` as doubles in lanes 0-2 (the other lanes are not used).
+GF_TARGET_AVX512 inline __m512d loadXyz(const float* p) {
+  return _mm512_cvtps_pd(_mm256_castps128_ps256(
+      _mm_castsi128_ps(_mm512_castsi512_si128(_mm512_maskz_loadu_epi32(0x7, p)))));
+}
+
+/// The offset of the point at `p` from `o` (loadXyz() of the query): dx dy dz 0 0 0 0 0.
+GF_TARGET_AVX512 inline __m512d offsetOf(const float* p, __m512d o) {
+  return _mm512_maskz_sub_pd(0x7, loadXyz(p), o);
+}
+
+/// The six products of an offset d: dx dx, dx dy, dx dz, dy dy, dy dz, dz dz (lanes 0-5).
+GF_TARGET_AVX512 inline __m512d productsOf(__m512d d) {
+  const __m512i pa = _mm512_set_epi64(3, 3, 2, 1, 1, 0, 0, 0);  // dx dx dx dy dy dz
+  const __m512i pb = _mm512_set_epi64(3, 3, 2, 2, 1, 2, 1, 0);  // dx dy dz dy dz dz
+  return _mm512_mul_pd(_mm512_permutexvar_pd(pa, d), _mm512_permutexvar_pd(pb, d));
+}
+
+/// Moments from the lanes [sx sy sz - ...] and [sxx sxy sxz syy syz szz - -] of `k` neighbours.
+GF_TARGET_AVX512 inline Moments momentsOf(__m512d s1, __m512d s2, int k) {
+  alignas(64) double a[8], b[8];
+  _mm512_store_pd(a, s1);
+  _mm512_store_pd(b, s2);
+  return Moments{a[0], a[1], a[2], b[0], b[1], b[2], b[3], b[4], b[5], k};
+}
+
 /// sumsScalar() of a full row (k valid entries): lanes [sx sy sz - - - - -] and
 /// [sxx sxy sxz syy syz szz - -], each lane added to in neighbour order.
 GF_TARGET_AVX512 void sumsAvx512(const float* xyz, const std::int32_t* row, int k,
                                  std::size_t query, Moments* s) {
-  const __mmask16 three = 0x7;
-  const __m512d o = _mm512_cvtps_pd(_mm256_castps128_ps256(
-      _mm_castsi128_ps(_mm512_castsi512_si128(_mm512_maskz_loadu_epi32(three, xyz + 3 * query)))));
-  const __m512i pa = _mm512_set_epi64(3, 3, 2, 1, 1, 0, 0, 0);  // dx dx dx dy dy dz
-  const __m512i pb = _mm512_set_epi64(3, 3, 2, 2, 1, 2, 1, 0);  // dx dy dz dy dz dz
+  const __m512d o = loadXyz(xyz + 3 * query);
   __m512d s1 = _mm512_setzero_pd(), s2 = _mm512_setzero_pd();
   for (int j = 0; j < k; ++j) {
-    const float* p = xyz + 3 * static_cast<std::size_t>(row[j]);
-    const __m512d v = _mm512_cvtps_pd(_mm256_castps128_ps256(
-        _mm_castsi128_ps(_mm512_castsi512_si128(_mm512_maskz_loadu_epi32(three, p)))));
-    const __m512d d = _mm512_maskz_sub_pd(0x7, v, o);  // dx dy dz 0 ...
+    const __m512d d = offsetOf(xyz + 3 * static_cast<std::size_t>(row[j]), o);
     s1 = _mm512_add_pd(s1, d);
-    const __m512d prod =
-        opaque(_mm512_mul_pd(_mm512_permutexvar_pd(pa, d), _mm512_permutexvar_pd(pb, d)));
-    s2 = _mm512_add_pd(s2, prod);
+    s2 = _mm512_add_pd(s2, opaque(productsOf(d)));  // products not fused into the sums
   }
-  alignas(64) double a[8], b[8];
-  _mm512_store_pd(a, s1);
-  _mm512_store_pd(b, s2);
-  *s = Moments{a[0], a[1], a[2], b[0], b[1], b[2], b[3], b[4], b[5], k};
+  *s = momentsOf(s1, s2, k);
 }
 
 /// Sums of a full row for the candidate decision only: two accumulator pairs (even and odd
@@ -89,45 +103,24 @@ GF_TARGET_AVX512 void sumsAvx512(const float* xyz, const std::int32_t* row, int 
 /// addition order), so a point the fast decision cannot certify recomputes sumsAvx512().
 GF_TARGET_AVX512 void sumsAvx512Fast(const float* xyz, const std::int32_t* row, int k,
                                      std::size_t query, Moments* s) {
-  const __mmask16 three = 0x7;
-  const __m512d o = _mm512_cvtps_pd(_mm256_castps128_ps256(
-      _mm_castsi128_ps(_mm512_castsi512_si128(_mm512_maskz_loadu_epi32(three, xyz + 3 * query)))));
-  const __m512i pa = _mm512_set_epi64(3, 3, 2, 1, 1, 0, 0, 0);  // dx dx dx dy dy dz
-  const __m512i pb = _mm512_set_epi64(3, 3, 2, 2, 1, 2, 1, 0);  // dx dy dz dy dz dz
+  const __m512d o = loadXyz(xyz + 3 * query);
   __m512d s1 = _mm512_setzero_pd(), s2 = _mm512_setzero_pd();
   __m512d t1 = _mm512_setzero_pd(), t2 = _mm512_setzero_pd();
   int j = 0;
   for (; j + 1 < k; j += 2) {
-    const float* p = xyz + 3 * static_cast<std::size_t>(row[j]);
-    const float* q = xyz + 3 * static_cast<std::size_t>(row[j + 1]);
-    const __m512d v = _mm512_cvtps_pd(_mm256_castps128_ps256(
-        _mm_castsi128_ps(_mm512_castsi512_si128(_mm512_maskz_loadu_epi32(three, p)))));
-    const __m512d u = _mm512_cvtps_pd(_mm256_castps128_ps256(
-        _mm_castsi128_ps(_mm512_castsi512_si128(_mm512_maskz_loadu_epi32(three, q)))));
-    const __m512d d = _mm512_maskz_sub_pd(0x7, v, o);
-    const __m512d e = _mm512_maskz_sub_pd(0x7, u, o);
+    const __m512d d = offsetOf(xyz + 3 * static_cast<std::size_t>(row[j]), o);
+    const __m512d e = offsetOf(xyz + 3 * static_cast<std::size_t>(row[j + 1]), o);
     s1 = _mm512_add_pd(s1, d);
     t1 = _mm512_add_pd(t1, e);
-    s2 = _mm512_add_pd(s2,
-                       _mm512_mul_pd(_mm512_permutexvar_pd(pa, d), _mm512_permutexvar_pd(pb, d)));
-    t2 = _mm512_add_pd(t2,
-                       _mm512_mul_pd(_mm512_permutexvar_pd(pa, e), _mm512_permutexvar_pd(pb, e)));
+    s2 = _mm512_add_pd(s2, productsOf(d));
+    t2 = _mm512_add_pd(t2, productsOf(e));
   }
   for (; j < k; ++j) {
-    const float* p = xyz + 3 * static_cast<std::size_t>(row[j]);
-    const __m512d v = _mm512_cvtps_pd(_mm256_castps128_ps256(
-        _mm_castsi128_ps(_mm512_castsi512_si128(_mm512_maskz_loadu_epi32(three, p)))));
-    const __m512d d = _mm512_maskz_sub_pd(0x7, v, o);
+    const __m512d d = offsetOf(xyz + 3 * static_cast<std::size_t>(row[j]), o);
     s1 = _mm512_add_pd(s1, d);
-    s2 = _mm512_add_pd(s2,
-                       _mm512_mul_pd(_mm512_permutexvar_pd(pa, d), _mm512_permutexvar_pd(pb, d)));
+    s2 = _mm512_add_pd(s2, productsOf(d));
   }
-  s1 = _mm512_add_pd(s1, t1);
-  s2 = _mm512_add_pd(s2, t2);
-  alignas(64) double a[8], b[8];
-  _mm512_store_pd(a, s1);
-  _mm512_store_pd(b, s2);
-  *s = Moments{a[0], a[1], a[2], b[0], b[1], b[2], b[3], b[4], b[5], k};
+  *s = momentsOf(_mm512_add_pd(s1, t1), _mm512_add_pd(s2, t2), k);
 }
 
 #pragma GCC diagnostic pop
@@ -339,44 +332,35 @@ inline std::uint8_t candidateOne(const float* xyz, const std::int32_t* row, int 
                                  CandidateCounts* counts) {
   Moments s;
   Covariance c;
-  bool reference_sums = true;
-  if (!t.exact_only) {
+  bool fast_tried = false;  // fastCandidate() already undecided on the fast sums
 #if GF_HAVE_AVX512
-    if (avx512 && k >= 3 && row[k - 1] >= 0) {
-      sumsAvx512Fast(xyz, row, k, query, &s);
-      // Another addition order moves the covariance by <= ~2 k eps (mean squared offset from
-      // the query); trusted when that is < 1e-4 of the trace (so < 3e-10 trace, far inside the
-      // margins) and away from the reference's validity threshold. All squares exactly 0 means
-      // every offset is 0 (a float difference squared in double cannot underflow): the
-      // reference's trace is 0 too.
-      const bool all_same = s.sxx == 0.0 && s.syy == 0.0 && s.szz == 0.0;
-      const bool trusted = all_same || (covarianceOf(s, &c) && c.trace > 1e-11 &&
-                                        s.sxx + s.syy + s.szz <= 1e4 * s.m * c.trace);
-      if (trusted) {
-        if (all_same) {
-          ++counts->invalid;
-          return 0;
-        }
-        const int d = fastCandidate(c, t, counts);
-        if (d >= 0) return static_cast<std::uint8_t>(d);
-        reference_sums = false;
-      }
+  if (!t.exact_only && avx512 && k >= 3 && row[k - 1] >= 0) {
+    sumsAvx512Fast(xyz, row, k, query, &s);
+    // Another addition order moves the covariance by <= ~2 k eps (mean squared offset from
+    // the query); trusted when that is < 1e-4 of the trace (so < 3e-10 trace, far inside the
+    // margins) and away from the reference's validity threshold. All squares exactly 0 means
+    // every offset is 0 (a float difference squared in double cannot underflow): the
+    // reference's trace is 0 too.
+    if (s.sxx == 0.0 && s.syy == 0.0 && s.szz == 0.0) {
+      ++counts->invalid;
+      return 0;
     }
-#endif
-    if (reference_sums) {
-      sumsOf(xyz, row, k, query, avx512, &s);
-      if (!covarianceOf(s, &c)) {
-        ++counts->invalid;
-        return 0;
-      }
+    if (covarianceOf(s, &c) && c.trace > 1e-11 && s.sxx + s.syy + s.szz <= 1e4 * s.m * c.trace) {
       const int d = fastCandidate(c, t, counts);
       if (d >= 0) return static_cast<std::uint8_t>(d);
+      fast_tried = true;
     }
   }
-  if (t.exact_only || !reference_sums) sumsOf(xyz, row, k, query, avx512, &s);
+#endif
+  // The reference sums (list order).
+  sumsOf(xyz, row, k, query, avx512, &s);
   if (!covarianceOf(s, &c)) {
     ++counts->invalid;
     return 0;
+  }
+  if (!t.exact_only && !fast_tried) {
+    const int d = fastCandidate(c, t, counts);
+    if (d >= 0) return static_cast<std::uint8_t>(d);
   }
   ++counts->exact;
   PointPca r;
