@@ -954,7 +954,15 @@ TEST(RadixSort, TopDownSortGivesTheLsdOrder) {
       std::vector<std::uint32_t> h1 = hist, h2 = hist;
       gf::radixScatter<std::uint32_t>(slot_bits, passes, digit, h1.data(), &want, &tmp, nullptr,
                                       nullptr);
-      gf::radixSortTopDown(slot_bits, passes, digit, h2.data(), &got, &tmp2);
+      // declines (nothing changed) when a bucket is too large
+      const std::uint32_t* top = hist.data() + (static_cast<std::size_t>(passes - 1) << digit);
+      const std::size_t largest = *std::max_element(top, top + dmask + 1);
+      EXPECT_FALSE(
+          gf::radixSortTopDown(slot_bits, passes, digit, h2.data(), &got, &tmp2, largest - 1));
+      EXPECT_EQ(got, words);
+      EXPECT_EQ(h2, hist);
+      ASSERT_TRUE(
+          gf::radixSortTopDown(slot_bits, passes, digit, h2.data(), &got, &tmp2, largest));
       ASSERT_TRUE(std::is_sorted(want.begin(), want.end()));
       EXPECT_EQ(got, want) << "key bits " << key_bits << ", spread " << spread;
     }

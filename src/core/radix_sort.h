@@ -4,6 +4,7 @@
 // The one sort of the core: an LSD radix sort of 64-bit keys (the voxel keys of the voxel filter,
 // the grid-column and tile keys of the normal filter).
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <utility>
@@ -69,13 +70,17 @@ void radixScatter(int lo, int passes, int digit, std::uint32_t* hist, std::vecto
 ///        key << slot | slot words, written in slot order): then any sort by the bits from
 ///        `lo` on that keeps equal keys in input order gives the same array. `hist` is
 ///        overwritten.
-inline void radixSortTopDown(int lo, int passes, int digit, std::uint32_t* hist,
-                             std::vector<std::uint64_t>* a, std::vector<std::uint64_t>* a_tmp) {
+/// \returns false, having changed nothing, when a bucket would hold more than `max_bucket`
+///          keys (dense scans: TLS near its scanner), which would be sorted out of cache.
+inline bool radixSortTopDown(int lo, int passes, int digit, std::uint32_t* hist,
+                             std::vector<std::uint64_t>* a, std::vector<std::uint64_t>* a_tmp,
+                             std::size_t max_bucket) {
   const std::size_t n = a->size();
-  if (n == 0) return;
+  if (n == 0) return true;
   const std::uint32_t mask = (1u << digit) - 1;
   const int top = lo + (passes - 1) * digit;  // shift of the top digit
   std::uint32_t* h = hist + (static_cast<std::size_t>(passes - 1) << digit);
+  if (*std::max_element(h, h + mask + 1) > max_bucket) return false;
   std::uint32_t* start = hist;  // pass 0's counts are not needed: bucket starts
   std::uint32_t sum = 0;
   for (std::uint32_t j = 0; j <= mask; ++j) {
@@ -141,6 +146,7 @@ inline void radixSortTopDown(int lo, int passes, int digit, std::uint32_t* hist,
       for (std::size_t i = 0; i < len; ++i) ka[s0 + i] = src[i];
     }
   }
+  return true;
 }
 
 /// \brief Buffers of radixSortByKey(), reused between calls.
