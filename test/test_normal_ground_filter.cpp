@@ -961,8 +961,7 @@ TEST(RadixSort, TopDownSortGivesTheLsdOrder) {
           gf::radixSortTopDown(slot_bits, passes, digit, h2.data(), &got, &tmp2, largest - 1));
       EXPECT_EQ(got, words);
       EXPECT_EQ(h2, hist);
-      ASSERT_TRUE(
-          gf::radixSortTopDown(slot_bits, passes, digit, h2.data(), &got, &tmp2, largest));
+      ASSERT_TRUE(gf::radixSortTopDown(slot_bits, passes, digit, h2.data(), &got, &tmp2, largest));
       ASSERT_TRUE(std::is_sorted(want.begin(), want.end()));
       EXPECT_EQ(got, want) << "key bits " << key_bits << ", spread " << spread;
     }

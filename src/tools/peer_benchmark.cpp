@@ -64,7 +64,8 @@ const char kUsage[] =
     "--tls-points N  add a generated TLS scan of N points (builtin:tls with tls_points = N)\n"
     "--no-peer       time the voxel filter only\n"
     "--stages        also print the voxel filter's median stage times (its FilterStats; the\n"
-    "                working-volume wrapper's pass and packing, when it runs, as \"working volume\")\n"
+    "                working-volume wrapper's pass and packing, when it runs, as\n"
+    "                \"working volume\")\n"
     "--set N=V       voxel filter parameter (repeatable)\n"
     "--help          this text\n";
 
