@@ -57,7 +57,7 @@ const char kUsage[] =
     "--replicate K   each input as K copies on a grid of ceil(sqrt(K)) copies along x by as many\n"
     "                rows along y as needed (shifted by the input's x / y extent + 10 m), as a\n"
     "                survey of adjacent scans would be; e.g. K = 40 makes 5 M points of a KITTI\n"
-    "                frame, 7 x 6 frames, about 1.2 x 0.5 km (default 1)\n"
+    "                frame, 7 x 6 frames, about 1.2 x 0.7 km (default 1)\n"
     "--replicate-row the K copies in one row along x instead (the layout before the grid: 40\n"
     "                KITTI copies reach 6.8 km, so the ones beyond x = 5000 m lie outside the\n"
     "                working volume and are non-ground without being filtered)\n"
