@@ -922,3 +922,48 @@ TEST(RadixSort, SortByKeyIsStableAndMatchesStdStableSort) {
     }
   }
 }
+
+TEST(RadixSort, TopDownSortGivesTheLsdOrder) {
+  // radixSortTopDown() (the voxel filter's sort of large scans) against radixScatter() on packed
+  // key << slot | slot words, slots in order: keys of 2-4 digits, clustered (buckets of every
+  // size: insertion, 8-bit passes, digits shared by a whole bucket) and spread, many duplicates.
+  std::mt19937_64 rng(11);
+  std::vector<std::uint64_t> tmp, tmp2;
+  for (int key_bits : {20, 31, 35, 41}) {
+    for (int spread : {0, 1}) {
+      const std::size_t n = 200000;
+      const int slot_bits = std::min(32, 64 - key_bits);
+      const int passes = (key_bits + gf::kRadixMaxDigitBits - 1) / gf::kRadixMaxDigitBits;
+      const int digit = (key_bits + passes - 1) / passes;
+      const std::uint32_t dmask = (1u << digit) - 1;
+      std::vector<std::uint64_t> words(n);
+      std::vector<std::uint32_t> hist(static_cast<std::size_t>(passes) << digit, 0);
+      const std::uint64_t kmask = (std::uint64_t{1} << key_bits) - 1;
+      for (std::size_t i = 0; i < n; ++i) {
+        // clustered: few distinct high bits, low bits from a small range (duplicates)
+        const std::uint64_t key =
+            spread ? rng() & kmask
+                   : ((rng() % 7) << (key_bits - 3) | (rng() % 300) << 4 | (rng() % 3)) & kmask;
+        words[i] = key << slot_bits | i;
+        for (int q = 0; q < passes; ++q) {
+          ++hist[(static_cast<std::size_t>(q) << digit) +
+                 ((words[i] >> (slot_bits + q * digit)) & dmask)];
+        }
+      }
+      std::vector<std::uint64_t> want = words, got = words;
+      std::vector<std::uint32_t> h1 = hist, h2 = hist;
+      gf::radixScatter<std::uint32_t>(slot_bits, passes, digit, h1.data(), &want, &tmp, nullptr,
+                                      nullptr);
+      // declines (nothing changed) when a bucket is too large
+      const std::uint32_t* top = hist.data() + (static_cast<std::size_t>(passes - 1) << digit);
+      const std::size_t largest = *std::max_element(top, top + dmask + 1);
+      EXPECT_FALSE(
+          gf::radixSortTopDown(slot_bits, passes, digit, h2.data(), &got, &tmp2, largest - 1));
+      EXPECT_EQ(got, words);
+      EXPECT_EQ(h2, hist);
+      ASSERT_TRUE(gf::radixSortTopDown(slot_bits, passes, digit, h2.data(), &got, &tmp2, largest));
+      ASSERT_TRUE(std::is_sorted(want.begin(), want.end()));
+      EXPECT_EQ(got, want) << "key bits " << key_bits << ", spread " << spread;
+    }
+  }
+}

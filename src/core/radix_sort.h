@@ -4,8 +4,10 @@
 // The one sort of the core: an LSD radix sort of 64-bit keys (the voxel keys of the voxel filter,
 // the grid-column and tile keys of the normal filter).
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace ground_filter {
@@ -58,6 +60,93 @@ void radixScatter(int lo, int passes, int digit, std::uint32_t* hist, std::vecto
     }
     a->swap(*a_tmp);
   }
+}
+
+/// \brief The same order as radixScatter() of the keys alone over `passes` >= 2 digits, for
+///        arrays much larger than the cache: one scatter by the top digit (its counts from
+///        `hist`), then each bucket (a few thousand keys on large scans, in cache) sorted on the
+///        lower bits by an LSD sort of 8-bit digits, or by insertion for a few keys. Needs keys
+///        that are unique and in increasing order of their bits below `lo` (packed
+///        key << slot | slot words, written in slot order): then any sort by the bits from
+///        `lo` on that keeps equal keys in input order gives the same array. `hist` is
+///        overwritten.
+/// \returns false, having changed nothing, when a bucket would hold more than `max_bucket`
+///          keys (dense scans: TLS near its scanner), which would be sorted out of cache.
+inline bool radixSortTopDown(int lo, int passes, int digit, std::uint32_t* hist,
+                             std::vector<std::uint64_t>* a, std::vector<std::uint64_t>* a_tmp,
+                             std::size_t max_bucket) {
+  const std::size_t n = a->size();
+  if (n == 0) return true;
+  const std::uint32_t mask = (1u << digit) - 1;
+  const int top = lo + (passes - 1) * digit;  // shift of the top digit
+  std::uint32_t* h = hist + (static_cast<std::size_t>(passes - 1) << digit);
+  if (*std::max_element(h, h + mask + 1) > max_bucket) return false;
+  std::uint32_t* start = hist;  // pass 0's counts are not needed: bucket starts
+  std::uint32_t sum = 0;
+  for (std::uint32_t j = 0; j <= mask; ++j) {
+    const std::uint32_t cnt = h[j];
+    h[j] = start[j] = sum;
+    sum += cnt;
+  }
+  a_tmp->resize(n);
+  std::uint64_t* const ka = a->data();
+  std::uint64_t* const kb = a_tmp->data();
+  for (std::size_t i = 0; i < n; ++i) kb[h[(ka[i] >> top) & mask]++] = ka[i];
+  // Each bucket on the bits [lo, top) into `ka`.
+  constexpr int kSub = 8;
+  constexpr std::uint32_t kSubMask = (1u << kSub) - 1;
+  constexpr std::size_t kInsertion = 24;  // buckets up to this size: insertion sort
+  const int m = (top - lo + kSub - 1) / kSub;
+  std::uint32_t cnt[8][kSubMask + 1];
+  for (std::uint32_t b = 0; b <= mask; ++b) {
+    const std::size_t s0 = start[b];
+    const std::size_t s1 = b < mask ? start[b + 1] : n;
+    const std::size_t len = s1 - s0;
+    if (len <= kInsertion || m > 8) {
+      for (std::size_t i = s0; i < s1; ++i) {
+        const std::uint64_t w = kb[i];
+        std::size_t j = i;
+        for (; j > s0 && ka[j - 1] > w; --j) ka[j] = ka[j - 1];
+        ka[j] = w;
+      }
+      continue;
+    }
+    for (int q = 0; q < m; ++q) {
+      for (std::uint32_t j = 0; j <= kSubMask; ++j) cnt[q][j] = 0;
+    }
+    if (m == 3) {  // the usual case (24 bits below a 12-bit top digit): unrolled
+      for (std::size_t i = s0; i < s1; ++i) {
+        const std::uint64_t w = kb[i] >> lo;
+        ++cnt[0][w & kSubMask];
+        ++cnt[1][(w >> kSub) & kSubMask];
+        ++cnt[2][(w >> (2 * kSub)) & kSubMask];
+      }
+    } else {
+      for (std::size_t i = s0; i < s1; ++i) {
+        const std::uint64_t w = kb[i] >> lo;
+        for (int q = 0; q < m; ++q) ++cnt[q][(w >> (q * kSub)) & kSubMask];
+      }
+    }
+    std::uint64_t* src = kb + s0;
+    std::uint64_t* dst = ka + s0;
+    for (int q = 0; q < m; ++q) {
+      std::uint32_t* c = cnt[q];
+      const int shift = lo + q * kSub;
+      if (c[(src[0] >> shift) & kSubMask] == len) continue;  // one digit for all
+      std::uint32_t run = 0;
+      for (std::uint32_t j = 0; j <= kSubMask; ++j) {
+        const std::uint32_t k = c[j];
+        c[j] = run;
+        run += k;
+      }
+      for (std::size_t i = 0; i < len; ++i) dst[c[(src[i] >> shift) & kSubMask]++] = src[i];
+      std::swap(src, dst);
+    }
+    if (src != ka + s0) {
+      for (std::size_t i = 0; i < len; ++i) ka[s0 + i] = src[i];
+    }
+  }
+  return true;
 }
 
 /// \brief Buffers of radixSortByKey(), reused between calls.

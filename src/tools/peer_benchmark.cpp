@@ -21,6 +21,7 @@
 #include <iostream>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli_args.h"
@@ -36,7 +37,8 @@ namespace {
 
 const char kUsage[] =
     "usage: ground_filter_peer_benchmark [--repeat N] [--warmup N] [--threads N]\n"
-    "                                    [--replicate K] [--tls-points N] [--no-peer]\n"
+    "                                    [--replicate K] [--replicate-row] [--tls-points N]\n"
+    "                                    [--no-peer] [--stages]\n"
     "                                    [--set NAME=VALUE]... [PATH...]\n"
     "\n"
     "Times the voxel filter (shipped build) and PCL's SACSegmentation plane (RANSAC, distance\n"
@@ -52,10 +54,18 @@ const char kUsage[] =
     "--repeat N      timed calls of each method per input (default 15)\n"
     "--warmup N      untimed calls of each before timing (default 1)\n"
     "--threads N     the voxel filter's threads parameter (default 1)\n"
-    "--replicate K   each input as K copies side by side (x shifted by the input's x extent +\n"
-    "                10 m), e.g. K = 40 makes 5 M points of a KITTI frame (default 1)\n"
+    "--replicate K   each input as K copies on a grid of ceil(sqrt(K)) copies along x by as many\n"
+    "                rows along y as needed (shifted by the input's x / y extent + 10 m), as a\n"
+    "                survey of adjacent scans would be; e.g. K = 40 makes 5 M points of a KITTI\n"
+    "                frame, 7 x 6 frames, about 1.2 x 0.7 km (default 1)\n"
+    "--replicate-row the K copies in one row along x instead (the layout before the grid: 40\n"
+    "                KITTI copies reach 6.8 km, so the ones beyond x = 5000 m lie outside the\n"
+    "                working volume and are non-ground without being filtered)\n"
     "--tls-points N  add a generated TLS scan of N points (builtin:tls with tls_points = N)\n"
     "--no-peer       time the voxel filter only\n"
+    "--stages        also print the voxel filter's median stage times (its FilterStats; the\n"
+    "                working-volume wrapper's pass and packing, when it runs, as\n"
+    "                \"working volume\")\n"
     "--set N=V       voxel filter parameter (repeatable)\n"
     "--help          this text\n";
 
@@ -64,8 +74,10 @@ struct Options {
   int warmup = 1;
   int threads = 1;
   int replicate = 1;
+  bool replicate_row = false;
   int tls_points = 0;
   bool peer = true;
+  bool stages = false;
   gf::ParamSettings settings;
   std::vector<std::string> paths;
 };
@@ -79,8 +91,15 @@ Options parseArgs(int argc, char** argv) {
                          {"--replicate", &o.replicate, 1, 1000},
                          {"--tls-points", &o.tls_points, 1000, 5000000}},
                         &o.settings, &o.paths, [&](cli::ArgCursor* args) {
-                          if (args->option() != "--no-peer") return false;
-                          o.peer = false;
+                          if (args->option() == "--no-peer") {
+                            o.peer = false;
+                          } else if (args->option() == "--stages") {
+                            o.stages = true;
+                          } else if (args->option() == "--replicate-row") {
+                            o.replicate_row = true;
+                          } else {
+                            return false;
+                          }
                           return true;
                         });
   return o;
@@ -95,25 +114,40 @@ struct Input {
   std::size_t size() const { return xyz.size() / 3; }
 };
 
-Input replicate(Input in, int copies) {
-  if (copies <= 1) return in;
+// Extent [lo, hi] of the finite values of coordinate `axis` (0 = x, 1 = y).
+std::pair<float, float> extentOf(const Input& in, int axis) {
   float lo = 1e30f, hi = -1e30f;
-  const std::size_t n = in.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    const float x = in.xyz[3 * i];
-    if (std::isfinite(x)) {
-      lo = std::min(lo, x);
-      hi = std::max(hi, x);
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    const float v = in.xyz[3 * i + axis];
+    if (std::isfinite(v)) {
+      lo = std::min(lo, v);
+      hi = std::max(hi, v);
     }
   }
-  const float step = hi > lo ? hi - lo + 10.f : 10.f;
+  return {lo, hi};
+}
+
+// `copies` copies of `in`, each shifted by the input's extent + 10 m: on a grid of
+// ceil(sqrt(copies)) along x (rows along y), or all along x when `row`.
+Input replicate(Input in, int copies, bool row) {
+  if (copies <= 1) return in;
+  const auto ex = extentOf(in, 0), ey = extentOf(in, 1);
+  const float step_x = ex.second > ex.first ? ex.second - ex.first + 10.f : 10.f;
+  const float step_y = ey.second > ey.first ? ey.second - ey.first + 10.f : 10.f;
+  int per_row = copies;
+  if (!row) {
+    per_row = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(copies))));
+  }
+  const std::size_t n = in.size();
   Input out;
-  out.name = in.name + " x" + std::to_string(copies);
+  out.name = in.name + " x" + std::to_string(copies) + (row ? " row" : " grid");
   out.xyz.reserve(in.xyz.size() * copies);
   for (int k = 0; k < copies; ++k) {
+    const float dx = step_x * static_cast<float>(k % per_row);
+    const float dy = step_y * static_cast<float>(k / per_row);
     for (std::size_t i = 0; i < n; ++i) {
-      out.xyz.push_back(in.xyz[3 * i] + step * k);
-      out.xyz.push_back(in.xyz[3 * i + 1]);
+      out.xyz.push_back(in.xyz[3 * i] + dx);
+      out.xyz.push_back(in.xyz[3 * i + 1] + dy);
       out.xyz.push_back(in.xyz[3 * i + 2]);
     }
     out.truth.insert(out.truth.end(), in.truth.begin(), in.truth.end());
@@ -129,6 +163,7 @@ struct Row {
   std::size_t points = 0;
   double voxel_med = 0, voxel_min = 0, peer_med = 0, peer_min = 0;
   double voxel_f1 = -1, peer_f1 = -1;
+  std::vector<std::pair<std::string, double>> stage_med;  // --stages: median ms per stage
 };
 
 int run(const Options& opt) {
@@ -153,7 +188,7 @@ int run(const Options& opt) {
         in.xyz[3 * i + 2] = view.z(i);
       }
       in.truth = scan.truth;
-      inputs.push_back(replicate(std::move(in), opt.replicate));
+      inputs.push_back(replicate(std::move(in), opt.replicate, opt.replicate_row));
     }
   }
   if (opt.tls_points > 0) {
@@ -165,7 +200,7 @@ int run(const Options& opt) {
     in.name = "builtin:tls(" + std::to_string(opt.tls_points) + ")";
     in.xyz = std::move(g.xyz);
     in.truth.assign(g.truth.begin(), g.truth.end());
-    inputs.push_back(replicate(std::move(in), opt.replicate));
+    inputs.push_back(replicate(std::move(in), opt.replicate, opt.replicate_row));
   }
 
   gf::ParamSettings settings = opt.settings;
@@ -197,9 +232,11 @@ int run(const Options& opt) {
     pcl::ModelCoefficients coefficients;
 
     std::vector<double> tv, tp;
+    gf::FilterStats stats;
+    std::vector<std::pair<std::string, std::vector<double>>> stage_ms;
     for (int r = 0; r < opt.warmup + opt.repeat; ++r) {
       auto t0 = std::chrono::steady_clock::now();
-      voxel->filter(view, &labels);
+      voxel->filter(view, &labels, opt.stages ? &stats : nullptr);
       const double v_ms = msSince(t0);
       double p_ms = 0.0;
       if (opt.peer) {
@@ -208,6 +245,12 @@ int run(const Options& opt) {
         p_ms = msSince(t0);
       }
       if (r < opt.warmup) continue;
+      for (const auto& st : opt.stages ? stats.stage_ms : decltype(stats.stage_ms)()) {
+        auto it = std::find_if(stage_ms.begin(), stage_ms.end(),
+                               [&](const auto& e) { return e.first == st.first; });
+        if (it == stage_ms.end()) it = stage_ms.insert(stage_ms.end(), {st.first, {}});
+        it->second.push_back(st.second);
+      }
       tv.push_back(v_ms);
       tp.push_back(p_ms);
     }
@@ -218,6 +261,7 @@ int run(const Options& opt) {
     row.voxel_min = *std::min_element(tv.begin(), tv.end());
     row.peer_med = median(tp);
     row.peer_min = *std::min_element(tp.begin(), tp.end());
+    for (auto& st : stage_ms) row.stage_med.emplace_back(st.first, median(st.second));
     if (!in.truth.empty()) {
       row.voxel_f1 = gf::computeMetrics(gf::countConfusion(labels, in.truth)).f1;
       if (opt.peer) {
@@ -256,6 +300,12 @@ int run(const Options& opt) {
     if (opt.peer) std::snprintf(ratio, sizeof(ratio), "%.2f", sv / sp);
     std::printf("%-28s %9zu %10.3f %9s %10.3f %9s %7s   (sums of medians)\n", "all", np, sv, "", sp,
                 "", ratio);
+  }
+  for (const Row& r : rows) {
+    if (r.stage_med.empty()) continue;
+    std::printf("stages %s (median ms):", r.name.c_str());
+    for (const auto& st : r.stage_med) std::printf(" %s %.3f", st.first.c_str(), st.second);
+    std::printf("\n");
   }
   return 0;
 }

@@ -21,6 +21,12 @@ constexpr int kMaxAxisBits = 21;  // 3 * 21 bits fit one 64-bit key
 // Stages split their work over `threads` only from this many valid points: below it the
 // parallel regions cost more than they save (a KITTI frame, 124 k points, stays on one thread).
 constexpr std::size_t kParallelMinPoints = 150000;
+// Sorts of at least this many packed keys with 3 or more radix digits scatter once by the top
+// digit and finish each bucket in cache (radixSortTopDown()).
+constexpr std::size_t kTopDownSortMinPoints = 1000000;
+// ... unless a bucket of the top digit would hold more keys than this (512 KB, in L2; a TLS
+// scan, dense near its scanner, has buckets of 230 k keys and sorts faster with LSD passes).
+constexpr std::size_t kTopDownSortMaxBucket = 65536;
 
 // Voxel flags.
 constexpr std::uint8_t kFlat = 1;  // enough points and a small height range (paper)
