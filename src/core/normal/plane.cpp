@@ -122,7 +122,7 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
   } else {
     std::fill(keys_.begin(), keys_.end(), 0);
   }
-  radixSortByKey(keys_, &tile_order_, &sort_scratch_);
+  radixSortByKey(keys_, &tile_order_, &sort_scratch_, threads);
   tiles_.clear();
   for (std::size_t b = 0; b < n;) {
     std::size_t e = b + 1;
