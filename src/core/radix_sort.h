@@ -137,14 +137,17 @@ inline void radixSortByKeyParallel(int passes, int digit, int threads,
 /// \brief `order` = 0 .. n-1 sorted by `keys` (stable: equal keys keep index order), through
 ///        radixScatter() on a copy of the keys; digits as wide as the largest key needs. With
 ///        `threads` > 1 large inputs sort on several threads (radixSortByKeyParallel(), the same
-///        order).
+///        order). Afterwards `s->keys` holds the keys in sorted order.
 inline void radixSortByKey(const std::vector<std::uint64_t>& keys,
                            std::vector<std::uint32_t>* order, RadixSortScratch* s,
                            int threads = 1) {
   const std::size_t n = keys.size();
   order->resize(n);
   for (std::size_t i = 0; i < n; ++i) (*order)[i] = static_cast<std::uint32_t>(i);
-  if (n < 2) return;
+  if (n < 2) {
+    s->keys = keys;
+    return;
+  }
   std::uint64_t any = 0;
   for (const std::uint64_t k : keys) any |= k;
   const int bits = radixBitsFor(any);
