@@ -154,8 +154,8 @@ inline void radixSortByKey(const std::vector<std::uint64_t>& keys,
   const int passes = (bits + kRadixMaxDigitBits - 1) / kRadixMaxDigitBits;
   const int digit = (bits + passes - 1) / passes;
   const std::uint32_t mask = (1u << digit) - 1;
-  const int nt = static_cast<int>(
-      std::min<std::size_t>(threads > 1 ? threads : 1, n / kRadixPointsPerThread));
+  const int nt =
+      static_cast<int>(std::min<std::size_t>(threads > 1 ? threads : 1, n / kRadixPointsPerThread));
   if (nt > 1) {
     s->keys = keys;
     radixSortByKeyParallel(passes, digit, nt, order, s);
