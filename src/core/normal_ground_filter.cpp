@@ -133,7 +133,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   st.stage_ms.emplace_back("plane", msSince(t0));
 
   // 6. Labels in input order.
-  st.ground_points = normal::classify(im.ground, im.order.source(), labels);
+  st.ground_points = normal::classify(im.ground, im.order.source(), labels, threads);
   st.total_ms = msSince(t_start);
 }
 

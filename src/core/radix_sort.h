@@ -4,6 +4,8 @@
 // The one sort of the core: an LSD radix sort of 64-bit keys (the voxel keys of the voxel filter,
 // the grid-column and tile keys of the normal filter).
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
@@ -155,20 +157,98 @@ struct RadixSortScratch {
   std::vector<std::uint32_t> order_tmp, hist;
 };
 
+/// Inputs smaller than this many keys per thread sort on one thread.
+constexpr std::size_t kRadixPointsPerThread = 32768;
+
+/// \brief radixSortByKey() with `threads` > 1: every pass splits the current array into one
+///        block per thread; each thread counts its block's digits, the offsets run over the
+///        digits and within a digit over the blocks in order, and each thread scatters its block.
+///        A stable scatter like the serial one, so the order is the same for any thread count.
+inline void radixSortByKeyParallel(int passes, int digit, int threads,
+                                   std::vector<std::uint32_t>* order, RadixSortScratch* s) {
+  const std::size_t n = order->size();
+  const std::uint32_t mask = (1u << digit) - 1;
+  const std::size_t buckets = std::size_t{1} << digit;
+  s->keys_tmp.resize(n);
+  s->order_tmp.resize(n);
+  s->hist.assign(static_cast<std::size_t>(threads) * buckets, 0);
+  std::uint32_t* hist = s->hist.data();
+  bool skip = false;
+#pragma omp parallel num_threads(threads)
+  {
+    const int t = omp_get_thread_num(), nt = omp_get_num_threads();
+    const std::size_t b = n * t / nt, e = n * (t + 1) / nt;
+    std::uint32_t* h = hist + static_cast<std::size_t>(t) * buckets;
+    for (int q = 0; q < passes; ++q) {
+      const int shift = q * digit;
+      const std::uint64_t* k = s->keys.data();
+      std::fill(h, h + buckets, 0u);
+      for (std::size_t i = b; i < e; ++i) ++h[(k[i] >> shift) & mask];
+#pragma omp barrier
+#pragma omp single
+      {
+        std::size_t first_digit_count = 0;
+        const std::size_t d0 = (k[0] >> shift) & mask;
+        for (int u = 0; u < nt; ++u) first_digit_count += hist[u * buckets + d0];
+        skip = first_digit_count == n;  // every key has this digit
+        std::uint32_t sum = 0;
+        for (std::size_t j = 0; j < buckets && !skip; ++j) {
+          for (int u = 0; u < nt; ++u) {
+            const std::uint32_t cnt = hist[u * buckets + j];
+            hist[u * buckets + j] = sum;
+            sum += cnt;
+          }
+        }
+      }  // (implicit barrier)
+      if (!skip) {
+        const std::uint32_t* o = order->data();
+        std::uint64_t* kt = s->keys_tmp.data();
+        std::uint32_t* ot = s->order_tmp.data();
+        for (std::size_t i = b; i < e; ++i) {
+          const std::uint32_t dst = h[(k[i] >> shift) & mask]++;
+          kt[dst] = k[i];
+          ot[dst] = o[i];
+        }
+      }
+#pragma omp barrier
+#pragma omp single
+      {
+        if (!skip) {
+          s->keys.swap(s->keys_tmp);
+          order->swap(s->order_tmp);
+        }
+      }  // (implicit barrier)
+    }
+  }
+}
+
 /// \brief `order` = 0 .. n-1 sorted by `keys` (stable: equal keys keep index order), through
-///        radixScatter() on a copy of the keys; digits as wide as the largest key needs.
+///        radixScatter() on a copy of the keys; digits as wide as the largest key needs. With
+///        `threads` > 1 large inputs sort on several threads (radixSortByKeyParallel(), the same
+///        order). Afterwards `s->keys` holds the keys in sorted order.
 inline void radixSortByKey(const std::vector<std::uint64_t>& keys,
-                           std::vector<std::uint32_t>* order, RadixSortScratch* s) {
+                           std::vector<std::uint32_t>* order, RadixSortScratch* s,
+                           int threads = 1) {
   const std::size_t n = keys.size();
   order->resize(n);
   for (std::size_t i = 0; i < n; ++i) (*order)[i] = static_cast<std::uint32_t>(i);
-  if (n < 2) return;
+  if (n < 2) {
+    s->keys = keys;
+    return;
+  }
   std::uint64_t any = 0;
   for (const std::uint64_t k : keys) any |= k;
   const int bits = radixBitsFor(any);
   const int passes = (bits + kRadixMaxDigitBits - 1) / kRadixMaxDigitBits;
   const int digit = (bits + passes - 1) / passes;
   const std::uint32_t mask = (1u << digit) - 1;
+  const int nt =
+      static_cast<int>(std::min<std::size_t>(threads > 1 ? threads : 1, n / kRadixPointsPerThread));
+  if (nt > 1) {
+    s->keys = keys;
+    radixSortByKeyParallel(passes, digit, nt, order, s);
+    return;
+  }
   s->hist.assign(static_cast<std::size_t>(passes) << digit, 0);
   std::uint32_t* hist = s->hist.data();
   for (const std::uint64_t k : keys) {

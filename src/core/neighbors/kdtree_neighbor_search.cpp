@@ -575,6 +575,11 @@ class TopKAvx512 {
       m = samePointPrefix(ids, m, _mm_cvtss_f32(d), top_[k_ - 1]);
     }
     const __m512 qx = _mm512_set1_ps(q[0]), qy = _mm512_set1_ps(q[1]), qz = _mm512_set1_ps(q[2]);
+    // pending_ and the threshold in registers: the candidate stores could alias the members, so
+    // the compiler reloaded them after every block (a store-forwarding round trip on the
+    // loop-carried count).
+    int pending = pending_;
+    __m512 thr = _mm512_set1_ps(thr_);
     for (int j = 0; j < m; j += 16) {
       const __mmask16 in = static_cast<__mmask16>(m - j >= 16 ? 0xffff : (1u << (m - j)) - 1);
       const __m512 dx = _mm512_sub_ps(qx, _mm512_maskz_loadu_ps(in, x + j));
@@ -583,25 +588,27 @@ class TopKAvx512 {
       const __m512 d =
           _mm512_add_ps(_mm512_add_ps(opaque(_mm512_mul_ps(dx, dx)), opaque(_mm512_mul_ps(dy, dy))),
                         opaque(_mm512_mul_ps(dz, dz)));
-      const __mmask16 keep = _mm512_mask_cmp_ps_mask(in, d, _mm512_set1_ps(thr_), _CMP_LE_OQ);
+      const __mmask16 keep = _mm512_mask_cmp_ps_mask(in, d, thr, _CMP_LE_OQ);
       // No branch on `keep`: a candidate is found in about one block in four, unpredictably.
       // Compress in a register, then a plain store (compress-to-memory is slow on some CPUs).
-      _mm512_storeu_si512(cand_d_ + pending_,
+      _mm512_storeu_si512(cand_d_ + pending,
                           _mm512_maskz_compress_epi32(keep, _mm512_castps_si512(d)));
-      _mm512_storeu_si512(cand_i_ + pending_,
+      _mm512_storeu_si512(cand_i_ + pending,
                           _mm512_maskz_compress_epi32(keep, _mm512_maskz_loadu_epi32(in, ids + j)));
-      pending_ += __builtin_popcount(keep);
-      if (pending_ >= kSlots) {
-        const int extra = pending_ - kSlots;
+      pending += __builtin_popcount(keep);
+      if (pending >= kSlots) {
+        const int extra = pending - kSlots;
         pending_ = kSlots;
         flush();
         // Move the candidates past the flushed block to the front.
         // (extra < 16: one register each, from the 16 slots past kSlots)
         _mm512_store_si512(cand_d_, _mm512_load_si512(cand_d_ + kSlots));
         _mm512_store_si512(cand_i_, _mm512_load_si512(cand_i_ + kSlots));
-        pending_ = extra;
+        pending = extra;
+        thr = _mm512_set1_ps(thr_);
       }
     }
+    pending_ = pending;
   }
 
   GF_TARGET_AVX512 void finish() {

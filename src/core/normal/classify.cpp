@@ -2,15 +2,22 @@
 
 #include "classify.h"
 
+#include <algorithm>
+#include <cstdint>
+
 #include "ground_filter/ground_filter.h"
 
 namespace ground_filter {
 namespace normal {
 
 std::size_t classify(const std::vector<std::uint8_t>& ground,
-                     const std::vector<std::uint32_t>& source, std::vector<std::uint8_t>* labels) {
+                     const std::vector<std::uint32_t>& source, std::vector<std::uint8_t>* labels,
+                     int threads) {
   std::size_t count = 0;
-  for (std::size_t j = 0; j < ground.size(); ++j) {
+  // source is a permutation: the threads write distinct labels.
+  const int nt = static_cast<int>(std::min<std::size_t>(threads, ground.size() / 32768 + 1));
+#pragma omp parallel for num_threads(nt) schedule(static) reduction(+ : count)
+  for (std::int64_t j = 0; j < static_cast<std::int64_t>(ground.size()); ++j) {
     if (ground[j]) {
       (*labels)[source[j]] = kGround;
       ++count;

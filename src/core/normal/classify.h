@@ -9,10 +9,12 @@ namespace ground_filter {
 namespace normal {
 
 /// \brief Stage 6: kGround at input index source[j] for every ordered point j with ground[j];
-///        every other entry of `labels` is left as it is (kNonGround).
+///        every other entry of `labels` is left as it is (kNonGround). `threads` split the
+///        points (source is a permutation, so the result does not depend on them).
 /// \return the number of ground points.
 std::size_t classify(const std::vector<std::uint8_t>& ground,
-                     const std::vector<std::uint32_t>& source, std::vector<std::uint8_t>* labels);
+                     const std::vector<std::uint32_t>& source, std::vector<std::uint8_t>* labels,
+                     int threads = 1);
 
 }  // namespace normal
 }  // namespace ground_filter

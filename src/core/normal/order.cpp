@@ -76,7 +76,7 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
     const std::uint32_t cy = cellIndex(raw_xyz_[3 * i + 1], min_y, 1.0 / cell);
     keys_[i] = columnKey(cx, cy);
   }
-  radixSortByKey(keys_, &order_, &sort_scratch_);
+  radixSortByKey(keys_, &order_, &sort_scratch_, threads);
 #pragma omp parallel for num_threads(nt) schedule(static)
   for (std::int64_t j = 0; j < static_cast<std::int64_t>(n); ++j) {
     const std::uint32_t s = order_[j];

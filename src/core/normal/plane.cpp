@@ -122,11 +122,12 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
   } else {
     std::fill(keys_.begin(), keys_.end(), 0);
   }
-  radixSortByKey(keys_, &tile_order_, &sort_scratch_);
+  radixSortByKey(keys_, &tile_order_, &sort_scratch_, threads);
   tiles_.clear();
+  const std::vector<std::uint64_t>& sorted = sort_scratch_.keys;  // keys_ in tile_order_
   for (std::size_t b = 0; b < n;) {
     std::size_t e = b + 1;
-    while (e < n && keys_[tile_order_[e]] == keys_[tile_order_[b]]) ++e;
+    while (e < n && sorted[e] == sorted[b]) ++e;
     tiles_.emplace_back(b, e);
     b = e;
   }
@@ -168,7 +169,7 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
     Plane plane = global;
     bool valid = global_valid;
     if (p.local_planes && tv.size() >= kMinTilePoints) {
-      const std::uint64_t seed = kRansacSeed ^ (keys_[tile_order_[tb]] * 0x9e3779b97f4a7c15ULL);
+      const std::uint64_t seed = kRansacSeed ^ (sorted[tb] * 0x9e3779b97f4a7c15ULL);
       Plane fit;
       if (fitPlaneRansac(xyz.data(), tv, p.ransac_iterations, p.plane_distance, min_abs_nz, seed,
                          &thread_eval_[tid], &fit)) {
