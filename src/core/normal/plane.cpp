@@ -7,6 +7,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "cpu_gpu_common.h"
 #include "radix_sort.h"
@@ -105,10 +106,12 @@ bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int
 
 void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
                      const Extent& extent, const NormalGroundFilterParams& p, double min_abs_nz,
-                     int threads, std::vector<std::uint8_t>* ground_out) {
+                     int threads, std::vector<std::uint8_t>* ground_out,
+                     std::vector<float>* heights) {
   const std::size_t n = voted.size();
   std::vector<std::uint8_t>& ground = *ground_out;
   ground.assign(n, 0);
+  if (heights) heights->assign(n, std::numeric_limits<float>::quiet_NaN());
   keys_.resize(n);
   if (p.local_planes) {
     const double tile = std::max(p.tile_size, extent.size() / 4.0e9);
@@ -195,6 +198,13 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
         const double sd = std::sqrt(std::max(0.0, s2 / c - mean * mean));
         lo = std::max(lo, mean - p.std_multiplier * sd);
         hi = std::min(hi, mean + p.std_multiplier * sd);
+      }
+    }
+    if (heights) {  // for the vegetation stage: up = the side the plane's normal z points to
+      const double up = plane.normal.z() < 0.0 ? -1.0 : 1.0;
+      for (std::size_t j = tb; j < te; ++j) {
+        const std::uint32_t i = tile_order_[j];
+        (*heights)[i] = static_cast<float>(up * distanceOf(plane, &xyz[3 * std::size_t{i}]));
       }
     }
     for (std::size_t j = tb; j < te; ++j) {
