@@ -30,7 +30,7 @@ struct NormalGroundFilter::Impl {
   normal::NeighborhoodStage neighborhoods;
   normal::VoteStage vote;
   normal::PlaneStage plane;
-  normal::VegetationStage vegetation;  // veg_filter only
+  normal::VegetationStage vegetation;                  // veg_filter only
   std::vector<std::uint8_t> candidate, voted, ground;  // per ordered point
   std::vector<float> heights;                          // above the tile plane, veg_filter only
   MorphGround morph;                                   // morph_ground (airborne) only

@@ -95,9 +95,10 @@ std::size_t VegetationStage::run(const std::vector<float>& xyz, const std::vecto
           }
         }
         last_col = col;
-        last_take = points >= static_cast<std::uint64_t>(p.veg_min_points) &&
-                    (p.veg_max_density <= 0.0 ||
-                     static_cast<double>(points) <= p.veg_max_density * static_cast<double>(voxels));
+        last_take =
+            points >= static_cast<std::uint64_t>(p.veg_min_points) &&
+            (p.veg_max_density <= 0.0 ||
+             static_cast<double>(points) <= p.veg_max_density * static_cast<double>(voxels));
       }
       if (last_take) {
         ground[i] = 0;

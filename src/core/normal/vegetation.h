@@ -32,7 +32,7 @@ class VegetationStage {
   std::vector<std::uint64_t> keys_;
   std::vector<std::uint32_t> order_;
   RadixSortScratch scratch_;
-  std::vector<std::uint64_t> col_key_;             // sorted clutter columns, (cx << 21) | cy
+  std::vector<std::uint64_t> col_key_;  // sorted clutter columns, (cx << 21) | cy
   std::vector<std::uint32_t> col_points_, col_voxels_;
 };
 
