@@ -1064,3 +1064,18 @@ TEST(NormalGroundFilterVegetation, ParametersAreValidated) {
   p.veg_radius = 0;
   EXPECT_THROW(p.validate(), std::invalid_argument);
 }
+
+TEST(NormalGroundFilterVegetation, GpuRequestGivesTheHostRulesLabels) {
+  // The GPU's whole-filter pipeline has no bush-base rule: with veg_filter it must decline (the
+  // stages then run on the host, the K lists still on the GPU), so the labels are the host's
+  // with the rule (on a machine without a GPU the kd-tree runs anyway).
+  const BushScene s = bushScene(43);
+  gf::NormalGroundFilterParams p = bushRule(true);
+  p.knn_backend = "gpu";
+  gf::FilterStats st;
+  const auto labels = run(s.c, p, &st);
+  EXPECT_EQ(labels, run(s.c, bushRule(true)));
+  EXPECT_NE(labels, run(s.c, bushRule(false)));
+  ASSERT_FALSE(st.stage_ms.empty());
+  EXPECT_EQ(st.stage_ms.back().first, "vegetation");  // the host's stages ran
+}
