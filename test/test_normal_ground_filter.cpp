@@ -1079,3 +1079,21 @@ TEST(NormalGroundFilterVegetation, GpuRequestGivesTheHostRulesLabels) {
   ASSERT_FALSE(st.stage_ms.empty());
   EXPECT_EQ(st.stage_ms.back().first, "vegetation");  // the host's stages ran
 }
+
+TEST(NormalGroundFilterVegetation, FarApartPatchesEachKeepTheirRule) {
+  // The same bush scene twice, 150 km apart (1.5 M columns of 0.1 m: the column key's 21 bits
+  // per axis still hold them): the rule takes the bush base in both copies.
+  const BushScene s = bushScene(44);
+  Cloud c = s.c;
+  const std::size_t n = s.c.size() / 3;
+  for (std::size_t i = 0; i < n; ++i)
+    add(&c, s.c[3 * i] + 1.5e5, s.c[3 * i + 1] - 1.5e5, s.c[3 * i + 2]);
+  std::vector<std::size_t> base2;
+  for (std::size_t i : s.bush_base) base2.push_back(i + n);
+  const auto on = run(c, bushRule(true));
+  EXPECT_LT(shareOf(on, s.bush_base), 0.1);
+  EXPECT_LT(shareOf(on, base2), 0.1);
+  // Wider than the key (1e30 m outlier): the rule is skipped, the labels are the rule-off ones.
+  add(&c, 1.0e30, -1.0e30, 0.0);
+  EXPECT_EQ(run(c, bushRule(true)), run(c, bushRule(false)));
+}
