@@ -845,7 +845,8 @@ TEST(NormalPlaneStage, SparseTileFitsItsOwnPlaneFromThreeVotedPoints) {
   // Dense voted ground at z = 0 over x, y in [0, 8) (four 4 m tiles) and two far tiles on a
   // terrace 0.5 m higher: one with 4 voted points, one with 2. A tile with >= 3 voted points
   // fits its own plane (the terrace is ground); with fewer it falls back to the cloud-wide plane
-  // (z = 0), which leaves the terrace 0.5 m off: not ground.
+  // (z = 0), which leaves the terrace 0.5 m off: not ground (the sparse-tile floor, which would
+  // move that plane up to the terrace, is off here; its own test is below).
   std::vector<float> xyz;
   std::vector<std::uint8_t> voted;
   auto add = [&](float x, float y, float z, bool v) {
@@ -868,6 +869,7 @@ TEST(NormalPlaneStage, SparseTileFitsItsOwnPlaneFromThreeVotedPoints) {
   for (int i = 0; i < 6; ++i) add(28.2f + 0.5f * i, 2.0f, terrace, false);
 
   gf::NormalGroundFilterParams p;
+  p.floor_share = 0.0;
   gf::normal::Extent extent;
   extent.max_x = 32.0;
   extent.max_y = 8.0;
@@ -1096,4 +1098,49 @@ TEST(NormalGroundFilterVegetation, FarApartPatchesEachKeepTheirRule) {
   // Wider than the key (1e30 m outlier): the rule is skipped, the labels are the rule-off ones.
   add(&c, 1.0e30, -1.0e30, 0.0);
   EXPECT_EQ(run(c, bushRule(true)), run(c, bushRule(false)));
+}
+
+// ---------------------------------------------------------------------- sparse-tile floor
+
+TEST(NormalPlaneStage, SparseTileFloorFollowsRaisedTerrainNotWallsOrBoxSides) {
+  // Dense flat ground at z = 0 (it makes the cloud-wide plane) and, in far tiles with no voted
+  // point: one scan line of terrain 0.3 m up (a single line has no flat neighbourhood), a wall
+  // from 0.6 to 2 m (its lowest point is farther than floor_max_shift from the plane) and the
+  // sides of a box from 0.3 to 1.5 m (its lowest level holds under floor_share of its points).
+  Cloud c = plane(12.0, 0.1, 0.0);
+  const std::size_t near_end = c.size() / 3;
+  for (double x = 0.0; x < 3.9; x += 0.02) add(&c, x, 20.0, 0.3);
+  const std::size_t line_end = c.size() / 3;
+  for (double x = 0.0; x < 3.9; x += 0.05) {
+    for (double z = 0.6; z <= 2.0; z += 0.05) add(&c, x, 30.0, z);
+  }
+  const std::size_t wall_end = c.size() / 3;
+  for (double z = 0.3; z <= 1.5; z += 0.05) {
+    for (double x = 0.5; x <= 2.5; x += 0.05) {
+      add(&c, x, 40.0, z);
+      add(&c, x, 41.5, z);
+    }
+    for (double y = 40.05; y < 41.5; y += 0.05) {
+      add(&c, 0.5, y, z);
+      add(&c, 2.5, y, z);
+    }
+  }
+  gf::NormalGroundFilterParams off;
+  off.floor_share = 0.0;
+  const auto with = run(c), without = run(c, off);
+  EXPECT_EQ(groundShare(with, 0, near_end), 1.0);
+  EXPECT_EQ(groundShare(without, 0, near_end), 1.0);
+  EXPECT_GT(groundShare(with, near_end, line_end), 0.95);  // the terrain line, moved plane
+  EXPECT_EQ(groundShare(without, near_end, line_end), 0.0);  // 0.3 m off the cloud plane
+  EXPECT_EQ(groundShare(with, line_end, wall_end), 0.0);
+  EXPECT_EQ(groundShare(with, wall_end), 0.0);
+  // A larger allowed move and a smaller share take the wall's foot; the smaller share alone
+  // takes the box's lowest rows.
+  gf::NormalGroundFilterParams far_move;
+  far_move.floor_max_shift = 1.0;
+  far_move.floor_share = 0.1;
+  EXPECT_GT(groundShare(run(c, far_move), line_end, wall_end), 0.05);
+  gf::NormalGroundFilterParams box_share;
+  box_share.floor_share = 0.1;
+  EXPECT_GT(groundShare(run(c, box_share), wall_end), 0.05);
 }

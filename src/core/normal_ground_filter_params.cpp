@@ -28,6 +28,8 @@ const ParamTable<NormalGroundFilterParams>& NormalGroundFilterParams::table() {
       {"plane_all_points", &P::plane_all_points, 0, 0, "bool", "plane test labels every point"},
       {"local_planes", &P::local_planes, 0, 0, "bool", "one plane per tile"},
       {"tile_size", &P::tile_size, 0.5, 100000.0, "m", "tile edge for local planes"},
+      {"floor_share", &P::floor_share, 0.0, 1.0, "", "sparse tile: share on its lowest level"},
+      {"floor_max_shift", &P::floor_max_shift, 0.0, 100.0, "m", "sparse tile: plane moved at most"},
       {"veg_filter", &P::veg_filter, 0, 0, "bool", "ground under porous clutter is non-ground"},
       {"veg_cell", &P::veg_cell, 0.01, 10.0, "m", "veg: column edge and voxel height"},
       {"veg_min_height", &P::veg_min_height, 0.0, 10.0, "m", "veg: clutter band bottom"},

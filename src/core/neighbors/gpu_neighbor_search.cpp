@@ -56,6 +56,8 @@ bool GpuNeighborSearch::runNormalFilter(const CloudView& cloud,
   cp.plane_all_points = params.plane_all_points;
   cp.local_planes = params.local_planes;
   cp.tile_size = params.tile_size;
+  cp.floor_share = params.floor_share;
+  cp.floor_max_shift = params.floor_max_shift;
   lists_on_device_ = false;
   try {
     labels->resize(cloud.size());

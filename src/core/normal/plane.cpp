@@ -180,6 +180,26 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
       }
     }
     if (!valid) continue;
+    if (p.local_planes && tv.size() < kMinTilePoints && p.floor_share > 0.0) {
+      // Sparse tile on the cloud-wide plane (the near road dominates it): far terrain that rises
+      // or falls beside the road is off it. When enough of the tile lies on its lowest level,
+      // that level is its ground (docs/normal_method.md, "Sparse-tile floor").
+      const double up = plane.normal.z() < 0.0 ? -1.0 : 1.0;
+      double low = std::numeric_limits<double>::infinity();
+      for (std::size_t j = tb; j < te; ++j) {
+        low = std::min(low, up * distanceOf(plane, &xyz[3 * std::size_t{tile_order_[j]}]));
+      }
+      if (low >= -p.floor_max_shift && low <= p.floor_max_shift) {
+        std::size_t on_floor = 0;
+        for (std::size_t j = tb; j < te; ++j) {
+          const double h = up * distanceOf(plane, &xyz[3 * std::size_t{tile_order_[j]}]);
+          on_floor += h >= low && h <= low + p.plane_distance;
+        }
+        if (static_cast<double>(on_floor) >= p.floor_share * static_cast<double>(te - tb)) {
+          plane.d -= up * low;
+        }
+      }
+    }
     // Band of the voted points' signed distances within the threshold.
     double lo = -p.plane_distance, hi = p.plane_distance;
     if (p.std_filter) {
