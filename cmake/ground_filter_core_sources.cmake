@@ -22,7 +22,7 @@ gf_core_room(. voxel_ground_filter voxel_ground_filter_params paper_normalisatio
 gf_core_room(voxel voxelize segments ground_model classify vote vegetation worker_pool)
 # normal method: the filter and its parameter table, one file per stage
 gf_core_room(. normal_ground_filter normal_ground_filter_params)
-gf_core_room(normal order neighborhoods neighborhood_pca vote plane classify)
+gf_core_room(normal order neighborhoods neighborhood_pca vote plane vegetation classify)
 # K nearest neighbours: kd-tree and the backend factory
 gf_core_room(neighbors kdtree_neighbor_search neighbor_search_factory)
 # metrics (scan files are in ground_filter_io: they need PCL), generated scenes

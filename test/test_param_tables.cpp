@@ -118,7 +118,10 @@ TEST(ParamTables, VoxelRangesEnforced) {
 
 TEST(ParamTables, NormalRangesEnforced) {
   expectRangesEnforced<gf::NormalGroundFilterParams>(
-      [](const std::string&, gf::NormalGroundFilterParams*) {});
+      [](const std::string& name, gf::NormalGroundFilterParams* p) {
+        if (name == "veg_min_height") p->veg_max_height = 10.0;  // the band's rule
+        if (name == "veg_max_height") p->veg_min_height = 0.0;
+      });
 }
 
 TEST(ParamTables, SetWritesTheFieldAndDescribeShowsIt) {

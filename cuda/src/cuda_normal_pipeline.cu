@@ -219,6 +219,8 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   gp.min_planarity = prm.min_planarity;
   gp.plane_distance = prm.plane_distance;
   gp.std_multiplier = prm.std_multiplier;
+  gp.floor_share = prm.floor_share;
+  gp.floor_max_shift = prm.floor_max_shift;
   gp.bayes_vote = prm.bayes_vote;
   gp.std_filter = prm.std_filter;
   gp.plane_all_points = prm.plane_all_points;

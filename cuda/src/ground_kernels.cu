@@ -607,6 +607,17 @@ __device__ inline double planeDistance(const PlaneDev& pl, const float* p) {
          pl.d;
 }
 
+/// Min of v over the block (all threads get it); `warp_s` holds one word per warp.
+__device__ inline double blockMin(double v, double* warp_s) {
+  for (int o = 16; o > 0; o >>= 1) v = fmin(v, __shfl_xor_sync(0xffffffffu, v, o));
+  if ((threadIdx.x & 31) == 0) warp_s[threadIdx.x >> 5] = v;
+  __syncthreads();
+  double r = warp_s[0];
+  for (unsigned int w = 1; w < blockDim.x / 32; ++w) r = fmin(r, warp_s[w]);
+  __syncthreads();
+  return r;
+}
+
 __global__ void __launch_bounds__(kThreads)
     classifyKernel(const float* __restrict__ xyz, const unsigned int* __restrict__ src,
                    const unsigned int* __restrict__ order, const std::uint8_t* __restrict__ voted,
@@ -616,6 +627,8 @@ __global__ void __launch_bounds__(kThreads)
                    std::uint8_t* labels, unsigned int* ground_count, unsigned int* work) {
   __shared__ unsigned int item_s;
   __shared__ double band[2];
+  __shared__ double floor_min_s[kThreads / 32];
+  __shared__ unsigned int floor_count_s[kThreads / 32];
   const unsigned int ntiles = *ntiles_dev;
   unsigned int ground = 0;
   for (;;) {
@@ -629,6 +642,29 @@ __global__ void __launch_bounds__(kThreads)
     PlaneDev plane = planes[0];
     if (p.local_planes && m >= kMinTilePoints && planes[1 + t].valid) plane = planes[1 + t];
     if (!plane.valid) continue;  // uniform
+    if (p.local_planes && m < kMinTilePoints && p.floor_share > 0.0) {
+      // As the CPU (plane.cpp, sparse-tile floor): the cloud-wide plane moved to the tile's
+      // lowest point when enough of the tile lies within plane_distance above it. Min and count
+      // are exact, so the order of the reduction does not matter.
+      const double up = plane.n[2] < 0.0 ? -1.0 : 1.0;
+      double low = HUGE_VAL;
+      for (unsigned int j = b + threadIdx.x; j < e; j += blockDim.x) {
+        low = fmin(low, up * planeDistance(plane, xyz + 3 * static_cast<std::size_t>(order[j])));
+      }
+      low = blockMin(low, floor_min_s);
+      if (low >= -p.floor_max_shift && low <= p.floor_max_shift) {  // uniform
+        unsigned int on_floor = 0;
+        for (unsigned int j = b + threadIdx.x; j < e; j += blockDim.x) {
+          const double h =
+              up * planeDistance(plane, xyz + 3 * static_cast<std::size_t>(order[j]));
+          on_floor += h >= low && h <= low + p.plane_distance;
+        }
+        on_floor = blockSum(on_floor, floor_count_s);
+        if (static_cast<double>(on_floor) >= p.floor_share * static_cast<double>(e - b)) {
+          plane.d -= up * low;
+        }
+      }
+    }
     double lo = -p.plane_distance, hi = p.plane_distance;
     if (p.std_filter) {  // band of the voted points' distances, summed in the CPU's order
       if (threadIdx.x == 0) {

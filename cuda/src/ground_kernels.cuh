@@ -22,6 +22,8 @@ struct GroundParamsDev {
   double min_planarity;
   double plane_distance;
   double std_multiplier;
+  double floor_share;      // sparse tile: lowest-level share that moves the cloud plane, 0 = off
+  double floor_max_shift;  // sparse tile: largest move of the cloud plane [m]
   bool bayes_vote;
   bool std_filter;
   bool plane_all_points;

@@ -26,6 +26,17 @@ struct NormalGroundFilterParams : TableParams<NormalGroundFilterParams>, MorphGr
   bool plane_all_points = true;  ///< plane test labels every point, not only voted ones [bool]
   bool local_planes = true;      ///< one plane per tile instead of one for the cloud [bool]
   double tile_size = 4.0;        ///< tile edge for local planes [m] (4.0)
+  bool veg_filter = false;       ///< bush-base rule: ground under porous clutter out [bool] (false)
+  double veg_cell = 0.10;        ///< bush-base rule: column edge and voxel height [m] (0.10)
+  double veg_min_height = 0.2;   ///< veg: clutter band starts this high over the plane [m] (0.2)
+  double veg_max_height = 1.2;   ///< veg: clutter band ends this high over the plane [m] (1.2)
+  int veg_radius = 1;            ///< veg: window of 2 r + 1 columns a side [columns] (1)
+  int veg_min_points = 3;        ///< veg: clutter points in the window [points] (3)
+  double veg_min_base = 0.05;    ///< veg: relabel ground points this high or more [m] (0.05)
+  double veg_max_density = 2.0;  ///< veg: clutter points per clutter voxel, 0 = any [points] (2.0)
+  double floor_share = 0.3;      ///< sparse tile: cloud plane moved to its lowest point when this
+                                 ///< share of its points is within plane_distance above, 0 = off [1]
+  double floor_max_shift = 0.5;  ///< sparse tile: move the cloud-wide plane at most this far [m]
   bool use_segments = false;     ///< paper's segments: no neighbours across borders [bool]
   int segment_points = 65536;    ///< points per segment, at most [points] (65536, paper)
   std::string knn_backend = "kdtree";  ///< neighbour search: kdtree | gpu [enum] (kdtree)

@@ -16,6 +16,7 @@
 #include "normal/order.h"
 #include "normal/plane.h"
 #include "normal/stage_times.h"
+#include "normal/vegetation.h"
 #include "normal/vote.h"
 
 namespace ground_filter {
@@ -29,7 +30,9 @@ struct NormalGroundFilter::Impl {
   normal::NeighborhoodStage neighborhoods;
   normal::VoteStage vote;
   normal::PlaneStage plane;
+  normal::VegetationStage vegetation;                  // veg_filter only
   std::vector<std::uint8_t> candidate, voted, ground;  // per ordered point
+  std::vector<float> heights;                          // above the tile plane, veg_filter only
   MorphGround morph;                                   // morph_ground (airborne) only
 };
 
@@ -129,8 +132,16 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
 
   // 5. Plane(s) through the voted points and the distance test.
   t0 = Clock::now();
-  im.plane.run(im.order.xyz(), im.voted, im.order.extent(), p, min_abs_nz, threads, &im.ground);
+  im.plane.run(im.order.xyz(), im.voted, im.order.extent(), p, min_abs_nz, threads, &im.ground,
+               p.veg_filter ? &im.heights : nullptr);
   st.stage_ms.emplace_back("plane", msSince(t0));
+
+  // 5b. Optional bush-base rule (off by default; the GPU pipeline declines when it is on).
+  if (p.veg_filter) {
+    t0 = Clock::now();
+    im.vegetation.run(im.order.xyz(), im.heights, im.order.extent(), p, threads, &im.ground);
+    st.stage_ms.emplace_back("vegetation", msSince(t0));
+  }
 
   // 6. Labels in input order.
   st.ground_points = normal::classify(im.ground, im.order.source(), labels, threads);

@@ -28,6 +28,16 @@ const ParamTable<NormalGroundFilterParams>& NormalGroundFilterParams::table() {
       {"plane_all_points", &P::plane_all_points, 0, 0, "bool", "plane test labels every point"},
       {"local_planes", &P::local_planes, 0, 0, "bool", "one plane per tile"},
       {"tile_size", &P::tile_size, 0.5, 100000.0, "m", "tile edge for local planes"},
+      {"floor_share", &P::floor_share, 0.0, 1.0, "", "sparse tile: share on its lowest level"},
+      {"floor_max_shift", &P::floor_max_shift, 0.0, 100.0, "m", "sparse tile: plane moved at most"},
+      {"veg_filter", &P::veg_filter, 0, 0, "bool", "ground under porous clutter is non-ground"},
+      {"veg_cell", &P::veg_cell, 0.01, 10.0, "m", "veg: column edge and voxel height"},
+      {"veg_min_height", &P::veg_min_height, 0.0, 10.0, "m", "veg: clutter band bottom"},
+      {"veg_max_height", &P::veg_max_height, 0.0, 10.0, "m", "veg: clutter band top"},
+      {"veg_radius", &P::veg_radius, 1, 10, "columns", "veg: window half-width"},
+      {"veg_min_points", &P::veg_min_points, 1, 100000, "points", "veg: clutter points needed"},
+      {"veg_min_base", &P::veg_min_base, -10.0, 10.0, "m", "veg: relabel from this height"},
+      {"veg_max_density", &P::veg_max_density, 0.0, 1000.0, "points", "veg: clutter pts per voxel"},
       {"use_segments", &P::use_segments, 0, 0, "bool", "paper's segments of grid columns"},
       {"segment_points", &P::segment_points, 256, 1 << 26, "points", "points per segment"},
   });
@@ -38,6 +48,9 @@ void NormalGroundFilterParams::validate() const {
   // The angle window must contain the vertical (90 deg) and reach at most 90 deg from it: the
   // table's ranges say exactly that.
   checkParamRanges(table(), *this);
+  if (veg_min_height > veg_max_height) {
+    throw std::invalid_argument("parameter 'veg_min_height' must not exceed veg_max_height");
+  }
   const auto backends = neighborSearchBackends();
   if (std::find(backends.begin(), backends.end(), knn_backend) == backends.end()) {
     std::string known;

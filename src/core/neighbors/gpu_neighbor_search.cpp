@@ -38,7 +38,8 @@ bool GpuNeighborSearch::runNormalFilter(const CloudView& cloud,
                                         const NormalGroundFilterParams& params,
                                         std::vector<std::uint8_t>* labels, FilterStats* stats) {
   host_scan_ = false;
-  if (params.use_segments || params.k > CudaKnn::kMaxK) return false;
+  // Segments and the bush-base rule (veg_filter) run on the host only.
+  if (params.use_segments || params.veg_filter || params.k > CudaKnn::kMaxK) return false;
   CudaNormalParams cp;
   cp.k = params.k;
   cp.cell_size = params.cell_size;
@@ -55,6 +56,8 @@ bool GpuNeighborSearch::runNormalFilter(const CloudView& cloud,
   cp.plane_all_points = params.plane_all_points;
   cp.local_planes = params.local_planes;
   cp.tile_size = params.tile_size;
+  cp.floor_share = params.floor_share;
+  cp.floor_max_shift = params.floor_max_shift;
   lists_on_device_ = false;
   try {
     labels->resize(cloud.size());

@@ -7,6 +7,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "cpu_gpu_common.h"
 #include "radix_sort.h"
@@ -105,10 +106,12 @@ bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int
 
 void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
                      const Extent& extent, const NormalGroundFilterParams& p, double min_abs_nz,
-                     int threads, std::vector<std::uint8_t>* ground_out) {
+                     int threads, std::vector<std::uint8_t>* ground_out,
+                     std::vector<float>* heights) {
   const std::size_t n = voted.size();
   std::vector<std::uint8_t>& ground = *ground_out;
   ground.assign(n, 0);
+  if (heights) heights->assign(n, std::numeric_limits<float>::quiet_NaN());
   keys_.resize(n);
   if (p.local_planes) {
     const double tile = std::max(p.tile_size, extent.size() / 4.0e9);
@@ -178,6 +181,26 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
       }
     }
     if (!valid) continue;
+    if (p.local_planes && tv.size() < kMinTilePoints && p.floor_share > 0.0) {
+      // Sparse tile on the cloud-wide plane (the near road dominates it): far terrain that rises
+      // or falls beside the road is off it. When enough of the tile lies on its lowest level,
+      // that level is its ground (docs/normal_method.md, "Sparse-tile floor").
+      const double up = plane.normal.z() < 0.0 ? -1.0 : 1.0;
+      double low = std::numeric_limits<double>::infinity();
+      for (std::size_t j = tb; j < te; ++j) {
+        low = std::min(low, up * distanceOf(plane, &xyz[3 * std::size_t{tile_order_[j]}]));
+      }
+      if (low >= -p.floor_max_shift && low <= p.floor_max_shift) {
+        std::size_t on_floor = 0;
+        for (std::size_t j = tb; j < te; ++j) {
+          const double h = up * distanceOf(plane, &xyz[3 * std::size_t{tile_order_[j]}]);
+          on_floor += h >= low && h <= low + p.plane_distance;
+        }
+        if (static_cast<double>(on_floor) >= p.floor_share * static_cast<double>(te - tb)) {
+          plane.d -= up * low;
+        }
+      }
+    }
     // Band of the voted points' signed distances within the threshold.
     double lo = -p.plane_distance, hi = p.plane_distance;
     if (p.std_filter) {
@@ -196,6 +219,13 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
         const double sd = std::sqrt(std::max(0.0, s2 / c - mean * mean));
         lo = std::max(lo, mean - p.std_multiplier * sd);
         hi = std::min(hi, mean + p.std_multiplier * sd);
+      }
+    }
+    if (heights) {  // for the vegetation stage: up = the side the plane's normal z points to
+      const double up = plane.normal.z() < 0.0 ? -1.0 : 1.0;
+      for (std::size_t j = tb; j < te; ++j) {
+        const std::uint32_t i = tile_order_[j];
+        (*heights)[i] = static_cast<float>(up * distanceOf(plane, &xyz[3 * std::size_t{i}]));
       }
     }
     for (std::size_t j = tb; j < te; ++j) {

@@ -25,10 +25,12 @@ bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int
 ///        points, then the distance test (and the mean +- std band) that decides ground.
 class PlaneStage {
  public:
-  /// \brief ground[i] for the `voted.size()` packed points `xyz` inside `extent`.
+  /// \brief ground[i] for the `voted.size()` packed points `xyz` inside `extent`; with
+  ///        `heights`, also each point's signed height above its plane (normal pointing up;
+  ///        NaN where no plane was found).
   void run(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
            const Extent& extent, const NormalGroundFilterParams& p, double min_abs_nz, int threads,
-           std::vector<std::uint8_t>* ground);
+           std::vector<std::uint8_t>* ground, std::vector<float>* heights = nullptr);
 
  private:
   std::vector<std::uint64_t> keys_;
