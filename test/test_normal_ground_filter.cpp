@@ -18,6 +18,7 @@
 
 #include "gf_test_data.h"
 #include "gf_test_points.h"
+#include "gf_test_scenes.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/io/metrics.h"
 #include "ground_filter/io/scan_io.h"
@@ -26,8 +27,8 @@
 #include "ground_filter/scene/scene_generator.h"
 #include "neighbors/kdtree_neighbor_search.h"
 #include "normal/neighborhood_pca.h"
-#include "radix_sort.h"
 #include "normal/plane.h"
+#include "radix_sort.h"
 
 namespace gf = ground_filter;
 
@@ -1005,9 +1006,9 @@ TEST(RadixSort, ThreadedSortGivesTheSerialOrder) {
 namespace {
 
 /// Noisy flat ground (z = 0, 5 cm grid, 12 x 12 m) with a porous bush at (2, 0) (radius 0.6 m,
-/// 0.9 m high: about one return per litre above 0.2 m and a base layer 0.06-0.14 m above the
-/// ground) and a solid car-like box (faces on a 5 cm grid, 0.3-1.5 m) at (-3, 3). Marks the bush
-/// base, the ground within 0.3 m of the box's footprint and all ground points.
+/// 0.9 m high, gf_test::addPorousBush) and a solid car-like box (faces on a 5 cm grid,
+/// 0.3-1.5 m) at (-3, 3). Marks the bush base, the ground within 0.3 m of the box's footprint
+/// and all ground points.
 struct BushScene {
   Cloud c;
   std::vector<std::size_t> bush_base, by_car, ground;
@@ -1015,51 +1016,19 @@ struct BushScene {
 
 BushScene bushScene(unsigned seed) {
   std::mt19937 rng(seed);
-  std::normal_distribution<double> noise(0.0, 0.005);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  gf_test::TruthCloud t;
   BushScene s;
-  const double bx = 2.0, by = 0.0, r = 0.6, h = 0.9;
-  const double cx = -3.0, cy = 3.0, sx = 4.0, sy = 1.8;
-  for (double x = -6.0; x < 6.0; x += 0.05) {
-    for (double y = -6.0; y < 6.0; y += 0.05) {
-      const double dx = std::abs(x - cx) - sx / 2, dy = std::abs(y - cy) - sy / 2;
-      if (dx < 0.3 && dy < 0.3) s.by_car.push_back(s.c.size() / 3);
-      s.ground.push_back(s.c.size() / 3);
-      add(&s.c, x, y, noise(rng));
-    }
+  gf_test::addSurface(
+      &t, -6, 6, -6, 6, 0.05f, [](float, float) { return 0.f; }, 0.005f, &rng);
+  gf_test::addPorousBush(&t, 2.f, 0.f, 0.f, 0.6f, 0.9f, &rng, &s.bush_base);
+  const float cx = -3.f, cy = 3.f, sx = 4.f, sy = 1.8f;
+  gf_test::addBox(&t, cx, cy, sx, sy, 0.25f, 1.25f, 0.05f);
+  s.by_car = gf_test::groundNearFootprint(t, cx, cy, sx, sy, 0.3f);
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    if (t.truth[i]) s.ground.push_back(i);
   }
-  for (int i = 0; i < static_cast<int>(4000 * r * r * h); ++i) {
-    const double x = r * u(rng), y = r * u(rng), z = 0.5 * h * (1.0 + u(rng));
-    if (x * x + y * y > r * r || z < 0.2) continue;
-    add(&s.c, bx + x, by + y, z);
-  }
-  for (int i = 0; i < static_cast<int>(1100 * r * r); ++i) {
-    const double x = r * u(rng), y = r * u(rng);
-    if (x * x + y * y > r * r) continue;
-    s.bush_base.push_back(s.c.size() / 3);
-    add(&s.c, bx + x, by + y, 0.1 + 0.04 * u(rng));
-  }
-  // The box: four sides and a top, 5 cm apart.
-  for (double t = 0.3; t <= 1.5; t += 0.05) {
-    for (double x = cx - sx / 2; x <= cx + sx / 2; x += 0.05) {
-      add(&s.c, x, cy - sy / 2, t);
-      add(&s.c, x, cy + sy / 2, t);
-    }
-    for (double y = cy - sy / 2; y <= cy + sy / 2; y += 0.05) {
-      add(&s.c, cx - sx / 2, y, t);
-      add(&s.c, cx + sx / 2, y, t);
-    }
-  }
-  for (double x = cx - sx / 2; x <= cx + sx / 2; x += 0.05) {
-    for (double y = cy - sy / 2; y <= cy + sy / 2; y += 0.05) add(&s.c, x, y, 1.5);
-  }
+  s.c = std::move(t.xyz);
   return s;
-}
-
-double shareOf(const std::vector<std::uint8_t>& labels, const std::vector<std::size_t>& idx) {
-  std::size_t g = 0;
-  for (std::size_t i : idx) g += labels[i] == gf::kGround;
-  return idx.empty() ? 0.0 : static_cast<double>(g) / static_cast<double>(idx.size());
 }
 
 gf::NormalGroundFilterParams bushRule(bool on) {
@@ -1078,13 +1047,13 @@ TEST(NormalGroundFilterVegetation, BushBaseIsNonGroundGroundBesideACarStays) {
   gf::FilterStats st;
   const auto on = run(s.c, bushRule(true), &st);
   // Without the rule the bush base lies inside the plane band (what the rule is for).
-  EXPECT_GT(shareOf(off, s.bush_base), 0.8);
-  EXPECT_LT(shareOf(on, s.bush_base), 0.1);
+  EXPECT_GT(gf_test::groundShare(off, s.bush_base), 0.8);
+  EXPECT_LT(gf_test::groundShare(on, s.bush_base), 0.1);
   // The ground beside the solid box (dense, not porous) and under the bush (below
   // veg_min_base) stays.
-  EXPECT_GT(shareOf(on, s.by_car), 0.99);
-  EXPECT_EQ(shareOf(on, s.by_car), shareOf(off, s.by_car));
-  EXPECT_GT(shareOf(on, s.ground), 0.99);
+  EXPECT_GT(gf_test::groundShare(on, s.by_car), 0.99);
+  EXPECT_EQ(gf_test::groundShare(on, s.by_car), gf_test::groundShare(off, s.by_car));
+  EXPECT_GT(gf_test::groundShare(on, s.ground), 0.99);
   // Only ground can become non-ground.
   for (std::size_t i = 0; i < on.size(); ++i) ASSERT_LE(on[i], off[i]) << i;
   ASSERT_FALSE(st.stage_ms.empty());
@@ -1098,11 +1067,11 @@ TEST(NormalGroundFilterVegetation, DensityAndBaseDecide) {
   gf::NormalGroundFilterParams p = bushRule(true);
   p.veg_max_density = 0.0;
   p.veg_min_base = -1.0;
-  EXPECT_LT(shareOf(run(s.c, p), s.by_car), 0.9);
+  EXPECT_LT(gf_test::groundShare(run(s.c, p), s.by_car), 0.9);
   // veg_min_base above the base layer keeps it.
   p = bushRule(true);
   p.veg_min_base = 0.2;
-  EXPECT_GT(shareOf(run(s.c, p), s.bush_base), 0.8);
+  EXPECT_GT(gf_test::groundShare(run(s.c, p), s.bush_base), 0.8);
   // More clutter points needed than the whole bush has: nothing changes.
   p = bushRule(true);
   p.veg_min_points = 100000;
@@ -1168,8 +1137,8 @@ TEST(NormalGroundFilterVegetation, FarApartPatchesEachKeepTheirRule) {
   std::vector<std::size_t> base2;
   for (std::size_t i : s.bush_base) base2.push_back(i + n);
   const auto on = run(c, bushRule(true));
-  EXPECT_LT(shareOf(on, s.bush_base), 0.1);
-  EXPECT_LT(shareOf(on, base2), 0.1);
+  EXPECT_LT(gf_test::groundShare(on, s.bush_base), 0.1);
+  EXPECT_LT(gf_test::groundShare(on, base2), 0.1);
   // Wider than the key (1e30 m outlier): the rule is skipped, the labels are the rule-off ones.
   add(&c, 1.0e30, -1.0e30, 0.0);
   EXPECT_EQ(run(c, bushRule(true)), run(c, bushRule(false)));
@@ -1205,7 +1174,7 @@ TEST(NormalPlaneStage, SparseTileFloorFollowsRaisedTerrainNotWallsOrBoxSides) {
   const auto with = run(c), without = run(c, off);
   EXPECT_EQ(groundShare(with, 0, near_end), 1.0);
   EXPECT_EQ(groundShare(without, 0, near_end), 1.0);
-  EXPECT_GT(groundShare(with, near_end, line_end), 0.95);  // the terrain line, moved plane
+  EXPECT_GT(groundShare(with, near_end, line_end), 0.95);    // the terrain line, moved plane
   EXPECT_EQ(groundShare(without, near_end, line_end), 0.0);  // 0.3 m off the cloud plane
   EXPECT_EQ(groundShare(with, line_end, wall_end), 0.0);
   EXPECT_EQ(groundShare(with, wall_end), 0.0);

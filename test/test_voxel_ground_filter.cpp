@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "gf_test_data.h"
+#include "gf_test_scenes.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/voxel_ground_filter.h"
 
@@ -40,43 +41,11 @@ constexpr double kVoxelF1Floor = 0.9624;
 
 namespace {
 
-struct Cloud {
-  std::vector<float> xyz;
-  std::vector<std::uint8_t> truth;
-  void add(float x, float y, float z, bool ground) {
-    xyz.insert(xyz.end(), {x, y, z});
-    truth.push_back(ground ? 1 : 0);
-  }
-  std::size_t size() const { return truth.size(); }
-  gf::CloudView view() const { return gf::CloudView::packedXyz(xyz.data(), size()); }
-};
-
-// Surface z = height(x, y) sampled every `step` metres with Gaussian noise.
-template <typename HeightFn>
-void addSurface(Cloud* c, float x0, float x1, float y0, float y1, float step, HeightFn height,
-                float noise, std::mt19937* rng) {
-  std::normal_distribution<float> n(0.f, noise);
-  for (float x = x0; x < x1; x += step) {
-    for (float y = y0; y < y1; y += step) c->add(x, y, height(x, y) + n(*rng), true);
-  }
-}
-
-// Outer faces of an axis-aligned box standing on z0 (no bottom face), all non-ground.
-void addBox(Cloud* c, float cx, float cy, float sx, float sy, float z0, float h, float step) {
-  for (float z = z0 + step; z <= z0 + h; z += step) {
-    for (float t = -sx / 2; t <= sx / 2; t += step) {
-      c->add(cx + t, cy - sy / 2, z, false);
-      c->add(cx + t, cy + sy / 2, z, false);
-    }
-    for (float t = -sy / 2; t <= sy / 2; t += step) {
-      c->add(cx - sx / 2, cy + t, z, false);
-      c->add(cx + sx / 2, cy + t, z, false);
-    }
-  }
-  for (float u = -sx / 2; u <= sx / 2; u += step) {
-    for (float v = -sy / 2; v <= sy / 2; v += step) c->add(cx + u, cy + v, z0 + h, false);
-  }
-}
+using Cloud = gf_test::TruthCloud;
+using gf_test::addBox;
+using gf_test::addPorousBush;
+using gf_test::addSurface;
+using gf_test::groundShare;
 
 double agreement(const std::vector<std::uint8_t>& labels, const std::vector<std::uint8_t>& truth,
                  int only = -1) {
@@ -126,34 +95,6 @@ gf::VoxelGroundFilterParams vegetationRule(bool on) {
   gf::VoxelGroundFilterParams p;
   p.veg_filter = on;
   return p;
-}
-
-/// Share of the points `idx` labelled ground.
-double groundShare(const std::vector<std::uint8_t>& labels, const std::vector<std::size_t>& idx) {
-  std::size_t g = 0;
-  for (std::size_t i : idx) g += labels[i];
-  return idx.empty() ? 0.0 : static_cast<double>(g) / idx.size();
-}
-
-/// A porous bush at (x, y) on the ground at z0: scattered non-ground returns through its volume
-/// (radius r, height h, about one per litre) above 0.2 m and a base layer 0.06-0.14 m above the
-/// ground; the indices of the base points go to `base` when given.
-void addPorousBush(Cloud* c, float x0, float y0, float z0, float r, float h, std::mt19937* rng,
-                   std::vector<std::size_t>* base = nullptr) {
-  std::uniform_real_distribution<float> u(-1.f, 1.f);
-  const int volume = static_cast<int>(4000.f * r * r * h);
-  for (int i = 0; i < volume; ++i) {
-    const float x = r * u(*rng), y = r * u(*rng), z = 0.5f * h * (1.f + u(*rng));
-    if (x * x + y * y > r * r || z < 0.2f) continue;
-    c->add(x0 + x, y0 + y, z0 + z, false);
-  }
-  const int twigs = static_cast<int>(1100.f * r * r);
-  for (int i = 0; i < twigs; ++i) {
-    const float x = r * u(*rng), y = r * u(*rng);
-    if (x * x + y * y > r * r) continue;
-    if (base) base->push_back(c->size());
-    c->add(x0 + x, y0 + y, z0 + 0.1f + 0.04f * u(*rng), false);
-  }
 }
 
 }  // namespace
@@ -546,11 +487,7 @@ BushAndCar bushAndCar(unsigned seed) {
   addPorousBush(&c, 2.f, 0.f, 0.f, 0.6f, 0.9f, &rng, &s.bush_base);
   const float cx = -5.f, cy = 4.f, sx = 4.f, sy = 1.8f;
   addBox(&c, cx, cy, sx, sy, 0.3f, 1.2f, 0.05f);
-  for (std::size_t i = 0; i < c.size(); ++i) {
-    const float dx = std::abs(c.xyz[3 * i] - cx) - sx / 2,
-                dy = std::abs(c.xyz[3 * i + 1] - cy) - sy / 2;
-    if (c.truth[i] && dx < 0.3f && dy < 0.3f) s.road_by_car.push_back(i);
-  }
+  s.road_by_car = gf_test::groundNearFootprint(c, cx, cy, sx, sy, 0.3f);
   return s;
 }
 
