@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <fstream>
 #include <initializer_list>
 #include <limits>
 #include <random>
@@ -999,6 +1000,49 @@ TEST(RadixSort, ThreadedSortGivesTheSerialOrder) {
       EXPECT_EQ(order, want) << "kind " << kind << ", threads " << threads;
     }
   }
+}
+
+namespace {
+
+/// VmFlags of the /proc/self/smaps mapping that holds `p` ("" when not found).
+std::string vmFlagsOf(const void* p) {
+  std::ifstream smaps("/proc/self/smaps");
+  const auto a = reinterpret_cast<std::uintptr_t>(p);
+  bool inside = false;
+  for (std::string line; std::getline(smaps, line);) {
+    unsigned long lo = 0, hi = 0;
+    if (std::sscanf(line.c_str(), "%lx-%lx ", &lo, &hi) == 2 && line.find(':') > 8) {
+      inside = a >= lo && a < hi;
+    } else if (inside && line.rfind("VmFlags:", 0) == 0) {
+      return line;
+    }
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(HugePages, LargeScratchBuffersAreAdvisedSmallOnesUntouched) {
+  // Resizes keep working for every size; a buffer that grows past kHugeBufferMinBytes is
+  // reallocated and madvise(MADV_HUGEPAGE)d (VmFlags "hg") before it is filled.
+  std::vector<std::uint64_t> small(10, 7), large;
+  gf::resizeScratch(&small, 1000);
+  EXPECT_EQ(small.size(), 1000u);
+  EXPECT_EQ(small[0], 7u);  // below the size: a plain resize keeps the contents
+  const std::size_t n = 2 * gf::kHugeBufferMinBytes / sizeof(std::uint64_t);
+  gf::resizeScratch(&large, n);
+  ASSERT_EQ(large.size(), n);
+  large[n / 2] = 1;
+  gf::resizeScratch(&large, n / 2);  // shrinking keeps the block
+  EXPECT_EQ(large.size(), n / 2);
+#if defined(__linux__)
+  std::ifstream thp("/sys/kernel/mm/transparent_hugepage/enabled");
+  if (!thp) GTEST_SKIP() << "no transparent huge pages in this kernel";
+  const std::string flags = vmFlagsOf(large.data() + n / 4);
+  ASSERT_FALSE(flags.empty()) << "mapping not found in /proc/self/smaps";
+  EXPECT_NE(flags.find(" hg"), std::string::npos) << flags;
+  EXPECT_EQ(vmFlagsOf(small.data()).find(" hg"), std::string::npos);
+#endif
 }
 
 // ------------------------------------------------------ bush-base rule (veg_filter, off default)

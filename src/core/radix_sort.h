@@ -12,6 +12,8 @@
 #include <utility>
 #include <vector>
 
+#include "huge_pages.h"
+
 namespace ground_filter {
 
 /// Radix digits of at most this many bits: at most 32 k buckets, the histograms fit L2.
@@ -34,7 +36,7 @@ void radixScatter(int lo, int passes, int digit, std::uint32_t* hist, std::vecto
   const std::size_t n = a->size();
   if (n == 0) return;
   const std::uint32_t mask = (1u << digit) - 1;
-  a_tmp->resize(n);
+  resizeScratch(a_tmp, n);
   if (b) b_tmp->resize(n);
   for (int q = 0; q < passes; ++q) {
     const int shift = lo + q * digit;
@@ -90,7 +92,7 @@ inline bool radixSortTopDown(int lo, int passes, int digit, std::uint32_t* hist,
     h[j] = start[j] = sum;
     sum += cnt;
   }
-  a_tmp->resize(n);
+  resizeScratch(a_tmp, n);
   std::uint64_t* const ka = a->data();
   std::uint64_t* const kb = a_tmp->data();
   for (std::size_t i = 0; i < n; ++i) kb[h[(ka[i] >> top) & mask]++] = ka[i];

@@ -9,6 +9,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "huge_pages.h"
 #include "radix_sort.h"
 
 namespace ground_filter {
@@ -320,7 +321,7 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
     chunks_[c].end = n_in * (c + 1) / nch;
   }
   // Pass 1: copies of the points, bounds and number of the valid points of every chunk.
-  pxyz_.resize(4 * n_in);
+  resizeScratch(&pxyz_, 4 * n_in);
   pool->run(nt, nch, [&](int, int c) { scanBounds(cloud, pxyz_.data(), &chunks_[c]); });
   std::size_t n = 0;
   float lo[3], hi[3];
@@ -364,10 +365,11 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
 
   // Pass 2: coordinates relative to the minimum (keeps float precision far from the origin:
   // UTM, TLS), voxel keys and, on one thread, the digit counts of every radix pass (as few
-  // passes as digits of at most kRadixMaxDigitBits allow); several threads count per pass in sort().
-  g->keys.resize(n);
+  // passes as digits of at most kRadixMaxDigitBits allow); several threads count per pass in
+  // sort().
+  resizeScratch(&g->keys, n);
   if (!g->packed) g->order.resize(n);
-  if (!g->all_valid) g->point_index.resize(n);
+  if (!g->all_valid) resizeScratch(&g->point_index, n);
   const int key_bits = bx + by + bz;
   plan_.lo = g->packed ? g->slot_bits : 0;
   plan_.passes = std::max(1, (key_bits + kRadixMaxDigitBits - 1) / kRadixMaxDigitBits);
@@ -433,9 +435,9 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   const std::size_t n = g->keys.size();
   // One pass over the sorted points: coordinates in key order, runs of equal keys become voxels.
   // A voxel is finished when the next one starts (its flags need the next key).
-  g->sx.resize(n);
-  g->sy.resize(n);
-  g->sz.resize(n);
+  resizeScratch(&g->sx, n);
+  resizeScratch(&g->sy, n);
+  resizeScratch(&g->sz, n);
   // Voxels = runs of equal keys, counted first so the per-voxel arrays take what they need.
   std::size_t runs = 1;
   {
@@ -443,7 +445,7 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
     const int low = g->packed ? g->slot_bits : 0;
     for (std::size_t i = 1; i < n; ++i) runs += (kk[i] >> low) != (kk[i - 1] >> low);
   }
-  g->vkey.resize(runs + 1);  // build() stores one key past the last voxel (cut below)
+  resizeScratch(&g->vkey, runs + 1);  // build() stores one key past the last voxel (cut below)
   g->vstart.resize(runs + 1);
   g->vx.resize(runs);
   g->vy.resize(runs);
@@ -465,7 +467,7 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   float* x_out = g->sx.data();
   float* y_out = g->sy.data();
   float* z_out = g->sz.data();
-  g->pvox.resize(n);
+  resizeScratch(&g->pvox, n);
   std::uint32_t* pv = g->pvox.data();
   std::uint64_t* vk = g->vkey.data();
   std::uint32_t* vs = g->vstart.data();
@@ -495,7 +497,7 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   zmin_.resize(runs);
   zmax_.resize(runs);
   // Fields in RunJob's order: inputs, point outputs, voxel outputs, key layout.
-  const RunJob job = {k,  o,  pidx, in, x_out,        y_out,        z_out,     pv,  vk,
+  const RunJob job = {k,  o,  pidx, in, x_out,        y_out,        z_out,     pv, vk,
                       vs, vx, vy,   vz, zmin_.data(), zmax_.data(), slot_mask, low};
   using Gather = std::size_t (*)(const RunJob, std::size_t);
   static const Gather kGather[2][2] = {{gatherRuns<false, false>, gatherRuns<false, true>},
