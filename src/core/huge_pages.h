@@ -17,11 +17,10 @@ namespace ground_filter {
 /// \brief Buffers that grow to at least this many bytes are advised as huge pages.
 constexpr std::size_t kHugeBufferMinBytes = std::size_t{16} << 20;
 
-/// \brief `v->resize(n)` for a std::vector-like buffer whose old contents are not needed. When it
-/// must grow to
-///        kHugeBufferMinBytes or more, it is reallocated empty, the new block is advised as
-///        huge pages (madvise(MADV_HUGEPAGE), a hint: a kernel without THP ignores or refuses
-///        it) and only then filled, so the first touch takes huge pages.
+/// \brief `v->resize(n)` for a std::vector-like buffer whose old contents are not needed. When
+///        it must grow to kHugeBufferMinBytes or more, it is reallocated empty, the new block is
+///        advised as huge pages (madvise(MADV_HUGEPAGE), a hint: a kernel without THP ignores or
+///        refuses it) and only then filled, so the first touch takes huge pages.
 template <class Vector>
 void resizeScratch(Vector* v, std::size_t n) {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)

@@ -37,7 +37,7 @@ void radixScatter(int lo, int passes, int digit, std::uint32_t* hist, std::vecto
   if (n == 0) return;
   const std::uint32_t mask = (1u << digit) - 1;
   resizeScratch(a_tmp, n);
-  if (b) b_tmp->resize(n);
+  if (b) resizeScratch(b_tmp, n);
   for (int q = 0; q < passes; ++q) {
     const int shift = lo + q * digit;
     std::uint32_t* h = hist + (static_cast<std::size_t>(q) << digit);

@@ -368,7 +368,7 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   // passes as digits of at most kRadixMaxDigitBits allow); several threads count per pass in
   // sort().
   resizeScratch(&g->keys, n);
-  if (!g->packed) g->order.resize(n);
+  if (!g->packed) resizeScratch(&g->order, n);
   if (!g->all_valid) resizeScratch(&g->point_index, n);
   const int key_bits = bx + by + bz;
   plan_.lo = g->packed ? g->slot_bits : 0;
