@@ -215,6 +215,7 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   GroundParamsDev gp;
   gp.k = prm.k;
   gp.iterations = prm.ransac_iterations;
+  gp.seed = normal::ransacBaseSeed(static_cast<std::uint32_t>(prm.ransac_seed));
   gp.min_abs_nz = prm.min_abs_nz;
   gp.min_planarity = prm.min_planarity;
   gp.plane_distance = prm.plane_distance;

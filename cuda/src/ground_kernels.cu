@@ -21,7 +21,6 @@ constexpr int kRefineBlocks = 264;        // blocks of the grid-wide refinement
 using normal::cellIndex;
 using normal::columnKey;
 using normal::kMinTilePoints;
-using normal::kRansacSeed;
 using normal::SplitMix64;
 constexpr unsigned int kEvalMax = normal::kRansacEvalPoints;
 
@@ -456,7 +455,7 @@ __global__ void __launch_bounds__(kPlaneThreads)
     if (item == 0) {
       if (need_global) {
         const unsigned int m = *gcount;
-        fitPlaneBlock(xyz, glist, m, p, kRansacSeed, m > kSerialRefineMax, evp, stage, red, shd,
+        fitPlaneBlock(xyz, glist, m, p, p.seed, m > kSerialRefineMax, evp, stage, red, shd,
                       &plane);
       } else {
         plane.valid = 0;
@@ -465,7 +464,7 @@ __global__ void __launch_bounds__(kPlaneThreads)
       const unsigned int t = item - 1, b = tile_begin[t], e = tile_begin[t + 1];
       const unsigned int m = vpos[e] - vpos[b];
       if (p.local_planes && m >= kMinTilePoints) {
-        const std::uint64_t seed = kRansacSeed ^ (keys[b] * 0x9e3779b97f4a7c15ULL);
+        const std::uint64_t seed = p.seed ^ (keys[b] * 0x9e3779b97f4a7c15ULL);
         fitPlaneBlock(xyz, vlist + vpos[b], m, p, seed, false, evp, stage, red, shd, &plane);
       } else {
         plane.valid = 0;

@@ -18,6 +18,7 @@ namespace cuda_impl {
 struct GroundParamsDev {
   int k;
   int iterations;
+  std::uint64_t seed;  // base seed of the RANSAC draws (CPU: ransacBaseSeed())
   double min_abs_nz;  // |n_z| of a candidate's normal, and of a plane's, at least
   double min_planarity;
   double plane_distance;

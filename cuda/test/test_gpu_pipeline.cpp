@@ -102,7 +102,7 @@ TEST_F(GpuPipelineTest, FilterOptionsGiveTheKdTreeLabels) {
     const char* what;
     gf::NormalGroundFilterParams p;
   };
-  std::vector<Case> cases(5);
+  std::vector<Case> cases(7);
   cases[0].what = "one plane";
   cases[0].p.local_planes = false;
   cases[1].what = "std band";
@@ -117,6 +117,11 @@ TEST_F(GpuPipelineTest, FilterOptionsGiveTheKdTreeLabels) {
   cases[4].what = "k 64, 20 iterations";
   cases[4].p.k = 64;
   cases[4].p.ransac_iterations = 20;
+  cases[5].what = "ransac_seed 7";
+  cases[5].p.ransac_seed = 7;
+  cases[6].what = "one plane, ransac_seed 7";
+  cases[6].p.local_planes = false;
+  cases[6].p.ransac_seed = 7;
   for (const auto& cs : cases) {
     const Compared c = compare(xyz, cs.p);
     EXPECT_EQ(c.sg.backend, "gpu") << cs.what << ": " << c.sg.note;

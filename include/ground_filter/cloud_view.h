@@ -63,6 +63,10 @@ class CloudView {
   }
   /// \brief Byte offset of x in a record.
   std::size_t xOffset() const { return x_offset_; }
+  /// \brief Byte offset of y in a record.
+  std::size_t yOffset() const { return y_offset_; }
+  /// \brief Byte offset of z in a record.
+  std::size_t zOffset() const { return z_offset_; }
 
   /// \brief True when x, y and z of point i are all finite.
   bool isValid(std::size_t i) const {

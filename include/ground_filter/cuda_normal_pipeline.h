@@ -25,6 +25,7 @@ struct CudaNormalParams {
   bool std_filter = false;       ///< also require the mean +- std band of distances
   double std_multiplier = 1.0;   ///< width of that band in standard deviations [1]
   int ransac_iterations = 100;   ///< RANSAC hypotheses per plane, at most
+  int ransac_seed = 0;           ///< RANSAC generator seed, 0 = the built-in one
   bool plane_all_points = true;  ///< plane test labels every point, not only voted ones
   bool local_planes = true;      ///< one plane per tile instead of one for the cloud
   double tile_size = 4.0;        ///< tile edge for local planes [m]

@@ -23,6 +23,7 @@ struct NormalGroundFilterParams : TableParams<NormalGroundFilterParams>, MorphGr
   bool std_filter = false;       ///< also require mean +- std_multiplier * std of distances [bool]
   double std_multiplier = 1.0;   ///< width of that band in standard deviations [1] (1.0, paper)
   int ransac_iterations = 100;   ///< RANSAC hypotheses per plane, at most [1] (100)
+  int ransac_seed = 0;           ///< RANSAC generator seed, 0 = the built-in one [1] (0)
   bool plane_all_points = true;  ///< plane test labels every point, not only voted ones [bool]
   bool local_planes = true;      ///< one plane per tile instead of one for the cloud [bool]
   double tile_size = 4.0;        ///< tile edge for local planes [m] (4.0)

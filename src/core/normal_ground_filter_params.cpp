@@ -25,6 +25,7 @@ const ParamTable<NormalGroundFilterParams>& NormalGroundFilterParams::table() {
       {"std_filter", &P::std_filter, 0, 0, "bool", "also the mean +- k std distance band"},
       {"std_multiplier", &P::std_multiplier, 0.1, 10.0, "", "k of that band"},
       {"ransac_iterations", &P::ransac_iterations, 1, 100000, "", "RANSAC hypotheses, at most"},
+      {"ransac_seed", &P::ransac_seed, 0, 2147483647, "", "RANSAC seed, 0 = built-in"},
       {"plane_all_points", &P::plane_all_points, 0, 0, "bool", "plane test labels every point"},
       {"local_planes", &P::local_planes, 0, 0, "bool", "one plane per tile"},
       {"tile_size", &P::tile_size, 0.5, 100000.0, "m", "tile edge for local planes"},

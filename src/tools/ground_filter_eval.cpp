@@ -27,7 +27,7 @@ namespace {
 const char kUsage[] =
     "usage: ground_filter_eval [--method NAME] [--params FILE] [--set NAME=VALUE]... [--json]\n"
     "                          [--classes] [--write-labels DIR] [--write-clouds DIR]\n"
-    "                          [--repeat N] PATH...\n"
+    "                          [--repeat N] [--drop-one N] PATH...\n"
     "\n"
     "Runs a ground filter on every scan and prints per-file and pooled results: points, points\n"
     "labelled ground, filter time in ms, and where ground truth exists the confusion counts\n"
@@ -53,6 +53,9 @@ const char kUsage[] =
     "--write-clouds DIR  write DIR/<stem>_ground.pcd and DIR/<stem>_nonground.pcd (binary, all\n"
     "                    input fields)\n"
     "--repeat N          run the filter N times per file and report the median ms (default 1)\n"
+    "--drop-one N        stability check (table only): per file, N times, filter the scan without\n"
+    "                    one finite point (evenly spread over the file) and count the labels of\n"
+    "                    the other points that differ from the whole scan's\n"
     "--help              this text\n"
     "\n"
     "Exit status: 0 ok, 1 a file could not be read/written or its labels do not match, 2 bad\n"
@@ -68,8 +71,51 @@ struct Options {
   std::string labels_dir;
   std::string clouds_dir;
   int repeat = 1;
+  int drop_one = 0;
   std::vector<std::string> paths;
 };
+
+// --drop-one: labels of the other points that changed when one point was left out.
+struct DropResult {
+  std::size_t drops = 0;      // points left out, one at a time
+  std::size_t unchanged = 0;  // of those, how many changed no other label
+  std::size_t median = 0;     // changed labels, median and largest over the drops
+  std::size_t max = 0;
+};
+
+/// Filters `view` without one finite point, `count` times, against the whole scan's `labels`.
+DropResult dropOne(gf::GroundFilter* filter, const gf::CloudView& view,
+                   const std::vector<std::uint8_t>& labels, int count) {
+  const std::size_t n = view.size(), stride = view.stride();
+  std::vector<std::size_t> finite;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (view.isValid(i)) finite.push_back(i);
+  }
+  DropResult out;
+  if (finite.size() < 2 || count <= 0) return out;
+  const std::uint8_t* bytes = view.data();
+  std::vector<std::uint8_t> copy((n - 1) * stride);
+  std::vector<std::uint8_t> other;
+  std::vector<std::size_t> changed;
+  const std::size_t drops = std::min<std::size_t>(static_cast<std::size_t>(count), finite.size());
+  for (std::size_t j = 0; j < drops; ++j) {
+    const std::size_t r = finite[(2 * j + 1) * finite.size() / (2 * drops)];
+    std::copy(bytes, bytes + r * stride, copy.begin());
+    std::copy(bytes + (r + 1) * stride, bytes + n * stride, copy.begin() + r * stride);
+    const gf::CloudView less(copy.data(), n - 1, stride, view.xOffset(), view.yOffset(),
+                             view.zOffset());
+    filter->filter(less, &other);
+    std::size_t c = 0;
+    for (std::size_t i = 0; i + 1 < n; ++i) c += other[i] != labels[i < r ? i : i + 1];
+    changed.push_back(c);
+  }
+  std::sort(changed.begin(), changed.end());
+  out.drops = drops;
+  out.unchanged = static_cast<std::size_t>(std::count(changed.begin(), changed.end(), 0));
+  out.median = changed[changed.size() / 2];
+  out.max = changed.back();
+  return out;
+}
 
 struct FileResult {
   std::string file;
@@ -78,28 +124,32 @@ struct FileResult {
   double ms = 0.0;
   bool labelled = false;
   gf::Confusion confusion;
+  DropResult drop;
 };
 
 Options parseArgs(int argc, char** argv) {
   Options o;
   cli::FilterArgs filter_args;
-  cli::parseCommandLine(argc, argv, kUsage, {{"--repeat", &o.repeat, 1, 1000000}}, nullptr,
-                        &o.paths, [&](cli::ArgCursor* args) {
-                          const std::string& arg = args->option();
-                          if (arg == "--json") {
-                            o.json = true;
-                          } else if (arg == "--classes") {
-                            o.classes = true;
-                          } else if (arg == "--write-labels") {
-                            o.labels_dir = args->value();
-                          } else if (arg == "--write-clouds") {
-                            o.clouds_dir = args->value();
-                          } else {
-                            return filter_args.consume(args);
-                          }
-                          return true;
-                        });
+  cli::parseCommandLine(
+      argc, argv, kUsage,
+      {{"--repeat", &o.repeat, 1, 1000000}, {"--drop-one", &o.drop_one, 0, 1000000}}, nullptr,
+      &o.paths, [&](cli::ArgCursor* args) {
+        const std::string& arg = args->option();
+        if (arg == "--json") {
+          o.json = true;
+        } else if (arg == "--classes") {
+          o.classes = true;
+        } else if (arg == "--write-labels") {
+          o.labels_dir = args->value();
+        } else if (arg == "--write-clouds") {
+          o.clouds_dir = args->value();
+        } else {
+          return filter_args.consume(args);
+        }
+        return true;
+      });
   if (o.paths.empty()) throw UsageError("no PATH given");
+  if (o.json && o.drop_one > 0) throw UsageError("--drop-one prints a table: not with --json");
   o.method = filter_args.method;
   o.settings = filter_args.settings();
   return o;
@@ -212,6 +262,7 @@ int run(const Options& opt) {
     if (opt.classes && res.labelled && !scan.semantic.empty()) {
       gf::addClassCounts(labels, scan.truth, scan.semantic, &classes);
     }
+    if (opt.drop_one > 0) res.drop = dropOne(filter.get(), view, labels, opt.drop_one);
     if (!opt.labels_dir.empty()) gf::writeLabels(opt.labels_dir, file, labels);
     if (!opt.clouds_dir.empty()) gf::writeSplitClouds(opt.clouds_dir, file, scan.cloud, labels);
     results.push_back(res);
@@ -274,6 +325,17 @@ int run(const Options& opt) {
   printRow(name_w, "pooled", points, ground, ms, labelled_files > 0, pooled);
   std::printf("%zu file(s), %zu labelled; pooled ms = sum over files\n", results.size(),
               labelled_files);
+  if (opt.drop_one > 0) {
+    std::printf(
+        "\none point left out at a time (evenly spread finite points): labels of the other "
+        "points\nthat changed\n");
+    std::printf("%-*s %9s %9s %9s %9s %9s\n", static_cast<int>(name_w), "file", "points", "drops",
+                "unchanged", "median", "max");
+    for (const auto& r : results) {
+      std::printf("%-*s %9zu %9zu %9zu %9zu %9zu\n", static_cast<int>(name_w), r.file.c_str(),
+                  r.points, r.drop.drops, r.drop.unchanged, r.drop.median, r.drop.max);
+    }
+  }
   if (opt.classes) {
     std::printf(
         "\nper class, pooled (truth under the scan's protocol; %% labelled ground = recall\n"

@@ -53,6 +53,7 @@ bool GpuNeighborSearch::runNormalFilter(const CloudView& cloud,
   cp.std_filter = params.std_filter;
   cp.std_multiplier = params.std_multiplier;
   cp.ransac_iterations = params.ransac_iterations;
+  cp.ransac_seed = params.ransac_seed;
   cp.plane_all_points = params.plane_all_points;
   cp.local_planes = params.local_planes;
   cp.tile_size = params.tile_size;

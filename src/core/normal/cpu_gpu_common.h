@@ -57,6 +57,12 @@ struct SplitMix64 {
 };
 
 constexpr std::uint64_t kRansacSeed = 0x67f1a3c5d2b9e481ULL;  // fixed: reproducible output
+
+/// \brief The base seed of a scan's RANSAC draws for the `ransac_seed` parameter: 0 gives
+///        kRansacSeed (the labels before the parameter existed), others a different stream.
+GF_HOST_DEVICE inline std::uint64_t ransacBaseSeed(std::uint32_t user_seed) {
+  return kRansacSeed ^ (static_cast<std::uint64_t>(user_seed) * 0xd1b54a32d192ed03ULL);
+}
 constexpr unsigned int kRansacEvalPoints = 2048;  // hypotheses are scored on at most this many
 // Fewer voted points: the tile uses the cloud-wide plane. 3 (the fewest a plane needs): even a
 // few voted points of a far tile follow its ground better than the cloud-wide plane, which the

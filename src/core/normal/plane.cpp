@@ -138,6 +138,7 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
   // Cloud-wide plane: the only one without local planes, the fallback for sparse tiles.
   thread_idx_.resize(threads);
   thread_eval_.resize(threads);
+  const std::uint64_t base_seed = ransacBaseSeed(static_cast<std::uint32_t>(p.ransac_seed));
   bool need_global = !p.local_planes;
   for (const auto& tl : tiles_) {
     if (need_global) break;
@@ -156,7 +157,7 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
       if (voted[i]) all_voted.push_back(static_cast<std::uint32_t>(i));
     }
     global_valid = fitPlaneRansac(xyz.data(), all_voted, p.ransac_iterations, p.plane_distance,
-                                  min_abs_nz, kRansacSeed, &thread_eval_[0], &global);
+                                  min_abs_nz, base_seed, &thread_eval_[0], &global);
   }
 
   const int nt = static_cast<int>(std::min<std::size_t>(threads, tiles_.size()));
@@ -172,7 +173,7 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
     Plane plane = global;
     bool valid = global_valid;
     if (p.local_planes && tv.size() >= kMinTilePoints) {
-      const std::uint64_t seed = kRansacSeed ^ (sorted[tb] * 0x9e3779b97f4a7c15ULL);
+      const std::uint64_t seed = base_seed ^ (sorted[tb] * 0x9e3779b97f4a7c15ULL);
       Plane fit;
       if (fitPlaneRansac(xyz.data(), tv, p.ransac_iterations, p.plane_distance, min_abs_nz, seed,
                          &thread_eval_[tid], &fit)) {
