@@ -5,6 +5,8 @@
 #                                   # voxel_paper; every group
 #   METHODS="voxel normal@vehicle_lidar_normal" bash scripts/eval_all.sh   # METHOD[@PRESET]
 #   bash scripts/eval_all.sh --set plane_distance=0.2   # extra eval arguments for every run
+#   SEEDS="0 1 2 3 4 5 6 7 8 9" METHODS=normal bash scripts/eval_all.sh   # normal rows once per
+#       ransac_seed: P / R / F1 of the first seed, then the F1 mean, sd and min-max over the seeds
 # Groups: SemanticKITTI seq00 0-2 (labelled), RELLIS-3D off-road frame, ISPRS 8 tiles and the two
 # airborne tiles (defaults and the airborne preset: config/airborne.yaml for voxel,
 # config/airborne_normal.yaml for normal; no preset row for voxel_paper), generated scenes
@@ -16,6 +18,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 DATA="${GF_DATA_DIR:-${ROOT}/../shared/data}"
 EVAL="${GF_EVAL:-${ROOT}/.ws/devel/lib/ground_filter/ground_filter_eval}"
 METHODS="${METHODS:-voxel normal normal@vehicle_lidar_normal voxel_paper}"
+SEEDS="${SEEDS:-}"  # ransac_seed values for the normal method (the voxel methods have no seed)
 [ -x "${EVAL}" ] || { echo "eval_all.sh: ${EVAL} not built" >&2; exit 1; }
 
 K="${DATA}/semantickitti/seq00"
@@ -50,29 +53,49 @@ while IFS='|' read -r name extra paths; do
         *) continue ;;
       esac
     fi
-    i=$((i + 1))
-    # shellcheck disable=SC2086
-    if ! "${EVAL}" --json --method "${m}" ${args} "$@" ${paths} > "${TMP}/${i}.json" 2> "${TMP}/${i}.err"; then
-      echo "{\"error\": $(python3 -c 'import json,sys; print(json.dumps(open(sys.argv[1]).read().strip()))' "${TMP}/${i}.err")}" > "${TMP}/${i}.json"
-    fi
-    printf '%s\t%s\t%s\n' "${name}" "${token}" "${TMP}/${i}.json" >> "${TMP}/index.tsv"
+    seeds="-"
+    [ "${m}" = normal ] && [ -n "${SEEDS}" ] && seeds="${SEEDS}"
+    for seed in ${seeds}; do
+      i=$((i + 1))
+      seed_arg=""
+      [ "${seed}" != "-" ] && seed_arg="--set ransac_seed=${seed}"
+      # shellcheck disable=SC2086
+      if ! "${EVAL}" --json --method "${m}" ${args} "$@" ${seed_arg} ${paths} > "${TMP}/${i}.json" 2> "${TMP}/${i}.err"; then
+        echo "{\"error\": $(python3 -c 'import json,sys; print(json.dumps(open(sys.argv[1]).read().strip()))' "${TMP}/${i}.err")}" > "${TMP}/${i}.json"
+      fi
+      printf '%s\t%s\t%s\n' "${name}" "${token}" "${TMP}/${i}.json" >> "${TMP}/index.tsv"
+    done
   done
 done <<< "${GROUPS_DEF}"
 
-python3 - "${TMP}/index.tsv" "$*" <<'PY'
-import json, sys
+python3 - "${TMP}/index.tsv" "$*" "${SEEDS}" <<'PY'
+import json, statistics, sys
 rows = [l.rstrip("\n").split("\t") for l in open(sys.argv[1])]
-extra = sys.argv[2]
+extra, seeds = sys.argv[2], sys.argv[3].split()
 print("eval arguments: " + (extra if extra else "(defaults)"))
-print("| group | method | files | P % | R % | F1 % | ms (sum) |")
-print("|---|---|---|---|---|---|---|")
+spread = len(seeds) > 1
+head = "| group | method | files | P % | R % | F1 % | ms (sum) |"
+if spread:
+    head += " F1 mean over %d seeds | sd | min-max |" % len(seeds)
+print(head)
+print("|---" * (10 if spread else 7) + "|")
+runs = {}  # (group, method) -> pooled results, one per seed, in order
 for name, method, path in rows:
-    d = json.load(open(path))
+    runs.setdefault((name, method), []).append(json.load(open(path)))
+f = lambda v: "-" if v is None else f"{100 * v:.2f}"
+for (name, method), ds in runs.items():
+    d = ds[0]
     if "error" in d:
         print(f"| {name} | {method} | error: {d['error']} | | | | |")
         continue
     p = d["pooled"]
-    f = lambda v: "-" if v is None else f"{100 * v:.2f}"
-    print(f"| {name} | {method} | {p['labelled_files']} | {f(p['precision'])} | "
-          f"{f(p['recall'])} | {f(p['f1'])} | {p['ms']:.0f} |")
+    line = (f"| {name} | {method} | {p['labelled_files']} | {f(p['precision'])} | "
+            f"{f(p['recall'])} | {f(p['f1'])} | {p['ms']:.0f} |")
+    f1s = [x["pooled"]["f1"] for x in ds if "error" not in x and x["pooled"]["f1"] is not None]
+    if spread and len(ds) > 1 and len(f1s) == len(ds):
+        line += (f" {100 * statistics.mean(f1s):.2f} | {100 * statistics.stdev(f1s):.2f} | "
+                 f"{100 * min(f1s):.2f}-{100 * max(f1s):.2f} |")
+    elif spread:
+        line += " | | |"
+    print(line)
 PY
