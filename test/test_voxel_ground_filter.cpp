@@ -289,6 +289,28 @@ TEST(VoxelGroundFilter, ReusedFilterGivesTheSameLabels) {
   EXPECT_EQ(other, run(b));
 }
 
+TEST(VoxelGroundFilter, ReusedFilterGivesTheSameLabelsToACellNeverGrown) {
+  // A pole 20 m from the only ground (beyond the growth's reach, no seeds of its own) keeps the
+  // global plane, also after a scan that fitted planes to every cell (the planes are not cleared
+  // between scans).
+  std::mt19937 rng(5);
+  Cloud slope, pole;
+  addSurface(
+      &slope, -30, 30, -5, 5, 0.1f, [](float x, float) { return 10.f + 0.1f * x; }, 0.01f, &rng);
+  addSurface(
+      &pole, -5, 5, -5, 5, 0.1f, [](float, float) { return 0.f; }, 0.01f, &rng);
+  const std::size_t pole_from = pole.size();
+  for (float z = 0.05f; z < 3.f; z += 0.02f) pole.add(25.f, 0.f, z, false);  // no roof: no seeds
+  gf::VoxelGroundFilter f;
+  std::vector<std::uint8_t> labels;
+  f.filter(slope.view(), &labels);
+  f.filter(pole.view(), &labels);
+  EXPECT_EQ(labels, run(pole));
+  std::size_t pole_ground = 0;
+  for (std::size_t i = pole_from; i < pole.size(); ++i) pole_ground += labels[i];
+  EXPECT_LT(pole_ground, (pole.size() - pole_from) / 10);
+}
+
 TEST(VoxelGroundFilter, EmptyCloud) {
   Cloud c;
   gf::FilterStats st;

@@ -86,28 +86,49 @@ std::size_t GroundModel::bucketSeeds(const VoxelGrid& g, std::size_t nc, const S
                                      std::int64_t best) {
   // Seed candidates per cell (CSR, coordinates copied for sequential access); start cell = most
   // voxels of the largest segment.
+  // Counts go to start_[c + 2] and the scatter advances start_[c + 1], which ends as the start
+  // of cell c + 1: no cursor copy.
   const std::uint32_t* vc = g.vcell.data();
-  start_.assign(nc + 1, 0);
-  for (std::uint32_t v : g.seeds) ++start_[vc[v] + 1];
-  for (std::size_t c = 0; c < nc; ++c) start_[c + 1] += start_[c];
+  start_.assign(nc + 2, 0);
+  std::uint32_t* const st = start_.data();
+  for (std::uint32_t v : g.seeds) ++st[vc[v] + 2];
+  for (std::size_t c = 0; c < nc; ++c) st[c + 2] += st[c + 1];
   seeds_.resize(g.seeds.size());
-  fill_.assign(start_.begin(), start_.end() - 1);
   for (std::uint32_t v : g.seeds) {
-    seeds_[fill_[vc[v]]++] = Seed{g.vx[v], g.vy[v], g.vz[v], static_cast<float>(g.pointsIn(v))};
+    seeds_[st[vc[v] + 1]++] = Seed{g.vx[v], g.vy[v], g.vz[v], static_cast<float>(g.pointsIn(v))};
   }
-  std::vector<std::uint32_t>& seg_in_cell = fill_;  // reused
-  seg_in_cell.assign(nc, 0);
+  start_.pop_back();
+  // Voxels of segment `best` per cell, counted only in the cells it touches; ties go to the
+  // lowest cell index (as a max_element over every cell would).
+  fill_.resize(nc);
+  std::uint32_t* const seg_in_cell = fill_.data();
+  const std::uint32_t b = static_cast<std::uint32_t>(best);
   for (std::size_t i = 0; i < g.flat.size(); ++i) {
-    if (segs.segmentOf(i) == static_cast<std::uint32_t>(best)) ++seg_in_cell[vc[g.flat[i]]];
+    if (segs.segmentOf(i) == b) seg_in_cell[vc[g.flat[i]]] = 0;
   }
-  return std::max_element(seg_in_cell.begin(), seg_in_cell.end()) - seg_in_cell.begin();
+  std::size_t start = 0;
+  std::uint32_t most = 0;
+  for (std::size_t i = 0; i < g.flat.size(); ++i) {
+    if (segs.segmentOf(i) != b) continue;
+    const std::uint32_t c = vc[g.flat[i]];
+    const std::uint32_t k = ++seg_in_cell[c];
+    if (k > most || (k == most && c < start)) {
+      most = k;
+      start = c;
+    }
+  }
+  return start;
 }
 
-void GroundModel::resetCells(const CellGrid& cells, const HeightPlane& gp) {
+void GroundModel::resetCells(const CellGrid& cells) {
   const std::size_t nc = cells.count();
   const std::uint64_t ncx = cells.ncx, ncy = cells.ncy;
-  nbsum_.assign(nc, Moments());
-  plane_.assign(nc, gp);  // cells never grown (no seeds beyond reach) keep the global plane
+  // Moments and planes are not cleared (96 bytes a cell, most cells empty): nb_ok_ says which
+  // cells hold moments this scan, and a plane is read only after it was written, except the
+  // final plane of a cell never grown, which is the global plane (grow()).
+  nbsum_.resize(nc);
+  nb_ok_.assign(nc, 0);
+  plane_.resize(nc);
   parent_.resize(nc);
   state_.assign(nc, CellState::kNew);
   near_q_.assign(nc, 0);
@@ -176,7 +197,7 @@ bool GroundModel::fitCell(const VoxelGroundFilterParams& p, std::uint32_t t) {
   const double cy = (ty - 0.5) * geo_.cs;
   HeightPlane pred;
   pred.c = plane_[parent_[t]].at(cx, cy);
-  const Moments nb = nbsum_[t];
+  const Moments nb = nb_ok_[t] ? nbsum_[t] : Moments();
   if (nb.w > 0) pred = fitHeightPlane(nb, 0.0, 0.0, geo_.lambda);
   HeightPlane cur = pred;
   Moments own;
@@ -201,7 +222,14 @@ bool GroundModel::fitCell(const VoxelGroundFilterParams& p, std::uint32_t t) {
   if (seeded) {
     plane_[t] = cur;
     state_[t] = CellState::kDoneSeeded;
-    for (int k = 0; k < 9; ++k) nbsum_[t + geo_.nb_off[k]].add(own);
+    static const Moments kNone;
+    for (int k = 0; k < 9; ++k) {
+      const std::size_t u = static_cast<std::size_t>(t + geo_.nb_off[k]);
+      Moments m = nb_ok_[u] ? nbsum_[u] : kNone;  // 0 + own: the sums of a cleared cell
+      m.add(own);
+      nbsum_[u] = m;
+      nb_ok_[u] = 1;
+    }
   } else {
     plane_[t] = pred;
     state_[t] = CellState::kDone;
@@ -262,7 +290,7 @@ void GroundModel::grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, con
   // with seeds it did not reach (the grid's border cells are kDone: 3 x 3 neighbourhoods need
   // no bounds checks).
   const std::size_t start = bucketSeeds(g, nc, segs, best);
-  resetCells(cells, gp);
+  resetCells(cells);
   plane_[start] = startPlane(g, segs, best, start, gp);
   parent_[start] = static_cast<std::uint32_t>(start);
   state_[start] = CellState::kQueued;
@@ -298,8 +326,9 @@ void GroundModel::grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, con
   cos_.resize(nc);
   for (std::size_t t = 0; t < nc; ++t) {
     if (!cells.used[t]) continue;
-    const Moments& nb = nbsum_[t];
-    const HeightPlane& gr = plane_[t];
+    // Never grown (no seeds within reach of the growth): the global plane.
+    const HeightPlane& gr = state_[t] == CellState::kNew ? gp : plane_[t];
+    const Moments nb = nb_ok_[t] ? nbsum_[t] : Moments();
     const HeightPlane f = nb.w > 0 ? fitHeightPlane(nb, gr.a, gr.b, geo_.lambda) : gr;
     final_[t] = f;
     cos_[t] = static_cast<float>(1.0 / std::sqrt(1.0 + f.a * f.a + f.b * f.b));

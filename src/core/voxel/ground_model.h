@@ -50,8 +50,8 @@ class GroundModel {
   /// Seed candidates per cell (CSR); returns the start cell.
   std::size_t bucketSeeds(const VoxelGrid& g, std::size_t cells, const Segmenter& segs,
                           std::int64_t best);
-  /// Every cell new (global plane, no seeds) except the border and cells out of reach.
-  void resetCells(const CellGrid& cells, const HeightPlane& gp);
+  /// Every cell new (no seeds) except the border and cells out of reach.
+  void resetCells(const CellGrid& cells);
   /// Marks the cells within kReachCells of a cell holding voxels (bit 2 of reach_).
   void markReach(const CellGrid& cells);
   /// Prediction of the start cell.
@@ -69,6 +69,7 @@ class GroundModel {
   std::vector<std::uint32_t> start_, fill_;  // seed candidates per cell (CSR)
   std::vector<Seed> seeds_;
   std::vector<Moments> nbsum_;         // accepted seeds of the seeded cells of the 3 x 3 around
+  std::vector<std::uint8_t> nb_ok_;    // nbsum_ of the cell holds this scan's sums
   std::vector<HeightPlane> plane_;     // grown plane
   std::vector<std::uint32_t> parent_;  // cell that queued it
   std::vector<CellState> state_;
