@@ -87,7 +87,7 @@ constexpr std::uint32_t kSeedClearanceVoxels = 3;
 
 // What computeKeys() needs, by value (no aliasing with the arrays it writes).
 struct KeyJob {
-  float* pts;            // x y z 0 per input point: absolute in, relative to the min corner out
+  const float* pts;      // x y z 0 per input point (absolute)
   std::uint64_t* keys;   // key, or key << slot_bits | slot when packed
   std::uint32_t* order;  // slot per key (not packed)
   std::uint32_t* index;  // input index per slot (not all valid)
@@ -100,8 +100,8 @@ struct KeyJob {
   bool packed, all_valid;
 };
 
-// Coordinates relative to the min corner (in place), keys and digit counts of the valid points
-// among input [begin, end) (copied to job.pts by scanBounds()), written from slot `slot` on.
+// Keys (of the coordinates relative to the min corner) and digit counts of the valid points among
+// input [begin, end) (copied to job.pts by scanBounds()), written from slot `slot` on.
 // SSE2 (every x86-64): one point per vector; the arithmetic is the scalar one lane by lane.
 template <bool kPacked, bool kAllValid, int kPasses>
 void computeKeysT(const KeyJob job, std::size_t begin, std::size_t end, std::size_t slot) {
@@ -111,7 +111,7 @@ void computeKeysT(const KeyJob job, std::size_t begin, std::size_t end, std::siz
   const int shift_x = job.shift_x, shift_y = job.shift_y;
   std::uint32_t* const hist = job.hist;
   std::uint32_t* const hist1 = job.hist + (std::size_t{1} << digit);
-  float* const pts = job.pts;
+  const float* const pts = job.pts;
   std::uint64_t* const keys = job.keys;
   const V4 vmin = v4LoadUnaligned(job.min);  // a member of the by-value job: not aligned
   std::size_t s = slot;
@@ -122,7 +122,6 @@ void computeKeysT(const KeyJob job, std::size_t begin, std::size_t end, std::siz
       job.index[s] = static_cast<std::uint32_t>(i);
     }
     p = v4Sub(p, vmin);
-    v4Store(pts + 4 * i, p);
     std::uint32_t cell[4];
     v4Cells(p, job.inv_vs, job.last, cell);
     const std::uint64_t ix = cell[0], iy = cell[1], iz = cell[2];
@@ -163,7 +162,7 @@ struct RunJob {
   const std::uint64_t* keys;   // sorted
   const std::uint32_t* order;  // slot per sorted key (not packed)
   const std::uint32_t* pidx;   // input index per slot (not all valid)
-  const float* pts;            // x y z 0 per input point (relative)
+  const float* pts;            // x y z 0 per input point (absolute)
   float *x, *y, *z;            // out: coordinates in key order
   std::uint32_t* pvox;         // out: voxel of each point
   std::uint64_t* vkey;         // out: key per voxel (+ one store past the last)
@@ -172,6 +171,7 @@ struct RunJob {
   float *zlo, *zhi;            // out: z range per voxel
   std::uint64_t slot_mask;
   int low;  // key bits below the voxel key (slot bits when packed)
+  float min[3];  // subtracted from pts (the relative coordinates of prepare())
 };
 
 // Pass 1 of build(), without a branch per point or voxel (the runs are 1-2 points long on
@@ -197,6 +197,7 @@ std::size_t gatherRuns(const RunJob job, std::size_t n) {
   float* const zhi = job.zhi;
   const std::uint64_t slot_mask = job.slot_mask;
   const int low = job.low;
+  const float mnx = job.min[0], mny = job.min[1], mnz = job.min[2];
   auto slotOf = [&](std::size_t i) {
     return kPacked ? static_cast<std::uint32_t>(k[i] & slot_mask) : o[i];
   };
@@ -214,7 +215,8 @@ std::size_t gatherRuns(const RunJob job, std::size_t n) {
     if (i + kAhead < n) __builtin_prefetch(pointOf(slotOf(i + kAhead)));
     const std::uint64_t key = k[i] >> low;
     const float* pt = pointOf(slotOf(i));
-    const float x = pt[0], y = pt[1], z = pt[2];
+    // The same float subtraction as prepare()'s key pass made lane by lane.
+    const float x = pt[0] - mnx, y = pt[1] - mny, z = pt[2] - mnz;
     x_out[i] = x;
     y_out[i] = y;
     z_out[i] = z;
@@ -339,6 +341,9 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   g->all_valid = n == n_in;
   if (n == 0) return 0;
   const float minx = lo[0], miny = lo[1], minz = lo[2];
+  min_[0] = minx;
+  min_[1] = miny;
+  min_[2] = minz;
   const float maxx = hi[0], maxy = hi[1], maxz = hi[2];
   const std::uint64_t nx = static_cast<std::uint64_t>((static_cast<double>(maxx) - minx) / vs) + 1;
   const std::uint64_t ny = static_cast<std::uint64_t>((static_cast<double>(maxy) - miny) / vs) + 1;
@@ -461,7 +466,7 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   cells->used.assign(cells->count(), 0);
   const std::uint64_t* k = g->keys.data();
   const std::uint32_t* o = g->order.data();
-  const float* in = pxyz_.data();  // x y z 0 per input point (relative)
+  const float* in = pxyz_.data();  // x y z 0 per input point (absolute)
   const bool av = g->all_valid;
   const std::uint32_t* pidx = g->point_index.data();
   float* x_out = g->sx.data();
@@ -496,9 +501,10 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   // key layout): coordinates in key order, voxels, running sums and z ranges.
   zmin_.resize(runs);
   zmax_.resize(runs);
-  // Fields in RunJob's order: inputs, point outputs, voxel outputs, key layout.
-  const RunJob job = {k,  o,  pidx, in, x_out,        y_out,        z_out,     pv, vk,
-                      vs, vx, vy,   vz, zmin_.data(), zmax_.data(), slot_mask, low};
+  // Fields in RunJob's order: inputs, point outputs, voxel outputs, key layout, min corner.
+  RunJob job = {k,  o,  pidx, in, x_out,        y_out,        z_out,     pv,  vk,
+                vs, vx, vy,   vz, zmin_.data(), zmax_.data(), slot_mask, low, {}};
+  std::copy(min_, min_ + 3, job.min);
   using Gather = std::size_t (*)(const RunJob, std::size_t);
   static const Gather kGather[2][2] = {{gatherRuns<false, false>, gatherRuns<false, true>},
                                        {gatherRuns<true, false>, gatherRuns<true, true>}};

@@ -43,9 +43,10 @@ class Voxelizer {
   static void scanBounds(const CloudView& cloud, float* pts, Chunk* ch);
   void sort(VoxelGrid* g);
 
-  // x y z 0 per input point (16-byte aligned vectors), relative to the min corner after
-  // prepare() (invalid points: the input as is, never read again).
+  // x y z 0 per input point (16-byte aligned vectors), absolute: build() subtracts min_ as it
+  // gathers the valid points (one write of the copy fewer than storing relative coordinates).
   std::vector<float> pxyz_;
+  float min_[3] = {0.f, 0.f, 0.f};  // min corner of the valid points
   std::vector<Chunk> chunks_;
   Buffer<float> zmin_, zmax_;  // z range per voxel
   std::vector<std::uint64_t> keys_tmp_;
