@@ -100,8 +100,8 @@ std::size_t GroundModel::bucketSeeds(const VoxelGrid& g, std::size_t nc, const S
   start_.pop_back();
   // Voxels of segment `best` per cell, counted only in the cells it touches; ties go to the
   // lowest cell index (as a max_element over every cell would).
-  fill_.resize(nc);
-  std::uint32_t* const seg_in_cell = fill_.data();
+  seg_count_.resize(nc);
+  std::uint32_t* const seg_in_cell = seg_count_.data();
   const std::uint32_t b = static_cast<std::uint32_t>(best);
   for (std::size_t i = 0; i < g.flat.size(); ++i) {
     if (segs.segmentOf(i) == b) seg_in_cell[vc[g.flat[i]]] = 0;

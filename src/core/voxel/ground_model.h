@@ -66,7 +66,8 @@ class GroundModel {
 
   Geometry geo_;
 
-  std::vector<std::uint32_t> start_, fill_;  // seed candidates per cell (CSR)
+  std::vector<std::uint32_t> start_;      // seed candidates per cell (CSR)
+  std::vector<std::uint32_t> seg_count_;  // voxels of segment `best` per cell (bucketSeeds())
   std::vector<Seed> seeds_;
   std::vector<Moments> nbsum_;         // accepted seeds of the seeded cells of the 3 x 3 around
   std::vector<std::uint8_t> nb_ok_;    // nbsum_ of the cell holds this scan's sums

@@ -368,10 +368,10 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   g->slot_bits = std::min(32, 64 - (bx + by + bz));
   g->packed = n <= (std::uint64_t{1} << g->slot_bits);
 
-  // Pass 2: coordinates relative to the minimum (keeps float precision far from the origin:
-  // UTM, TLS), voxel keys and, on one thread, the digit counts of every radix pass (as few
-  // passes as digits of at most kRadixMaxDigitBits allow); several threads count per pass in
-  // sort().
+  // Pass 2: voxel keys of the coordinates relative to the minimum (keeps float precision far
+  // from the origin: UTM, TLS; build() forms the same relative coordinates again) and, on one
+  // thread, the digit counts of every radix pass (as few passes as digits of at most
+  // kRadixMaxDigitBits allow); several threads count per pass in sort().
   resizeScratch(&g->keys, n);
   if (!g->packed) resizeScratch(&g->order, n);
   if (!g->all_valid) resizeScratch(&g->point_index, n);
