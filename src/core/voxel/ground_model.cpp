@@ -197,7 +197,7 @@ bool GroundModel::fitCell(const VoxelGroundFilterParams& p, std::uint32_t t) {
   const double cy = (ty - 0.5) * geo_.cs;
   HeightPlane pred;
   pred.c = plane_[parent_[t]].at(cx, cy);
-  const Moments nb = nb_ok_[t] ? nbsum_[t] : Moments();
+  const Moments nb = sumsOf(t);
   if (nb.w > 0) pred = fitHeightPlane(nb, 0.0, 0.0, geo_.lambda);
   HeightPlane cur = pred;
   Moments own;
@@ -222,10 +222,9 @@ bool GroundModel::fitCell(const VoxelGroundFilterParams& p, std::uint32_t t) {
   if (seeded) {
     plane_[t] = cur;
     state_[t] = CellState::kDoneSeeded;
-    static const Moments kNone;
     for (int k = 0; k < 9; ++k) {
       const std::size_t u = static_cast<std::size_t>(t + geo_.nb_off[k]);
-      Moments m = nb_ok_[u] ? nbsum_[u] : kNone;  // 0 + own: the sums of a cleared cell
+      Moments m = sumsOf(u);  // 0 + own in a cell without sums: what a cleared grid gave
       m.add(own);
       nbsum_[u] = m;
       nb_ok_[u] = 1;
@@ -328,7 +327,7 @@ void GroundModel::grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, con
     if (!cells.used[t]) continue;
     // Never grown (no seeds within reach of the growth): the global plane.
     const HeightPlane& gr = state_[t] == CellState::kNew ? gp : plane_[t];
-    const Moments nb = nb_ok_[t] ? nbsum_[t] : Moments();
+    const Moments nb = sumsOf(t);
     const HeightPlane f = nb.w > 0 ? fitHeightPlane(nb, gr.a, gr.b, geo_.lambda) : gr;
     final_[t] = f;
     cos_[t] = static_cast<float>(1.0 / std::sqrt(1.0 + f.a * f.a + f.b * f.b));

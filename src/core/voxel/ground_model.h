@@ -63,6 +63,8 @@ class GroundModel {
   bool fitCell(const VoxelGroundFilterParams& p, std::uint32_t t);
   /// Queues the unfinished neighbours of t (near queue when t kept seeds).
   void queueNeighbours(std::uint32_t t, bool seeded);
+  /// This scan's 3 x 3 seed sums of cell c (none yet: zero; nbsum_ is not cleared per scan).
+  Moments sumsOf(std::size_t c) const { return nb_ok_[c] ? nbsum_[c] : Moments(); }
 
   Geometry geo_;
 

@@ -341,9 +341,7 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   g->all_valid = n == n_in;
   if (n == 0) return 0;
   const float minx = lo[0], miny = lo[1], minz = lo[2];
-  min_[0] = minx;
-  min_[1] = miny;
-  min_[2] = minz;
+  std::copy(lo, lo + 3, min_);
   const float maxx = hi[0], maxy = hi[1], maxz = hi[2];
   const std::uint64_t nx = static_cast<std::uint64_t>((static_cast<double>(maxx) - minx) / vs) + 1;
   const std::uint64_t ny = static_cast<std::uint64_t>((static_cast<double>(maxy) - miny) / vs) + 1;
