@@ -210,6 +210,46 @@ TEST(VoxelGroundFilter, PaperGlobalPlaneModeSeparatesBox) {
   EXPECT_GE(agreement(labels, c.truth, 1), 0.99);
 }
 
+// The z range of a voxel decides flatness (step 2): three separate patches, one pair of points
+// a voxel column, both points in one voxel. A: 4 m x 4 m at z = 0, pairs 3 cm apart (flat);
+// B: 6 m x 6 m at z = 0.5, pairs 5 cm apart (not flat, flatness_threshold 4 cm); C: 1 m x 1 m
+// at z = -0.3, 3 cm apart (flat, the cloud's lowest points). The paper mode fits its plane to
+// the largest flat segment: A. A range taken from the max z alone makes A not flat (C wins), one
+// taken from the min alone or none at all makes B flat (B wins).
+TEST(VoxelGroundFilter, ZRangeOfEachVoxelDecidesFlatness) {
+  Cloud c;
+  auto patch = [&c](float x0, float x1, float y0, float y1, float z, float dz, bool ground) {
+    for (int i = 0; x0 + 0.1f * i < x1; ++i) {
+      for (int j = 0; y0 + 0.1f * j < y1; ++j) {
+        const float x = x0 + 0.1f * i + 0.05f, y = y0 + 0.1f * j + 0.05f;
+        c.add(x, y, z, ground);
+        c.add(x, y, z + dz, ground);
+      }
+    }
+  };
+  patch(-4.f, 0.f, -2.f, 2.f, 0.01f, 0.03f, true);      // A
+  patch(1.f, 7.f, -3.f, 3.f, 0.51f, 0.05f, false);      // B
+  patch(-7.f, -6.f, -0.5f, 0.5f, -0.3f, 0.03f, false);  // C
+  gf::VoxelGroundFilterParams p;
+  p.local_planes = false;
+  const auto labels = run(c, p);
+  ASSERT_EQ(labels.size(), c.size());
+  std::size_t a = 0, a_ground = 0, b = 0, b_ground = 0;
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    const float x = c.xyz[3 * i];
+    if (x < -5.f) continue;  // C
+    if (x < 0.5f) {
+      ++a;
+      a_ground += labels[i];
+    } else {
+      ++b;
+      b_ground += labels[i];
+    }
+  }
+  EXPECT_EQ(a_ground, a);
+  EXPECT_EQ(b_ground, 0u);
+}
+
 // Airborne mode (morph_ground, config/airborne.yaml): a nadir-like scan at 1 point per m2 of a
 // hill (slopes up to 30 %) with three flat roofs 12-20 m wide and 6-10 m up, one on the slope;
 // the 10 cm voxel defaults cannot work at this spacing.

@@ -176,8 +176,9 @@ bool Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
     if (q < 0) continue;
     const std::uint32_t v = g.flat[j];
     for (std::uint32_t k = g.vstart[v]; k < g.vstart[v + 1]; ++k) {
-      acc[q].add(g.sx[k], g.sy[k], g.sz[k]);
-      zsum[q] += g.sz[k];
+      const float* pt = g.xyz(k);
+      acc[q].add(pt[0], pt[1], pt[2]);
+      zsum[q] += pt[2];
       cnt[q] += 1.0;
     }
   }

@@ -105,7 +105,8 @@ void VegetationRule::relabel(const VoxelGroundFilterParams& p, const VoxelGrid& 
     for (std::uint32_t v = g.col_first[q]; v < g.col_first[q + 1]; ++v) {
       const HeightPlane& hp = model.plane(g.vcell[v]);
       for (std::uint32_t k = g.vstart[v]; k < g.vstart[v + 1]; ++k) {
-        if (g.sz[k] - static_cast<float>(hp.at(g.sx[k], g.sy[k])) >= base) ground[k] = 0;
+        const float* pt = g.xyz(k);
+        if (pt[2] - static_cast<float>(hp.at(pt[0], pt[1])) >= base) ground[k] = 0;
       }
     }
   }

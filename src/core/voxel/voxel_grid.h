@@ -115,9 +115,10 @@ struct VoxelGrid {
   std::vector<std::uint32_t> order;
   std::vector<std::uint32_t> point_index;
 
-  // Per valid point in key order, relative to the cloud's min corner.
-  std::vector<float> sx, sy, sz;
-  Buffer<std::uint32_t> pvox;  // voxel of each point
+  // Per valid point in key order: x y z relative to the cloud's min corner, three floats a
+  // point (+ one spare float: build() stores four at a time), and its voxel.
+  Buffer<float> sxyz;
+  Buffer<std::uint32_t> pvox;
 
   // Per voxel, key order.
   std::vector<std::uint64_t> vkey;
@@ -135,7 +136,8 @@ struct VoxelGrid {
   Buffer<std::uint32_t> flat;
   Buffer<std::uint32_t> seeds;
 
-  std::size_t points() const { return sx.size(); }
+  std::size_t points() const { return pvox.size(); }
+  const float* xyz(std::size_t k) const { return sxyz.data() + 3 * k; }
   std::size_t voxels() const { return vkey.size(); }
   std::size_t columns() const { return col_key.size(); }
   std::uint32_t pointsIn(std::size_t v) const { return vstart[v + 1] - vstart[v]; }

@@ -48,7 +48,7 @@ class Voxelizer {
   std::vector<float> pxyz_;
   float min_[3] = {0.f, 0.f, 0.f};  // min corner of the valid points
   std::vector<Chunk> chunks_;
-  Buffer<float> zmin_, zmax_;  // z range per voxel
+  Buffer<float> vrec_;  // build(): sums and z range per voxel (gatherRuns())
   std::vector<std::uint64_t> keys_tmp_;
   std::vector<std::uint32_t> order_tmp_;
   RadixPlan plan_;
