@@ -41,43 +41,37 @@ void GroundModel::setGlobal(const HeightPlane& gp) {
 }
 
 void GroundModel::markReach(const CellGrid& cells) {
-  // Dilation along y (bit 1), then along x (bit 2), by kReachCells; every sweep runs along the
-  // rows (x major) with selects instead of branches on the data, so the compiler vectorises the
-  // x sweeps (one "last cell seen" per y).
-  const std::int64_t ncx = static_cast<std::int64_t>(cells.ncx);
-  const std::int64_t ncy = static_cast<std::int64_t>(cells.ncy);
-  reach_.assign(cells.count(), 0);
-  for (std::int64_t x = 0; x < ncx; ++x) {
-    const std::uint8_t* used = cells.used.data() + x * ncy;
-    std::uint8_t* r = reach_.data() + x * ncy;
-    std::int64_t last = -(kReachCells + 1);
-    for (std::int64_t y = 0; y < ncy; ++y) {
-      last = used[y] ? y : last;
-      r[y] = static_cast<std::uint8_t>(y - last <= kReachCells);
+  // A box dilation of the cells holding voxels by kReachCells either way, separable: along y
+  // (within each row, x major) into near_y_, then along x into reach_. Both are ORs of shifted
+  // byte rows without a dependency from one cell to the next, which the compiler vectorises.
+  constexpr std::size_t kR = static_cast<std::size_t>(kReachCells);
+  const std::size_t ncx = cells.ncx, ncy = cells.ncy;
+  near_y_.resize(cells.count());
+  reach_.resize(cells.count());
+  for (std::size_t x = 0; x < ncx; ++x) {
+    const std::uint8_t* u = cells.used.data() + x * ncy;
+    std::uint8_t* r = near_y_.data() + x * ncy;
+    auto edge = [&](std::size_t y) {  // the window cut by the row's ends
+      std::uint8_t v = 0;
+      for (std::size_t j = y > kR ? y - kR : 0; j <= std::min(y + kR, ncy - 1); ++j) v |= u[j];
+      r[y] = v;
+    };
+    const std::size_t head = std::min(kR, ncy);
+    for (std::size_t y = 0; y < head; ++y) edge(y);
+    for (std::size_t y = kR; y + kR < ncy; ++y) {
+      std::uint8_t v = 0;
+      for (std::size_t j = 0; j <= 2 * kR; ++j) v |= u[y - kR + j];
+      r[y] = v;
     }
-    last = ncy + kReachCells + 1;
-    for (std::int64_t y = ncy - 1; y >= 0; --y) {
-      last = used[y] ? y : last;
-      r[y] = static_cast<std::uint8_t>(r[y] | (last - y <= kReachCells));
-    }
+    for (std::size_t y = std::max(kR, ncy > kR ? ncy - kR : 0); y < ncy; ++y) edge(y);
   }
-  last_x_.assign(static_cast<std::size_t>(ncy), static_cast<std::int32_t>(-(kReachCells + 1)));
-  std::int32_t* const last_x = last_x_.data();
-  for (std::int64_t x = 0; x < ncx; ++x) {
+  for (std::size_t x = 0; x < ncx; ++x) {
     std::uint8_t* r = reach_.data() + x * ncy;
-    const std::int32_t xi = static_cast<std::int32_t>(x);
-    for (std::int64_t y = 0; y < ncy; ++y) {
-      last_x[y] = (r[y] & 1) ? xi : last_x[y];
-      r[y] = static_cast<std::uint8_t>(r[y] | (xi - last_x[y] <= kReachCells ? 2 : 0));
-    }
-  }
-  std::fill(last_x_.begin(), last_x_.end(), static_cast<std::int32_t>(ncx + kReachCells + 1));
-  for (std::int64_t x = ncx - 1; x >= 0; --x) {
-    std::uint8_t* r = reach_.data() + x * ncy;
-    const std::int32_t xi = static_cast<std::int32_t>(x);
-    for (std::int64_t y = 0; y < ncy; ++y) {
-      last_x[y] = (r[y] & 1) ? xi : last_x[y];
-      r[y] = static_cast<std::uint8_t>(r[y] | (last_x[y] - xi <= kReachCells ? 2 : 0));
+    const std::size_t x0 = x > kR ? x - kR : 0, x1 = std::min(x + kR, ncx - 1);
+    std::copy(near_y_.data() + x0 * ncy, near_y_.data() + (x0 + 1) * ncy, r);
+    for (std::size_t xx = x0 + 1; xx <= x1; ++xx) {
+      const std::uint8_t* n = near_y_.data() + xx * ncy;
+      for (std::size_t y = 0; y < ncy; ++y) r[y] |= n[y];
     }
   }
 }
@@ -130,16 +124,15 @@ void GroundModel::resetCells(const CellGrid& cells) {
   nb_ok_.assign(nc, 0);
   plane_.resize(nc);
   parent_.resize(nc);
-  state_.assign(nc, CellState::kNew);
+  state_.resize(nc);
   near_q_.assign(nc, 0);
   CellState* state = state_.data();
   // Cells farther than kReachCells from any cell with points are never grown (kDone): they
   // would only carry the prediction across empty space. Data beyond such a stretch are grown
   // again from a new start (nextIsland()). The border is kDone too.
   markReach(cells);
-  for (std::size_t t = 0; t < nc; ++t) {
-    if (!(reach_[t] & 2)) state[t] = CellState::kDone;
-  }
+  const std::uint8_t* reach = reach_.data();
+  for (std::size_t t = 0; t < nc; ++t) state[t] = reach[t] ? CellState::kNew : CellState::kDone;
   for (std::uint64_t x = 0; x < ncx; ++x) {
     state[x * ncy] = state[x * ncy + ncy - 1] = CellState::kDone;
   }

@@ -52,7 +52,7 @@ class GroundModel {
                           std::int64_t best);
   /// Every cell new (no seeds) except the border and cells out of reach.
   void resetCells(const CellGrid& cells);
-  /// Marks the cells within kReachCells of a cell holding voxels (bit 2 of reach_).
+  /// Marks the cells within kReachCells (along x and y) of a cell holding voxels in reach_.
   void markReach(const CellGrid& cells);
   /// Prediction of the start cell.
   HeightPlane startPlane(const VoxelGrid& g, const Segmenter& segs, std::int64_t best,
@@ -79,8 +79,8 @@ class GroundModel {
   std::vector<std::uint32_t> queue_, queue_far_;  // cells to grow: next to seeds, others
   std::size_t near_end_ = 0, far_end_ = 0;        // entries in queue_, queue_far_
   std::vector<std::uint8_t> near_q_;              // cell waits in queue_
-  std::vector<std::uint8_t> reach_;
-  std::vector<std::int32_t> last_x_;  // markReach(): last x with bit 1 per y
+  std::vector<std::uint8_t> near_y_;  // markReach(): a cell with voxels within reach along y
+  std::vector<std::uint8_t> reach_;   // ... along x and y
   std::vector<HeightPlane> final_;
   std::vector<float> cos_;
 };
