@@ -13,11 +13,15 @@
 #include <vector>
 
 #include "huge_pages.h"
+#include "prefetch.h"
 
 namespace ground_filter {
 
 /// Radix digits of at most this many bits: at most 32 k buckets, the histograms fit L2.
 constexpr int kRadixMaxDigitBits = 15;
+
+/// Keys ahead of a scatter pass's sequential reads that it prefetches (prefetchAhead()).
+constexpr std::size_t kRadixReadAhead = 64;
 
 /// \brief Bits needed for the values 0 .. max_value (at least 1).
 inline int radixBitsFor(std::uint64_t max_value) {
@@ -60,7 +64,10 @@ void radixScatter(int lo, int passes, int digit, std::uint32_t* hist, std::vecto
       }
       b->swap(*b_tmp);
     } else {
-      for (std::size_t i = 0; i < n; ++i) kt[h[(k[i] >> shift) & mask]++] = k[i];
+      for (std::size_t i = 0; i < n; ++i) {
+        prefetchAhead(k + i, 8 * kRadixReadAhead);
+        kt[h[(k[i] >> shift) & mask]++] = k[i];
+      }
     }
     a->swap(*a_tmp);
   }

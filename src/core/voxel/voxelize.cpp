@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "huge_pages.h"
+#include "prefetch.h"
 #include "radix_sort.h"
 
 namespace ground_filter {
@@ -128,6 +129,10 @@ struct KeyJob {
   bool packed, all_valid;
 };
 
+// Sequential passes over the points prefetch this many points ahead (prefetchAhead(); TLS 5 M:
+// 47 % of the key pass's samples had been on its load).
+constexpr std::size_t kReadAhead = 32;
+
 // Keys (of the coordinates relative to the min corner) and digit counts of the valid points among
 // input [begin, end) (copied to job.pts by scanBounds()), written from slot `slot` on.
 // SSE2 (every x86-64): one point per vector; the arithmetic is the scalar one lane by lane.
@@ -144,6 +149,7 @@ void computeKeysT(const KeyJob job, std::size_t begin, std::size_t end, std::siz
   const V4 vmin = v4LoadUnaligned(job.min);  // a member of the by-value job: not aligned
   std::size_t s = slot;
   for (std::size_t i = begin; i < end; ++i) {
+    prefetchAhead(pts + 4 * i, 16 * kReadAhead);
     V4 p = v4Load(pts + 4 * i);
     if (!kAllValid) {
       if (!v4Finite(p)) continue;
@@ -284,14 +290,19 @@ void Voxelizer::scanBounds(const CloudView& cloud, float* pts, Chunk* ch) {
     const std::uint8_t* base = view.data() + view.xOffset();
     const std::size_t stride = view.stride();
     for (std::size_t i = ch->begin; i < ch->end; ++i) {
+      prefetchAhead(base + i * stride, kReadAhead * stride);
       add(i, _mm_and_ps(_mm_loadu_ps(reinterpret_cast<const float*>(base + i * stride)), xyz_mask));
     }
     copied = true;
   }
 #endif
   if (!copied) {
-    for (std::size_t i = ch->begin; i < ch->end; ++i)
+    const std::uint8_t* base = view.data() + view.xOffset();
+    const std::size_t stride = view.stride();
+    for (std::size_t i = ch->begin; i < ch->end; ++i) {
+      prefetchAhead(base + i * stride, kReadAhead * stride);
       add(i, v4Set(view.x(i), view.y(i), view.z(i)));
+    }
   }
   ch->valid = valid;
   alignas(16) float l[4], h[4];
