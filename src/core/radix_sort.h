@@ -17,8 +17,10 @@
 
 namespace ground_filter {
 
-/// Radix digits of at most this many bits: at most 32 k buckets, the histograms fit L2.
-constexpr int kRadixMaxDigitBits = 15;
+/// Radix digits of at most this many bits: at most 64 k buckets (256 KB of counts, in L2). 16,
+/// not 15: keys of 31-32 bits (a 5 M-point TLS scan) take two passes instead of three (TLS 5 M
+/// 153-155 -> 143-144 ms on the Intel VM, docs/voxel_method.md).
+constexpr int kRadixMaxDigitBits = 16;
 
 /// Keys ahead of a scatter pass's sequential reads that it prefetches (prefetchAhead()).
 constexpr std::size_t kRadixReadAhead = 64;
