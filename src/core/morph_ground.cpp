@@ -15,17 +15,17 @@ constexpr int kFillSweeps = 50;
 
 // Widens the sliding minimum of every row by one cell on each side: the minimum over
 // [x - w, x + w] is the minimum of those over [x - 1 - (w - 1), x - 1 + (w - 1)] and
-// [x + 1 - (w - 1), x + 1 + (w - 1)]; cells outside the row do not count.
-void widenRowMin(float* t, int nx, int ny) {
+// [x + 1 - (w - 1), x + 1 + (w - 1)]; cells outside the row do not count. Each row is copied
+// between two kInf sentinels first (`pad`, nx + 2 floats), so the loop reads the old values
+// only and the compiler vectorises it (the in-place form carried the old value in a register
+// from one cell to the next and stayed scalar).
+void widenRowMin(float* t, int nx, int ny, float* pad) {
+  pad[0] = kInf;
+  pad[nx + 1] = kInf;
   for (int y = 0; y < ny; ++y) {
     float* row = t + static_cast<std::size_t>(y) * nx;
-    float prev = kInf;
-    for (int x = 0; x < nx; ++x) {
-      const float here = row[x];
-      const float next = x + 1 < nx ? row[x + 1] : kInf;
-      row[x] = std::min(here, std::min(prev, next));
-      prev = here;
-    }
+    std::copy(row, row + nx, pad + 1);
+    for (int x = 0; x < nx; ++x) row[x] = std::min(pad[x + 1], std::min(pad[x], pad[x + 2]));
   }
 }
 
@@ -38,13 +38,14 @@ void MorphGround::erode(const std::vector<float>& in, int r, bool dilate, std::v
   // Dilation = erosion of the negated raster.
   const std::size_t n = in.size();
   tmp_.resize(n);
+  pad_.resize(static_cast<std::size_t>(nx_) + 2);
   for (std::size_t i = 0; i < n; ++i) tmp_[i] = dilate ? -in[i] : in[i];
   out->assign(n, kInf);
   float* o = out->data();
   int w = 0;
   for (int dy = r; dy >= 0; --dy) {
     const int want = static_cast<int>(std::floor(std::sqrt(static_cast<double>(r * r - dy * dy))));
-    for (; w < want; ++w) widenRowMin(tmp_.data(), nx_, ny_);
+    for (; w < want; ++w) widenRowMin(tmp_.data(), nx_, ny_, pad_.data());
     for (int y = 0; y < ny_; ++y) {
       float* oy = o + static_cast<std::size_t>(y) * nx_;
       for (int sgn = -1; sgn <= 1; sgn += 2) {

@@ -43,6 +43,7 @@ class MorphGround {
   int nx_ = 0, ny_ = 0;
   std::vector<std::int32_t> cell_of_;  // per point: cell index, -1 invalid
   std::vector<float> zmin_, tmp_, eroded_, opened_, dem_, grad_;
+  std::vector<float> pad_;  // erode(): one row between two sentinels
   std::vector<std::uint8_t> object_, known_;
   std::vector<std::int32_t> frontier_, next_, gaps_;
 };
