@@ -121,8 +121,8 @@ struct VoxelGrid {
   Buffer<std::uint32_t> pvox;
 
   // Per voxel, key order.
-  std::vector<std::uint64_t> vkey;
-  std::vector<std::uint32_t> vstart;  // CSR into the sorted points, size voxels + 1
+  Buffer<std::uint64_t> vkey;
+  Buffer<std::uint32_t> vstart;  // CSR into the sorted points, size voxels + 1
   std::vector<float> vx, vy, vz;      // centroid
   std::vector<std::uint8_t> vflags;   // kFlat | kSeed
   std::vector<std::uint32_t> vcell;   // ground-model cell

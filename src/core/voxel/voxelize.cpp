@@ -467,26 +467,13 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   // One pass over the sorted points: coordinates in key order, runs of equal keys become voxels.
   // A voxel is finished when the next one starts (its flags need the next key).
   resizeScratch(&g->sxyz, 3 * n + 1);
-  // Voxels = runs of equal keys, counted first so the per-voxel arrays take what they need.
-  std::size_t runs = 1;
-  {
-    const std::uint64_t* kk = g->keys.data();
-    const int low = g->packed ? g->slot_bits : 0;
-    for (std::size_t i = 1; i < n; ++i) runs += (kk[i] >> low) != (kk[i - 1] >> low);
-  }
-  resizeScratch(&g->vkey, runs + 1);  // build() stores one key past the last voxel (cut below)
-  g->vstart.resize(runs + 1);
-  g->vx.resize(runs);
-  g->vy.resize(runs);
-  g->vz.resize(runs);
-  g->vflags.resize(runs);
-  g->vcell.resize(runs);
-  // Columns and flat / seed lists: at most one entry a voxel (written through pointers, cut to
-  // length at the end; the buffers do not zero what they grow by).
-  g->col_key.resize(runs);
-  g->col_first.resize(runs + 1);
-  g->flat.resize(runs);
-  g->seeds.resize(runs);
+  // The gather's per-voxel outputs take one entry a point (+ one store past the last voxel):
+  // they do not zero what they grow by, so the pages beyond the voxels are never touched, and
+  // the voxels need no counting pass over the keys first. The other per-voxel arrays are sized
+  // after the gather.
+  resizeScratch(&g->vkey, n + 1);
+  resizeScratch(&g->vstart, n + 1);
+  resizeScratch(&vrec_, kRunRecord * n);
   cells->used.assign(cells->count(), 0);
   const std::uint64_t* k = g->keys.data();
   const std::uint32_t* o = g->order.data();
@@ -498,15 +485,6 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   std::uint32_t* pv = g->pvox.data();
   std::uint64_t* vk = g->vkey.data();
   std::uint32_t* vs = g->vstart.data();
-  float* vx = g->vx.data();
-  float* vy = g->vy.data();
-  float* vz = g->vz.data();
-  std::uint8_t* vflags = g->vflags.data();
-  std::uint32_t* vcell = g->vcell.data();
-  std::uint64_t* ckey = g->col_key.data();
-  std::uint32_t* cfirst = g->col_first.data();
-  std::uint32_t* flat = g->flat.data();
-  std::uint32_t* seeds = g->seeds.data();
   std::uint8_t* used = cells->used.data();
   const std::uint32_t* cxt = cells->cell_of_x.data();
   const std::uint32_t* cyt = cells->cell_of_y.data();
@@ -521,7 +499,6 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   const std::uint64_t my = g->mask_y, mz = g->mask_z;
   // Two passes without a branch per point or voxel. Pass 1 (gatherRuns(), specialised for the
   // key layout): coordinates in key order, voxels, running sums and z ranges.
-  resizeScratch(&vrec_, kRunRecord * runs);
   // Fields in RunJob's order: inputs, point outputs, voxel outputs, key layout, min corner.
   RunJob job = {k, o, pidx, in, xyz_out, pv, vk, vs, vrec_.data(), slot_mask, low, {}};
   std::copy(min_, min_ + 3, job.min);
@@ -530,6 +507,26 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   static const Gather kGather[2][2] = {{gatherRuns<false, false>, gatherRuns<false, true>},
                                        {gatherRuns<true, false>, gatherRuns<true, true>}};
   const std::size_t nv = kGather[pk][av](job, n);  // [packed keys][every point valid]
+  g->vx.resize(nv);
+  g->vy.resize(nv);
+  g->vz.resize(nv);
+  g->vflags.resize(nv);
+  g->vcell.resize(nv);
+  // Columns and flat / seed lists: at most one entry a voxel (written through pointers, cut to
+  // length at the end; the buffers do not zero what they grow by).
+  g->col_key.resize(nv);
+  g->col_first.resize(nv + 1);
+  g->flat.resize(nv);
+  g->seeds.resize(nv);
+  float* vx = g->vx.data();
+  float* vy = g->vy.data();
+  float* vz = g->vz.data();
+  std::uint8_t* vflags = g->vflags.data();
+  std::uint32_t* vcell = g->vcell.data();
+  std::uint64_t* ckey = g->col_key.data();
+  std::uint32_t* cfirst = g->col_first.data();
+  std::uint32_t* flat = g->flat.data();
+  std::uint32_t* seeds = g->seeds.data();
   const float* const rec = vrec_.data();
   vs[nv] = static_cast<std::uint32_t>(n);
   // Pass 2, per voxel: centroids (a loop of its own; counts are below 2^31, so the signed
@@ -575,6 +572,7 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   }
   cfirst[ncol] = static_cast<std::uint32_t>(nv);
   g->vkey.resize(nv);
+  g->vstart.resize(nv + 1);
   g->col_key.resize(ncol);
   g->col_first.resize(ncol + 1);
   g->flat.resize(nflat);
