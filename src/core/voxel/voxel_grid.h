@@ -122,7 +122,7 @@ struct VoxelGrid {
 
   // Per voxel, key order.
   Buffer<std::uint64_t> vkey;
-  Buffer<std::uint32_t> vstart;  // CSR into the sorted points, size voxels + 1
+  Buffer<std::uint32_t> vstart;       // CSR into the sorted points, size voxels + 1
   std::vector<float> vx, vy, vz;      // centroid
   std::vector<std::uint8_t> vflags;   // kFlat | kSeed
   std::vector<std::uint32_t> vcell;   // ground-model cell
