@@ -416,6 +416,34 @@ TEST(VoxelGroundFilter, StridedViewMatchesPacked) {
   EXPECT_EQ(strided, run(c));
 }
 
+// Records of up to 16 bytes with x y z adjacent are read in place (16-byte loads, but not past
+// the last record), wider ones through a copy: every layout, with NaN points among the others,
+// must give the packed cloud's labels.
+TEST(VoxelGroundFilter, EveryRecordLayoutGivesTheSameLabels) {
+  std::mt19937 rng(8);
+  Cloud c;
+  addSurface(
+      &c, -5, 5, -5, 5, 0.05f, [](float x, float) { return 0.1f * x; }, 0.01f, &rng);
+  addBox(&c, 1.f, 1.f, 1.f, 1.f, 0.1f, 1.f, 0.05f);
+  for (std::size_t i = 0; i < c.size(); i += 97) c.xyz[3 * i + (i % 3)] = std::nanf("");
+  const auto packed = run(c);
+  // {stride, x offset}: 16-byte loads of every record / of all but the last / via the copy.
+  const std::size_t layouts[3][2] = {{16, 0}, {16, 4}, {24, 4}};
+  for (const auto& l : layouts) {
+    const std::size_t stride = l[0], xo = l[1];
+    std::vector<std::uint8_t> buf(c.size() * stride, 0xFF);  // the bytes around x y z: NaN
+    for (std::size_t i = 0; i < c.size(); ++i) {
+      std::memcpy(&buf[i * stride + xo], &c.xyz[3 * i], 12);
+    }
+    gf::VoxelGroundFilter f;
+    std::vector<std::uint8_t> labels;
+    gf::FilterStats st;
+    f.filter(gf::CloudView(buf.data(), c.size(), stride, xo, xo + 4, xo + 8), &labels, &st);
+    EXPECT_EQ(labels, packed) << "stride " << stride << ", x at " << xo;
+    EXPECT_EQ(st.invalid_points, (c.size() + 96) / 97);
+  }
+}
+
 TEST(VoxelGroundFilter, DeterministicForAnyThreadCount) {
   std::mt19937 rng(7);
   Cloud c;

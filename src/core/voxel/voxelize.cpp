@@ -5,6 +5,7 @@
 #endif
 
 #include <algorithm>
+#include <cstring>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -104,6 +105,42 @@ inline void v4Cells(V4 p, float inv, const std::int32_t* last, std::uint32_t* ou
 }
 #endif
 
+// Where the key pass and the gather read a point's x y z (lane 3 zero): the aligned copy made
+// by the first pass, or the input records themselves (x y z adjacent, records of at most 16
+// bytes, SSE2: no copy to write and read back; Voxelizer::prepare()).
+struct CopyPoints {
+  const float* xyz0;  // x y z 0 per input point, 16-byte aligned
+  V4 load(std::size_t i) const { return v4Load(xyz0 + 4 * i); }
+  const void* address(std::size_t i) const { return xyz0 + 4 * i; }
+  std::size_t stride() const { return 4 * sizeof(float); }
+};
+// Any layout: three scalar reads a record (first pass only; the other passes read the copy).
+struct FieldPoints {
+  CloudView view;
+  V4 load(std::size_t i) const { return v4Set(view.x(i), view.y(i), view.z(i)); }
+  const void* address(std::size_t i) const { return view.data() + i * view.stride(); }
+  std::size_t stride() const { return view.stride(); }
+};
+#if defined(__SSE2__)
+struct DirectPoints {
+  const std::uint8_t* x;  // x of record 0; record i's at x + i * step
+  std::size_t step;
+  std::size_t vector_end;  // records before this one have 16 readable bytes from x on
+  V4 load(std::size_t i) const {
+    const std::uint8_t* r = x + i * step;
+    if (i < vector_end) {  // taken for all but the last record of packed x y z clouds
+      return _mm_and_ps(_mm_loadu_ps(reinterpret_cast<const float*>(r)),
+                        _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1)));
+    }
+    float c[3];
+    std::memcpy(c, r, sizeof(c));
+    return v4Set(c[0], c[1], c[2]);
+  }
+  const void* address(std::size_t i) const { return x + i * step; }
+  std::size_t stride() const { return step; }
+};
+#endif
+
 }  // namespace
 
 namespace {
@@ -116,7 +153,6 @@ constexpr std::size_t kRunRecord = 4;
 
 // What computeKeys() needs, by value (no aliasing with the arrays it writes).
 struct KeyJob {
-  const float* pts;      // x y z 0 per input point (absolute)
   std::uint64_t* keys;   // key, or key << slot_bits | slot when packed
   std::uint32_t* order;  // slot per key (not packed)
   std::uint32_t* index;  // input index per slot (not all valid)
@@ -134,23 +170,24 @@ struct KeyJob {
 constexpr std::size_t kReadAhead = 32;
 
 // Keys (of the coordinates relative to the min corner) and digit counts of the valid points among
-// input [begin, end) (copied to job.pts by scanBounds()), written from slot `slot` on.
-// SSE2 (every x86-64): one point per vector; the arithmetic is the scalar one lane by lane.
-template <bool kPacked, bool kAllValid, int kPasses>
-void computeKeysT(const KeyJob job, std::size_t begin, std::size_t end, std::size_t slot) {
+// input [begin, end) (read from `pts`: the copy of scanBounds() or the input), written from slot
+// `slot` on. SSE2 (every x86-64): one point per vector; the arithmetic is the scalar one lane by
+// lane.
+template <bool kPacked, bool kAllValid, int kPasses, class Points>
+void computeKeysT(const KeyJob job, const Points pts, std::size_t begin, std::size_t end,
+                  std::size_t slot) {
   const std::uint32_t dmask = (1u << job.digit) - 1;
   const int passes = kPasses > 0 ? kPasses : job.passes;
   const int digit = job.digit, shift_lo = job.shift_lo, slot_bits = job.slot_bits;
   const int shift_x = job.shift_x, shift_y = job.shift_y;
   std::uint32_t* const hist = job.hist;
   std::uint32_t* const hist1 = job.hist + (std::size_t{1} << digit);
-  const float* const pts = job.pts;
   std::uint64_t* const keys = job.keys;
   const V4 vmin = v4LoadUnaligned(job.min);  // a member of the by-value job: not aligned
   std::size_t s = slot;
   for (std::size_t i = begin; i < end; ++i) {
-    prefetchAhead(pts + 4 * i, 16 * kReadAhead);
-    V4 p = v4Load(pts + 4 * i);
+    prefetchAhead(pts.address(i), kReadAhead * pts.stride());
+    V4 p = pts.load(i);
     if (!kAllValid) {
       if (!v4Finite(p)) continue;
       job.index[s] = static_cast<std::uint32_t>(i);
@@ -179,15 +216,17 @@ void computeKeysT(const KeyJob job, std::size_t begin, std::size_t end, std::siz
   }
 }
 
-void computeKeys(const KeyJob& job, std::size_t begin, std::size_t end, std::size_t slot) {
+template <class Points>
+void computeKeys(const KeyJob& job, const Points& pts, std::size_t begin, std::size_t end,
+                 std::size_t slot) {
   if (job.packed && job.all_valid && job.passes == 2) {  // the common case: one word a point
-    computeKeysT<true, true, 2>(job, begin, end, slot);
+    computeKeysT<true, true, 2>(job, pts, begin, end, slot);
   } else if (job.packed && job.all_valid) {
-    computeKeysT<true, true, 0>(job, begin, end, slot);
+    computeKeysT<true, true, 0>(job, pts, begin, end, slot);
   } else if (job.packed) {
-    computeKeysT<true, false, 0>(job, begin, end, slot);
+    computeKeysT<true, false, 0>(job, pts, begin, end, slot);
   } else {
-    computeKeysT<false, false, 0>(job, begin, end, slot);
+    computeKeysT<false, false, 0>(job, pts, begin, end, slot);
   }
 }
 
@@ -196,7 +235,6 @@ struct RunJob {
   const std::uint64_t* keys;   // sorted
   const std::uint32_t* order;  // slot per sorted key (not packed)
   const std::uint32_t* pidx;   // input index per slot (not all valid)
-  const float* pts;            // x y z 0 per input point (absolute)
   float* xyz;                  // out: x y z in key order (3 floats a point, 1 spare at the end)
   std::uint32_t* pvox;         // out: voxel of each point
   std::uint64_t* vkey;         // out: key per voxel (+ one store past the last)
@@ -214,12 +252,11 @@ struct RunJob {
 // min z. Vector ops update the sums and a running max of (x, y, z, -z) (lane 2: max z, lane 3:
 // -min z) in all lanes at once; one record and one point store instead of eight scalar streams
 // (voxelize -16 % on a KITTI frame, -34 % on a 128-beam scan). Returns the number of voxels.
-template <bool kPacked, bool kAllValid>
-std::size_t gatherRuns(const RunJob job, std::size_t n) {
+template <bool kPacked, bool kAllValid, class Points>
+std::size_t gatherRuns(const RunJob job, const Points pts, std::size_t n) {
   const std::uint64_t* const k = job.keys;
   const std::uint32_t* const o = job.order;
   const std::uint32_t* const pidx = job.pidx;
-  const float* const in = job.pts;
   float* const xyz_out = job.xyz;
   std::uint32_t* const pv = job.pvox;
   std::uint64_t* const vk = job.vkey;
@@ -231,8 +268,8 @@ std::size_t gatherRuns(const RunJob job, std::size_t n) {
   auto slotOf = [&](std::size_t i) {
     return kPacked ? static_cast<std::uint32_t>(k[i] & slot_mask) : o[i];
   };
-  auto pointOf = [&](std::uint32_t s) {
-    return in + 4 * static_cast<std::size_t>(kAllValid ? s : pidx[s]);
+  auto pointOf = [&](std::uint32_t s) {  // input index of slot s
+    return static_cast<std::size_t>(kAllValid ? s : pidx[s]);
   };
   constexpr std::size_t kAhead = 48;  // prefetch distance of the random coordinate reads
   constexpr float kInf = std::numeric_limits<float>::infinity();
@@ -244,10 +281,10 @@ std::size_t gatherRuns(const RunJob job, std::size_t n) {
   std::uint64_t prev = ~std::uint64_t{0};  // no key (keys use at most 63 bits)
   V4 sum = v4Splat(0.f), hi = v4Splat(0.f);
   for (std::size_t i = 0; i < n; ++i) {
-    if (i + kAhead < n) __builtin_prefetch(pointOf(slotOf(i + kAhead)));
+    if (i + kAhead < n) __builtin_prefetch(pts.address(pointOf(slotOf(i + kAhead))));
     const std::uint64_t key = k[i] >> low;
     // The same float subtraction as prepare()'s key pass made lane by lane (and its negation).
-    const V4 p = v4Sub(v4WithNegZ(v4Load(pointOf(slotOf(i)))), vmin);
+    const V4 p = v4Sub(v4WithNegZ(pts.load(pointOf(slotOf(i)))), vmin);
     // Four floats: the fourth lands on the next point's x, which its own store overwrites.
     v4StoreUnaligned(xyz_out + 3 * i, p);
     const bool first = key != prev;
@@ -267,43 +304,47 @@ std::size_t gatherRuns(const RunJob job, std::size_t n) {
   return nv;
 }
 
+// gatherRuns() for the key layout: [packed keys][every point valid].
+template <class Points>
+std::size_t gather(const RunJob& job, const Points& pts, bool packed, bool all_valid,
+                   std::size_t n) {
+  if (packed) {
+    return all_valid ? gatherRuns<true, true>(job, pts, n) : gatherRuns<true, false>(job, pts, n);
+  }
+  return all_valid ? gatherRuns<false, true>(job, pts, n) : gatherRuns<false, false>(job, pts, n);
+}
+
 }  // namespace
 
-void Voxelizer::scanBounds(const CloudView& cloud, float* pts, Chunk* ch) {
-  // Copies x y z (w = 0) of every input point to `pts` (one aligned vector a point for the key
-  // pass and the gather of build()) and takes the bounds of the valid ones.
-  const CloudView view = cloud;  // a local copy: stores cannot alias its fields
+void Voxelizer::scanBounds(const CloudView& cloud, const DirectRead& direct, float* pts,
+                           Chunk* ch) {
+  // Takes the bounds and the number of the valid points; with `pts`, also copies x y z (w = 0)
+  // of every input point there (one aligned vector a point for the key pass and the gather of
+  // build()).
   V4 lo = v4Splat(std::numeric_limits<float>::max());
   V4 hi = v4Splat(-std::numeric_limits<float>::max());
   std::size_t valid = 0;
-  auto add = [&](std::size_t i, V4 p) {
-    v4Store(pts + 4 * i, p);
-    if (!v4Finite(p)) return;
-    ++valid;
-    lo = v4Min(p, lo);  // p < lo ? p : lo, as the scalar code did
-    hi = v4Max(p, hi);
+  auto scan = [&](const auto& src) {
+    for (std::size_t i = ch->begin; i < ch->end; ++i) {
+      prefetchAhead(src.address(i), kReadAhead * src.stride());
+      const V4 p = src.load(i);
+      if (pts) v4Store(pts + 4 * i, p);
+      if (!v4Finite(p)) continue;
+      ++valid;
+      lo = v4Min(p, lo);  // p < lo ? p : lo, as the scalar code did
+      hi = v4Max(p, hi);
+    }
   };
-  bool copied = false;
 #if defined(__SSE2__)
-  if (view.xyzFollowedByFloat()) {  // x y z ? in every record (KITTI, PCL PointXYZ, most drivers)
-    const __m128 xyz_mask = _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1));
-    const std::uint8_t* base = view.data() + view.xOffset();
-    const std::size_t stride = view.stride();
-    for (std::size_t i = ch->begin; i < ch->end; ++i) {
-      prefetchAhead(base + i * stride, kReadAhead * stride);
-      add(i, _mm_and_ps(_mm_loadu_ps(reinterpret_cast<const float*>(base + i * stride)), xyz_mask));
-    }
-    copied = true;
+  if (direct.x) {
+    scan(DirectPoints{direct.x, direct.step, direct.vector_end});
+  } else {
+    scan(FieldPoints{cloud});
   }
+#else
+  (void)direct;
+  scan(FieldPoints{cloud});
 #endif
-  if (!copied) {
-    const std::uint8_t* base = view.data() + view.xOffset();
-    const std::size_t stride = view.stride();
-    for (std::size_t i = ch->begin; i < ch->end; ++i) {
-      prefetchAhead(base + i * stride, kReadAhead * stride);
-      add(i, v4Set(view.x(i), view.y(i), view.z(i)));
-    }
-  }
   ch->valid = valid;
   alignas(16) float l[4], h[4];
   v4Store(l, lo);
@@ -350,9 +391,27 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
     chunks_[c].begin = n_in * c / nch;
     chunks_[c].end = n_in * (c + 1) / nch;
   }
-  // Pass 1: copies of the points, bounds and number of the valid points of every chunk.
-  resizeScratch(&pxyz_, 4 * n_in);
-  pool->run(nt, nch, [&](int, int c) { scanBounds(cloud, pxyz_.data(), &chunks_[c]); });
+  // Layout: x y z adjacent in every record are read with one 16-byte load a point, except the
+  // records that have fewer than 16 bytes left from x on (the last one of packed x y z).
+  direct_ = DirectRead();
+#if defined(__SSE2__)
+  const std::size_t xo = cloud.xOffset(), step = cloud.stride();
+  if (cloud.yOffset() == xo + 4 && cloud.zOffset() == xo + 8 && xo + 12 <= step) {
+    const std::size_t bytes = n_in * step;
+    direct_.x = cloud.data() + xo;
+    direct_.step = step;
+    direct_.vector_end =
+        xo + 16 <= step ? n_in : (bytes >= xo + 16 ? (bytes - xo - 16) / step + 1 : 0);
+  }
+#endif
+  // Records of up to 16 bytes are read in place by every pass; wider ones (or x y z apart) are
+  // copied to 16 bytes a point first (a wide record read twice at random in the gather cost
+  // more than the copy: os128).
+  copy_ = direct_.x == nullptr || direct_.step > 16;
+  // Pass 1: bounds and number of the valid points of every chunk (and the copy).
+  if (copy_) resizeScratch(&pxyz_, 4 * n_in);
+  float* const copy = copy_ ? pxyz_.data() : nullptr;
+  pool->run(nt, nch, [&](int, int c) { scanBounds(cloud, direct_, copy, &chunks_[c]); });
   std::size_t n = 0;
   float lo[3], hi[3];
   lo[0] = lo[1] = lo[2] = std::numeric_limits<float>::max();
@@ -409,7 +468,6 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   const std::size_t per = static_cast<std::size_t>(plan_.passes) << plan_.digit;
   hist_.assign(per * static_cast<std::size_t>(nt), 0);
   KeyJob job;
-  job.pts = pxyz_.data();
   job.keys = g->keys.data();
   job.order = g->order.data();
   job.index = g->point_index.data();
@@ -434,7 +492,15 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   pool->run(nt, nch, [&](int t, int c) {
     KeyJob own = job;
     own.hist = job.hist + per * static_cast<std::size_t>(t);
-    computeKeys(own, chunks_[c].begin, chunks_[c].end, chunks_[c].out);
+    const Chunk& ch = chunks_[c];
+#if defined(__SSE2__)
+    if (!copy_) {
+      computeKeys(own, DirectPoints{direct_.x, direct_.step, direct_.vector_end}, ch.begin, ch.end,
+                  ch.out);
+      return;
+    }
+#endif
+    computeKeys(own, CopyPoints{pxyz_.data()}, ch.begin, ch.end, ch.out);
   });
   for (int t = 1; t < nt; ++t) {
     const std::uint32_t* h = hist_.data() + per * static_cast<std::size_t>(t);
@@ -477,7 +543,6 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   cells->used.assign(cells->count(), 0);
   const std::uint64_t* k = g->keys.data();
   const std::uint32_t* o = g->order.data();
-  const float* in = pxyz_.data();  // x y z 0 per input point (absolute)
   const bool av = g->all_valid;
   const std::uint32_t* pidx = g->point_index.data();
   float* xyz_out = g->sxyz.data();
@@ -500,13 +565,18 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   // Two passes without a branch per point or voxel. Pass 1 (gatherRuns(), specialised for the
   // key layout): coordinates in key order, voxels, running sums and z ranges.
   // Fields in RunJob's order: inputs, point outputs, voxel outputs, key layout, min corner.
-  RunJob job = {k, o, pidx, in, xyz_out, pv, vk, vs, vrec_.data(), slot_mask, low, {}};
+  RunJob job = {k, o, pidx, xyz_out, pv, vk, vs, vrec_.data(), slot_mask, low, {}};
   std::copy(min_, min_ + 3, job.min);
   job.min[3] = -min_[2];
-  using Gather = std::size_t (*)(const RunJob, std::size_t);
-  static const Gather kGather[2][2] = {{gatherRuns<false, false>, gatherRuns<false, true>},
-                                       {gatherRuns<true, false>, gatherRuns<true, true>}};
-  const std::size_t nv = kGather[pk][av](job, n);  // [packed keys][every point valid]
+  std::size_t nv;
+#if defined(__SSE2__)
+  if (!copy_) {
+    nv = gather(job, DirectPoints{direct_.x, direct_.step, direct_.vector_end}, pk, av, n);
+  } else
+#endif
+  {
+    nv = gather(job, CopyPoints{pxyz_.data()}, pk, av, n);
+  }
   g->vx.resize(nv);
   g->vy.resize(nv);
   g->vz.resize(nv);
