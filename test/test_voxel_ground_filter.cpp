@@ -68,6 +68,16 @@ Cloud planeWithBox(unsigned seed) {
   return c;
 }
 
+/// A 10 m x 10 m plane rising 10 % along x (1 cm noise) with a 1 m box standing on it.
+Cloud slopeWithBox(unsigned seed) {
+  std::mt19937 rng(seed);
+  Cloud c;
+  addSurface(
+      &c, -5, 5, -5, 5, 0.05f, [](float x, float) { return 0.1f * x; }, 0.01f, &rng);
+  addBox(&c, 1.f, 1.f, 1.f, 1.f, 0.1f, 1.f, 0.05f);
+  return c;
+}
+
 /// No non-ground point of `c` above `z_min` (there are more than `at_least`) is labelled ground.
 void expectNoGroundAbove(const Cloud& c, const std::vector<std::uint8_t>& labels, float z_min,
                          std::size_t at_least) {
@@ -397,11 +407,7 @@ TEST(VoxelGroundFilter, NaNPointsAreNonGroundAndDoNotDisturbOthers) {
 }
 
 TEST(VoxelGroundFilter, StridedViewMatchesPacked) {
-  std::mt19937 rng(6);
-  Cloud c;
-  addSurface(
-      &c, -5, 5, -5, 5, 0.05f, [](float x, float) { return 0.1f * x; }, 0.01f, &rng);
-  addBox(&c, 1.f, 1.f, 1.f, 1.f, 0.1f, 1.f, 0.05f);
+  const Cloud c = slopeWithBox(6);
   // 32-byte records, z before x and y at unaligned offsets, as a PointCloud2 may carry them.
   const std::size_t stride = 32;
   std::vector<std::uint8_t> buf(c.size() * stride, 0xAB);
@@ -420,11 +426,7 @@ TEST(VoxelGroundFilter, StridedViewMatchesPacked) {
 // the last record), wider ones through a copy: every layout, with NaN points among the others,
 // must give the packed cloud's labels.
 TEST(VoxelGroundFilter, EveryRecordLayoutGivesTheSameLabels) {
-  std::mt19937 rng(8);
-  Cloud c;
-  addSurface(
-      &c, -5, 5, -5, 5, 0.05f, [](float x, float) { return 0.1f * x; }, 0.01f, &rng);
-  addBox(&c, 1.f, 1.f, 1.f, 1.f, 0.1f, 1.f, 0.05f);
+  Cloud c = slopeWithBox(8);
   for (std::size_t i = 0; i < c.size(); i += 97) c.xyz[3 * i + (i % 3)] = std::nanf("");
   const auto packed = run(c);
   // {stride, x offset}: 16-byte loads of every record / of all but the last / via the copy.
