@@ -56,11 +56,13 @@ class CloudView {
   const std::uint8_t* data() const { return data_; }
   /// \brief Bytes from one record to the next.
   std::size_t stride() const { return stride_; }
+  /// \brief True when y and z follow x directly in every record (x y z: 12 adjacent bytes).
+  bool xyzAdjacent() const {
+    return y_offset_ == x_offset_ + 4 && z_offset_ == x_offset_ + 8 && x_offset_ + 12 <= stride_;
+  }
   /// \brief True when y and z follow x directly and 4 more bytes of every record can be read
   ///        after z (x y z and one more float: one 16-byte load a point).
-  bool xyzFollowedByFloat() const {
-    return y_offset_ == x_offset_ + 4 && z_offset_ == x_offset_ + 8 && x_offset_ + 16 <= stride_;
-  }
+  bool xyzFollowedByFloat() const { return xyzAdjacent() && x_offset_ + 16 <= stride_; }
   /// \brief Byte offset of x in a record.
   std::size_t xOffset() const { return x_offset_; }
   /// \brief Byte offset of y in a record.

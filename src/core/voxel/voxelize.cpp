@@ -123,12 +123,10 @@ struct FieldPoints {
 };
 #if defined(__SSE2__)
 struct DirectPoints {
-  const std::uint8_t* x;  // x of record 0; record i's at x + i * step
-  std::size_t step;
-  std::size_t vector_end;  // records before this one have 16 readable bytes from x on
+  Voxelizer::DirectRead d;
   V4 load(std::size_t i) const {
-    const std::uint8_t* r = x + i * step;
-    if (i < vector_end) {  // taken for all but the last record of packed x y z clouds
+    const std::uint8_t* r = d.x + i * d.step;
+    if (i < d.vector_end) {  // taken for all but the last record of packed x y z clouds
       return _mm_and_ps(_mm_loadu_ps(reinterpret_cast<const float*>(r)),
                         _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1)));
     }
@@ -136,10 +134,25 @@ struct DirectPoints {
     std::memcpy(c, r, sizeof(c));
     return v4Set(c[0], c[1], c[2]);
   }
-  const void* address(std::size_t i) const { return x + i * step; }
-  std::size_t stride() const { return step; }
+  const void* address(std::size_t i) const { return d.x + i * d.step; }
+  std::size_t stride() const { return d.step; }
 };
 #endif
+
+// Calls f with where the key pass and the gather read the points: `copy` (x y z 0 per point),
+// or the input records in place when there is no copy.
+template <class F>
+void withPoints(const Voxelizer::DirectRead& direct, const float* copy, F&& f) {
+#if defined(__SSE2__)
+  if (!copy) {
+    f(DirectPoints{direct});
+    return;
+  }
+#else
+  (void)direct;
+#endif
+  f(CopyPoints{copy});
+}
 
 }  // namespace
 
@@ -337,7 +350,7 @@ void Voxelizer::scanBounds(const CloudView& cloud, const DirectRead& direct, flo
   };
 #if defined(__SSE2__)
   if (direct.x) {
-    scan(DirectPoints{direct.x, direct.step, direct.vector_end});
+    scan(DirectPoints{direct});
   } else {
     scan(FieldPoints{cloud});
   }
@@ -395,22 +408,17 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   // records that have fewer than 16 bytes left from x on (the last one of packed x y z).
   direct_ = DirectRead();
 #if defined(__SSE2__)
-  const std::size_t xo = cloud.xOffset(), step = cloud.stride();
-  if (cloud.yOffset() == xo + 4 && cloud.zOffset() == xo + 8 && xo + 12 <= step) {
-    const std::size_t bytes = n_in * step;
+  if (cloud.xyzAdjacent()) {
+    const std::size_t xo = cloud.xOffset(), step = cloud.stride(), bytes = n_in * step;
     direct_.x = cloud.data() + xo;
     direct_.step = step;
     direct_.vector_end =
-        xo + 16 <= step ? n_in : (bytes >= xo + 16 ? (bytes - xo - 16) / step + 1 : 0);
+        cloud.xyzFollowedByFloat() ? n_in : (bytes >= xo + 16 ? (bytes - xo - 16) / step + 1 : 0);
   }
 #endif
-  // Records of up to 16 bytes are read in place by every pass; wider ones (or x y z apart) are
-  // copied to 16 bytes a point first (a wide record read twice at random in the gather cost
-  // more than the copy: os128).
-  copy_ = direct_.x == nullptr || direct_.step > 16;
-  // Pass 1: bounds and number of the valid points of every chunk (and the copy).
-  if (copy_) resizeScratch(&pxyz_, 4 * n_in);
-  float* const copy = copy_ ? pxyz_.data() : nullptr;
+  // Pass 1: bounds and number of the valid points of every chunk (and the copy, copied()).
+  if (copied()) resizeScratch(&pxyz_, 4 * n_in);
+  float* const copy = copied() ? pxyz_.data() : nullptr;
   pool->run(nt, nch, [&](int, int c) { scanBounds(cloud, direct_, copy, &chunks_[c]); });
   std::size_t n = 0;
   float lo[3], hi[3];
@@ -493,14 +501,8 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
     KeyJob own = job;
     own.hist = job.hist + per * static_cast<std::size_t>(t);
     const Chunk& ch = chunks_[c];
-#if defined(__SSE2__)
-    if (!copy_) {
-      computeKeys(own, DirectPoints{direct_.x, direct_.step, direct_.vector_end}, ch.begin, ch.end,
-                  ch.out);
-      return;
-    }
-#endif
-    computeKeys(own, CopyPoints{pxyz_.data()}, ch.begin, ch.end, ch.out);
+    withPoints(direct_, copy,
+               [&](const auto& pts) { computeKeys(own, pts, ch.begin, ch.end, ch.out); });
   });
   for (int t = 1; t < nt; ++t) {
     const std::uint32_t* h = hist_.data() + per * static_cast<std::size_t>(t);
@@ -568,15 +570,9 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   RunJob job = {k, o, pidx, xyz_out, pv, vk, vs, vrec_.data(), slot_mask, low, {}};
   std::copy(min_, min_ + 3, job.min);
   job.min[3] = -min_[2];
-  std::size_t nv;
-#if defined(__SSE2__)
-  if (!copy_) {
-    nv = gather(job, DirectPoints{direct_.x, direct_.step, direct_.vector_end}, pk, av, n);
-  } else
-#endif
-  {
-    nv = gather(job, CopyPoints{pxyz_.data()}, pk, av, n);
-  }
+  std::size_t nv = 0;
+  withPoints(direct_, copied() ? pxyz_.data() : nullptr,
+             [&](const auto& pts) { nv = gather(job, pts, pk, av, n); });
   g->vx.resize(nv);
   g->vy.resize(nv);
   g->vz.resize(nv);

@@ -19,6 +19,13 @@ namespace voxel {
 ///        builds the voxels, their flags, cells and the columns of a VoxelGrid.
 class Voxelizer {
  public:
+  /// \brief x y z adjacent in every record: the passes can read them with one 16-byte load a
+  ///        point.
+  struct DirectRead {
+    const std::uint8_t* x = nullptr;  // x of record 0 (null: another layout)
+    std::size_t step = 0;             // bytes from one record to the next
+    std::size_t vector_end = 0;       // records before this one have 16 bytes from x on
+  };
   /// \brief prepare()'s answer when a valid point may lie outside the volume.
   static constexpr std::size_t kOutside = ~std::size_t{0};
   /// \brief Finds the valid points and their bounds, sizes the key layout of `g` and computes
@@ -40,22 +47,17 @@ class Voxelizer {
     std::size_t begin = 0, end = 0, valid = 0, out = 0;  // input range, valid points, first slot
     float lo[3], hi[3];                                  // bounds of its valid points
   };
-  /// x y z adjacent in every record: the passes can read them with one 16-byte load a point.
-  struct DirectRead {
-    const std::uint8_t* x = nullptr;  // x of record 0 (null: another layout)
-    std::size_t step = 0;             // bytes from one record to the next
-    std::size_t vector_end = 0;       // records before this one have 16 bytes from x on
-  };
   static void scanBounds(const CloudView& cloud, const DirectRead& direct, float* pts, Chunk* ch);
   void sort(VoxelGrid* g);
 
   // x y z 0 per input point (16-byte aligned vectors), absolute: build() subtracts min_ as it
   // gathers the valid points (one write of the copy fewer than storing relative coordinates).
-  // Made only for records of more than 16 bytes or with x y z apart (copy_); records of 12-16
-  // bytes with x y z adjacent (packed x y z, KITTI's x y z intensity) are read in place.
+  // Made only for records of more than 16 bytes or with x y z apart (copied()); records of
+  // 12-16 bytes with x y z adjacent (packed x y z, KITTI's x y z intensity) are read in place
+  // (a wide record read twice at random in the gather cost more than the copy: os128).
   std::vector<float> pxyz_;
-  bool copy_ = true;
-  DirectRead direct_;               // this scan's layout (prepare(); build() reads the same cloud)
+  DirectRead direct_;  // this scan's layout (prepare(); build() reads the same cloud)
+  bool copied() const { return direct_.x == nullptr || direct_.step > 16; }
   float min_[3] = {0.f, 0.f, 0.f};  // min corner of the valid points
   std::vector<Chunk> chunks_;
   Buffer<float> vrec_;  // build(): sums and z range per voxel (gatherRuns())
