@@ -446,6 +446,25 @@ TEST(VoxelGroundFilter, EveryRecordLayoutGivesTheSameLabels) {
   }
 }
 
+// The layout tests the voxel filter picks its reads by (the layouts of the test above).
+TEST(CloudView, XyzAdjacentAndFollowedByFloat) {
+  std::vector<std::uint8_t> buf(64, 0);
+  auto view = [&](std::size_t stride, std::size_t xo, std::size_t yo, std::size_t zo) {
+    return gf::CloudView(buf.data(), 2, stride, xo, yo, zo);
+  };
+  const gf::CloudView packed = gf::CloudView::packedXyz(reinterpret_cast<float*>(buf.data()), 2);
+  EXPECT_TRUE(packed.xyzAdjacent());
+  EXPECT_FALSE(packed.xyzFollowedByFloat());  // 12-byte records: no float after z
+  EXPECT_TRUE(view(16, 0, 4, 8).xyzAdjacent());
+  EXPECT_TRUE(view(16, 0, 4, 8).xyzFollowedByFloat());
+  EXPECT_TRUE(view(16, 4, 8, 12).xyzAdjacent());
+  EXPECT_FALSE(view(16, 4, 8, 12).xyzFollowedByFloat());
+  EXPECT_TRUE(view(24, 4, 8, 12).xyzFollowedByFloat());
+  EXPECT_FALSE(view(32, 9, 13, 1).xyzAdjacent());  // z before x
+  EXPECT_FALSE(view(32, 9, 13, 1).xyzFollowedByFloat());
+  EXPECT_FALSE(view(16, 8, 12, 16).xyzAdjacent());  // z past the record
+}
+
 TEST(VoxelGroundFilter, DeterministicForAnyThreadCount) {
   std::mt19937 rng(7);
   Cloud c;
