@@ -19,7 +19,7 @@ set(GF_CORE_SOURCES)
 gf_core_room(. filter_factory param_parse plane_fit working_volume morph_ground)
 # voxel method: the filter and its parameter table, one file per stage, the paper mode
 gf_core_room(. voxel_ground_filter voxel_ground_filter_params paper_normalisation)
-gf_core_room(voxel voxelize segments ground_model classify vote vegetation worker_pool)
+gf_core_room(voxel voxelize avx2_passes segments ground_model classify vote vegetation worker_pool)
 # normal method: the filter and its parameter table, one file per stage
 gf_core_room(. normal_ground_filter normal_ground_filter_params)
 gf_core_room(normal order neighborhoods neighborhood_pca vote plane vegetation classify)

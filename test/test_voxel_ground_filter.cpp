@@ -17,6 +17,8 @@
 #include "gf_test_scenes.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/voxel_ground_filter.h"
+#include "voxel/avx2_passes.h"
+#include "voxel/voxelize.h"
 
 namespace gf = ground_filter;
 
@@ -731,4 +733,83 @@ TEST(VoxelGroundFilterKitti, PooledF1AboveFloor) {
   RecordProperty("pooled_f1", std::to_string(f1));
   // Floor = measured pooled F1 with the defaults minus one point (docs/evaluation.md).
   EXPECT_GE(f1, kVoxelF1Floor);
+}
+
+namespace {
+
+// Everything build() leaves in a VoxelGrid (and the unsorted keys of prepare()), as bytes.
+std::vector<std::vector<std::uint8_t>> gridBytes(const gf::CloudView& view, int threads,
+                                                 bool avx2) {
+  gf::voxel::Voxelizer vz;
+  vz.setUseAvx2(avx2);
+  gf::voxel::VoxelGrid g;
+  gf::voxel::CellGrid cells;
+  gf::voxel::WorkerPool pool;
+  const gf::VoxelGroundFilterParams p;
+  const std::size_t n = vz.prepare(view, p.voxel_size, threads, &pool, nullptr, &g);
+  auto bytes = [](const auto& v, std::size_t count) {
+    const auto* b = reinterpret_cast<const std::uint8_t*>(v.data());
+    return std::vector<std::uint8_t>(b, b + count * sizeof(v[0]));
+  };
+  std::vector<std::vector<std::uint8_t>> out;
+  const std::vector<std::uint64_t> dims = {n, g.nx, g.ny, g.nz};
+  out.push_back(bytes(dims, 4));
+  out.push_back(bytes(g.keys, g.keys.size()));
+  cells.setup(p, g.nx, g.ny);
+  vz.build(p, &g, &cells);
+  out.push_back(bytes(g.keys, g.keys.size()));
+  out.push_back(bytes(g.sxyz, 3 * n));
+  out.push_back(bytes(g.vx, g.vx.size()));
+  out.push_back(bytes(g.vy, g.vy.size()));
+  out.push_back(bytes(g.vz, g.vz.size()));
+  out.push_back(bytes(g.vflags, g.vflags.size()));
+  out.push_back(bytes(g.vstart, g.vstart.size()));
+  out.push_back(bytes(g.flat, g.flat.size()));
+  out.push_back(bytes(g.seeds, g.seeds.size()));
+  return out;
+}
+
+}  // namespace
+
+// The AVX2 passes (bounds, keys, centroids) give the SSE2 passes' grid bit for bit: every record
+// layout they read, clouds with and without NaN points (NaNs inside blocks of eight), sizes that
+// leave a scalar tail, and two threads (chunk bounds that are not multiples of eight).
+TEST(Voxelizer, Avx2PassesGiveTheSse2Grid) {
+  if (!gf::voxel::cpuHasAvx2()) GTEST_SKIP() << "this CPU or build has no AVX2";
+  Cloud valid_large = largeScene(false);
+  for (float& v : valid_large.xyz) v = std::isnan(v) ? 0.5f : v;
+  Cloud with_nan = slopeWithBox(9);
+  for (std::size_t i = 5; i < with_nan.size(); i += 89) with_nan.xyz[3 * i + (i % 3)] = NAN;
+  with_nan.xyz[3 * 7 + 1] = INFINITY;
+  with_nan.xyz[3 * 11] = -INFINITY;
+  Cloud small = slopeWithBox(8);
+  for (Cloud* c : {&valid_large, &with_nan, &small}) {
+    if (c->size() % 8 == 0) c->add(0.5f, 0.5f, 0.5f, false);  // a scalar tail
+  }
+  struct Case {
+    const Cloud* cloud;
+    int threads;
+  };
+  const Case cases[] = {{&small, 1}, {&with_nan, 1}, {&valid_large, 2}, {&valid_large, 1}};
+  // {stride, x offset}: 16-byte records read in place (every one / all but the last), packed
+  // x y z (12 bytes), and the aligned copy of wider records.
+  const std::size_t layouts[4][2] = {{16, 0}, {16, 4}, {12, 0}, {24, 4}};
+  for (const Case& cs : cases) {
+    const Cloud& c = *cs.cloud;
+    for (const auto& l : layouts) {
+      const std::size_t stride = l[0], xo = l[1];
+      std::vector<std::uint8_t> buf(c.size() * stride, 0xFF);  // the bytes around x y z: NaN
+      for (std::size_t i = 0; i < c.size(); ++i) {
+        std::memcpy(&buf[i * stride + xo], &c.xyz[3 * i], 12);
+      }
+      const gf::CloudView view(buf.data(), c.size(), stride, xo, xo + 4, xo + 8);
+      const auto sse2 = gridBytes(view, cs.threads, false);
+      const auto avx2 = gridBytes(view, cs.threads, true);
+      ASSERT_EQ(sse2.size(), avx2.size());
+      for (std::size_t k = 0; k < sse2.size(); ++k) {
+        EXPECT_TRUE(sse2[k] == avx2[k]) << "array " << k << ", " << c.size() << " points, stride "
+                                        << stride << ", x at " << xo << ", threads " << cs.threads;
+      }
+    }
+  }
 }

@@ -13,6 +13,7 @@
 #include "huge_pages.h"
 #include "prefetch.h"
 #include "radix_sort.h"
+#include "voxel/avx2_passes.h"
 
 namespace ground_filter {
 namespace voxel {
@@ -113,6 +114,8 @@ struct CopyPoints {
   V4 load(std::size_t i) const { return v4Load(xyz0 + 4 * i); }
   const void* address(std::size_t i) const { return xyz0 + 4 * i; }
   std::size_t stride() const { return 4 * sizeof(float); }
+  Rows16 rows16() const { return Rows16{reinterpret_cast<const std::uint8_t*>(xyz0), 16}; }
+  std::size_t rows16End() const { return ~std::size_t{0}; }  // every record
 };
 // Any layout: three scalar reads a record (first pass only; the other passes read the copy).
 struct FieldPoints {
@@ -136,6 +139,8 @@ struct DirectPoints {
   }
   const void* address(std::size_t i) const { return d.x + i * d.step; }
   std::size_t stride() const { return d.step; }
+  Rows16 rows16() const { return Rows16{d.x, d.step}; }
+  std::size_t rows16End() const { return d.vector_end; }
 };
 #endif
 
@@ -163,20 +168,6 @@ namespace {
 constexpr std::uint32_t kSeedClearanceVoxels = 3;
 // Floats of gatherRuns()'s record per voxel: sums of x, y, z and max z - min z.
 constexpr std::size_t kRunRecord = 4;
-
-// What computeKeys() needs, by value (no aliasing with the arrays it writes).
-struct KeyJob {
-  std::uint64_t* keys;   // key, or key << slot_bits | slot when packed
-  std::uint32_t* order;  // slot per key (not packed)
-  std::uint32_t* index;  // input index per slot (not all valid)
-  std::uint32_t* hist;   // digit counts of every radix pass
-  float min[4];
-  float inv_vs;
-  std::int32_t last[4];  // voxels per axis - 1
-  int shift_x, shift_y;
-  int passes, digit, shift_lo, slot_bits;
-  bool packed, all_valid;
-};
 
 // Sequential passes over the points prefetch this many points ahead (prefetchAhead(); TLS 5 M:
 // 47 % of the key pass's samples had been on its load).
@@ -231,7 +222,13 @@ void computeKeysT(const KeyJob job, const Points pts, std::size_t begin, std::si
 
 template <class Points>
 void computeKeys(const KeyJob& job, const Points& pts, std::size_t begin, std::size_t end,
-                 std::size_t slot) {
+                 std::size_t slot, bool avx2) {
+  if (avx2 && job.packed && job.all_valid) {  // blocks of eight points, the rest below
+    const std::size_t stop =
+        computeKeysAvx2(job, pts.rows16(), begin, std::min(end, pts.rows16End()), slot);
+    slot += stop - begin;
+    begin = stop;
+  }
   if (job.packed && job.all_valid && job.passes == 2) {  // the common case: one word a point
     computeKeysT<true, true, 2>(job, pts, begin, end, slot);
   } else if (job.packed && job.all_valid) {
@@ -329,7 +326,7 @@ std::size_t gather(const RunJob& job, const Points& pts, bool packed, bool all_v
 
 }  // namespace
 
-void Voxelizer::scanBounds(const CloudView& cloud, const DirectRead& direct, float* pts,
+void Voxelizer::scanBounds(const CloudView& cloud, const DirectRead& direct, float* pts, bool avx2,
                            Chunk* ch) {
   // Takes the bounds and the number of the valid points; with `pts`, also copies x y z (w = 0)
   // of every input point there (one aligned vector a point for the key pass and the gather of
@@ -337,8 +334,22 @@ void Voxelizer::scanBounds(const CloudView& cloud, const DirectRead& direct, flo
   V4 lo = v4Splat(std::numeric_limits<float>::max());
   V4 hi = v4Splat(-std::numeric_limits<float>::max());
   std::size_t valid = 0;
+  std::size_t first = ch->begin;  // first record of the scalar loop
+#if defined(__SSE2__)
+  if (avx2 && direct.x && !pts) {  // blocks of eight records, the rest below
+    alignas(16) float l[4], h[4];
+    v4Store(l, lo);
+    v4Store(h, hi);
+    first = scanBoundsAvx2(Rows16{direct.x, direct.step}, first,
+                           std::min(ch->end, direct.vector_end), l, h, &valid);
+    lo = v4Load(l);
+    hi = v4Load(h);
+  }
+#else
+  (void)avx2;
+#endif
   auto scan = [&](const auto& src) {
-    for (std::size_t i = ch->begin; i < ch->end; ++i) {
+    for (std::size_t i = first; i < ch->end; ++i) {
       prefetchAhead(src.address(i), kReadAhead * src.stride());
       const V4 p = src.load(i);
       if (pts) v4Store(pts + 4 * i, p);
@@ -419,7 +430,7 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   // Pass 1: bounds and number of the valid points of every chunk (and the copy, copied()).
   if (copied()) resizeScratch(&pxyz_, 4 * n_in);
   float* const copy = copied() ? pxyz_.data() : nullptr;
-  pool->run(nt, nch, [&](int, int c) { scanBounds(cloud, direct_, copy, &chunks_[c]); });
+  pool->run(nt, nch, [&](int, int c) { scanBounds(cloud, direct_, copy, use_avx2_, &chunks_[c]); });
   std::size_t n = 0;
   float lo[3], hi[3];
   lo[0] = lo[1] = lo[2] = std::numeric_limits<float>::max();
@@ -501,8 +512,9 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
     KeyJob own = job;
     own.hist = job.hist + per * static_cast<std::size_t>(t);
     const Chunk& ch = chunks_[c];
-    withPoints(direct_, copy,
-               [&](const auto& pts) { computeKeys(own, pts, ch.begin, ch.end, ch.out); });
+    withPoints(direct_, copy, [&](const auto& pts) {
+      computeKeys(own, pts, ch.begin, ch.end, ch.out, use_avx2_);
+    });
   });
   for (int t = 1; t < nt; ++t) {
     const std::uint32_t* h = hist_.data() + per * static_cast<std::size_t>(t);
@@ -597,7 +609,8 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   vs[nv] = static_cast<std::uint32_t>(n);
   // Pass 2, per voxel: centroids (a loop of its own; counts are below 2^31, so the signed
   // conversion is exact), then column, cell, flags and the flat / seed lists.
-  for (std::size_t v = 0; v < nv; ++v) {
+  const std::size_t v_scalar = use_avx2_ ? centroidsAvx2(rec, vs, nv, vx, vy, vz) : 0;
+  for (std::size_t v = v_scalar; v < nv; ++v) {
     const float inv = 1.f / static_cast<float>(static_cast<std::int32_t>(vs[v + 1] - vs[v]));
     vx[v] = rec[kRunRecord * v] * inv;
     vy[v] = rec[kRunRecord * v + 1] * inv;

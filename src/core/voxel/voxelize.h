@@ -9,6 +9,7 @@
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/voxel_ground_filter.h"
 #include "ground_filter/working_volume.h"
+#include "voxel/avx2_passes.h"
 #include "voxel/voxel_grid.h"
 #include "voxel/worker_pool.h"
 
@@ -37,6 +38,10 @@ class Voxelizer {
   /// \brief Sorts the keys and fills the points, voxels, columns, `flat` and `seeds` of `g`;
   ///        marks the cells holding voxels in `cells`.
   void build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* cells);
+  /// \brief Whether prepare() and build() run their AVX2 passes (default: where the CPU has AVX2);
+  ///        tests compare both paths. Ignored without AVX2.
+  void setUseAvx2(bool use) { use_avx2_ = use && cpuHasAvx2(); }
+  bool usesAvx2() const { return use_avx2_; }
 
  private:
   struct RadixPlan {
@@ -47,7 +52,8 @@ class Voxelizer {
     std::size_t begin = 0, end = 0, valid = 0, out = 0;  // input range, valid points, first slot
     float lo[3], hi[3];                                  // bounds of its valid points
   };
-  static void scanBounds(const CloudView& cloud, const DirectRead& direct, float* pts, Chunk* ch);
+  static void scanBounds(const CloudView& cloud, const DirectRead& direct, float* pts, bool avx2,
+                         Chunk* ch);
   void sort(VoxelGrid* g);
 
   // x y z 0 per input point (16-byte aligned vectors), absolute: build() subtracts min_ as it
@@ -56,6 +62,7 @@ class Voxelizer {
   // 12-16 bytes with x y z adjacent (packed x y z, KITTI's x y z intensity) are read in place
   // (a wide record read twice at random in the gather cost more than the copy: os128).
   std::vector<float> pxyz_;
+  bool use_avx2_ = cpuHasAvx2();
   DirectRead direct_;  // this scan's layout (prepare(); build() reads the same cloud)
   bool copied() const { return direct_.x == nullptr || direct_.step > 16; }
   float min_[3] = {0.f, 0.f, 0.f};  // min corner of the valid points

@@ -1,0 +1,228 @@
+#include "voxel/avx2_passes.h"
+
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#define GF_HAVE_AVX2 1
+#define GF_TARGET_AVX2 __attribute__((target("avx2")))
+#else
+#define GF_HAVE_AVX2 0
+#endif
+
+namespace ground_filter {
+namespace voxel {
+
+#if GF_HAVE_AVX2
+
+namespace {
+
+// Points read this many records ahead (as the SSE2 passes do).
+constexpr std::size_t kReadAhead = 32;
+
+GF_TARGET_AVX2 inline void prefetchBlock(const std::uint8_t* r, std::size_t step) {
+  for (std::size_t b = 0; b < 8 * step; b += 64) {
+    __builtin_prefetch(r + kReadAhead * step + b);
+  }
+}
+
+// Records i and i + 4 of a block in the low and high half.
+GF_TARGET_AVX2 inline __m256 pairOf(const std::uint8_t* r, std::size_t step, std::size_t k) {
+  const __m128 a = _mm_loadu_ps(reinterpret_cast<const float*>(r + k * step));
+  const __m128 b = _mm_loadu_ps(reinterpret_cast<const float*>(r + (k + 4) * step));
+  return _mm256_insertf128_ps(_mm256_castps128_ps256(a), b, 1);
+}
+
+// min(int((v - lo) * inv), last) per lane: the SSE2 key pass's float arithmetic (a subtraction,
+// then a product: nothing to fuse) and its clamp (v >= lo, so the cell is >= 0).
+GF_TARGET_AVX2 inline __m256i cellsOf(__m256 v, float lo, float inv, std::int32_t last) {
+  const __m256 rel = _mm256_sub_ps(v, _mm256_set1_ps(lo));
+  const __m256i q = _mm256_cvttps_epi32(_mm256_mul_ps(rel, _mm256_set1_ps(inv)));
+  return _mm256_min_epi32(q, _mm256_set1_epi32(last));
+}
+
+// (ix << sx | iy << sy | iz) << slot_bits | slot of four points (cells: 32-bit lanes).
+GF_TARGET_AVX2 inline __m256i wordsOf(__m128i ix, __m128i iy, __m128i iz, __m128i sx, __m128i sy,
+                                      __m128i sb, __m256i slots) {
+  const __m256i key =
+      _mm256_or_si256(_mm256_or_si256(_mm256_sll_epi64(_mm256_cvtepu32_epi64(ix), sx),
+                                      _mm256_sll_epi64(_mm256_cvtepu32_epi64(iy), sy)),
+                      _mm256_cvtepu32_epi64(iz));
+  return _mm256_or_si256(_mm256_sll_epi64(key, sb), slots);
+}
+
+// Digits of radix passes 0 and 1 of four words: digit 0 in the low, digit 1 in the high half.
+GF_TARGET_AVX2 inline __m256i digitsOf(__m256i word, __m128i lo, __m128i digit, __m256i dmask) {
+  const __m256i t = _mm256_srl_epi64(word, lo);
+  const __m256i d0 = _mm256_and_si256(t, dmask);
+  const __m256i d1 = _mm256_and_si256(_mm256_srl_epi64(t, digit), dmask);
+  return _mm256_or_si256(d0, _mm256_slli_epi64(d1, 32));
+}
+
+GF_TARGET_AVX2 std::size_t keysAvx2(const KeyJob& job, Rows16 rows, std::size_t begin,
+                                    std::size_t end, std::size_t slot) {
+  const int passes = job.passes, digit = job.digit;
+  const std::uint32_t dmask = (1u << digit) - 1;
+  std::uint32_t* const hist = job.hist;
+  std::uint32_t* const hist1 = job.hist + (std::size_t{1} << digit);
+  std::uint64_t* const keys = job.keys;
+  const std::size_t step = rows.step;
+  const __m128i sx = _mm_cvtsi32_si128(job.shift_x), sy = _mm_cvtsi32_si128(job.shift_y);
+  const __m128i sb = _mm_cvtsi32_si128(job.slot_bits), lo = _mm_cvtsi32_si128(job.shift_lo);
+  const __m128i dg = _mm_cvtsi32_si128(digit);
+  const __m256i dm = _mm256_set1_epi64x(dmask);
+  const __m256i eight = _mm256_set1_epi64x(8);
+  __m256i slots0 = _mm256_add_epi64(_mm256_set1_epi64x(static_cast<long long>(slot)),
+                                    _mm256_set_epi64x(3, 2, 1, 0));
+  __m256i slots1 = _mm256_add_epi64(slots0, _mm256_set1_epi64x(4));
+  alignas(32) std::uint64_t dig[8];
+  std::size_t i = begin, s = slot;
+  for (; i + 8 <= end; i += 8, s += 8) {
+    const std::uint8_t* r = rows.x + i * step;
+    prefetchBlock(r, step);
+    // x y z of eight records as three vectors (a 4 x 4 transpose per 128-bit half).
+    const __m256 r0 = pairOf(r, step, 0), r1 = pairOf(r, step, 1);
+    const __m256 r2 = pairOf(r, step, 2), r3 = pairOf(r, step, 3);
+    const __m256 t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpacklo_ps(r2, r3);
+    const __m256 t2 = _mm256_unpackhi_ps(r0, r1), t3 = _mm256_unpackhi_ps(r2, r3);
+    const __m256 x = _mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(1, 0, 1, 0));
+    const __m256 y = _mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(3, 2, 3, 2));
+    const __m256 z = _mm256_shuffle_ps(t2, t3, _MM_SHUFFLE(1, 0, 1, 0));
+    const __m256i cx = cellsOf(x, job.min[0], job.inv_vs, job.last[0]);
+    const __m256i cy = cellsOf(y, job.min[1], job.inv_vs, job.last[1]);
+    const __m256i cz = cellsOf(z, job.min[2], job.inv_vs, job.last[2]);
+    const __m256i w0 = wordsOf(_mm256_castsi256_si128(cx), _mm256_castsi256_si128(cy),
+                               _mm256_castsi256_si128(cz), sx, sy, sb, slots0);
+    const __m256i w1 = wordsOf(_mm256_extracti128_si256(cx, 1), _mm256_extracti128_si256(cy, 1),
+                               _mm256_extracti128_si256(cz, 1), sx, sy, sb, slots1);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(keys + s), w0);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(keys + s + 4), w1);
+    slots0 = _mm256_add_epi64(slots0, eight);
+    slots1 = _mm256_add_epi64(slots1, eight);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(dig), digitsOf(w0, lo, dg, dm));
+    _mm256_store_si256(reinterpret_cast<__m256i*>(dig + 4), digitsOf(w1, lo, dg, dm));
+    for (int j = 0; j < 8; ++j) ++hist[static_cast<std::uint32_t>(dig[j])];
+    if (passes > 1) {
+      for (int j = 0; j < 8; ++j) ++hist1[dig[j] >> 32];
+    }
+    for (int q2 = 2; q2 < passes; ++q2) {
+      for (int j = 0; j < 8; ++j) {
+        const std::uint64_t word = keys[s + j] >> job.shift_lo;
+        ++hist[(static_cast<std::size_t>(q2) << digit) + ((word >> (q2 * digit)) & dmask)];
+      }
+    }
+  }
+  return i;
+}
+
+GF_TARGET_AVX2 std::size_t boundsAvx2(Rows16 rows, std::size_t begin, std::size_t end,
+                                      float lo_out[4], float hi_out[4], std::size_t* valid) {
+  const std::size_t step = rows.step;
+  // Four running minima and maxima (one per pair of records: no chain of dependent min/max);
+  // min(p, lo) is p < lo ? p : lo, as in the SSE2 pass.
+  __m256 lo[4], hi[4];
+  for (int k = 0; k < 4; ++k) {
+    lo[k] = _mm256_castps128_ps256(_mm_loadu_ps(lo_out));
+    lo[k] = _mm256_insertf128_ps(lo[k], _mm_loadu_ps(lo_out), 1);
+    hi[k] = _mm256_castps128_ps256(_mm_loadu_ps(hi_out));
+    hi[k] = _mm256_insertf128_ps(hi[k], _mm_loadu_ps(hi_out), 1);
+  }
+  std::size_t n = 0, i = begin;
+  const __m256 zero = _mm256_setzero_ps();
+  for (; i + 8 <= end; i += 8) {
+    const std::uint8_t* r = rows.x + i * step;
+    prefetchBlock(r, step);
+    __m256 p[4];
+    int m[4];
+    for (int k = 0; k < 4; ++k) {
+      p[k] = pairOf(r, step, k);
+      // x - x is 0 for finite x, NaN for NaN/Inf; lanes 0-2 of both halves (lane 3 is not x y z).
+      m[k] = _mm256_movemask_ps(_mm256_cmp_ps(_mm256_sub_ps(p[k], p[k]), zero, _CMP_EQ_OQ));
+    }
+    if ((m[0] & m[1] & m[2] & m[3] & 0x77) == 0x77) {
+      for (int k = 0; k < 4; ++k) {
+        lo[k] = _mm256_min_ps(p[k], lo[k]);
+        hi[k] = _mm256_max_ps(p[k], hi[k]);
+      }
+      n += 8;
+      continue;
+    }
+    // A block with a non-finite point: record by record (pair k holds records k and k + 4).
+    for (int k = 0; k < 4; ++k) {
+      const int a = (m[k] & 7) == 7 ? -1 : 0, b = (m[k] & 0x70) == 0x70 ? -1 : 0;
+      const __m256 keep = _mm256_castsi256_ps(_mm256_set_epi32(b, b, b, b, a, a, a, a));
+      lo[k] = _mm256_blendv_ps(lo[k], _mm256_min_ps(p[k], lo[k]), keep);
+      hi[k] = _mm256_blendv_ps(hi[k], _mm256_max_ps(p[k], hi[k]), keep);
+      n += static_cast<std::size_t>(-a - b);
+    }
+  }
+  // Both halves of the four accumulators into the caller's x y z (lane 3 is not used).
+  __m256 l = _mm256_min_ps(_mm256_min_ps(lo[0], lo[1]), _mm256_min_ps(lo[2], lo[3]));
+  __m256 h = _mm256_max_ps(_mm256_max_ps(hi[0], hi[1]), _mm256_max_ps(hi[2], hi[3]));
+  _mm_storeu_ps(lo_out, _mm_min_ps(_mm256_castps256_ps128(l), _mm256_extractf128_ps(l, 1)));
+  _mm_storeu_ps(hi_out, _mm_max_ps(_mm256_castps256_ps128(h), _mm256_extractf128_ps(h, 1)));
+  *valid += n;
+  return i;
+}
+
+GF_TARGET_AVX2 std::size_t centroids(const float* rec, const std::uint32_t* vstart, std::size_t nv,
+                                     float* vx, float* vy, float* vz) {
+  std::size_t v = 0;
+  const __m256 one = _mm256_set1_ps(1.f);
+  for (; v + 8 <= nv; v += 8) {
+    // 1 / count (counts are below 2^31: the signed conversion is exact), as the scalar pass.
+    const __m256i c0 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(vstart + v));
+    const __m256i c1 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(vstart + v + 1));
+    const __m256 inv = _mm256_div_ps(one, _mm256_cvtepi32_ps(_mm256_sub_epi32(c1, c0)));
+    const std::uint8_t* r = reinterpret_cast<const std::uint8_t*>(rec + 4 * v);
+    const __m256 r0 = pairOf(r, 16, 0), r1 = pairOf(r, 16, 1);
+    const __m256 r2 = pairOf(r, 16, 2), r3 = pairOf(r, 16, 3);
+    const __m256 t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpacklo_ps(r2, r3);
+    const __m256 t2 = _mm256_unpackhi_ps(r0, r1), t3 = _mm256_unpackhi_ps(r2, r3);
+    _mm256_storeu_ps(vx + v,
+                     _mm256_mul_ps(_mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(1, 0, 1, 0)), inv));
+    _mm256_storeu_ps(vy + v,
+                     _mm256_mul_ps(_mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(3, 2, 3, 2)), inv));
+    _mm256_storeu_ps(vz + v,
+                     _mm256_mul_ps(_mm256_shuffle_ps(t2, t3, _MM_SHUFFLE(1, 0, 1, 0)), inv));
+  }
+  return v;
+}
+
+}  // namespace
+
+bool cpuHasAvx2() { return __builtin_cpu_supports("avx2"); }
+
+std::size_t computeKeysAvx2(const KeyJob& job, Rows16 rows, std::size_t begin, std::size_t end,
+                            std::size_t slot) {
+  return keysAvx2(job, rows, begin, end, slot);
+}
+
+std::size_t scanBoundsAvx2(Rows16 rows, std::size_t begin, std::size_t end, float lo[4],
+                           float hi[4], std::size_t* valid) {
+  return boundsAvx2(rows, begin, end, lo, hi, valid);
+}
+
+std::size_t centroidsAvx2(const float* rec, const std::uint32_t* vstart, std::size_t nv, float* vx,
+                          float* vy, float* vz) {
+  return centroids(rec, vstart, nv, vx, vy, vz);
+}
+
+#else  // no AVX2 build (aarch64: Jetson): never called, cpuHasAvx2() is false
+
+bool cpuHasAvx2() { return false; }
+
+std::size_t computeKeysAvx2(const KeyJob&, Rows16, std::size_t begin, std::size_t, std::size_t) {
+  return begin;
+}
+
+std::size_t scanBoundsAvx2(Rows16, std::size_t begin, std::size_t, float*, float*, std::size_t*) {
+  return begin;
+}
+
+std::size_t centroidsAvx2(const float*, const std::uint32_t*, std::size_t, float*, float*, float*) {
+  return 0;
+}
+
+#endif
+
+}  // namespace voxel
+}  // namespace ground_filter

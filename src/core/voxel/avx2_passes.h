@@ -1,0 +1,58 @@
+// Private to the voxel filter: AVX2 versions of passes of the Voxelizer over the points (bounds,
+// voxel keys) and the voxels (centroids), eight a step. Compiled with a function target attribute
+// and chosen at run time (Voxelizer::setUseAvx2()), so the package still runs on any x86-64; the
+// arithmetic is the SSE2 code's lane by lane (same keys, same bounds).
+#ifndef GROUND_FILTER_SRC_CORE_VOXEL_AVX2_PASSES_H
+#define GROUND_FILTER_SRC_CORE_VOXEL_AVX2_PASSES_H
+
+#include <cstddef>
+#include <cstdint>
+
+namespace ground_filter {
+namespace voxel {
+
+/// \brief What the key pass needs, by value (no aliasing with the arrays it writes).
+struct KeyJob {
+  std::uint64_t* keys;   // key, or key << slot_bits | slot when packed
+  std::uint32_t* order;  // slot per key (not packed)
+  std::uint32_t* index;  // input index per slot (not all valid)
+  std::uint32_t* hist;   // digit counts of every radix pass
+  float min[4];
+  float inv_vs;
+  std::int32_t last[4];  // voxels per axis - 1
+  int shift_x, shift_y;
+  int passes, digit, shift_lo, slot_bits;
+  bool packed, all_valid;
+};
+
+/// \brief Records with x y z adjacent and 16 readable bytes from x on, `step` bytes apart.
+struct Rows16 {
+  const std::uint8_t* x;  // x of record 0
+  std::size_t step;
+};
+
+/// \brief Whether this build has the AVX2 passes and this CPU runs them.
+bool cpuHasAvx2();
+
+/// \brief Packed keys (job.packed, every point valid) and their digit counts of records [begin,
+///        end) of `rows`, written from slot `slot` on, in blocks of eight. Returns the first record
+///        not done (the rest, fewer than eight, is the caller's).
+std::size_t computeKeysAvx2(const KeyJob& job, Rows16 rows, std::size_t begin, std::size_t end,
+                            std::size_t slot);
+
+/// \brief Bounds of the records of [begin, end) of `rows` with finite x y z (lo, hi: x y z and a
+///        lane not used; updated, not reset) and their number (added to *valid), in blocks of
+///        eight. Returns the first record not done.
+std::size_t scanBoundsAvx2(Rows16 rows, std::size_t begin, std::size_t end, float lo[4],
+                           float hi[4], std::size_t* valid);
+
+/// \brief Centroids of voxels [0, nv) from their sums (`rec`: x y z sums and one float not used
+///        per voxel) and first points (`vstart`, nv + 1 entries), in blocks of eight. Returns
+///        the first voxel not done.
+std::size_t centroidsAvx2(const float* rec, const std::uint32_t* vstart, std::size_t nv, float* vx,
+                          float* vy, float* vz);
+
+}  // namespace voxel
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_CORE_VOXEL_AVX2_PASSES_H
