@@ -2,6 +2,8 @@
 
 #if defined(__GNUC__) && defined(__x86_64__)
 #include <immintrin.h>
+
+#include <cstring>
 #define GF_HAVE_AVX2 1
 #define GF_TARGET_AVX2 __attribute__((target("avx2")))
 #else
@@ -187,6 +189,62 @@ GF_TARGET_AVX2 std::size_t centroids(const float* rec, const std::uint32_t* vsta
   return v;
 }
 
+GF_TARGET_AVX2 inline __m256i load(const std::uint64_t* p) {
+  return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p));
+}
+
+// Byte k of the result is bit k of `bits` (8 bits).
+inline std::uint64_t bitsToBytes(std::uint32_t bits) {
+  const std::uint64_t spread = (bits * 0x0101010101010101ull) & 0x8040201008040201ull;
+  return ((spread + 0x7F7F7F7F7F7F7F7Full) >> 7) & 0x0101010101010101ull;
+}
+
+GF_TARGET_AVX2 std::size_t flagsOf(const VoxelFlagsJob& j, std::uint8_t* flags) {
+  const std::size_t nv = j.nv;
+  if (nv == 0) return 0;
+  flags[0] = voxelFlags(j, 0);  // no voxel before it
+  const __m128i sy = _mm_cvtsi32_si128(j.shift_y);
+  const __m256i mz = _mm256_set1_epi64x(static_cast<long long>(j.mask_z));
+  const __m256i clearance = _mm256_set1_epi64x(kSeedClearanceVoxels);
+  const __m256i below = _mm256_set1_epi32(static_cast<int>(j.min_pts) - 1);
+  const __m256 thr = _mm256_set1_ps(j.flat_thr);
+  const __m256i rec_idx = _mm256_mullo_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7),
+                                             _mm256_set1_epi32(static_cast<int>(j.rec_floats)));
+  std::size_t v = 1;
+  for (; v + 8 < nv; v += 8) {  // voxels v - 1 .. v + 8 exist
+    int lowest = 0, clear = 0;
+    for (int h = 0; h < 2; ++h) {  // four 64-bit keys a half
+      const std::uint64_t* k = j.vkey + v + 4 * h;
+      const __m256i key = load(k), prev = load(k - 1), next = load(k + 1);
+      const __m256i col = _mm256_srl_epi64(key, sy);
+      const __m256i same_prev = _mm256_cmpeq_epi64(_mm256_srl_epi64(prev, sy), col);
+      const __m256i same_next = _mm256_cmpeq_epi64(_mm256_srl_epi64(next, sy), col);
+      // z steps up to the next voxel: >= 1 in the same column (keys sorted and distinct); any
+      // value in another one, where same_next decides.
+      const __m256i dz = _mm256_sub_epi64(_mm256_and_si256(next, mz), _mm256_and_si256(key, mz));
+      const __m256i free_above = _mm256_cmpgt_epi64(dz, clearance);
+      lowest |= (~_mm256_movemask_pd(_mm256_castsi256_pd(same_prev)) & 0xF) << (4 * h);
+      clear |= (_mm256_movemask_pd(
+                    _mm256_castsi256_pd(_mm256_andnot_si256(same_next, _mm256_set1_epi64x(-1)))) |
+                _mm256_movemask_pd(_mm256_castsi256_pd(free_above)))
+               << (4 * h);
+    }
+    // Counts are below 2^31 and min_pts at most 1000: signed compares are exact.
+    const __m256i c0 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(j.vstart + v));
+    const __m256i c1 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(j.vstart + v + 1));
+    const __m256i dense = _mm256_cmpgt_epi32(_mm256_sub_epi32(c1, c0), below);
+    const __m256 zr = _mm256_i32gather_ps(j.rec + j.rec_floats * v + 3, rec_idx, 4);
+    const __m256 thin = _mm256_cmp_ps(zr, thr, _CMP_LT_OQ);  // zrange < thr (false for NaN)
+    const int dense_bits = _mm256_movemask_ps(_mm256_castsi256_ps(dense));
+    const int flat = dense_bits & _mm256_movemask_ps(thin);
+    const int seed = (flat | (~dense_bits & 0xFF)) & lowest & clear;
+    const std::uint64_t bytes = bitsToBytes(static_cast<std::uint32_t>(flat)) * kFlat |
+                                bitsToBytes(static_cast<std::uint32_t>(seed)) * kSeed;
+    std::memcpy(flags + v, &bytes, sizeof(bytes));
+  }
+  return v;
+}
+
 }  // namespace
 
 bool cpuHasAvx2() { return __builtin_cpu_supports("avx2"); }
@@ -206,6 +264,10 @@ std::size_t centroidsAvx2(const float* rec, const std::uint32_t* vstart, std::si
   return centroids(rec, vstart, nv, vx, vy, vz);
 }
 
+std::size_t voxelFlagsAvx2(const VoxelFlagsJob& j, std::uint8_t* flags) {
+  return flagsOf(j, flags);
+}
+
 #else  // no AVX2 build (aarch64: Jetson): never called, cpuHasAvx2() is false
 
 bool cpuHasAvx2() { return false; }
@@ -221,6 +283,8 @@ std::size_t scanBoundsAvx2(Rows16, std::size_t begin, std::size_t, float*, float
 std::size_t centroidsAvx2(const float*, const std::uint32_t*, std::size_t, float*, float*, float*) {
   return 0;
 }
+
+std::size_t voxelFlagsAvx2(const VoxelFlagsJob&, std::uint8_t*) { return 0; }
 
 #endif
 

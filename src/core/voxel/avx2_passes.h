@@ -1,12 +1,14 @@
 // Private to the voxel filter: AVX2 versions of passes of the Voxelizer over the points (bounds,
-// voxel keys) and the voxels (centroids), eight a step. Compiled with a function target attribute
-// and chosen at run time (Voxelizer::setUseAvx2()), so the package still runs on any x86-64; the
-// arithmetic is the SSE2 code's lane by lane (same keys, same bounds).
+// voxel keys) and the voxels (centroids, flags), eight a step. Compiled with a function target
+// attribute and chosen at run time (Voxelizer::setUseAvx2()), so the package still runs on any
+// x86-64; the arithmetic is the SSE2 code's lane by lane (same keys, same bounds).
 #ifndef GROUND_FILTER_SRC_CORE_VOXEL_AVX2_PASSES_H
 #define GROUND_FILTER_SRC_CORE_VOXEL_AVX2_PASSES_H
 
 #include <cstddef>
 #include <cstdint>
+
+#include "voxel/voxel_grid.h"
 
 namespace ground_filter {
 namespace voxel {
@@ -31,6 +33,40 @@ struct Rows16 {
   std::size_t step;
 };
 
+/// \brief A ground seed needs this many empty voxels above it in its column: the foot of a wall,
+///        a car side or a fence has occupied voxels right above it, the ground does not.
+constexpr std::uint32_t kSeedClearanceVoxels = 3;
+
+/// \brief What the voxel flags are made of (sorted voxels of a VoxelGrid being built).
+struct VoxelFlagsJob {
+  const std::uint64_t* vkey;    // key per voxel
+  const std::uint32_t* vstart;  // first point per voxel, nv + 1 entries
+  const float* rec;             // record per voxel; its float 3 is max z - min z
+  std::size_t rec_floats;       // floats a record
+  std::size_t nv;               // voxels
+  int shift_y;                  // key >> shift_y: column
+  std::uint64_t mask_z;         // key & mask_z: z
+  std::uint32_t min_pts;        // min_points_per_voxel
+  float flat_thr;               // flatness_threshold
+};
+
+/// \brief kFlat | kSeed of voxel v.
+inline std::uint8_t voxelFlags(const VoxelFlagsJob& j, std::size_t v) {
+  const std::uint64_t key = j.vkey[v];
+  const std::uint64_t col = key >> j.shift_y;
+  const std::uint32_t cnt = j.vstart[v + 1] - j.vstart[v];
+  // ---- flat voxels (paper): enough points and a small height range.
+  const bool is_flat = (cnt >= j.min_pts) & (j.rec[j.rec_floats * v + 3] < j.flat_thr);
+  // ---- seed candidates of the local model: the lowest voxel of its column with free space
+  // above it, flat or too sparse to tell (far, sparse ground).
+  const bool lowest = v == 0 || (j.vkey[v - 1] >> j.shift_y) != col;
+  const std::uint64_t next = v + 1 < j.nv ? j.vkey[v + 1] : ~std::uint64_t{0};
+  const bool clear =
+      ((next >> j.shift_y) != col) | ((next & j.mask_z) - (key & j.mask_z) > kSeedClearanceVoxels);
+  const bool is_seed = (is_flat | (cnt < j.min_pts)) & lowest & clear;
+  return static_cast<std::uint8_t>((is_flat ? kFlat : 0) | (is_seed ? kSeed : 0));
+}
+
 /// \brief Whether this build has the AVX2 passes and this CPU runs them.
 bool cpuHasAvx2();
 
@@ -51,6 +87,10 @@ std::size_t scanBoundsAvx2(Rows16 rows, std::size_t begin, std::size_t end, floa
 ///        the first voxel not done.
 std::size_t centroidsAvx2(const float* rec, const std::uint32_t* vstart, std::size_t nv, float* vx,
                           float* vy, float* vz);
+
+/// \brief voxelFlags() of voxels [0, j.nv) into `flags`, blocks of eight inside. Returns the
+///        first voxel not done.
+std::size_t voxelFlagsAvx2(const VoxelFlagsJob& j, std::uint8_t* flags);
 
 }  // namespace voxel
 }  // namespace ground_filter

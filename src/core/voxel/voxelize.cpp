@@ -163,9 +163,6 @@ void withPoints(const Voxelizer::DirectRead& direct, const float* copy, F&& f) {
 
 namespace {
 
-// A ground seed needs this many empty voxels above it in its column: the foot of a wall, a car
-// side or a fence has occupied voxels right above it, the ground does not.
-constexpr std::uint32_t kSeedClearanceVoxels = 3;
 // Floats of gatherRuns()'s record per voxel: sums of x, y, z and max z - min z.
 constexpr std::size_t kRunRecord = 4;
 
@@ -616,34 +613,31 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
     vy[v] = rec[kRunRecord * v + 1] * inv;
     vz[v] = rec[kRunRecord * v + 2] * inv;
   }
+  // Flags: each voxel's from its key, its neighbours' keys, its count and z range (the AVX2
+  // pass does blocks of eight; the loop below the rest). The columns and the lists after it, in
+  // a loop of their own: one loop doing both kept too many arrays live (stack reloads, 77
+  // instructions a voxel).
+  const VoxelFlagsJob fj = {vk, vs, rec, kRunRecord, nv, sy_, mz, min_pts, flat_thr};
+  std::size_t v_done = use_avx2_ ? voxelFlagsAvx2(fj, vflags) : 0;
+  for (std::size_t v = v_done; v < nv; ++v) vflags[v] = voxelFlags(fj, v);
   std::size_t ncol = 0, nflat = 0, nseed = 0;
   std::uint64_t prev_col = ~std::uint64_t{0};
-  std::uint32_t cell = 0;
   for (std::size_t v = 0; v < nv; ++v) {
     const std::uint64_t key = vk[v];
-    const std::uint32_t cnt = vs[v + 1] - vs[v];
     const std::uint64_t col = key >> sy_;
     const bool lowest = col != prev_col;
     prev_col = col;
-    const std::uint32_t col_cell = cxt[key >> sx_] + cyt[col & my];
-    cell = lowest ? col_cell : cell;
+    const std::uint32_t cell = cxt[key >> sx_] + cyt[col & my];  // the column's cell
     used[cell] = 1;
     ckey[ncol] = col;
     cfirst[ncol] = static_cast<std::uint32_t>(v);
     ncol += lowest;
     vcell[v] = cell;
-    // ---- flat voxels (paper): enough points and a small height range.
-    const float zrange = rec[kRunRecord * v + 3];
-    const bool is_flat = (cnt >= min_pts) & (zrange < flat_thr);
-    // ---- seed candidates of the local model: the lowest voxel of its column with free space
-    // above it, flat or too sparse to tell (far, sparse ground).
-    const std::uint64_t next = v + 1 < nv ? vk[v + 1] : ~std::uint64_t{0};
-    const bool clear = ((next >> sy_) != col) | ((next & mz) - (key & mz) > kSeedClearanceVoxels);
-    const bool is_seed = (is_flat | (cnt < min_pts)) & lowest & clear;
-    vflags[v] = static_cast<std::uint8_t>((is_flat ? kFlat : 0) | (is_seed ? kSeed : 0));
     // Region growing input: every flat voxel (paper) for the global plane; for the local model
     // only the flat seed candidates (the same components on the ground, 3x less work, and wall
     // voxels stacked line over line drop out).
+    const std::uint32_t f = vflags[v];
+    const std::uint32_t is_flat = f & kFlat, is_seed = (f & kSeed) >> 1;
     flat[nflat] = static_cast<std::uint32_t>(v);
     nflat += is_flat & (is_seed | !local);
     seeds[nseed] = static_cast<std::uint32_t>(v);
