@@ -766,14 +766,19 @@ std::vector<std::vector<std::uint8_t>> gridBytes(const gf::CloudView& view, int 
   out.push_back(bytes(g.vstart, g.vstart.size()));
   out.push_back(bytes(g.flat, g.flat.size()));
   out.push_back(bytes(g.seeds, g.seeds.size()));
+  out.push_back(bytes(g.col_key, g.col_key.size()));
+  out.push_back(bytes(g.col_first, g.col_first.size()));
+  out.push_back(bytes(g.vcell, g.vcell.size()));
+  out.push_back(bytes(cells.used, cells.used.size()));
   return out;
 }
 
 }  // namespace
 
-// The AVX2 passes (bounds, keys, centroids) give the SSE2 passes' grid bit for bit: every record
-// layout they read, clouds with and without NaN points (NaNs inside blocks of eight), sizes that
-// leave a scalar tail, and two threads (chunk bounds that are not multiples of eight).
+// The AVX2 passes (bounds, keys, centroids, flags and lists) give the SSE2 passes' grid bit for
+// bit: every record layout they read, clouds with and without NaN points (NaNs inside blocks of
+// eight), sizes that leave a scalar tail, and two threads (chunk bounds that are not multiples of
+// eight).
 TEST(Voxelizer, Avx2PassesGiveTheSse2Grid) {
   if (!gf::voxel::cpuHasAvx2()) GTEST_SKIP() << "this CPU or build has no AVX2";
   Cloud valid_large = largeScene(false);

@@ -5,7 +5,7 @@
 
 #include <cstring>
 #define GF_HAVE_AVX2 1
-#define GF_TARGET_AVX2 __attribute__((target("avx2")))
+#define GF_TARGET_AVX2 __attribute__((target("avx2,popcnt")))
 #else
 #define GF_HAVE_AVX2 0
 #endif
@@ -199,19 +199,49 @@ inline std::uint64_t bitsToBytes(std::uint32_t bits) {
   return ((spread + 0x7F7F7F7F7F7F7F7Full) >> 7) & 0x0101010101010101ull;
 }
 
-GF_TARGET_AVX2 std::size_t flagsOf(const VoxelFlagsJob& j, std::uint8_t* flags) {
+// Per 8-bit mask: the positions of its set bits, in order (the rest 0).
+struct CompactTable {
+  std::uint8_t idx[256][8];
+};
+constexpr CompactTable makeCompactTable() {
+  CompactTable t{};
+  for (int m = 0; m < 256; ++m) {
+    int k = 0;
+    for (int b = 0; b < 8; ++b) {
+      if ((m >> b) & 1) t.idx[m][k++] = static_cast<std::uint8_t>(b);
+    }
+  }
+  return t;
+}
+constexpr CompactTable kCompact = makeCompactTable();
+
+// Appends the lanes of `ids` selected by `mask` to list[*n ...] (writes eight entries: the
+// caller's buffer has room for them).
+GF_TARGET_AVX2 inline void appendSelected(__m256i ids, int mask, std::uint32_t* list,
+                                          std::size_t* n) {
+  const __m256i perm =
+      _mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(kCompact.idx[mask])));
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(list + *n),
+                      _mm256_permutevar8x32_epi32(ids, perm));
+  *n += static_cast<std::size_t>(__builtin_popcount(static_cast<unsigned>(mask)));
+}
+
+GF_TARGET_AVX2 std::size_t flagsOf(const VoxelFlagsJob& j, std::uint8_t* flags, VoxelLists* out) {
   const std::size_t nv = j.nv;
   if (nv == 0) return 0;
-  flags[0] = voxelFlags(j, 0);  // no voxel before it
+  voxelFlags(j, 0, 1, flags, out);  // no voxel before it
   const __m128i sy = _mm_cvtsi32_si128(j.shift_y);
   const __m256i mz = _mm256_set1_epi64x(static_cast<long long>(j.mask_z));
   const __m256i clearance = _mm256_set1_epi64x(kSeedClearanceVoxels);
   const __m256i below = _mm256_set1_epi32(static_cast<int>(j.min_pts) - 1);
   const __m256 thr = _mm256_set1_ps(j.flat_thr);
-  const __m256i rec_idx = _mm256_mullo_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7),
-                                             _mm256_set1_epi32(static_cast<int>(j.rec_floats)));
+  const __m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256i rec_idx =
+      _mm256_mullo_epi32(lanes, _mm256_set1_epi32(static_cast<int>(j.rec_floats)));
   std::size_t v = 1;
-  for (; v + 8 < nv; v += 8) {  // voxels v - 1 .. v + 8 exist
+  // Voxels v - 1 .. v + 8 exist; the lists have room for eight entries past their length (at
+  // most v entries each, v + 8 < nv).
+  for (; v + 8 < nv; v += 8) {
     int lowest = 0, clear = 0;
     for (int h = 0; h < 2; ++h) {  // four 64-bit keys a half
       const std::uint64_t* k = j.vkey + v + 4 * h;
@@ -224,8 +254,7 @@ GF_TARGET_AVX2 std::size_t flagsOf(const VoxelFlagsJob& j, std::uint8_t* flags) 
       const __m256i dz = _mm256_sub_epi64(_mm256_and_si256(next, mz), _mm256_and_si256(key, mz));
       const __m256i free_above = _mm256_cmpgt_epi64(dz, clearance);
       lowest |= (~_mm256_movemask_pd(_mm256_castsi256_pd(same_prev)) & 0xF) << (4 * h);
-      clear |= (_mm256_movemask_pd(
-                    _mm256_castsi256_pd(_mm256_andnot_si256(same_next, _mm256_set1_epi64x(-1)))) |
+      clear |= ((~_mm256_movemask_pd(_mm256_castsi256_pd(same_next)) & 0xF) |
                 _mm256_movemask_pd(_mm256_castsi256_pd(free_above)))
                << (4 * h);
     }
@@ -241,13 +270,17 @@ GF_TARGET_AVX2 std::size_t flagsOf(const VoxelFlagsJob& j, std::uint8_t* flags) 
     const std::uint64_t bytes = bitsToBytes(static_cast<std::uint32_t>(flat)) * kFlat |
                                 bitsToBytes(static_cast<std::uint32_t>(seed)) * kSeed;
     std::memcpy(flags + v, &bytes, sizeof(bytes));
+    const __m256i ids = _mm256_add_epi32(lanes, _mm256_set1_epi32(static_cast<int>(v)));
+    appendSelected(ids, lowest, out->col_first, &out->ncol);
+    appendSelected(ids, j.local ? flat & seed : flat, out->flat, &out->nflat);
+    appendSelected(ids, seed, out->seeds, &out->nseed);
   }
   return v;
 }
 
 }  // namespace
 
-bool cpuHasAvx2() { return __builtin_cpu_supports("avx2"); }
+bool cpuHasAvx2() { return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("popcnt"); }
 
 std::size_t computeKeysAvx2(const KeyJob& job, Rows16 rows, std::size_t begin, std::size_t end,
                             std::size_t slot) {
@@ -264,8 +297,8 @@ std::size_t centroidsAvx2(const float* rec, const std::uint32_t* vstart, std::si
   return centroids(rec, vstart, nv, vx, vy, vz);
 }
 
-std::size_t voxelFlagsAvx2(const VoxelFlagsJob& j, std::uint8_t* flags) {
-  return flagsOf(j, flags);
+std::size_t voxelFlagsAvx2(const VoxelFlagsJob& j, std::uint8_t* flags, VoxelLists* out) {
+  return flagsOf(j, flags, out);
 }
 
 #else  // no AVX2 build (aarch64: Jetson): never called, cpuHasAvx2() is false
@@ -284,7 +317,7 @@ std::size_t centroidsAvx2(const float*, const std::uint32_t*, std::size_t, float
   return 0;
 }
 
-std::size_t voxelFlagsAvx2(const VoxelFlagsJob&, std::uint8_t*) { return 0; }
+std::size_t voxelFlagsAvx2(const VoxelFlagsJob&, std::uint8_t*, VoxelLists*) { return 0; }
 
 #endif
 

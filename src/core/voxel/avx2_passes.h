@@ -37,7 +37,7 @@ struct Rows16 {
 ///        a car side or a fence has occupied voxels right above it, the ground does not.
 constexpr std::uint32_t kSeedClearanceVoxels = 3;
 
-/// \brief What the voxel flags are made of (sorted voxels of a VoxelGrid being built).
+/// \brief What the voxel flags and lists are made of (sorted voxels of a VoxelGrid being built).
 struct VoxelFlagsJob {
   const std::uint64_t* vkey;    // key per voxel
   const std::uint32_t* vstart;  // first point per voxel, nv + 1 entries
@@ -48,23 +48,46 @@ struct VoxelFlagsJob {
   std::uint64_t mask_z;         // key & mask_z: z
   std::uint32_t min_pts;        // min_points_per_voxel
   float flat_thr;               // flatness_threshold
+  bool local;                   // local_planes: the flat list holds the flat seed candidates only
 };
 
-/// \brief kFlat | kSeed of voxel v.
-inline std::uint8_t voxelFlags(const VoxelFlagsJob& j, std::size_t v) {
-  const std::uint64_t key = j.vkey[v];
-  const std::uint64_t col = key >> j.shift_y;
-  const std::uint32_t cnt = j.vstart[v + 1] - j.vstart[v];
-  // ---- flat voxels (paper): enough points and a small height range.
-  const bool is_flat = (cnt >= j.min_pts) & (j.rec[j.rec_floats * v + 3] < j.flat_thr);
-  // ---- seed candidates of the local model: the lowest voxel of its column with free space
-  // above it, flat or too sparse to tell (far, sparse ground).
-  const bool lowest = v == 0 || (j.vkey[v - 1] >> j.shift_y) != col;
-  const std::uint64_t next = v + 1 < j.nv ? j.vkey[v + 1] : ~std::uint64_t{0};
-  const bool clear =
-      ((next >> j.shift_y) != col) | ((next & j.mask_z) - (key & j.mask_z) > kSeedClearanceVoxels);
-  const bool is_seed = (is_flat | (cnt < j.min_pts)) & lowest & clear;
-  return static_cast<std::uint8_t>((is_flat ? kFlat : 0) | (is_seed ? kSeed : 0));
+/// \brief The voxel lists (buffers of nv entries, col_first nv + 1) and their lengths so far.
+struct VoxelLists {
+  std::uint32_t* col_first;  // first voxel of each column
+  std::uint32_t* flat;       // region growing input (see voxelFlags())
+  std::uint32_t* seeds;      // seed candidates of the local model
+  std::size_t ncol, nflat, nseed;
+};
+
+/// \brief Flags (kFlat | kSeed) of voxels [begin, end) into `flags`, appended to the lists.
+inline void voxelFlags(const VoxelFlagsJob& j, std::size_t begin, std::size_t end,
+                       std::uint8_t* flags, VoxelLists* out) {
+  for (std::size_t v = begin; v < end; ++v) {
+    const std::uint64_t key = j.vkey[v];
+    const std::uint64_t col = key >> j.shift_y;
+    const std::uint32_t cnt = j.vstart[v + 1] - j.vstart[v];
+    // ---- flat voxels (paper): enough points and a small height range.
+    const bool is_flat = (cnt >= j.min_pts) & (j.rec[j.rec_floats * v + 3] < j.flat_thr);
+    // ---- seed candidates of the local model: the lowest voxel of its column with free space
+    // above it, flat or too sparse to tell (far, sparse ground).
+    const bool lowest = v == 0 || (j.vkey[v - 1] >> j.shift_y) != col;
+    const std::uint64_t next = v + 1 < j.nv ? j.vkey[v + 1] : ~std::uint64_t{0};
+    const bool clear = ((next >> j.shift_y) != col) |
+                       ((next & j.mask_z) - (key & j.mask_z) > kSeedClearanceVoxels);
+    const bool is_seed = (is_flat | (cnt < j.min_pts)) & lowest & clear;
+    flags[v] = static_cast<std::uint8_t>((is_flat ? kFlat : 0) | (is_seed ? kSeed : 0));
+    // Lists without a branch: a store is always made, the length moves when v belongs. Region
+    // growing input: every flat voxel (paper) for the global plane; for the local model only
+    // the flat seed candidates (the same components on the ground, 3x less work, and wall
+    // voxels stacked line over line drop out).
+    const std::uint32_t vv = static_cast<std::uint32_t>(v);
+    out->col_first[out->ncol] = vv;
+    out->ncol += lowest;
+    out->flat[out->nflat] = vv;
+    out->nflat += is_flat & (is_seed | !j.local);
+    out->seeds[out->nseed] = vv;
+    out->nseed += is_seed;
+  }
 }
 
 /// \brief Whether this build has the AVX2 passes and this CPU runs them.
@@ -88,9 +111,9 @@ std::size_t scanBoundsAvx2(Rows16 rows, std::size_t begin, std::size_t end, floa
 std::size_t centroidsAvx2(const float* rec, const std::uint32_t* vstart, std::size_t nv, float* vx,
                           float* vy, float* vz);
 
-/// \brief voxelFlags() of voxels [0, j.nv) into `flags`, blocks of eight inside. Returns the
-///        first voxel not done.
-std::size_t voxelFlagsAvx2(const VoxelFlagsJob& j, std::uint8_t* flags);
+/// \brief voxelFlags() from voxel 0 on, blocks of eight inside. Returns the first voxel not
+///        done.
+std::size_t voxelFlagsAvx2(const VoxelFlagsJob& j, std::uint8_t* flags, VoxelLists* out);
 
 }  // namespace voxel
 }  // namespace ground_filter

@@ -9,6 +9,7 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <type_traits>
 
 #include "huge_pages.h"
 #include "prefetch.h"
@@ -33,7 +34,6 @@ inline V4 v4Sub(V4 a, V4 b) { return _mm_sub_ps(a, b); }
 inline V4 v4Min(V4 a, V4 b) { return _mm_min_ps(a, b); }  // a < b ? a : b
 inline V4 v4Max(V4 a, V4 b) { return _mm_max_ps(a, b); }  // a > b ? a : b
 inline V4 v4Add(V4 a, V4 b) { return _mm_add_ps(a, b); }
-inline V4 v4Mul(V4 a, V4 b) { return _mm_mul_ps(a, b); }
 inline void v4StoreUnaligned(float* p, V4 v) { _mm_storeu_ps(p, v); }
 // (x, y, z, -z) of (x, y, z, w): negation is exact.
 inline V4 v4WithNegZ(V4 p) {
@@ -50,6 +50,18 @@ inline V4 v4SumsAndRange(V4 s, V4 h) {
 // x - x is 0 for finite x and NaN for NaN/Inf: one test for all lanes.
 inline bool v4Finite(V4 p) {
   return _mm_movemask_ps(_mm_cmpeq_ps(_mm_sub_ps(p, p), _mm_setzero_ps())) == 0xF;
+}
+// restart ? +0 : s, and restart ? -inf : h, as bit masks (no multiply or add in the dependency
+// chains of the gather's running sums and maxima).
+inline V4 v4ZeroIf(V4 s, bool restart) {
+  alignas(16) static const std::uint32_t kMask[2][4] = {{~0u, ~0u, ~0u, ~0u}, {0, 0, 0, 0}};
+  return _mm_and_ps(s, _mm_load_ps(reinterpret_cast<const float*>(kMask[restart])));
+}
+inline V4 v4LowestIf(V4 h, bool restart) {
+  alignas(16) static const std::uint32_t kNegInf[2][4] = {
+      {0, 0, 0, 0}, {0xFF800000u, 0xFF800000u, 0xFF800000u, 0xFF800000u}};
+  return _mm_or_ps(v4ZeroIf(h, restart),
+                   _mm_load_ps(reinterpret_cast<const float*>(kNegInf[restart])));
 }
 // min(int(p * inv), last) per lane (p >= 0 and below 2^22: the axis checks of prepare()).
 inline void v4Cells(V4 p, float inv, const std::int32_t* last, std::uint32_t* out) {
@@ -88,15 +100,15 @@ inline V4 v4Add(V4 a, V4 b) {
   for (int k = 0; k < 4; ++k) a.v[k] += b.v[k];
   return a;
 }
-inline V4 v4Mul(V4 a, V4 b) {
-  for (int k = 0; k < 4; ++k) a.v[k] *= b.v[k];
-  return a;
-}
 inline void v4StoreUnaligned(float* p, V4 a) { v4Store(p, a); }
 inline V4 v4WithNegZ(V4 p) { return V4{{p.v[0], p.v[1], p.v[2], -p.v[2]}}; }
 inline V4 v4SumsAndRange(V4 s, V4 h) { return V4{{s.v[0], s.v[1], s.v[2], h.v[3] + h.v[2]}}; }
 inline bool v4Finite(V4 p) {
   return (p.v[0] - p.v[0]) + (p.v[1] - p.v[1]) + (p.v[2] - p.v[2]) == 0.f;
+}
+inline V4 v4ZeroIf(V4 s, bool restart) { return restart ? v4Splat(0.f) : s; }
+inline V4 v4LowestIf(V4 h, bool restart) {
+  return restart ? v4Splat(-std::numeric_limits<float>::infinity()) : h;
 }
 inline void v4Cells(V4 p, float inv, const std::int32_t* last, std::uint32_t* out) {
   for (int k = 0; k < 3; ++k) {
@@ -112,6 +124,7 @@ inline void v4Cells(V4 p, float inv, const std::int32_t* last, std::uint32_t* ou
 struct CopyPoints {
   const float* xyz0;  // x y z 0 per input point, 16-byte aligned
   V4 load(std::size_t i) const { return v4Load(xyz0 + 4 * i); }
+  V4 loadXyz(std::size_t i) const { return load(i); }
   const void* address(std::size_t i) const { return xyz0 + 4 * i; }
   std::size_t stride() const { return 4 * sizeof(float); }
   Rows16 rows16() const { return Rows16{reinterpret_cast<const std::uint8_t*>(xyz0), 16}; }
@@ -136,6 +149,11 @@ struct DirectPoints {
     float c[3];
     std::memcpy(c, r, sizeof(c));
     return v4Set(c[0], c[1], c[2]);
+  }
+  // x y z and a fourth lane of any value (the gather replaces it: no mask).
+  V4 loadXyz(std::size_t i) const {
+    return i < d.vector_end ? _mm_loadu_ps(reinterpret_cast<const float*>(d.x + i * d.step))
+                            : load(i);
   }
   const void* address(std::size_t i) const { return d.x + i * d.step; }
   std::size_t stride() const { return d.step; }
@@ -279,19 +297,15 @@ std::size_t gatherRuns(const RunJob job, const Points pts, std::size_t n) {
     return static_cast<std::size_t>(kAllValid ? s : pidx[s]);
   };
   constexpr std::size_t kAhead = 48;  // prefetch distance of the random coordinate reads
-  constexpr float kInf = std::numeric_limits<float>::infinity();
-  // Per "a run starts here": factor of the running sums, addend of the running max.
-  alignas(16) static const float kKeep[2][4] = {{1.f, 1.f, 1.f, 1.f}, {0.f, 0.f, 0.f, 0.f}};
-  alignas(16) static const float kReset[2][4] = {{0.f, 0.f, 0.f, 0.f},
-                                                 {-kInf, -kInf, -kInf, -kInf}};
   std::size_t nv = 0;
   std::uint64_t prev = ~std::uint64_t{0};  // no key (keys use at most 63 bits)
   V4 sum = v4Splat(0.f), hi = v4Splat(0.f);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (i + kAhead < n) __builtin_prefetch(pts.address(pointOf(slotOf(i + kAhead))));
+  // The loop body, with or without the prefetch (two loops: no bounds test per point).
+  auto step = [&](std::size_t i, auto prefetch) {
+    if (decltype(prefetch)::value) __builtin_prefetch(pts.address(pointOf(slotOf(i + kAhead))));
     const std::uint64_t key = k[i] >> low;
     // The same float subtraction as prepare()'s key pass made lane by lane (and its negation).
-    const V4 p = v4Sub(v4WithNegZ(pts.load(pointOf(slotOf(i)))), vmin);
+    const V4 p = v4Sub(v4WithNegZ(pts.loadXyz(pointOf(slotOf(i)))), vmin);
     // Four floats: the fourth lands on the next point's x, which its own store overwrites.
     v4StoreUnaligned(xyz_out + 3 * i, p);
     const bool first = key != prev;
@@ -301,13 +315,15 @@ std::size_t gatherRuns(const RunJob job, const Points pts, std::size_t n) {
     nv += first;
     const std::size_t v = nv - 1;
     pv[i] = static_cast<std::uint32_t>(v);
-    // The same sums in the same order as a loop over the run would make (0 + x first), with
-    // arithmetic instead of selects: relative coordinates are >= +0, so s * 0 is +0 in lanes
-    // 0-2 (lane 3 is not used).
-    sum = v4Add(v4Mul(sum, v4Load(kKeep[first])), p);
-    hi = v4Max(v4Add(hi, v4Load(kReset[first])), p);
+    // The same sums in the same order as a loop over the run would make (+0 + x first).
+    sum = v4Add(v4ZeroIf(sum, first), p);
+    hi = v4Max(v4LowestIf(hi, first), p);
     v4StoreUnaligned(rec + kRunRecord * v, v4SumsAndRange(sum, hi));
-  }
+  };
+  const std::size_t with_prefetch = n > kAhead ? n - kAhead : 0;
+  std::size_t i = 0;
+  for (; i < with_prefetch; ++i) step(i, std::true_type());
+  for (; i < n; ++i) step(i, std::false_type());
   return nv;
 }
 
@@ -613,36 +629,22 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
     vy[v] = rec[kRunRecord * v + 1] * inv;
     vz[v] = rec[kRunRecord * v + 2] * inv;
   }
-  // Flags: each voxel's from its key, its neighbours' keys, its count and z range (the AVX2
-  // pass does blocks of eight; the loop below the rest). The columns and the lists after it, in
-  // a loop of their own: one loop doing both kept too many arrays live (stack reloads, 77
-  // instructions a voxel).
-  const VoxelFlagsJob fj = {vk, vs, rec, kRunRecord, nv, sy_, mz, min_pts, flat_thr};
-  std::size_t v_done = use_avx2_ ? voxelFlagsAvx2(fj, vflags) : 0;
-  for (std::size_t v = v_done; v < nv; ++v) vflags[v] = voxelFlags(fj, v);
-  std::size_t ncol = 0, nflat = 0, nseed = 0;
-  std::uint64_t prev_col = ~std::uint64_t{0};
+  // Flags and the column, flat and seed lists: each voxel's from its key, its neighbours' keys,
+  // its count and z range (the AVX2 pass does blocks of eight; voxelFlags() the rest). Then each
+  // voxel's cell (its column's) and the column keys, in loops of their own: one loop doing it
+  // all kept too many arrays live (stack reloads, 77 instructions a voxel).
+  const VoxelFlagsJob fj = {vk, vs, rec, kRunRecord, nv, sy_, mz, min_pts, flat_thr, local};
+  VoxelLists lists = {cfirst, flat, seeds, 0, 0, 0};
+  const std::size_t v_done = use_avx2_ ? voxelFlagsAvx2(fj, vflags, &lists) : 0;
+  voxelFlags(fj, v_done, nv, vflags, &lists);
+  const std::size_t ncol = lists.ncol, nflat = lists.nflat, nseed = lists.nseed;
   for (std::size_t v = 0; v < nv; ++v) {
     const std::uint64_t key = vk[v];
-    const std::uint64_t col = key >> sy_;
-    const bool lowest = col != prev_col;
-    prev_col = col;
-    const std::uint32_t cell = cxt[key >> sx_] + cyt[col & my];  // the column's cell
+    const std::uint32_t cell = cxt[key >> sx_] + cyt[(key >> sy_) & my];  // the column's cell
     used[cell] = 1;
-    ckey[ncol] = col;
-    cfirst[ncol] = static_cast<std::uint32_t>(v);
-    ncol += lowest;
     vcell[v] = cell;
-    // Region growing input: every flat voxel (paper) for the global plane; for the local model
-    // only the flat seed candidates (the same components on the ground, 3x less work, and wall
-    // voxels stacked line over line drop out).
-    const std::uint32_t f = vflags[v];
-    const std::uint32_t is_flat = f & kFlat, is_seed = (f & kSeed) >> 1;
-    flat[nflat] = static_cast<std::uint32_t>(v);
-    nflat += is_flat & (is_seed | !local);
-    seeds[nseed] = static_cast<std::uint32_t>(v);
-    nseed += is_seed;
   }
+  for (std::size_t c = 0; c < ncol; ++c) ckey[c] = vk[cfirst[c]] >> sy_;
   cfirst[ncol] = static_cast<std::uint32_t>(nv);
   g->vkey.resize(nv);
   g->vstart.resize(nv + 1);
