@@ -738,14 +738,15 @@ TEST(VoxelGroundFilterKitti, PooledF1AboveFloor) {
 namespace {
 
 // Everything build() leaves in a VoxelGrid (and the unsorted keys of prepare()), as bytes.
-std::vector<std::vector<std::uint8_t>> gridBytes(const gf::CloudView& view, int threads,
-                                                 bool avx2) {
+std::vector<std::vector<std::uint8_t>> gridBytes(const gf::CloudView& view, int threads, bool avx2,
+                                                 bool local_planes) {
   gf::voxel::Voxelizer vz;
   vz.setUseAvx2(avx2);
   gf::voxel::VoxelGrid g;
   gf::voxel::CellGrid cells;
   gf::voxel::WorkerPool pool;
-  const gf::VoxelGroundFilterParams p;
+  gf::VoxelGroundFilterParams p;
+  p.local_planes = local_planes;  // the flat list: flat seed candidates, or every flat voxel
   const std::size_t n = vz.prepare(view, p.voxel_size, threads, &pool, nullptr, &g);
   auto bytes = [](const auto& v, std::size_t count) {
     const auto* b = reinterpret_cast<const std::uint8_t*>(v.data());
@@ -808,12 +809,15 @@ TEST(Voxelizer, Avx2PassesGiveTheSse2Grid) {
         std::memcpy(&buf[i * stride + xo], &c.xyz[3 * i], 12);
       }
       const gf::CloudView view(buf.data(), c.size(), stride, xo, xo + 4, xo + 8);
-      const auto sse2 = gridBytes(view, cs.threads, false);
-      const auto avx2 = gridBytes(view, cs.threads, true);
-      ASSERT_EQ(sse2.size(), avx2.size());
-      for (std::size_t k = 0; k < sse2.size(); ++k) {
-        EXPECT_TRUE(sse2[k] == avx2[k]) << "array " << k << ", " << c.size() << " points, stride "
-                                        << stride << ", x at " << xo << ", threads " << cs.threads;
+      for (bool local : {true, false}) {
+        const auto sse2 = gridBytes(view, cs.threads, false, local);
+        const auto avx2 = gridBytes(view, cs.threads, true, local);
+        ASSERT_EQ(sse2.size(), avx2.size());
+        for (std::size_t k = 0; k < sse2.size(); ++k) {
+          EXPECT_TRUE(sse2[k] == avx2[k])
+              << "array " << k << ", " << c.size() << " points, stride " << stride << ", x at "
+              << xo << ", threads " << cs.threads << ", local planes " << local;
+        }
       }
     }
   }
