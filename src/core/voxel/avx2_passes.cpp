@@ -1,5 +1,7 @@
 #include "voxel/avx2_passes.h"
 
+#include <algorithm>
+
 #if defined(__GNUC__) && defined(__x86_64__)
 #include <immintrin.h>
 
@@ -33,6 +35,25 @@ GF_TARGET_AVX2 inline __m256 pairOf(const std::uint8_t* r, std::size_t step, std
   return _mm256_insertf128_ps(_mm256_castps128_ps256(a), b, 1);
 }
 
+// Eight 32-bit or four 64-bit lanes from p (unaligned).
+template <typename T>
+GF_TARGET_AVX2 inline __m256i load(const T* p) {
+  return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p));
+}
+
+// Lanes 0, 1 and 2 of eight 16-byte records (`step` bytes apart) as three vectors, records in
+// order (a 4 x 4 transpose per 128-bit half).
+GF_TARGET_AVX2 inline void firstThreeLanes(const std::uint8_t* r, std::size_t step, __m256* l0,
+                                           __m256* l1, __m256* l2) {
+  const __m256 r0 = pairOf(r, step, 0), r1 = pairOf(r, step, 1);
+  const __m256 r2 = pairOf(r, step, 2), r3 = pairOf(r, step, 3);
+  const __m256 t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpacklo_ps(r2, r3);
+  const __m256 t2 = _mm256_unpackhi_ps(r0, r1), t3 = _mm256_unpackhi_ps(r2, r3);
+  *l0 = _mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(1, 0, 1, 0));
+  *l1 = _mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(3, 2, 3, 2));
+  *l2 = _mm256_shuffle_ps(t2, t3, _MM_SHUFFLE(1, 0, 1, 0));
+}
+
 // min(int((v - lo) * inv), last) per lane: the SSE2 key pass's float arithmetic (a subtraction,
 // then a product: nothing to fuse) and its clamp (v >= lo, so the cell is >= 0).
 GF_TARGET_AVX2 inline __m256i cellsOf(__m256 v, float lo, float inv, std::int32_t last) {
@@ -59,8 +80,9 @@ GF_TARGET_AVX2 inline __m256i digitsOf(__m256i word, __m128i lo, __m128i digit, 
   return _mm256_or_si256(d0, _mm256_slli_epi64(d1, 32));
 }
 
-GF_TARGET_AVX2 std::size_t keysAvx2(const KeyJob& job, Rows16 rows, std::size_t begin,
+GF_TARGET_AVX2 std::size_t keysAvx2(const KeyJob& job, const DirectRead& rows, std::size_t begin,
                                     std::size_t end, std::size_t slot) {
+  end = std::min(end, rows.vector_end);
   const int passes = job.passes, digit = job.digit;
   const std::uint32_t dmask = (1u << digit) - 1;
   std::uint32_t* const hist = job.hist;
@@ -80,14 +102,8 @@ GF_TARGET_AVX2 std::size_t keysAvx2(const KeyJob& job, Rows16 rows, std::size_t 
   for (; i + 8 <= end; i += 8, s += 8) {
     const std::uint8_t* r = rows.x + i * step;
     prefetchBlock(r, step);
-    // x y z of eight records as three vectors (a 4 x 4 transpose per 128-bit half).
-    const __m256 r0 = pairOf(r, step, 0), r1 = pairOf(r, step, 1);
-    const __m256 r2 = pairOf(r, step, 2), r3 = pairOf(r, step, 3);
-    const __m256 t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpacklo_ps(r2, r3);
-    const __m256 t2 = _mm256_unpackhi_ps(r0, r1), t3 = _mm256_unpackhi_ps(r2, r3);
-    const __m256 x = _mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(1, 0, 1, 0));
-    const __m256 y = _mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(3, 2, 3, 2));
-    const __m256 z = _mm256_shuffle_ps(t2, t3, _MM_SHUFFLE(1, 0, 1, 0));
+    __m256 x, y, z;
+    firstThreeLanes(r, step, &x, &y, &z);
     const __m256i cx = cellsOf(x, job.min[0], job.inv_vs, job.last[0]);
     const __m256i cy = cellsOf(y, job.min[1], job.inv_vs, job.last[1]);
     const __m256i cz = cellsOf(z, job.min[2], job.inv_vs, job.last[2]);
@@ -115,8 +131,9 @@ GF_TARGET_AVX2 std::size_t keysAvx2(const KeyJob& job, Rows16 rows, std::size_t 
   return i;
 }
 
-GF_TARGET_AVX2 std::size_t boundsAvx2(Rows16 rows, std::size_t begin, std::size_t end,
+GF_TARGET_AVX2 std::size_t boundsAvx2(const DirectRead& rows, std::size_t begin, std::size_t end,
                                       float lo_out[4], float hi_out[4], std::size_t* valid) {
+  end = std::min(end, rows.vector_end);
   const std::size_t step = rows.step;
   // Four running minima and maxima (one per pair of records: no chain of dependent min/max);
   // min(p, lo) is p < lo ? p : lo, as in the SSE2 pass.
@@ -171,26 +188,16 @@ GF_TARGET_AVX2 std::size_t centroids(const float* rec, const std::uint32_t* vsta
   const __m256 one = _mm256_set1_ps(1.f);
   for (; v + 8 <= nv; v += 8) {
     // 1 / count (counts are below 2^31: the signed conversion is exact), as the scalar pass.
-    const __m256i c0 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(vstart + v));
-    const __m256i c1 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(vstart + v + 1));
+    const __m256i c0 = load(vstart + v);
+    const __m256i c1 = load(vstart + v + 1);
     const __m256 inv = _mm256_div_ps(one, _mm256_cvtepi32_ps(_mm256_sub_epi32(c1, c0)));
-    const std::uint8_t* r = reinterpret_cast<const std::uint8_t*>(rec + 4 * v);
-    const __m256 r0 = pairOf(r, 16, 0), r1 = pairOf(r, 16, 1);
-    const __m256 r2 = pairOf(r, 16, 2), r3 = pairOf(r, 16, 3);
-    const __m256 t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpacklo_ps(r2, r3);
-    const __m256 t2 = _mm256_unpackhi_ps(r0, r1), t3 = _mm256_unpackhi_ps(r2, r3);
-    _mm256_storeu_ps(vx + v,
-                     _mm256_mul_ps(_mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(1, 0, 1, 0)), inv));
-    _mm256_storeu_ps(vy + v,
-                     _mm256_mul_ps(_mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(3, 2, 3, 2)), inv));
-    _mm256_storeu_ps(vz + v,
-                     _mm256_mul_ps(_mm256_shuffle_ps(t2, t3, _MM_SHUFFLE(1, 0, 1, 0)), inv));
+    __m256 x, y, z;
+    firstThreeLanes(reinterpret_cast<const std::uint8_t*>(rec + 4 * v), 16, &x, &y, &z);
+    _mm256_storeu_ps(vx + v, _mm256_mul_ps(x, inv));
+    _mm256_storeu_ps(vy + v, _mm256_mul_ps(y, inv));
+    _mm256_storeu_ps(vz + v, _mm256_mul_ps(z, inv));
   }
   return v;
-}
-
-GF_TARGET_AVX2 inline __m256i load(const std::uint64_t* p) {
-  return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p));
 }
 
 // Byte k of the result is bit k of `bits` (8 bits).
@@ -259,8 +266,8 @@ GF_TARGET_AVX2 std::size_t flagsOf(const VoxelFlagsJob& j, std::uint8_t* flags, 
                << (4 * h);
     }
     // Counts are below 2^31 and min_pts at most 1000: signed compares are exact.
-    const __m256i c0 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(j.vstart + v));
-    const __m256i c1 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(j.vstart + v + 1));
+    const __m256i c0 = load(j.vstart + v);
+    const __m256i c1 = load(j.vstart + v + 1);
     const __m256i dense = _mm256_cmpgt_epi32(_mm256_sub_epi32(c1, c0), below);
     const __m256 zr = _mm256_i32gather_ps(j.rec + j.rec_floats * v + 3, rec_idx, 4);
     const __m256 thin = _mm256_cmp_ps(zr, thr, _CMP_LT_OQ);  // zrange < thr (false for NaN)
@@ -282,12 +289,12 @@ GF_TARGET_AVX2 std::size_t flagsOf(const VoxelFlagsJob& j, std::uint8_t* flags, 
 
 bool cpuHasAvx2() { return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("popcnt"); }
 
-std::size_t computeKeysAvx2(const KeyJob& job, Rows16 rows, std::size_t begin, std::size_t end,
-                            std::size_t slot) {
+std::size_t computeKeysAvx2(const KeyJob& job, const DirectRead& rows, std::size_t begin,
+                            std::size_t end, std::size_t slot) {
   return keysAvx2(job, rows, begin, end, slot);
 }
 
-std::size_t scanBoundsAvx2(Rows16 rows, std::size_t begin, std::size_t end, float lo[4],
+std::size_t scanBoundsAvx2(const DirectRead& rows, std::size_t begin, std::size_t end, float lo[4],
                            float hi[4], std::size_t* valid) {
   return boundsAvx2(rows, begin, end, lo, hi, valid);
 }
@@ -305,11 +312,13 @@ std::size_t voxelFlagsAvx2(const VoxelFlagsJob& j, std::uint8_t* flags, VoxelLis
 
 bool cpuHasAvx2() { return false; }
 
-std::size_t computeKeysAvx2(const KeyJob&, Rows16, std::size_t begin, std::size_t, std::size_t) {
+std::size_t computeKeysAvx2(const KeyJob&, const DirectRead&, std::size_t begin, std::size_t,
+                            std::size_t) {
   return begin;
 }
 
-std::size_t scanBoundsAvx2(Rows16, std::size_t begin, std::size_t, float*, float*, std::size_t*) {
+std::size_t scanBoundsAvx2(const DirectRead&, std::size_t begin, std::size_t, float*, float*,
+                           std::size_t*) {
   return begin;
 }
 

@@ -27,10 +27,11 @@ struct KeyJob {
   bool packed, all_valid;
 };
 
-/// \brief Records with x y z adjacent and 16 readable bytes from x on, `step` bytes apart.
-struct Rows16 {
-  const std::uint8_t* x;  // x of record 0
-  std::size_t step;
+/// \brief Records with x y z adjacent: the passes read them with one 16-byte load a record.
+struct DirectRead {
+  const std::uint8_t* x = nullptr;  // x of record 0 (null: another layout)
+  std::size_t step = 0;             // bytes from one record to the next
+  std::size_t vector_end = 0;       // records before this one have 16 bytes from x on
 };
 
 /// \brief A ground seed needs this many empty voxels above it in its column: the foot of a wall,
@@ -94,15 +95,15 @@ inline void voxelFlags(const VoxelFlagsJob& j, std::size_t begin, std::size_t en
 bool cpuHasAvx2();
 
 /// \brief Packed keys (job.packed, every point valid) and their digit counts of records [begin,
-///        end) of `rows`, written from slot `slot` on, in blocks of eight. Returns the first record
-///        not done (the rest, fewer than eight, is the caller's).
-std::size_t computeKeysAvx2(const KeyJob& job, Rows16 rows, std::size_t begin, std::size_t end,
-                            std::size_t slot);
+///        end) of `rows`, written from slot `slot` on, in blocks of eight (records before
+///        rows.vector_end only). Returns the first record not done (the rest is the caller's).
+std::size_t computeKeysAvx2(const KeyJob& job, const DirectRead& rows, std::size_t begin,
+                            std::size_t end, std::size_t slot);
 
 /// \brief Bounds of the records of [begin, end) of `rows` with finite x y z (lo, hi: x y z and a
 ///        lane not used; updated, not reset) and their number (added to *valid), in blocks of
-///        eight. Returns the first record not done.
-std::size_t scanBoundsAvx2(Rows16 rows, std::size_t begin, std::size_t end, float lo[4],
+///        eight (records before rows.vector_end only). Returns the first record not done.
+std::size_t scanBoundsAvx2(const DirectRead& rows, std::size_t begin, std::size_t end, float lo[4],
                            float hi[4], std::size_t* valid);
 
 /// \brief Centroids of voxels [0, nv) from their sums (`rec`: x y z sums and one float not used

@@ -127,8 +127,10 @@ struct CopyPoints {
   V4 loadXyz(std::size_t i) const { return load(i); }
   const void* address(std::size_t i) const { return xyz0 + 4 * i; }
   std::size_t stride() const { return 4 * sizeof(float); }
-  Rows16 rows16() const { return Rows16{reinterpret_cast<const std::uint8_t*>(xyz0), 16}; }
-  std::size_t rows16End() const { return ~std::size_t{0}; }  // every record
+  // The copy as records for the AVX2 passes: every one has 16 bytes.
+  DirectRead rows() const {
+    return DirectRead{reinterpret_cast<const std::uint8_t*>(xyz0), 16, ~std::size_t{0}};
+  }
 };
 // Any layout: three scalar reads a record (first pass only; the other passes read the copy).
 struct FieldPoints {
@@ -157,8 +159,7 @@ struct DirectPoints {
   }
   const void* address(std::size_t i) const { return d.x + i * d.step; }
   std::size_t stride() const { return d.step; }
-  Rows16 rows16() const { return Rows16{d.x, d.step}; }
-  std::size_t rows16End() const { return d.vector_end; }
+  DirectRead rows() const { return d; }
 };
 #endif
 
@@ -239,8 +240,7 @@ template <class Points>
 void computeKeys(const KeyJob& job, const Points& pts, std::size_t begin, std::size_t end,
                  std::size_t slot, bool avx2) {
   if (avx2 && job.packed && job.all_valid) {  // blocks of eight points, the rest below
-    const std::size_t stop =
-        computeKeysAvx2(job, pts.rows16(), begin, std::min(end, pts.rows16End()), slot);
+    const std::size_t stop = computeKeysAvx2(job, pts.rows(), begin, end, slot);
     slot += stop - begin;
     begin = stop;
   }
@@ -353,8 +353,7 @@ void Voxelizer::scanBounds(const CloudView& cloud, const DirectRead& direct, flo
     alignas(16) float l[4], h[4];
     v4Store(l, lo);
     v4Store(h, hi);
-    first = scanBoundsAvx2(Rows16{direct.x, direct.step}, first,
-                           std::min(ch->end, direct.vector_end), l, h, &valid);
+    first = scanBoundsAvx2(direct, first, ch->end, l, h, &valid);
     lo = v4Load(l);
     hi = v4Load(h);
   }
@@ -589,8 +588,8 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   const int sy_ = g->shift_y, sx_ = g->shift_x;
   const bool local = p.local_planes;
   const std::uint64_t my = g->mask_y, mz = g->mask_z;
-  // Two passes without a branch per point or voxel. Pass 1 (gatherRuns(), specialised for the
-  // key layout): coordinates in key order, voxels, running sums and z ranges.
+  // Passes without a branch per point or voxel. Pass 1 (gatherRuns(), specialised for the key
+  // layout): coordinates in key order, voxels, running sums and z ranges.
   // Fields in RunJob's order: inputs, point outputs, voxel outputs, key layout, min corner.
   RunJob job = {k, o, pidx, xyz_out, pv, vk, vs, vrec_.data(), slot_mask, low, {}};
   std::copy(min_, min_ + 3, job.min);

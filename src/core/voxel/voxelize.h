@@ -21,12 +21,8 @@ namespace voxel {
 class Voxelizer {
  public:
   /// \brief x y z adjacent in every record: the passes can read them with one 16-byte load a
-  ///        point.
-  struct DirectRead {
-    const std::uint8_t* x = nullptr;  // x of record 0 (null: another layout)
-    std::size_t step = 0;             // bytes from one record to the next
-    std::size_t vector_end = 0;       // records before this one have 16 bytes from x on
-  };
+  ///        point (the AVX2 passes take the same description).
+  using DirectRead = voxel::DirectRead;
   /// \brief prepare()'s answer when a valid point may lie outside the volume.
   static constexpr std::size_t kOutside = ~std::size_t{0};
   /// \brief Finds the valid points and their bounds, sizes the key layout of `g` and computes
