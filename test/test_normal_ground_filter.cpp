@@ -1000,6 +1000,59 @@ TEST(RadixSort, TopDownSortGivesTheLsdOrder) {
       ASSERT_TRUE(gf::radixSortTopDown(slot_bits, passes, digit, h2.data(), &got, &tmp2, largest));
       ASSERT_TRUE(std::is_sorted(want.begin(), want.end()));
       EXPECT_EQ(got, want) << "key bits " << key_bits << ", spread " << spread;
+      // The buckets split into ranges (the voxel filter's threads), run in any order.
+      for (int blocks : {2, 3, 7}) {
+        got = words;
+        h2 = hist;
+        ASSERT_TRUE(gf::radixSortTopDown(slot_bits, passes, digit, h2.data(), &got, &tmp2, largest,
+                                         blocks, [&](const auto& fn) {
+                                           for (int b = blocks - 1; b >= 0; --b) fn(b);
+                                         }));
+        EXPECT_EQ(got, want) << "key bits " << key_bits << ", spread " << spread << ", blocks "
+                             << blocks;
+      }
+    }
+  }
+}
+
+TEST(RadixSort, BlockScatterGivesTheSerialOrder) {
+  // radixScatterBlocks() (the voxel filter's LSD sort on several threads) against radixScatter()
+  // on packed key << slot | slot words: blocks run in reverse order, 1-7 blocks (sizes that do
+  // not divide n), a digit shared by every key (its pass skipped), many duplicates.
+  std::mt19937_64 rng(12);
+  std::vector<std::uint64_t> tmp;
+  std::vector<std::uint32_t> counts;
+  for (int key_bits : {20, 31, 35}) {
+    for (int narrow : {0, 1}) {
+      const std::size_t n = 100003;
+      const int slot_bits = std::min(32, 64 - key_bits);
+      const int passes = (key_bits + gf::kRadixMaxDigitBits - 1) / gf::kRadixMaxDigitBits;
+      const int digit = (key_bits + passes - 1) / passes;
+      std::vector<std::uint64_t> words(n);
+      std::vector<std::uint32_t> hist(static_cast<std::size_t>(passes) << digit, 0);
+      const std::uint64_t kmask = (std::uint64_t{1} << key_bits) - 1;
+      for (std::size_t i = 0; i < n; ++i) {
+        // narrow: the top digit is 0 for every key
+        const std::uint64_t key = narrow ? rng() % (std::uint64_t{1} << digit) : rng() & kmask;
+        words[i] = key << slot_bits | i;
+        for (int q = 0; q < passes; ++q) {
+          ++hist[(static_cast<std::size_t>(q) << digit) +
+                 ((words[i] >> (slot_bits + q * digit)) & ((1u << digit) - 1))];
+        }
+      }
+      std::vector<std::uint64_t> want = words;
+      gf::radixScatter<std::uint32_t>(slot_bits, passes, digit, hist.data(), &want, &tmp, nullptr,
+                                      nullptr);
+      ASSERT_TRUE(std::is_sorted(want.begin(), want.end()));
+      for (int blocks : {1, 2, 3, 7}) {
+        std::vector<std::uint64_t> got = words;
+        gf::radixScatterBlocks(slot_bits, passes, digit, blocks, &got, &tmp, &counts,
+                               [&](const auto& fn) {
+                                 for (int b = blocks - 1; b >= 0; --b) fn(b);
+                               });
+        EXPECT_EQ(got, want) << "key bits " << key_bits << ", narrow " << narrow << ", blocks "
+                             << blocks;
+      }
     }
   }
 }

@@ -512,6 +512,22 @@ Cloud largeScene(bool wide, bool huge = false) {
   return c;
 }
 
+// A survey-sized tile: 1.05 M points over 500 x 500 m on a slope (20 m of height), with boxes:
+// 34-bit voxel keys, sorted top-down (kTopDownSortMinPoints) in buckets of a few hundred keys.
+Cloud surveyTile() {
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<float> u(0.f, 500.f), noise(-0.02f, 0.02f);
+  auto ground = [](float x, float y) { return 0.03f * x - 0.01f * y; };
+  Cloud c;
+  for (int i = 0; i < 1050000; ++i) {
+    const float x = u(rng), y = u(rng);
+    c.add(x, y, ground(x, y) + noise(rng), true);
+  }
+  for (float b = 50.f; b < 500.f; b += 75.f)
+    addBox(&c, b, 480.f - b, 3.f, 3.f, ground(b, 480.f - b), 2.f, 0.1f);
+  return c;
+}
+
 }  // namespace
 
 TEST(VoxelGroundFilter, SameLabelsForAnyThreadCountOnLargeClouds) {
@@ -556,24 +572,28 @@ TEST(VoxelGroundFilter, SameLabelsForAnyThreadCountOnLargeClouds) {
 }
 
 TEST(VoxelGroundFilter, NoAllocationAfterTheFirstScanOfASize) {
-  const Cloud c = largeScene(false);
-  for (int threads : {1, 2}) {
-    for (bool veg : {false, true}) {
-      gf::VoxelGroundFilterParams p = vegetationRule(veg);
-      p.threads = threads;
-      gf::VoxelGroundFilter f(p);
-      std::vector<std::uint8_t> first;
-      gf::FilterStats stats;
-      f.filter(c.view(), &first, &stats);
-      const std::size_t stages = veg ? 7u : 6u;  // + "vegetation"
-      ASSERT_EQ(stats.stage_ms.size(), stages);
-      std::vector<std::uint8_t> labels(c.size(), 2);  // allocated before counting
-      const std::size_t before = allocationCount().load();
-      f.filter(c.view(), &labels, &stats);  // reused labels and stats
-      f.filter(c.view(), &labels, nullptr);
-      EXPECT_EQ(allocationCount().load() - before, 0u) << "threads " << threads << ", veg " << veg;
-      EXPECT_EQ(first, labels);
-      EXPECT_EQ(stats.stage_ms.size(), stages);
+  const Cloud large = largeScene(false), survey = surveyTile();  // survey: threaded sort, gather
+  for (const Cloud* cloud : {&large, &survey}) {
+    const Cloud& c = *cloud;
+    for (int threads : {1, 2}) {
+      for (bool veg : {false, true}) {
+        gf::VoxelGroundFilterParams p = vegetationRule(veg);
+        p.threads = threads;
+        gf::VoxelGroundFilter f(p);
+        std::vector<std::uint8_t> first;
+        gf::FilterStats stats;
+        f.filter(c.view(), &first, &stats);
+        const std::size_t stages = veg ? 7u : 6u;  // + "vegetation"
+        ASSERT_EQ(stats.stage_ms.size(), stages);
+        std::vector<std::uint8_t> labels(c.size(), 2);  // allocated before counting
+        const std::size_t before = allocationCount().load();
+        f.filter(c.view(), &labels, &stats);  // reused labels and stats
+        f.filter(c.view(), &labels, nullptr);
+        EXPECT_EQ(allocationCount().load() - before, 0u)
+            << c.size() << " points, threads " << threads << ", veg " << veg;
+        EXPECT_EQ(first, labels);
+        EXPECT_EQ(stats.stage_ms.size(), stages);
+      }
     }
   }
 }
@@ -738,10 +758,12 @@ TEST(VoxelGroundFilterKitti, PooledF1AboveFloor) {
 namespace {
 
 // Everything build() leaves in a VoxelGrid (and the unsorted keys of prepare()), as bytes.
-std::vector<std::vector<std::uint8_t>> gridBytes(const gf::CloudView& view, int threads, bool avx2,
-                                                 bool local_planes) {
+std::vector<std::vector<std::uint8_t>> gridBytes(
+    const gf::CloudView& view, int threads, bool avx2, bool local_planes,
+    std::size_t parallel_min_points = gf::voxel::kParallelSortMinPoints) {
   gf::voxel::Voxelizer vz;
   vz.setUseAvx2(avx2);
+  vz.setParallelMinPoints(parallel_min_points);
   gf::voxel::VoxelGrid g;
   gf::voxel::CellGrid cells;
   gf::voxel::WorkerPool pool;
@@ -757,7 +779,7 @@ std::vector<std::vector<std::uint8_t>> gridBytes(const gf::CloudView& view, int 
   out.push_back(bytes(dims, 4));
   out.push_back(bytes(g.keys, g.keys.size()));
   cells.setup(p, g.nx, g.ny);
-  vz.build(p, &g, &cells);
+  vz.build(p, threads, &pool, &g, &cells);
   out.push_back(bytes(g.keys, g.keys.size()));
   out.push_back(bytes(g.sxyz, 3 * n));
   out.push_back(bytes(g.vx, g.vx.size()));
@@ -820,5 +842,54 @@ TEST(Voxelizer, Avx2PassesGiveTheSse2Grid) {
         }
       }
     }
+  }
+}
+
+// The sort and the gather on several threads (from parallelMinPoints() points on) give the
+// serial grid bit for bit: the LSD sort's blocks and the gather's ranges (lowered threshold; NaN
+// points, 16-byte records read in place and wider ones copied), and the top-down sort's bucket
+// ranges on a survey-sized tile.
+TEST(Voxelizer, ThreadsGiveTheSerialGrid) {
+  Cloud with_nan = largeScene(true);
+  Cloud valid = largeScene(false);
+  for (float& v : valid.xyz) v = std::isnan(v) ? 0.5f : v;
+  const Cloud survey = surveyTile();
+  struct Case {
+    const Cloud* cloud;
+    std::size_t stride;
+    std::size_t parallel_min;
+  };
+  const Case cases[] = {{&with_nan, 16, 1},
+                        {&valid, 16, 1},
+                        {&valid, 32, 1},
+                        {&survey, 12, gf::voxel::kParallelSortMinPoints}};
+  for (const Case& cs : cases) {
+    const Cloud& c = *cs.cloud;
+    std::vector<std::uint8_t> buf(c.size() * cs.stride, 0);
+    for (std::size_t i = 0; i < c.size(); ++i) std::memcpy(&buf[i * cs.stride], &c.xyz[3 * i], 12);
+    const gf::CloudView view(buf.data(), c.size(), cs.stride, 0, 4, 8);
+    ASSERT_GE(c.size(), cs.parallel_min);
+    for (bool local : {true, false}) {
+      const auto serial = gridBytes(view, 1, gf::voxel::cpuHasAvx2(), local, cs.parallel_min);
+      for (int threads : {2, 3}) {
+        const auto threaded =
+            gridBytes(view, threads, gf::voxel::cpuHasAvx2(), local, cs.parallel_min);
+        ASSERT_EQ(serial.size(), threaded.size());
+        for (std::size_t k = 0; k < serial.size(); ++k) {
+          EXPECT_TRUE(serial[k] == threaded[k])
+              << "array " << k << ", " << c.size() << " points, stride " << cs.stride
+              << ", threads " << threads << ", local planes " << local;
+        }
+      }
+    }
+  }
+  // The whole filter on the survey tile.
+  gf::VoxelGroundFilterParams p;
+  p.threads = 1;
+  const auto ref = run(survey, p);
+  EXPECT_GT(agreement(ref, survey.truth, 1), 0.9);
+  for (int threads : {2, 3}) {
+    p.threads = threads;
+    EXPECT_EQ(ref, run(survey, p)) << "threads " << threads << ", survey tile";
   }
 }

@@ -75,19 +75,130 @@ void radixScatter(int lo, int passes, int digit, std::uint32_t* hist, std::vecto
   }
 }
 
+/// \brief radixScatter() of the keys alone on several threads, for arrays much larger than the
+///        cache: every pass splits `a` into `blocks` equal blocks, counts each block's digits
+///        (into `counts`, blocks << digit entries), runs the offsets over the digits and, within a
+///        digit, over the blocks in order, then scatters each block. A stable scatter like the
+///        serial one, so the same order for any number of blocks. `for_blocks(fn)` calls fn(b)
+///        for every block b < blocks, on any threads, and returns when all are done.
+template <class ForBlocks>
+void radixScatterBlocks(int lo, int passes, int digit, int blocks, std::vector<std::uint64_t>* a,
+                        std::vector<std::uint64_t>* a_tmp, std::vector<std::uint32_t>* counts,
+                        ForBlocks&& for_blocks) {
+  const std::size_t n = a->size();
+  if (n == 0) return;
+  const std::uint32_t mask = (1u << digit) - 1;
+  const std::size_t buckets = std::size_t{1} << digit;
+  resizeScratch(a_tmp, n);
+  counts->resize(static_cast<std::size_t>(blocks) * buckets);
+  std::uint32_t* const cnt = counts->data();
+  auto begin = [&](int b) {
+    return n * static_cast<std::size_t>(b) / static_cast<std::size_t>(blocks);
+  };
+  for (int q = 0; q < passes; ++q) {
+    const int shift = lo + q * digit;
+    const std::uint64_t* const k = a->data();
+    std::uint64_t* const kt = a_tmp->data();
+    for_blocks([&](int b) {
+      std::uint32_t* c = cnt + static_cast<std::size_t>(b) * buckets;
+      std::fill(c, c + buckets, 0u);
+      const std::size_t e = begin(b + 1);
+      for (std::size_t i = begin(b); i < e; ++i) {
+        prefetchAhead(k + i, 8 * kRadixReadAhead);
+        ++c[(k[i] >> shift) & mask];
+      }
+    });
+    std::size_t first_digit = 0;  // keys with k[0]'s digit
+    const std::size_t d0 = (k[0] >> shift) & mask;
+    for (int b = 0; b < blocks; ++b) first_digit += cnt[static_cast<std::size_t>(b) * buckets + d0];
+    if (first_digit == n) continue;  // every key has this digit
+    std::uint32_t sum = 0;
+    for (std::size_t j = 0; j < buckets; ++j) {
+      for (int b = 0; b < blocks; ++b) {
+        std::uint32_t& c = cnt[static_cast<std::size_t>(b) * buckets + j];
+        const std::uint32_t here = c;
+        c = sum;
+        sum += here;
+      }
+    }
+    for_blocks([&](int b) {
+      std::uint32_t* c = cnt + static_cast<std::size_t>(b) * buckets;
+      const std::size_t e = begin(b + 1);
+      for (std::size_t i = begin(b); i < e; ++i) {
+        prefetchAhead(k + i, 8 * kRadixReadAhead);
+        kt[c[(k[i] >> shift) & mask]++] = k[i];
+      }
+    });
+    a->swap(*a_tmp);
+  }
+}
+
+/// \brief Sorts the keys src[0, len) on the bits [lo, top) into dst[0, len) (src is
+///        overwritten): an LSD sort of 8-bit digits, or insertion for a few keys. Stable.
+inline void radixSortBucket(int lo, int top, std::uint64_t* src, std::uint64_t* dst,
+                            std::size_t len) {
+  constexpr int kSub = 8;
+  constexpr std::uint32_t kSubMask = (1u << kSub) - 1;
+  constexpr std::size_t kInsertion = 24;  // buckets up to this size: insertion sort
+  const int m = (top - lo + kSub - 1) / kSub;
+  if (len <= kInsertion || m > 8) {
+    for (std::size_t i = 0; i < len; ++i) {
+      const std::uint64_t w = src[i];
+      std::size_t j = i;
+      for (; j > 0 && dst[j - 1] > w; --j) dst[j] = dst[j - 1];
+      dst[j] = w;
+    }
+    return;
+  }
+  std::uint32_t cnt[8][kSubMask + 1];
+  for (int q = 0; q < m; ++q) {
+    for (std::uint32_t j = 0; j <= kSubMask; ++j) cnt[q][j] = 0;
+  }
+  if (m == 3) {  // the usual case (24 bits below a 12-bit top digit): unrolled
+    for (std::size_t i = 0; i < len; ++i) {
+      const std::uint64_t w = src[i] >> lo;
+      ++cnt[0][w & kSubMask];
+      ++cnt[1][(w >> kSub) & kSubMask];
+      ++cnt[2][(w >> (2 * kSub)) & kSubMask];
+    }
+  } else {
+    for (std::size_t i = 0; i < len; ++i) {
+      const std::uint64_t w = src[i] >> lo;
+      for (int q = 0; q < m; ++q) ++cnt[q][(w >> (q * kSub)) & kSubMask];
+    }
+  }
+  std::uint64_t* const out = dst;
+  for (int q = 0; q < m; ++q) {
+    std::uint32_t* c = cnt[q];
+    const int shift = lo + q * kSub;
+    if (c[(src[0] >> shift) & kSubMask] == len) continue;  // one digit for all
+    std::uint32_t run = 0;
+    for (std::uint32_t j = 0; j <= kSubMask; ++j) {
+      const std::uint32_t k = c[j];
+      c[j] = run;
+      run += k;
+    }
+    for (std::size_t i = 0; i < len; ++i) dst[c[(src[i] >> shift) & kSubMask]++] = src[i];
+    std::swap(src, dst);
+  }
+  if (src != out) std::copy(src, src + len, out);
+}
+
 /// \brief The same order as radixScatter() of the keys alone over `passes` >= 2 digits, for
 ///        arrays much larger than the cache: one scatter by the top digit (its counts from
 ///        `hist`), then each bucket (a few thousand keys on large scans, in cache) sorted on the
-///        lower bits by an LSD sort of 8-bit digits, or by insertion for a few keys. Needs keys
+///        lower bits (radixSortBucket()), the buckets in `blocks` ranges of about n / blocks
+///        keys: `for_blocks(fn)` calls fn(b) for every b < blocks, on any threads. Needs keys
 ///        that are unique and in increasing order of their bits below `lo` (packed
 ///        key << slot | slot words, written in slot order): then any sort by the bits from
 ///        `lo` on that keeps equal keys in input order gives the same array. `hist` is
 ///        overwritten.
 /// \returns false, having changed nothing, when a bucket would hold more than `max_bucket`
 ///          keys (dense scans: TLS near its scanner), which would be sorted out of cache.
-inline bool radixSortTopDown(int lo, int passes, int digit, std::uint32_t* hist,
-                             std::vector<std::uint64_t>* a, std::vector<std::uint64_t>* a_tmp,
-                             std::size_t max_bucket) {
+template <class ForBlocks>
+bool radixSortTopDown(int lo, int passes, int digit, std::uint32_t* hist,
+                      std::vector<std::uint64_t>* a, std::vector<std::uint64_t>* a_tmp,
+                      std::size_t max_bucket, int blocks, ForBlocks&& for_blocks) {
   const std::size_t n = a->size();
   if (n == 0) return true;
   const std::uint32_t mask = (1u << digit) - 1;
@@ -105,61 +216,29 @@ inline bool radixSortTopDown(int lo, int passes, int digit, std::uint32_t* hist,
   std::uint64_t* const ka = a->data();
   std::uint64_t* const kb = a_tmp->data();
   for (std::size_t i = 0; i < n; ++i) kb[h[(ka[i] >> top) & mask]++] = ka[i];
-  // Each bucket on the bits [lo, top) into `ka`.
-  constexpr int kSub = 8;
-  constexpr std::uint32_t kSubMask = (1u << kSub) - 1;
-  constexpr std::size_t kInsertion = 24;  // buckets up to this size: insertion sort
-  const int m = (top - lo + kSub - 1) / kSub;
-  std::uint32_t cnt[8][kSubMask + 1];
-  for (std::uint32_t b = 0; b <= mask; ++b) {
-    const std::size_t s0 = start[b];
-    const std::size_t s1 = b < mask ? start[b + 1] : n;
-    const std::size_t len = s1 - s0;
-    if (len <= kInsertion || m > 8) {
-      for (std::size_t i = s0; i < s1; ++i) {
-        const std::uint64_t w = kb[i];
-        std::size_t j = i;
-        for (; j > s0 && ka[j - 1] > w; --j) ka[j] = ka[j - 1];
-        ka[j] = w;
-      }
-      continue;
+  // The buckets on the bits [lo, top) into `ka`, in ranges starting at the first bucket that
+  // starts at or after n * b / blocks.
+  auto first_bucket = [&](int b) {
+    const std::uint32_t at = static_cast<std::uint32_t>(n * static_cast<std::size_t>(b) /
+                                                        static_cast<std::size_t>(blocks));
+    return static_cast<std::uint32_t>(std::lower_bound(start, start + mask + 1, at) - start);
+  };
+  for_blocks([&](int b) {
+    const std::uint32_t b1 = b + 1 < blocks ? first_bucket(b + 1) : mask + 1;
+    for (std::uint32_t j = first_bucket(b); j < b1; ++j) {
+      const std::size_t end = j < mask ? start[j + 1] : n;
+      radixSortBucket(lo, top, kb + start[j], ka + start[j], end - start[j]);
     }
-    for (int q = 0; q < m; ++q) {
-      for (std::uint32_t j = 0; j <= kSubMask; ++j) cnt[q][j] = 0;
-    }
-    if (m == 3) {  // the usual case (24 bits below a 12-bit top digit): unrolled
-      for (std::size_t i = s0; i < s1; ++i) {
-        const std::uint64_t w = kb[i] >> lo;
-        ++cnt[0][w & kSubMask];
-        ++cnt[1][(w >> kSub) & kSubMask];
-        ++cnt[2][(w >> (2 * kSub)) & kSubMask];
-      }
-    } else {
-      for (std::size_t i = s0; i < s1; ++i) {
-        const std::uint64_t w = kb[i] >> lo;
-        for (int q = 0; q < m; ++q) ++cnt[q][(w >> (q * kSub)) & kSubMask];
-      }
-    }
-    std::uint64_t* src = kb + s0;
-    std::uint64_t* dst = ka + s0;
-    for (int q = 0; q < m; ++q) {
-      std::uint32_t* c = cnt[q];
-      const int shift = lo + q * kSub;
-      if (c[(src[0] >> shift) & kSubMask] == len) continue;  // one digit for all
-      std::uint32_t run = 0;
-      for (std::uint32_t j = 0; j <= kSubMask; ++j) {
-        const std::uint32_t k = c[j];
-        c[j] = run;
-        run += k;
-      }
-      for (std::size_t i = 0; i < len; ++i) dst[c[(src[i] >> shift) & kSubMask]++] = src[i];
-      std::swap(src, dst);
-    }
-    if (src != ka + s0) {
-      for (std::size_t i = 0; i < len; ++i) ka[s0 + i] = src[i];
-    }
-  }
+  });
   return true;
+}
+
+/// \brief radixSortTopDown() on the calling thread.
+inline bool radixSortTopDown(int lo, int passes, int digit, std::uint32_t* hist,
+                             std::vector<std::uint64_t>* a, std::vector<std::uint64_t>* a_tmp,
+                             std::size_t max_bucket) {
+  return radixSortTopDown(lo, passes, digit, hist, a, a_tmp, max_bucket, 1,
+                          [](const auto& fn) { fn(0); });
 }
 
 /// \brief Buffers of radixSortByKey(), reused between calls.

@@ -109,7 +109,7 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
 
   // ---- 2. voxels (sorted keys, runs), 3. flat voxels and seed candidates
   t0 = Clock::now();
-  m.voxelizer.build(p, &g, &m.cells);
+  m.voxelizer.build(p, threads, &m.pool, &g, &m.cells);
   stage("voxelize", t0);
 
   // ---- 4. height filter, 5. region growing, largest segment

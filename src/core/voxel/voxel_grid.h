@@ -21,6 +21,11 @@ constexpr int kMaxAxisBits = 21;  // 3 * 21 bits fit one 64-bit key
 // Stages split their work over `threads` only from this many valid points: below it the
 // parallel regions cost more than they save (a KITTI frame, 124 k points, stays on one thread).
 constexpr std::size_t kParallelMinPoints = 150000;
+// The voxel sort and the gather of the points use several threads from this many valid points:
+// on a 240 k-point scan two threads sorting share the cache lines of their buckets (a few keys
+// each; voxelize 2.6 -> 3.2 ms) and gathering saved nothing; on 1.1 M points both save 15 %
+// (docs/voxel_method.md, "Results").
+constexpr std::size_t kParallelSortMinPoints = 1000000;
 // Sorts of at least this many packed keys with 3 or more radix digits scatter once by the top
 // digit and finish each bucket in cache (radixSortTopDown()).
 constexpr std::size_t kTopDownSortMinPoints = 1000000;

@@ -277,8 +277,17 @@ struct RunJob {
 // min z. Vector ops update the sums and a running max of (x, y, z, -z) (lane 2: max z, lane 3:
 // -min z) in all lanes at once; one record and one point store instead of eight scalar streams
 // (voxelize -16 % on a KITTI frame, -34 % on a 128-beam scan). Returns the number of voxels.
+//
+// The points [begin, end) of `r` (end <= n, all points), their voxels numbered from r.voxel:
+// ranges start and end at voxel boundaries and can run on several threads. Then a range that
+// does not start at point 0 leaves its first voxel's key and start to the caller (the range
+// before stores its one-past-the-last entries there), and the last point's coordinates are
+// stored as three floats (not four: the fourth would be the next range's).
+struct GatherRange {
+  std::size_t begin, end, n, voxel;
+};
 template <bool kPacked, bool kAllValid, class Points>
-std::size_t gatherRuns(const RunJob job, const Points pts, std::size_t n) {
+std::size_t gatherRuns(const RunJob job, const Points pts, const GatherRange r) {
   const std::uint64_t* const k = job.keys;
   const std::uint32_t* const o = job.order;
   const std::uint32_t* const pidx = job.pidx;
@@ -297,21 +306,31 @@ std::size_t gatherRuns(const RunJob job, const Points pts, std::size_t n) {
     return static_cast<std::size_t>(kAllValid ? s : pidx[s]);
   };
   constexpr std::size_t kAhead = 48;  // prefetch distance of the random coordinate reads
-  std::size_t nv = 0;
+  std::size_t nv = r.voxel;
   std::uint64_t prev = ~std::uint64_t{0};  // no key (keys use at most 63 bits)
   V4 sum = v4Splat(0.f), hi = v4Splat(0.f);
-  // The loop body, with or without the prefetch (two loops: no bounds test per point).
-  auto step = [&](std::size_t i, auto prefetch) {
+  // The loop body: with or without the prefetch (loops without a bounds test per point), and
+  // for the edges of the range.
+  constexpr int kFirstOfLater = 1, kLast = 2;  // edge: bits
+  auto step = [&](std::size_t i, auto prefetch, auto edge) {
     if (decltype(prefetch)::value) __builtin_prefetch(pts.address(pointOf(slotOf(i + kAhead))));
     const std::uint64_t key = k[i] >> low;
     // The same float subtraction as prepare()'s key pass made lane by lane (and its negation).
     const V4 p = v4Sub(v4WithNegZ(pts.loadXyz(pointOf(slotOf(i)))), vmin);
-    // Four floats: the fourth lands on the next point's x, which its own store overwrites.
-    v4StoreUnaligned(xyz_out + 3 * i, p);
+    if (decltype(edge)::value & kLast) {
+      alignas(16) float c[4];
+      v4Store(c, p);
+      std::memcpy(xyz_out + 3 * i, c, 3 * sizeof(float));
+    } else {
+      // Four floats: the fourth lands on the next point's x, which its own store overwrites.
+      v4StoreUnaligned(xyz_out + 3 * i, p);
+    }
     const bool first = key != prev;
     prev = key;
-    vk[nv] = key;  // kept when the run starts here, overwritten otherwise
-    vs[nv] = static_cast<std::uint32_t>(i);
+    if (!(decltype(edge)::value & kFirstOfLater)) {
+      vk[nv] = key;  // kept when the run starts here, overwritten otherwise
+      vs[nv] = static_cast<std::uint32_t>(i);
+    }
     nv += first;
     const std::size_t v = nv - 1;
     pv[i] = static_cast<std::uint32_t>(v);
@@ -320,21 +339,30 @@ std::size_t gatherRuns(const RunJob job, const Points pts, std::size_t n) {
     hi = v4Max(v4LowestIf(hi, first), p);
     v4StoreUnaligned(rec + kRunRecord * v, v4SumsAndRange(sum, hi));
   };
-  const std::size_t with_prefetch = n > kAhead ? n - kAhead : 0;
-  std::size_t i = 0;
-  for (; i < with_prefetch; ++i) step(i, std::true_type());
-  for (; i < n; ++i) step(i, std::false_type());
+  using Inside = std::integral_constant<int, 0>;
+  if (r.begin == r.end) return nv;
+  const std::size_t last = r.end - 1;
+  std::size_t i = r.begin;
+  if (i > 0 && i == last) {
+    step(i, std::false_type(), std::integral_constant<int, kFirstOfLater | kLast>());
+    return nv;
+  }
+  if (i > 0) step(i++, std::false_type(), std::integral_constant<int, kFirstOfLater>());
+  const std::size_t with_prefetch = std::min(last, r.n > kAhead ? r.n - kAhead : 0);
+  for (; i < with_prefetch; ++i) step(i, std::true_type(), Inside());
+  for (; i < last; ++i) step(i, std::false_type(), Inside());
+  step(last, std::false_type(), std::integral_constant<int, kLast>());
   return nv;
 }
 
 // gatherRuns() for the key layout: [packed keys][every point valid].
 template <class Points>
 std::size_t gather(const RunJob& job, const Points& pts, bool packed, bool all_valid,
-                   std::size_t n) {
+                   const GatherRange& r) {
   if (packed) {
-    return all_valid ? gatherRuns<true, true>(job, pts, n) : gatherRuns<true, false>(job, pts, n);
+    return all_valid ? gatherRuns<true, true>(job, pts, r) : gatherRuns<true, false>(job, pts, r);
   }
-  return all_valid ? gatherRuns<false, true>(job, pts, n) : gatherRuns<false, false>(job, pts, n);
+  return all_valid ? gatherRuns<false, true>(job, pts, r) : gatherRuns<false, false>(job, pts, r);
 }
 
 }  // namespace
@@ -535,16 +563,20 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   return n;
 }
 
-void Voxelizer::sort(VoxelGrid* g) {
-  // One thread for any `threads`: split over threads, the scatter writes of two threads land in
-  // the same cache lines (32 k buckets of a few keys each) and voxelize took 2x longer on a
-  // 240 k-point scan.
+void Voxelizer::sort(int threads, WorkerPool* pool, VoxelGrid* g) {
+  // Several threads only on large scans (build()): on a 240 k-point scan the scatter writes of
+  // two threads land in the same cache lines (32 k buckets of a few keys each), and voxelize
+  // took 2x longer. Their work is split into one block a thread (fn(b), b < threads).
+  auto blocks = [&](const auto& fn) { pool->run(threads, threads, [&](int, int b) { fn(b); }); };
   if (g->packed && plan_.passes >= 3 && g->keys.size() >= kTopDownSortMinPoints &&
       radixSortTopDown(plan_.lo, plan_.passes, plan_.digit, hist_.data(), &g->keys, &keys_tmp_,
-                       kTopDownSortMaxBucket)) {
+                       kTopDownSortMaxBucket, threads, blocks)) {
     return;
   }
-  if (g->packed) {
+  if (g->packed && threads > 1) {
+    radixScatterBlocks(plan_.lo, plan_.passes, plan_.digit, threads, &g->keys, &keys_tmp_,
+                       &block_counts_, blocks);
+  } else if (g->packed) {
     radixScatter<std::uint32_t>(plan_.lo, plan_.passes, plan_.digit, hist_.data(), &g->keys,
                                 &keys_tmp_, nullptr, nullptr);
   } else {
@@ -553,9 +585,11 @@ void Voxelizer::sort(VoxelGrid* g) {
   }
 }
 
-void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* cells) {
-  sort(g);
+void Voxelizer::build(const VoxelGroundFilterParams& p, int threads, WorkerPool* pool, VoxelGrid* g,
+                      CellGrid* cells) {
   const std::size_t n = g->keys.size();
+  const int nt = threads > 1 && n >= parallel_min_points_ ? threads : 1;
+  sort(nt, pool, g);
   // One pass over the sorted points: coordinates in key order, runs of equal keys become voxels.
   // A voxel is finished when the next one starts (its flags need the next key).
   resizeScratch(&g->sxyz, 3 * n + 1);
@@ -595,8 +629,39 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* 
   std::copy(min_, min_ + 3, job.min);
   job.min[3] = -min_[2];
   std::size_t nv = 0;
-  withPoints(direct_, copied() ? pxyz_.data() : nullptr,
-             [&](const auto& pts) { nv = gather(job, pts, pk, av, n); });
+  withPoints(direct_, copied() ? pxyz_.data() : nullptr, [&](const auto& pts) {
+    if (nt == 1) {
+      nv = gather(job, pts, pk, av, GatherRange{0, n, n, 0});
+      return;
+    }
+    // Ranges of about n / nt points that end at voxel boundaries, their voxels counted first
+    // (numbered on from the ranges before), then gathered.
+    range_.assign(static_cast<std::size_t>(nt) + 1, n);
+    range_[0] = 0;
+    for (int r = 1; r < nt; ++r) {
+      std::size_t b =
+          std::max(n * static_cast<std::size_t>(r) / static_cast<std::size_t>(nt), range_[r - 1]);
+      while (b > 0 && b < n && (k[b] >> low) == (k[b - 1] >> low)) ++b;
+      range_[r] = b;
+    }
+    voxel_base_.assign(static_cast<std::size_t>(nt) + 1, 0);
+    pool->run(nt, nt, [&](int, int r) {
+      const std::size_t b = range_[r], e = range_[r + 1];
+      std::size_t starts = b < e ? 1 : 0;
+      for (std::size_t i = b + 1; i < e; ++i) starts += (k[i] >> low) != (k[i - 1] >> low);
+      voxel_base_[r + 1] = starts;
+    });
+    for (int r = 0; r < nt; ++r) voxel_base_[r + 1] += voxel_base_[r];
+    pool->run(nt, nt, [&](int, int r) {
+      gather(job, pts, pk, av, GatherRange{range_[r], range_[r + 1], n, voxel_base_[r]});
+    });
+    for (int r = 1; r < nt; ++r) {  // the first voxel of every later range (GatherRange)
+      if (range_[r] == range_[r + 1]) continue;
+      vk[voxel_base_[r]] = k[range_[r]] >> low;
+      vs[voxel_base_[r]] = static_cast<std::uint32_t>(range_[r]);
+    }
+    nv = voxel_base_[nt];
+  });
   g->vx.resize(nv);
   g->vy.resize(nv);
   g->vz.resize(nv);

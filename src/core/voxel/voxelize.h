@@ -33,7 +33,14 @@ class Voxelizer {
                       const WorkingVolume* volume, VoxelGrid* g);
   /// \brief Sorts the keys and fills the points, voxels, columns, `flat` and `seeds` of `g`;
   ///        marks the cells holding voxels in `cells`.
-  void build(const VoxelGroundFilterParams& p, VoxelGrid* g, CellGrid* cells);
+  ///        From parallelMinPoints() valid points on, the sort and the gather of the points run
+  ///        on `threads` threads of `pool` (the same grid for any thread count).
+  void build(const VoxelGroundFilterParams& p, int threads, WorkerPool* pool, VoxelGrid* g,
+             CellGrid* cells);
+  /// \brief Valid points from which build() uses several threads (default
+  ///        kParallelSortMinPoints; tests lower it).
+  void setParallelMinPoints(std::size_t n) { parallel_min_points_ = n; }
+  std::size_t parallelMinPoints() const { return parallel_min_points_; }
   /// \brief Whether prepare() and build() run their AVX2 passes (default: where the CPU has AVX2);
   ///        tests compare both paths. Ignored without AVX2.
   void setUseAvx2(bool use) { use_avx2_ = use && cpuHasAvx2(); }
@@ -50,7 +57,7 @@ class Voxelizer {
   };
   static void scanBounds(const CloudView& cloud, const DirectRead& direct, float* pts, bool avx2,
                          Chunk* ch);
-  void sort(VoxelGrid* g);
+  void sort(int threads, WorkerPool* pool, VoxelGrid* g);
 
   // x y z 0 per input point (16-byte aligned vectors), absolute: build() subtracts min_ as it
   // gathers the valid points (one write of the copy fewer than storing relative coordinates).
@@ -59,6 +66,9 @@ class Voxelizer {
   // (a wide record read twice at random in the gather cost more than the copy: os128).
   std::vector<float> pxyz_;
   bool use_avx2_ = cpuHasAvx2();
+  std::size_t parallel_min_points_ = kParallelSortMinPoints;
+  std::vector<std::uint32_t> block_counts_;      // sort() on several threads: digits per block
+  std::vector<std::size_t> range_, voxel_base_;  // build(): points and first voxel per range
   DirectRead direct_;  // this scan's layout (prepare(); build() reads the same cloud)
   bool copied() const { return direct_.x == nullptr || direct_.step > 16; }
   float min_[3] = {0.f, 0.f, 0.f};  // min corner of the valid points
