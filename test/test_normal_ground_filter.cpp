@@ -960,6 +960,7 @@ TEST(RadixSort, SortByKeyIsStableAndMatchesStdStableSort) {
 }
 
 TEST(RadixSort, TopDownSortGivesTheLsdOrder) {
+  std::vector<std::uint32_t> counts;
   // radixSortTopDown() (the voxel filter's sort of large scans) against radixScatter() on packed
   // key << slot | slot words, slots in order: keys of 2-4 digits, clustered (buckets of every
   // size: insertion, 8-bit passes, digits shared by a whole bucket) and spread, many duplicates.
@@ -1005,7 +1006,7 @@ TEST(RadixSort, TopDownSortGivesTheLsdOrder) {
         got = words;
         h2 = hist;
         ASSERT_TRUE(gf::radixSortTopDown(slot_bits, passes, digit, h2.data(), &got, &tmp2, largest,
-                                         blocks, [&](const auto& fn) {
+                                         blocks, &counts, [&](const auto& fn) {
                                            for (int b = blocks - 1; b >= 0; --b) fn(b);
                                          }));
         EXPECT_EQ(got, want) << "key bits " << key_bits << ", spread " << spread << ", blocks "

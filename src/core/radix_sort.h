@@ -187,8 +187,9 @@ inline void radixSortBucket(int lo, int top, std::uint64_t* src, std::uint64_t* 
 /// \brief The same order as radixScatter() of the keys alone over `passes` >= 2 digits, for
 ///        arrays much larger than the cache: one scatter by the top digit (its counts from
 ///        `hist`), then each bucket (a few thousand keys on large scans, in cache) sorted on the
-///        lower bits (radixSortBucket()), the buckets in `blocks` ranges of about n / blocks
-///        keys: `for_blocks(fn)` calls fn(b) for every b < blocks, on any threads. Needs keys
+///        lower bits (radixSortBucket()). With `blocks` > 1 the scatter is radixScatterBlocks()'s
+///        (`counts` its buffer) and the buckets go in `blocks` ranges of about n / blocks keys:
+///        `for_blocks(fn)` calls fn(b) for every b < blocks, on any threads. Needs keys
 ///        that are unique and in increasing order of their bits below `lo` (packed
 ///        key << slot | slot words, written in slot order): then any sort by the bits from
 ///        `lo` on that keeps equal keys in input order gives the same array. `hist` is
@@ -198,7 +199,8 @@ inline void radixSortBucket(int lo, int top, std::uint64_t* src, std::uint64_t* 
 template <class ForBlocks>
 bool radixSortTopDown(int lo, int passes, int digit, std::uint32_t* hist,
                       std::vector<std::uint64_t>* a, std::vector<std::uint64_t>* a_tmp,
-                      std::size_t max_bucket, int blocks, ForBlocks&& for_blocks) {
+                      std::size_t max_bucket, int blocks, std::vector<std::uint32_t>* counts,
+                      ForBlocks&& for_blocks) {
   const std::size_t n = a->size();
   if (n == 0) return true;
   const std::uint32_t mask = (1u << digit) - 1;
@@ -213,9 +215,16 @@ bool radixSortTopDown(int lo, int passes, int digit, std::uint32_t* hist,
     sum += cnt;
   }
   resizeScratch(a_tmp, n);
+  if (blocks > 1) {
+    radixScatterBlocks(top, 1, digit, blocks, a, a_tmp, counts, for_blocks);
+    a->swap(*a_tmp);  // the scattered keys in a_tmp, as below
+  } else {
+    const std::uint64_t* const k = a->data();
+    std::uint64_t* const kt = a_tmp->data();
+    for (std::size_t i = 0; i < n; ++i) kt[h[(k[i] >> top) & mask]++] = k[i];
+  }
   std::uint64_t* const ka = a->data();
   std::uint64_t* const kb = a_tmp->data();
-  for (std::size_t i = 0; i < n; ++i) kb[h[(ka[i] >> top) & mask]++] = ka[i];
   // The buckets on the bits [lo, top) into `ka`, in ranges starting at the first bucket that
   // starts at or after n * b / blocks.
   auto first_bucket = [&](int b) {
@@ -237,7 +246,7 @@ bool radixSortTopDown(int lo, int passes, int digit, std::uint32_t* hist,
 inline bool radixSortTopDown(int lo, int passes, int digit, std::uint32_t* hist,
                              std::vector<std::uint64_t>* a, std::vector<std::uint64_t>* a_tmp,
                              std::size_t max_bucket) {
-  return radixSortTopDown(lo, passes, digit, hist, a, a_tmp, max_bucket, 1,
+  return radixSortTopDown(lo, passes, digit, hist, a, a_tmp, max_bucket, 1, nullptr,
                           [](const auto& fn) { fn(0); });
 }
 

@@ -570,7 +570,7 @@ void Voxelizer::sort(int threads, WorkerPool* pool, VoxelGrid* g) {
   auto blocks = [&](const auto& fn) { pool->run(threads, threads, [&](int, int b) { fn(b); }); };
   if (g->packed && plan_.passes >= 3 && g->keys.size() >= kTopDownSortMinPoints &&
       radixSortTopDown(plan_.lo, plan_.passes, plan_.digit, hist_.data(), &g->keys, &keys_tmp_,
-                       kTopDownSortMaxBucket, threads, blocks)) {
+                       kTopDownSortMaxBucket, threads, &block_counts_, blocks)) {
     return;
   }
   if (g->packed && threads > 1) {
@@ -684,31 +684,46 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, int threads, WorkerPool*
   std::uint32_t* seeds = g->seeds.data();
   const float* const rec = vrec_.data();
   vs[nv] = static_cast<std::uint32_t>(n);
+  // Per-voxel loops without lists run in nt ranges of voxels (starts multiples of eight).
+  auto voxelRanges = [&](const auto& fn) {
+    pool->run(nt, nt, [&](int, int r) {
+      const std::size_t t = static_cast<std::size_t>(nt);
+      fn(nv * r / t & ~std::size_t{7}, r + 1 < nt ? nv * (r + 1) / t & ~std::size_t{7} : nv);
+    });
+  };
   // Pass 2, per voxel: centroids (a loop of its own; counts are below 2^31, so the signed
   // conversion is exact), then column, cell, flags and the flat / seed lists.
-  const std::size_t v_scalar = use_avx2_ ? centroidsAvx2(rec, vs, nv, vx, vy, vz) : 0;
-  for (std::size_t v = v_scalar; v < nv; ++v) {
-    const float inv = 1.f / static_cast<float>(static_cast<std::int32_t>(vs[v + 1] - vs[v]));
-    vx[v] = rec[kRunRecord * v] * inv;
-    vy[v] = rec[kRunRecord * v + 1] * inv;
-    vz[v] = rec[kRunRecord * v + 2] * inv;
-  }
+  voxelRanges([&](std::size_t b, std::size_t e) {
+    const std::size_t v_scalar =
+        b + (use_avx2_ ? centroidsAvx2(rec + kRunRecord * b, vs + b, e - b, vx + b, vy + b, vz + b)
+                       : 0);
+    for (std::size_t v = v_scalar; v < e; ++v) {
+      const float inv = 1.f / static_cast<float>(static_cast<std::int32_t>(vs[v + 1] - vs[v]));
+      vx[v] = rec[kRunRecord * v] * inv;
+      vy[v] = rec[kRunRecord * v + 1] * inv;
+      vz[v] = rec[kRunRecord * v + 2] * inv;
+    }
+  });
   // Flags and the column, flat and seed lists: each voxel's from its key, its neighbours' keys,
   // its count and z range (the AVX2 pass does blocks of eight; voxelFlags() the rest). Then each
-  // voxel's cell (its column's) and the column keys, in loops of their own: one loop doing it
-  // all kept too many arrays live (stack reloads, 77 instructions a voxel).
+  // voxel's cell (its column's), and per column its key and its cell marked used, in loops of
+  // their own: one loop doing it all kept too many arrays live (stack reloads, 77 instructions
+  // a voxel).
   const VoxelFlagsJob fj = {vk, vs, rec, kRunRecord, nv, sy_, mz, min_pts, flat_thr, local};
   VoxelLists lists = {cfirst, flat, seeds, 0, 0, 0};
   const std::size_t v_done = use_avx2_ ? voxelFlagsAvx2(fj, vflags, &lists) : 0;
   voxelFlags(fj, v_done, nv, vflags, &lists);
   const std::size_t ncol = lists.ncol, nflat = lists.nflat, nseed = lists.nseed;
-  for (std::size_t v = 0; v < nv; ++v) {
-    const std::uint64_t key = vk[v];
-    const std::uint32_t cell = cxt[key >> sx_] + cyt[(key >> sy_) & my];  // the column's cell
-    used[cell] = 1;
-    vcell[v] = cell;
+  voxelRanges([&](std::size_t b, std::size_t e) {
+    for (std::size_t v = b; v < e; ++v) {
+      const std::uint64_t key = vk[v];
+      vcell[v] = cxt[key >> sx_] + cyt[(key >> sy_) & my];  // the column's cell
+    }
+  });
+  for (std::size_t c = 0; c < ncol; ++c) {
+    ckey[c] = vk[cfirst[c]] >> sy_;
+    used[vcell[cfirst[c]]] = 1;
   }
-  for (std::size_t c = 0; c < ncol; ++c) ckey[c] = vk[cfirst[c]] >> sy_;
   cfirst[ncol] = static_cast<std::uint32_t>(nv);
   g->vkey.resize(nv);
   g->vstart.resize(nv + 1);
