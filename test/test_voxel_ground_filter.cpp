@@ -847,12 +847,13 @@ TEST(Voxelizer, Avx2PassesGiveTheSse2Grid) {
 
 // The sort and the gather on several threads (from parallelMinPoints() points on) give the
 // serial grid bit for bit: the LSD sort's blocks and the gather's ranges (lowered threshold; NaN
-// points, 16-byte records read in place and wider ones copied), and the top-down sort's bucket
-// ranges on a survey-sized tile.
+// points, 16-byte records read in place and wider ones copied, keys too wide to share a word
+// with the slot), and the top-down sort's bucket ranges on a survey-sized tile.
 TEST(Voxelizer, ThreadsGiveTheSerialGrid) {
   Cloud with_nan = largeScene(true);
   Cloud valid = largeScene(false);
   for (float& v : valid.xyz) v = std::isnan(v) ? 0.5f : v;
+  const Cloud huge = largeScene(false, true);  // 51-bit keys: key and slot words apart
   const Cloud survey = surveyTile();
   struct Case {
     const Cloud* cloud;
@@ -862,6 +863,7 @@ TEST(Voxelizer, ThreadsGiveTheSerialGrid) {
   const Case cases[] = {{&with_nan, 16, 1},
                         {&valid, 16, 1},
                         {&valid, 32, 1},
+                        {&huge, 16, 1},
                         {&survey, 12, gf::voxel::kParallelSortMinPoints}};
   for (const Case& cs : cases) {
     const Cloud& c = *cs.cloud;
