@@ -1047,10 +1047,10 @@ TEST(RadixSort, BlockScatterGivesTheSerialOrder) {
       ASSERT_TRUE(std::is_sorted(want.begin(), want.end()));
       for (int blocks : {1, 2, 3, 7}) {
         std::vector<std::uint64_t> got = words;
-        gf::radixScatterBlocks(slot_bits, passes, digit, blocks, &got, &tmp, &counts,
-                               [&](const auto& fn) {
-                                 for (int b = blocks - 1; b >= 0; --b) fn(b);
-                               });
+        gf::radixScatterBlocks<std::uint32_t>(slot_bits, passes, digit, blocks, &got, &tmp, nullptr,
+                                              nullptr, &counts, [&](const auto& fn) {
+                                                for (int b = blocks - 1; b >= 0; --b) fn(b);
+                                              });
         EXPECT_EQ(got, want) << "key bits " << key_bits << ", narrow " << narrow << ", blocks "
                              << blocks;
       }

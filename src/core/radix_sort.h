@@ -4,7 +4,6 @@
 // The one sort of the core: an LSD radix sort of 64-bit keys (the voxel keys of the voxel filter,
 // the grid-column and tile keys of the normal filter).
 
-#include <omp.h>
 
 #include <algorithm>
 #include <cstddef>
@@ -75,61 +74,76 @@ void radixScatter(int lo, int passes, int digit, std::uint32_t* hist, std::vecto
   }
 }
 
-/// \brief radixScatter() of the keys alone on several threads, for arrays much larger than the
-///        cache: every pass splits `a` into `blocks` equal blocks, counts each block's digits
-///        (into `counts`, blocks << digit entries), runs the offsets over the digits and, within a
-///        digit, over the blocks in order, then scatters each block. A stable scatter like the
-///        serial one, so the same order for any number of blocks. `for_blocks(fn)` calls fn(b)
-///        for every block b < blocks, on any threads, and returns when all are done.
-template <class ForBlocks>
+/// \brief radixScatter() on several threads, for arrays much larger than the cache: every pass
+///        splits `a` (and `b` alongside when not null) into `blocks` equal blocks, counts each
+///        block's digits (into `counts`, blocks << digit entries), runs the offsets over the
+///        digits and, within a digit, over the blocks in order, then scatters each block. A
+///        stable scatter like the serial one, so the same order for any number of blocks.
+///        `for_blocks(fn)` calls fn(b) for every block b < blocks, on any threads, and returns
+///        when all are done.
+template <typename B, class ForBlocks>
 void radixScatterBlocks(int lo, int passes, int digit, int blocks, std::vector<std::uint64_t>* a,
-                        std::vector<std::uint64_t>* a_tmp, std::vector<std::uint32_t>* counts,
-                        ForBlocks&& for_blocks) {
+                        std::vector<std::uint64_t>* a_tmp, std::vector<B>* b, std::vector<B>* b_tmp,
+                        std::vector<std::uint32_t>* counts, ForBlocks&& for_blocks) {
   const std::size_t n = a->size();
   if (n == 0) return;
   const std::uint32_t mask = (1u << digit) - 1;
   const std::size_t buckets = std::size_t{1} << digit;
   resizeScratch(a_tmp, n);
+  if (b) resizeScratch(b_tmp, n);
   counts->resize(static_cast<std::size_t>(blocks) * buckets);
   std::uint32_t* const cnt = counts->data();
-  auto begin = [&](int b) {
-    return n * static_cast<std::size_t>(b) / static_cast<std::size_t>(blocks);
+  auto begin = [&](int block) {
+    return n * static_cast<std::size_t>(block) / static_cast<std::size_t>(blocks);
   };
   for (int q = 0; q < passes; ++q) {
     const int shift = lo + q * digit;
     const std::uint64_t* const k = a->data();
     std::uint64_t* const kt = a_tmp->data();
-    for_blocks([&](int b) {
-      std::uint32_t* c = cnt + static_cast<std::size_t>(b) * buckets;
+    for_blocks([&](int block) {
+      std::uint32_t* c = cnt + static_cast<std::size_t>(block) * buckets;
       std::fill(c, c + buckets, 0u);
-      const std::size_t e = begin(b + 1);
-      for (std::size_t i = begin(b); i < e; ++i) {
+      const std::size_t e = begin(block + 1);
+      for (std::size_t i = begin(block); i < e; ++i) {
         prefetchAhead(k + i, 8 * kRadixReadAhead);
         ++c[(k[i] >> shift) & mask];
       }
     });
     std::size_t first_digit = 0;  // keys with k[0]'s digit
     const std::size_t d0 = (k[0] >> shift) & mask;
-    for (int b = 0; b < blocks; ++b) first_digit += cnt[static_cast<std::size_t>(b) * buckets + d0];
+    for (int block = 0; block < blocks; ++block) {
+      first_digit += cnt[static_cast<std::size_t>(block) * buckets + d0];
+    }
     if (first_digit == n) continue;  // every key has this digit
     std::uint32_t sum = 0;
     for (std::size_t j = 0; j < buckets; ++j) {
-      for (int b = 0; b < blocks; ++b) {
-        std::uint32_t& c = cnt[static_cast<std::size_t>(b) * buckets + j];
+      for (int block = 0; block < blocks; ++block) {
+        std::uint32_t& c = cnt[static_cast<std::size_t>(block) * buckets + j];
         const std::uint32_t here = c;
         c = sum;
         sum += here;
       }
     }
-    for_blocks([&](int b) {
-      std::uint32_t* c = cnt + static_cast<std::size_t>(b) * buckets;
-      const std::size_t e = begin(b + 1);
-      for (std::size_t i = begin(b); i < e; ++i) {
+    for_blocks([&](int block) {
+      std::uint32_t* c = cnt + static_cast<std::size_t>(block) * buckets;
+      const std::size_t e = begin(block + 1);
+      if (b) {
+        const B* o = b->data();
+        B* ot = b_tmp->data();
+        for (std::size_t i = begin(block); i < e; ++i) {
+          const std::uint32_t dst = c[(k[i] >> shift) & mask]++;
+          kt[dst] = k[i];
+          ot[dst] = o[i];
+        }
+        return;
+      }
+      for (std::size_t i = begin(block); i < e; ++i) {
         prefetchAhead(k + i, 8 * kRadixReadAhead);
         kt[c[(k[i] >> shift) & mask]++] = k[i];
       }
     });
     a->swap(*a_tmp);
+    if (b) b->swap(*b_tmp);
   }
 }
 
@@ -216,7 +230,8 @@ bool radixSortTopDown(int lo, int passes, int digit, std::uint32_t* hist,
   }
   resizeScratch(a_tmp, n);
   if (blocks > 1) {
-    radixScatterBlocks(top, 1, digit, blocks, a, a_tmp, counts, for_blocks);
+    radixScatterBlocks<std::uint32_t>(top, 1, digit, blocks, a, a_tmp, nullptr, nullptr, counts,
+                                      for_blocks);
     a->swap(*a_tmp);  // the scattered keys in a_tmp, as below
   } else {
     const std::uint64_t* const k = a->data();
@@ -259,66 +274,15 @@ struct RadixSortScratch {
 /// Inputs smaller than this many keys per thread sort on one thread.
 constexpr std::size_t kRadixPointsPerThread = 32768;
 
-/// \brief radixSortByKey() with `threads` > 1: every pass splits the current array into one
-///        block per thread; each thread counts its block's digits, the offsets run over the
-///        digits and within a digit over the blocks in order, and each thread scatters its block.
-///        A stable scatter like the serial one, so the order is the same for any thread count.
+/// \brief radixSortByKey() with `threads` > 1: radixScatterBlocks() over the digits, one block a
+///        thread (OpenMP), keys and order together; the same order for any thread count.
 inline void radixSortByKeyParallel(int passes, int digit, int threads,
                                    std::vector<std::uint32_t>* order, RadixSortScratch* s) {
-  const std::size_t n = order->size();
-  const std::uint32_t mask = (1u << digit) - 1;
-  const std::size_t buckets = std::size_t{1} << digit;
-  s->keys_tmp.resize(n);
-  s->order_tmp.resize(n);
-  s->hist.assign(static_cast<std::size_t>(threads) * buckets, 0);
-  std::uint32_t* hist = s->hist.data();
-  bool skip = false;
-#pragma omp parallel num_threads(threads)
-  {
-    const int t = omp_get_thread_num(), nt = omp_get_num_threads();
-    const std::size_t b = n * t / nt, e = n * (t + 1) / nt;
-    std::uint32_t* h = hist + static_cast<std::size_t>(t) * buckets;
-    for (int q = 0; q < passes; ++q) {
-      const int shift = q * digit;
-      const std::uint64_t* k = s->keys.data();
-      std::fill(h, h + buckets, 0u);
-      for (std::size_t i = b; i < e; ++i) ++h[(k[i] >> shift) & mask];
-#pragma omp barrier
-#pragma omp single
-      {
-        std::size_t first_digit_count = 0;
-        const std::size_t d0 = (k[0] >> shift) & mask;
-        for (int u = 0; u < nt; ++u) first_digit_count += hist[u * buckets + d0];
-        skip = first_digit_count == n;  // every key has this digit
-        std::uint32_t sum = 0;
-        for (std::size_t j = 0; j < buckets && !skip; ++j) {
-          for (int u = 0; u < nt; ++u) {
-            const std::uint32_t cnt = hist[u * buckets + j];
-            hist[u * buckets + j] = sum;
-            sum += cnt;
-          }
-        }
-      }  // (implicit barrier)
-      if (!skip) {
-        const std::uint32_t* o = order->data();
-        std::uint64_t* kt = s->keys_tmp.data();
-        std::uint32_t* ot = s->order_tmp.data();
-        for (std::size_t i = b; i < e; ++i) {
-          const std::uint32_t dst = h[(k[i] >> shift) & mask]++;
-          kt[dst] = k[i];
-          ot[dst] = o[i];
-        }
-      }
-#pragma omp barrier
-#pragma omp single
-      {
-        if (!skip) {
-          s->keys.swap(s->keys_tmp);
-          order->swap(s->order_tmp);
-        }
-      }  // (implicit barrier)
-    }
-  }
+  radixScatterBlocks(0, passes, digit, threads, &s->keys, &s->keys_tmp, order, &s->order_tmp,
+                     &s->hist, [threads](const auto& fn) {
+#pragma omp parallel for num_threads(threads) schedule(static, 1)
+                       for (int t = 0; t < threads; ++t) fn(t);
+                     });
 }
 
 /// \brief `order` = 0 .. n-1 sorted by `keys` (stable: equal keys keep index order), through

@@ -574,8 +574,8 @@ void Voxelizer::sort(int threads, WorkerPool* pool, VoxelGrid* g) {
     return;
   }
   if (g->packed && threads > 1) {
-    radixScatterBlocks(plan_.lo, plan_.passes, plan_.digit, threads, &g->keys, &keys_tmp_,
-                       &block_counts_, blocks);
+    radixScatterBlocks<std::uint32_t>(plan_.lo, plan_.passes, plan_.digit, threads, &g->keys,
+                                      &keys_tmp_, nullptr, nullptr, &block_counts_, blocks);
   } else if (g->packed) {
     radixScatter<std::uint32_t>(plan_.lo, plan_.passes, plan_.digit, hist_.data(), &g->keys,
                                 &keys_tmp_, nullptr, nullptr);
