@@ -959,6 +959,44 @@ TEST(RadixSort, SortByKeyIsStableAndMatchesStdStableSort) {
   }
 }
 
+namespace {
+
+// n packed key << slot | slot words (slots in order) of keys drawn by key(digit) with
+// `key_bits` bits, the voxel filter's digit layout for them and the digit counts of every pass.
+struct PackedWords {
+  int slot_bits = 0, passes = 0, digit = 0;
+  std::vector<std::uint64_t> words;
+  std::vector<std::uint32_t> hist;
+};
+template <class Key>
+PackedWords packedWords(int key_bits, std::size_t n, Key&& key) {
+  PackedWords w;
+  w.slot_bits = std::min(32, 64 - key_bits);
+  w.passes = (key_bits + gf::kRadixMaxDigitBits - 1) / gf::kRadixMaxDigitBits;
+  w.digit = (key_bits + w.passes - 1) / w.passes;
+  const std::uint32_t dmask = (1u << w.digit) - 1;
+  w.words.resize(n);
+  w.hist.assign(static_cast<std::size_t>(w.passes) << w.digit, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    w.words[i] = key(w.digit) << w.slot_bits | i;
+    for (int q = 0; q < w.passes; ++q) {
+      ++w.hist[(static_cast<std::size_t>(q) << w.digit) +
+               ((w.words[i] >> (w.slot_bits + q * w.digit)) & dmask)];
+    }
+  }
+  return w;
+}
+
+// for_blocks of the threaded sorts with the blocks in reverse order: the result must not depend
+// on which block runs first.
+auto reverseBlocks(int blocks) {
+  return [blocks](const auto& fn) {
+    for (int b = blocks - 1; b >= 0; --b) fn(b);
+  };
+}
+
+}  // namespace
+
 TEST(RadixSort, TopDownSortGivesTheLsdOrder) {
   std::vector<std::uint32_t> counts;
   // radixSortTopDown() (the voxel filter's sort of large scans) against radixScatter() on packed
@@ -968,25 +1006,16 @@ TEST(RadixSort, TopDownSortGivesTheLsdOrder) {
   std::vector<std::uint64_t> tmp, tmp2;
   for (int key_bits : {20, 31, 35, 41}) {
     for (int spread : {0, 1}) {
-      const std::size_t n = 200000;
-      const int slot_bits = std::min(32, 64 - key_bits);
-      const int passes = (key_bits + gf::kRadixMaxDigitBits - 1) / gf::kRadixMaxDigitBits;
-      const int digit = (key_bits + passes - 1) / passes;
-      const std::uint32_t dmask = (1u << digit) - 1;
-      std::vector<std::uint64_t> words(n);
-      std::vector<std::uint32_t> hist(static_cast<std::size_t>(passes) << digit, 0);
       const std::uint64_t kmask = (std::uint64_t{1} << key_bits) - 1;
-      for (std::size_t i = 0; i < n; ++i) {
-        // clustered: few distinct high bits, low bits from a small range (duplicates)
-        const std::uint64_t key =
-            spread ? rng() & kmask
-                   : ((rng() % 7) << (key_bits - 3) | (rng() % 300) << 4 | (rng() % 3)) & kmask;
-        words[i] = key << slot_bits | i;
-        for (int q = 0; q < passes; ++q) {
-          ++hist[(static_cast<std::size_t>(q) << digit) +
-                 ((words[i] >> (slot_bits + q * digit)) & dmask)];
-        }
-      }
+      // clustered: few distinct high bits, low bits from a small range (duplicates)
+      const PackedWords pw = packedWords(key_bits, 200000, [&](int) {
+        return spread ? rng() & kmask
+                      : ((rng() % 7) << (key_bits - 3) | (rng() % 300) << 4 | (rng() % 3)) & kmask;
+      });
+      const int slot_bits = pw.slot_bits, passes = pw.passes, digit = pw.digit;
+      const std::uint32_t dmask = (1u << digit) - 1;
+      const std::vector<std::uint64_t>& words = pw.words;
+      const std::vector<std::uint32_t>& hist = pw.hist;
       std::vector<std::uint64_t> want = words, got = words;
       std::vector<std::uint32_t> h1 = hist, h2 = hist;
       gf::radixScatter<std::uint32_t>(slot_bits, passes, digit, h1.data(), &want, &tmp, nullptr,
@@ -1006,9 +1035,7 @@ TEST(RadixSort, TopDownSortGivesTheLsdOrder) {
         got = words;
         h2 = hist;
         ASSERT_TRUE(gf::radixSortTopDown(slot_bits, passes, digit, h2.data(), &got, &tmp2, largest,
-                                         blocks, &counts, [&](const auto& fn) {
-                                           for (int b = blocks - 1; b >= 0; --b) fn(b);
-                                         }));
+                                         blocks, &counts, reverseBlocks(blocks)));
         EXPECT_EQ(got, want) << "key bits " << key_bits << ", spread " << spread << ", blocks "
                              << blocks;
       }
@@ -1025,32 +1052,21 @@ TEST(RadixSort, BlockScatterGivesTheSerialOrder) {
   std::vector<std::uint32_t> counts;
   for (int key_bits : {20, 31, 35}) {
     for (int narrow : {0, 1}) {
-      const std::size_t n = 100003;
-      const int slot_bits = std::min(32, 64 - key_bits);
-      const int passes = (key_bits + gf::kRadixMaxDigitBits - 1) / gf::kRadixMaxDigitBits;
-      const int digit = (key_bits + passes - 1) / passes;
-      std::vector<std::uint64_t> words(n);
-      std::vector<std::uint32_t> hist(static_cast<std::size_t>(passes) << digit, 0);
       const std::uint64_t kmask = (std::uint64_t{1} << key_bits) - 1;
-      for (std::size_t i = 0; i < n; ++i) {
-        // narrow: the top digit is 0 for every key
-        const std::uint64_t key = narrow ? rng() % (std::uint64_t{1} << digit) : rng() & kmask;
-        words[i] = key << slot_bits | i;
-        for (int q = 0; q < passes; ++q) {
-          ++hist[(static_cast<std::size_t>(q) << digit) +
-                 ((words[i] >> (slot_bits + q * digit)) & ((1u << digit) - 1))];
-        }
-      }
+      // narrow: the top digit is 0 for every key
+      PackedWords pw = packedWords(key_bits, 100003, [&](int digit) {
+        return narrow ? rng() % (std::uint64_t{1} << digit) : rng() & kmask;
+      });
+      const int slot_bits = pw.slot_bits, passes = pw.passes, digit = pw.digit;
+      const std::vector<std::uint64_t>& words = pw.words;
       std::vector<std::uint64_t> want = words;
-      gf::radixScatter<std::uint32_t>(slot_bits, passes, digit, hist.data(), &want, &tmp, nullptr,
-                                      nullptr);
+      gf::radixScatter<std::uint32_t>(slot_bits, passes, digit, pw.hist.data(), &want, &tmp,
+                                      nullptr, nullptr);
       ASSERT_TRUE(std::is_sorted(want.begin(), want.end()));
       for (int blocks : {1, 2, 3, 7}) {
         std::vector<std::uint64_t> got = words;
         gf::radixScatterBlocks<std::uint32_t>(slot_bits, passes, digit, blocks, &got, &tmp, nullptr,
-                                              nullptr, &counts, [&](const auto& fn) {
-                                                for (int b = blocks - 1; b >= 0; --b) fn(b);
-                                              });
+                                              nullptr, &counts, reverseBlocks(blocks));
         EXPECT_EQ(got, want) << "key bits " << key_bits << ", narrow " << narrow << ", blocks "
                              << blocks;
       }

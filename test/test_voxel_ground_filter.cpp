@@ -845,7 +845,7 @@ TEST(Voxelizer, Avx2PassesGiveTheSse2Grid) {
   }
 }
 
-// The sort and the gather on several threads (from parallelMinPoints() points on) give the
+// The sort and the gather on several threads (from setParallelMinPoints() points on) give the
 // serial grid bit for bit: the LSD sort's blocks and the gather's ranges (lowered threshold; NaN
 // points, 16-byte records read in place and wider ones copied, keys too wide to share a word
 // with the slot), and the top-down sort's bucket ranges on a survey-sized tile.

@@ -33,14 +33,14 @@ class Voxelizer {
                       const WorkingVolume* volume, VoxelGrid* g);
   /// \brief Sorts the keys and fills the points, voxels, columns, `flat` and `seeds` of `g`;
   ///        marks the cells holding voxels in `cells`.
-  ///        From parallelMinPoints() valid points on, the sort and the gather of the points run
-  ///        on `threads` threads of `pool` (the same grid for any thread count).
+  ///        From setParallelMinPoints() valid points on, the sort, the gather of the points,
+  ///        the centroids and the cells run on `threads` threads of `pool` (the same grid for
+  ///        any thread count).
   void build(const VoxelGroundFilterParams& p, int threads, WorkerPool* pool, VoxelGrid* g,
              CellGrid* cells);
   /// \brief Valid points from which build() uses several threads (default
   ///        kParallelSortMinPoints; tests lower it).
   void setParallelMinPoints(std::size_t n) { parallel_min_points_ = n; }
-  std::size_t parallelMinPoints() const { return parallel_min_points_; }
   /// \brief Whether prepare() and build() run their AVX2 passes (default: where the CPU has AVX2);
   ///        tests compare both paths. Ignored without AVX2.
   void setUseAvx2(bool use) { use_avx2_ = use && cpuHasAvx2(); }
