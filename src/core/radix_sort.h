@@ -4,7 +4,6 @@
 // The one sort of the core: an LSD radix sort of 64-bit keys (the voxel keys of the voxel filter,
 // the grid-column and tile keys of the normal filter).
 
-
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
