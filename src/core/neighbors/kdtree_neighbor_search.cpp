@@ -17,6 +17,7 @@
 
 #include "neighbors/avx512_common.h"
 #include "normal/neighborhood_pca.h"
+#include "simd.h"
 
 #if defined(__GNUC__)
 #define GF_KNN_ALWAYS_INLINE inline __attribute__((always_inline))
@@ -839,7 +840,8 @@ void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborL
   // each chunk's lists are used right after they are written, while they are in cache.
   constexpr std::size_t kChunk = 1024;
   const std::int64_t chunks = static_cast<std::int64_t>((n + kChunk - 1) / kChunk);
-  const bool avx512 = use_avx512_ && kk <= kMaxAvx512K;
+  const bool avx512 =
+      use_avx512_ && kk <= kMaxAvx512K && simd::allows(simd::Level::kAvx512);
   double knn_cpu = 0.0, pca_cpu = 0.0;  // summed over threads, to split the wall time
   std::size_t c_invalid = 0, c_early = 0, c_fast = 0, c_exact = 0;
   std::int32_t* const out_idx = kept ? impl_->rows.data() : out->indices.data();

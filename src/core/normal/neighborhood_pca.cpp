@@ -16,6 +16,7 @@
 #include <cstdint>
 
 #include "neighbors/avx512_common.h"
+#include "simd.h"
 
 namespace ground_filter {
 
@@ -125,9 +126,10 @@ GF_TARGET_AVX512 void sumsAvx512Fast(const float* xyz, const std::int32_t* row, 
 
 #pragma GCC diagnostic pop
 
+// Asked per call: the SIMD level in force can change (tests run every level in one process).
 bool haveAvx512() {
   static const bool has = simd::cpuHasAvx512();
-  return has;
+  return has && simd::allows(simd::Level::kAvx512);
 }
 
 #else

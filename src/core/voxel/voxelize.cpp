@@ -447,6 +447,7 @@ void CellGrid::setup(const VoxelGroundFilterParams& p, std::uint64_t nx, std::ui
 
 std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, WorkerPool* pool,
                                const WorkingVolume* volume, VoxelGrid* g) {
+  const bool avx2 = useAvx2();
   const std::size_t n_in = cloud.size();
   const int nt = threads > 1 && n_in >= kParallelMinPoints ? threads : 1;
   const int nch = nt == 1 ? 1 : 4 * nt;  // chunks of the input
@@ -470,7 +471,7 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   // Pass 1: bounds and number of the valid points of every chunk (and the copy, copied()).
   if (copied()) resizeScratch(&pxyz_, 4 * n_in);
   float* const copy = copied() ? pxyz_.data() : nullptr;
-  pool->run(nt, nch, [&](int, int c) { scanBounds(cloud, direct_, copy, use_avx2_, &chunks_[c]); });
+  pool->run(nt, nch, [&](int, int c) { scanBounds(cloud, direct_, copy, avx2, &chunks_[c]); });
   std::size_t n = 0;
   float lo[3], hi[3];
   lo[0] = lo[1] = lo[2] = std::numeric_limits<float>::max();
@@ -553,7 +554,7 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
     own.hist = job.hist + per * static_cast<std::size_t>(t);
     const Chunk& ch = chunks_[c];
     withPoints(direct_, copy, [&](const auto& pts) {
-      computeKeys(own, pts, ch.begin, ch.end, ch.out, use_avx2_);
+      computeKeys(own, pts, ch.begin, ch.end, ch.out, avx2);
     });
   });
   for (int t = 1; t < nt; ++t) {
@@ -587,6 +588,7 @@ void Voxelizer::sort(int threads, WorkerPool* pool, VoxelGrid* g) {
 
 void Voxelizer::build(const VoxelGroundFilterParams& p, int threads, WorkerPool* pool, VoxelGrid* g,
                       CellGrid* cells) {
+  const bool avx2 = useAvx2();
   const std::size_t n = g->keys.size();
   const int nt = threads > 1 && n >= parallel_min_points_ ? threads : 1;
   sort(nt, pool, g);
@@ -695,7 +697,7 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, int threads, WorkerPool*
   // conversion is exact), then column, cell, flags and the flat / seed lists.
   voxelRanges([&](std::size_t b, std::size_t e) {
     const std::size_t v_scalar =
-        b + (use_avx2_ ? centroidsAvx2(rec + kRunRecord * b, vs + b, e - b, vx + b, vy + b, vz + b)
+        b + (avx2 ? centroidsAvx2(rec + kRunRecord * b, vs + b, e - b, vx + b, vy + b, vz + b)
                        : 0);
     for (std::size_t v = v_scalar; v < e; ++v) {
       const float inv = 1.f / static_cast<float>(static_cast<std::int32_t>(vs[v + 1] - vs[v]));
@@ -711,7 +713,7 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, int threads, WorkerPool*
   // a voxel).
   const VoxelFlagsJob fj = {vk, vs, rec, kRunRecord, nv, sy_, mz, min_pts, flat_thr, local};
   VoxelLists lists = {cfirst, flat, seeds, 0, 0, 0};
-  const std::size_t v_done = use_avx2_ ? voxelFlagsAvx2(fj, vflags, &lists) : 0;
+  const std::size_t v_done = avx2 ? voxelFlagsAvx2(fj, vflags, &lists) : 0;
   voxelFlags(fj, v_done, nv, vflags, &lists);
   const std::size_t ncol = lists.ncol, nflat = lists.nflat, nseed = lists.nseed;
   voxelRanges([&](std::size_t b, std::size_t e) {

@@ -9,6 +9,7 @@
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/voxel_ground_filter.h"
 #include "ground_filter/working_volume.h"
+#include "simd.h"
 #include "voxel/avx2_passes.h"
 #include "voxel/voxel_grid.h"
 #include "voxel/worker_pool.h"
@@ -41,10 +42,11 @@ class Voxelizer {
   /// \brief Valid points from which build() uses several threads (default
   ///        kParallelSortMinPoints; tests lower it).
   void setParallelMinPoints(std::size_t n) { parallel_min_points_ = n; }
-  /// \brief Whether prepare() and build() run their AVX2 passes (default: where the CPU has AVX2);
-  ///        tests compare both paths. Ignored without AVX2.
-  void setUseAvx2(bool use) { use_avx2_ = use && cpuHasAvx2(); }
-  bool usesAvx2() const { return use_avx2_; }
+  /// \brief Whether prepare() and build() may run their AVX2 passes (default: yes, where the
+  ///        SIMD level in force, simd::active(), includes AVX2); tests compare both paths.
+  void setUseAvx2(bool use) { use_avx2_ = use; }
+  /// \brief Whether the AVX2 passes run: allowed here and by the SIMD level in force.
+  bool useAvx2() const { return use_avx2_ && simd::allows(simd::Level::kAvx2) && cpuHasAvx2(); }
 
  private:
   struct RadixPlan {
@@ -65,7 +67,7 @@ class Voxelizer {
   // 12-16 bytes with x y z adjacent (packed x y z, KITTI's x y z intensity) are read in place
   // (a wide record read twice at random in the gather cost more than the copy: os128).
   std::vector<float> pxyz_;
-  bool use_avx2_ = cpuHasAvx2();
+  bool use_avx2_ = true;
   std::size_t parallel_min_points_ = kParallelSortMinPoints;
   std::vector<std::uint32_t> block_counts_;      // sort() on several threads: digits per block
   std::vector<std::size_t> range_, voxel_base_;  // build(): points and first voxel per range
