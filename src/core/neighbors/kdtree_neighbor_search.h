@@ -77,6 +77,7 @@ class KdTreeNeighborSearch : public NeighborSearch {
   int threads_;
   int leaf_size_;
   bool use_avx512_;
+  bool has_avx2_;  // the CPU runs the AVX2 code (used below the AVX-512 code, or without it)
   double build_ms_ = 0.0;
   double query_ms_ = 0.0;
   double pca_ms_ = 0.0;
