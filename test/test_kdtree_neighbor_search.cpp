@@ -131,8 +131,8 @@ TEST(KdTreeNeighborSearchExact, RandomCloudsEveryK) {
     for (bool clustered : {false, true}) {
       const Cloud c = randomCloud(1200, clustered ? 7u : 3u, clustered);
       for (int k : {1, 2, 8, 50, 64, 65, 128, 129, 256, 300}) {
-        SCOPED_TRACE(nameOf(level) + " clustered " +
-                     std::to_string(clustered) + " k " + std::to_string(k));
+        SCOPED_TRACE(nameOf(level) + " clustered " + std::to_string(clustered) + " k " +
+                     std::to_string(k));
         search.search(c.data(), c.size() / 3, k, &got);
         expectSameLists(bruteForce(c, k), got);
       }
@@ -171,8 +171,7 @@ TEST(KdTreeNeighborSearchExact, ManyCoincidentPoints) {
       gf::KdTreeNeighborSearch search(2, leaf);
       gf::NeighborLists got;
       for (int k : {10, 50, 200}) {
-        SCOPED_TRACE(nameOf(level) + " leaf " + std::to_string(leaf) + " k " +
-                     std::to_string(k));
+        SCOPED_TRACE(nameOf(level) + " leaf " + std::to_string(leaf) + " k " + std::to_string(k));
         search.search(c.data(), c.size() / 3, k, &got);
         expectSameLists(bruteForce(c, k), got);
       }
@@ -194,9 +193,9 @@ TEST(KdTreeNeighborSearchExact, OneAndTwoBuildThreadsAgree) {
           gf::KdTreeNeighborSearch search(threads, leaf);
           gf::NeighborLists got;
           for (int k : {1, 64, 129}) {
-            SCOPED_TRACE(nameOf(level) + " n " + std::to_string(n) +
-                         " threads " + std::to_string(threads) + " leaf " + std::to_string(leaf) +
-                         " k " + std::to_string(k));
+            SCOPED_TRACE(nameOf(level) + " n " + std::to_string(n) + " threads " +
+                         std::to_string(threads) + " leaf " + std::to_string(leaf) + " k " +
+                         std::to_string(k));
             search.search(c.data(), n, k, &got);
             expectSameLists(bruteForce(c, k), got);
           }
@@ -417,8 +416,8 @@ TEST(KdTreeNeighborSearchExact, KeptListsSameAsReference) {
     for (bool clustered : {false, true}) {
       const Cloud c = randomCloud(3000, clustered ? 7u : 3u, clustered);
       for (int k : {1, 8, 64, 65, 300}) {
-        SCOPED_TRACE(nameOf(level) + " clustered " +
-                     std::to_string(clustered) + " k " + std::to_string(k));
+        SCOPED_TRACE(nameOf(level) + " clustered " + std::to_string(clustered) + " k " +
+                     std::to_string(k));
         expectKeptListsSame(c, k, level, 16);
       }
     }

@@ -43,7 +43,9 @@
 //   L2_Simple_Adaptor and the tests' brute force.
 // - With AVX-512 (checked at run time) candidates within the bound are computed 16 at a time and
 //   kept in a buffer; full buffers are sorted by a bitonic network and merged into the sorted
-//   top K (no per-candidate branches). Otherwise a sorted array with insertion is used.
+//   top K (no per-candidate branches). With AVX2 only, the same scheme 8 distances at a time
+//   (candidates packed by a permutation table) and 4 keys per register. Otherwise a sorted array
+//   with insertion is used. The SIMD level in force (simd.h, GF_SIMD) picks among them.
 
 namespace ground_filter {
 
@@ -843,7 +845,8 @@ class TopKAvx2 {
     const std::uint32_t* ids = t.pidx.data() + b;
     if (nd.right == kSamePoint && !empty_) {
       const float dx = q[0] - x[0], dy = q[1] - y[0], dz = q[2] - z[0];
-      const __m128 d2 = opaque(_mm_mul_ps(_mm_set_ps(0.f, dz, dy, dx), _mm_set_ps(0.f, dz, dy, dx)));
+      const __m128 d2 =
+          opaque(_mm_mul_ps(_mm_set_ps(0.f, dz, dy, dx), _mm_set_ps(0.f, dz, dy, dx)));
       const float d = (_mm_cvtss_f32(d2) + _mm_cvtss_f32(_mm_shuffle_ps(d2, d2, 1))) +
                       _mm_cvtss_f32(_mm_shuffle_ps(d2, d2, 2));
       const std::uint64_t kth = top_[k_ - 1];
@@ -962,7 +965,9 @@ class TopKAvx2 {
       bitonicSort4<R>(c);
     }
     if (empty_) {
-      for (int r = 0; r < R; ++r) _mm256_store_si256(reinterpret_cast<__m256i*>(top_ + 4 * r), c[r]);
+      for (int r = 0; r < R; ++r) {
+        _mm256_store_si256(reinterpret_cast<__m256i*>(top_ + 4 * r), c[r]);
+      }
       empty_ = false;
     } else {
       // Smallest 4R of two sorted lists: min(top[i], c[4R-1-i]) is bitonic; merge it.
@@ -974,7 +979,9 @@ class TopKAvx2 {
         t[r] = a;
       }
       halfCleanAndMerge4<R>(t, R / 2);
-      for (int r = 0; r < R; ++r) _mm256_store_si256(reinterpret_cast<__m256i*>(top_ + 4 * r), t[r]);
+      for (int r = 0; r < R; ++r) {
+        _mm256_store_si256(reinterpret_cast<__m256i*>(top_ + 4 * r), t[r]);
+      }
     }
     pending_ = 0;
     const std::uint64_t kth = top_[k_ - 1];
@@ -1148,8 +1155,7 @@ void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborL
   // each chunk's lists are used right after they are written, while they are in cache.
   constexpr std::size_t kChunk = 1024;
   const std::int64_t chunks = static_cast<std::int64_t>((n + kChunk - 1) / kChunk);
-  const bool avx512 =
-      use_avx512_ && kk <= kMaxAvx512K && simd::allows(simd::Level::kAvx512);
+  const bool avx512 = use_avx512_ && kk <= kMaxAvx512K && simd::allows(simd::Level::kAvx512);
 #if GF_HAVE_AVX2_PATHS
   const bool avx2 = !avx512 && has_avx2_ && kk <= kMaxAvx2K && simd::allows(simd::Level::kAvx2);
 #endif

@@ -1,9 +1,10 @@
 // Stage "pca" of the normal filter: covariance of every K neighbourhood and its eigen
 // decomposition, in double. With AVX-512 the nine sums of a neighbourhood are kept in two
-// registers (lane by lane the same additions in the same order, products not fused: the same
-// bits as the scalar code). One neighbourhood per lane with gathers was 1.5x slower on Zen 4.
-// The filter itself only needs each point's candidate bit: computeRowsCandidates() and friends
-// decide it without the eigen solver where that is certain (see "Candidate decision" below).
+// registers, with AVX2 in three (lane by lane the same additions in the same order, products not
+// fused: the same bits as the scalar code). One neighbourhood per lane with gathers was 1.5x slower
+// on Zen 4. The filter itself only needs each point's candidate bit: computeRowsCandidates() and
+// friends decide it without the eigen solver where that is certain (see "Candidate decision"
+// below).
 
 #include "normal/neighborhood_pca.h"
 
