@@ -1,6 +1,7 @@
 // KdTreeNeighborSearch: exact lists against brute force (every row is the K smallest (squared
-// distance, index) pairs, so the expected lists are unique), for the portable code and the
-// AVX-512 code where the CPU has it; and against nanoflann on a real KITTI frame.
+// distance, index) pairs, so the expected lists are unique), under every SIMD level the CPU has
+// (portable, AVX2, AVX-512: each has its own query code); and against nanoflann on a real KITTI
+// frame.
 
 #include <gtest/gtest.h>
 
@@ -19,6 +20,7 @@
 #include "ground_filter/io/scan_io.h"
 #include "neighbors/kdtree_neighbor_search.h"
 #include "normal/neighborhood_pca.h"
+#include "simd.h"
 
 // nanoflann is an optional test dependency (CMakeLists.txt defines GF_HAVE_NANOFLANN when found).
 #ifdef GF_HAVE_NANOFLANN
@@ -66,11 +68,19 @@ gf::NeighborLists bruteForce(const Cloud& c, int k) {
   return l;
 }
 
-/// Which code paths this CPU can run: the portable one always, AVX-512 where available.
-std::vector<bool> codePaths() {
-  gf::KdTreeNeighborSearch probe(1);
-  return probe.usesAvx512() ? std::vector<bool>{false, true} : std::vector<bool>{false};
+using Level = gf::simd::Level;
+
+/// The SIMD levels with their own query code that this CPU runs: portable always, AVX2 and
+/// AVX-512 where available (a test runs each under gf::simd::ScopedLevel).
+std::vector<Level> codePaths() {
+  std::vector<Level> levels;
+  for (Level l : {Level::kPortable, Level::kAvx2, Level::kAvx512}) {
+    if (gf::simd::supported(l)) levels.push_back(l);
+  }
+  return levels;
 }
+
+std::string nameOf(Level l) { return gf::simd::levelName(l); }
 
 void expectSameLists(const gf::NeighborLists& want, const gf::NeighborLists& got) {
   ASSERT_EQ(got.k, want.k);
@@ -113,16 +123,16 @@ using NanoflannTree =
 
 TEST(KdTreeNeighborSearchExact, RandomCloudsEveryK) {
   // K up to 64, 128 and 256 use different AVX-512 list sizes; 300 only the portable code.
-  for (bool avx512 : codePaths()) {
+  for (Level level : codePaths()) {
+    const gf::simd::ScopedLevel scoped(level);
+    ASSERT_TRUE(scoped.ok());
     gf::KdTreeNeighborSearch search(2, 16);
-    search.setUseAvx512(avx512);
-    ASSERT_EQ(search.usesAvx512(), avx512);
     gf::NeighborLists got;
     for (bool clustered : {false, true}) {
       const Cloud c = randomCloud(1200, clustered ? 7u : 3u, clustered);
       for (int k : {1, 2, 8, 50, 64, 65, 128, 129, 256, 300}) {
-        SCOPED_TRACE("avx512 " + std::to_string(avx512) + " clustered " +
-                     std::to_string(clustered) + " k " + std::to_string(k));
+        SCOPED_TRACE(nameOf(level) + " clustered " + std::to_string(clustered) + " k " +
+                     std::to_string(k));
         search.search(c.data(), c.size() / 3, k, &got);
         expectSameLists(bruteForce(c, k), got);
       }
@@ -154,14 +164,14 @@ Cloud coincidentCloud() {
 
 TEST(KdTreeNeighborSearchExact, ManyCoincidentPoints) {
   const Cloud c = coincidentCloud();
-  for (bool avx512 : codePaths()) {
+  for (Level level : codePaths()) {
+    const gf::simd::ScopedLevel scoped(level);
+    ASSERT_TRUE(scoped.ok());
     for (int leaf : {4, 32}) {
       gf::KdTreeNeighborSearch search(2, leaf);
-      search.setUseAvx512(avx512);
       gf::NeighborLists got;
       for (int k : {10, 50, 200}) {
-        SCOPED_TRACE("avx512 " + std::to_string(avx512) + " leaf " + std::to_string(leaf) + " k " +
-                     std::to_string(k));
+        SCOPED_TRACE(nameOf(level) + " leaf " + std::to_string(leaf) + " k " + std::to_string(k));
         search.search(c.data(), c.size() / 3, k, &got);
         expectSameLists(bruteForce(c, k), got);
       }
@@ -172,19 +182,20 @@ TEST(KdTreeNeighborSearchExact, ManyCoincidentPoints) {
 TEST(KdTreeNeighborSearchExact, OneAndTwoBuildThreadsAgree) {
   // The build places each leaf's points in index order, with two threads from both ends of every
   // leaf: odd sizes, coincident points on both sides of n / 2, default leaf size.
-  for (bool avx512 : codePaths()) {
+  for (Level level : codePaths()) {
+    const gf::simd::ScopedLevel scoped(level);
+    ASSERT_TRUE(scoped.ok());
     for (std::size_t n : {257u, 1001u, 4099u}) {
       Cloud c = randomCloud(n, 5u, true);
       for (std::size_t i = 0; i < n; i += 5) c[3 * i] = c[3 * i + 1] = c[3 * i + 2] = 0.f;
       for (int threads : {1, 2}) {
         for (int leaf : {8, 64}) {
           gf::KdTreeNeighborSearch search(threads, leaf);
-          search.setUseAvx512(avx512);
           gf::NeighborLists got;
           for (int k : {1, 64, 129}) {
-            SCOPED_TRACE("avx512 " + std::to_string(avx512) + " n " + std::to_string(n) +
-                         " threads " + std::to_string(threads) + " leaf " + std::to_string(leaf) +
-                         " k " + std::to_string(k));
+            SCOPED_TRACE(nameOf(level) + " n " + std::to_string(n) + " threads " +
+                         std::to_string(threads) + " leaf " + std::to_string(leaf) + " k " +
+                         std::to_string(k));
             search.search(c.data(), n, k, &got);
             expectSameLists(bruteForce(c, k), got);
           }
@@ -203,13 +214,14 @@ TEST(KdTreeNeighborSearchExact, RegularGridTiesAndLine) {
     }
   }
   for (int i = 0; i < 300; ++i) line.insert(line.end(), {0.1f * (i % 150), 2.f, 1.f});  // doubled
-  for (bool avx512 : codePaths()) {
+  for (Level level : codePaths()) {
+    const gf::simd::ScopedLevel scoped(level);
+    ASSERT_TRUE(scoped.ok());
     gf::KdTreeNeighborSearch search(1, 8);
-    search.setUseAvx512(avx512);
     gf::NeighborLists got;
     for (const Cloud* c : {&grid, &line}) {
       for (int k : {7, 27, 50}) {
-        SCOPED_TRACE("avx512 " + std::to_string(avx512) + " k " + std::to_string(k));
+        SCOPED_TRACE(nameOf(level) + " k " + std::to_string(k));
         search.search(c->data(), c->size() / 3, k, &got);
         expectSameLists(bruteForce(*c, k), got);
       }
@@ -218,15 +230,77 @@ TEST(KdTreeNeighborSearchExact, RegularGridTiesAndLine) {
 }
 
 TEST(KdTreeNeighborSearchExact, SmallClouds) {
-  for (bool avx512 : codePaths()) {
+  for (Level level : codePaths()) {
+    const gf::simd::ScopedLevel scoped(level);
+    ASSERT_TRUE(scoped.ok());
     gf::KdTreeNeighborSearch search(2);
-    search.setUseAvx512(avx512);
     gf::NeighborLists got;
     for (std::size_t n : {1u, 2u, 49u, 50u, 51u}) {
       const Cloud c = randomCloud(n, 5, true);
-      SCOPED_TRACE("avx512 " + std::to_string(avx512) + " n " + std::to_string(n));
+      SCOPED_TRACE(nameOf(level) + " n " + std::to_string(n));
       search.search(c.data(), n, 50, &got);
       expectSameLists(bruteForce(c, 50), got);
+    }
+  }
+}
+
+TEST(KdTreeNeighborSearchExact, AllPointsIdenticalEveryLevel) {
+  // Every distance 0: the lists are the K lowest indices, on every level, also for K up to 256
+  // and for fewer points than K.
+  for (Level level : codePaths()) {
+    const gf::simd::ScopedLevel scoped(level);
+    ASSERT_TRUE(scoped.ok());
+    for (std::size_t n : {10u, 700u}) {
+      const Cloud c(3 * n, 1.25f);
+      gf::KdTreeNeighborSearch search(2, 16);
+      gf::NeighborLists got;
+      for (int k : {1, 5, 64, 200, 256}) {
+        SCOPED_TRACE(nameOf(level) + " n " + std::to_string(n) + " k " + std::to_string(k));
+        search.search(c.data(), n, k, &got);
+        expectSameLists(bruteForce(c, k), got);
+      }
+    }
+  }
+}
+
+TEST(KdTreeNeighborSearchExact, InfiniteDistancesEveryLevel) {
+  // Points at +-1e30: their squared distances to the others overflow to +Inf, so rows of the
+  // finite points end in ties at Inf (lower index first) and the far points' rows hold every
+  // finite point at Inf. The boxes' distances overflow the same way.
+  Cloud c = randomCloud(400, 9u, true);
+  for (std::size_t i = 0; i < 400; i += 13) {
+    c[3 * i] = (i % 2 ? 1e30f : -1e30f);
+    c[3 * i + 2] = 1e30f;
+  }
+  for (Level level : codePaths()) {
+    const gf::simd::ScopedLevel scoped(level);
+    ASSERT_TRUE(scoped.ok());
+    gf::KdTreeNeighborSearch search(2, 8);
+    gf::NeighborLists got;
+    for (int k : {3, 64, 256}) {
+      SCOPED_TRACE(nameOf(level) + " k " + std::to_string(k));
+      search.search(c.data(), c.size() / 3, k, &got);
+      expectSameLists(bruteForce(c, k), got);
+    }
+  }
+}
+
+TEST(KdTreeNeighborSearchExact, LevelsAgreeOnLargeK) {
+  // K of every list size of the SIMD codes (AVX2: 16, 32, 64, 128, 256 slots; AVX-512: 64, 128,
+  // 256) on clustered clouds with duplicates: lists identical to the portable code's.
+  const Cloud c = randomCloud(5000, 21u, true);
+  for (int k : {16, 17, 32, 33, 63, 64, 100, 128, 129, 255, 256}) {
+    std::vector<gf::NeighborLists> lists;
+    for (Level level : codePaths()) {
+      const gf::simd::ScopedLevel scoped(level);
+      ASSERT_TRUE(scoped.ok());
+      gf::KdTreeNeighborSearch search(2, 64);
+      lists.emplace_back();
+      search.search(c.data(), c.size() / 3, k, &lists.back());
+    }
+    for (std::size_t p = 1; p < lists.size(); ++p) {
+      SCOPED_TRACE(nameOf(codePaths()[p]) + " k " + std::to_string(k));
+      expectSameLists(lists.front(), lists[p]);
     }
   }
 }
@@ -257,9 +331,10 @@ TEST(KdTreeNeighborSearchExact, KittiFrameMatchesNanoflann) {
   }
 
   std::vector<gf::NeighborLists> lists;
-  for (bool avx512 : codePaths()) {
+  for (Level level : codePaths()) {
+    const gf::simd::ScopedLevel scoped(level);
+    ASSERT_TRUE(scoped.ok());
     gf::KdTreeNeighborSearch search(0);
-    search.setUseAvx512(avx512);
     lists.emplace_back();
     search.search(c.data(), n, k, &lists.back());
   }
@@ -288,11 +363,11 @@ namespace {
 
 /// Kept lists (keepListsOnDevice(true), tree-order rows) against the reference search() lists of
 /// a second object: same rows, PCA bit for bit, neighbour counts of random flags identical.
-void expectKeptListsSame(const Cloud& c, int k, bool avx512, int leaf) {
+void expectKeptListsSame(const Cloud& c, int k, Level level, int leaf) {
+  const gf::simd::ScopedLevel scoped(level);
+  ASSERT_TRUE(scoped.ok());
   const std::size_t n = c.size() / 3;
   gf::KdTreeNeighborSearch ref(2, leaf), kept(2, leaf);
-  ref.setUseAvx512(avx512);
-  kept.setUseAvx512(avx512);
   EXPECT_TRUE(kept.keepListsOnDevice(true));
   gf::NeighborLists want, out, got;
   ref.search(c.data(), n, k, &want);
@@ -335,21 +410,23 @@ void expectKeptListsSame(const Cloud& c, int k, bool avx512, int leaf) {
 
 TEST(KdTreeNeighborSearchExact, KeptListsSameAsReference) {
   const Cloud coincident = coincidentCloud();
-  for (bool avx512 : codePaths()) {
+  for (Level level : codePaths()) {
+    const gf::simd::ScopedLevel scoped(level);
+    ASSERT_TRUE(scoped.ok());
     for (bool clustered : {false, true}) {
       const Cloud c = randomCloud(3000, clustered ? 7u : 3u, clustered);
       for (int k : {1, 8, 64, 65, 300}) {
-        SCOPED_TRACE("avx512 " + std::to_string(avx512) + " clustered " +
-                     std::to_string(clustered) + " k " + std::to_string(k));
-        expectKeptListsSame(c, k, avx512, 16);
+        SCOPED_TRACE(nameOf(level) + " clustered " + std::to_string(clustered) + " k " +
+                     std::to_string(k));
+        expectKeptListsSame(c, k, level, 16);
       }
     }
     for (int k : {10, 64}) {
-      SCOPED_TRACE("coincident avx512 " + std::to_string(avx512) + " k " + std::to_string(k));
-      expectKeptListsSame(coincident, k, avx512, 4);
+      SCOPED_TRACE("coincident " + nameOf(level) + " k " + std::to_string(k));
+      expectKeptListsSame(coincident, k, level, 4);
     }
     SCOPED_TRACE("small cloud");
-    expectKeptListsSame(randomCloud(40, 5, true), 64, avx512, 64);
+    expectKeptListsSame(randomCloud(40, 5, true), 64, level, 64);
   }
 }
 
@@ -363,8 +440,79 @@ TEST(KdTreeNeighborSearchExact, KeptListsSameOnRealScans) {
     if (!gf_test::dataExists(file)) continue;
     const Cloud c = gf_test::finiteXyzOf(file);
     SCOPED_TRACE(file);
-    expectKeptListsSame(c, 64, codePaths().back(), 64);
+    for (Level level : codePaths()) {
+      SCOPED_TRACE(nameOf(level));
+      expectKeptListsSame(c, 64, level, 64);
+    }
     ++tested;
   }
   if (tested == 0) GTEST_SKIP() << "no dev frames under " << GF_DATA_DIR;
+}
+
+namespace {
+
+/// PCA bits and candidate bytes of the lists `l` under every SIMD level, against the portable
+/// code's (each level has its own neighbourhood sums).
+void expectPcaSameOnEveryLevel(const Cloud& c, const gf::NeighborLists& l) {
+  const std::size_t n = c.size() / 3;
+  gf::CandidateTest test;
+  test.min_planarity = 0.2;
+  test.min_abs_nz = std::cos(30.0 * M_PI / 180.0);
+  std::vector<gf::PointPca> want, got;
+  std::vector<std::uint8_t> want_cand(n), got_cand(n);
+  {
+    const gf::simd::ScopedLevel scoped(Level::kPortable);
+    ASSERT_TRUE(scoped.ok());
+    gf::computeNeighborhoodPca(c.data(), l, 2, &want);
+    gf::computeNeighborhoodCandidates(c.data(), l, 2, test, want_cand.data(), nullptr);
+  }
+  std::size_t candidates = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    // The reference decision, so that the candidate check could fail.
+    ASSERT_EQ(want_cand[i], gf::isCandidatePca(want[i], test.min_planarity, test.min_abs_nz));
+    candidates += want_cand[i];
+  }
+  for (Level level : codePaths()) {
+    const gf::simd::ScopedLevel scoped(level);
+    ASSERT_TRUE(scoped.ok());
+    SCOPED_TRACE(nameOf(level));
+    gf::computeNeighborhoodPca(c.data(), l, 2, &got);
+    gf::computeNeighborhoodCandidates(c.data(), l, 2, test, got_cand.data(), nullptr);
+    ASSERT_EQ(got.size(), n);
+    std::size_t pca_diff = 0, cand_diff = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const gf::PointPca &a = want[i], &b = got[i];
+      pca_diff += a.valid != b.valid || std::memcmp(a.normal, b.normal, sizeof a.normal) != 0 ||
+                  std::memcmp(a.eigen, b.eigen, sizeof a.eigen) != 0;
+      cand_diff += want_cand[i] != got_cand[i];
+    }
+    EXPECT_EQ(pca_diff, 0u) << "points whose PCA differs from the portable code's";
+    EXPECT_EQ(cand_diff, 0u) << "points whose candidate flag differs (" << candidates
+                             << " candidates)";
+  }
+}
+
+}  // namespace
+
+TEST(KdTreeNeighborSearchExact, PcaSameBitsOnEveryLevel) {
+  // Random clouds (full rows, rows of fewer points than K, coincident points) and a KITTI frame.
+  gf::KdTreeNeighborSearch search(2, 16);
+  gf::NeighborLists l;
+  for (std::size_t n : {20u, 3000u}) {
+    for (int k : {3, 16, 64, 129}) {
+      SCOPED_TRACE("n " + std::to_string(n) + " k " + std::to_string(k));
+      const Cloud c = randomCloud(n, 13u, true);
+      search.search(c.data(), n, k, &l);
+      expectPcaSameOnEveryLevel(c, l);
+    }
+  }
+  const Cloud same(3 * 100, -2.5f);  // all points identical: every PCA invalid
+  search.search(same.data(), 100, 64, &l);
+  expectPcaSameOnEveryLevel(same, l);
+  const std::string file = std::string(GF_DATA_DIR) + "/semantickitti/seq00/000000.bin";
+  if (!gf_test::dataExists(file)) return;  // the random clouds above still ran
+  const Cloud c = gf_test::finiteXyzOf(file);
+  search.search(c.data(), c.size() / 3, 64, &l);
+  SCOPED_TRACE(file);
+  expectPcaSameOnEveryLevel(c, l);
 }

@@ -30,6 +30,7 @@
 #include "normal/neighborhood_pca.h"
 #include "normal/plane.h"
 #include "radix_sort.h"
+#include "simd.h"
 
 namespace gf = ground_filter;
 
@@ -936,6 +937,73 @@ TEST(NormalGroundFilterKitti, PooledF1AboveFloor) {
   RecordProperty("pooled_recall", std::to_string(m.recall));
   // Floor = measured pooled F1 with the defaults minus one point (README, "normal").
   EXPECT_GE(m.f1, kNormalF1Floor);
+}
+
+namespace {
+
+/// The SIMD levels with their own normal-filter code (kd-tree queries, neighbourhood sums) that
+/// this CPU runs.
+std::vector<gf::simd::Level> normalCodeLevels() {
+  std::vector<gf::simd::Level> levels;
+  for (gf::simd::Level l :
+       {gf::simd::Level::kPortable, gf::simd::Level::kAvx2, gf::simd::Level::kAvx512}) {
+    if (gf::simd::supported(l)) levels.push_back(l);
+  }
+  return levels;
+}
+
+/// Labels of `view` with the defaults (2 threads) under every level, against the portable ones.
+void expectSameLabelsOnEveryLevel(const gf::CloudView& view, int k) {
+  gf::NormalGroundFilterParams p;
+  p.threads = 2;
+  p.k = k;
+  std::vector<std::uint8_t> want, got;
+  {
+    const gf::simd::ScopedLevel scoped(gf::simd::Level::kPortable);
+    ASSERT_TRUE(scoped.ok());
+    gf::NormalGroundFilter f(p);
+    f.filter(view, &want);
+  }
+  ASSERT_EQ(want.size(), view.size());
+  std::size_t ground = 0;
+  for (std::uint8_t l : want) ground += l == 1;
+  for (gf::simd::Level level : normalCodeLevels()) {
+    const gf::simd::ScopedLevel scoped(level);
+    ASSERT_TRUE(scoped.ok());
+    gf::NormalGroundFilter f(p);
+    f.filter(view, &got);
+    f.filter(view, &got);  // the second scan on kept scratch memory
+    std::size_t diff = 0;
+    for (std::size_t i = 0; i < want.size(); ++i) diff += want[i] != got[i];
+    EXPECT_EQ(diff, 0u) << gf::simd::levelName(level) << ": labels differing from the portable "
+                        << "code's (" << ground << " ground of " << want.size() << ")";
+  }
+}
+
+}  // namespace
+
+TEST(NormalGroundFilterSimd, KittiLabelsSameOnEveryLevel) {
+  const std::string file = std::string(GF_DATA_DIR) + "/semantickitti/seq00/000000.bin";
+  GF_SKIP_WITHOUT_DATA(file);
+  const gf::Scan scan = gf::loadScan(file);
+  expectSameLabelsOnEveryLevel(gf::viewOf(scan.cloud), 64);
+}
+
+TEST(NormalGroundFilterSimd, BadInputSameOnEveryLevel) {
+  // A ground plane with NaN / Inf points, a pile of identical points, and clouds smaller than K.
+  Cloud c = plane(20.0, 0.25, -1.7, 0.05, 0.02, 4);
+  const float nan = std::numeric_limits<float>::quiet_NaN(),
+              inf = std::numeric_limits<float>::infinity();
+  for (std::size_t i = 0; i < c.size() / 3; i += 17) c[3 * i + (i % 3)] = i % 2 ? nan : inf;
+  for (int i = 0; i < 300; ++i) add(&c, 2.0, 3.0, -1.2);
+  for (int k : {8, 64}) {
+    SCOPED_TRACE("k " + std::to_string(k));
+    expectSameLabelsOnEveryLevel(gf::CloudView::packedXyz(c.data(), c.size() / 3), k);
+  }
+  const Cloud small(c.begin(), c.begin() + 3 * 40);
+  expectSameLabelsOnEveryLevel(gf::CloudView::packedXyz(small.data(), 40), 64);
+  const Cloud same(3 * 100, 1.5f);
+  expectSameLabelsOnEveryLevel(gf::CloudView::packedXyz(same.data(), 100), 64);
 }
 
 TEST(RadixSort, SortByKeyIsStableAndMatchesStdStableSort) {

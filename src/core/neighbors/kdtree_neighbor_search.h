@@ -14,12 +14,13 @@
 namespace ground_filter {
 
 /// \brief CPU K-nearest-neighbour search: an own kd-tree over the cloud (built in parallel),
-///        queries in parallel (OpenMP) with AVX-512 when the CPU has it, exact results.
+///        queries in parallel (OpenMP) with AVX-512 or AVX2 when the CPU has it (and the SIMD
+///        level in force, simd.h, allows it), exact results.
 ///
 /// Each row is the K smallest (squared distance, point index) pairs in that order: ties at equal
 /// distance keep the lower point index, so the lists are unique and the same for any thread
-/// count and with or without AVX-512. Squared distances are float `(dx*dx + dy*dy) + dz*dz`
-/// without fused multiply-adds. The tree and scratch memory are kept between calls.
+/// count and on every SIMD level (portable, AVX2, AVX-512). Squared distances are float `(dx*dx +
+/// dy*dy) + dz*dz` without fused multiply-adds. The tree and scratch memory are kept between calls.
 class KdTreeNeighborSearch : public NeighborSearch {
  public:
   /// \brief `threads` build and query threads (0 = all cores); `leaf_size` most points per
@@ -63,10 +64,11 @@ class KdTreeNeighborSearch : public NeighborSearch {
   double lastBuildMs() const { return build_ms_; }
   /// \brief Wall time of the queries in the last search() [ms] (without the PCA part).
   double lastQueryMs() const { return query_ms_; }
-  /// \brief Whether search() uses the AVX-512 code (default: when the CPU has it).
+  /// \brief Whether search() may use the AVX-512 code (default: when the CPU has it; the SIMD
+  ///        level in force must allow it too).
   bool usesAvx512() const { return use_avx512_; }
-  /// \brief Turns the AVX-512 code off (portable code, same lists) or back on where the CPU
-  ///        has it; for tests and benchmarks.
+  /// \brief Turns the AVX-512 code off (the AVX2 or portable code then runs, as the SIMD level
+  ///        allows; same lists) or back on where the CPU has it; for tests and benchmarks.
   void setUseAvx512(bool use);
 
  private:
@@ -77,6 +79,7 @@ class KdTreeNeighborSearch : public NeighborSearch {
   int threads_;
   int leaf_size_;
   bool use_avx512_;
+  bool has_avx2_;  // the CPU runs the AVX2 code (used below the AVX-512 code, or without it)
   double build_ms_ = 0.0;
   double query_ms_ = 0.0;
   double pca_ms_ = 0.0;

@@ -1,9 +1,10 @@
 // Stage "pca" of the normal filter: covariance of every K neighbourhood and its eigen
 // decomposition, in double. With AVX-512 the nine sums of a neighbourhood are kept in two
-// registers (lane by lane the same additions in the same order, products not fused: the same
-// bits as the scalar code). One neighbourhood per lane with gathers was 1.5x slower on Zen 4.
-// The filter itself only needs each point's candidate bit: computeRowsCandidates() and friends
-// decide it without the eigen solver where that is certain (see "Candidate decision" below).
+// registers, with AVX2 in three (lane by lane the same additions in the same order, products not
+// fused: the same bits as the scalar code). One neighbourhood per lane with gathers was 1.5x slower
+// on Zen 4. The filter itself only needs each point's candidate bit: computeRowsCandidates() and
+// friends decide it without the eigen solver where that is certain (see "Candidate decision"
+// below).
 
 #include "normal/neighborhood_pca.h"
 
@@ -15,6 +16,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "neighbors/avx2_common.h"
 #include "neighbors/avx512_common.h"
 #include "simd.h"
 
@@ -138,6 +140,111 @@ bool haveAvx512() { return false; }
 
 #endif  // GF_HAVE_AVX512
 
+#if GF_HAVE_AVX2_PATHS
+
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#pragma GCC diagnostic ignored "-Wuninitialized"
+
+// AVX2 (no AVX-512): the nine sums in three registers of four doubles, [sx sy sz -],
+// [sxx sxy sxz syy] and [syz szz - -], each lane added to in the same order as the AVX-512 and
+// scalar code (same bits).
+
+/// The offset of the point at `p` from `o` (the query's x y z 0): dx dy dz 0.
+GF_TARGET_AVX2_PATHS inline __m256d offsetOf4(const float* p, __m256d o) {
+  const __m128 xyz = _mm_maskload_ps(p, _mm_setr_epi32(-1, -1, -1, 0));  // no read past p[2]
+  return _mm256_sub_pd(_mm256_cvtps_pd(xyz), o);
+}
+
+/// dx dx, dx dy, dx dz, dy dy (lanes 0-3) and dy dz, dz dz, 0, 0 of an offset d (d[3] = 0).
+GF_TARGET_AVX2_PATHS inline void productsOf4(__m256d d, __m256d* p1, __m256d* p2) {
+  *p1 = _mm256_mul_pd(_mm256_permute4x64_pd(d, _MM_SHUFFLE(1, 0, 0, 0)),
+                      _mm256_permute4x64_pd(d, _MM_SHUFFLE(1, 2, 1, 0)));
+  *p2 = _mm256_mul_pd(_mm256_permute4x64_pd(d, _MM_SHUFFLE(3, 3, 2, 1)),
+                      _mm256_permute4x64_pd(d, _MM_SHUFFLE(3, 3, 2, 2)));
+}
+
+GF_TARGET_AVX2_PATHS inline Moments momentsOf4(__m256d s1, __m256d s2, __m256d s3, int k) {
+  alignas(32) double a[4], b[4], c[4];
+  _mm256_store_pd(a, s1);
+  _mm256_store_pd(b, s2);
+  _mm256_store_pd(c, s3);
+  return Moments{a[0], a[1], a[2], b[0], b[1], b[2], b[3], c[0], c[1], k};
+}
+
+/// sumsScalar() of a full row (k valid entries), the same bits (see sumsAvx512()).
+GF_TARGET_AVX2_PATHS void sumsAvx2(const float* xyz, const std::int32_t* row, int k,
+                                   std::size_t query, Moments* s) {
+  using simd::avx2::opaque;
+  const __m256d o = offsetOf4(xyz + 3 * query, _mm256_setzero_pd());
+  __m256d s1 = _mm256_setzero_pd(), s2 = _mm256_setzero_pd(), s3 = _mm256_setzero_pd();
+  for (int j = 0; j < k; ++j) {
+    const __m256d d = offsetOf4(xyz + 3 * static_cast<std::size_t>(row[j]), o);
+    __m256d p1, p2;
+    productsOf4(d, &p1, &p2);
+    s1 = _mm256_add_pd(s1, d);
+    s2 = _mm256_add_pd(s2, opaque(p1));  // products not fused into the sums
+    s3 = _mm256_add_pd(s3, opaque(p2));
+  }
+  *s = momentsOf4(s1, s2, s3, k);
+}
+
+/// sumsAvx512Fast() with AVX2: even and odd neighbours in separate accumulators (the same
+/// additions as sumsAvx512Fast(), so the same bits; not the reference bits).
+GF_TARGET_AVX2_PATHS void sumsAvx2Fast(const float* xyz, const std::int32_t* row, int k,
+                                       std::size_t query, Moments* s) {
+  using simd::avx2::opaque;
+  const __m256d o = offsetOf4(xyz + 3 * query, _mm256_setzero_pd());
+  __m256d s1 = _mm256_setzero_pd(), s2 = _mm256_setzero_pd(), s3 = _mm256_setzero_pd();
+  __m256d t1 = _mm256_setzero_pd(), t2 = _mm256_setzero_pd(), t3 = _mm256_setzero_pd();
+  int j = 0;
+  for (; j + 1 < k; j += 2) {
+    const __m256d d = offsetOf4(xyz + 3 * static_cast<std::size_t>(row[j]), o);
+    const __m256d e = offsetOf4(xyz + 3 * static_cast<std::size_t>(row[j + 1]), o);
+    __m256d p1, p2, q1, q2;
+    productsOf4(d, &p1, &p2);
+    productsOf4(e, &q1, &q2);
+    s1 = _mm256_add_pd(s1, d);
+    t1 = _mm256_add_pd(t1, e);
+    s2 = _mm256_add_pd(s2, opaque(p1));
+    s3 = _mm256_add_pd(s3, opaque(p2));
+    t2 = _mm256_add_pd(t2, opaque(q1));
+    t3 = _mm256_add_pd(t3, opaque(q2));
+  }
+  for (; j < k; ++j) {
+    const __m256d d = offsetOf4(xyz + 3 * static_cast<std::size_t>(row[j]), o);
+    __m256d p1, p2;
+    productsOf4(d, &p1, &p2);
+    s1 = _mm256_add_pd(s1, d);
+    s2 = _mm256_add_pd(s2, opaque(p1));
+    s3 = _mm256_add_pd(s3, opaque(p2));
+  }
+  *s = momentsOf4(_mm256_add_pd(s1, t1), _mm256_add_pd(s2, t2), _mm256_add_pd(s3, t3), k);
+}
+
+#pragma GCC diagnostic pop
+
+bool haveAvx2() {
+  static const bool has = simd::avx2::cpuHasAvx2();
+  return has && simd::allows(simd::Level::kAvx2);
+}
+
+#else
+
+bool haveAvx2() { return false; }
+
+#endif  // GF_HAVE_AVX2_PATHS
+
+/// Which code computes the sums: chosen once per call of the public functions (the SIMD level
+/// in force can change between calls: tests run every level in one process).
+enum class SumsPath { kScalar, kAvx2, kAvx512 };
+
+SumsPath sumsPath() {
+  if (haveAvx512()) return SumsPath::kAvx512;
+  if (haveAvx2()) return SumsPath::kAvx2;
+  return SumsPath::kScalar;
+}
+
 /// Centred covariance of a neighbourhood (upper triangle) and its trace.
 struct Covariance {
   double xx, xy, xz, yy, yz, zz, trace;
@@ -185,18 +292,24 @@ inline void finish(const Moments& s, PointPca* out) {
 }
 
 /// The neighbourhood sums of row `row` (k entries, -1 = none) around the point `query`.
-inline void sumsOf(const float* xyz, const std::int32_t* row, int k, std::size_t query, bool avx512,
-                   Moments* s) {
+inline void sumsOf(const float* xyz, const std::int32_t* row, int k, std::size_t query,
+                   SumsPath path, Moments* s) {
+  const bool full = row[k - 1] >= 0;  // a full row (rows end at their first -1)
 #if GF_HAVE_AVX512
-  if (avx512 && row[k - 1] >= 0) {  // a full row (rows end at their first -1)
+  if (path == SumsPath::kAvx512 && full) {
     sumsAvx512(xyz, row, k, query, s);
-  } else {
-    sumsScalar(xyz, row, k, query, s);
+    return;
   }
-#else
-  (void)avx512;
-  sumsScalar(xyz, row, k, query, s);
 #endif
+#if GF_HAVE_AVX2_PATHS
+  if (path == SumsPath::kAvx2 && full) {
+    sumsAvx2(xyz, row, k, query, s);
+    return;
+  }
+#endif
+  (void)path;
+  (void)full;
+  sumsScalar(xyz, row, k, query, s);
 }
 
 // ---- Candidate decision without the eigen solver where it is certain.
@@ -330,14 +443,19 @@ inline int fastCandidate(const Covariance& c, const CandidateTest& t, CandidateC
 /// Candidate flag of one neighbourhood: fastCandidate() where certain, else the reference
 /// (sums in list order, Eigen's solver, isCandidatePca()).
 inline std::uint8_t candidateOne(const float* xyz, const std::int32_t* row, int k,
-                                 std::size_t query, bool avx512, const CandidateTest& t,
+                                 std::size_t query, SumsPath path, const CandidateTest& t,
                                  CandidateCounts* counts) {
   Moments s;
   Covariance c;
   bool fast_tried = false;  // fastCandidate() already undecided on the fast sums
+#if GF_HAVE_AVX512 || GF_HAVE_AVX2_PATHS
+  if (!t.exact_only && path != SumsPath::kScalar && k >= 3 && row[k - 1] >= 0) {
 #if GF_HAVE_AVX512
-  if (!t.exact_only && avx512 && k >= 3 && row[k - 1] >= 0) {
-    sumsAvx512Fast(xyz, row, k, query, &s);
+    if (path == SumsPath::kAvx512) sumsAvx512Fast(xyz, row, k, query, &s);
+#endif
+#if GF_HAVE_AVX2_PATHS
+    if (path == SumsPath::kAvx2) sumsAvx2Fast(xyz, row, k, query, &s);
+#endif
     // Another addition order moves the covariance by <= ~2 k eps (mean squared offset from
     // the query); trusted when that is < 1e-4 of the trace (so < 3e-10 trace, far inside the
     // margins) and away from the reference's validity threshold. All squares exactly 0 means
@@ -355,7 +473,7 @@ inline std::uint8_t candidateOne(const float* xyz, const std::int32_t* row, int 
   }
 #endif
   // The reference sums (list order).
-  sumsOf(xyz, row, k, query, avx512, &s);
+  sumsOf(xyz, row, k, query, path, &s);
   if (!covarianceOf(s, &c)) {
     ++counts->invalid;
     return 0;
@@ -371,10 +489,10 @@ inline std::uint8_t candidateOne(const float* xyz, const std::int32_t* row, int 
 }
 
 /// PCA of one neighbourhood: `row` (k entries, -1 = none) around the point `query`.
-inline void pcaOne(const float* xyz, const std::int32_t* row, int k, std::size_t query, bool avx512,
-                   PointPca* out) {
+inline void pcaOne(const float* xyz, const std::int32_t* row, int k, std::size_t query,
+                   SumsPath path, PointPca* out) {
   Moments s;
-  sumsOf(xyz, row, k, query, avx512, &s);
+  sumsOf(xyz, row, k, query, path, &s);
   finish(s, out);
 }
 
@@ -383,19 +501,19 @@ inline void pcaOne(const float* xyz, const std::int32_t* row, int k, std::size_t
 void computeRowsPca(const float* xyz, const std::int32_t* indices, int k, const std::uint32_t* rows,
                     std::size_t count, PointPca* out) {
   const std::size_t kk = static_cast<std::size_t>(k);
-  const bool avx512 = haveAvx512();
+  const SumsPath path = sumsPath();
   for (std::size_t j = 0; j < count; ++j) {
     const std::size_t r = rows[j];
-    pcaOne(xyz, indices + r * kk, k, r, avx512, &out[r]);
+    pcaOne(xyz, indices + r * kk, k, r, path, &out[r]);
   }
 }
 
 void computeOrderedRowsPca(const float* xyz, const std::int32_t* rows, int k,
                            const std::uint32_t* query, std::size_t count, PointPca* out) {
   const std::size_t kk = static_cast<std::size_t>(k);
-  const bool avx512 = haveAvx512();
+  const SumsPath path = sumsPath();
   for (std::size_t j = 0; j < count; ++j) {
-    pcaOne(xyz, rows + j * kk, k, query[j], avx512, &out[query[j]]);
+    pcaOne(xyz, rows + j * kk, k, query[j], path, &out[query[j]]);
   }
 }
 
@@ -405,13 +523,13 @@ void computeNeighborhoodPca(const float* xyz, const NeighborLists& lists, int th
   const int k = lists.k;
   out->resize(n);
   if (n == 0 || k <= 0) return;
-  const bool avx512 = haveAvx512();
+  const SumsPath path = sumsPath();
   const int all = threads > 0 ? threads : omp_get_num_procs();
   const int nt = static_cast<int>(std::min<std::size_t>(all, n / 1024 + 1));
 #pragma omp parallel for num_threads(nt) schedule(static, 2048)
   for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
     pcaOne(xyz, &lists.indices[static_cast<std::size_t>(i) * k], k, static_cast<std::size_t>(i),
-           avx512, &(*out)[i]);
+           path, &(*out)[i]);
   }
 }
 
@@ -434,10 +552,10 @@ void computeRowsCandidates(const float* xyz, const std::int32_t* indices, int k,
                            const std::uint32_t* rows, std::size_t count, const CandidateTest& t,
                            std::uint8_t* candidate, CandidateCounts* counts) {
   const std::size_t kk = static_cast<std::size_t>(k);
-  const bool avx512 = haveAvx512();
+  const SumsPath path = sumsPath();
   for (std::size_t j = 0; j < count; ++j) {
     const std::size_t r = rows[j];
-    candidate[r] = candidateOne(xyz, indices + r * kk, k, r, avx512, t, counts);
+    candidate[r] = candidateOne(xyz, indices + r * kk, k, r, path, t, counts);
   }
 }
 
@@ -446,9 +564,9 @@ void computeOrderedRowsCandidates(const float* xyz, const std::int32_t* rows, in
                                   const CandidateTest& t, std::uint8_t* candidate,
                                   CandidateCounts* counts) {
   const std::size_t kk = static_cast<std::size_t>(k);
-  const bool avx512 = haveAvx512();
+  const SumsPath path = sumsPath();
   for (std::size_t j = 0; j < count; ++j) {
-    candidate[query[j]] = candidateOne(xyz, rows + j * kk, k, query[j], avx512, t, counts);
+    candidate[query[j]] = candidateOne(xyz, rows + j * kk, k, query[j], path, t, counts);
   }
 }
 
@@ -459,7 +577,7 @@ void computeNeighborhoodCandidates(const float* xyz, const NeighborLists& lists,
   const int k = lists.k;
   CandidateCounts total;
   if (n > 0 && k > 0) {
-    const bool avx512 = haveAvx512();
+    const SumsPath path = sumsPath();
     const int all = threads > 0 ? threads : omp_get_num_procs();
     const int nt = static_cast<int>(std::min<std::size_t>(all, n / 1024 + 1));
     std::size_t invalid = 0, early = 0, fast = 0, exact = 0;
@@ -468,7 +586,7 @@ void computeNeighborhoodCandidates(const float* xyz, const NeighborLists& lists,
     for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
       CandidateCounts c;
       candidate[i] = candidateOne(xyz, &lists.indices[static_cast<std::size_t>(i) * k], k,
-                                  static_cast<std::size_t>(i), avx512, t, &c);
+                                  static_cast<std::size_t>(i), path, t, &c);
       invalid += c.invalid;
       early += c.early;
       fast += c.fast;

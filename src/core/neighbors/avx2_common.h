@@ -1,0 +1,47 @@
+#ifndef GROUND_FILTER_SRC_CORE_NEIGHBORS_AVX2_COMMON_H
+#define GROUND_FILTER_SRC_CORE_NEIGHBORS_AVX2_COMMON_H
+
+// Shared by the AVX2 code paths (kd-tree queries, neighbourhood PCA) of CPUs without AVX-512.
+// Compiled with a function target attribute (AVX2 without FMA: a fused product rounds
+// differently from the portable code) and chosen at run time, so the package runs on any x86-64.
+
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#define GF_HAVE_AVX2_PATHS 1
+#define GF_TARGET_AVX2_PATHS __attribute__((target("avx2,popcnt")))
+
+namespace ground_filter {
+namespace simd {
+namespace avx2 {
+
+/// \brief Keeps the compiler from fusing a product into a later addition (see
+///        avx512_common.h's opaque()).
+GF_TARGET_AVX2_PATHS inline __m256 opaque(__m256 v) {
+  asm("" : "+x"(v));
+  return v;
+}
+/// \brief See opaque(__m256).
+GF_TARGET_AVX2_PATHS inline __m256d opaque(__m256d v) {
+  asm("" : "+x"(v));
+  return v;
+}
+/// \brief See opaque(__m256).
+GF_TARGET_AVX2_PATHS inline __m128 opaque(__m128 v) {
+  asm("" : "+x"(v));
+  return v;
+}
+
+/// \brief Whether this CPU runs the AVX2 paths (AVX2 and POPCNT).
+inline bool cpuHasAvx2() {
+  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("popcnt");
+}
+
+}  // namespace avx2
+}  // namespace simd
+}  // namespace ground_filter
+
+#else
+#define GF_HAVE_AVX2_PATHS 0
+#endif
+
+#endif  // GROUND_FILTER_SRC_CORE_NEIGHBORS_AVX2_COMMON_H
