@@ -418,7 +418,8 @@ TEST(SimdLevels, FiveMillionPointsAtEveryLevel) {
       if (fc.allocation_free) EXPECT_EQ(r.allocations_after_first, 0u) << fc.name;
       if (level == simd::Level::kPortable) {
         ref = r;
-        EXPECT_GT(groundCount(ref.labels), cloud.size() / 2) << fc.name;
+        // rolling terrain: one global plane (voxel_one_plane) keeps only part of it
+        EXPECT_GT(groundCount(ref.labels), cloud.size() / 4) << fc.name;
       } else {
         EXPECT_EQ(differences(ref.labels, r.labels), 0u)
             << fc.name << " at " << simd::levelName(level) << ", " << cloud.size() << " points";
