@@ -104,7 +104,7 @@ void MorphGround::fill(std::vector<float>* zp) {
     float v;
     if (neighbourMean(x, y, true, &v)) frontier_.push_back(static_cast<std::int32_t>(i));
   }
-  std::vector<float> vals;
+  std::vector<float>& vals = fill_vals_;  // kept: no allocation per scan
   while (!frontier_.empty()) {
     vals.resize(frontier_.size());
     for (std::size_t f = 0; f < frontier_.size(); ++f) {

@@ -46,6 +46,7 @@ class MorphGround {
   std::vector<float> pad_;  // erode(): one row between two sentinels
   std::vector<std::uint8_t> object_, known_;
   std::vector<std::int32_t> frontier_, next_, gaps_;
+  std::vector<float> fill_vals_;  // fill(): the values of one ring
 };
 
 }  // namespace ground_filter

@@ -47,23 +47,11 @@ std::once_flag g_env_once;
 std::string g_env_note;  // ", GF_SIMD=<value>" when the variable was set
 
 void readEnvironment() {
-  Level level = highest();
   const char* env = std::getenv("GF_SIMD");
-  if (env != nullptr && *env != '\0') {
-    g_env_note = std::string(", GF_SIMD=") + env;
-    Level asked;
-    if (!parseLevel(env, &asked)) {
-      std::fprintf(stderr,
-                   "[ground_filter] GF_SIMD=%s is not a SIMD level (portable, sse, neon, avx2, "
-                   "avx512): using %s\n",
-                   env, levelName(level));
-    } else if (!cpuRuns(asked)) {
-      std::fprintf(stderr, "[ground_filter] GF_SIMD=%s: this CPU or build cannot run it: using %s\n",
-                   env, levelName(level));
-    } else {
-      level = asked;
-    }
-  }
+  if (env != nullptr && *env != '\0') g_env_note = std::string(", GF_SIMD=") + env;
+  std::string message;
+  const Level level = resolveLevel(env, &message);
+  if (!message.empty()) std::fprintf(stderr, "[ground_filter] %s\n", message.c_str());
   int unset = -1;
   g_active.compare_exchange_strong(unset, static_cast<int>(level));
 }
@@ -88,6 +76,26 @@ bool parseLevel(const std::string& text, Level* level) {
 }
 
 bool supported(Level level) { return cpuRuns(level); }
+
+Level resolveLevel(const char* value, std::string* message) {
+  const Level fallback = highest();
+  std::string why;
+  Level asked = fallback;
+  if (value != nullptr && *value != '\0') {
+    if (!parseLevel(value, &asked)) {
+      why = std::string("GF_SIMD=") + value +
+            " is not a SIMD level (portable, sse, neon, avx2, avx512): using " +
+            levelName(fallback);
+      asked = fallback;
+    } else if (!cpuRuns(asked)) {
+      why = std::string("GF_SIMD=") + value + ": this CPU or build cannot run it: using " +
+            levelName(fallback);
+      asked = fallback;
+    }
+  }
+  if (message != nullptr) *message = why;
+  return asked;
+}
 
 Level best() {
   static const Level b = highest();

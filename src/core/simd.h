@@ -11,7 +11,8 @@ namespace simd {
 ///        gives the same labels; a level only changes speed.
 ///
 /// kPortable: plain C++ (what any CPU runs); kSse: SSE2/SSE4 intrinsics (x86-64);
-/// kNeon: NEON intrinsics (aarch64); kAvx2: AVX2 + FMA-free arithmetic (x86-64);
+/// kNeon: aarch64 (Advanced SIMD is part of it; no NEON-specific code yet: the portable code
+/// runs); kAvx2: AVX2 + FMA-free arithmetic (x86-64);
 /// kAvx512: AVX-512F (x86-64).
 enum class Level : int { kPortable = 0, kSse = 1, kNeon = 2, kAvx2 = 3, kAvx512 = 4 };
 
@@ -27,14 +28,25 @@ bool supported(Level level);
 /// \brief The highest level this build and CPU run.
 Level best();
 
+/// \brief The level a `GF_SIMD` value asks for: best() when `value` is null or empty, or when
+///        it is not a level name or names a level this build or CPU cannot run (then `message`,
+///        when not null, says why; otherwise it is cleared). active() uses it once.
+Level resolveLevel(const char* value, std::string* message);
+
 /// \brief The level in force: `GF_SIMD` (portable | sse | neon | avx2 | avx512, read once per
 ///        process) or best(). A name that is not a level, or a level this CPU cannot run, is
 ///        reported once on stderr and best() runs instead (the filter never stops for it).
 Level active();
 
-/// \brief True when the level in force includes `level`'s instructions (on x86-64 kNeon is
-///        never supported, so active() never is kNeon there).
-inline bool allows(Level level) { return static_cast<int>(active()) >= static_cast<int>(level); }
+/// \brief True when the level in force includes `level`'s instructions. The x86-64 levels
+///        (sse < avx2 < avx512) and neon (aarch64) are two chains above portable: neon
+///        allows no x86 level and no x86 level allows neon.
+inline bool allows(Level level) {
+  const Level a = active();
+  if (level == Level::kPortable) return true;
+  if (a == Level::kNeon || level == Level::kNeon) return a == level;
+  return static_cast<int>(a) >= static_cast<int>(level);
+}
 
 /// \brief The CPU model as the OS reports it (/proc/cpuinfo), or "unknown".
 std::string cpuModel();

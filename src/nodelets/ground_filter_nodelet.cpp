@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "cloud_subscription_helper.h"
+#include "simd.h"
 
 #if defined(__GLIBC__)
 #include <malloc.h>
@@ -37,6 +38,7 @@ GroundFilterNodelet::~GroundFilterNodelet() = default;
 
 void GroundFilterNodelet::onInit() {
   NodeletLazy::onInit();
+  NODELET_INFO("%s: %s", methodName().c_str(), simd::describe().c_str());
   pnh_->param("queue_size", queue_size_, 3);
   if (queue_size_ < 1) {
     NODELET_WARN("~queue_size %d < 1, using 1", queue_size_);

@@ -6,6 +6,8 @@
 #include <fstream>
 #include <iostream>
 
+#include "simd.h"
+
 namespace ground_filter {
 namespace cli {
 
@@ -31,6 +33,8 @@ int runTool(const char* tool, const std::function<int()>& body) {
     return 1;
   }
 }
+
+std::string simdDescription() { return simd::describe(); }
 
 std::string dataDir() {
   const char* env = std::getenv("GF_DATA_DIR");

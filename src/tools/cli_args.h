@@ -34,6 +34,10 @@ int runTool(const char* tool, const std::function<int()>& body);
 ///        GF_DEFAULT_DATA_DIR.
 std::string dataDir();
 
+/// \brief One header line for timings: the CPU model and the SIMD path taken (the level in
+///        force, GF_SIMD when set), e.g. "CPU AMD EPYC ...; SIMD avx2 (best avx512, GF_SIMD=avx2)".
+std::string simdDescription();
+
 /// \brief An integer option: its name, where it goes and its range.
 struct IntOption {
   const char* name;  ///< e.g. "--repeat"

@@ -150,6 +150,7 @@ int run(const Options& opt) {
 
   std::string settings;
   for (const auto& kv : opt.settings) settings += " " + kv.first + "=" + kv.second;
+  std::printf("%s\n", cli::simdDescription().c_str());
   std::printf("method %s%s%s; %d timed runs per file after %d warm-up; %u hardware threads\n",
               opt.method.c_str(), settings.empty() ? "" : ", settings", settings.c_str(),
               opt.repeat, opt.warmup, std::thread::hardware_concurrency());

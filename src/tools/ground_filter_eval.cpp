@@ -312,6 +312,7 @@ int run(const Options& opt) {
   for (const auto& r : results) name_w = std::max(name_w, r.file.size());
   std::string settings;
   for (const auto& kv : opt.settings) settings += " " + kv.first + "=" + kv.second;
+  std::printf("%s\n", cli::simdDescription().c_str());
   std::printf(
       "method %s%s%s; ms = filter time per file%s; metrics in %%, ground = positive\n",
       opt.method.c_str(), settings.empty() ? "" : ", settings", settings.c_str(),

@@ -204,6 +204,7 @@ Options parseArgs(int argc, char** argv) {
 
 int run(Options o) {
   const std::string data = cli::dataDir();
+  std::printf("%s\n", cli::simdDescription().c_str());
   if (o.large > 0) {
     if (o.paths.empty()) {
       for (int f = 0; f < 6; ++f) {

@@ -272,6 +272,7 @@ int run(const Options& opt) {
     rows.push_back(row);
   }
 
+  std::printf("%s\n", cli::simdDescription().c_str());
   std::printf(
       "voxel (threads=%d, shipped flags) vs PCL SACSegmentation plane (RANSAC 0.2 m, 1000 "
       "iterations, optimized; -march=native); %d alternated calls each after %d warm-up\n",

@@ -21,109 +21,131 @@ namespace voxel {
 
 namespace {
 
-// Four floats x y z 0 of one point: SSE2 on x86-64 (every such CPU has it), plain floats
-// elsewhere (aarch64: Jetson); both give the same results lane by lane.
-#if defined(__SSE2__)
-using V4 = __m128;
-inline V4 v4Load(const float* p) { return _mm_load_ps(p); }  // p 16-byte aligned
-inline V4 v4LoadUnaligned(const float* p) { return _mm_loadu_ps(p); }
-inline void v4Store(float* p, V4 v) { _mm_store_ps(p, v); }
-inline V4 v4Set(float x, float y, float z) { return _mm_set_ps(0.f, z, y, x); }
-inline V4 v4Splat(float a) { return _mm_set1_ps(a); }
-inline V4 v4Sub(V4 a, V4 b) { return _mm_sub_ps(a, b); }
-inline V4 v4Min(V4 a, V4 b) { return _mm_min_ps(a, b); }  // a < b ? a : b
-inline V4 v4Max(V4 a, V4 b) { return _mm_max_ps(a, b); }  // a > b ? a : b
-inline V4 v4Add(V4 a, V4 b) { return _mm_add_ps(a, b); }
-inline void v4StoreUnaligned(float* p, V4 v) { _mm_storeu_ps(p, v); }
-// (x, y, z, -z) of (x, y, z, w): negation is exact.
-inline V4 v4WithNegZ(V4 p) {
-  const V4 sign =
-      _mm_castsi128_ps(_mm_set_epi32(std::numeric_limits<std::int32_t>::min(), 0, 0, 0));
-  return _mm_xor_ps(_mm_shuffle_ps(p, p, _MM_SHUFFLE(2, 2, 1, 0)), sign);
-}
-// (s0, s1, s2, h2 + h3): with h2 = max z and h3 = -min z, lane 3 is max z - min z exactly.
-inline V4 v4SumsAndRange(V4 s, V4 h) {
-  const V4 r = _mm_add_ps(h, _mm_shuffle_ps(h, h, _MM_SHUFFLE(2, 2, 2, 2)));  // lane 3: h3 + h2
-  const V4 t = _mm_shuffle_ps(s, r, _MM_SHUFFLE(3, 3, 2, 2));                 // s2 s2 r3 r3
-  return _mm_shuffle_ps(s, t, _MM_SHUFFLE(2, 0, 1, 0));
-}
-// x - x is 0 for finite x and NaN for NaN/Inf: one test for all lanes.
-inline bool v4Finite(V4 p) {
-  return _mm_movemask_ps(_mm_cmpeq_ps(_mm_sub_ps(p, p), _mm_setzero_ps())) == 0xF;
-}
-// restart ? +0 : s, and restart ? -inf : h, as bit masks (no multiply or add in the dependency
-// chains of the gather's running sums and maxima).
-inline V4 v4ZeroIf(V4 s, bool restart) {
-  alignas(16) static const std::uint32_t kMask[2][4] = {{~0u, ~0u, ~0u, ~0u}, {0, 0, 0, 0}};
-  return _mm_and_ps(s, _mm_load_ps(reinterpret_cast<const float*>(kMask[restart])));
-}
-inline V4 v4LowestIf(V4 h, bool restart) {
-  alignas(16) static const std::uint32_t kNegInf[2][4] = {
-      {0, 0, 0, 0}, {0xFF800000u, 0xFF800000u, 0xFF800000u, 0xFF800000u}};
-  return _mm_or_ps(v4ZeroIf(h, restart),
-                   _mm_load_ps(reinterpret_cast<const float*>(kNegInf[restart])));
-}
-// min(int(p * inv), last) per lane (p >= 0 and below 2^22: the axis checks of prepare()).
-inline void v4Cells(V4 p, float inv, const std::int32_t* last, std::uint32_t* out) {
-  const __m128i vlast = _mm_loadu_si128(reinterpret_cast<const __m128i*>(last));
-  __m128i q = _mm_cvttps_epi32(_mm_mul_ps(p, _mm_set1_ps(inv)));
-  const __m128i over = _mm_cmpgt_epi32(q, vlast);
-  q = _mm_or_si128(_mm_and_si128(over, vlast), _mm_andnot_si128(over, q));
-  out[0] = static_cast<std::uint32_t>(_mm_cvtsi128_si32(q));
-  out[1] = static_cast<std::uint32_t>(_mm_cvtsi128_si32(_mm_srli_si128(q, 4)));
-  out[2] = static_cast<std::uint32_t>(_mm_cvtsi128_si32(_mm_srli_si128(q, 8)));
-}
-#else
-struct V4 {
-  float v[4];
+// Four floats x y z 0 of one point, two implementations with the same results lane by lane,
+// chosen per scan (Voxelizer::prepare()): Sse (SSE2, every x86-64, SIMD level sse and up) and
+// Plain (plain floats: SIMD level portable, and what aarch64 runs). Each one's operations are
+// static functions; the passes below are templates on the implementation (O).
+struct Plain {
+  struct V {
+    float v[4];
+  };
+  static V v4Load(const float* p) { return V{{p[0], p[1], p[2], p[3]}}; }
+  static V v4LoadUnaligned(const float* p) { return v4Load(p); }
+  static void v4Store(float* p, V a) {
+    for (int k = 0; k < 4; ++k) p[k] = a.v[k];
+  }
+  static V v4Set(float x, float y, float z) { return V{{x, y, z, 0.f}}; }
+  static V v4Splat(float a) { return V{{a, a, a, a}}; }
+  static V v4Sub(V a, V b) {
+    for (int k = 0; k < 4; ++k) a.v[k] -= b.v[k];
+    return a;
+  }
+  static V v4Min(V a, V b) {
+    for (int k = 0; k < 4; ++k) a.v[k] = a.v[k] < b.v[k] ? a.v[k] : b.v[k];
+    return a;
+  }
+  static V v4Max(V a, V b) {
+    for (int k = 0; k < 4; ++k) a.v[k] = a.v[k] > b.v[k] ? a.v[k] : b.v[k];
+    return a;
+  }
+  static V v4Add(V a, V b) {
+    for (int k = 0; k < 4; ++k) a.v[k] += b.v[k];
+    return a;
+  }
+  static void v4StoreUnaligned(float* p, V a) { v4Store(p, a); }
+  static V v4WithNegZ(V p) { return V{{p.v[0], p.v[1], p.v[2], -p.v[2]}}; }
+  static V v4SumsAndRange(V s, V h) { return V{{s.v[0], s.v[1], s.v[2], h.v[3] + h.v[2]}}; }
+  static bool v4Finite(V p) {
+    return (p.v[0] - p.v[0]) + (p.v[1] - p.v[1]) + (p.v[2] - p.v[2]) == 0.f;
+  }
+  static V v4ZeroIf(V s, bool restart) { return restart ? v4Splat(0.f) : s; }
+  static V v4LowestIf(V h, bool restart) {
+    return restart ? v4Splat(-std::numeric_limits<float>::infinity()) : h;
+  }
+  static void v4Cells(V p, float inv, const std::int32_t* last, std::uint32_t* out) {
+    for (int k = 0; k < 3; ++k) {
+      out[k] =
+          std::min(static_cast<std::uint32_t>(p.v[k] * inv), static_cast<std::uint32_t>(last[k]));
+    }
+  }
 };
-inline V4 v4Load(const float* p) { return V4{{p[0], p[1], p[2], p[3]}}; }
-inline V4 v4LoadUnaligned(const float* p) { return v4Load(p); }
-inline void v4Store(float* p, V4 a) {
-  for (int k = 0; k < 4; ++k) p[k] = a.v[k];
-}
-inline V4 v4Set(float x, float y, float z) { return V4{{x, y, z, 0.f}}; }
-inline V4 v4Splat(float a) { return V4{{a, a, a, a}}; }
-inline V4 v4Sub(V4 a, V4 b) {
-  for (int k = 0; k < 4; ++k) a.v[k] -= b.v[k];
-  return a;
-}
-inline V4 v4Min(V4 a, V4 b) {
-  for (int k = 0; k < 4; ++k) a.v[k] = a.v[k] < b.v[k] ? a.v[k] : b.v[k];
-  return a;
-}
-inline V4 v4Max(V4 a, V4 b) {
-  for (int k = 0; k < 4; ++k) a.v[k] = a.v[k] > b.v[k] ? a.v[k] : b.v[k];
-  return a;
-}
-inline V4 v4Add(V4 a, V4 b) {
-  for (int k = 0; k < 4; ++k) a.v[k] += b.v[k];
-  return a;
-}
-inline void v4StoreUnaligned(float* p, V4 a) { v4Store(p, a); }
-inline V4 v4WithNegZ(V4 p) { return V4{{p.v[0], p.v[1], p.v[2], -p.v[2]}}; }
-inline V4 v4SumsAndRange(V4 s, V4 h) { return V4{{s.v[0], s.v[1], s.v[2], h.v[3] + h.v[2]}}; }
-inline bool v4Finite(V4 p) {
-  return (p.v[0] - p.v[0]) + (p.v[1] - p.v[1]) + (p.v[2] - p.v[2]) == 0.f;
-}
-inline V4 v4ZeroIf(V4 s, bool restart) { return restart ? v4Splat(0.f) : s; }
-inline V4 v4LowestIf(V4 h, bool restart) {
-  return restart ? v4Splat(-std::numeric_limits<float>::infinity()) : h;
-}
-inline void v4Cells(V4 p, float inv, const std::int32_t* last, std::uint32_t* out) {
-  for (int k = 0; k < 3; ++k) {
-    out[k] =
-        std::min(static_cast<std::uint32_t>(p.v[k] * inv), static_cast<std::uint32_t>(last[k]));
+
+#if defined(__SSE2__)
+struct Sse {
+  using V = __m128;
+  static V v4Load(const float* p) { return _mm_load_ps(p); }  // p 16-byte aligned
+  static V v4LoadUnaligned(const float* p) { return _mm_loadu_ps(p); }
+  static void v4Store(float* p, V v) { _mm_store_ps(p, v); }
+  static V v4Set(float x, float y, float z) { return _mm_set_ps(0.f, z, y, x); }
+  static V v4Splat(float a) { return _mm_set1_ps(a); }
+  static V v4Sub(V a, V b) { return _mm_sub_ps(a, b); }
+  static V v4Min(V a, V b) { return _mm_min_ps(a, b); }  // a < b ? a : b
+  static V v4Max(V a, V b) { return _mm_max_ps(a, b); }  // a > b ? a : b
+  static V v4Add(V a, V b) { return _mm_add_ps(a, b); }
+  static void v4StoreUnaligned(float* p, V v) { _mm_storeu_ps(p, v); }
+  // (x, y, z, -z) of (x, y, z, w): negation is exact.
+  static V v4WithNegZ(V p) {
+    const V sign =
+        _mm_castsi128_ps(_mm_set_epi32(std::numeric_limits<std::int32_t>::min(), 0, 0, 0));
+    return _mm_xor_ps(_mm_shuffle_ps(p, p, _MM_SHUFFLE(2, 2, 1, 0)), sign);
+  }
+  // (s0, s1, s2, h2 + h3): with h2 = max z and h3 = -min z, lane 3 is max z - min z exactly.
+  static V v4SumsAndRange(V s, V h) {
+    const V r = _mm_add_ps(h, _mm_shuffle_ps(h, h, _MM_SHUFFLE(2, 2, 2, 2)));  // lane 3: h3 + h2
+    const V t = _mm_shuffle_ps(s, r, _MM_SHUFFLE(3, 3, 2, 2));                 // s2 s2 r3 r3
+    return _mm_shuffle_ps(s, t, _MM_SHUFFLE(2, 0, 1, 0));
+  }
+  // x - x is 0 for finite x and NaN for NaN/Inf: one test for all lanes.
+  static bool v4Finite(V p) {
+    return _mm_movemask_ps(_mm_cmpeq_ps(_mm_sub_ps(p, p), _mm_setzero_ps())) == 0xF;
+  }
+  // restart ? +0 : s, and restart ? -inf : h, as bit masks (no multiply or add in the dependency
+  // chains of the gather's running sums and maxima).
+  static V v4ZeroIf(V s, bool restart) {
+    alignas(16) static const std::uint32_t kMask[2][4] = {{~0u, ~0u, ~0u, ~0u}, {0, 0, 0, 0}};
+    return _mm_and_ps(s, _mm_load_ps(reinterpret_cast<const float*>(kMask[restart])));
+  }
+  static V v4LowestIf(V h, bool restart) {
+    alignas(16) static const std::uint32_t kNegInf[2][4] = {
+        {0, 0, 0, 0}, {0xFF800000u, 0xFF800000u, 0xFF800000u, 0xFF800000u}};
+    return _mm_or_ps(v4ZeroIf(h, restart),
+                     _mm_load_ps(reinterpret_cast<const float*>(kNegInf[restart])));
+  }
+  // min(int(p * inv), last) per lane (p >= 0 and below 2^22: the axis checks of prepare()).
+  static void v4Cells(V p, float inv, const std::int32_t* last, std::uint32_t* out) {
+    const __m128i vlast = _mm_loadu_si128(reinterpret_cast<const __m128i*>(last));
+    __m128i q = _mm_cvttps_epi32(_mm_mul_ps(p, _mm_set1_ps(inv)));
+    const __m128i over = _mm_cmpgt_epi32(q, vlast);
+    q = _mm_or_si128(_mm_and_si128(over, vlast), _mm_andnot_si128(over, q));
+    out[0] = static_cast<std::uint32_t>(_mm_cvtsi128_si32(q));
+    out[1] = static_cast<std::uint32_t>(_mm_cvtsi128_si32(_mm_srli_si128(q, 4)));
+    out[2] = static_cast<std::uint32_t>(_mm_cvtsi128_si32(_mm_srli_si128(q, 8)));
+  }
+};
+constexpr bool kHaveSse = true;
+#else
+using Sse = Plain;  // never chosen (kHaveSse): Voxelizer::useSse() is false
+constexpr bool kHaveSse = false;
+#endif
+
+// Calls f(O{}) with the implementation of the V4 operations: Sse or Plain.
+template <class F>
+void withOps(bool sse, F&& f) {
+  if (kHaveSse && sse) {
+    f(Sse{});
+  } else {
+    f(Plain{});
   }
 }
-#endif
 
 // Where the key pass and the gather read a point's x y z (lane 3 zero): the aligned copy made
 // by the first pass, or the input records themselves (x y z adjacent, records of at most 16
 // bytes, SSE2: no copy to write and read back; Voxelizer::prepare()).
+template <class O>
 struct CopyPoints {
+  using V4 = typename O::V;
   const float* xyz0;  // x y z 0 per input point, 16-byte aligned
-  V4 load(std::size_t i) const { return v4Load(xyz0 + 4 * i); }
+  V4 load(std::size_t i) const { return O::v4Load(xyz0 + 4 * i); }
   V4 loadXyz(std::size_t i) const { return load(i); }
   const void* address(std::size_t i) const { return xyz0 + 4 * i; }
   std::size_t stride() const { return 4 * sizeof(float); }
@@ -133,16 +155,18 @@ struct CopyPoints {
   }
 };
 // Any layout: three scalar reads a record (first pass only; the other passes read the copy).
+template <class O>
 struct FieldPoints {
+  using V4 = typename O::V;
   CloudView view;
-  V4 load(std::size_t i) const { return v4Set(view.x(i), view.y(i), view.z(i)); }
+  V4 load(std::size_t i) const { return O::v4Set(view.x(i), view.y(i), view.z(i)); }
   const void* address(std::size_t i) const { return view.data() + i * view.stride(); }
   std::size_t stride() const { return view.stride(); }
 };
 #if defined(__SSE2__)
 struct DirectPoints {
   Voxelizer::DirectRead d;
-  V4 load(std::size_t i) const {
+  __m128 load(std::size_t i) const {
     const std::uint8_t* r = d.x + i * d.step;
     if (i < d.vector_end) {  // taken for all but the last record of packed x y z clouds
       return _mm_and_ps(_mm_loadu_ps(reinterpret_cast<const float*>(r)),
@@ -150,10 +174,10 @@ struct DirectPoints {
     }
     float c[3];
     std::memcpy(c, r, sizeof(c));
-    return v4Set(c[0], c[1], c[2]);
+    return Sse::v4Set(c[0], c[1], c[2]);
   }
   // x y z and a fourth lane of any value (the gather replaces it: no mask).
-  V4 loadXyz(std::size_t i) const {
+  __m128 loadXyz(std::size_t i) const {
     return i < d.vector_end ? _mm_loadu_ps(reinterpret_cast<const float*>(d.x + i * d.step))
                             : load(i);
   }
@@ -164,18 +188,21 @@ struct DirectPoints {
 #endif
 
 // Calls f with where the key pass and the gather read the points: `copy` (x y z 0 per point),
-// or the input records in place when there is no copy.
-template <class F>
+// or, Sse only, the input records in place when there is no copy (prepare() makes the copy
+// for every layout when it runs Plain).
+template <class O, class F>
 void withPoints(const Voxelizer::DirectRead& direct, const float* copy, F&& f) {
 #if defined(__SSE2__)
-  if (!copy) {
-    f(DirectPoints{direct});
-    return;
+  if constexpr (std::is_same<O, Sse>::value) {
+    if (!copy) {
+      f(DirectPoints{direct});
+      return;
+    }
   }
 #else
   (void)direct;
 #endif
-  f(CopyPoints{copy});
+  f(CopyPoints<O>{copy});
 }
 
 }  // namespace
@@ -193,9 +220,10 @@ constexpr std::size_t kReadAhead = 32;
 // input [begin, end) (read from `pts`: the copy of scanBounds() or the input), written from slot
 // `slot` on. SSE2 (every x86-64): one point per vector; the arithmetic is the scalar one lane by
 // lane.
-template <bool kPacked, bool kAllValid, int kPasses, class Points>
+template <class O, bool kPacked, bool kAllValid, int kPasses, class Points>
 void computeKeysT(const KeyJob job, const Points pts, std::size_t begin, std::size_t end,
                   std::size_t slot) {
+  using V4 = typename O::V;
   const std::uint32_t dmask = (1u << job.digit) - 1;
   const int passes = kPasses > 0 ? kPasses : job.passes;
   const int digit = job.digit, shift_lo = job.shift_lo, slot_bits = job.slot_bits;
@@ -203,18 +231,18 @@ void computeKeysT(const KeyJob job, const Points pts, std::size_t begin, std::si
   std::uint32_t* const hist = job.hist;
   std::uint32_t* const hist1 = job.hist + (std::size_t{1} << digit);
   std::uint64_t* const keys = job.keys;
-  const V4 vmin = v4LoadUnaligned(job.min);  // a member of the by-value job: not aligned
+  const V4 vmin = O::v4LoadUnaligned(job.min);  // a member of the by-value job: not aligned
   std::size_t s = slot;
   for (std::size_t i = begin; i < end; ++i) {
     prefetchAhead(pts.address(i), kReadAhead * pts.stride());
     V4 p = pts.load(i);
     if (!kAllValid) {
-      if (!v4Finite(p)) continue;
+      if (!O::v4Finite(p)) continue;
       job.index[s] = static_cast<std::uint32_t>(i);
     }
-    p = v4Sub(p, vmin);
+    p = O::v4Sub(p, vmin);
     std::uint32_t cell[4];
-    v4Cells(p, job.inv_vs, job.last, cell);
+    O::v4Cells(p, job.inv_vs, job.last, cell);
     const std::uint64_t ix = cell[0], iy = cell[1], iz = cell[2];
     const std::uint64_t key = (ix << shift_x) | (iy << shift_y) | iz;
     std::uint64_t word;
@@ -236,7 +264,7 @@ void computeKeysT(const KeyJob job, const Points pts, std::size_t begin, std::si
   }
 }
 
-template <class Points>
+template <class O, class Points>
 void computeKeys(const KeyJob& job, const Points& pts, std::size_t begin, std::size_t end,
                  std::size_t slot, bool avx2) {
   if (avx2 && job.packed && job.all_valid) {  // blocks of eight points, the rest below
@@ -245,13 +273,13 @@ void computeKeys(const KeyJob& job, const Points& pts, std::size_t begin, std::s
     begin = stop;
   }
   if (job.packed && job.all_valid && job.passes == 2) {  // the common case: one word a point
-    computeKeysT<true, true, 2>(job, pts, begin, end, slot);
+    computeKeysT<O, true, true, 2>(job, pts, begin, end, slot);
   } else if (job.packed && job.all_valid) {
-    computeKeysT<true, true, 0>(job, pts, begin, end, slot);
+    computeKeysT<O, true, true, 0>(job, pts, begin, end, slot);
   } else if (job.packed) {
-    computeKeysT<true, false, 0>(job, pts, begin, end, slot);
+    computeKeysT<O, true, false, 0>(job, pts, begin, end, slot);
   } else {
-    computeKeysT<false, false, 0>(job, pts, begin, end, slot);
+    computeKeysT<O, false, false, 0>(job, pts, begin, end, slot);
   }
 }
 
@@ -286,8 +314,9 @@ struct RunJob {
 struct GatherRange {
   std::size_t begin, end, n, voxel;
 };
-template <bool kPacked, bool kAllValid, class Points>
+template <class O, bool kPacked, bool kAllValid, class Points>
 std::size_t gatherRuns(const RunJob job, const Points pts, const GatherRange r) {
+  using V4 = typename O::V;
   const std::uint64_t* const k = job.keys;
   const std::uint32_t* const o = job.order;
   const std::uint32_t* const pidx = job.pidx;
@@ -298,7 +327,7 @@ std::size_t gatherRuns(const RunJob job, const Points pts, const GatherRange r) 
   float* const rec = job.vrec;
   const std::uint64_t slot_mask = job.slot_mask;
   const int low = job.low;
-  const V4 vmin = v4LoadUnaligned(job.min);
+  const V4 vmin = O::v4LoadUnaligned(job.min);
   auto slotOf = [&](std::size_t i) {
     return kPacked ? static_cast<std::uint32_t>(k[i] & slot_mask) : o[i];
   };
@@ -308,7 +337,7 @@ std::size_t gatherRuns(const RunJob job, const Points pts, const GatherRange r) 
   constexpr std::size_t kAhead = 48;  // prefetch distance of the random coordinate reads
   std::size_t nv = r.voxel;
   std::uint64_t prev = ~std::uint64_t{0};  // no key (keys use at most 63 bits)
-  V4 sum = v4Splat(0.f), hi = v4Splat(0.f);
+  V4 sum = O::v4Splat(0.f), hi = O::v4Splat(0.f);
   // The loop body: with or without the prefetch (loops without a bounds test per point), and
   // for the edges of the range.
   constexpr int kFirstOfLater = 1, kLast = 2;  // edge: bits
@@ -316,14 +345,14 @@ std::size_t gatherRuns(const RunJob job, const Points pts, const GatherRange r) 
     if (decltype(prefetch)::value) __builtin_prefetch(pts.address(pointOf(slotOf(i + kAhead))));
     const std::uint64_t key = k[i] >> low;
     // The same float subtraction as prepare()'s key pass made lane by lane (and its negation).
-    const V4 p = v4Sub(v4WithNegZ(pts.loadXyz(pointOf(slotOf(i)))), vmin);
+    const V4 p = O::v4Sub(O::v4WithNegZ(pts.loadXyz(pointOf(slotOf(i)))), vmin);
     if (decltype(edge)::value & kLast) {
       alignas(16) float c[4];
-      v4Store(c, p);
+      O::v4Store(c, p);
       std::memcpy(xyz_out + 3 * i, c, 3 * sizeof(float));
     } else {
       // Four floats: the fourth lands on the next point's x, which its own store overwrites.
-      v4StoreUnaligned(xyz_out + 3 * i, p);
+      O::v4StoreUnaligned(xyz_out + 3 * i, p);
     }
     const bool first = key != prev;
     prev = key;
@@ -335,9 +364,9 @@ std::size_t gatherRuns(const RunJob job, const Points pts, const GatherRange r) 
     const std::size_t v = nv - 1;
     pv[i] = static_cast<std::uint32_t>(v);
     // The same sums in the same order as a loop over the run would make (+0 + x first).
-    sum = v4Add(v4ZeroIf(sum, first), p);
-    hi = v4Max(v4LowestIf(hi, first), p);
-    v4StoreUnaligned(rec + kRunRecord * v, v4SumsAndRange(sum, hi));
+    sum = O::v4Add(O::v4ZeroIf(sum, first), p);
+    hi = O::v4Max(O::v4LowestIf(hi, first), p);
+    O::v4StoreUnaligned(rec + kRunRecord * v, O::v4SumsAndRange(sum, hi));
   };
   using Inside = std::integral_constant<int, 0>;
   if (r.begin == r.end) return nv;
@@ -356,68 +385,73 @@ std::size_t gatherRuns(const RunJob job, const Points pts, const GatherRange r) 
 }
 
 // gatherRuns() for the key layout: [packed keys][every point valid].
-template <class Points>
+template <class O, class Points>
 std::size_t gather(const RunJob& job, const Points& pts, bool packed, bool all_valid,
                    const GatherRange& r) {
   if (packed) {
-    return all_valid ? gatherRuns<true, true>(job, pts, r) : gatherRuns<true, false>(job, pts, r);
+    return all_valid ? gatherRuns<O, true, true>(job, pts, r)
+                     : gatherRuns<O, true, false>(job, pts, r);
   }
-  return all_valid ? gatherRuns<false, true>(job, pts, r) : gatherRuns<false, false>(job, pts, r);
+  return all_valid ? gatherRuns<O, false, true>(job, pts, r)
+                   : gatherRuns<O, false, false>(job, pts, r);
 }
 
 }  // namespace
 
+template <class O>
 void Voxelizer::scanBounds(const CloudView& cloud, const DirectRead& direct, float* pts, bool avx2,
                            Chunk* ch) {
   // Takes the bounds and the number of the valid points; with `pts`, also copies x y z (w = 0)
   // of every input point there (one aligned vector a point for the key pass and the gather of
   // build()).
-  V4 lo = v4Splat(std::numeric_limits<float>::max());
-  V4 hi = v4Splat(-std::numeric_limits<float>::max());
+  using V4 = typename O::V;
+  V4 lo = O::v4Splat(std::numeric_limits<float>::max());
+  V4 hi = O::v4Splat(-std::numeric_limits<float>::max());
   std::size_t valid = 0;
-  std::size_t first = ch->begin;  // first record of the scalar loop
-#if defined(__SSE2__)
+  std::size_t first = ch->begin;   // first record of the scalar loop
   if (avx2 && direct.x && !pts) {  // blocks of eight records, the rest below
     alignas(16) float l[4], h[4];
-    v4Store(l, lo);
-    v4Store(h, hi);
+    O::v4Store(l, lo);
+    O::v4Store(h, hi);
     first = scanBoundsAvx2(direct, first, ch->end, l, h, &valid);
-    lo = v4Load(l);
-    hi = v4Load(h);
+    lo = O::v4Load(l);
+    hi = O::v4Load(h);
   }
-#else
-  (void)avx2;
-#endif
   auto scan = [&](const auto& src) {
     for (std::size_t i = first; i < ch->end; ++i) {
       prefetchAhead(src.address(i), kReadAhead * src.stride());
       const V4 p = src.load(i);
-      if (pts) v4Store(pts + 4 * i, p);
-      if (!v4Finite(p)) continue;
+      if (pts) O::v4Store(pts + 4 * i, p);
+      if (!O::v4Finite(p)) continue;
       ++valid;
-      lo = v4Min(p, lo);  // p < lo ? p : lo, as the scalar code did
-      hi = v4Max(p, hi);
+      lo = O::v4Min(p, lo);  // p < lo ? p : lo, as the scalar code did
+      hi = O::v4Max(p, hi);
     }
   };
 #if defined(__SSE2__)
-  if (direct.x) {
-    scan(DirectPoints{direct});
+  if constexpr (std::is_same<O, Sse>::value) {
+    if (direct.x) {
+      scan(DirectPoints{direct});
+    } else {
+      scan(FieldPoints<O>{cloud});
+    }
   } else {
-    scan(FieldPoints{cloud});
+    scan(FieldPoints<O>{cloud});
   }
 #else
-  (void)direct;
-  scan(FieldPoints{cloud});
+  scan(FieldPoints<O>{cloud});
 #endif
   ch->valid = valid;
   alignas(16) float l[4], h[4];
-  v4Store(l, lo);
-  v4Store(h, hi);
+  O::v4Store(l, lo);
+  O::v4Store(h, hi);
   for (int d = 0; d < 3; ++d) {
     ch->lo[d] = l[d];
     ch->hi[d] = h[d];
   }
 }
+
+bool Voxelizer::useSse() { return kHaveSse && simd::allows(simd::Level::kSse); }
 
 void CellGrid::setup(const VoxelGroundFilterParams& p, std::uint64_t nx, std::uint64_t ny) {
   std::uint64_t border = 0;
@@ -447,7 +481,10 @@ void CellGrid::setup(const VoxelGroundFilterParams& p, std::uint64_t nx, std::ui
 
 std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, WorkerPool* pool,
                                const WorkingVolume* volume, VoxelGrid* g) {
-  const bool avx2 = useAvx2();
+  // The level of this scan, kept for build() (its point reads follow prepare()'s layout).
+  sse_ = useSse();
+  avx2_ = sse_ && useAvx2();
+  const bool avx2 = avx2_;
   const std::size_t n_in = cloud.size();
   const int nt = threads > 1 && n_in >= kParallelMinPoints ? threads : 1;
   const int nch = nt == 1 ? 1 : 4 * nt;  // chunks of the input
@@ -458,9 +495,10 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   }
   // Layout: x y z adjacent in every record are read with one 16-byte load a point, except the
   // records that have fewer than 16 bytes left from x on (the last one of packed x y z).
+  // Plain (SIMD level portable, aarch64) always reads the copy, as aarch64 does.
   direct_ = DirectRead();
 #if defined(__SSE2__)
-  if (cloud.xyzAdjacent()) {
+  if (sse_ && cloud.xyzAdjacent()) {
     const std::size_t xo = cloud.xOffset(), step = cloud.stride(), bytes = n_in * step;
     direct_.x = cloud.data() + xo;
     direct_.step = step;
@@ -471,7 +509,10 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   // Pass 1: bounds and number of the valid points of every chunk (and the copy, copied()).
   if (copied()) resizeScratch(&pxyz_, 4 * n_in);
   float* const copy = copied() ? pxyz_.data() : nullptr;
-  pool->run(nt, nch, [&](int, int c) { scanBounds(cloud, direct_, copy, avx2, &chunks_[c]); });
+  withOps(sse_, [&](auto ops) {
+    using O = decltype(ops);
+    pool->run(nt, nch, [&](int, int c) { scanBounds<O>(cloud, direct_, copy, avx2, &chunks_[c]); });
+  });
   std::size_t n = 0;
   float lo[3], hi[3];
   lo[0] = lo[1] = lo[2] = std::numeric_limits<float>::max();
@@ -553,8 +594,11 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
     KeyJob own = job;
     own.hist = job.hist + per * static_cast<std::size_t>(t);
     const Chunk& ch = chunks_[c];
-    withPoints(direct_, copy, [&](const auto& pts) {
-      computeKeys(own, pts, ch.begin, ch.end, ch.out, avx2);
+    withOps(sse_, [&](auto ops) {
+      using O = decltype(ops);
+      withPoints<O>(direct_, copy, [&](const auto& pts) {
+        computeKeys<O>(own, pts, ch.begin, ch.end, ch.out, avx2);
+      });
     });
   });
   for (int t = 1; t < nt; ++t) {
@@ -588,7 +632,7 @@ void Voxelizer::sort(int threads, WorkerPool* pool, VoxelGrid* g) {
 
 void Voxelizer::build(const VoxelGroundFilterParams& p, int threads, WorkerPool* pool, VoxelGrid* g,
                       CellGrid* cells) {
-  const bool avx2 = useAvx2();
+  const bool avx2 = avx2_;  // prepare()'s choice for this scan
   const std::size_t n = g->keys.size();
   const int nt = threads > 1 && n >= parallel_min_points_ ? threads : 1;
   sort(nt, pool, g);
@@ -631,38 +675,41 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, int threads, WorkerPool*
   std::copy(min_, min_ + 3, job.min);
   job.min[3] = -min_[2];
   std::size_t nv = 0;
-  withPoints(direct_, copied() ? pxyz_.data() : nullptr, [&](const auto& pts) {
-    if (nt == 1) {
-      nv = gather(job, pts, pk, av, GatherRange{0, n, n, 0});
-      return;
-    }
-    // Ranges of about n / nt points that end at voxel boundaries, their voxels counted first
-    // (numbered on from the ranges before), then gathered.
-    range_.assign(static_cast<std::size_t>(nt) + 1, n);
-    range_[0] = 0;
-    for (int r = 1; r < nt; ++r) {
-      std::size_t b =
-          std::max(n * static_cast<std::size_t>(r) / static_cast<std::size_t>(nt), range_[r - 1]);
-      while (b > 0 && b < n && (k[b] >> low) == (k[b - 1] >> low)) ++b;
-      range_[r] = b;
-    }
-    voxel_base_.assign(static_cast<std::size_t>(nt) + 1, 0);
-    pool->run(nt, nt, [&](int, int r) {
-      const std::size_t b = range_[r], e = range_[r + 1];
-      std::size_t starts = b < e ? 1 : 0;
-      for (std::size_t i = b + 1; i < e; ++i) starts += (k[i] >> low) != (k[i - 1] >> low);
-      voxel_base_[r + 1] = starts;
+  withOps(sse_, [&](auto ops) {
+    using O = decltype(ops);
+    withPoints<O>(direct_, copied() ? pxyz_.data() : nullptr, [&](const auto& pts) {
+      if (nt == 1) {
+        nv = gather<O>(job, pts, pk, av, GatherRange{0, n, n, 0});
+        return;
+      }
+      // Ranges of about n / nt points that end at voxel boundaries, their voxels counted first
+      // (numbered on from the ranges before), then gathered.
+      range_.assign(static_cast<std::size_t>(nt) + 1, n);
+      range_[0] = 0;
+      for (int r = 1; r < nt; ++r) {
+        std::size_t b =
+            std::max(n * static_cast<std::size_t>(r) / static_cast<std::size_t>(nt), range_[r - 1]);
+        while (b > 0 && b < n && (k[b] >> low) == (k[b - 1] >> low)) ++b;
+        range_[r] = b;
+      }
+      voxel_base_.assign(static_cast<std::size_t>(nt) + 1, 0);
+      pool->run(nt, nt, [&](int, int r) {
+        const std::size_t b = range_[r], e = range_[r + 1];
+        std::size_t starts = b < e ? 1 : 0;
+        for (std::size_t i = b + 1; i < e; ++i) starts += (k[i] >> low) != (k[i - 1] >> low);
+        voxel_base_[r + 1] = starts;
+      });
+      for (int r = 0; r < nt; ++r) voxel_base_[r + 1] += voxel_base_[r];
+      pool->run(nt, nt, [&](int, int r) {
+        gather<O>(job, pts, pk, av, GatherRange{range_[r], range_[r + 1], n, voxel_base_[r]});
+      });
+      for (int r = 1; r < nt; ++r) {  // the first voxel of every later range (GatherRange)
+        if (range_[r] == range_[r + 1]) continue;
+        vk[voxel_base_[r]] = k[range_[r]] >> low;
+        vs[voxel_base_[r]] = static_cast<std::uint32_t>(range_[r]);
+      }
+      nv = voxel_base_[nt];
     });
-    for (int r = 0; r < nt; ++r) voxel_base_[r + 1] += voxel_base_[r];
-    pool->run(nt, nt, [&](int, int r) {
-      gather(job, pts, pk, av, GatherRange{range_[r], range_[r + 1], n, voxel_base_[r]});
-    });
-    for (int r = 1; r < nt; ++r) {  // the first voxel of every later range (GatherRange)
-      if (range_[r] == range_[r + 1]) continue;
-      vk[voxel_base_[r]] = k[range_[r]] >> low;
-      vs[voxel_base_[r]] = static_cast<std::uint32_t>(range_[r]);
-    }
-    nv = voxel_base_[nt];
   });
   g->vx.resize(nv);
   g->vy.resize(nv);
@@ -697,8 +744,7 @@ void Voxelizer::build(const VoxelGroundFilterParams& p, int threads, WorkerPool*
   // conversion is exact), then column, cell, flags and the flat / seed lists.
   voxelRanges([&](std::size_t b, std::size_t e) {
     const std::size_t v_scalar =
-        b + (avx2 ? centroidsAvx2(rec + kRunRecord * b, vs + b, e - b, vx + b, vy + b, vz + b)
-                       : 0);
+        b + (avx2 ? centroidsAvx2(rec + kRunRecord * b, vs + b, e - b, vx + b, vy + b, vz + b) : 0);
     for (std::size_t v = v_scalar; v < e; ++v) {
       const float inv = 1.f / static_cast<float>(static_cast<std::int32_t>(vs[v + 1] - vs[v]));
       vx[v] = rec[kRunRecord * v] * inv;

@@ -47,6 +47,9 @@ class Voxelizer {
   void setUseAvx2(bool use) { use_avx2_ = use; }
   /// \brief Whether the AVX2 passes run: allowed here and by the SIMD level in force.
   bool useAvx2() const { return use_avx2_ && simd::allows(simd::Level::kAvx2) && cpuHasAvx2(); }
+  /// \brief Whether the passes over points use SSE2 vectors (SIMD level sse and up on x86-64)
+  ///        or plain floats (level portable; aarch64): the same keys, bounds and sums.
+  static bool useSse();
 
  private:
   struct RadixPlan {
@@ -57,6 +60,7 @@ class Voxelizer {
     std::size_t begin = 0, end = 0, valid = 0, out = 0;  // input range, valid points, first slot
     float lo[3], hi[3];                                  // bounds of its valid points
   };
+  template <class O>  // O: the V4 operations (voxelize.cpp)
   static void scanBounds(const CloudView& cloud, const DirectRead& direct, float* pts, bool avx2,
                          Chunk* ch);
   void sort(int threads, WorkerPool* pool, VoxelGrid* g);
@@ -68,6 +72,7 @@ class Voxelizer {
   // (a wide record read twice at random in the gather cost more than the copy: os128).
   std::vector<float> pxyz_;
   bool use_avx2_ = true;
+  bool sse_ = false, avx2_ = false;  // this scan's passes (prepare(); build() keeps them)
   std::size_t parallel_min_points_ = kParallelSortMinPoints;
   std::vector<std::uint32_t> block_counts_;      // sort() on several threads: digits per block
   std::vector<std::size_t> range_, voxel_base_;  // build(): points and first voxel per range
