@@ -434,7 +434,14 @@ TEST(ParamCheck, NamesEveryBadKey) {
     EXPECT_EQ(errors[k].compare(0, keys[k].size() + 1, keys[k] + ":"), 0) << errors[k];
   }
   EXPECT_NE(errors[2].find("outside [0.001, 10]"), std::string::npos) << errors[2];
-  EXPECT_NE(errors[3].find("unknown parameter"), std::string::npos) << errors[3];
+  EXPECT_NE(errors[3].find("unknown parameter (did you mean plane_distance?)"),
+            std::string::npos)
+      << errors[3];
+  set.clear();
+  set["colour"] = XmlRpc::XmlRpcValue(1);  // nothing close: the known names are listed
+  const std::vector<std::string> far = gf::checkPrivateParams(set, known, nullptr);
+  ASSERT_EQ(far.size(), 1u);
+  EXPECT_NE(far[0].find("known: queue_size, lazy"), std::string::npos) << far[0];
   EXPECT_NE(errors[5].find("'two' is not an integer"), std::string::npos) << errors[5];
 }
 

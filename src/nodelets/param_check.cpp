@@ -1,5 +1,6 @@
 #include "param_check.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -71,6 +72,22 @@ bool typeOk(const XmlRpc::XmlRpcValue& v, ParamCheck::Type t) {
   return false;
 }
 
+// Edit distance, for "did you mean" on an unknown key.
+std::size_t editDistance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diag = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] != b[j - 1] ? 1 : 0)});
+      diag = up;
+    }
+  }
+  return row[b.size()];
+}
+
 }  // namespace
 
 std::vector<ParamCheck> baseParamChecks() {
@@ -100,9 +117,19 @@ std::vector<std::string> checkPrivateParams(const std::map<std::string, XmlRpc::
     }
     std::string why;
     if (!spec) {
-      std::string names;
-      for (const ParamCheck& k : known) names += (names.empty() ? "" : ", ") + k.name;
-      why = "unknown parameter (a typo? known: " + names + ")";
+      const ParamCheck* near = nullptr;
+      std::size_t best = 4;  // suggest only close names
+      for (const ParamCheck& k : known) {
+        const std::size_t d = editDistance(key, k.name);
+        if (d < best) best = d, near = &k;
+      }
+      if (near) {
+        why = "unknown parameter (did you mean " + near->name + "?)";
+      } else {
+        std::string names;
+        for (const ParamCheck& k : known) names += (names.empty() ? "" : ", ") + k.name;
+        why = "unknown parameter (known: " + names + ")";
+      }
     } else if (!typeOk(kv.second, spec->type)) {
       why = show(kv.second) + " is not " + typeName(spec->type);
     } else if (spec->ranged) {
