@@ -15,8 +15,6 @@ import subprocess
 import tempfile
 import unittest
 
-import yaml
-
 ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
 
 # Private parameters of the GroundFilterNodelet base (src/nodelets/param_check.cpp), each with a
@@ -53,13 +51,32 @@ def cfg_values(name):
     return out
 
 
+def to_yaml(values):
+    """A flat YAML mapping (bool, int, float, str, list of numbers), no yaml module needed."""
+    def one(v):
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, str):
+            return '"%s"' % v
+        if isinstance(v, list):
+            return "[" + ", ".join(repr(float(x)) for x in v) + "]"
+        return repr(v)
+    return "".join("%s: %s\n" % (k, one(v)) for k, v in sorted(values.items()))
+
+
 def dump(launch, *args):
+    """The parameters a launch sets: `roslaunch --dump-params` must succeed and name every one;
+    the values are read back through roslaunch's own loader (the one --dump-params prints)."""
     p = subprocess.run(["roslaunch", "--dump-params", "ground_filter", launch] + list(args),
                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, universal_newlines=True)
     if p.returncode != 0:
         raise AssertionError("roslaunch --dump-params %s %s failed:\n%s" %
                              (launch, " ".join(args), p.stdout))
-    return yaml.safe_load(p.stdout) or {}
+    params = {name: param.value for name, param in load_config(launch, list(args)).params.items()}
+    for name in params:
+        if name != "/run_id" and not re.search(r"^%s:" % re.escape(name), p.stdout, flags=re.M):
+            raise AssertionError("%s: %s not in the --dump-params output" % (launch, name))
+    return params
 
 
 def nodes(launch, *args):
@@ -69,15 +86,19 @@ def nodes(launch, *args):
     return p.stdout.split()
 
 
-def load(launch, argv):
-    """The nodes of a launch file as roslaunch reads them (remaps, namespaces)."""
+def load_config(launch, argv):
+    """A launch file as roslaunch reads it (parameters, nodes, remaps, namespaces)."""
     import roslaunch.config
     import roslaunch.xmlloader
     import rospkg
     path = os.path.join(rospkg.RosPack().get_path("ground_filter"), "launch", launch)
     config = roslaunch.config.ROSLaunchConfig()
     roslaunch.xmlloader.XmlLoader().load(path, config, argv=argv, verbose=False)
-    return config.nodes
+    return config
+
+
+def load(launch, argv):
+    return load_config(launch, argv).nodes
 
 
 # (launch file, extra args, method cfg, nodelet name)
@@ -104,7 +125,7 @@ class LaunchParamsTest(unittest.TestCase):
             values.update(cfg_values(cfg))
             path = os.path.join(cls.tmp, cfg + ".yaml")
             with open(path, "w") as f:
-                yaml.safe_dump(values, f)
+                f.write(to_yaml(values))
             cls.yamls[cfg] = (path, values)
 
     def test_every_yaml_key_reaches_the_nodelet(self):

@@ -1,7 +1,7 @@
 #ifndef GROUND_FILTER_SRC_NODELETS_PARAM_CHECK_H
 #define GROUND_FILTER_SRC_NODELETS_PARAM_CHECK_H
 
-#include <xmlrpcpp/XmlRpcValue.h>
+#include <ros/node_handle.h>  // XmlRpc::XmlRpcValue (from roscpp's xmlrpcpp)
 
 #include <map>
 #include <string>
