@@ -418,13 +418,13 @@ TEST(ParamCheck, NamesEveryBadKey) {
   EXPECT_TRUE(gf::checkPrivateParams(set, known, &refused).empty());
   EXPECT_TRUE(refused.empty());
 
-  set["plane_distanse"] = XmlRpc::XmlRpcValue(0.2);                      // unknown
-  set["threads"] = XmlRpc::XmlRpcValue(std::string("two"));               // wrong type
-  set["plane_distance"] = XmlRpc::XmlRpcValue(50.0);                      // out of range
-  set["lazy"] = XmlRpc::XmlRpcValue(std::string("no"));                   // a string, not bool
-  set["tf_timeout"] = XmlRpc::XmlRpcValue(std::string("fast"));           // wrong type
+  set["plane_distanse"] = XmlRpc::XmlRpcValue(0.2);              // unknown
+  set["threads"] = XmlRpc::XmlRpcValue(std::string("two"));      // wrong type
+  set["plane_distance"] = XmlRpc::XmlRpcValue(50.0);             // out of range
+  set["lazy"] = XmlRpc::XmlRpcValue(std::string("no"));          // a string, not bool
+  set["tf_timeout"] = XmlRpc::XmlRpcValue(std::string("fast"));  // wrong type
   box[2] = XmlRpc::XmlRpcValue(std::string("x"));
-  set["body_box"] = box;                                                  // not all numbers
+  set["body_box"] = box;  // not all numbers
   const std::vector<std::string> errors = gf::checkPrivateParams(set, known, &refused);
   const std::vector<std::string> keys = {"body_box",       "lazy",       "plane_distance",
                                          "plane_distanse", "tf_timeout", "threads"};
@@ -434,8 +434,7 @@ TEST(ParamCheck, NamesEveryBadKey) {
     EXPECT_EQ(errors[k].compare(0, keys[k].size() + 1, keys[k] + ":"), 0) << errors[k];
   }
   EXPECT_NE(errors[2].find("outside [0.001, 10]"), std::string::npos) << errors[2];
-  EXPECT_NE(errors[3].find("unknown parameter (did you mean plane_distance?)"),
-            std::string::npos)
+  EXPECT_NE(errors[3].find("unknown parameter (did you mean plane_distance?)"), std::string::npos)
       << errors[3];
   set.clear();
   set["colour"] = XmlRpc::XmlRpcValue(1);  // nothing close: the known names are listed

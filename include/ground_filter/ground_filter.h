@@ -75,9 +75,10 @@ std::vector<std::string> groundFilterMethods();
 ///
 /// Besides the method's own parameters, `settings` may hold `max_range` [m]: points farther
 /// from the origin are labelled non-ground; `min_range` [m] and `body_box` ("[xmin, xmax, ymin,
-/// ymax, zmin, zmax]" m) likewise exclude the sensor's own surroundings (WorkingVolume). Default 0 here (only the hard limit of 5 km per
-/// axis): files and benchmarks need not be sensor-centred; the nodelets default to 1000 m.
-/// \throws std::invalid_argument for an unknown method, unknown parameter or invalid value.
+/// ymax, zmin, zmax]" m) likewise exclude the sensor's own surroundings (WorkingVolume). Default 0
+/// here (only the hard limit of 5 km per axis): files and benchmarks need not be sensor-centred;
+/// the nodelets default to 1000 m. \throws std::invalid_argument for an unknown method, unknown
+/// parameter or invalid value.
 std::unique_ptr<GroundFilter> makeGroundFilter(const std::string& method,
                                                const ParamSettings& settings = {});
 

@@ -13,7 +13,8 @@ std::vector<std::string> groundFilterMethods() { return {"voxel", "normal", "vox
 
 std::unique_ptr<GroundFilter> makeGroundFilter(const std::string& method,
                                                const ParamSettings& settings) {
-  // max_range, min_range and body_box belong to the working volume around every method, not to a method.
+  // max_range, min_range and body_box belong to the working volume around every method, not to a
+  // method.
   WorkingVolume volume;
   volume.max_range = 0.0;  // files need not be sensor-centred: hard limit only unless asked
   ParamSettings own;

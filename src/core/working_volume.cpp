@@ -18,9 +18,8 @@ void WorkingVolume::validate() const {
                                 std::to_string(kWorkingVolumeHardLimit) + "] m");
   }
   if (!(min_range >= 0.0 && min_range <= kWorkingVolumeHardLimit)) {
-    throw std::invalid_argument("min_range = " + std::to_string(min_range) +
-                                " m is outside [0, " + std::to_string(kWorkingVolumeHardLimit) +
-                                "] m");
+    throw std::invalid_argument("min_range = " + std::to_string(min_range) + " m is outside [0, " +
+                                std::to_string(kWorkingVolumeHardLimit) + "] m");
   }
   if (max_range > 0.0 && min_range >= max_range) {
     throw std::invalid_argument("min_range = " + std::to_string(min_range) +
@@ -39,9 +38,9 @@ void WorkingVolume::validate() const {
         throw std::invalid_argument(std::string("body_box ") + kAxis[d] + " bounds are not finite");
       }
       if (lo > hi) {
-        throw std::invalid_argument(std::string("body_box ") + kAxis[d] + "min = " +
-                                    std::to_string(lo) + " m is above " + kAxis[d] + "max = " +
-                                    std::to_string(hi) + " m");
+        throw std::invalid_argument(std::string("body_box ") + kAxis[d] +
+                                    "min = " + std::to_string(lo) + " m is above " + kAxis[d] +
+                                    "max = " + std::to_string(hi) + " m");
       }
     }
   }

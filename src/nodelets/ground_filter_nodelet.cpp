@@ -53,8 +53,7 @@ void GroundFilterNodelet::checkParams() {
   std::vector<std::string> refused;
   for (const std::string& e : checkPrivateParams(set, known, &refused)) {
     ++monitor_.counters().config_rejected;
-    NODELET_ERROR("%s: parameter ~%s; refused, the default stays", methodName().c_str(),
-                  e.c_str());
+    NODELET_ERROR("%s: parameter ~%s; refused, the default stays", methodName().c_str(), e.c_str());
   }
   for (const std::string& key : refused) pnh_->deleteParam(key);
 
@@ -79,10 +78,11 @@ void GroundFilterNodelet::checkParams() {
     }
   }
   if (!body_box_.empty()) {
-    NODELET_INFO("%s: body box [%g, %g] x [%g, %g] x [%g, %g] m (input frame): its points are "
-                 "non-ground",
-                 methodName().c_str(), body_box_[0], body_box_[1], body_box_[2], body_box_[3],
-                 body_box_[4], body_box_[5]);
+    NODELET_INFO(
+        "%s: body box [%g, %g] x [%g, %g] x [%g, %g] m (input frame): its points are "
+        "non-ground",
+        methodName().c_str(), body_box_[0], body_box_[1], body_box_[2], body_box_[3], body_box_[4],
+        body_box_[5]);
   }
 }
 
@@ -112,8 +112,8 @@ void GroundFilterNodelet::onInit() {
     gravity_ = std::make_unique<GravityTransform>(*nh_, gravity_frame, tf_timeout);
     // Started while clouds wait for their transform (drainPending()), stopped when none does.
     tf_retry_timer_ = nh_->createWallTimer(
-        ros::WallDuration(0.005), [this](const ros::WallTimerEvent&) { drainPending(); },
-        false, false);
+        ros::WallDuration(0.005), [this](const ros::WallTimerEvent&) { drainPending(); }, false,
+        false);
     NODELET_INFO(
         "%s: clouds are classified in gravity frame '%s' (tf timeout %.3f s); outputs "
         "keep the input frame",
@@ -328,8 +328,9 @@ void GroundFilterNodelet::drainPending() {
       continue;
     }
     char when[96];
-    std::snprintf(when, sizeof(when), "' at t=%.3f within %.3f s: ",
-                  cloud.msg->header.stamp.toSec(), gravity_->timeout());
+    std::snprintf(when, sizeof(when),
+                  "' at t=%.3f within %.3f s: ", cloud.msg->header.stamp.toSec(),
+                  gravity_->timeout());
     countAndWarn(&monitor_.counters().clouds_no_transform, NodeletMonitor::kNoTransform,
                  "no transform from '" + cloud.msg->header.frame_id + "' to gravity frame '" +
                      gravity_->frame() + when + why + "; cloud dropped",
@@ -364,8 +365,8 @@ void GroundFilterNodelet::processCloud(const sensor_msgs::PointCloud2ConstPtr& m
       filter_.reset();  // processPointCloud2 publishes the cloud as all non-ground
       build_error = e.what();
     }
-    processPointCloud2(*msg, layout, filter_.get(), to_gravity, pub_labeled_.getNumSubscribers() > 0,
-                       &buffers_, &out);
+    processPointCloud2(*msg, layout, filter_.get(), to_gravity,
+                       pub_labeled_.getNumSubscribers() > 0, &buffers_, &out);
     if (!build_error.empty()) out.filter_error = build_error;
     if (!out.filter_error.empty()) filter_.reset();  // rebuilt from scratch for the next cloud
   }

@@ -16,9 +16,9 @@
 #include <string>
 #include <vector>
 
+#include "gravity_transform.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/working_volume.h"
-#include "gravity_transform.h"
 #include "nodelet_monitor.h"
 #include "param_check.h"
 #include "params_from_config.h"
@@ -132,14 +132,13 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   struct PendingCloud {
     sensor_msgs::PointCloud2ConstPtr msg;
     CloudLayout layout;
-    ros::WallTime deadline;  // dropped when its transform is still missing then
+    ros::WallTime deadline;                    // dropped when its transform is still missing then
     std::chrono::steady_clock::time_point t0;  // arrival (processing time counts the wait)
   };
   void cloudCallback(const sensor_msgs::PointCloud2ConstPtr& msg);
   // Filters and publishes one valid cloud (to_gravity: null = classify in the input frame).
   void processCloud(const sensor_msgs::PointCloud2ConstPtr& msg, const CloudLayout& layout,
-                    const Eigen::Isometry3d* to_gravity,
-                    std::chrono::steady_clock::time_point t0);
+                    const Eigen::Isometry3d* to_gravity, std::chrono::steady_clock::time_point t0);
   // Processes the queued clouds whose transform has arrived, in order; drops the expired ones;
   // stops at the first that may still wait (the timer tries again).
   void drainPending();

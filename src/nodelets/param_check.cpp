@@ -30,18 +30,19 @@ bool isNumber(const XmlRpc::XmlRpcValue& v) {
 }
 
 double number(XmlRpc::XmlRpcValue v) {  // by value: the casts are non-const
-  return v.getType() == XmlRpc::XmlRpcValue::TypeInt ? static_cast<int>(v)
-                                                     : static_cast<double>(v);
+  return v.getType() == XmlRpc::XmlRpcValue::TypeInt ? static_cast<int>(v) : static_cast<double>(v);
 }
 
 std::string show(XmlRpc::XmlRpcValue v) {
   std::string s = v.toXml();
   // <value><string>abc</string></value> -> abc, short enough for a log line
   for (const char* tag : {"<value>", "</value>"}) {
-    for (std::size_t p; (p = s.find(tag)) != std::string::npos;) s.erase(p, std::string(tag).size());
+    for (std::size_t p; (p = s.find(tag)) != std::string::npos;)
+      s.erase(p, std::string(tag).size());
   }
   if (v.getType() == XmlRpc::XmlRpcValue::TypeString) s = "'" + static_cast<std::string>(v) + "'";
-  if (v.getType() == XmlRpc::XmlRpcValue::TypeDouble || v.getType() == XmlRpc::XmlRpcValue::TypeInt) {
+  if (v.getType() == XmlRpc::XmlRpcValue::TypeDouble ||
+      v.getType() == XmlRpc::XmlRpcValue::TypeInt) {
     std::ostringstream o;
     o << number(v);
     s = o.str();
@@ -98,9 +99,9 @@ std::vector<ParamCheck> baseParamChecks() {
     c.type = type;
     return c;
   };
-  return {p("queue_size", T::kInt),         p("lazy", T::kBool),
-          p("verbose_connection", T::kBool), p("duration_to_warn_no_connection", T::kDouble),
-          p("gravity_frame", T::kString),   p("tf_timeout", T::kDouble),
+  return {p("queue_size", T::kInt),           p("lazy", T::kBool),
+          p("verbose_connection", T::kBool),  p("duration_to_warn_no_connection", T::kDouble),
+          p("gravity_frame", T::kString),     p("tf_timeout", T::kDouble),
           p("diagnostic_period", T::kDouble), p("malloc_trim_period", T::kDouble),
           p("body_box", T::kDoubleList)};
 }

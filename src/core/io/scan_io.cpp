@@ -548,7 +548,7 @@ std::string writeKittiLabels(const std::string& dir, const std::string& scan_pat
   std::error_code ec;
   if (fs::exists(out_path, ec) &&
       fs::equivalent(fs::path(scan_path).parent_path().empty() ? fs::path(".")
-                                                                : fs::path(scan_path).parent_path(),
+                                                               : fs::path(scan_path).parent_path(),
                      fs::path(dir), ec)) {
     fail(out, "is the scan's own SemanticKITTI truth: write the labels to another directory");
   }
