@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The README's main command: installs what is missing, builds, and runs launch/demo.launch
 # (generated LiDAR scene -> voxel ground filter nodelet) with demo_monitor printing one line per
-# scan. It ends by itself after `scans` scans (default 30) and exits 0 only when scans were
+# scan. It ends by itself after `scans` scans (default 30; with gui:=true when rviz is closed)
+# and exits 0 only when scans were
 # received. Arguments are roslaunch args, e.g.
 #   bash scripts/demo.sh input:=../shared/data/semantickitti/seq00 scans:=12
 set -euo pipefail
@@ -10,7 +11,9 @@ source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 # roslaunch runs nodes in ~/.ros: make a relative input path absolute while the caller's
 # directory is still the current one.
 args=()
-scans=30
+scans=""
+gui=false
+name=ground_filter
 for a in "$@"; do
   case "${a}" in
     input:=?*)
@@ -21,9 +24,16 @@ for a in "$@"; do
       args+=("input:=${path}")
       ;;
     scans:=*) scans="${a#scans:=}" ;;
+    gui:=*) gui="${a#gui:=}"; args+=("${a}") ;;
+    name:=*) name="${a#name:=}"; args+=("${a}") ;;
     *) args+=("${a}") ;;
   esac
 done
+
+if [[ -z "${scans}" ]]; then
+  # With rviz the demo streams until the window is closed (rviz is required by the launch).
+  if [[ "${gui}" == true || "${gui}" == 1 ]]; then scans=0; else scans=30; fi
+fi
 
 gf_install_deps
 gf_build
@@ -33,8 +43,8 @@ gf_ros_env  # loopback unless the caller's ROS_HOSTNAME / ROS_MASTER_URI resolve
 # the launch is stopped cleanly (no "REQUIRED process has died"), and its status is ours.
 roslaunch ground_filter demo.launch monitor:=false "${args[@]+"${args[@]}"}" &
 launch_pid=$!
-rosrun ground_filter demo_monitor ~ground:=/ground_filter/ground \
-  ~nonground:=/ground_filter/nonground ~processing_time_ms:=/ground_filter/processing_time_ms \
+rosrun ground_filter demo_monitor ~ground:="/${name}/ground" \
+  ~nonground:="/${name}/nonground" ~processing_time_ms:="/${name}/processing_time_ms" \
   _max_scans:="${scans}" &
 monitor_pid=$!
 stop() { kill -TERM "$@" 2>/dev/null || true; }

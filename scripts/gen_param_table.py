@@ -3,7 +3,8 @@
 
 Each .cfg is executed with a stand-in for dynamic_reconfigure's ParameterGenerator that records
 the gen.add()/gen.enum() calls (so shared helpers such as cfg/ground_filter_common.py are
-followed exactly as catkin follows them), and one Markdown table per nodelet is written between
+followed exactly as catkin follows them), and one Markdown table per group of each nodelet
+(gen.add_group) is written between
 the markers `<!-- params:begin -->` and `<!-- params:end -->` in README.md.
 
   scripts/gen_param_table.py            rewrite the README block in place
@@ -24,8 +25,10 @@ ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
 
 
 class _Param(object):
-    def __init__(self, name, ptype, level, description, default, minimum, maximum, edit_method):
+    def __init__(self, name, ptype, level, description, default, minimum, maximum, edit_method,
+                 group=""):
         self.name = name
+        self.group = group
         self.type = ptype
         self.level = level
         self.description = description
@@ -43,9 +46,11 @@ class _Group(object):
     def add(self, name, paramtype, level, description, default=None, min=None, max=None,
             edit_method=""):
         self._gen.params.append(_Param(name, paramtype, level, description, default, min, max,
-                                       edit_method))
+                                       edit_method, self.name))
 
     def add_group(self, name, type="", state=True):
+        if name not in self._gen.groups:
+            self._gen.groups.append(name)
         return _Group(self._gen, name)
 
 
@@ -57,6 +62,7 @@ class _RecordingGenerator(_Group):
     def __init__(self):
         _Group.__init__(self, self)
         self.params = []
+        self.groups = []  # group names in add_group() order
         self.generated = None  # (package, node, name) from generate()
         _RecordingGenerator.instances.append(self)
 
@@ -133,13 +139,26 @@ def _cell(text):
 
 
 def table_for(gen, cfg_rel):
+    """One Markdown table per group of the .cfg (top-level parameters first, untitled)."""
     package, _, name = gen.generated
     lines = ["#### `%s/%s`" % (package, name), "",
-             "From `%s` (dynamic_reconfigure; also settable as private parameters at start)." %
-             cfg_rel, "",
-             "| Parameter | Type | Default | Min | Max | Description |",
-             "|---|---|---|---|---|---|"]
-    for p in gen.params:
+             "From `%s` (dynamic_reconfigure; also settable as private parameters at start). "
+             "One table per group, as rqt_reconfigure shows them." % cfg_rel]
+    for group in [""] + gen.groups:
+        params = [p for p in gen.params if p.group == group]
+        if not params:
+            continue
+        if group:
+            lines += ["", "##### %s (`%s`)" % (group.replace("_", " ").capitalize(), name)]
+        lines += ["", "| Parameter | Type | Default | Min | Max | Description |",
+                  "|---|---|---|---|---|---|"]
+        lines += _rows(params)
+    return "\n".join(lines)
+
+
+def _rows(params):
+    lines = []
+    for p in params:
         desc = p.description
         if isinstance(p.edit_method, dict) and p.edit_method.get("constants"):
             choices = ", ".join("`%s` (%s)" % (_fmt(c["value"], p.type), c["description"])
@@ -149,7 +168,7 @@ def table_for(gen, cfg_rel):
             p.name, p.type, _cell(_fmt(p.default, p.type)),
             _cell(_fmt(p.min, p.type)) if p.type in ("int", "double") else "",
             _cell(_fmt(p.max, p.type)) if p.type in ("int", "double") else "", _cell(desc)))
-    return "\n".join(lines)
+    return lines
 
 
 def generate_block(root=ROOT):

@@ -119,7 +119,7 @@ class RosExtrasTest(RosTestCase):
         # /rosout itself: rostest starts no rosout node, so nothing is aggregated.
         cls.collect_rosout(("/rosout",))
         cls.pubs = {n: rospy.Publisher("/gf_extras/" + n, PointCloud2, queue_size=20)
-                    for n in ("flat", "tilted", "notf")}
+                    for n in ("flat", "tilted", "notf", "body", "bad")}
 
     @classmethod
     def _on_diag(cls, msg):
@@ -173,16 +173,25 @@ class RosExtrasTest(RosTestCase):
         """A 20-degree tilted sensor with its static transform gives the labels of the
         untilted frame (>= 99 %); outputs stay in the tilted frame with the input records."""
         topics = ["/flat_filter/labeled", "/tilted_filter/labeled", "/tilted_filter/ground",
-                  "/tilted_filter/nonground"]
+                  "/tilted_filter/nonground", "/yaml_filter/labeled"]
         out = Outputs(topics)
         try:
             self.connect(self.pubs["flat"])
             self.connect(self.pubs["tilted"])
-            stamp = self.next_stamp()
-            self.pubs["flat"].publish(make_cloud(self.rec, "velodyne", stamp))
-            self.pubs["tilted"].publish(make_cloud(self.tilted, "velodyne_tilted", stamp))
-            self.wait_for(lambda: all(out.get(t, stamp) for t in topics), "outputs of " +
-                          str(topics))
+            # tilted_filter and yaml_filter share the manager's one connection: yaml_filter may
+            # subscribe a moment later, so a cloud it missed is sent again with a new stamp.
+            for attempt in range(3):
+                stamp = self.next_stamp()
+                self.pubs["flat"].publish(make_cloud(self.rec, "velodyne", stamp))
+                self.pubs["tilted"].publish(make_cloud(self.tilted, "velodyne_tilted", stamp))
+                try:
+                    self.wait_for(lambda: all(out.get(t, stamp) for t in topics),
+                                  "outputs of " + str(topics), timeout=20.0 if attempt < 2 else
+                                  WAIT_S)
+                    break
+                except AssertionError:
+                    if attempt == 2:
+                        raise
             flat = np.frombuffer(out.get(topics[0], stamp).data, dtype=LABELED)
             tilt_msg = out.get(topics[1], stamp)
             tilt = np.frombuffer(tilt_msg.data, dtype=LABELED)
@@ -221,6 +230,82 @@ class RosExtrasTest(RosTestCase):
                           "base_link): agreement %.3f %%; tilted without gravity_frame: %.3f %%",
                           n, int(a.sum()), int(b.sum()), 100 * agreement, 100 * control)
             self.assertGreaterEqual(agreement, 0.99)
+            # gravity_frame from a YAML (params_file) classifies like the <param> one, and
+            # unlike the tilted frame classified as it comes.
+            y = np.zeros(n, np.uint8)
+            yl = np.frombuffer(out.get(topics[4], stamp).data, dtype=LABELED)
+            y[yl["idx"]] = yl["ground"]
+            self.assertTrue(np.array_equal(y, b), "YAML gravity_frame: %d labels differ from "
+                            "the <param> one" % int(np.sum(y != b)))
+            self.assertLess(float(np.mean(y == c)), 0.99, "the YAML gravity_frame changed "
+                            "nothing: is it read at all?")
+        finally:
+            out.close()
+
+    def test_body_returns_min_range_body_box_from_yaml(self):
+        """min_range and body_box from a YAML: the points they hold are non-ground and counted
+        (diagnostics "near points"); the rest is split as usual."""
+        out = Outputs(["/body_filter/labeled"])
+        try:
+            self.connect(self.pubs["body"])
+            stamp = self.next_stamp()
+            self.pubs["body"].publish(make_cloud(self.rec, "velodyne", stamp))
+            self.wait_for(lambda: out.get("/body_filter/labeled", stamp), "body_filter output")
+            lab = np.frombuffer(out.get("/body_filter/labeled", stamp).data, dtype=LABELED)
+            x, y, z = (lab[k].astype(np.float64) for k in ("x", "y", "z"))
+            near = (x * x + y * y + z * z < 25.0) | ((x >= -10) & (x <= -6) & (y >= -3) &
+                                                      (y <= 3) & (z >= -3) & (z <= 1))
+            self.assertGreater(int(near.sum()), 1000, "the box should hold road points")
+            self.assertEqual(int(lab["ground"][near].sum()), 0, "near points labelled ground")
+            self.assertGreater(int(lab["ground"][~near].sum()), lab.shape[0] // 4)
+            self.wait_for(lambda: self.number("body_filter", "near points (min_range, body_box)")
+                          == int(near.sum()), "diagnostics: near points %d" % int(near.sum()),
+                          timeout=10.0)
+            self.assertEqual(rospy.get_param("/body_filter/min_range"), 5.0)
+        finally:
+            out.close()
+
+    def test_bad_yaml_refused_naming_each_key(self):
+        """A YAML with an unknown key, wrong types, a value out of range, a body box with
+        min > max and min_range above max_range: one ERROR per key, the defaults stay, the
+        filter still splits clouds."""
+        launch = subprocess.Popen(
+            ["roslaunch", PKG, "%s_ground_filter.launch" % rospy.get_param("~method"),
+             "manager:=gf_extras_manager", "name:=bad_filter", "input:=/gf_extras/bad",
+             "params_file:=" + os.path.join(rospkg.RosPack().get_path(PKG), "test",
+                                            "ros_extras_bad.yaml")],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            self._check_bad_filter()
+        finally:
+            launch.send_signal(signal.SIGINT)
+            launch.wait(timeout=30)
+
+    def _check_bad_filter(self):
+        for text in ("~plane_distanse: unknown parameter", "~threads: 'two' is not an integer",
+                     "~plane_distance: 50 is outside [0.001, 10]",
+                     "~tf_timeout: 'fast' is not a number",
+                     "~body_box: body_box xmin = 1.000000 m is above xmax",
+                     "min_range = 20.000000 m is not below max_range"):
+            self.wait_for(lambda t=text: self.logged(Log.ERROR, t), "no ERROR: " + text,
+                          timeout=30.0)
+        # The refused set left the defaults in use (reported back to the parameter server).
+        self.assertFalse(rospy.has_param("/bad_filter/plane_distanse"))
+        self.assertFalse(rospy.has_param("/bad_filter/tf_timeout"))
+        self.assertFalse(rospy.has_param("/bad_filter/body_box"))
+        self.wait_for(lambda: rospy.get_param("/bad_filter/min_range", None) == 0.0,
+                      "min_range not back at its default", timeout=10.0)
+        self.assertAlmostEqual(rospy.get_param("/bad_filter/plane_distance"), 0.15)
+        self.assertEqual(rospy.get_param("/bad_filter/max_range"), 1000.0)
+        out = Outputs(["/bad_filter/ground", "/bad_filter/nonground"])
+        try:
+            self.connect(self.pubs["bad"])
+            stamp = self.next_stamp()
+            self.pubs["bad"].publish(make_cloud(self.rec[:20000], "velodyne", stamp))
+            self.wait_for(lambda: out.get("/bad_filter/ground", stamp) and
+                          out.get("/bad_filter/nonground", stamp), "bad_filter output")
+            self.assertEqual(out.get("/bad_filter/ground", stamp).width +
+                             out.get("/bad_filter/nonground", stamp).width, 20000)
         finally:
             out.close()
 

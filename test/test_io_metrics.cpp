@@ -786,6 +786,51 @@ TEST(EvalCli, JsonContract) {
   EXPECT_TRUE(hasField(ng.cloud, "intensity"));
 }
 
+// --label-format kitti: SemanticKITTI .label files, one uint32 per point, the same points as
+// the .gnd bytes; --kitti-ids picks the class ids; bad values and writing over the scan's own
+// truth are refused.
+TEST(EvalCli, KittiLabelFormat) {
+  TempDir tmp;
+  const std::vector<KittiPoint> pts = smallScene();
+  writeKitti(tmp / "small.bin", pts, true);
+  const std::string scan = "'" + (tmp / "small.bin") + "'";
+  ASSERT_EQ(runEval("--write-labels '" + (tmp / "gnd") + "' " + scan).status, 0);
+  CommandResult r =
+      runEval("--label-format kitti --write-labels '" + (tmp / "kitti") + "' " + scan);
+  ASSERT_EQ(r.status, 0) << r.out;
+  r = runEval("--label-format kitti --kitti-ids 49,99 --write-labels '" + (tmp / "k2") + "' " +
+              scan);
+  ASSERT_EQ(r.status, 0) << r.out;
+  const std::vector<char> gnd = readBytes(tmp / "gnd/small.gnd");
+  const std::vector<char> lab = readBytes(tmp / "kitti/small.label");
+  const std::vector<char> lab2 = readBytes(tmp / "k2/small.label");
+  ASSERT_EQ(gnd.size(), pts.size());
+  ASSERT_EQ(lab.size(), 4 * pts.size());
+  ASSERT_EQ(lab2.size(), 4 * pts.size());
+  std::size_t ground = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    std::uint32_t v = 0, v2 = 0;
+    std::memcpy(&v, &lab[4 * i], 4);  // little-endian, as SemanticKITTI
+    std::memcpy(&v2, &lab2[4 * i], 4);
+    ASSERT_EQ(v, gnd[i] == 1 ? 40u : 0u) << i;
+    ASSERT_EQ(v2, gnd[i] == 1 ? 49u : 99u) << i;
+    ground += gnd[i] == 1;
+  }
+  EXPECT_GT(ground, 0u);
+  EXPECT_LT(ground, pts.size());
+  for (const char* bad : {"--label-format csv", "--kitti-ids 40", "--kitti-ids 40,x",
+                          "--kitti-ids 70000,0", "--kitti-ids -1,0"}) {
+    r = runEval(std::string(bad) + " --write-labels '" + (tmp / "bad") + "' " + scan, true);
+    EXPECT_EQ(r.status, 2) << bad << ": " << r.out;
+  }
+  // The scan's directory holds its truth small.label: never overwritten.
+  const std::vector<char> truth = readBytes(tmp / "small.label");
+  r = runEval("--label-format kitti --write-labels '" + tmp.str() + "' " + scan, true);
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_NE(r.out.find("truth"), std::string::npos) << r.out;
+  EXPECT_EQ(readBytes(tmp / "small.label"), truth);
+}
+
 TEST(EvalCli, DirectoryInputAndTable) {
   TempDir tmp;
   writeKitti(tmp / "b.bin", smallScene(), true);

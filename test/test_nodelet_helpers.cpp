@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <map>
 #include <memory>
 #include <sstream>
 #include <stdexcept>
@@ -17,6 +18,7 @@
 
 #include "gf_test_clouds.h"
 #include "ground_filter/working_volume.h"
+#include "param_check.h"
 #include "point_cloud2.h"
 #include "voxel_ground_filter_nodelet.h"
 
@@ -298,8 +300,9 @@ std::vector<std::string> knownVoxelParamNames() {
 TEST(VoxelCfg, SameParameterNamesAsParams) {
   std::vector<std::string> cfg_names;
   for (const auto& d : gf::VoxelGroundFilterConfig::__getParamDescriptions__()) {
-    // max_range belongs to the working volume around every filter, not to its Params.
-    if (d->name != "max_range") cfg_names.push_back(d->name);
+    // max_range and min_range belong to the working volume around every filter, not to its
+    // Params.
+    if (d->name != "max_range" && d->name != "min_range") cfg_names.push_back(d->name);
   }
   std::vector<std::string> params_names = knownVoxelParamNames();
   ASSERT_FALSE(params_names.empty()) << "could not read the names from set()'s error message";
@@ -322,7 +325,7 @@ TEST(VoxelCfg, EveryParameterMapsToItsFieldAndItsRangeValidates) {
   const auto& descriptions = gf::VoxelGroundFilterConfig::__getParamDescriptions__();
   ASSERT_FALSE(descriptions.empty());
   for (const auto& d : descriptions) {
-    if (d->name == "max_range") continue;  // WorkingVolume, tested below
+    if (d->name == "max_range" || d->name == "min_range") continue;  // WorkingVolume, below
     for (const auto* bound :
          {&gf::VoxelGroundFilterConfig::__getMin__(), &gf::VoxelGroundFilterConfig::__getMax__()}) {
       const gf::VoxelGroundFilterConfig config = withOne(*d, defaults, *bound);
@@ -372,6 +375,73 @@ TEST(VoxelCfg, MaxRangeIsTheWorkingVolume) {
     v.max_range = r;
     EXPECT_NO_THROW(v.validate()) << r;
   }
+  // min_range: off by default; its range is valid with max_range off, and refused at or above
+  // an active max_range.
+  EXPECT_EQ(gf::VoxelGroundFilterConfig::__getDefault__().min_range, 0.0);
+  gf::WorkingVolume v;
+  v.max_range = 0.0;
+  v.min_range = gf::VoxelGroundFilterConfig::__getMax__().min_range;
+  EXPECT_NO_THROW(v.validate());
+  v.max_range = 100.0;
+  EXPECT_THROW(v.validate(), std::invalid_argument);
+}
+
+// Start-up check of the private parameters: unknown keys, wrong types and values outside the
+// .cfg range are each named once; good values pass.
+TEST(ParamCheck, NamesEveryBadKey) {
+  std::vector<gf::ParamCheck> known = gf::baseParamChecks();
+  gf::ParamCheck d;
+  d.name = "plane_distance";
+  d.ranged = true;
+  d.min = 0.001;
+  d.max = 10.0;
+  known.push_back(d);
+  gf::ParamCheck i;
+  i.name = "threads";
+  i.type = gf::ParamCheck::Type::kInt;
+  i.ranged = true;
+  i.min = 0;
+  i.max = 256;
+  known.push_back(i);
+  std::map<std::string, XmlRpc::XmlRpcValue> set;
+  set["plane_distance"] = XmlRpc::XmlRpcValue(0.2);
+  set["threads"] = XmlRpc::XmlRpcValue(2);
+  set["lazy"] = XmlRpc::XmlRpcValue(false);
+  set["gravity_frame"] = XmlRpc::XmlRpcValue(std::string("base_link"));
+  set["tf_timeout"] = XmlRpc::XmlRpcValue(1);  // an integer is a number
+  XmlRpc::XmlRpcValue box;
+  box.setSize(6);
+  for (int k = 0; k < 6; ++k) box[k] = (k % 2) ? 1.0 : -1.0;
+  box[5] = 2;  // integers in the list too
+  set["body_box"] = box;
+  std::vector<std::string> refused;
+  EXPECT_TRUE(gf::checkPrivateParams(set, known, &refused).empty());
+  EXPECT_TRUE(refused.empty());
+
+  set["plane_distanse"] = XmlRpc::XmlRpcValue(0.2);              // unknown
+  set["threads"] = XmlRpc::XmlRpcValue(std::string("two"));      // wrong type
+  set["plane_distance"] = XmlRpc::XmlRpcValue(50.0);             // out of range
+  set["lazy"] = XmlRpc::XmlRpcValue(std::string("no"));          // a string, not bool
+  set["tf_timeout"] = XmlRpc::XmlRpcValue(std::string("fast"));  // wrong type
+  box[2] = XmlRpc::XmlRpcValue(std::string("x"));
+  set["body_box"] = box;  // not all numbers
+  const std::vector<std::string> errors = gf::checkPrivateParams(set, known, &refused);
+  const std::vector<std::string> keys = {"body_box",       "lazy",       "plane_distance",
+                                         "plane_distanse", "tf_timeout", "threads"};
+  EXPECT_EQ(refused, keys);
+  ASSERT_EQ(errors.size(), keys.size());
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    EXPECT_EQ(errors[k].compare(0, keys[k].size() + 1, keys[k] + ":"), 0) << errors[k];
+  }
+  EXPECT_NE(errors[2].find("outside [0.001, 10]"), std::string::npos) << errors[2];
+  EXPECT_NE(errors[3].find("unknown parameter (did you mean plane_distance?)"), std::string::npos)
+      << errors[3];
+  set.clear();
+  set["colour"] = XmlRpc::XmlRpcValue(1);  // nothing close: the known names are listed
+  const std::vector<std::string> far = gf::checkPrivateParams(set, known, nullptr);
+  ASSERT_EQ(far.size(), 1u);
+  EXPECT_NE(far[0].find("known: queue_size, lazy"), std::string::npos) << far[0];
+  EXPECT_NE(errors[5].find("'two' is not an integer"), std::string::npos) << errors[5];
 }
 
 namespace {

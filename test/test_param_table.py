@@ -86,6 +86,42 @@ class ParamTableTest(unittest.TestCase):
             for p in parsed[name]:
                 self.assertIn(p, added, "%s: table row %s not in any gen.add" % (name, p))
 
+    def test_one_table_per_catkin_group(self):
+        """Each row sits under the heading of its dynamic_reconfigure group (gen.add_group)."""
+        block = gen_param_table.generate_block(ROOT)
+        placed, name, group = {}, None, ""
+        for line in block.splitlines():
+            m = re.match(r"^#+ `[^/]+/(\w+)`", line)
+            if m:
+                name, group = m.group(1), ""
+                continue
+            m = re.match(r"^#+ (.+) \(`(\w+)`\)$", line)
+            if m:
+                self.assertEqual(m.group(2), name, line)
+                group = m.group(1).lower().replace(" ", "_")
+                continue
+            m = ROW.match(line)
+            if m and name:
+                placed.setdefault(name, {})[m.group(1)] = group
+        self.assertEqual(sorted(placed), ["NormalGroundFilter", "VoxelGroundFilter"])
+        for name, rows in placed.items():
+            mod = importlib.import_module("ground_filter.cfg.%sConfig" % name)
+            generated = {}
+
+            def walk(group, gname):
+                for p in group["parameters"]:
+                    generated[p["name"]] = gname
+                for g in group["groups"]:
+                    walk(g, g["name"].lower())
+
+            walk(mod.config_description, "")
+            self.assertEqual(rows, generated, name)
+            groups = set(generated.values())
+            # rqt_reconfigure shows groups, not one long list: every parameter has one.
+            self.assertNotIn("", groups, name + ": parameters outside any group")
+            for g in ("core", "vegetation", "airborne", "performance", "working_volume"):
+                self.assertIn(g, groups, name)
+
     def test_values_match_catkin_generated_config(self):
         """Type, default, min and max of every row equal catkin's generated <Name>Config."""
         parsed = tables(gen_param_table.generate_block(ROOT))

@@ -19,14 +19,23 @@ from rviz_screenshot import colour_counts  # noqa: E402
 class RvizScreenshotTest(unittest.TestCase):
 
     def test_screenshot_shows_ground_and_nonground(self):
+        self._shoot("test_results_rviz_screenshot.png")
+
+    def test_rviz_follows_name_and_topic(self):
+        """Another nodelet name and input topic: rviz (in the nodelet's namespace, relative
+        topics, input remapped) still shows both clouds."""
+        self._shoot("test_results_rviz_screenshot_renamed.png", "name:=gf_renamed",
+                    "topic:=/renamed/points")
+
+    def _shoot(self, name, *launch_args):
         # catkin runs nosetests in the package's build directory; elsewhere fall back to /tmp.
         out_dir = os.getcwd() if os.access(os.getcwd(), os.W_OK) else tempfile.gettempdir()
-        png = os.path.join(out_dir, "test_results_rviz_screenshot.png")
+        png = os.path.join(out_dir, name)
         if os.path.exists(png):
             os.remove(png)
         env = dict(os.environ, LIBGL_ALWAYS_SOFTWARE="1")
         p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1280x800x24", sys.executable,
-                            SCRIPT, "--out", png, "--timeout", "120"],
+                            SCRIPT, "--out", png, "--timeout", "120"] + list(launch_args),
                            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                            universal_newlines=True, timeout=240)
         print(p.stdout[-3000:])

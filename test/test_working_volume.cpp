@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "ground_filter/ground_filter.h"
+#include "ground_filter/scene/scene_generator.h"
 #include "ground_filter/voxel_ground_filter.h"
 #include "ground_filter/working_volume.h"
 
@@ -303,4 +304,186 @@ TEST(WorkingVolume, VolumeTestedOnTheBounds) {
   EXPECT_FALSE(v.containsBox(a, b));
   EXPECT_TRUE(v.containsBox(a, c));   // corner 99.5 m away
   EXPECT_FALSE(v.containsBox(a, d));  // corner (71, -70, -10): 100.2 m
+}
+
+// ------------------------------------------------------------ min_range and body_box
+
+namespace {
+
+// A generated street scan (HDL-64, 1.73 m up) plus returns from the vehicle's own body: a flat
+// step plate 0.18 m above the road in front of the sensor and the roof rails beside it,
+// interleaved with the scan's points. The plate is flat and level: left in, it reads as ground.
+struct BodyScene {
+  std::vector<float> xyz;
+  std::vector<bool> body;
+  std::size_t size() const { return body.size(); }
+};
+
+BodyScene bodyScene() {
+  const gf::GeneratedScan scan = gf::generateScene(gf::builtinSceneParams("lidar"));
+  std::vector<float> body;
+  for (float x = 0.8f; x <= 2.0f; x += 0.05f) {
+    for (float y = -0.8f; y <= 0.8f; y += 0.05f) body.insert(body.end(), {x, y, -1.55f});
+  }
+  for (float x = -1.5f; x <= 0.5f; x += 0.05f) {
+    for (float y : {-0.7f, 0.7f}) body.insert(body.end(), {x, y, -0.2f});
+  }
+  BodyScene s;
+  const std::size_t nb = body.size() / 3, n = scan.size() + nb;
+  // Body returns spread over the scan order (a spinning sensor sees them every revolution).
+  for (std::size_t i = 0, b = 0, p = 0; i < n; ++i) {
+    const bool is_body = b < nb && (p >= scan.size() || (i * nb) / n >= b);
+    const float* src = is_body ? &body[3 * b++] : &scan.xyz[3 * p++];
+    s.xyz.insert(s.xyz.end(), {src[0], src[1], src[2]});
+    s.body.push_back(is_body);
+  }
+  return s;
+}
+
+// Labels of `filter` on the points of `s` that `drop` leaves, scattered back (others kNonGround).
+std::vector<std::uint8_t> labelsWithout(gf::GroundFilter* filter, const BodyScene& s,
+                                        const std::vector<bool>& drop) {
+  std::vector<float> xyz;
+  std::vector<std::size_t> idx;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (drop[i]) continue;
+    xyz.insert(xyz.end(), {s.xyz[3 * i], s.xyz[3 * i + 1], s.xyz[3 * i + 2]});
+    idx.push_back(i);
+  }
+  std::vector<std::uint8_t> inner;
+  filter->filter(gf::CloudView::packedXyz(xyz.data(), idx.size()), &inner);
+  std::vector<std::uint8_t> out(s.size(), gf::kNonGround);
+  for (std::size_t j = 0; j < idx.size(); ++j) out[idx[j]] = inner[j];
+  return out;
+}
+
+}  // namespace
+
+// The vehicle's own returns: left in, the flat bonnet becomes ground; with min_range or a
+// body box they are non-ground, counted as near points, and take no part in the ground model
+// (every other label equals a run without them), for both methods and both KNN backends.
+TEST(WorkingVolume, MinRangeAndBodyBoxExcludeTheVehicle) {
+  const BodyScene s = bodyScene();
+  const gf::CloudView view = gf::CloudView::packedXyz(s.xyz.data(), s.size());
+  std::size_t body_count = 0;
+  for (bool b : s.body) body_count += b;
+  ASSERT_GT(body_count, 500u);
+  struct Exclusion {
+    std::string key, value;
+  };
+  const Exclusion exclusions[] = {{"min_range", "2.8"},
+                                  {"body_box", "[-1.6, 2.1, -0.9, 0.9, -1.6, -0.1]"}};
+  for (const Case& c : cases()) {
+    SCOPED_TRACE(caseName(c));
+    auto plain = gf::makeGroundFilter(c.method, c.settings);
+    std::vector<std::uint8_t> plain_labels;
+    plain->filter(view, &plain_labels);
+    std::size_t body_ground = 0;
+    for (std::size_t i = 0; i < s.size(); ++i) body_ground += s.body[i] && plain_labels[i];
+    std::printf("[ %s ] body returns left in: %zu of %zu ground\n", caseName(c).c_str(),
+                body_ground, body_count);
+    EXPECT_GT(body_ground, body_count / 2) << "the plate should read as ground when left in";
+    for (const Exclusion& e : exclusions) {
+      SCOPED_TRACE(e.key);
+      gf::ParamSettings settings = c.settings;
+      settings.push_back({e.key, e.value});
+      auto filter = gf::makeGroundFilter(c.method, settings);
+      auto* wrapped = dynamic_cast<gf::WorkingVolumeFilter*>(filter.get());
+      ASSERT_NE(wrapped, nullptr);
+      std::vector<bool> drop(s.size());
+      std::size_t dropped = 0;
+      for (std::size_t i = 0; i < s.size(); ++i) {
+        drop[i] = wrapped->volume().excluded(s.xyz[3 * i], s.xyz[3 * i + 1], s.xyz[3 * i + 2]);
+        dropped += drop[i];
+        if (s.body[i]) ASSERT_TRUE(drop[i]) << i;  // the whole body is inside
+      }
+      EXPECT_LT(dropped, body_count + 50);  // hardly any of the street
+      std::vector<std::uint8_t> labels;
+      gf::FilterStats stats;
+      for (int again = 0; again < 2; ++again) {  // scratch buffers reused
+        filter->filter(view, &labels, &stats);
+        EXPECT_EQ(stats.near_points, dropped);
+        EXPECT_EQ(stats.out_of_range_points, 0u);
+        EXPECT_EQ(labels, labelsWithout(plain.get(), s, drop));
+      }
+      std::size_t ground = 0;
+      for (std::size_t i = 0; i < s.size(); ++i) {
+        if (drop[i]) EXPECT_EQ(labels[i], gf::kNonGround) << i;
+        ground += labels[i];
+      }
+      EXPECT_EQ(stats.ground_points, ground);
+      EXPECT_GT(ground, s.size() / 4);
+    }
+  }
+}
+
+// min_range 0 and no body box: the same labels as the plain filter, byte for byte.
+TEST(WorkingVolume, ExclusionsOffChangeNothing) {
+  const BodyScene s = bodyScene();
+  const gf::CloudView view = gf::CloudView::packedXyz(s.xyz.data(), s.size());
+  for (const Case& c : cases()) {
+    SCOPED_TRACE(caseName(c));
+    gf::ParamSettings off = c.settings;
+    off.push_back({"min_range", "0"});
+    off.push_back({"body_box", "[]"});
+    std::vector<std::uint8_t> a, b;
+    gf::FilterStats stats;
+    gf::makeGroundFilter(c.method, c.settings)->filter(view, &a);
+    gf::makeGroundFilter(c.method, off)->filter(view, &b, &stats);
+    EXPECT_EQ(a, b);
+    EXPECT_EQ(stats.near_points, 0u);
+  }
+}
+
+// The body box is given in the sensor frame: with the sensor turned (a gravity frame), the box
+// turns with it, and min_range does not care.
+TEST(WorkingVolume, BodyBoxFollowsTheSensorPose) {
+  gf::WorkingVolume v;
+  v.body_box = {0.5, 1.5, -0.5, 0.5, -1.0, 1.0};
+  EXPECT_TRUE(v.excluded(1.f, 0.f, 0.f));
+  EXPECT_FALSE(v.excluded(0.f, 1.f, 0.f));
+  // Sensor yawed 90 deg and 2 m up in the view's frame: sensor x -> view y.
+  const float yaw90[9] = {0.f, -1.f, 0.f, 1.f, 0.f, 0.f, 0.f, 0.f, 1.f};
+  const float origin[3] = {0.f, 0.f, 2.f};
+  gf::WorkingVolumeFilter f(gf::makeGroundFilter("voxel"), v);
+  f.setPose(origin, yaw90);
+  EXPECT_TRUE(f.volume().excluded(0.f, 1.f, 2.f));
+  EXPECT_FALSE(f.volume().excluded(1.f, 0.f, 2.f));
+  EXPECT_FALSE(f.volume().excluded(0.f, 1.f, 0.f));  // 2 m below the box
+  gf::WorkingVolume m;
+  m.min_range = 3.0;
+  gf::WorkingVolumeFilter g(gf::makeGroundFilter("voxel"), m);
+  g.setPose(origin, yaw90);
+  EXPECT_TRUE(g.volume().excluded(0.f, 2.9f, 2.f));
+  EXPECT_FALSE(g.volume().excluded(0.f, 3.1f, 2.f));
+}
+
+// Bad values are refused naming the key; the filter is not built.
+TEST(WorkingVolume, MinRangeAndBodyBoxValidation) {
+  auto refused = [](const gf::ParamSettings& s, const std::string& key) {
+    try {
+      gf::makeGroundFilter("voxel", s);
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+      return true;
+    }
+    return false;
+  };
+  EXPECT_TRUE(refused({{"min_range", "-1"}}, "min_range"));
+  EXPECT_TRUE(refused({{"min_range", "abc"}}, "min_range"));
+  EXPECT_TRUE(refused({{"max_range", "50"}, {"min_range", "60"}}, "min_range"));
+  EXPECT_TRUE(refused({{"max_range", "50"}, {"min_range", "50"}}, "min_range"));
+  EXPECT_TRUE(refused({{"body_box", "[1, 0, -1, 1, -1, 1]"}}, "body_box x"));
+  EXPECT_TRUE(refused({{"body_box", "[-1, 1, -1, 1, 2, 1]"}}, "body_box z"));
+  EXPECT_TRUE(refused({{"body_box", "[-1, 1, -1, 1, 0]"}}, "body_box"));
+  EXPECT_TRUE(refused({{"body_box", "[-1, 1, -1, 1, 0, x]"}}, "body_box"));
+  EXPECT_FALSE(refused({{"max_range", "0"}, {"min_range", "60"}}, "min_range"));  // off: any
+  EXPECT_FALSE(refused({{"max_range", "50"}, {"min_range", "2"}}, "min_range"));
+  EXPECT_FALSE(refused({{"body_box", "-1 1 -1 1 -1 1"}}, "body_box"));
+  // setPose() validates too: the filter keeps its pose.
+  gf::WorkingVolumeFilter f(gf::makeGroundFilter("voxel"), gf::WorkingVolume());
+  const float nan_rot[9] = {NAN, 0, 0, 0, 1, 0, 0, 0, 1}, o[3] = {1, 2, 3};
+  EXPECT_THROW(f.setPose(o, nan_rot), std::invalid_argument);
+  EXPECT_EQ(f.volume().rotation[0], 1.f);
+  EXPECT_EQ(f.volume().origin[0], 0.f);
 }

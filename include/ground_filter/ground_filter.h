@@ -26,6 +26,9 @@ struct FilterStats {
   /// Finite points outside the working volume (labelled non-ground, never used); see
   /// WorkingVolumeFilter. Always 0 for a filter that is not wrapped in one.
   std::size_t out_of_range_points = 0;
+  /// Finite points within the working volume's min_range or body box (the vehicle's own
+  /// returns; labelled non-ground, never used). Always 0 for a filter not wrapped in one.
+  std::size_t near_points = 0;
   std::size_t ground_points = 0;  ///< points labelled ground
   double total_ms = 0.0;          ///< wall time of the whole call
   std::string backend;            ///< neighbour backend actually used ("" when not applicable)
@@ -71,9 +74,11 @@ std::vector<std::string> groundFilterMethods();
 ///        WorkingVolumeFilter (working_volume.h) around the view's origin.
 ///
 /// Besides the method's own parameters, `settings` may hold `max_range` [m]: points farther
-/// from the origin are labelled non-ground. Default 0 here (only the hard limit of 5 km per
-/// axis): files and benchmarks need not be sensor-centred; the nodelets default to 1000 m.
-/// \throws std::invalid_argument for an unknown method, unknown parameter or invalid value.
+/// from the origin are labelled non-ground; `min_range` [m] and `body_box` ("[xmin, xmax, ymin,
+/// ymax, zmin, zmax]" m) likewise exclude the sensor's own surroundings (WorkingVolume). Default 0
+/// here (only the hard limit of 5 km per axis): files and benchmarks need not be sensor-centred;
+/// the nodelets default to 1000 m. \throws std::invalid_argument for an unknown method, unknown
+/// parameter or invalid value.
 std::unique_ptr<GroundFilter> makeGroundFilter(const std::string& method,
                                                const ParamSettings& settings = {});
 

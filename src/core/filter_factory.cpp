@@ -13,13 +13,18 @@ std::vector<std::string> groundFilterMethods() { return {"voxel", "normal", "vox
 
 std::unique_ptr<GroundFilter> makeGroundFilter(const std::string& method,
                                                const ParamSettings& settings) {
-  // max_range belongs to the working volume around every method, not to a method.
+  // max_range, min_range and body_box belong to the working volume around every method, not to a
+  // method.
   WorkingVolume volume;
   volume.max_range = 0.0;  // files need not be sensor-centred: hard limit only unless asked
   ParamSettings own;
   for (const auto& kv : settings) {
     if (kv.first == "max_range") {
       volume.max_range = parseDoubleParam(kv.first, kv.second);
+    } else if (kv.first == "min_range") {
+      volume.min_range = parseDoubleParam(kv.first, kv.second);
+    } else if (kv.first == "body_box") {
+      volume.body_box = parseBodyBox(kv.first, kv.second);
     } else {
       own.push_back(kv);
     }

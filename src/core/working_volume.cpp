@@ -2,9 +2,12 @@
 
 #include <chrono>
 #include <cmath>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <utility>
+
+#include "ground_filter/param_parse.h"
 
 namespace ground_filter {
 
@@ -14,9 +17,55 @@ void WorkingVolume::validate() const {
                                 " m is outside 0 (off) or (0, " +
                                 std::to_string(kWorkingVolumeHardLimit) + "] m");
   }
+  if (!(min_range >= 0.0 && min_range <= kWorkingVolumeHardLimit)) {
+    throw std::invalid_argument("min_range = " + std::to_string(min_range) + " m is outside [0, " +
+                                std::to_string(kWorkingVolumeHardLimit) + "] m");
+  }
+  if (max_range > 0.0 && min_range >= max_range) {
+    throw std::invalid_argument("min_range = " + std::to_string(min_range) +
+                                " m is not below max_range = " + std::to_string(max_range) +
+                                " m (nothing would be filtered)");
+  }
+  if (!body_box.empty()) {
+    if (body_box.size() != 6) {
+      throw std::invalid_argument("body_box has " + std::to_string(body_box.size()) +
+                                  " values, expected 6: [xmin, xmax, ymin, ymax, zmin, zmax] m");
+    }
+    static const char* const kAxis[] = {"x", "y", "z"};
+    for (int d = 0; d < 3; ++d) {
+      const double lo = body_box[2 * d], hi = body_box[2 * d + 1];
+      if (!std::isfinite(lo) || !std::isfinite(hi)) {
+        throw std::invalid_argument(std::string("body_box ") + kAxis[d] + " bounds are not finite");
+      }
+      if (lo > hi) {
+        throw std::invalid_argument(std::string("body_box ") + kAxis[d] +
+                                    "min = " + std::to_string(lo) + " m is above " + kAxis[d] +
+                                    "max = " + std::to_string(hi) + " m");
+      }
+    }
+  }
   for (float o : origin) {
     if (!std::isfinite(o)) throw std::invalid_argument("working volume origin is not finite");
   }
+  for (float r : rotation) {
+    if (!std::isfinite(r)) throw std::invalid_argument("working volume rotation is not finite");
+  }
+}
+
+std::vector<double> parseBodyBox(const std::string& key, const std::string& value) {
+  std::string s = value;
+  for (char& c : s) {
+    if (c == '[' || c == ']' || c == ',') c = ' ';
+  }
+  std::istringstream in(s);
+  std::vector<double> box;
+  std::string word;
+  while (in >> word) box.push_back(parseDoubleParam(key, word));
+  if (!box.empty() && box.size() != 6) {
+    throw std::invalid_argument(key + " = '" + value + "' has " + std::to_string(box.size()) +
+                                " values, expected 6: [xmin, xmax, ymin, ymax, zmin, zmax] m");
+  }
+  return box;
 }
 
 WorkingVolumeFilter::WorkingVolumeFilter(std::unique_ptr<GroundFilter> inner,
@@ -35,6 +84,14 @@ void WorkingVolumeFilter::setOrigin(float x, float y, float z) {
   volume_ = v;
 }
 
+void WorkingVolumeFilter::setPose(const float origin[3], const float rotation[9]) {
+  WorkingVolume v = volume_;
+  for (int i = 0; i < 3; ++i) v.origin[i] = origin[i];
+  for (int i = 0; i < 9; ++i) v.rotation[i] = rotation[i];
+  v.validate();
+  volume_ = v;
+}
+
 void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
                                  FilterStats* stats) {
   using Clock = std::chrono::steady_clock;
@@ -43,35 +100,54 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
   // The usual case: the inner filter tests the volume on its way, no pass here. Not asked again
   // after it declined until the wrapper's own pass finds every point inside (a stream of scans
   // with far points would pay the inner filter's first pass twice).
-  const bool asked = ask_inner_;
+  // With min_range or a body box the wrapper's own pass always runs (the inner filter knows
+  // only the ball).
+  const bool exclusions = volume_.hasExclusions();
+  const bool asked = ask_inner_ && !exclusions;
   if (asked && inner_->filterInside(cloud, volume_, labels, stats)) {
     if (stats) {
       stats->out_of_range_points = 0;
+      stats->near_points = 0;
       stats->total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
     }
     return;
   }
   // Cheap first pass: most scans have no far point and go to the inner filter without a copy.
   std::size_t out_of_range = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const float x = cloud.x(i), y = cloud.y(i), z = cloud.z(i);
-    // contains() is false for NaN/Inf too: only then tell the two apart.
-    if (!volume_.contains(x, y, z) && std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) {
-      ++out_of_range;
+  std::size_t near = 0;
+  if (!exclusions) {
+    for (std::size_t i = 0; i < n; ++i) {
+      const float x = cloud.x(i), y = cloud.y(i), z = cloud.z(i);
+      // contains() is false for NaN/Inf too: only then tell the two apart.
+      if (!volume_.contains(x, y, z) && std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) {
+        ++out_of_range;
+      }
     }
+    ask_inner_ = !asked && out_of_range == 0;
+  } else {
+    for (std::size_t i = 0; i < n; ++i) {
+      const float x = cloud.x(i), y = cloud.y(i), z = cloud.z(i);
+      if (!(std::isfinite(x) && std::isfinite(y) && std::isfinite(z))) continue;
+      if (!volume_.contains(x, y, z)) {
+        ++out_of_range;
+      } else if (volume_.excluded(x, y, z)) {
+        ++near;
+      }
+    }
+    ask_inner_ = true;  // asked again once the exclusions are off
   }
-  ask_inner_ = !asked && out_of_range == 0;
-  if (out_of_range == 0) {
+  if (out_of_range == 0 && near == 0) {
     inner_->filter(cloud, labels, stats);
     if (stats) {
       stats->out_of_range_points = 0;
+      stats->near_points = 0;
       stats->total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
     }
     return;
   }
 
   // Pack the finite in-range points in input order: the inner filter sees exactly the cloud it
-  // would see without the far (and NaN) points, so their neighbours keep their labels.
+  // would see without the far, near (and NaN) points, so their neighbours keep their labels.
   xyz_.clear();
   kept_.clear();
   std::size_t invalid = 0;
@@ -79,7 +155,7 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
     float x, y, z;
     if (!cloud.get(i, &x, &y, &z)) {
       ++invalid;
-    } else if (volume_.contains(x, y, z)) {
+    } else if (volume_.contains(x, y, z) && !(exclusions && volume_.excluded(x, y, z))) {
       xyz_.push_back(x);
       xyz_.push_back(y);
       xyz_.push_back(z);
@@ -110,6 +186,7 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
     stats->input_points = n;
     stats->invalid_points = invalid;
     stats->out_of_range_points = out_of_range;
+    stats->near_points = near;
     stats->ground_points = ground;
     stats->stage_ms.insert(stats->stage_ms.begin(), {"working volume", pack_ms});
     stats->total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();

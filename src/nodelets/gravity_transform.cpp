@@ -12,25 +12,19 @@ GravityTransform::GravityTransform(ros::NodeHandle& nh, const std::string& frame
 
 bool GravityTransform::lookup(const std_msgs::Header& header, Eigen::Isometry3d* transform,
                               std::string* error) const {
-  // Polled against wall time: tf2's own timeout runs on ros::Time, which never advances while a
-  // bag's simulated clock is paused or over, and the nodelet would hang in its callback.
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s_);
-  while (true) {
-    try {
-      const geometry_msgs::TransformStamped t =
-          buffer_.lookupTransform(frame_, header.frame_id, header.stamp);
-      const auto& q = t.transform.rotation;
-      const auto& v = t.transform.translation;
-      transform->linear() = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().toRotationMatrix();
-      transform->translation() = Eigen::Vector3d(v.x, v.y, v.z);
-      transform->makeAffine();
-      return true;
-    } catch (const tf2::TransformException& e) {
-      *error = e.what();
-    }
-    if (ros::WallTime::now() >= deadline || !ros::ok()) return false;
-    ros::WallDuration(0.005).sleep();
+  try {
+    const geometry_msgs::TransformStamped t =
+        buffer_.lookupTransform(frame_, header.frame_id, header.stamp);
+    const auto& q = t.transform.rotation;
+    const auto& v = t.transform.translation;
+    transform->linear() = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().toRotationMatrix();
+    transform->translation() = Eigen::Vector3d(v.x, v.y, v.z);
+    transform->makeAffine();
+    return true;
+  } catch (const tf2::TransformException& e) {
+    *error = e.what();
   }
+  return false;
 }
 
 }  // namespace ground_filter

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdio>
 #include <exception>
+#include <map>
 #include <utility>
 
 #include "cloud_subscription_helper.h"
@@ -36,9 +37,60 @@ void releaseFreeHeap() {
 GroundFilterNodelet::GroundFilterNodelet() = default;
 GroundFilterNodelet::~GroundFilterNodelet() = default;
 
+void GroundFilterNodelet::checkParams() {
+  std::vector<std::string> names;
+  pnh_->getParamNames(names);
+  const std::string prefix = pnh_->getNamespace() + "/";
+  std::map<std::string, XmlRpc::XmlRpcValue> set;
+  for (const std::string& n : names) {
+    if (n.compare(0, prefix.size(), prefix) != 0) continue;
+    const std::string key = n.substr(prefix.size(), n.find('/', prefix.size()) - prefix.size());
+    if (set.count(key)) continue;
+    XmlRpc::XmlRpcValue v;
+    if (pnh_->getParam(key, v)) set[key] = v;
+  }
+  std::vector<ParamCheck> known = baseParamChecks();
+  for (const ParamCheck& c : leafParams()) known.push_back(c);
+  std::vector<std::string> refused;
+  for (const std::string& e : checkPrivateParams(set, known, &refused)) {
+    ++monitor_.counters().config_rejected;
+    NODELET_ERROR("%s: parameter ~%s; refused, the default stays", methodName().c_str(), e.c_str());
+  }
+  for (const std::string& key : refused) pnh_->deleteParam(key);
+
+  XmlRpc::XmlRpcValue box;
+  if (pnh_->getParam("body_box", box)) {  // type checked above: a list of numbers
+    std::vector<double> values;
+    for (int i = 0; i < box.size(); ++i) {
+      values.push_back(box[i].getType() == XmlRpc::XmlRpcValue::TypeInt
+                           ? static_cast<double>(static_cast<int>(box[i]))
+                           : static_cast<double>(box[i]));
+    }
+    WorkingVolume v;
+    v.body_box = values;
+    try {
+      v.validate();
+      body_box_ = values;
+    } catch (const std::invalid_argument& e) {
+      ++monitor_.counters().config_rejected;
+      NODELET_ERROR("%s: parameter ~body_box: %s; refused, no body box", methodName().c_str(),
+                    e.what());
+      pnh_->deleteParam("body_box");
+    }
+  }
+  if (!body_box_.empty()) {
+    NODELET_INFO(
+        "%s: body box [%g, %g] x [%g, %g] x [%g, %g] m (input frame): its points are "
+        "non-ground",
+        methodName().c_str(), body_box_[0], body_box_[1], body_box_[2], body_box_[3], body_box_[4],
+        body_box_[5]);
+  }
+}
+
 void GroundFilterNodelet::onInit() {
   NodeletLazy::onInit();
   NODELET_INFO("%s: %s", methodName().c_str(), simd::describe().c_str());
+  checkParams();
   pnh_->param("queue_size", queue_size_, 3);
   if (queue_size_ < 1) {
     NODELET_WARN("~queue_size %d < 1, using 1", queue_size_);
@@ -60,6 +112,10 @@ void GroundFilterNodelet::onInit() {
   }
   if (!gravity_frame.empty()) {
     gravity_ = std::make_unique<GravityTransform>(*nh_, gravity_frame, tf_timeout);
+    // Started while clouds wait for their transform (drainPending()), stopped when none does.
+    tf_retry_timer_ = nh_->createWallTimer(
+        ros::WallDuration(0.005), [this](const ros::WallTimerEvent&) { drainPending(); }, false,
+        false);
     NODELET_INFO(
         "%s: clouds are classified in gravity frame '%s' (tf timeout %.3f s); outputs "
         "keep the input frame",
@@ -113,8 +169,8 @@ void GroundFilterNodelet::setFilterFactory(FilterFactory factory, const WorkingV
     std::lock_guard<std::mutex> lock(config_mutex_);
     config_ = std::move(config);
   }
-  NODELET_INFO("%s parameters: %s max_range=%g", methodName().c_str(), description.c_str(),
-               volume.max_range);
+  NODELET_INFO("%s parameters: %s max_range=%g min_range=%g", methodName().c_str(),
+               description.c_str(), volume.max_range, volume.min_range);
 }
 
 void GroundFilterNodelet::reportRejectedConfig(const std::string& what) {
@@ -219,20 +275,77 @@ void GroundFilterNodelet::cloudCallback(const sensor_msgs::PointCloud2ConstPtr& 
     return;
   }
 
-  // Looked up before the filter lock: it may wait up to the transform timeout.
-  Eigen::Isometry3d to_gravity = Eigen::Isometry3d::Identity();
-  const bool transform = gravity_ && msg->header.frame_id != gravity_->frame();
-  if (transform && !gravity_->lookup(msg->header, &to_gravity, &why)) {
-    char when[96];
-    std::snprintf(when, sizeof(when), "' at t=%.3f within %.3f s: ", msg->header.stamp.toSec(),
-                  gravity_->timeout());
-    countAndWarn(&counters.clouds_no_transform, NodeletMonitor::kNoTransform,
-                 "no transform from '" + msg->header.frame_id + "' to gravity frame '" +
-                     gravity_->frame() + when + why + "; cloud dropped",
-                 "");
+  if (!gravity_ || msg->header.frame_id == gravity_->frame()) {
+    processCloud(msg, layout, nullptr, t0);
     return;
   }
+  // Queued, then taken at once when the transform is there: a cloud whose transform is late
+  // waits in the queue, not in this thread.
+  {
+    std::lock_guard<std::mutex> lock(pending_mutex_);
+    pending_.push_back(PendingCloud{
+        msg, layout, ros::WallTime::now() + ros::WallDuration(gravity_->timeout()), t0});
+    if (pending_.size() > static_cast<std::size_t>(queue_size_)) {
+      const sensor_msgs::PointCloud2ConstPtr old = pending_.front().msg;
+      pending_.pop_front();
+      char when[64];
+      std::snprintf(when, sizeof(when), "' at t=%.3f: ", old->header.stamp.toSec());
+      countAndWarn(&counters.clouds_no_transform, NodeletMonitor::kNoTransform,
+                   "no transform from '" + old->header.frame_id + "' to gravity frame '" +
+                       gravity_->frame() + when + std::to_string(queue_size_) +
+                       " newer clouds wait for theirs (~queue_size); cloud dropped",
+                   "");
+    }
+  }
+  drainPending();
+}
 
+void GroundFilterNodelet::drainPending() {
+  std::lock_guard<std::mutex> drain(drain_mutex_);
+  while (true) {
+    PendingCloud cloud;
+    {
+      std::lock_guard<std::mutex> lock(pending_mutex_);
+      if (pending_.empty()) {
+        tf_retry_timer_.stop();
+        return;
+      }
+      cloud = pending_.front();
+    }
+    Eigen::Isometry3d to_gravity = Eigen::Isometry3d::Identity();
+    std::string why;
+    const bool found = gravity_->lookup(cloud.msg->header, &to_gravity, &why);
+    if (!found && ros::WallTime::now() < cloud.deadline && ros::ok()) {
+      tf_retry_timer_.start();  // no-op when running
+      return;
+    }
+    {
+      std::lock_guard<std::mutex> lock(pending_mutex_);
+      // Only this function pops the front, besides an overflow that dropped it meanwhile.
+      if (pending_.empty() || pending_.front().msg != cloud.msg) continue;
+      pending_.pop_front();
+    }
+    if (found) {
+      processCloud(cloud.msg, cloud.layout, &to_gravity, cloud.t0);
+      continue;
+    }
+    char when[96];
+    std::snprintf(when, sizeof(when),
+                  "' at t=%.3f within %.3f s: ", cloud.msg->header.stamp.toSec(),
+                  gravity_->timeout());
+    countAndWarn(&monitor_.counters().clouds_no_transform, NodeletMonitor::kNoTransform,
+                 "no transform from '" + cloud.msg->header.frame_id + "' to gravity frame '" +
+                     gravity_->frame() + when + why + "; cloud dropped",
+                 "");
+  }
+}
+
+void GroundFilterNodelet::processCloud(const sensor_msgs::PointCloud2ConstPtr& msg,
+                                       const CloudLayout& layout,
+                                       const Eigen::Isometry3d* to_gravity,
+                                       std::chrono::steady_clock::time_point t0) {
+  const Eigen::Isometry3d identity = Eigen::Isometry3d::Identity();
+  const Eigen::Isometry3d& pose = to_gravity ? *to_gravity : identity;
   ProcessedCloud out;
   {
     std::lock_guard<std::mutex> lock(process_mutex_);
@@ -240,16 +353,21 @@ void GroundFilterNodelet::cloudCallback(const sensor_msgs::PointCloud2ConstPtr& 
     try {
       updateFilter();
       if (filter_) {
-        // The working volume is centred on the sensor: its origin in the filter's frame.
-        const Eigen::Vector3d o = to_gravity.translation();
-        filter_->setOrigin(static_cast<float>(o.x()), static_cast<float>(o.y()),
-                           static_cast<float>(o.z()));
+        // The working volume is centred on the sensor: its pose in the filter's frame (the
+        // body box is given in the input frame).
+        const Eigen::Vector3d o = pose.translation();
+        const Eigen::Matrix3d r = pose.linear();
+        const float origin[3] = {static_cast<float>(o.x()), static_cast<float>(o.y()),
+                                 static_cast<float>(o.z())};
+        float rotation[9];
+        for (int i = 0; i < 9; ++i) rotation[i] = static_cast<float>(r(i / 3, i % 3));
+        filter_->setPose(origin, rotation);
       }
     } catch (const std::exception& e) {
       filter_.reset();  // processPointCloud2 publishes the cloud as all non-ground
       build_error = e.what();
     }
-    processPointCloud2(*msg, layout, filter_.get(), transform ? &to_gravity : nullptr,
+    processPointCloud2(*msg, layout, filter_.get(), to_gravity,
                        pub_labeled_.getNumSubscribers() > 0, &buffers_, &out);
     if (!build_error.empty()) out.filter_error = build_error;
     if (!out.filter_error.empty()) filter_.reset();  // rebuilt from scratch for the next cloud
@@ -266,6 +384,7 @@ void GroundFilterNodelet::publish(const ProcessedCloud& out, double ms) {
   ++counters.clouds_out;
   counters.invalid_points += out.counts.invalid;
   counters.out_of_range_points += out.stats.out_of_range_points;
+  counters.near_points += out.stats.near_points;
   const std::size_t points = out.counts.ground + out.counts.nonground;
   if (!out.filter_error.empty()) {
     ++counters.filter_errors;

@@ -7,6 +7,8 @@
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
 
+#include <chrono>
+#include <deque>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -14,10 +16,11 @@
 #include <string>
 #include <vector>
 
+#include "gravity_transform.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/working_volume.h"
-#include "gravity_transform.h"
 #include "nodelet_monitor.h"
+#include "param_check.h"
 #include "params_from_config.h"
 #include "point_cloud2.h"
 
@@ -39,7 +42,10 @@ namespace ground_filter {
 /// subscription; `~lazy` (bool, default true) from NodeletLazy; `~gravity_frame` (string,
 /// default "": off) frame whose z axis points up: each cloud is classified after a tf2 transform
 /// into it (outputs keep the input frame, header and records); `~tf_timeout` (double, default
-/// 0.1 s, wall time) wait for that transform before the cloud is dropped and counted;
+/// 0.1 s, wall time) wait for that transform before the cloud is dropped and counted: a cloud
+/// whose transform is not there yet waits in a queue (at most `~queue_size` clouds, the oldest
+/// dropped and counted beyond) that a wall timer retries every 5 ms, so no manager thread is
+/// held while it waits; clouds leave the queue in arrival order;
 /// `~diagnostic_period` (double, default 1 s) of the /diagnostics status;
 /// `~malloc_trim_period` (double, default 1 s, 0 = off; glibc only) period at which the heap's
 /// free pages are handed back to the OS (malloc_trim), so the manager's RSS stays flat.
@@ -51,10 +57,16 @@ namespace ground_filter {
 /// out of the working volume, backend fallbacks and the backend in use; WARN while clouds are
 /// dropped or the stream is irregular.
 ///
-/// Working volume (dynamic_reconfigure `max_range`, every leaf): each filter object is wrapped
-/// in a WorkingVolumeFilter centred on the sensor origin (the input frame's origin, or its
-/// position in the gravity frame); points farther than max_range, or beyond the hard limit, are
+/// Working volume (dynamic_reconfigure `max_range` and `min_range`, every leaf; private
+/// parameter `~body_box`, a list [xmin, xmax, ymin, ymax, zmin, zmax] in the input frame, read
+/// at start, empty = off): each filter object is wrapped in a WorkingVolumeFilter centred on the
+/// sensor origin (the input frame's origin, or its pose in the gravity frame); points farther
+/// than max_range, beyond the hard limit, nearer than min_range or inside the body box are
 /// published as non-ground one by one and counted; the rest of the cloud is filtered as usual.
+///
+/// Parameters are checked at start: an unknown private key, a value of the wrong type or out of
+/// the .cfg range is refused with one error naming the key (removed from the parameter server,
+/// so the default stays), instead of being ignored or clamped.
 ///
 /// Start-up: the first filter object is built in onInit(), before the input is subscribed, so
 /// no cloud is ever dropped for want of a filter; a filter that fails on a cloud publishes it
@@ -87,6 +99,12 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   /// \brief Method name for logs ("voxel", "normal").
   virtual std::string methodName() const = 0;
 
+  /// \brief The leaf's own private parameters (its .cfg), checked at start with the base's.
+  virtual std::vector<ParamCheck> leafParams() const = 0;
+
+  /// \brief `~body_box` as read at start (empty = off; validated with the volume).
+  const std::vector<double>& bodyBox() const { return body_box_; }
+
   /// \brief Installs a new filter configuration (thread-safe; takes effect on the next cloud).
   /// \param volume working volume around the sensor origin (validated by the caller).
   /// \param description one line for the log, e.g. "voxel_size=0.1 ...".
@@ -110,7 +128,20 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
     WorkingVolume volume;
     std::string description;
   };
+  /// A valid cloud waiting for its transform to the gravity frame.
+  struct PendingCloud {
+    sensor_msgs::PointCloud2ConstPtr msg;
+    CloudLayout layout;
+    ros::WallTime deadline;                    // dropped when its transform is still missing then
+    std::chrono::steady_clock::time_point t0;  // arrival (processing time counts the wait)
+  };
   void cloudCallback(const sensor_msgs::PointCloud2ConstPtr& msg);
+  // Filters and publishes one valid cloud (to_gravity: null = classify in the input frame).
+  void processCloud(const sensor_msgs::PointCloud2ConstPtr& msg, const CloudLayout& layout,
+                    const Eigen::Isometry3d* to_gravity, std::chrono::steady_clock::time_point t0);
+  // Processes the queued clouds whose transform has arrived, in order; drops the expired ones;
+  // stops at the first that may still wait (the timer tries again).
+  void drainPending();
   // Builds the filter object of the installed configuration when it changed (process_mutex_).
   void updateFilter();
   // Publishes one processed cloud and records its counts, time and backend.
@@ -126,6 +157,8 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   void onNotCloud(const std::string& what, const std::string& publisher);
   // True once the leaf installed a filter configuration (diagnostics: ERROR without one).
   bool haveConfig();
+  // Refuses unknown / mistyped / out-of-range private parameters (see the class comment).
+  void checkParams();
 
   ros::Subscriber sub_input_;
   ros::Publisher pub_ground_;
@@ -133,8 +166,13 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   ros::Publisher pub_time_;
   ros::Publisher pub_labeled_;
   int queue_size_ = 3;
+  std::vector<double> body_box_;  // ~body_box, empty = off
 
   std::unique_ptr<GravityTransform> gravity_;  // null: classify in the input frame
+  std::mutex pending_mutex_;                   // guards pending_
+  std::deque<PendingCloud> pending_;           // clouds waiting for their transform
+  std::mutex drain_mutex_;                     // one drainPending() at a time (keeps the order)
+  ros::WallTimer tf_retry_timer_;              // runs drainPending() while clouds wait
 
   std::unique_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer diagnostic_timer_;
@@ -165,6 +203,28 @@ class ReconfigurableFilterNodelet : public GroundFilterNodelet {
   virtual void onParamsAccepted(const Params& /*params*/) {}
   std::string methodName() const override { return Params::method(); }
 
+  std::vector<ParamCheck> leafParams() const override {
+    std::vector<ParamCheck> out;
+    const Config lo = Config::__getMin__(), hi = Config::__getMax__();
+    for (const auto& desc : Config::__getParamDescriptions__()) {
+      ParamCheck c;
+      c.name = desc->name;
+      if (desc->type == "double" || desc->type == "int") {
+        c.type = desc->type == "int" ? ParamCheck::Type::kInt : ParamCheck::Type::kDouble;
+        boost::any a, b;
+        desc->getValue(lo, a);
+        desc->getValue(hi, b);
+        c.ranged = true;
+        c.min = desc->type == "int" ? boost::any_cast<int>(a) : boost::any_cast<double>(a);
+        c.max = desc->type == "int" ? boost::any_cast<int>(b) : boost::any_cast<double>(b);
+      } else {
+        c.type = desc->type == "bool" ? ParamCheck::Type::kBool : ParamCheck::Type::kString;
+      }
+      out.push_back(c);
+    }
+    return out;
+  }
+
   void onInitFilter() override {
     server_ = std::make_unique<dynamic_reconfigure::Server<Config>>(*pnh_);
     // The server calls back at once with the parameter-server values: that installs the filter.
@@ -177,6 +237,8 @@ class ReconfigurableFilterNodelet : public GroundFilterNodelet {
     Params params = paramsFromConfigTable<Params>(config);
     WorkingVolume volume;
     volume.max_range = config.max_range;
+    volume.min_range = config.min_range;
+    volume.body_box = bodyBox();
     try {
       params.validate();
       volume.validate();
@@ -190,6 +252,12 @@ class ReconfigurableFilterNodelet : public GroundFilterNodelet {
       config = Config::__getDefault__();  // the .cfg defaults are the library's
       params = paramsFromConfigTable<Params>(config);
       volume.max_range = config.max_range;
+      volume.min_range = config.min_range;
+      try {
+        volume.validate();
+      } catch (const std::invalid_argument&) {
+        volume.body_box.clear();  // reported at start (checkParams)
+      }
     }
     last_good_ = config;
     have_good_ = true;

@@ -144,6 +144,7 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
     status.add(std::string("dropped: ") + d.name, static_cast<ull>(d.total));
   status.add("invalid points (NaN/Inf)", static_cast<ull>(total.invalid_points));
   status.add("out of range points", static_cast<ull>(total.out_of_range_points));
+  status.add("near points (min_range, body_box)", static_cast<ull>(total.near_points));
   status.add("filter errors (published as non-ground)", static_cast<ull>(total.filter_errors));
   status.add("fallbacks", static_cast<ull>(total.fallbacks));
   status.add("last fallback", note.empty() ? std::string("none") : note);

@@ -32,20 +32,22 @@ class NodeletMonitor {
     T filter_errors{0};        ///< filter threw: published all non-ground
     T invalid_points{0};       ///< NaN/Inf points sent to non-ground
     T out_of_range_points{0};  ///< points outside the working volume -> non-ground
+    T near_points{0};          ///< points within min_range or the body box -> non-ground
     T config_rejected{0};      ///< parameter sets refused by validation
     T frame_changes{0};        ///< clouds whose frame_id differs from the last
     T stamps_backwards{0};     ///< clouds stamped before the previous one
     T fallbacks{0};            ///< clouds with a FilterStats::note (fallback)
 
     /// \brief Every counter above, in order (copies walk this list).
-    static const std::array<T CounterSet::*, 12>& all() {
-      static const std::array<T CounterSet::*, 12> members = {
+    static const std::array<T CounterSet::*, 13>& all() {
+      static const std::array<T CounterSet::*, 13> members = {
           &CounterSet::clouds_in,        &CounterSet::clouds_out,
           &CounterSet::clouds_rejected,  &CounterSet::clouds_no_transform,
           &CounterSet::not_cloud,        &CounterSet::filter_errors,
           &CounterSet::invalid_points,   &CounterSet::out_of_range_points,
           &CounterSet::config_rejected,  &CounterSet::frame_changes,
-          &CounterSet::stamps_backwards, &CounterSet::fallbacks};
+          &CounterSet::stamps_backwards, &CounterSet::fallbacks,
+          &CounterSet::near_points};
       return members;
     }
     /// \brief Clouds received but not published, all reasons.

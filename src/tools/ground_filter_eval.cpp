@@ -26,7 +26,8 @@ namespace {
 
 const char kUsage[] =
     "usage: ground_filter_eval [--method NAME] [--params FILE] [--set NAME=VALUE]... [--json]\n"
-    "                          [--classes] [--write-labels DIR] [--write-clouds DIR]\n"
+    "                          [--classes] [--write-labels DIR] [--label-format F]\n"
+    "                          [--kitti-ids GROUND,NONGROUND] [--write-clouds DIR]\n"
     "                          [--repeat N] [--drop-one N] PATH...\n"
     "\n"
     "Runs a ground filter on every scan and prints per-file and pooled results: points, points\n"
@@ -49,7 +50,13 @@ const char kUsage[] =
     "                    \"recall\",\"f1\",\"iou\"}...],\"pooled\":{...}}\n"
     "                    metrics are fractions in [0,1]; null where a file has no labels or a\n"
     "                    ratio is 0/0\n"
-    "--write-labels DIR  write DIR/<stem>.gnd: one uint8 per input point (1 ground, 0 not)\n"
+    "--write-labels DIR  write the labels of every scan into DIR, as --label-format says\n"
+    "--label-format F    gnd (default): DIR/<stem>.gnd, one uint8 per input point (1 ground,\n"
+    "                    0 not); kitti: DIR/<stem>.label, SemanticKITTI's format, one uint32\n"
+    "                    per point (class id in the low 16 bits, instance 0), see --kitti-ids\n"
+    "--kitti-ids G,N     SemanticKITTI class ids of ground and non-ground points (default\n"
+    "                    40,0: 40 \"road\", 0 \"unlabeled\"; e.g. 49,99 for \"other-ground\",\n"
+    "                    \"other-object\")\n"
     "--write-clouds DIR  write DIR/<stem>_ground.pcd and DIR/<stem>_nonground.pcd (binary, all\n"
     "                    input fields)\n"
     "--repeat N          run the filter N times per file and report the median ms (default 1)\n"
@@ -69,6 +76,8 @@ struct Options {
   bool json = false;
   bool classes = false;
   std::string labels_dir;
+  bool kitti_labels = false;  // --label-format kitti
+  gf::KittiLabelIds kitti_ids;
   std::string clouds_dir;
   int repeat = 1;
   int drop_one = 0;
@@ -141,6 +150,32 @@ Options parseArgs(int argc, char** argv) {
           o.classes = true;
         } else if (arg == "--write-labels") {
           o.labels_dir = args->value();
+        } else if (arg == "--label-format") {
+          const std::string f = args->value();
+          if (f != "gnd" && f != "kitti") {
+            throw UsageError("--label-format must be gnd or kitti, not '" + f + "'");
+          }
+          o.kitti_labels = f == "kitti";
+        } else if (arg == "--kitti-ids") {
+          const std::string v = args->value();
+          const std::size_t comma = v.find(',');
+          int ids[2] = {-1, -1};
+          try {
+            if (comma == std::string::npos) throw std::invalid_argument(v);
+            std::size_t used = 0;
+            ids[0] = std::stoi(v.substr(0, comma), &used);
+            if (used != comma) throw std::invalid_argument(v);
+            ids[1] = std::stoi(v.substr(comma + 1), &used);
+            if (used != v.size() - comma - 1) throw std::invalid_argument(v);
+          } catch (const std::exception&) {
+            ids[0] = -1;
+          }
+          if (ids[0] < 0 || ids[0] > 65535 || ids[1] < 0 || ids[1] > 65535) {
+            throw UsageError("--kitti-ids needs two class ids 0..65535 as GROUND,NONGROUND, not '" +
+                             v + "'");
+          }
+          o.kitti_ids.ground = static_cast<std::uint16_t>(ids[0]);
+          o.kitti_ids.nonground = static_cast<std::uint16_t>(ids[1]);
         } else if (arg == "--write-clouds") {
           o.clouds_dir = args->value();
         } else {
@@ -263,7 +298,13 @@ int run(const Options& opt) {
       gf::addClassCounts(labels, scan.truth, scan.semantic, &classes);
     }
     if (opt.drop_one > 0) res.drop = dropOne(filter.get(), view, labels, opt.drop_one);
-    if (!opt.labels_dir.empty()) gf::writeLabels(opt.labels_dir, file, labels);
+    if (!opt.labels_dir.empty()) {
+      if (opt.kitti_labels) {
+        gf::writeKittiLabels(opt.labels_dir, file, labels, opt.kitti_ids);
+      } else {
+        gf::writeLabels(opt.labels_dir, file, labels);
+      }
+    }
     if (!opt.clouds_dir.empty()) gf::writeSplitClouds(opt.clouds_dir, file, scan.cloud, labels);
     results.push_back(res);
   }

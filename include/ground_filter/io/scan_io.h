@@ -90,6 +90,22 @@ void splitCloud(const pcl::PCLPointCloud2& cloud, const std::vector<std::uint8_t
 std::string writeLabels(const std::string& dir, const std::string& scan_path,
                         const std::vector<std::uint8_t>& labels);
 
+/// \brief SemanticKITTI class ids written for ground / non-ground points by writeKittiLabels().
+struct KittiLabelIds {
+  std::uint16_t ground = 40;    ///< 40 "road" (the filter does not tell road from sidewalk)
+  std::uint16_t nonground = 0;  ///< 0 "unlabeled" (ignored by SemanticKITTI training)
+};
+
+/// \brief Writes `dir/<stem>.label` as SemanticKITTI does: one little-endian uint32 per input
+///        point in input order, the class id in the low 16 bits (ids.ground or ids.nonground),
+///        instance 0 in the high 16 bits. Creates `dir` when missing; refuses to write where
+///        the file would be the scan's own truth (`dir` = the scan's directory). Returns the
+///        written path.
+/// \throws std::runtime_error when the file cannot (or must not) be written.
+std::string writeKittiLabels(const std::string& dir, const std::string& scan_path,
+                             const std::vector<std::uint8_t>& labels,
+                             const KittiLabelIds& ids = KittiLabelIds());
+
 /// \brief Writes `dir/<stem>_ground.pcd` and `dir/<stem>_nonground.pcd` (binary PCD, every input
 ///        field). Creates `dir` when missing. Returns the two written paths.
 /// \throws std::runtime_error when a file cannot be written or the label count is wrong.

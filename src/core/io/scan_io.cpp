@@ -540,6 +540,31 @@ std::string writeLabels(const std::string& dir, const std::string& scan_path,
   return out;
 }
 
+std::string writeKittiLabels(const std::string& dir, const std::string& scan_path,
+                             const std::vector<std::uint8_t>& labels, const KittiLabelIds& ids) {
+  makeDir(dir);
+  const fs::path out_path = fs::path(dir) / (scanStem(scan_path) + ".label");
+  const std::string out = out_path.string();
+  std::error_code ec;
+  if (fs::exists(out_path, ec) &&
+      fs::equivalent(fs::path(scan_path).parent_path().empty() ? fs::path(".")
+                                                               : fs::path(scan_path).parent_path(),
+                     fs::path(dir), ec)) {
+    fail(out, "is the scan's own SemanticKITTI truth: write the labels to another directory");
+  }
+  std::vector<unsigned char> bytes(labels.size() * 4);
+  for (std::size_t i = 0; i < labels.size(); ++i) {
+    const std::uint32_t v = labels[i] == 1 ? ids.ground : ids.nonground;
+    for (int b = 0; b < 4; ++b) bytes[4 * i + b] = static_cast<unsigned char>(v >> (8 * b));
+  }
+  std::ofstream f(out, std::ios::binary | std::ios::trunc);
+  if (!f) fail(out, "cannot open for writing");
+  f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  f.close();
+  if (!f) fail(out, "write error");
+  return out;
+}
+
 std::pair<std::string, std::string> writeSplitClouds(const std::string& dir,
                                                      const std::string& scan_path,
                                                      const pcl::PCLPointCloud2& cloud,
