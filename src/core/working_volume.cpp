@@ -24,6 +24,7 @@ WorkingVolumeFilter::WorkingVolumeFilter(std::unique_ptr<GroundFilter> inner,
     : inner_(std::move(inner)), volume_(volume) {
   if (!inner_) throw std::invalid_argument("WorkingVolumeFilter needs an inner filter");
   volume_.validate();
+  inner_->setSensorOrigin(volume_.origin[0], volume_.origin[1], volume_.origin[2]);
 }
 
 void WorkingVolumeFilter::setOrigin(float x, float y, float z) {
@@ -33,6 +34,7 @@ void WorkingVolumeFilter::setOrigin(float x, float y, float z) {
   v.origin[2] = z;
   v.validate();
   volume_ = v;
+  inner_->setSensorOrigin(x, y, z);
 }
 
 void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
@@ -52,13 +54,24 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
     return;
   }
   // Cheap first pass: most scans have no far point and go to the inner filter without a copy.
-  std::size_t out_of_range = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const float x = cloud.x(i), y = cloud.y(i), z = cloud.z(i);
-    // contains() is false for NaN/Inf too: only then tell the two apart.
-    if (!volume_.contains(x, y, z) && std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) {
-      ++out_of_range;
+  auto countOutside = [&](const WorkingVolume& v) {
+    std::size_t count = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const float x = cloud.x(i), y = cloud.y(i), z = cloud.z(i);
+      // contains() is false for NaN/Inf too: only then tell the two apart.
+      if (!v.contains(x, y, z) && std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) {
+        ++count;
+      }
     }
+    return count;
+  };
+  WorkingVolume volume = volume_;
+  std::size_t out_of_range = countOutside(volume);
+  // An airborne scan (scan_type) is not cut by max_range: a survey tile need not lie near the
+  // origin. Only the hard limit holds.
+  if (out_of_range > 0 && volume.max_range > 0.0 && inner_->airborneScan(cloud)) {
+    volume.max_range = 0.0;
+    out_of_range = countOutside(volume);
   }
   ask_inner_ = !asked && out_of_range == 0;
   if (out_of_range == 0) {
@@ -79,7 +92,7 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
     float x, y, z;
     if (!cloud.get(i, &x, &y, &z)) {
       ++invalid;
-    } else if (volume_.contains(x, y, z)) {
+    } else if (volume.contains(x, y, z)) {
       xyz_.push_back(x);
       xyz_.push_back(y);
       xyz_.push_back(z);
@@ -90,9 +103,9 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
 
   FilterStats inner_stats;
   inner_labels_.clear();
-  if (!kept_.empty()) {
-    inner_->filter(CloudView::packedXyz(xyz_.data(), kept_.size()), &inner_labels_, &inner_stats);
-  }
+  // Also with no point left: the inner filter still reports its scan type (and takes the
+  // decision airborneScan() kept).
+  inner_->filter(CloudView::packedXyz(xyz_.data(), kept_.size()), &inner_labels_, &inner_stats);
   if (inner_labels_.size() != kept_.size()) {
     throw std::runtime_error(inner_->name() + " filter returned " +
                              std::to_string(inner_labels_.size()) + " labels for " +
