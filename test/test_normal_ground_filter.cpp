@@ -873,7 +873,7 @@ TEST(KdTreeNeighborSearch, SearchWithCandidatesMatchesSearchWithPca) {
 TEST(NormalGroundFilter, StageTimesNameEveryStage) {
   // The kd-tree's build/query/PCA split comes through NeighborSearch::lastStageMs().
   gf::FilterStats st;
-  run(plane(6.0, 0.1, -1.73), {}, &st);
+  run(plane(6.0, 0.1, -1.73), groundLevel(), &st);
   std::vector<std::string> names;
   for (const auto& e : st.stage_ms) {
     names.push_back(e.first);

@@ -70,10 +70,12 @@ ScanMeasures ScanTypeClassifier::measure(const CloudView& cloud, const float ori
     }
     xs_.push_back(x);
     ys_.push_back(y);
-    const double h = std::sqrt(static_cast<double>(dx) * dx + static_cast<double>(dy) * dy);
+    // Squared horizontal distance against squared height: the angles without a square root.
+    const double h2 = static_cast<double>(dx) * dx + static_cast<double>(dy) * dy;
+    const double dz2 = static_cast<double>(dz) * dz;
     if (dz < 0.f) ++below;
-    if (dz < 0.f && h <= -dz) depth_.push_back(-dz);  // 45 deg or more below the origin
-    if (dz > 0.f && dz >= kTan30 * h) ++high;
+    if (dz < 0.f && h2 <= dz2) depth_.push_back(-dz);  // 45 deg or more below the origin
+    if (dz > 0.f && dz2 >= kTan30 * kTan30 * h2) ++high;
   }
   m.sampled = xs_.size();
   if (m.sampled == 0) return m;

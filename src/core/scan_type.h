@@ -65,7 +65,7 @@ struct ScanMeasures {
 class ScanTypeClassifier {
  public:
   /// \brief At most this many points are looked at.
-  static constexpr std::size_t kMaxSamples = 32768;
+  static constexpr std::size_t kMaxSamples = 8192;
   /// \brief Fewer valid points: too few to judge, the default (ground-level) mode.
   static constexpr std::size_t kMinPoints = 64;
   /// \brief A footprint smaller than this [m] is too small to judge (ground-level mode).
