@@ -64,7 +64,15 @@ Cloud plane(double side, double step, double z0, double slope_x = 0.0, double no
   return c;
 }
 
-std::vector<std::uint8_t> run(const Cloud& c, const gf::NormalGroundFilterParams& p = {},
+// The defaults, ground-level steps: the synthetic clouds here are sampled evenly, as an airborne
+// scan is, so scan_type auto would run them in the airborne mode (test_scan_type covers auto).
+gf::NormalGroundFilterParams groundLevel() {
+  gf::NormalGroundFilterParams p;
+  p.scan_type = "ground";
+  return p;
+}
+
+std::vector<std::uint8_t> run(const Cloud& c, const gf::NormalGroundFilterParams& p = groundLevel(),
                               gf::FilterStats* stats = nullptr) {
   gf::NormalGroundFilter f(p);
   std::vector<std::uint8_t> labels;
@@ -98,7 +106,7 @@ TEST(NormalGroundFilter, FlatPlaneIsGround) {
 
 /// Defaults with the normal-angle window [min_deg, max_deg] (the paper's: 80..100).
 gf::NormalGroundFilterParams angleWindow(double min_deg, double max_deg) {
-  gf::NormalGroundFilterParams p;
+  gf::NormalGroundFilterParams p = groundLevel();
   p.min_normal_angle = min_deg;
   p.max_normal_angle = max_deg;
   return p;
@@ -177,7 +185,7 @@ TEST(NormalGroundFilter, CloudSmallerThanK) {
   add(&one, 0, 0, 0);
   EXPECT_EQ(groundShare(run(one)), 0.0);
   // Segments smaller than K in segment mode.
-  gf::NormalGroundFilterParams seg;
+  gf::NormalGroundFilterParams seg = groundLevel();
   seg.use_segments = true;
   seg.segment_points = 256;
   seg.k = 256;
@@ -237,7 +245,7 @@ TEST(NormalGroundFilter, FarApartAndHugeCoordinates) {
 }
 
 TEST(NormalGroundFilter, EmptyCloud) {
-  gf::NormalGroundFilter f;
+  gf::NormalGroundFilter f(groundLevel());
   std::vector<std::uint8_t> labels(5, 1);
   gf::FilterStats st;
   f.filter(gf::CloudView(), &labels, &st);
@@ -256,7 +264,7 @@ TEST(NormalGroundFilter, StridedViewMatchesPacked) {
     rec[5 * i + 3] = 0.5f;
     rec[5 * i + 4] = 7.f;
   }
-  gf::NormalGroundFilter f;
+  gf::NormalGroundFilter f(groundLevel());
   std::vector<std::uint8_t> a, b;
   f.filter(gf::CloudView(rec.data(), n, 20), &a);
   f.filter(gf::CloudView::packedXyz(c.data(), n), &b);
@@ -271,7 +279,7 @@ TEST(NormalGroundFilter, SameLabelsForAnyThreadCountAndRepeatedCalls) {
   std::vector<std::vector<std::uint8_t>> results;
   for (bool segments : {false, true}) {
     for (int threads : {1, 2, 3}) {
-      gf::NormalGroundFilterParams p;
+      gf::NormalGroundFilterParams p = groundLevel();
       p.threads = threads;
       p.use_segments = segments;
       p.segment_points = 20000;
@@ -301,7 +309,7 @@ TEST(NormalGroundFilter, RansacSeedDrawsOtherHypothesesReproducibly) {
   const gf::GeneratedScan scan = gf::generateScene(sp);
   const gf::CloudView view = gf::CloudView::packedXyz(scan.xyz.data(), scan.size());
   auto labelsFor = [&](int seed, int threads) {
-    gf::NormalGroundFilterParams p;
+    gf::NormalGroundFilterParams p = groundLevel();
     p.ransac_seed = seed;
     p.threads = threads;
     gf::NormalGroundFilter f(p);
@@ -310,7 +318,7 @@ TEST(NormalGroundFilter, RansacSeedDrawsOtherHypothesesReproducibly) {
     return labels;
   };
   const std::vector<std::uint8_t> fixed = labelsFor(0, 1);
-  gf::NormalGroundFilter defaults((gf::NormalGroundFilterParams()));
+  gf::NormalGroundFilter defaults(groundLevel());
   std::vector<std::uint8_t> by_default;
   defaults.filter(view, &by_default);
   EXPECT_EQ(fixed, by_default);  // 0 is the default: the labels from before the parameter
@@ -326,7 +334,7 @@ TEST(NormalGroundFilter, RansacSeedDrawsOtherHypothesesReproducibly) {
 
 TEST(NormalGroundFilter, GpuRequestRunsAndReportsTheBackendUsed) {
   const Cloud c = plane(6.0, 0.1, -1.73, 0.0, 0.01, 5);
-  gf::NormalGroundFilterParams p;
+  gf::NormalGroundFilterParams p = groundLevel();
   p.knn_backend = "gpu";
   gf::NormalGroundFilter f(p);
   std::vector<std::uint8_t> labels;
@@ -866,7 +874,7 @@ TEST(KdTreeNeighborSearch, SearchWithCandidatesMatchesSearchWithPca) {
 TEST(NormalGroundFilter, StageTimesNameEveryStage) {
   // The kd-tree's build/query/PCA split comes through NeighborSearch::lastStageMs().
   gf::FilterStats st;
-  run(plane(6.0, 0.1, -1.73), {}, &st);
+  run(plane(6.0, 0.1, -1.73), groundLevel(), &st);
   std::vector<std::string> names;
   for (const auto& e : st.stage_ms) {
     names.push_back(e.first);
@@ -903,7 +911,7 @@ TEST(NormalPlaneStage, SparseTileFitsItsOwnPlaneFromThreeVotedPoints) {
   add(29.5f, 3.0f, terrace, true);
   for (int i = 0; i < 6; ++i) add(28.2f + 0.5f * i, 2.0f, terrace, false);
 
-  gf::NormalGroundFilterParams p;
+  gf::NormalGroundFilterParams p = groundLevel();
   p.floor_share = 0.0;
   gf::normal::Extent extent;
   extent.max_x = 32.0;
@@ -922,7 +930,7 @@ TEST(NormalPlaneStage, SparseTileFitsItsOwnPlaneFromThreeVotedPoints) {
 TEST(NormalGroundFilterKitti, PooledF1AboveFloor) {
   const std::string dir = std::string(GF_DATA_DIR) + "/semantickitti/seq00/";
   GF_SKIP_WITHOUT_DATA(dir);
-  gf::NormalGroundFilter f;
+  gf::NormalGroundFilter f(groundLevel());
   gf::Confusion pooled;
   for (const char* frame : {"000000", "000001", "000002"}) {
     const gf::Scan scan = gf::loadScan(dir + frame + ".bin");
@@ -1247,7 +1255,7 @@ BushScene bushScene(unsigned seed) {
 }
 
 gf::NormalGroundFilterParams bushRule(bool on) {
-  gf::NormalGroundFilterParams p;
+  gf::NormalGroundFilterParams p = groundLevel();
   p.veg_filter = on;
   return p;
 }
@@ -1384,7 +1392,7 @@ TEST(NormalPlaneStage, SparseTileFloorFollowsRaisedTerrainNotWallsOrBoxSides) {
       add(&c, 2.5, y, z);
     }
   }
-  gf::NormalGroundFilterParams off;
+  gf::NormalGroundFilterParams off = groundLevel();
   off.floor_share = 0.0;
   const auto with = run(c), without = run(c, off);
   EXPECT_EQ(groundShare(with, 0, near_end), 1.0);
@@ -1395,11 +1403,11 @@ TEST(NormalPlaneStage, SparseTileFloorFollowsRaisedTerrainNotWallsOrBoxSides) {
   EXPECT_EQ(groundShare(with, wall_end), 0.0);
   // A larger allowed move and a smaller share take the wall's foot; the smaller share alone
   // takes the box's lowest rows.
-  gf::NormalGroundFilterParams far_move;
+  gf::NormalGroundFilterParams far_move = groundLevel();
   far_move.floor_max_shift = 1.0;
   far_move.floor_share = 0.1;
   EXPECT_GT(groundShare(run(c, far_move), line_end, wall_end), 0.05);
-  gf::NormalGroundFilterParams box_share;
+  gf::NormalGroundFilterParams box_share = groundLevel();
   box_share.floor_share = 0.1;
   EXPECT_GT(groundShare(run(c, box_share), wall_end), 0.05);
 }

@@ -94,7 +94,15 @@ void expectNoGroundAbove(const Cloud& c, const std::vector<std::uint8_t>& labels
   EXPECT_EQ(wrong, 0u) << "above z = " << z_min;
 }
 
-std::vector<std::uint8_t> run(const Cloud& c, const gf::VoxelGroundFilterParams& p = {},
+// The defaults, ground-level steps: the synthetic clouds here are sampled evenly, as an airborne
+// scan is, so scan_type auto would run them in the airborne mode (test_scan_type covers auto).
+gf::VoxelGroundFilterParams groundLevel() {
+  gf::VoxelGroundFilterParams p;
+  p.scan_type = "ground";
+  return p;
+}
+
+std::vector<std::uint8_t> run(const Cloud& c, const gf::VoxelGroundFilterParams& p = groundLevel(),
                               gf::FilterStats* st = nullptr) {
   gf::VoxelGroundFilter f(p);
   std::vector<std::uint8_t> labels;
@@ -104,7 +112,7 @@ std::vector<std::uint8_t> run(const Cloud& c, const gf::VoxelGroundFilterParams&
 
 /// The defaults with the vegetation rule (veg_filter, its own defaults) on or off.
 gf::VoxelGroundFilterParams vegetationRule(bool on) {
-  gf::VoxelGroundFilterParams p;
+  gf::VoxelGroundFilterParams p = groundLevel();
   p.veg_filter = on;
   return p;
 }
@@ -131,7 +139,7 @@ TEST(VoxelGroundFilter, TiltedPlaneIsGround) {
   addSurface(
       &c, -10, 10, -10, 10, 0.05f, [&](float x, float) { return slope * x; }, 0.005f, &rng);
   for (bool local : {true, false}) {
-    gf::VoxelGroundFilterParams p;
+    gf::VoxelGroundFilterParams p = groundLevel();
     p.local_planes = local;
     EXPECT_GE(agreement(run(c, p), c.truth), 0.99) << "local_planes=" << local;
   }
@@ -162,7 +170,7 @@ TEST(VoxelGroundFilter, TwoLevelsJoinedByRamp) {
   const auto labels = run(c);
   EXPECT_GE(agreement(labels, c.truth), 0.98);
   // The single paper plane cannot follow two levels: local planes are what makes this pass.
-  gf::VoxelGroundFilterParams global;
+  gf::VoxelGroundFilterParams global = groundLevel();
   global.local_planes = false;
   EXPECT_LT(agreement(run(c, global), c.truth), agreement(labels, c.truth));
 }
@@ -214,7 +222,7 @@ TEST(VoxelGroundFilter, GroundUnderOverhangAndBesideBoxes) {
 
 TEST(VoxelGroundFilter, PaperGlobalPlaneModeSeparatesBox) {
   const Cloud c = planeWithBox(11);
-  gf::VoxelGroundFilterParams p;
+  gf::VoxelGroundFilterParams p = groundLevel();
   p.local_planes = false;
   p.plane_distance = 0.10;
   const auto labels = run(c, p);
@@ -242,7 +250,7 @@ TEST(VoxelGroundFilter, ZRangeOfEachVoxelDecidesFlatness) {
   patch(-4.f, 0.f, -2.f, 2.f, 0.01f, 0.03f, true);      // A
   patch(1.f, 7.f, -3.f, 3.f, 0.51f, 0.05f, false);      // B
   patch(-7.f, -6.f, -0.5f, 0.5f, -0.3f, 0.03f, false);  // C
-  gf::VoxelGroundFilterParams p;
+  gf::VoxelGroundFilterParams p = groundLevel();
   p.local_planes = false;
   const auto labels = run(c, p);
   ASSERT_EQ(labels.size(), c.size());
@@ -285,7 +293,7 @@ TEST(VoxelGroundFilter, AirborneMorphModeSeparatesRoofsFromASlopedGround) {
   }
   const float nan = std::numeric_limits<float>::quiet_NaN();
   c.add(nan, 0.f, 0.f, false);
-  gf::VoxelGroundFilterParams p;
+  gf::VoxelGroundFilterParams p = groundLevel();
   p.morph_ground = true;
   p.plane_distance = 0.5;
   gf::FilterStats st;
@@ -315,7 +323,7 @@ TEST(VoxelGroundFilter, AirborneMorphModeOnAHugeExtentStaysBounded) {
   for (float u = 0.f; u < 12.f; u += 1.0f) {
     for (float v = 0.f; v < 12.f; v += 1.0f) c.add(3960.f + u, 3960.f + v, 7.0f, false);
   }
-  gf::VoxelGroundFilterParams p;
+  gf::VoxelGroundFilterParams p = groundLevel();
   p.morph_ground = true;
   p.plane_distance = 0.5;
   const auto labels = run(c, p);
@@ -332,7 +340,7 @@ TEST(VoxelGroundFilter, ReusedFilterGivesTheSameLabels) {
   addBox(&a, 2.f, 2.f, 2.f, 2.f, 0.1f, 1.f, 0.05f);
   addSurface(
       &b, -30, 30, -5, 5, 0.1f, [](float, float) { return 3.f; }, 0.01f, &rng);
-  gf::VoxelGroundFilter f;
+  gf::VoxelGroundFilter f(groundLevel());
   std::vector<std::uint8_t> first, other, again;
   f.filter(a.view(), &first);
   f.filter(b.view(), &other);
@@ -353,7 +361,7 @@ TEST(VoxelGroundFilter, ReusedFilterGivesTheSameLabelsToACellNeverGrown) {
       &pole, -5, 5, -5, 5, 0.1f, [](float, float) { return 0.f; }, 0.01f, &rng);
   const std::size_t pole_from = pole.size();
   for (float z = 0.05f; z < 3.f; z += 0.02f) pole.add(25.f, 0.f, z, false);  // no roof: no seeds
-  gf::VoxelGroundFilter f;
+  gf::VoxelGroundFilter f(groundLevel());
   std::vector<std::uint8_t> labels;
   f.filter(slope.view(), &labels);
   f.filter(pole.view(), &labels);
@@ -418,7 +426,7 @@ TEST(VoxelGroundFilter, StridedViewMatchesPacked) {
     std::memcpy(&buf[i * stride + 9], &c.xyz[3 * i + 0], 4);
     std::memcpy(&buf[i * stride + 13], &c.xyz[3 * i + 1], 4);
   }
-  gf::VoxelGroundFilter f;
+  gf::VoxelGroundFilter f(groundLevel());
   std::vector<std::uint8_t> strided;
   f.filter(gf::CloudView(buf.data(), c.size(), stride, 9, 13, 1), &strided);
   EXPECT_EQ(strided, run(c));
@@ -439,7 +447,7 @@ TEST(VoxelGroundFilter, EveryRecordLayoutGivesTheSameLabels) {
     for (std::size_t i = 0; i < c.size(); ++i) {
       std::memcpy(&buf[i * stride + xo], &c.xyz[3 * i], 12);
     }
-    gf::VoxelGroundFilter f;
+    gf::VoxelGroundFilter f(groundLevel());
     std::vector<std::uint8_t> labels;
     gf::FilterStats st;
     f.filter(gf::CloudView(buf.data(), c.size(), stride, xo, xo + 4, xo + 8), &labels, &st);
@@ -534,7 +542,7 @@ TEST(VoxelGroundFilter, SameLabelsForAnyThreadCountOnLargeClouds) {
   for (bool wide : {false, true}) {
     const Cloud c = largeScene(wide);
     ASSERT_GT(c.size(), 200000u);
-    gf::VoxelGroundFilterParams p;
+    gf::VoxelGroundFilterParams p = groundLevel();
     p.threads = 1;
     const auto ref = run(c, p);
     EXPECT_GT(agreement(ref, c.truth, 1), 0.9) << "wide " << wide;  // ground found
@@ -561,7 +569,7 @@ TEST(VoxelGroundFilter, SameLabelsForAnyThreadCountOnLargeClouds) {
     }
   }
   const Cloud c = largeScene(false, true);
-  gf::VoxelGroundFilterParams p;
+  gf::VoxelGroundFilterParams p = groundLevel();
   p.threads = 1;
   const auto ref = run(c, p);
   EXPECT_GT(agreement(ref, c.truth, 1), 0.5);  // coarse cells (capped cell count), still ground
@@ -676,7 +684,7 @@ TEST(VoxelGroundFilterVegetation, GroundBesideADenseSheetStays) {
 
 TEST(VoxelGroundFilterParams, ValidationRejectsBadValues) {
   auto expectBad = [](const char* name, const char* value) {
-    gf::VoxelGroundFilterParams p;
+    gf::VoxelGroundFilterParams p = groundLevel();
     p.set(name, value);
     EXPECT_THROW(p.validate(), std::invalid_argument) << name << "=" << value;
     EXPECT_THROW(gf::VoxelGroundFilter{p}, std::invalid_argument);
@@ -689,7 +697,7 @@ TEST(VoxelGroundFilterParams, ValidationRejectsBadValues) {
   expectBad("tile_size", "0.1");
   expectBad("threads", "-1");
   expectBad("veg_min_height", "1.5");  // above veg_max_height (1.2): an inverted clutter band
-  gf::VoxelGroundFilterParams p;
+  gf::VoxelGroundFilterParams p = groundLevel();
   EXPECT_NO_THROW(p.validate());
   EXPECT_THROW(p.set("no_such_parameter", "1"), std::invalid_argument);
   EXPECT_THROW(p.set("voxel_size", "ten"), std::invalid_argument);
@@ -734,7 +742,7 @@ bool readKitti(const std::string& stem, std::vector<float>* pts, std::vector<std
 TEST(VoxelGroundFilterKitti, PooledF1AboveFloor) {
   const std::string dir = std::string(GF_DATA_DIR) + "/semantickitti/seq00/";
   GF_SKIP_WITHOUT_DATA(dir);
-  gf::VoxelGroundFilter f;
+  gf::VoxelGroundFilter f(groundLevel());
   std::uint64_t tp = 0, fp = 0, fn = 0;
   for (const char* frame : {"000000", "000001", "000002"}) {
     std::vector<float> pts;
@@ -767,7 +775,7 @@ std::vector<std::vector<std::uint8_t>> gridBytes(
   gf::voxel::VoxelGrid g;
   gf::voxel::CellGrid cells;
   gf::voxel::WorkerPool pool;
-  gf::VoxelGroundFilterParams p;
+  gf::VoxelGroundFilterParams p = groundLevel();
   p.local_planes = local_planes;  // the flat list: flat seed candidates, or every flat voxel
   const std::size_t n = vz.prepare(view, p.voxel_size, threads, &pool, nullptr, &g);
   auto bytes = [](const auto& v, std::size_t count) {
@@ -886,7 +894,7 @@ TEST(Voxelizer, ThreadsGiveTheSerialGrid) {
     }
   }
   // The whole filter on the survey tile.
-  gf::VoxelGroundFilterParams p;
+  gf::VoxelGroundFilterParams p = groundLevel();
   p.threads = 1;
   const auto ref = run(survey, p);
   EXPECT_GT(agreement(ref, survey.truth, 1), 0.9);

@@ -33,6 +33,10 @@ struct FilterStats {
   double total_ms = 0.0;          ///< wall time of the whole call
   std::string backend;            ///< neighbour backend actually used ("" when not applicable)
   std::string note;               ///< e.g. the reason for a backend fallback; empty when none
+  /// The kind of scan this one was run as: "ground", "tls" (both the method's own steps) or
+  /// "airborne" (the morphological surface); parameter scan_type. "" for a filter without one.
+  std::string scan_type;
+  std::string scan_reason;  ///< why: the parameter that set it, or what scan_type auto measured
   /// Named stage timings in milliseconds, in execution order.
   std::vector<std::pair<std::string, double>> stage_ms;
 };
@@ -60,6 +64,14 @@ class GroundFilter {
                             FilterStats* /*stats*/ = nullptr) {
     return false;
   }
+  /// \brief The sensor origin in the view's frame (WorkingVolumeFilter::setOrigin passes its
+  ///        centre on): scan_type auto looks at the points from there. Default: ignored.
+  virtual void setSensorOrigin(float /*x*/, float /*y*/, float /*z*/) {}
+  /// \brief True when this filter will run `cloud` as an airborne scan (scan_type): the
+  ///        working volume then drops its max_range for this scan (a survey tile need not lie
+  ///        near the origin). The decision holds for the next filter() call, also when that
+  ///        gets only part of `cloud`. Default: false.
+  virtual bool airborneScan(const CloudView& /*cloud*/) { return false; }
   /// \brief Short method name ("voxel", "normal").
   virtual std::string name() const = 0;
 };

@@ -32,6 +32,10 @@ class NormalGroundFilter : public GroundFilter {
   void filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
               FilterStats* stats = nullptr) override;
   std::string name() const override { return "normal"; }
+  /// \brief The origin scan_type auto looks from.
+  void setSensorOrigin(float x, float y, float z) override;
+  /// \brief True when scan_type (or morph_ground) makes `cloud` an airborne scan.
+  bool airborneScan(const CloudView& cloud) override;
 
   /// \brief The parameters in use.
   const NormalGroundFilterParams& params() const { return params_; }

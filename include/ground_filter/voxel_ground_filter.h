@@ -36,10 +36,14 @@ class VoxelGroundFilter : public GroundFilter {
   void filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
               FilterStats* stats = nullptr) override;
   /// \brief filter(), when the bounds of the finite points (taken in the first pass anyway)
-  ///        lie inside `volume`; false otherwise, and always in the morph_ground mode.
+  ///        lie inside `volume`; false otherwise, and always for an airborne scan.
   bool filterInside(const CloudView& cloud, const WorkingVolume& volume,
                     std::vector<std::uint8_t>* labels, FilterStats* stats = nullptr) override;
   std::string name() const override { return "voxel"; }
+  /// \brief The origin scan_type auto looks from.
+  void setSensorOrigin(float x, float y, float z) override;
+  /// \brief True when scan_type (or morph_ground) makes `cloud` an airborne scan.
+  bool airborneScan(const CloudView& cloud) override;
 
   /// \brief The parameters in use.
   const VoxelGroundFilterParams& params() const { return params_; }

@@ -18,6 +18,7 @@
 #include "normal/stage_times.h"
 #include "normal/vegetation.h"
 #include "normal/vote.h"
+#include "scan_type.h"
 
 namespace ground_filter {
 
@@ -33,12 +34,14 @@ struct NormalGroundFilter::Impl {
   normal::VegetationStage vegetation;                  // veg_filter only
   std::vector<std::uint8_t> candidate, voted, ground;  // per ordered point
   std::vector<float> heights;                          // above the tile plane, veg_filter only
-  MorphGround morph;                                   // morph_ground (airborne) only
+  MorphGround morph;                                   // airborne scans only
+  ScanTypeSwitch scan;                                 // scan_type: this scan's mode
+  explicit Impl(const NormalGroundFilterParams& p) : scan(p.scan_type, p.morph_ground) {}
 };
 
-NormalGroundFilter::NormalGroundFilter(const NormalGroundFilterParams& params)
-    : params_(params), impl_(std::make_unique<Impl>()) {
+NormalGroundFilter::NormalGroundFilter(const NormalGroundFilterParams& params) : params_(params) {
   params_.validate();
+  impl_ = std::make_unique<Impl>(params_);
   impl_->search = makeNeighborSearch(params_.knn_backend, params_.threads, &backend_note_);
   // A GPU backend keeps the lists in GPU memory; PCA and vote counts then run there.
   impl_->search->keepListsOnDevice(true);
@@ -46,8 +49,9 @@ NormalGroundFilter::NormalGroundFilter(const NormalGroundFilterParams& params)
 
 NormalGroundFilter::NormalGroundFilter(const NormalGroundFilterParams& params,
                                        std::unique_ptr<NeighborSearch> search)
-    : params_(params), impl_(std::make_unique<Impl>()) {
+    : params_(params) {
   params_.validate();
+  impl_ = std::make_unique<Impl>(params_);
   if (!search) throw std::invalid_argument("NormalGroundFilter: null neighbour backend");
   impl_->search = std::move(search);
   impl_->search->keepListsOnDevice(true);
@@ -56,6 +60,14 @@ NormalGroundFilter::NormalGroundFilter(const NormalGroundFilterParams& params,
 NormalGroundFilter::~NormalGroundFilter() = default;
 
 std::string NormalGroundFilter::backend() const { return impl_->search->name(); }
+
+void NormalGroundFilter::setSensorOrigin(float x, float y, float z) {
+  impl_->scan.setOrigin(x, y, z);
+}
+
+bool NormalGroundFilter::airborneScan(const CloudView& cloud) {
+  return impl_->scan.pin(cloud).type == ScanType::kAirborne;
+}
 
 void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
                                 FilterStats* stats) {
@@ -75,11 +87,13 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
 
   // ---- airborne mode: the morphological surface replaces the normals and tile planes (on a
   //      nadir scan the lowest return per cell is the better ground evidence, see the docs).
-  if (p.morph_ground) {
+  //      scan_type decides per scan (morph_ground: always); the GPU pipeline never sees these.
+  const ScanDecision& scan = im.scan.decide(cloud);
+  st.scan_type = scanTypeName(scan.type);
+  st.scan_reason = scan.reason;
+  if (scan.type == ScanType::kAirborne) {
     const auto t0 = Clock::now();
-    const MorphGroundSettings ms{p.morph_cell, p.morph_slope, p.morph_window, p.plane_distance,
-                                 p.morph_scale};
-    st.invalid_points = cloud.size() - im.morph.run(cloud, ms, labels);
+    st.invalid_points = cloud.size() - im.morph.run(cloud, airborneSettings(p), labels);
     st.stage_ms.emplace_back("morph", msSince(t0));
     st.ground_points = static_cast<std::size_t>(std::count(labels->begin(), labels->end(), 1));
     st.total_ms = msSince(t_start);

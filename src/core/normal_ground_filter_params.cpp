@@ -5,6 +5,7 @@
 #include <string>
 
 #include "ground_filter/neighbors/neighbor_search_factory.h"
+#include "scan_type.h"
 #include "shared_param_rows.h"
 
 namespace ground_filter {
@@ -49,6 +50,7 @@ void NormalGroundFilterParams::validate() const {
   // The angle window must contain the vertical (90 deg) and reach at most 90 deg from it: the
   // table's ranges say exactly that.
   checkParamRanges(table(), *this);
+  validateScanTypeSetting(scan_type);
   if (veg_min_height > veg_max_height) {
     throw std::invalid_argument("parameter 'veg_min_height' must not exceed veg_max_height");
   }

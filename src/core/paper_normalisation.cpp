@@ -16,6 +16,7 @@ VoxelGroundFilterParams paperVoxelParams() {
   p.plane_distance = 0.10;
   p.std_filter = true;
   p.std_multiplier = 1.0;
+  p.scan_type = "ground";  // the paper's steps only (its segments are not whole scans)
   return p;
 }
 

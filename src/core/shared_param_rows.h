@@ -10,7 +10,8 @@ namespace ground_filter {
 
 /// \brief A method's own rows followed by the rows every method has, in one place so their
 ///        ranges cannot drift apart: the airborne morphological ground mode (morph_*, the same
-///        MorphGround stage in both filters) and the worker threads. P needs the members named
+///        MorphGround stage in both filters), the worker threads and scan_type (which picks that
+///        mode per scan). P needs the members named
 ///        below.
 template <typename P>
 ParamTable<P> withSharedParamRows(std::initializer_list<ParamSpec<P>> own) {
@@ -25,6 +26,7 @@ ParamTable<P> withSharedParamRows(std::initializer_list<ParamSpec<P>> own) {
           {"morph_window", &P::morph_window, 0.1, 1000.0, "m", "morph: largest opening radius"},
           {"morph_scale", &P::morph_scale, 0.0, 100.0, "m", "morph: threshold per unit gradient"},
           {"threads", &P::threads, 0, 256, "threads", "worker threads, 0 = all cores"},
+          {"scan_type", &P::scan_type, 0, 0, "enum", "auto | ground | airborne | tls"},
       });
   return rows;
 }

@@ -9,6 +9,7 @@
 #include "ground_filter/param_parse.h"
 #include "ground_filter/working_volume.h"
 #include "morph_ground.h"
+#include "scan_type.h"
 #include "voxel/classify.h"
 #include "voxel/ground_model.h"
 #include "voxel/segments.h"
@@ -43,12 +44,14 @@ struct VoxelGroundFilter::Impl {
   voxel::Voter voter;
   voxel::VegetationRule vegetation;  // veg_filter only
   voxel::WorkerPool pool;            // threads > 1 only
-  MorphGround morph;                 // morph_ground (airborne) only
+  MorphGround morph;                 // airborne scans only
+  ScanTypeSwitch scan;               // scan_type: this scan's mode
+  explicit Impl(const VoxelGroundFilterParams& p) : scan(p.scan_type, p.morph_ground) {}
 };
 
-VoxelGroundFilter::VoxelGroundFilter(const VoxelGroundFilterParams& params)
-    : params_(params), impl_(std::make_unique<Impl>()) {
+VoxelGroundFilter::VoxelGroundFilter(const VoxelGroundFilterParams& params) : params_(params) {
   params_.validate();
+  impl_ = std::make_unique<Impl>(params_);
 }
 
 VoxelGroundFilter::~VoxelGroundFilter() = default;
@@ -60,7 +63,16 @@ void VoxelGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>
 
 bool VoxelGroundFilter::filterInside(const CloudView& cloud, const WorkingVolume& volume,
                                      std::vector<std::uint8_t>* labels, FilterStats* stats) {
-  return !params_.morph_ground && run(cloud, &volume, labels, stats);
+  impl_->scan.setOrigin(volume.origin[0], volume.origin[1], volume.origin[2]);
+  return impl_->scan.pin(cloud).type != ScanType::kAirborne && run(cloud, &volume, labels, stats);
+}
+
+void VoxelGroundFilter::setSensorOrigin(float x, float y, float z) {
+  impl_->scan.setOrigin(x, y, z);
+}
+
+bool VoxelGroundFilter::airborneScan(const CloudView& cloud) {
+  return impl_->scan.pin(cloud).type == ScanType::kAirborne;
 }
 
 bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
@@ -84,11 +96,15 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
   labels->assign(cloud.size(), kNonGround);
   const VoxelGroundFilterParams& p = params_;
   const int threads = p.threads > 0 ? p.threads : omp_get_max_threads();
-  if (p.morph_ground) {  // airborne mode: the morphological surface replaces steps 1-8
+  const ScanDecision& scan = m.scan.decide(cloud);
+  if (stats) {  // reserved once: reused stats allocate nothing
+    st.scan_type = scanTypeName(scan.type);
+    st.scan_reason.reserve(ScanTypeClassifier::kReasonRoom);
+    st.scan_reason = scan.reason;
+  }
+  if (scan.type == ScanType::kAirborne) {  // the morphological surface replaces steps 1-8
     const auto t0 = Clock::now();
-    const MorphGroundSettings ms{p.morph_cell, p.morph_slope, p.morph_window, p.plane_distance,
-                                 p.morph_scale};
-    st.invalid_points = cloud.size() - m.morph.run(cloud, ms, labels);
+    st.invalid_points = cloud.size() - m.morph.run(cloud, airborneSettings(p), labels);
     stage("morph", t0);
     st.ground_points = static_cast<std::size_t>(std::count(labels->begin(), labels->end(), 1));
     st.total_ms = msSince(t_start);

@@ -3,6 +3,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "scan_type.h"
 #include "shared_param_rows.h"
 
 namespace ground_filter {
@@ -37,6 +38,7 @@ const ParamTable<VoxelGroundFilterParams>& VoxelGroundFilterParams::table() {
 
 void VoxelGroundFilterParams::validate() const {
   checkParamRanges(table(), *this);
+  validateScanTypeSetting(scan_type);
   if (tile_size < 2.0 * voxel_size) {
     throw std::invalid_argument("parameter 'tile_size' must be at least 2 * voxel_size");
   }

@@ -73,6 +73,7 @@ WorkingVolumeFilter::WorkingVolumeFilter(std::unique_ptr<GroundFilter> inner,
     : inner_(std::move(inner)), volume_(volume) {
   if (!inner_) throw std::invalid_argument("WorkingVolumeFilter needs an inner filter");
   volume_.validate();
+  inner_->setSensorOrigin(volume_.origin[0], volume_.origin[1], volume_.origin[2]);
 }
 
 void WorkingVolumeFilter::setOrigin(float x, float y, float z) {
@@ -82,6 +83,7 @@ void WorkingVolumeFilter::setOrigin(float x, float y, float z) {
   v.origin[2] = z;
   v.validate();
   volume_ = v;
+  inner_->setSensorOrigin(x, y, z);
 }
 
 void WorkingVolumeFilter::setPose(const float origin[3], const float rotation[9]) {
@@ -113,29 +115,31 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
     return;
   }
   // Cheap first pass: most scans have no far point and go to the inner filter without a copy.
+  // Far points (outside the ball or the hard limit) and, with min_range or a body box, near ones.
+  WorkingVolume volume = volume_;
   std::size_t out_of_range = 0;
   std::size_t near = 0;
-  if (!exclusions) {
-    for (std::size_t i = 0; i < n; ++i) {
-      const float x = cloud.x(i), y = cloud.y(i), z = cloud.z(i);
-      // contains() is false for NaN/Inf too: only then tell the two apart.
-      if (!volume_.contains(x, y, z) && std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) {
-        ++out_of_range;
-      }
-    }
-    ask_inner_ = !asked && out_of_range == 0;
-  } else {
+  auto countOutside = [&]() {
+    out_of_range = near = 0;
     for (std::size_t i = 0; i < n; ++i) {
       const float x = cloud.x(i), y = cloud.y(i), z = cloud.z(i);
       if (!(std::isfinite(x) && std::isfinite(y) && std::isfinite(z))) continue;
-      if (!volume_.contains(x, y, z)) {
+      if (!volume.contains(x, y, z)) {
         ++out_of_range;
-      } else if (volume_.excluded(x, y, z)) {
+      } else if (exclusions && volume.excluded(x, y, z)) {
         ++near;
       }
     }
-    ask_inner_ = true;  // asked again once the exclusions are off
+  };
+  countOutside();
+  // An airborne scan (scan_type) is not cut by max_range: a survey tile need not lie near the
+  // origin. Only the hard limit holds.
+  if (out_of_range > 0 && volume.max_range > 0.0 && inner_->airborneScan(cloud)) {
+    volume.max_range = 0.0;
+    countOutside();
   }
+  // With exclusions: asked again once they are off.
+  ask_inner_ = exclusions || (!asked && out_of_range == 0);
   if (out_of_range == 0 && near == 0) {
     inner_->filter(cloud, labels, stats);
     if (stats) {
@@ -155,7 +159,7 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
     float x, y, z;
     if (!cloud.get(i, &x, &y, &z)) {
       ++invalid;
-    } else if (volume_.contains(x, y, z) && !(exclusions && volume_.excluded(x, y, z))) {
+    } else if (volume.contains(x, y, z) && !(exclusions && volume.excluded(x, y, z))) {
       xyz_.push_back(x);
       xyz_.push_back(y);
       xyz_.push_back(z);
@@ -166,9 +170,9 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
 
   FilterStats inner_stats;
   inner_labels_.clear();
-  if (!kept_.empty()) {
-    inner_->filter(CloudView::packedXyz(xyz_.data(), kept_.size()), &inner_labels_, &inner_stats);
-  }
+  // Also with no point left: the inner filter still reports its scan type (and takes the
+  // decision airborneScan() kept).
+  inner_->filter(CloudView::packedXyz(xyz_.data(), kept_.size()), &inner_labels_, &inner_stats);
   if (inner_labels_.size() != kept_.size()) {
     throw std::runtime_error(inner_->name() + " filter returned " +
                              std::to_string(inner_labels_.size()) + " labels for " +

@@ -414,7 +414,9 @@ void GroundFilterNodelet::publish(const ProcessedCloud& out, double ms) {
                           methodName().c_str(), out.stats.out_of_range_points, points,
                           kWorkingVolumeHardLimit);
   }
-  monitor_.recordCloud(ms, out.stats.backend, note);
+  monitor_.recordCloud(ms, out.stats.backend, note,
+                       out.stats.scan_type + (out.stats.scan_reason.empty() ? "" : " (") +
+                           out.stats.scan_reason + (out.stats.scan_reason.empty() ? "" : ")"));
   NODELET_DEBUG(
       "%s: %zu points in, %zu ground, %zu non-ground (%zu NaN/Inf, %zu out of range), filter "
       "%.2f ms, total %.2f ms",

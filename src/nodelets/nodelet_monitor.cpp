@@ -47,12 +47,14 @@ NodeletMonitor::StreamChange NodeletMonitor::checkStream(const std_msgs::Header&
   return change;
 }
 
-void NodeletMonitor::recordCloud(double ms, const std::string& backend, const std::string& note) {
+void NodeletMonitor::recordCloud(double ms, const std::string& backend, const std::string& note,
+                                 const std::string& scan_type) {
   std::lock_guard<std::mutex> lock(mutex_);
   window_ms_sum_ += ms;
   window_ms_max_ = std::max(window_ms_max_, ms);
   ++window_clouds_;
   backend_ = backend;
+  scan_type_ = scan_type;
   if (!note.empty()) fallback_note_ = note;
 }
 
@@ -65,7 +67,7 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
   CounterValues last;
   double ms_sum, ms_max, dt;
   std::uint64_t clouds;
-  std::string backend, note;
+  std::string backend, note, scan_type;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     ms_sum = window_ms_sum_;
@@ -75,6 +77,7 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
     window_clouds_ = 0;
     backend = backend_;
     note = fallback_note_;
+    scan_type = scan_type_;
     dt = std::max(1e-6, (now - last_diagnose_).toSec());
     last_diagnose_ = now;
     last = last_counts_;
@@ -127,6 +130,7 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
 
   status.add("method", method);
   status.add("backend", backend.empty() ? std::string("n/a (no neighbour search)") : backend);
+  status.add("scan type", scan_type.empty() ? std::string("n/a (no cloud)") : scan_type);
   status.add("gravity frame", gravity_frame.empty() ? std::string("(input frame)") : gravity_frame);
   status.addf("input rate [Hz]", "%.2f", in_hz);
   status.addf("output rate [Hz]", "%.2f", out_hz);

@@ -97,8 +97,9 @@ class NodeletMonitor {
   StreamChange checkStream(const std_msgs::Header& header);
 
   /// \brief Records one published cloud: callback-to-publish time [ms], the backend that ran
-  ///        and its fallback note (empty: none).
-  void recordCloud(double ms, const std::string& backend, const std::string& note);
+  ///        and its fallback note (empty: none); the scan type it ran as and why (FilterStats).
+  void recordCloud(double ms, const std::string& backend, const std::string& note,
+                   const std::string& scan_type = std::string());
 
   /// \brief Fills the status: rates and times since the previous call, drops and stream
   ///        problems (WARN while they occur), totals; ERROR without a filter configuration.
@@ -115,6 +116,7 @@ class NodeletMonitor {
   std::uint64_t window_clouds_ = 0;
   std::string backend_;        // FilterStats::backend of the last cloud
   std::string fallback_note_;  // last non-empty FilterStats::note
+  std::string scan_type_;      // FilterStats::scan_type and scan_reason of the last cloud
   ros::WallTime last_diagnose_;
   CounterValues last_counts_;  // at the previous diagnostic update
   ros::WallTime last_log_[kLogSlotCount];

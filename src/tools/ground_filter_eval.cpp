@@ -47,7 +47,8 @@ const char kUsage[] =
     "--json              print exactly one JSON object instead of the table:\n"
     "                    {\"files\":[{\"file\",\"points\",\"ground\",\"ms\",\n"
     "                    \"tp\",\"fp\",\"tn\",\"fn\",\"accuracy\",\"precision\",\n"
-    "                    \"recall\",\"f1\",\"iou\"}...],\"pooled\":{...}}\n"
+    "                    \"recall\",\"f1\",\"iou\",\"scan_type\",\"scan_reason\"}...],\n"
+    "                    \"pooled\":{...}}\n"
     "                    metrics are fractions in [0,1]; null where a file has no labels or a\n"
     "                    ratio is 0/0\n"
     "--write-labels DIR  write the labels of every scan into DIR, as --label-format says\n"
@@ -134,6 +135,7 @@ struct FileResult {
   bool labelled = false;
   gf::Confusion confusion;
   DropResult drop;
+  std::string scan_type, scan_reason;  // FilterStats of the last run (parameter scan_type)
 };
 
 Options parseArgs(int argc, char** argv) {
@@ -278,9 +280,10 @@ int run(const Options& opt) {
     const gf::Scan scan = gf::loadScan(file);
     const gf::CloudView view = gf::viewOf(scan.cloud);
     std::vector<double> times;
+    gf::FilterStats stats;
     for (int r = 0; r < opt.repeat; ++r) {
       const auto t0 = std::chrono::steady_clock::now();
-      filter->filter(view, &labels);
+      filter->filter(view, &labels, &stats);
       times.push_back(cli::msSince(t0));
     }
     if (labels.size() != view.size()) {
@@ -293,6 +296,8 @@ int run(const Options& opt) {
     res.ground = static_cast<std::size_t>(std::count(labels.begin(), labels.end(), 1));
     res.ms = cli::median(times);
     res.labelled = scan.labelled();
+    res.scan_type = stats.scan_type;
+    res.scan_reason = stats.scan_reason;
     if (res.labelled) res.confusion = gf::countConfusion(labels, scan.truth);
     if (opt.classes && res.labelled && !scan.semantic.empty()) {
       gf::addClassCounts(labels, scan.truth, scan.semantic, &classes);
@@ -328,7 +333,9 @@ int run(const Options& opt) {
     for (std::size_t i = 0; i < results.size(); ++i) {
       const auto& r = results[i];
       os << (i ? "," : "") << jsonRecord(r.file, r.points, r.ground, r.ms, r.labelled, r.confusion)
-         << ",\"labelled\":" << (r.labelled ? "true" : "false") << "}";
+         << ",\"labelled\":" << (r.labelled ? "true" : "false")
+         << ",\"scan_type\":" << jsonString(r.scan_type)
+         << ",\"scan_reason\":" << jsonString(r.scan_reason) << "}";
     }
     os << "],\"pooled\":" << jsonRecord("pooled", points, ground, ms, labelled_files > 0, pooled)
        << ",\"file_count\":" << results.size() << ",\"labelled_files\":" << labelled_files
@@ -367,6 +374,11 @@ int run(const Options& opt) {
   printRow(name_w, "pooled", points, ground, ms, labelled_files > 0, pooled);
   std::printf("%zu file(s), %zu labelled; pooled ms = sum over files\n", results.size(),
               labelled_files);
+  std::printf("\nscan type per file (parameter scan_type)\n");
+  for (const auto& r : results) {
+    std::printf("%-*s %-8s %s\n", static_cast<int>(name_w), r.file.c_str(), r.scan_type.c_str(),
+                r.scan_reason.c_str());
+  }
   if (opt.drop_one > 0) {
     std::printf(
         "\none point left out at a time (evenly spread finite points): labels of the other "

@@ -1,0 +1,202 @@
+#include "scan_type.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <numeric>
+#include <stdexcept>
+
+namespace ground_filter {
+
+namespace {
+
+// tan(30 deg): a point 30 deg or more above the origin rises at least this much per metre.
+constexpr double kTan30 = 0.57735026918962576;
+// Points closer to the origin than this on every axis are no-return placeholders (an organised
+// scan's empty cells at 0, 0, 0), not returns.
+constexpr float kPlaceholder = 1e-3f;
+
+// The q-quantile of v (reorders v).
+float quantile(std::vector<float>* v, double q) {
+  const std::size_t k = std::min(v->size() - 1, static_cast<std::size_t>(q * (v->size() - 1)));
+  std::nth_element(v->begin(), v->begin() + static_cast<std::ptrdiff_t>(k), v->end());
+  return (*v)[k];
+}
+
+}  // namespace
+
+const char* scanTypeName(ScanType type) {
+  switch (type) {
+    case ScanType::kAirborne:
+      return "airborne";
+    case ScanType::kTls:
+      return "tls";
+    case ScanType::kGround:
+      break;
+  }
+  return "ground";
+}
+
+const std::vector<std::string>& scanTypeSettings() {
+  static const std::vector<std::string> values = {"auto", "ground", "airborne", "tls"};
+  return values;
+}
+
+void validateScanTypeSetting(const std::string& value) {
+  const auto& v = scanTypeSettings();
+  if (std::find(v.begin(), v.end(), value) != v.end()) return;
+  std::string known;
+  for (const auto& s : v) known += (known.empty() ? "" : ", ") + s;
+  throw std::invalid_argument("parameter 'scan_type' = '" + value + "' is not one of " + known);
+}
+
+ScanMeasures ScanTypeClassifier::measure(const CloudView& cloud, const float origin[3]) {
+  ScanMeasures m;
+  const std::size_t n = cloud.size();
+  const std::size_t step = std::max<std::size_t>(1, (n + kMaxSamples - 1) / kMaxSamples);
+  xs_.clear();
+  ys_.clear();
+  zs_.clear();
+  depth_.clear();
+  std::size_t below = 0, high = 0;
+  for (std::size_t i = 0; i < n; i += step) {
+    float x, y, z;
+    if (!cloud.get(i, &x, &y, &z)) continue;
+    const float dx = x - origin[0], dy = y - origin[1], dz = z - origin[2];
+    if (std::fabs(dx) < kPlaceholder && std::fabs(dy) < kPlaceholder &&
+        std::fabs(dz) < kPlaceholder) {
+      continue;
+    }
+    xs_.push_back(x);
+    ys_.push_back(y);
+    // Squared horizontal distance against squared height: the angles without a square root.
+    const double h2 = static_cast<double>(dx) * dx + static_cast<double>(dy) * dy;
+    const double dz2 = static_cast<double>(dz) * dz;
+    if (dz < 0.f) ++below;
+    if (dz < 0.f && h2 <= dz2) depth_.push_back(-dz);  // 45 deg or more below the origin
+    if (dz > 0.f && dz2 >= kTan30 * kTan30 * h2) ++high;
+  }
+  m.sampled = xs_.size();
+  if (m.sampled == 0) return m;
+  const double ns = static_cast<double>(m.sampled);
+  m.below_share = below / ns;
+  m.high_share = high / ns;
+  m.steep_share = depth_.size() / ns;
+  if (!depth_.empty()) m.steep_depth = quantile(&depth_, 0.5);
+
+  // xy box without the outermost percent on each side (a stray far return does not stretch it).
+  tmp_ = xs_;
+  const float x0 = quantile(&tmp_, 0.01), x1 = quantile(&tmp_, 0.99);
+  tmp_ = ys_;
+  const float y0 = quantile(&tmp_, 0.01), y1 = quantile(&tmp_, 0.99);
+  m.extent = std::max(x1 - x0, y1 - y0);
+  if (!(m.extent > 0.0)) return m;
+  // About 16 points a cell on an evenly covered box, at most 64 cells a side.
+  const int side = std::max(4, std::min(64, static_cast<int>(std::sqrt(ns / 16.0))));
+  m.cell = m.extent / side;
+  const int nx = std::max(1, std::min(side, static_cast<int>(std::ceil((x1 - x0) / m.cell))));
+  const int ny = std::max(1, std::min(side, static_cast<int>(std::ceil((y1 - y0) / m.cell))));
+  counts_.assign(static_cast<std::size_t>(nx) * ny, 0);
+  for (std::size_t i = 0; i < xs_.size(); ++i) {
+    if (xs_[i] < x0 || xs_[i] > x1 || ys_[i] < y0 || ys_[i] > y1) continue;
+    const int cx = std::min(nx - 1, static_cast<int>((xs_[i] - x0) / m.cell));
+    const int cy = std::min(ny - 1, static_cast<int>((ys_[i] - y0) / m.cell));
+    ++counts_[static_cast<std::size_t>(cy) * nx + cx];
+  }
+  counts_.erase(std::remove(counts_.begin(), counts_.end(), 0u), counts_.end());
+  m.cells = counts_.size();
+  if (counts_.empty()) return m;
+  std::sort(counts_.begin(), counts_.end(), std::greater<std::uint32_t>());
+  const std::size_t top = (counts_.size() + 9) / 10;
+  const double all = std::accumulate(counts_.begin(), counts_.end(), 0.0);
+  m.top_share = std::accumulate(counts_.begin(), counts_.begin() + top, 0.0) / all;
+  return m;
+}
+
+void ScanTypeClassifier::classify(const CloudView& cloud, const float origin[3], ScanDecision* d) {
+  const ScanMeasures m = measure(cloud, origin);
+  char buf[kReasonRoom];
+  const double cell = m.cell, top = 100.0 * m.top_share, below = 100.0 * m.below_share;
+  const char* cell_fmt = cell < 10.0 ? "%.1f" : "%.0f";
+  char cell_text[16];
+  std::snprintf(cell_text, sizeof(cell_text), cell_fmt, cell);
+  if (m.sampled < kMinPoints) {
+    d->type = ScanType::kGround;
+    std::snprintf(buf, sizeof(buf),
+                  "auto: %zu valid points, too few to judge (fewer than %zu): ground-level mode",
+                  m.sampled, kMinPoints);
+  } else if (!(m.extent >= kMinExtent)) {
+    d->type = ScanType::kGround;
+    std::snprintf(buf, sizeof(buf),
+                  "auto: the points cover %.2f m across, too little to judge (under %.0f m): "
+                  "ground-level mode",
+                  m.extent, kMinExtent);
+  } else if (m.steep_share >= kSteepShare && m.steep_depth >= kNadirDepth) {
+    d->type = ScanType::kAirborne;
+    std::snprintf(buf, sizeof(buf),
+                  "auto: %.0f %% of the points lie 45 deg or more below the origin, median %.0f m "
+                  "down (a sensor looking down); the densest tenth of the %s m xy cells holds "
+                  "%.0f %% of the points",
+                  100.0 * m.steep_share, m.steep_depth, cell_text, top);
+  } else if (m.top_share < kConcentrated) {
+    d->type = ScanType::kAirborne;
+    std::snprintf(buf, sizeof(buf),
+                  "auto: the densest tenth of the %s m xy cells holds %.0f %% of the points (even "
+                  "sampling: nadir; a ground-level scan holds %.0f %% or more); %.0f %% below the "
+                  "origin",
+                  cell_text, top, 100.0 * kConcentrated, below);
+  } else {
+    d->type = m.high_share >= kTlsHighShare ? ScanType::kTls : ScanType::kGround;
+    const int n = std::snprintf(buf, sizeof(buf),
+                                "auto: the densest tenth of the %s m xy cells holds %.0f %% of the "
+                                "points (density falls with range from a ground-level sensor); "
+                                "%.0f %% below the origin",
+                                cell_text, top, below);
+    if (d->type == ScanType::kTls && n > 0 && static_cast<std::size_t>(n) < sizeof(buf)) {
+      std::snprintf(buf + n, sizeof(buf) - n, ", %.0f %% 30 deg or more above it (tripod scanner)",
+                    100.0 * m.high_share);
+    }
+  }
+  d->reason.reserve(kReasonRoom);
+  d->reason.assign(buf);
+}
+
+ScanTypeSwitch::ScanTypeSwitch(const std::string& setting, bool morph_ground) {
+  validateScanTypeSetting(setting);
+  automatic_ = !morph_ground && setting == "auto";
+  if (morph_ground) {
+    fixed_ = {ScanType::kAirborne, "morph_ground: true"};
+  } else if (setting == "airborne") {
+    fixed_ = {ScanType::kAirborne, "scan_type: airborne"};
+  } else if (setting == "tls") {
+    fixed_ = {ScanType::kTls, "scan_type: tls"};
+  } else {
+    fixed_ = {ScanType::kGround, "scan_type: ground"};
+  }
+}
+
+void ScanTypeSwitch::setOrigin(float x, float y, float z) {
+  origin_[0] = x;
+  origin_[1] = y;
+  origin_[2] = z;
+}
+
+const ScanDecision& ScanTypeSwitch::pin(const CloudView& cloud) {
+  if (!automatic_) return fixed_;
+  if (!pinned_) classifier_.classify(cloud, origin_, &last_);  // else: kept for this scan
+  pinned_ = true;
+  return last_;
+}
+
+const ScanDecision& ScanTypeSwitch::decide(const CloudView& cloud) {
+  if (!automatic_) return fixed_;
+  if (pinned_) {
+    pinned_ = false;
+    return last_;
+  }
+  classifier_.classify(cloud, origin_, &last_);
+  return last_;
+}
+
+}  // namespace ground_filter

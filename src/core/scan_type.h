@@ -1,0 +1,143 @@
+// Private to the core: which kind of scan a cloud is (the `scan_type` parameter of both
+// methods) and the mode it runs in.
+#ifndef GROUND_FILTER_SRC_CORE_SCAN_TYPE_H
+#define GROUND_FILTER_SRC_CORE_SCAN_TYPE_H
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "ground_filter/cloud_view.h"
+#include "morph_ground.h"
+
+namespace ground_filter {
+
+/// \brief The kinds of scan the filters tell apart.
+enum class ScanType {
+  kGround,    ///< ground-level sensor (vehicle, robot): the method's own ground model
+  kTls,       ///< terrestrial scanner on a tripod: a ground-level scan, same mode as kGround
+  kAirborne,  ///< airborne / nadir (survey tile, drone): the morphological ground surface
+};
+
+/// \brief "ground", "tls" or "airborne".
+const char* scanTypeName(ScanType type);
+
+/// \brief Values of the `scan_type` parameter: "auto" (decide per scan), "ground", "airborne",
+///        "tls" (force one).
+const std::vector<std::string>& scanTypeSettings();
+
+/// \brief Checks a `scan_type` value.
+/// \throws std::invalid_argument naming the parameter, the value and the known values.
+void validateScanTypeSetting(const std::string& value);
+
+/// \brief A decision: the type and why (for FilterStats and the eval tool).
+struct ScanDecision {
+  ScanType type = ScanType::kGround;
+  std::string reason;
+};
+
+/// \brief What scan_type auto measures on a cloud (ScanTypeClassifier::measure()).
+struct ScanMeasures {
+  std::size_t sampled = 0;   ///< valid points looked at (every step-th valid point)
+  double cell = 0.0;         ///< edge of the xy cells [m]
+  std::size_t cells = 0;     ///< occupied cells
+  double top_share = 0.0;    ///< share of the points in the densest tenth of the cells
+  double below_share = 0.0;  ///< share of the points below the origin's height
+  double steep_share = 0.0;  ///< share of the points >= 45 deg below the origin
+  double steep_depth = 0.0;  ///< median depth of those below the origin [m]
+  double high_share = 0.0;   ///< share of the points >= 30 deg above the origin
+  double extent = 0.0;       ///< larger side of the (1-99 % trimmed) xy box [m]
+};
+
+/// \brief scan_type auto: tells a ground-level scan from an airborne one by where its points
+///        lie, from the cloud alone (docs/scan_types.md).
+///
+/// The rule: a sensor on the ground sees the ground ever more obliquely with range, so the
+/// points per m2 fall steeply with the distance from it (about 1/r^3 for a spinning LiDAR's
+/// rings): a tenth of the xy cells of the scan (those near the sensor) holds most points. A
+/// nadir scanner (aircraft, drone) samples the ground at a nearly even spacing: the densest
+/// tenth of the cells holds little more than a tenth of the points. Frame-free: a survey tile
+/// in map coordinates, whose origin is no sensor, is judged like one centred on its sensor.
+/// A second rule looks from the origin: when most points lie at least 45 deg below it and many
+/// metres down, the origin is a sensor looking down on them (a drone).
+/// Deterministic; looks at up to kMaxSamples evenly spread points (about 0.1 ms).
+class ScanTypeClassifier {
+ public:
+  /// \brief At most this many points are looked at.
+  static constexpr std::size_t kMaxSamples = 8192;
+  /// \brief Fewer valid points: too few to judge, the default (ground-level) mode.
+  static constexpr std::size_t kMinPoints = 64;
+  /// \brief A footprint smaller than this [m] is too small to judge (ground-level mode).
+  static constexpr double kMinExtent = 2.0;
+  /// \brief Ground-level when the densest tenth of the cells holds at least this share.
+  static constexpr double kConcentrated = 0.4;
+  /// \brief A nadir view: at least this share of the points 45 deg or more below the origin...
+  static constexpr double kSteepShare = 0.5;
+  /// \brief ...whose median depth below it is at least this [m] (above any mast or tripod).
+  static constexpr double kNadirDepth = 8.0;
+  /// \brief A tripod scanner: at least this share of the points 30 deg or more above the origin
+  ///        (beyond the field of view of a vehicle's LiDAR); reported only, same mode as ground.
+  static constexpr double kTlsHighShare = 0.03;
+  /// \brief Room for the longest reason [chars]: reserved once, so a stream of scans allocates
+  ///        nothing after the first.
+  static constexpr std::size_t kReasonRoom = 400;
+
+  /// \brief The measures behind the decision (origin: the sensor origin in the view's frame).
+  ScanMeasures measure(const CloudView& cloud, const float origin[3]);
+  /// \brief Decides the type of `cloud` and says why, into `d` (its reason string is reused:
+  ///        no allocation after the first scan).
+  void classify(const CloudView& cloud, const float origin[3], ScanDecision* d);
+
+ private:
+  std::vector<float> xs_, ys_, tmp_;  // sampled points
+  std::vector<float> zs_, depth_;
+  std::vector<std::uint32_t> counts_;
+};
+
+/// \brief Both methods' switch between their ground-level mode and the airborne one: resolves
+///        `scan_type` (and the older `morph_ground`) per scan, keeps the sensor origin, and can
+///        keep a decision that the working volume asked for before the filter runs.
+class ScanTypeSwitch {
+ public:
+  /// \brief `setting` one of scanTypeSettings(); `morph_ground` forces the airborne mode.
+  ScanTypeSwitch(const std::string& setting, bool morph_ground);
+  /// \brief The sensor origin in the views' frame (default 0, 0, 0).
+  void setOrigin(float x, float y, float z);
+  /// \brief Decides for `cloud` and keeps the decision for the next decide() (whatever view it
+  ///        gets: the working volume may hand on only the points inside it); a decision kept
+  ///        already is returned as it is (the same scan, asked twice before it runs).
+  const ScanDecision& pin(const CloudView& cloud);
+  /// \brief The decision for `cloud`: the one pin() kept (used once), else a new one.
+  const ScanDecision& decide(const CloudView& cloud);
+  /// \brief True when decisions are made per scan (scan_type auto, morph_ground off).
+  bool automatic() const { return automatic_; }
+
+ private:
+  bool automatic_ = true;
+  bool pinned_ = false;
+  float origin_[3] = {0.f, 0.f, 0.f};
+  ScanDecision fixed_, last_;
+  ScanTypeClassifier classifier_;
+};
+
+/// \brief Least height threshold of the airborne mode that scan_type picks [m]: SMRF's
+///        published 0.5 m (an airborne return's height is uncertain by decimetres: ranging,
+///        GNSS/IMU, a footprint of decimetres on slopes and crowns). The ground-level default
+///        plane_distance (0.15 m) is below it.
+constexpr double kAirborneMinThreshold = 0.5;
+
+/// \brief The morphological surface's settings of the airborne mode: the morph_* fields and
+///        plane_distance as the threshold; at least kAirborneMinThreshold unless morph_ground
+///        is set (then plane_distance as given, as the presets do).
+template <class P>
+MorphGroundSettings airborneSettings(const P& p) {
+  const double t = p.morph_ground || p.plane_distance > kAirborneMinThreshold
+                       ? p.plane_distance
+                       : kAirborneMinThreshold;
+  return MorphGroundSettings{p.morph_cell, p.morph_slope, p.morph_window, t, p.morph_scale};
+}
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_CORE_SCAN_TYPE_H
