@@ -37,7 +37,11 @@ esac
 
 die() { echo "[platform] ERROR: $*" >&2; exit 1; }
 [ "$(id -u)" = 0 ] || die "needs root (debootstrap, chroot, mount): run it with sudo"
-command -v debootstrap >/dev/null || die "debootstrap is missing: sudo apt-get install debootstrap"
+if ! command -v debootstrap >/dev/null; then
+  echo "[platform] installing debootstrap (apt)"
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq -o DPkg::Lock::Timeout=900 debootstrap \
+    >/dev/null || die "debootstrap is missing and apt could not install it: apt-get install debootstrap"
+fi
 command -v unshare >/dev/null || die "unshare (util-linux) is missing"
 
 GF_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -47,7 +51,8 @@ ROOT="${CACHE}/root"
 CLONE_IN="/work/ground_filter"   # path inside the root; the data is at /work/shared/data
 mkdir -p "${CACHE}"
 
-# This machine's Debian mirror (deb822 .sources or a one-line sources.list), else deb.debian.org.
+# This machine's Debian mirror (deb822 .sources or a one-line sources.list; GF_DEBIAN_MIRROR
+# overrides it).
 mirror() {
   local m=""
   if [ -n "${GF_DEBIAN_MIRROR:-}" ]; then echo "${GF_DEBIAN_MIRROR}"; return; fi
@@ -56,7 +61,8 @@ mirror() {
   [ -n "${m}" ] || m="$(grep -h -E '^deb ' /etc/apt/sources.list 2>/dev/null |
        awk '{for(i=2;i<=NF;i++) if ($i ~ /^https?:/) {print $i; exit}}' | grep -v -- '-security' |
        head -n 1 || true)"
-  echo "${m:-http://deb.debian.org/debian}"
+  [ -n "${m}" ] || die "no Debian mirror found in /etc/apt/sources.list*: set GF_DEBIAN_MIRROR"
+  echo "${m}"
 }
 
 # One run at a time per root.
@@ -89,9 +95,10 @@ if mounted_under; then
   die "something is still mounted under ${ROOT} (a run killed with -9?): umount -R -l those first"
 fi
 if [ "${FRESH}" = 1 ] || [ ! -f "${CACHE}/.base_complete" ]; then
-  phase "debootstrap --variant=minbase ${RELEASE} from $(mirror)"
+  MIRROR="$(mirror)"; [ -n "${MIRROR}" ] || exit 1
+  phase "debootstrap --variant=minbase ${RELEASE} from ${MIRROR}"
   rm -rf "${ROOT}" "${CACHE}/.base_complete" "${CACHE}/.deps_complete"
-  debootstrap --variant=minbase "${RELEASE}" "${ROOT}" "$(mirror)" >"${CACHE}/debootstrap.log" 2>&1 ||
+  debootstrap --variant=minbase "${RELEASE}" "${ROOT}" "${MIRROR}" >"${CACHE}/debootstrap.log" 2>&1 ||
     { tail -n 20 "${CACHE}/debootstrap.log"; die "debootstrap failed (log ${CACHE}/debootstrap.log)"; }
   touch "${CACHE}/.base_complete"
   phase "debootstrap done"
