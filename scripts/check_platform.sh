@@ -12,7 +12,9 @@
 # 4. checks the "existing ROS comes first" path with a stand-in /opt/ros/noetic (Debian's ROS
 #    sourced from /usr) and bad input (ROS 2 distro, broken setup.bash, no network).
 # --quick: the build, the core gtests, one rostest and the demo instead of every test.
-# --fresh: remove the cached root first (a cold run).
+# --fresh: remove the cached root and compiler cache first (a cold run).
+# Compiles go through ccache (CMake's CMAKE_<LANG>_COMPILER_LAUNCHER environment variables, a cache
+# kept beside the root; GF_PLATFORM_CCACHE=0 turns it off), so a second run rebuilds fast.
 # Needs root (debootstrap, chroot, mount, unshare), debootstrap and git on this machine.
 # Exit status 0 only when every step passed. Mounts are undone on exit (also on failure / ^C).
 set -euo pipefail
@@ -97,7 +99,7 @@ fi
 if [ "${FRESH}" = 1 ] || [ ! -f "${CACHE}/.base_complete" ]; then
   MIRROR="$(mirror)"; [ -n "${MIRROR}" ] || exit 1
   phase "debootstrap --variant=minbase ${RELEASE} from ${MIRROR}"
-  rm -rf "${ROOT}" "${CACHE}/.base_complete" "${CACHE}/.deps_complete"
+  rm -rf "${ROOT}" "${CACHE}/.base_complete" "${CACHE}/ccache"
   debootstrap --variant=minbase "${RELEASE}" "${ROOT}" "${MIRROR}" >"${CACHE}/debootstrap.log" 2>&1 ||
     { tail -n 20 "${CACHE}/debootstrap.log"; die "debootstrap failed (log ${CACHE}/debootstrap.log)"; }
   touch "${CACHE}/.base_complete"
@@ -126,6 +128,12 @@ mnt "${ROOT}/dev" --bind /dev
 mnt "${ROOT}/dev/pts" -t devpts devpts -o newinstance,ptmxmode=0666
 mnt "${ROOT}/dev/shm" -t tmpfs tmpfs -o mode=1777
 mnt "${ROOT}/tmp" -t tmpfs tmpfs -o mode=1777
+CCACHE_ENV=""
+if [ "${GF_PLATFORM_CCACHE:-1}" = 1 ]; then
+  mkdir -p "${CACHE}/ccache"
+  mnt "${ROOT}/var/cache/gf-ccache" --bind "${CACHE}/ccache"
+  CCACHE_ENV="CCACHE_DIR=/var/cache/gf-ccache CMAKE_CXX_COMPILER_LAUNCHER=ccache CMAKE_C_COMPILER_LAUNCHER=ccache"
+fi
 
 # A clean login-like environment: nothing of this machine's ROS / Python setup leaks in.
 in_root() {  # in_root [--offline] <bash command>
@@ -135,7 +143,7 @@ in_root() {  # in_root [--offline] <bash command>
   fi
   "${net[@]}" chroot "${ROOT}" /usr/bin/env -i HOME=/root USER=root LOGNAME=root SHELL=/bin/bash \
     PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin LANG=C.UTF-8 TERM=dumb \
-    GF_CHECK_PLATFORM=0 GF_CHECK_ARM64=0 ${GF_PLATFORM_ENV:-} \
+    GF_CHECK_PLATFORM=0 GF_CHECK_ARM64=0 ${CCACHE_ENV} ${GF_PLATFORM_ENV:-} \
     /bin/bash -c "$1"
 }
 
@@ -157,6 +165,11 @@ step() {  # step <name> [--offline] <command>: runs it, times it, records pass/f
 # ---------------------------------------------------------------- the README's commands
 # The install part of both commands (idempotent: nothing to do on a warm root), with the network.
 step install "cd ${CLONE_IN} && bash -c 'source scripts/common.sh; gf_install_deps'"
+# The harness's own tool (not part of the README's commands): ccache, with the network.
+if [ -n "${CCACHE_ENV}" ] && [ ! -x "${ROOT}/usr/bin/ccache" ]; then
+  in_root "DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends ccache" \
+    >/dev/null 2>&1 || { echo "[platform] ccache not installable: building without it"; CCACHE_ENV=""; }
+fi
 step demo --offline "cd ${CLONE_IN} && bash scripts/demo.sh"
 if [ "${QUICK}" = 1 ]; then
   # The build (demo.sh did it), the core gtests and one rostest on a KITTI frame.
