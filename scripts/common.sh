@@ -212,7 +212,9 @@ gf_setup_ros() {
       "not found. Install its base (for Noetic: sudo apt install ros-noetic-ros-base), or rosdep" \
       "install these, then run again."
   fi
-  echo "[ground_filter] using the installed ROS ${ROS_DISTRO} (${GF_ROS_PREFIX}); Debian's ROS" \
+  local where="${GF_ROS_PREFIX}"
+  [ -d "${where}" ] || where="sourced in this shell"
+  echo "[ground_filter] using the installed ROS ${ROS_DISTRO} (${where}); Debian's ROS" \
     "packages are not installed"
 }
 

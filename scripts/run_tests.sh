@@ -7,7 +7,8 @@
 # GF_CI_EXTRA=0 leaves the packaging checks out.
 # Under CI (CI=true) it also runs the README's commands in a Debian 11 root
 # (scripts/check_platform.sh bullseye; GF_CHECK_PLATFORM=0 leaves it out, =1 runs it outside CI,
-# GF_CHECK_PLATFORM_ARGS=--quick for build + core gtests + one rostest + demo) and the ARM64 check
+# GF_CHECK_PLATFORM_ARGS: default --quick = build, core gtests, one rostest, demo, installed-ROS
+# checks; GF_CHECK_PLATFORM_ARGS= (empty) runs every test there) and the ARM64 check
 # scripts/check_arm64.sh when that script exists (GF_CHECK_ARM64=0 leaves it out).
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
@@ -42,7 +43,7 @@ if [ "${CI:-false}" = "true" ]; then ci_default=1; else ci_default=0; fi
 if [ "${GF_CHECK_PLATFORM:-${ci_default}}" = "1" ]; then
   t0=${SECONDS}
   # shellcheck disable=SC2086
-  bash "${GF_ROOT}/scripts/check_platform.sh" bullseye ${GF_CHECK_PLATFORM_ARGS:-} \
+  bash "${GF_ROOT}/scripts/check_platform.sh" bullseye ${GF_CHECK_PLATFORM_ARGS---quick} \
     2>&1 | tee "${GF_WS}/check_platform.log"
   platform_rc=${PIPESTATUS[0]}
   echo "[ci] check_platform bullseye: $((SECONDS - t0)) s (exit ${platform_rc})"
