@@ -77,8 +77,11 @@ gf_ros_env() {
     echo "[ground_filter] ROS_IP=${ROS_IP} is not an address: using localhost" >&2
     unset ROS_IP
   fi
+  # Loopback by name, or by address where even localhost does not resolve (no /etc/hosts).
+  local lo=localhost
+  gf_resolves localhost || lo=127.0.0.1
   if [ -z "${ROS_HOSTNAME:-}" ] && [ -z "${ROS_IP:-}" ]; then
-    export ROS_HOSTNAME=localhost
+    if [ "${lo}" = localhost ]; then export ROS_HOSTNAME=localhost; else export ROS_IP=127.0.0.1; fi
   fi
   local uri_host="${ROS_MASTER_URI:-}"
   uri_host="${uri_host#*://}"
@@ -86,9 +89,9 @@ gf_ros_env() {
   uri_host="${uri_host%:*}"
   if [ -z "${uri_host}" ] || ! gf_resolves "${uri_host}"; then
     if [ -n "${ROS_MASTER_URI:-}" ]; then
-      echo "[ground_filter] ROS_MASTER_URI=${ROS_MASTER_URI} does not resolve: using localhost" >&2
+      echo "[ground_filter] ROS_MASTER_URI=${ROS_MASTER_URI} does not resolve: using ${lo}" >&2
     fi
-    export ROS_MASTER_URI=http://localhost:11311
+    export ROS_MASTER_URI="http://${lo}:11311"
   fi
 }
 
