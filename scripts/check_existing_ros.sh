@@ -40,7 +40,8 @@ cat >"${FAKE}/setup.bash" <<'EOF'
 export ROS_DISTRO=noetic ROS_VERSION=1 ROS_PYTHON_VERSION=3
 export ROS_ROOT=/usr/share/ros ROS_ETC_DIR=/usr/etc/ros
 export ROS_PACKAGE_PATH=/usr/share
-export CMAKE_PREFIX_PATH=/opt/ros/noetic${CMAKE_PREFIX_PATH:+:${CMAKE_PREFIX_PATH}}
+# (No CMAKE_PREFIX_PATH entry: /usr is CMake's default prefix, and catkin rejects a prefix that
+# is not a catkin install space.)
 export GF_STANDIN_SOURCED=1
 EOF
 mkdir -p "${FAKE}/share"
