@@ -5,6 +5,11 @@
 # Installs missing packages, builds in .ws/, exits non-zero on any failure, ends with a summary
 # line (skipped counted apart).
 # GF_CI_EXTRA=0 leaves the packaging checks out.
+# Under CI (CI=true) it also runs the README's commands in a Debian 11 root
+# (scripts/check_platform.sh bullseye; GF_CHECK_PLATFORM=0 leaves it out, =1 runs it outside CI,
+# GF_CHECK_PLATFORM_ARGS: default --quick = build, core gtests, one rostest, demo, installed-ROS
+# checks; GF_CHECK_PLATFORM_ARGS= (empty) runs every test there) and the ARM64 check
+# scripts/check_arm64.sh when that script exists (GF_CHECK_ARM64=0 leaves it out).
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 source "${GF_ROOT}/scripts/ci_checks.sh"
@@ -33,6 +38,35 @@ if [ "${GF_CI_EXTRA:-1}" != "0" ]; then
     "${step}" "${results}/ground_filter"
     echo "[ci] ${step}: $((SECONDS - t0)) s"
   done
+fi
+if [ "${CI:-false}" = "true" ]; then ci_default=1; else ci_default=0; fi
+if [ "${GF_CHECK_PLATFORM:-${ci_default}}" = "1" ]; then
+  t0=${SECONDS}
+  # shellcheck disable=SC2086
+  bash "${GF_ROOT}/scripts/check_platform.sh" bullseye ${GF_CHECK_PLATFORM_ARGS---quick} \
+    2>&1 | tee "${GF_WS}/check_platform.log"
+  platform_rc=${PIPESTATUS[0]}
+  echo "[ci] check_platform bullseye: $((SECONDS - t0)) s (exit ${platform_rc})"
+  # One result per step (install, demo, tests, existing ROS); the root's own summary line in it.
+  while read -r _ name status secs; do
+    python3 "${GF_ROOT}/scripts/junit_result.py" "${results}/ci-bullseye_${name}.xml" bullseye \
+      "${name}" "${status}" "${secs}; $(grep -E '^Summary:|^CHECK ' "${GF_WS}/check_platform.log" |
+      tr '\n' ' ')" >/dev/null
+  done < <(grep '^RESULT ' "${GF_WS}/check_platform.log")
+  if ! grep -q '^RESULT ' "${GF_WS}/check_platform.log"; then
+    python3 "${GF_ROOT}/scripts/junit_result.py" "${results}/ci-bullseye.xml" bullseye \
+      check_platform failed "no result: $(tail -n 10 "${GF_WS}/check_platform.log")" >/dev/null
+  fi
+fi
+# ---- ARM64 hook: scripts/check_arm64.sh is written elsewhere; run when present.
+if [ "${GF_CHECK_ARM64:-${ci_default}}" = "1" ] && [ -f "${GF_ROOT}/scripts/check_arm64.sh" ]; then
+  t0=${SECONDS}
+  bash "${GF_ROOT}/scripts/check_arm64.sh" 2>&1 | tee "${GF_WS}/check_arm64.log"
+  arm64_rc=${PIPESTATUS[0]}
+  echo "[ci] check_arm64: $((SECONDS - t0)) s (exit ${arm64_rc})"
+  python3 "${GF_ROOT}/scripts/junit_result.py" "${results}/ci-arm64.xml" arm64 check_arm64 \
+    "$([ "${arm64_rc}" = 0 ] && echo passed || echo failed)" \
+    "exit ${arm64_rc}: $(tail -n 5 "${GF_WS}/check_arm64.log" | tr '\n' ' ')" >/dev/null
 fi
 python3 "${GF_ROOT}/scripts/test_summary.py" "${results}"
 summary_rc=$?
