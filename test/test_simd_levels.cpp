@@ -80,6 +80,13 @@ std::vector<FilterCase> filterCases() {
         {"plane_distance", "0.5"}}},
       {"voxel_one_plane", "voxel", {{"local_planes", "false"}}},
       {"normal_kdtree", "normal", {{"knn_backend", "kdtree"}, {"threads", "2"}}},
+      // the optional stages: the bush-base rule, the paper's segments of grid columns
+      {"normal_veg_filter",
+       "normal",
+       {{"knn_backend", "kdtree"}, {"threads", "2"}, {"veg_filter", "true"}}},
+      {"normal_segments",
+       "normal",
+       {{"knn_backend", "kdtree"}, {"threads", "2"}, {"use_segments", "true"}}},
   };
 }
 
@@ -401,8 +408,8 @@ TEST(SimdLevels, NanAndInfMixedInAtEveryLevel) {
 
 // 5 M points: the voxel filter (defaults, airborne preset) twice at every level (no allocation on
 // the second scan). Smaller clouds where one scan of 5 M took several seconds a level on the
-// 2-core development VM: one global plane on 1 M, the normal method on 250 k (two KITTI frames;
-// 1 M took 7-24 s a scan there). Prints each level's time for two scans.
+// 2-core development VM: one global plane on 1 M, the normal method (each case) on 250 k (two KITTI
+// frames; 1 M took 7-24 s a scan there). Prints each level's time for two scans.
 TEST(SimdLevels, FiveMillionPointsAtEveryLevel) {
   const Cloud big = largeTerrain(5000000), million = largeTerrain(1000000),
               quarter = largeTerrain(250000);
@@ -410,7 +417,7 @@ TEST(SimdLevels, FiveMillionPointsAtEveryLevel) {
   for (const FilterCase& fc : filterCases()) {
     const std::string name = fc.name;
     const Cloud& cloud =
-        name == "normal_kdtree" ? quarter : (name == "voxel_one_plane" ? million : big);
+        std::string(fc.method) == "normal" ? quarter : (name == "voxel_one_plane" ? million : big);
     ScanRun ref;
     for (simd::Level level : levels()) {
       const auto t0 = std::chrono::steady_clock::now();
