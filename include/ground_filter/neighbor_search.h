@@ -42,8 +42,12 @@ class NeighborSearch {
   virtual std::string lastNote() const { return std::string(); }
   /// \brief Named parts of the last search()/searchWithPca() call and their wall times [ms], in
   ///        order (e.g. {"kdtree_build", 6.0}, {"knn", 30.0}); empty when the backend does not
-  ///        time its parts (the caller then times the whole call).
-  virtual std::vector<std::pair<std::string, double>> lastStageMs() const { return {}; }
+  ///        time its parts (the caller then times the whole call). A reference to the backend's
+  ///        own list (valid until its next call), so reading it per scan allocates nothing.
+  virtual const std::vector<std::pair<std::string, double>>& lastStageMs() const {
+    static const std::vector<std::pair<std::string, double>> kNone;
+    return kNone;
+  }
 
   /// \brief search() and the PCA of every list (as computeNeighborhoodPca() in
   ///        neighborhood_pca.h computes it, bit for bit) in one go, so a backend can work on each

@@ -6,6 +6,9 @@
 #include <cmath>
 #include <cstdint>
 #include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "ground_filter/neighbors/neighbor_search_factory.h"
 #include "ground_filter/param_parse.h"
@@ -36,8 +39,32 @@ struct NormalGroundFilter::Impl {
   std::vector<float> heights;                          // above the tile plane, veg_filter only
   MorphGround morph;                                   // airborne scans only
   ScanTypeSwitch scan;                                 // scan_type: this scan's mode
+  normal::StageTimes times;                            // per scan, memory kept
+  FilterStats own_stats;                               // filled when the caller passes none
   explicit Impl(const NormalGroundFilterParams& p) : scan(p.scan_type, p.morph_ground) {}
 };
+
+namespace {
+
+// st = FilterStats(), keeping the memory of its strings and stage list (no allocation per scan).
+void resetStats(FilterStats* st) {
+  std::string backend = std::move(st->backend), note = std::move(st->note);
+  std::string scan_type = std::move(st->scan_type), scan_reason = std::move(st->scan_reason);
+  std::vector<std::pair<std::string, double>> stage_ms = std::move(st->stage_ms);
+  *st = FilterStats();
+  st->backend = std::move(backend);
+  st->note = std::move(note);
+  st->scan_type = std::move(scan_type);
+  st->scan_reason = std::move(scan_reason);
+  st->stage_ms = std::move(stage_ms);
+  st->backend.clear();
+  st->note.clear();
+  st->scan_type.clear();
+  st->scan_reason.clear();
+  st->stage_ms.clear();
+}
+
+}  // namespace
 
 NormalGroundFilter::NormalGroundFilter(const NormalGroundFilterParams& params) : params_(params) {
   params_.validate();
@@ -77,9 +104,8 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   Impl& im = *impl_;
   const NormalGroundFilterParams& p = params_;
   const int threads = p.threads > 0 ? p.threads : omp_get_num_procs();
-  FilterStats local_stats;
-  FilterStats& st = stats ? *stats : local_stats;
-  st = FilterStats();
+  FilterStats& st = stats ? *stats : im.own_stats;
+  resetStats(&st);
   st.input_points = cloud.size();
   st.backend = im.search->name();
   st.note = backend_note_;
@@ -125,7 +151,8 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   const double min_abs_nz = std::cos(max_tilt_deg * M_PI / 180.0);
   im.candidate.assign(n, 0);
   im.voted.assign(n, 0);
-  normal::StageTimes times;
+  normal::StageTimes& times = im.times;
+  times.clear();
   double vote_ms = 0.0;
   for (const auto& sg : im.order.segments()) {
     const std::size_t b = sg.first, len = sg.second - sg.first;

@@ -277,8 +277,18 @@ int samePointPrefix(const std::uint32_t* ids, int m, float d, std::uint64_t kth)
 /// Sorted array of the best K keys, insertion (portable path).
 class SortedKeys {
  public:
+  SortedKeys() = default;
+  SortedKeys(const SortedKeys&) = delete;  // keys_ may point into the object
+  SortedKeys& operator=(const SortedKeys&) = delete;
   void init(int k, float bound) {
-    keys_.resize(static_cast<std::size_t>(k));
+    // K <= kInlineKeys (every K the filters accept) in the object itself: a set per chunk of
+    // queries then allocates nothing; a larger K (direct callers) on the heap.
+    if (k <= kInlineKeys) {
+      keys_ = inline_keys_;
+    } else {
+      heap_keys_.resize(static_cast<std::size_t>(k));
+      keys_ = heap_keys_.data();
+    }
     k_ = k;
     count_ = 0;
     thr_ = bound;
@@ -329,7 +339,10 @@ class SortedKeys {
     keys_[i] = key;
     if (count_ == k_) thr_ = keyDist(keys_[k_ - 1]);
   }
-  std::vector<std::uint64_t> keys_;
+  static constexpr int kInlineKeys = 256;
+  std::uint64_t inline_keys_[kInlineKeys];
+  std::vector<std::uint64_t> heap_keys_;
+  std::uint64_t* keys_ = inline_keys_;
   int k_ = 0, count_ = 0;
   float thr_ = 0.f;
 };
@@ -1034,14 +1047,17 @@ void queryRangeScalar(const Tree& t, std::size_t pb, std::size_t pe, int k, std:
 
 /// Every pair (clouds smaller than K): rows of `found` sorted keys, then padding.
 void bruteForce(const float* xyz, std::size_t n, int k, NeighborLists* out) {
-  std::vector<std::uint64_t> keys(n);
+  // n < K: on the stack for every K the filters accept (no allocation per scan).
+  std::uint64_t small[256];
+  std::vector<std::uint64_t> large(n > 256 ? n : 0);
+  std::uint64_t* const keys = n > 256 ? large.data() : small;
   for (std::size_t i = 0; i < n; ++i) {
     for (std::size_t j = 0; j < n; ++j) {
       const float dx = xyz[3 * i] - xyz[3 * j], dy = xyz[3 * i + 1] - xyz[3 * j + 1],
                   dz = xyz[3 * i + 2] - xyz[3 * j + 2];
       keys[j] = makeKey(dx * dx + dy * dy + dz * dz, static_cast<std::uint32_t>(j));
     }
-    std::sort(keys.begin(), keys.end());
+    std::sort(keys, keys + n);
     std::int32_t* row = &out->indices[i * k];
     float* dist = &out->sq_dists[i * k];
     for (int j = 0; j < k; ++j) {
@@ -1087,11 +1103,18 @@ bool KdTreeNeighborSearch::searchWithCandidates(const float* xyz, std::size_t n,
   return true;
 }
 
-std::vector<std::pair<std::string, double>> KdTreeNeighborSearch::lastStageMs() const {
-  std::vector<std::pair<std::string, double>> st = {{"kdtree_build", build_ms_},
-                                                    {"knn", query_ms_}};
-  if (with_pca_) st.emplace_back("pca", pca_ms_);
-  return st;
+const std::vector<std::pair<std::string, double>>& KdTreeNeighborSearch::lastStageMs() const {
+  // Refilled in place: the names fit std::string's inline buffer, the vector keeps its capacity.
+  stage_ms_.resize(with_pca_ ? 3 : 2);
+  stage_ms_[0].first = "kdtree_build";
+  stage_ms_[0].second = build_ms_;
+  stage_ms_[1].first = "knn";
+  stage_ms_[1].second = query_ms_;
+  if (with_pca_) {
+    stage_ms_[2].first = "pca";
+    stage_ms_[2].second = pca_ms_;
+  }
+  return stage_ms_;
 }
 
 void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborLists* out,

@@ -44,7 +44,7 @@ class KdTreeNeighborSearch : public NeighborSearch {
   const CandidateCounts& lastCandidateCounts() const { return counts_; }
   /// \brief {"kdtree_build", "knn"} and, after searchWithPca() or searchWithCandidates(),
   ///        "pca": the query wall time split by the threads' time in each part.
-  std::vector<std::pair<std::string, double>> lastStageMs() const override;
+  const std::vector<std::pair<std::string, double>>& lastStageMs() const override;
 
   /// \brief With `keep` true, searchWithPca() and searchWithCandidates() keep the lists
   ///        themselves (rows in tree order, indices only: no scattered writes) and leave
@@ -87,6 +87,8 @@ class KdTreeNeighborSearch : public NeighborSearch {
   CandidateCounts counts_;   // of the last searchWithCandidates()
   bool keep_lists_ = false;  // keepListsOnDevice()
   bool lists_kept_ = false;  // the last call's lists are in impl_->rows
+  // lastStageMs(): refilled in place (short names, no allocation after the first call)
+  mutable std::vector<std::pair<std::string, double>> stage_ms_;
 };
 
 }  // namespace ground_filter

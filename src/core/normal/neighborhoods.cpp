@@ -22,7 +22,7 @@ std::size_t NeighborhoodStage::run(NeighborSearch* search, const float* xyz, std
   test.min_abs_nz = min_abs_nz;
   if (search->searchWithCandidates(xyz, len, k, test, &lists_, candidate)) {
     const double search_ms = msSince(t0);
-    const auto parts = search->lastStageMs();
+    const auto& parts = search->lastStageMs();
     for (const auto& e : parts) times->add(e.first, e.second);
     if (parts.empty()) times->add("knn", search_ms);
     std::size_t candidates = 0;
@@ -33,7 +33,7 @@ std::size_t NeighborhoodStage::run(NeighborSearch* search, const float* xyz, std
   const bool have_pca = search->searchWithPca(xyz, len, k, &lists_, &pca_);
   if (!have_pca) search->search(xyz, len, k, &lists_);
   const double search_ms = msSince(t0);
-  const auto parts = search->lastStageMs();
+  const auto& parts = search->lastStageMs();
   for (const auto& e : parts) times->add(e.first, e.second);
   if (parts.empty()) times->add("knn", search_ms);
 

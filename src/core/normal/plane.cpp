@@ -136,8 +136,16 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
   }
 
   // Cloud-wide plane: the only one without local planes, the fallback for sparse tiles.
+  // Each thread's lists hold any tile (dynamic schedule: which thread gets which tile varies),
+  // so a scan with the same tiles allocates nothing.
+  std::size_t longest_tile = 0;
+  for (const auto& tl : tiles_) longest_tile = std::max(longest_tile, tl.second - tl.first);
   thread_idx_.resize(threads);
   thread_eval_.resize(threads);
+  for (int t = 0; t < threads; ++t) {
+    thread_idx_[t].reserve(longest_tile);
+    thread_eval_[t].reserve(kRansacEvalPoints);
+  }
   const std::uint64_t base_seed = ransacBaseSeed(static_cast<std::uint32_t>(p.ransac_seed));
   bool need_global = !p.local_planes;
   for (const auto& tl : tiles_) {
@@ -153,6 +161,7 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
   if (need_global) {
     std::vector<std::uint32_t>& all_voted = thread_idx_[0];
     all_voted.clear();
+    all_voted.reserve(n);
     for (std::size_t i = 0; i < n; ++i) {
       if (voted[i]) all_voted.push_back(static_cast<std::uint32_t>(i));
     }

@@ -29,6 +29,9 @@ class StageTimes {
     }
     stages_.emplace_back(name, ms);
   }
+  /// \brief Forgets every stage; keeps the memory (short names fit std::string's inline
+  ///        buffer), so a filter that reuses one allocates nothing per scan.
+  void clear() { stages_.clear(); }
   /// \brief The stages in first-seen order.
   const std::vector<std::pair<std::string, double>>& stages() const { return stages_; }
 
