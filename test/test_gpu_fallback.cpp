@@ -121,6 +121,9 @@ TEST(GpuFallback, WholeFilterHookDeclinesOrReplacesTheSteps) {
   const auto cloud = gf::CloudView::packedXyz(xyz.data(), 8000);
   gf::NormalGroundFilterParams p;
   p.threads = 2;
+  // An evenly sampled plane looks like a nadir scan: scan_type auto would take the airborne mode,
+  // which never reaches the hook (test_scan_type covers auto).
+  p.scan_type = "ground";
   gf::NormalGroundFilter plain(p);
   std::vector<std::uint8_t> ref, got;
   gf::FilterStats st;
