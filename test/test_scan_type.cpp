@@ -20,21 +20,9 @@
 #include "ground_filter/working_volume.h"
 #include "scan_type.h"
 
+#include "gf_test_alloc_counter.h"  // allocationCount()
+
 namespace gf = ground_filter;
-
-// Every operator new of this test binary is counted (AutoAllocatesNothingAfterTheFirstScan).
-std::atomic<std::size_t>& allocationCount() {
-  static std::atomic<std::size_t> count{0};
-  return count;
-}
-
-void* operator new(std::size_t size) {
-  ++allocationCount();
-  if (void* p = std::malloc(size ? size : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace {
 

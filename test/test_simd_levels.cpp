@@ -23,24 +23,10 @@
 #include "ground_filter/scene/scene_generator.h"
 #include "simd.h"
 
+#include "gf_test_alloc_counter.h"  // allocationCount()
+
 namespace gf = ground_filter;
 namespace simd = ground_filter::simd;
-
-// Every operator new of this test binary is counted (the hook of test_voxel_ground_filter.cpp).
-namespace {
-std::atomic<std::size_t>& allocationCount() {
-  static std::atomic<std::size_t> count{0};
-  return count;
-}
-}  // namespace
-
-void* operator new(std::size_t size) {
-  ++allocationCount();
-  if (void* p = std::malloc(size ? size : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace {
 

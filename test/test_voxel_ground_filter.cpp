@@ -20,23 +20,9 @@
 #include "voxel/avx2_passes.h"
 #include "voxel/voxelize.h"
 
+#include "gf_test_alloc_counter.h"  // allocationCount()
+
 namespace gf = ground_filter;
-
-// Every operator new of this test binary is counted (NoAllocationAfterTheFirstScanOfASize).
-namespace {
-std::atomic<std::size_t>& allocationCount() {
-  static std::atomic<std::size_t> count{0};
-  return count;
-}
-}  // namespace
-
-void* operator new(std::size_t size) {
-  ++allocationCount();
-  if (void* p = std::malloc(size ? size : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 // Pooled F1 of the defaults on SemanticKITTI seq00 frames 0-2, measured (0.9724), minus one point.
 constexpr double kVoxelF1Floor = 0.9624;
