@@ -42,6 +42,14 @@ launcher() {
 step() { echo "== check_arm64 [$(($(date +%s) - start)) s] $*"; }
 
 mkdir -p "${BUILD}"
+# A build folder configured from another checkout (CMake refuses it) is started afresh.
+for dir in "${BUILD}/arm64" "${BUILD}/x86"; do
+  if [ -f "${dir}/CMakeCache.txt" ] &&
+     ! grep -qxF "CMAKE_HOME_DIRECTORY:INTERNAL=${GF_ROOT}/test/core_only" "${dir}/CMakeCache.txt"; then
+    echo "check_arm64: ${dir} was configured from another checkout: starting it afresh"
+    rm -rf "${dir}"
+  fi
+done
 step "cross-build for aarch64 (${BUILD}/arm64)"
 cmake -S "${GF_ROOT}/test/core_only" -B "${BUILD}/arm64" -DCMAKE_BUILD_TYPE=Release \
   -DCMAKE_TOOLCHAIN_FILE="${GF_ROOT}/cmake/aarch64_toolchain.cmake" -DGF_DATA_DIR="${DATA}" \
