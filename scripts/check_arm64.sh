@@ -22,6 +22,15 @@ SYSROOT=/usr/aarch64-linux-gnu
 QEMU=(qemu-aarch64 -L "${SYSROOT}")
 start=$(date +%s)
 
+# The cross compiler and the emulator (Debian/Ubuntu packages), installed when missing and root.
+if [[ "$(id -u)" == 0 ]] &&
+   ! { command -v aarch64-linux-gnu-g++ && command -v qemu-aarch64; } >/dev/null 2>&1; then
+  echo "check_arm64: installing g++-aarch64-linux-gnu qemu-user (apt)"
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq -o DPkg::Lock::Timeout=900 >/dev/null || true
+  apt-get install -y -qq --no-install-recommends -o DPkg::Lock::Timeout=900 \
+    g++-aarch64-linux-gnu qemu-user cmake googletest libeigen3-dev >/dev/null || true
+fi
 for tool in aarch64-linux-gnu-g++ qemu-aarch64 cmake; do
   if ! command -v "${tool}" >/dev/null 2>&1; then
     echo "check_arm64: ${tool} not found (apt-get install g++-aarch64-linux-gnu qemu-user cmake)" >&2
