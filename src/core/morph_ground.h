@@ -29,12 +29,16 @@ class MorphGround {
  public:
   /// \brief Labels every point of `cloud`: 1 ground, 0 not (invalid points 0). Returns the
   ///        number of valid points. The raster cell grows when the cloud's x/y extent would need
-  ///        more than kMaxCells cells.
+  ///        more than kMaxCells cells, or more than kMaxCellsPerPoint cells a point.
   std::size_t run(const CloudView& cloud, const MorphGroundSettings& s,
                   std::vector<std::uint8_t>* labels);
 
   /// \brief Upper limit on raster cells (memory and time bound for huge extents).
   static constexpr std::size_t kMaxCells = std::size_t{1} << 22;
+  /// \brief The raster also holds at most this many cells per valid point (at least kMinCells):
+  ///        beyond it the cell grows, as for kMaxCells.
+  static constexpr double kMaxCellsPerPoint = 16.0;
+  static constexpr std::size_t kMinCells = 4096;
 
  private:
   void fill(std::vector<float>* z);  // fill NaN cells (nearest rings, then Laplace sweeps)
