@@ -18,7 +18,7 @@
 #include "ground_filter/scene/scene_generator.h"
 #include "ground_filter/voxel_ground_filter.h"
 #include "ground_filter/working_volume.h"
-#include "scan_type.h"
+#include "airborne/scan_type.h"
 
 #include "gf_test_alloc_counter.h"  // allocationCount()
 

@@ -12,7 +12,7 @@
 
 #include "ground_filter/neighbors/neighbor_search_factory.h"
 #include "ground_filter/param_parse.h"
-#include "morph_ground.h"
+#include "airborne/airborne_mode.h"
 #include "normal/classify.h"
 #include "normal/neighborhoods.h"
 #include "normal/normal_filter_pipeline.h"
@@ -21,7 +21,8 @@
 #include "normal/stage_times.h"
 #include "normal/vegetation.h"
 #include "normal/vote.h"
-#include "scan_type.h"
+#include "airborne/scan_type.h"
+#include "common/threads_timing.h"
 
 namespace ground_filter {
 
@@ -98,12 +99,10 @@ bool NormalGroundFilter::airborneScan(const CloudView& cloud) {
 
 void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
                                 FilterStats* stats) {
-  using normal::Clock;
-  using normal::msSince;
   const auto t_start = Clock::now();
   Impl& im = *impl_;
   const NormalGroundFilterParams& p = params_;
-  const int threads = p.threads > 0 ? p.threads : omp_get_num_procs();
+  const int threads = resolveThreads(p.threads);
   FilterStats& st = stats ? *stats : im.own_stats;
   resetStats(&st);
   st.input_points = cloud.size();
@@ -118,11 +117,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   st.scan_type = scanTypeName(scan.type);
   st.scan_reason = scan.reason;
   if (scan.type == ScanType::kAirborne) {
-    const auto t0 = Clock::now();
-    st.invalid_points = cloud.size() - im.morph.run(cloud, airborneSettings(p), labels);
-    st.stage_ms.emplace_back("morph", msSince(t0));
-    st.ground_points = static_cast<std::size_t>(std::count(labels->begin(), labels->end(), 1));
-    st.total_ms = msSince(t_start);
+    runAirborneMode(cloud, airborneSettings(p), &im.morph, t_start, true, labels, &st);
     return;
   }
 

@@ -5,7 +5,7 @@
 #include <string>
 
 #include "ground_filter/neighbors/neighbor_search_factory.h"
-#include "scan_type.h"
+#include "airborne/scan_type.h"
 #include "shared_param_rows.h"
 
 namespace ground_filter {

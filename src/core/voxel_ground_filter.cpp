@@ -8,8 +8,9 @@
 
 #include "ground_filter/param_parse.h"
 #include "ground_filter/working_volume.h"
-#include "morph_ground.h"
-#include "scan_type.h"
+#include "airborne/airborne_mode.h"
+#include "airborne/scan_type.h"
+#include "common/threads_timing.h"
 #include "voxel/classify.h"
 #include "voxel/ground_model.h"
 #include "voxel/segments.h"
@@ -22,16 +23,6 @@
 namespace ground_filter {
 
 // ------------------------------------------------------------------------------------ filter
-
-namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-}  // namespace
 
 // The stages (src/core/voxel/), each with its own scratch buffers, and the data they share.
 struct VoxelGroundFilter::Impl {
@@ -95,7 +86,7 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
   };
   labels->assign(cloud.size(), kNonGround);
   const VoxelGroundFilterParams& p = params_;
-  const int threads = p.threads > 0 ? p.threads : omp_get_max_threads();
+  const int threads = resolveThreads(p.threads);
   const ScanDecision& scan = m.scan.decide(cloud);
   if (stats) {  // reserved once: reused stats allocate nothing
     st.scan_type = scanTypeName(scan.type);
@@ -103,11 +94,7 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
     st.scan_reason = scan.reason;
   }
   if (scan.type == ScanType::kAirborne) {  // the morphological surface replaces steps 1-8
-    const auto t0 = Clock::now();
-    st.invalid_points = cloud.size() - m.morph.run(cloud, airborneSettings(p), labels);
-    stage("morph", t0);
-    st.ground_points = static_cast<std::size_t>(std::count(labels->begin(), labels->end(), 1));
-    st.total_ms = msSince(t_start);
+    runAirborneMode(cloud, airborneSettings(p), &m.morph, t_start, stats != nullptr, labels, &st);
     return true;
   }
 

@@ -3,7 +3,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "scan_type.h"
+#include "airborne/scan_type.h"
 #include "shared_param_rows.h"
 
 namespace ground_filter {

@@ -6,15 +6,10 @@
 #include <utility>
 #include <vector>
 
+#include "common/threads_timing.h"
+
 namespace ground_filter {
 namespace normal {
-
-using Clock = std::chrono::steady_clock;
-
-/// \brief Milliseconds since `t0`.
-inline double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 /// \brief Stage wall times by name, summed over calls (segments), in first-seen order.
 class StageTimes {

@@ -1,4 +1,4 @@
-#include "scan_type.h"
+#include "airborne/scan_type.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,7 +1,7 @@
 // Private to the core: which kind of scan a cloud is (the `scan_type` parameter of both
 // methods) and the mode it runs in.
-#ifndef GROUND_FILTER_SRC_CORE_SCAN_TYPE_H
-#define GROUND_FILTER_SRC_CORE_SCAN_TYPE_H
+#ifndef GROUND_FILTER_SRC_CORE_AIRBORNE_SCAN_TYPE_H
+#define GROUND_FILTER_SRC_CORE_AIRBORNE_SCAN_TYPE_H
 
 #include <cstddef>
 #include <cstdint>
@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "ground_filter/cloud_view.h"
-#include "morph_ground.h"
+#include "airborne/morph_ground.h"
 
 namespace ground_filter {
 
@@ -140,4 +140,4 @@ MorphGroundSettings airborneSettings(const P& p) {
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_SCAN_TYPE_H
+#endif  // GROUND_FILTER_SRC_CORE_AIRBORNE_SCAN_TYPE_H

@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_SRC_CORE_MORPH_GROUND_H
-#define GROUND_FILTER_SRC_CORE_MORPH_GROUND_H
+#ifndef GROUND_FILTER_SRC_CORE_AIRBORNE_MORPH_GROUND_H
+#define GROUND_FILTER_SRC_CORE_AIRBORNE_MORPH_GROUND_H
 
 #include <cstddef>
 #include <cstdint>
@@ -55,4 +55,4 @@ class MorphGround {
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_MORPH_GROUND_H
+#endif  // GROUND_FILTER_SRC_CORE_AIRBORNE_MORPH_GROUND_H

@@ -1,4 +1,4 @@
-#include "morph_ground.h"
+#include "airborne/morph_ground.h"
 
 #include <algorithm>
 #include <cmath>
