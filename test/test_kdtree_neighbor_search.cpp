@@ -20,7 +20,7 @@
 #include "ground_filter/io/scan_io.h"
 #include "neighbors/kdtree_neighbor_search.h"
 #include "normal/neighborhood_pca.h"
-#include "simd.h"
+#include "simd/simd.h"
 
 // nanoflann is an optional test dependency (CMakeLists.txt defines GF_HAVE_NANOFLANN when found).
 #ifdef GF_HAVE_NANOFLANN

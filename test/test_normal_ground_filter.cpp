@@ -29,8 +29,8 @@
 #include "neighbors/kdtree_neighbor_search.h"
 #include "normal/neighborhood_pca.h"
 #include "normal/plane.h"
-#include "radix_sort.h"
-#include "simd.h"
+#include "common/radix_sort.h"
+#include "simd/simd.h"
 
 namespace gf = ground_filter;
 

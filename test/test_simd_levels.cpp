@@ -21,7 +21,7 @@
 
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/scene/scene_generator.h"
-#include "simd.h"
+#include "simd/simd.h"
 
 #include "gf_test_alloc_counter.h"  // allocationCount()
 

@@ -6,7 +6,7 @@
 
 #include "ground_filter/neighbors/neighbor_search_factory.h"
 #include "airborne/scan_type.h"
-#include "shared_param_rows.h"
+#include "common/shared_param_rows.h"
 
 namespace ground_filter {
 

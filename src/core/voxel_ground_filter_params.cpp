@@ -4,7 +4,7 @@
 #include <string>
 
 #include "airborne/scan_type.h"
-#include "shared_param_rows.h"
+#include "common/shared_param_rows.h"
 
 namespace ground_filter {
 

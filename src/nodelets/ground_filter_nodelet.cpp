@@ -11,7 +11,7 @@
 #include <utility>
 
 #include "cloud_subscription_helper.h"
-#include "simd.h"
+#include "simd/simd.h"
 
 #if defined(__GLIBC__)
 #include <malloc.h>

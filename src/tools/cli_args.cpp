@@ -6,7 +6,7 @@
 #include <fstream>
 #include <iostream>
 
-#include "simd.h"
+#include "simd/simd.h"
 
 namespace ground_filter {
 namespace cli {

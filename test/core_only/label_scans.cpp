@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "ground_filter/ground_filter.h"
-#include "simd.h"
+#include "simd/simd.h"
 
 namespace gf = ground_filter;
 

@@ -15,10 +15,10 @@
 #include <string>
 #include <vector>
 
-#include "neighbors/avx2_common.h"
-#include "neighbors/avx512_common.h"
+#include "simd/avx2_common.h"
+#include "simd/avx512_common.h"
 #include "normal/neighborhood_pca.h"
-#include "simd.h"
+#include "simd/simd.h"
 
 #if defined(__GNUC__)
 #define GF_KNN_ALWAYS_INLINE inline __attribute__((always_inline))

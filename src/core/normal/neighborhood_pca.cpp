@@ -16,9 +16,9 @@
 #include <cmath>
 #include <cstdint>
 
-#include "neighbors/avx2_common.h"
-#include "neighbors/avx512_common.h"
-#include "simd.h"
+#include "simd/avx2_common.h"
+#include "simd/avx512_common.h"
+#include "simd/simd.h"
 
 namespace ground_filter {
 

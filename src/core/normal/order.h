@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "ground_filter/cloud_view.h"
-#include "radix_sort.h"
+#include "common/radix_sort.h"
 
 namespace ground_filter {
 namespace normal {

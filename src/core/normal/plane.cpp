@@ -10,7 +10,7 @@
 #include <limits>
 
 #include "cpu_gpu_common.h"
-#include "radix_sort.h"
+#include "common/radix_sort.h"
 
 namespace ground_filter {
 namespace normal {

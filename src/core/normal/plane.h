@@ -8,7 +8,7 @@
 
 #include "ground_filter/normal_ground_filter.h"
 #include "order.h"
-#include "plane_fit.h"
+#include "common/plane_fit.h"
 
 namespace ground_filter {
 namespace normal {

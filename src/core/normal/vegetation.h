@@ -7,7 +7,7 @@
 
 #include "ground_filter/normal_ground_filter_params.h"
 #include "order.h"
-#include "radix_sort.h"
+#include "common/radix_sort.h"
 
 namespace ground_filter {
 namespace normal {

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "prefetch.h"
+#include "common/prefetch.h"
 
 namespace ground_filter {
 namespace voxel {

@@ -4,7 +4,7 @@
 #include <array>
 #include <cmath>
 
-#include "plane_fit.h"
+#include "common/plane_fit.h"
 
 namespace ground_filter {
 namespace voxel {

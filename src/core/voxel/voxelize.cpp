@@ -11,9 +11,9 @@
 #include <stdexcept>
 #include <type_traits>
 
-#include "huge_pages.h"
-#include "prefetch.h"
-#include "radix_sort.h"
+#include "common/huge_pages.h"
+#include "common/prefetch.h"
+#include "common/radix_sort.h"
 #include "voxel/avx2_passes.h"
 
 namespace ground_filter {

@@ -9,7 +9,7 @@
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/voxel_ground_filter.h"
 #include "ground_filter/working_volume.h"
-#include "simd.h"
+#include "simd/simd.h"
 #include "voxel/avx2_passes.h"
 #include "voxel/voxel_grid.h"
 #include "voxel/worker_pool.h"

@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_SRC_CORE_HUGE_PAGES_H
-#define GROUND_FILTER_SRC_CORE_HUGE_PAGES_H
+#ifndef GROUND_FILTER_SRC_CORE_COMMON_HUGE_PAGES_H
+#define GROUND_FILTER_SRC_CORE_COMMON_HUGE_PAGES_H
 
 // Large per-scan buffers on transparent huge pages where the kernel leaves that to the program
 // (THP "madvise", the Debian and Ubuntu default): the random passes over multi-megabyte arrays
@@ -40,4 +40,4 @@ void resizeScratch(Vector* v, std::size_t n) {
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_HUGE_PAGES_H
+#endif  // GROUND_FILTER_SRC_CORE_COMMON_HUGE_PAGES_H

@@ -1,6 +1,6 @@
 // Private to the core: software prefetch ahead of sequential passes.
-#ifndef GROUND_FILTER_SRC_CORE_PREFETCH_H
-#define GROUND_FILTER_SRC_CORE_PREFETCH_H
+#ifndef GROUND_FILTER_SRC_CORE_COMMON_PREFETCH_H
+#define GROUND_FILTER_SRC_CORE_COMMON_PREFETCH_H
 
 #include <cstddef>
 #include <cstdint>
@@ -22,4 +22,4 @@ inline void prefetchAhead(const void* p, std::size_t bytes) {
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_PREFETCH_H
+#endif  // GROUND_FILTER_SRC_CORE_COMMON_PREFETCH_H

@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_SRC_CORE_PLANE_FIT_H
-#define GROUND_FILTER_SRC_CORE_PLANE_FIT_H
+#ifndef GROUND_FILTER_SRC_CORE_COMMON_PLANE_FIT_H
+#define GROUND_FILTER_SRC_CORE_COMMON_PLANE_FIT_H
 
 #include <Eigen/Core>
 #include <cstddef>
@@ -64,4 +64,4 @@ class PlaneAccumulator {
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_PLANE_FIT_H
+#endif  // GROUND_FILTER_SRC_CORE_COMMON_PLANE_FIT_H

@@ -1,4 +1,4 @@
-#include "plane_fit.h"
+#include "common/plane_fit.h"
 
 #include <Eigen/Eigenvalues>
 

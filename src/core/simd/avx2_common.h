@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_SRC_CORE_NEIGHBORS_AVX2_COMMON_H
-#define GROUND_FILTER_SRC_CORE_NEIGHBORS_AVX2_COMMON_H
+#ifndef GROUND_FILTER_SRC_CORE_SIMD_AVX2_COMMON_H
+#define GROUND_FILTER_SRC_CORE_SIMD_AVX2_COMMON_H
 
 // Shared by the AVX2 code paths (kd-tree queries, neighbourhood PCA) of CPUs without AVX-512.
 // Compiled with a function target attribute (AVX2 without FMA: a fused product rounds
@@ -44,4 +44,4 @@ inline bool cpuHasAvx2() {
 #define GF_HAVE_AVX2_PATHS 0
 #endif
 
-#endif  // GROUND_FILTER_SRC_CORE_NEIGHBORS_AVX2_COMMON_H
+#endif  // GROUND_FILTER_SRC_CORE_SIMD_AVX2_COMMON_H

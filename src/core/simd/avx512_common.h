@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_SRC_CORE_NEIGHBORS_AVX512_COMMON_H
-#define GROUND_FILTER_SRC_CORE_NEIGHBORS_AVX512_COMMON_H
+#ifndef GROUND_FILTER_SRC_CORE_SIMD_AVX512_COMMON_H
+#define GROUND_FILTER_SRC_CORE_SIMD_AVX512_COMMON_H
 
 // Shared by the AVX-512 code paths (kd-tree queries, neighbourhood PCA). They are compiled with a
 // function target attribute and chosen at run time, so the package still runs on any x86-64.
@@ -39,4 +39,4 @@ inline bool cpuHasAvx512() { return __builtin_cpu_supports("avx512f"); }
 #define GF_HAVE_AVX512 0
 #endif
 
-#endif  // GROUND_FILTER_SRC_CORE_NEIGHBORS_AVX512_COMMON_H
+#endif  // GROUND_FILTER_SRC_CORE_SIMD_AVX512_COMMON_H

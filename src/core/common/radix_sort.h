@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_SRC_CORE_RADIX_SORT_H
-#define GROUND_FILTER_SRC_CORE_RADIX_SORT_H
+#ifndef GROUND_FILTER_SRC_CORE_COMMON_RADIX_SORT_H
+#define GROUND_FILTER_SRC_CORE_COMMON_RADIX_SORT_H
 
 // The one sort of the core: an LSD radix sort of 64-bit keys (the voxel keys of the voxel filter,
 // the grid-column and tile keys of the normal filter).
@@ -10,8 +10,8 @@
 #include <utility>
 #include <vector>
 
-#include "huge_pages.h"
-#include "prefetch.h"
+#include "common/huge_pages.h"
+#include "common/prefetch.h"
 
 namespace ground_filter {
 
@@ -324,4 +324,4 @@ inline void radixSortByKey(const std::vector<std::uint64_t>& keys,
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_RADIX_SORT_H
+#endif  // GROUND_FILTER_SRC_CORE_COMMON_RADIX_SORT_H

@@ -1,6 +1,6 @@
 // Private to the core: parameter-table rows that both methods' params structs share.
-#ifndef GROUND_FILTER_SRC_CORE_SHARED_PARAM_ROWS_H
-#define GROUND_FILTER_SRC_CORE_SHARED_PARAM_ROWS_H
+#ifndef GROUND_FILTER_SRC_CORE_COMMON_SHARED_PARAM_ROWS_H
+#define GROUND_FILTER_SRC_CORE_COMMON_SHARED_PARAM_ROWS_H
 
 #include <initializer_list>
 
@@ -33,4 +33,4 @@ ParamTable<P> withSharedParamRows(std::initializer_list<ParamSpec<P>> own) {
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_SHARED_PARAM_ROWS_H
+#endif  // GROUND_FILTER_SRC_CORE_COMMON_SHARED_PARAM_ROWS_H

@@ -1,6 +1,6 @@
 // Private to the core: the SIMD level in force, chosen once per process.
-#ifndef GROUND_FILTER_SRC_CORE_SIMD_H
-#define GROUND_FILTER_SRC_CORE_SIMD_H
+#ifndef GROUND_FILTER_SRC_CORE_SIMD_SIMD_H
+#define GROUND_FILTER_SRC_CORE_SIMD_SIMD_H
 
 #include <string>
 
@@ -76,4 +76,4 @@ class ScopedLevel {
 }  // namespace simd
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_SIMD_H
+#endif  // GROUND_FILTER_SRC_CORE_SIMD_SIMD_H
