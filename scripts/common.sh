@@ -36,7 +36,7 @@ gf_os_release
 # Non-ROS packages (compiler, CMake, libraries, test tools): apt-installed on every path.
 GF_APT_SYSTEM_PACKAGES=(build-essential cmake git pkg-config python3 python3-nose python3-numpy
   libeigen3-dev libpcl-dev googletest libgtest-dev)
-GF_APT_SYSTEM_TEST_PACKAGES=(xvfb xauth libgl1-mesa-dri imagemagick clang libomp-dev)
+GF_APT_SYSTEM_TEST_PACKAGES=(xvfb xauth libgl1-mesa-dri imagemagick clang clang-format libomp-dev)
 # Debian's ROS 1 packages (also in Ubuntu 22.04's universe): only where no ROS is installed.
 GF_APT_ROS_PACKAGES=(
   catkin ros-core-dev rosbash python3-roslaunch python3-rostest librostest-dev
