@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "ground_filter/voxel_ground_filter.h"
+#include "ground_filter/voxel_ground_filter_params.h"
 #include "voxel/segments.h"
 #include "voxel/voxel_grid.h"
 
@@ -28,7 +28,6 @@ class GroundModel {
   /// \brief Cosine of the slope of plane(c): vertical to normal distance.
   float cosine(std::size_t c) const { return cos_[c]; }
   const HeightPlane* planes() const { return final_.data(); }
-  const float* cosines() const { return cos_.data(); }
 
  private:
   /// Growth state of a cell.

@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "ground_filter/voxel_ground_filter.h"
+#include "ground_filter/voxel_ground_filter_params.h"
 #include "voxel/classify.h"
 #include "voxel/ground_model.h"
 #include "voxel/voxel_grid.h"

@@ -11,7 +11,7 @@
 #include <utility>
 #include <vector>
 
-#include "ground_filter/voxel_ground_filter.h"
+#include "ground_filter/voxel_ground_filter_params.h"
 
 namespace ground_filter {
 namespace voxel {

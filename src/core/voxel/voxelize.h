@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "ground_filter/cloud_view.h"
-#include "ground_filter/voxel_ground_filter.h"
+#include "ground_filter/voxel_ground_filter_params.h"
 #include "ground_filter/working_volume.h"
 #include "simd/simd.h"
 #include "voxel/avx2_passes.h"
@@ -45,13 +45,13 @@ class Voxelizer {
   /// \brief Whether prepare() and build() may run their AVX2 passes (default: yes, where the
   ///        SIMD level in force, simd::active(), includes AVX2); tests compare both paths.
   void setUseAvx2(bool use) { use_avx2_ = use; }
-  /// \brief Whether the AVX2 passes run: allowed here and by the SIMD level in force.
-  bool useAvx2() const { return use_avx2_ && simd::allows(simd::Level::kAvx2) && cpuHasAvx2(); }
   /// \brief Whether the passes over points use SSE2 vectors (SIMD level sse and up on x86-64)
   ///        or plain floats (level portable; aarch64): the same keys, bounds and sums.
   static bool useSse();
 
  private:
+  // Whether the AVX2 passes run: allowed here and by the SIMD level in force.
+  bool useAvx2() const { return use_avx2_ && simd::allows(simd::Level::kAvx2) && cpuHasAvx2(); }
   struct RadixPlan {
     int lo = 0, passes = 0, digit = 1;
     std::uint32_t mask() const { return (1u << digit) - 1; }

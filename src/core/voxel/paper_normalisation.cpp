@@ -1,4 +1,4 @@
-#include "paper_normalisation.h"
+#include "voxel/paper_normalisation.h"
 
 #include <algorithm>
 #include <chrono>
