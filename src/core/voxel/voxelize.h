@@ -63,7 +63,18 @@ class Voxelizer {
   template <class O>  // O: the V4 operations (voxelize.cpp)
   static void scanBounds(const CloudView& cloud, const DirectRead& direct, float* pts, bool avx2,
                          Chunk* ch);
+  // prepare(), after the bounds: sizes the key layout of `g` (throws when an axis is too long);
+  // returns the key bits.
+  int layoutKeys(const float lo[3], const float hi[3], double vs, std::size_t n, VoxelGrid* g);
+  // prepare()'s second pass: the keys of the `n` valid points and the radix digit counts.
+  void keyPass(double vs, int key_bits, std::size_t n, int nt, int nch, WorkerPool* pool,
+               VoxelGrid* g);
   void sort(int threads, WorkerPool* pool, VoxelGrid* g);
+  // build() pass 1: points in key order, voxels and their sums; returns the number of voxels.
+  std::size_t gatherPoints(int nt, WorkerPool* pool, VoxelGrid* g);
+  // build() pass 2, per voxel: centroids, flags, cells, columns, the flat and seed lists.
+  void voxelPasses(const VoxelGroundFilterParams& p, int nt, std::size_t nv, WorkerPool* pool,
+                   VoxelGrid* g, CellGrid* cells);
 
   // x y z 0 per input point (16-byte aligned vectors), absolute: build() subtracts min_ as it
   // gathers the valid points (one write of the copy fewer than storing relative coordinates).
