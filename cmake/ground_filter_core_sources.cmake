@@ -30,7 +30,7 @@ gf_core_room(normal order neighborhoods neighborhood_pca vote plane vegetation c
 gf_core_room(neighbors kdtree_neighbor_search neighbor_search_factory)
 # metrics (scan files are in ground_filter_io: they need PCL), generated scenes
 gf_core_room(io metrics)
-gf_core_room(scene scene_generator)
+gf_core_room(scene scene_generator scene_terrain)
 
 # The CUDA adapter of the neighbour interface (and the whole-filter pipeline): added to the core
 # where CUDA is built.
