@@ -18,8 +18,7 @@
 #include "gf_test_voxel.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/voxel_ground_filter.h"
-#include "voxel/avx2_passes.h"
-#include "voxel/voxelize.h"
+#include "voxel/paper_normalisation.h"
 
 namespace gf = ground_filter;
 
@@ -32,9 +31,9 @@ using Cloud = gf_test::TruthCloud;
 using gf_test::addBox;
 using gf_test::addPorousBush;
 using gf_test::addSurface;
-using gf_test::groundShare;
 using gf_test::agreement;
 using gf_test::groundLevel;
+using gf_test::groundShare;
 using gf_test::run;
 using gf_test::slopeWithBox;
 using gf_test::vegetationRule;
@@ -537,6 +536,46 @@ TEST(VoxelGroundFilterParams, ValidationRejectsBadValues) {
   EXPECT_THROW(gf::makeGroundFilter("no_such_method"), std::invalid_argument);
   p.set("plane_distance", "0.2");
   EXPECT_DOUBLE_EQ(p.plane_distance, 0.2);
+}
+
+// voxel_paper's own rows sit in a table like every method's: set(), validate() and describe()
+// read it; the voxel method's rows follow (paper values by default).
+TEST(PaperNormalisation, ParamTableSetValidateDescribe) {
+  gf::PaperVoxelParams p;
+  EXPECT_EQ(p.segment_points, 65536);
+  EXPECT_TRUE(p.paper_normalisation);
+  EXPECT_DOUBLE_EQ(p.voxel.plane_distance, gf::paperVoxelParams().plane_distance);
+  EXPECT_FALSE(p.voxel.local_planes);
+  ASSERT_EQ(gf::PaperVoxelParams::table().size(), 2u);
+  p.set("segment_points", "1000");
+  p.set("paper_normalisation", "false");
+  p.set("plane_distance", "0.2");  // a voxel row
+  EXPECT_EQ(p.segment_points, 1000);
+  EXPECT_FALSE(p.paper_normalisation);
+  EXPECT_DOUBLE_EQ(p.voxel.plane_distance, 0.2);
+  EXPECT_NO_THROW(p.validate());
+  const std::string d = p.describe();
+  EXPECT_EQ(d.rfind("segment_points=1000 paper_normalisation=false ", 0), 0u) << d;
+  EXPECT_NE(d.find(" plane_distance=0.2"), std::string::npos) << d;
+  EXPECT_THROW(p.set("segment_points", "many"), std::invalid_argument);
+  EXPECT_THROW(p.set("paper_normalisation", "maybe"), std::invalid_argument);
+  try {
+    p.set("k", "5");
+    ADD_FAILURE() << "unknown name accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("unknown parameter 'k'"), std::string::npos) << e.what();
+  }
+  p.segment_points = 2;
+  try {
+    p.validate();
+    ADD_FAILURE() << "segment_points = 2 accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("segment_points"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(gf::PaperNormalisedVoxelFilter{p}, std::invalid_argument);
+  p.segment_points = 3;
+  p.voxel.voxel_size = 0.0;  // the voxel method's own check runs too
+  EXPECT_THROW(p.validate(), std::invalid_argument);
 }
 
 // --------------------------------------------------------------- real data: SemanticKITTI seq00

@@ -34,6 +34,7 @@ using gf_test::addPorousBush;
 using gf_test::addSurface;
 using gf_test::agreement;
 using gf_test::groundLevel;
+using gf_test::groundShare;
 using gf_test::run;
 using gf_test::slopeWithBox;
 using gf_test::vegetationRule;
