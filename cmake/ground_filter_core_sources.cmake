@@ -21,8 +21,8 @@ gf_core_room(common plane_fit)
 gf_core_room(. filter_factory param_parse working_volume)
 gf_core_room(airborne morph_ground scan_type airborne_mode)
 # voxel method: the filter and its parameter table, one file per stage, the paper mode
-gf_core_room(. voxel_ground_filter voxel_ground_filter_params paper_normalisation)
-gf_core_room(voxel voxelize avx2_passes segments ground_model classify vote vegetation worker_pool)
+gf_core_room(voxel voxel_ground_filter voxel_ground_filter_params paper_normalisation)
+gf_core_room(voxel voxelize voxelize_build avx2_passes segments ground_model classify vote vegetation worker_pool)
 # normal method: the filter and its parameter table, one file per stage
 gf_core_room(. normal_ground_filter normal_ground_filter_params)
 gf_core_room(normal order neighborhoods neighborhood_pca vote plane vegetation classify)
@@ -30,7 +30,7 @@ gf_core_room(normal order neighborhoods neighborhood_pca vote plane vegetation c
 gf_core_room(neighbors kdtree_neighbor_search neighbor_search_factory)
 # metrics (scan files are in ground_filter_io: they need PCL), generated scenes
 gf_core_room(io metrics)
-gf_core_room(scene scene_generator)
+gf_core_room(scene scene_generator scene_terrain)
 
 # The CUDA adapter of the neighbour interface (and the whole-filter pipeline): added to the core
 # where CUDA is built.

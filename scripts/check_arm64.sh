@@ -80,12 +80,14 @@ failed=0
 declare -A filters=(
   [test_simd_levels]='-SimdLevels.FiveMillionPointsAtEveryLevel'
   [test_core]='-*Large*:*Huge*:*Survey*:*Threads*:*NoAllocation*'
+  [test_voxel_scale]='-*Large*:*Huge*:*Survey*:*Threads*:*NoAllocation*'
   [test_working_volume]='*'
   [test_gpu_fallback]='*'
   [test_scene_generator]='-*Tls*'
 )
 export GF_TEST_LAUNCHER="${QEMU[*]}"  # SimdLevels.EnvironmentIsReadOncePerProcess starts itself
-for t in test_simd_levels test_core test_working_volume test_gpu_fallback test_scene_generator; do
+for t in test_simd_levels test_core test_voxel_scale test_working_volume test_gpu_fallback \
+  test_scene_generator; do
   filter="${filters[${t}]}"
   [[ "${GF_ARM64_FULL:-0}" == 1 ]] && filter='*'
   args=(--gtest_filter="${filter}" --gtest_brief=1)

@@ -181,6 +181,7 @@ if [ "${QUICK}" = 1 ]; then
     cd \${GF_WS} && catkin_make tests -j\$(nproc) >/dev/null && rm -rf build/test_results && \
     rostest=\$(cd build && make help | grep -o 'run_tests_ground_filter_rostest_voxel_nodelet[^ ]*' | head -n 1) && \
     catkin_make -j1 run_tests_ground_filter_gtest_test_core \
+      run_tests_ground_filter_gtest_test_voxel_scale \
       run_tests_ground_filter_gtest_test_normal_ground_filter \
       run_tests_ground_filter_gtest_test_kdtree_neighbor_search \${rostest} && \
     python3 ${CLONE_IN}/scripts/test_summary.py build/test_results"

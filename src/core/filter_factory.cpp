@@ -5,7 +5,7 @@
 #include "ground_filter/param_parse.h"
 #include "ground_filter/voxel_ground_filter.h"
 #include "ground_filter/working_volume.h"
-#include "paper_normalisation.h"
+#include "voxel/paper_normalisation.h"
 
 namespace ground_filter {
 
@@ -41,21 +41,10 @@ std::unique_ptr<GroundFilter> makeGroundFilter(const std::string& method,
     inner = std::make_unique<NormalGroundFilter>(params);
   } else if (method == "voxel_paper") {
     // The paper's literal voxel parameters on logistic z-score coordinates (docs/voxel_method.md,
-    // paper fidelity); settings override them, plus segment_points (65,536) and
-    // paper_normalisation (true; false = the same segments in metric coordinates).
-    VoxelGroundFilterParams params = paperVoxelParams();
-    int segment_points = 65536;
-    bool normalise = true;
-    for (const auto& kv : own) {
-      if (kv.first == "segment_points") {
-        segment_points = parseIntParam(kv.first, kv.second);
-      } else if (kv.first == "paper_normalisation") {
-        normalise = parseBoolParam(kv.first, kv.second);
-      } else {
-        params.set(kv.first, kv.second);
-      }
-    }
-    inner = std::make_unique<PaperNormalisedVoxelFilter>(params, segment_points, normalise);
+    // paper fidelity); settings override them and PaperVoxelParams' own rows.
+    PaperVoxelParams params;
+    for (const auto& kv : own) params.set(kv.first, kv.second);
+    inner = std::make_unique<PaperNormalisedVoxelFilter>(params);
   } else {
     std::string known;
     for (const auto& m : groundFilterMethods()) known += (known.empty() ? "" : ", ") + m;

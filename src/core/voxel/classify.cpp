@@ -108,7 +108,7 @@ void classifyColumns(const Job& job, std::size_t c0, std::size_t c1) {
 }  // namespace
 
 void Classifier::bandStats(const VoxelGroundFilterParams& p, const VoxelGrid& g, std::size_t nc,
-                           const GroundModel& model, const Segmenter& segs, std::int64_t best) {
+                           const GroundModelResult& model, const SegmentResult& seg) {
   // Mean and std of the signed distances of the points that shaped each plane: the largest
   // segment (global plane) or the cell's seeds within plane_distance of its plane.
   mu_.assign(nc, 0.0);
@@ -136,7 +136,7 @@ void Classifier::bandStats(const VoxelGroundFilterParams& p, const VoxelGrid& g,
     }
   } else {
     for (std::size_t i = 0; i < g.flat.size(); ++i) {
-      if (segs.segmentOf(i) == static_cast<std::uint32_t>(best)) addVoxel(g.flat[i]);
+      if (seg.segment[i] == static_cast<std::uint32_t>(seg.best)) addVoxel(g.flat[i]);
     }
   }
   for (std::size_t c = 0; c < nc; ++c) {
@@ -148,13 +148,18 @@ void Classifier::bandStats(const VoxelGroundFilterParams& p, const VoxelGrid& g,
 }
 
 void Classifier::run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const CellGrid& cells,
-                     const GroundModel& model, const Segmenter& segs, std::int64_t best,
-                     int threads, WorkerPool* pool) {
+                     const GroundModelResult& model, const SegmentResult& seg, int threads,
+                     WorkerPool* pool, ClassifyResult* out) {
+  std::vector<std::uint8_t>& ground = out->ground;
+  std::vector<std::uint32_t>& voxel_ground = out->voxel_ground;
+  std::vector<ZRange>& col_range = out->col_range;
+  std::vector<std::uint8_t>& col_mask = out->col_mask;
+  std::vector<float>& h0 = out->plane_height;
   const std::size_t n = g.points();
   const std::size_t nv = g.voxels();
   const std::size_t nc = p.local_planes ? cells.count() : 1;
   const bool band = p.std_filter;
-  if (band) bandStats(p, g, nc, model, segs, best);
+  if (band) bandStats(p, g, nc, model, seg);
   ground.resize(n);
   voxel_ground.resize(nv);
   col_range.resize(g.columns() + 1);  // + an empty sentinel column (the vote's "no column")
@@ -178,7 +183,7 @@ void Classifier::run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const
       cc.hi = std::min(cc.hi, static_cast<float>(mu_[c] + p.std_multiplier * sigma_[c]));
     }
   }
-  h0_.resize(nv);
+  h0.resize(nv);
   Job job;
   job.vstart = g.vstart.data();
   job.vcell = g.vcell.data();
@@ -188,10 +193,10 @@ void Classifier::run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const
   job.xyz = g.sxyz.data();
   job.vx = g.vx.data();
   job.vy = g.vy.data();
-  job.planes = model.planes();
+  job.planes = model.planes.data();
   job.coef = coef_.data();
   job.band = band;
-  job.h0 = h0_.data();
+  job.h0 = h0.data();
   job.ground = ground.data();
   job.voxel_ground = voxel_ground.data();
   job.col_range = col_range.data();

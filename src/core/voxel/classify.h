@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "ground_filter/voxel_ground_filter.h"
+#include "ground_filter/voxel_ground_filter_params.h"
 #include "voxel/ground_model.h"
 #include "voxel/segments.h"
 #include "voxel/voxel_grid.h"
@@ -27,16 +27,8 @@ struct CellCoef {
   float a, b, cos, lo, hi;
 };
 
-/// \brief Step 7: ground = within plane_distance of the cell plane (and, with std_filter, inside
-///        the cell's mean +- k std band).
-class Classifier {
- public:
-  /// \brief Labels every point of `g` (key order). `best` is the largest segment (global mode
-  ///        std band); `threads` > 1 splits the columns.
-  void run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const CellGrid& cells,
-           const GroundModel& model, const Segmenter& segs, std::int64_t best, int threads,
-           WorkerPool* pool);
-
+/// \brief What Classifier writes (the vote and the vegetation rule rewrite `ground`).
+struct ClassifyResult {
   /// \brief Label per point in key order (1 ground).
   std::vector<std::uint8_t> ground;
   /// \brief Ground points per voxel.
@@ -48,14 +40,24 @@ class Classifier {
   ///        (+ 0 for the sentinel).
   std::vector<std::uint8_t> col_mask;
   /// \brief Per voxel: height of its cell's plane at the voxel's centroid.
-  const std::vector<float>& planeHeight() const { return h0_; }
+  std::vector<float> plane_height;
+};
+
+/// \brief Step 7: ground = within plane_distance of the cell plane (and, with std_filter, inside
+///        the cell's mean +- k std band).
+class Classifier {
+ public:
+  /// \brief Labels every point of `g` (key order) into `out`. `seg.best` is the largest
+  ///        segment (global mode std band); `threads` > 1 splits the columns.
+  void run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const CellGrid& cells,
+           const GroundModelResult& model, const SegmentResult& seg, int threads, WorkerPool* pool,
+           ClassifyResult* out);
 
  private:
   void bandStats(const VoxelGroundFilterParams& p, const VoxelGrid& g, std::size_t cells,
-                 const GroundModel& model, const Segmenter& segs, std::int64_t best);
+                 const GroundModelResult& model, const SegmentResult& seg);
   std::vector<double> mu_, sigma_;  // std band per cell
   std::vector<CellCoef> coef_;
-  std::vector<float> h0_;  // plane height at each voxel's centroid
   std::vector<std::uint64_t> count_;
 };
 

@@ -35,9 +35,10 @@ HeightPlane fitHeightPlane(const Moments& m, double a0, double b0, double lambda
   return out;
 }
 
-void GroundModel::setGlobal(const HeightPlane& gp) {
-  final_.assign(1, gp);
-  cos_.assign(1, static_cast<float>(1.0 / std::sqrt(1.0 + gp.a * gp.a + gp.b * gp.b)));
+void GroundModel::setGlobal(const SegmentResult& seg, GroundModelResult* out) {
+  const HeightPlane& gp = seg.plane;
+  out->planes.assign(1, gp);
+  out->cos.assign(1, static_cast<float>(1.0 / std::sqrt(1.0 + gp.a * gp.a + gp.b * gp.b)));
 }
 
 void GroundModel::markReach(const CellGrid& cells) {
@@ -76,7 +77,7 @@ void GroundModel::markReach(const CellGrid& cells) {
   }
 }
 
-std::size_t GroundModel::bucketSeeds(const VoxelGrid& g, std::size_t nc, const Segmenter& segs,
+std::size_t GroundModel::bucketSeeds(const VoxelGrid& g, std::size_t nc, const SegmentResult& segs,
                                      std::int64_t best) {
   // Seed candidates per cell (CSR, coordinates copied for sequential access); start cell = most
   // voxels of the largest segment.
@@ -98,12 +99,12 @@ std::size_t GroundModel::bucketSeeds(const VoxelGrid& g, std::size_t nc, const S
   std::uint32_t* const seg_in_cell = seg_count_.data();
   const std::uint32_t b = static_cast<std::uint32_t>(best);
   for (std::size_t i = 0; i < g.flat.size(); ++i) {
-    if (segs.segmentOf(i) == b) seg_in_cell[vc[g.flat[i]]] = 0;
+    if (segs.segment[i] == b) seg_in_cell[vc[g.flat[i]]] = 0;
   }
   std::size_t start = 0;
   std::uint32_t most = 0;
   for (std::size_t i = 0; i < g.flat.size(); ++i) {
-    if (segs.segmentOf(i) != b) continue;
+    if (segs.segment[i] != b) continue;
     const std::uint32_t c = vc[g.flat[i]];
     const std::uint32_t k = ++seg_in_cell[c];
     if (k > most || (k == most && c < start)) {
@@ -144,14 +145,15 @@ void GroundModel::resetCells(const CellGrid& cells) {
   near_end_ = far_end_ = 0;
 }
 
-HeightPlane GroundModel::startPlane(const VoxelGrid& g, const Segmenter& segs, std::int64_t best,
-                                    std::size_t start, const HeightPlane& gp) const {
+HeightPlane GroundModel::startPlane(const VoxelGrid& g, const SegmentResult& segs,
+                                    std::int64_t best, std::size_t start,
+                                    const HeightPlane& gp) const {
   // The largest segment's voxels in the start cell (level slope prior), so a tilted global plane
   // cannot put it off the ground it was chosen for.
   Moments sm;
   for (std::size_t i = 0; i < g.flat.size(); ++i) {
     const std::uint32_t v = g.flat[i];
-    if (segs.segmentOf(i) == static_cast<std::uint32_t>(best) && g.vcell[v] == start) {
+    if (segs.segment[i] == static_cast<std::uint32_t>(best) && g.vcell[v] == start) {
       sm.add(g.vx[v], g.vy[v], g.vz[v], static_cast<double>(g.pointsIn(v)));
     }
   }
@@ -266,7 +268,9 @@ void GroundModel::queueNeighbours(std::uint32_t t, bool seeded) {
 }
 
 void GroundModel::grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, const CellGrid& cells,
-                       const Segmenter& segs, const HeightPlane& gp, std::int64_t best) {
+                       const SegmentResult& seg, GroundModelResult* out) {
+  const HeightPlane& gp = seg.plane;
+  const std::int64_t best = seg.best;
   const std::size_t nc = cells.count();
   geo_.cs = static_cast<double>(cells.cell_vox) * p.voxel_size;
   geo_.lambda = kSlopePriorWeight * geo_.cs * geo_.cs;
@@ -281,9 +285,9 @@ void GroundModel::grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, con
   // Growth from the cell holding most of the largest segment, then from every island of cells
   // with seeds it did not reach (the grid's border cells are kDone: 3 x 3 neighbourhoods need
   // no bounds checks).
-  const std::size_t start = bucketSeeds(g, nc, segs, best);
+  const std::size_t start = bucketSeeds(g, nc, seg, best);
   resetCells(cells);
-  plane_[start] = startPlane(g, segs, best, start, gp);
+  plane_[start] = startPlane(g, seg, best, start, gp);
   parent_[start] = static_cast<std::uint32_t>(start);
   state_[start] = CellState::kQueued;
   queue_[near_end_++] = static_cast<std::uint32_t>(start);
@@ -314,16 +318,16 @@ void GroundModel::grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, con
 
   // Final planes of the cells holding points: seeds of the 3 x 3 cells around, all sides now
   // known; without seeds around, the grown plane.
-  final_.resize(nc);
-  cos_.resize(nc);
+  out->planes.resize(nc);
+  out->cos.resize(nc);
   for (std::size_t t = 0; t < nc; ++t) {
     if (!cells.used[t]) continue;
     // Never grown (no seeds within reach of the growth): the global plane.
     const HeightPlane& gr = state_[t] == CellState::kNew ? gp : plane_[t];
     const Moments nb = sumsOf(t);
     const HeightPlane f = nb.w > 0 ? fitHeightPlane(nb, gr.a, gr.b, geo_.lambda) : gr;
-    final_[t] = f;
-    cos_[t] = static_cast<float>(1.0 / std::sqrt(1.0 + f.a * f.a + f.b * f.b));
+    out->planes[t] = f;
+    out->cos[t] = static_cast<float>(1.0 / std::sqrt(1.0 + f.a * f.a + f.b * f.b));
   }
 }
 

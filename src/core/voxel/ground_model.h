@@ -6,29 +6,35 @@
 #include <cstdint>
 #include <vector>
 
-#include "ground_filter/voxel_ground_filter.h"
+#include "ground_filter/voxel_ground_filter_params.h"
 #include "voxel/segments.h"
 #include "voxel/voxel_grid.h"
 
 namespace ground_filter {
 namespace voxel {
 
+/// \brief What GroundModel writes: the plane of every cell (one cell in global mode). Cells
+///        without voxels keep what an earlier scan left (never read).
+struct GroundModelResult {
+  /// \brief Final plane per cell.
+  std::vector<HeightPlane> planes;
+  /// \brief Per cell: cosine of the slope of its plane (vertical to normal distance).
+  std::vector<float> cos;
+  /// \brief Final plane of cell c (cells holding voxels; any cell in global mode).
+  const HeightPlane& plane(std::size_t c) const { return planes[c]; }
+  /// \brief Cosine of the slope of plane(c).
+  float cosine(std::size_t c) const { return cos[c]; }
+};
+
 /// \brief Step 6: the plane of every cell of a CellGrid (one cell: the global plane).
 class GroundModel {
  public:
-  /// \brief One plane for the whole scan (paper).
-  void setGlobal(const HeightPlane& plane);
-  /// \brief Cell planes grown outwards from the cell holding most of segment `best`, starting
-  ///        from the global plane `gp` (see the docs, "local ground model").
+  /// \brief One plane for the whole scan (paper): `seg.plane`.
+  void setGlobal(const SegmentResult& seg, GroundModelResult* out);
+  /// \brief Cell planes grown outwards from the cell holding most of segment `seg.best`,
+  ///        starting from its plane `seg.plane` (see the docs, "local ground model").
   void grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, const CellGrid& cells,
-            const Segmenter& segs, const HeightPlane& gp, std::int64_t best);
-
-  /// \brief Final plane of cell c (cells holding voxels; any cell after setGlobal()).
-  const HeightPlane& plane(std::size_t c) const { return final_[c]; }
-  /// \brief Cosine of the slope of plane(c): vertical to normal distance.
-  float cosine(std::size_t c) const { return cos_[c]; }
-  const HeightPlane* planes() const { return final_.data(); }
-  const float* cosines() const { return cos_.data(); }
+            const SegmentResult& seg, GroundModelResult* out);
 
  private:
   /// Growth state of a cell.
@@ -48,14 +54,14 @@ class GroundModel {
   };
   static bool finished(CellState s) { return s == CellState::kDone || s == CellState::kDoneSeeded; }
   /// Seed candidates per cell (CSR); returns the start cell.
-  std::size_t bucketSeeds(const VoxelGrid& g, std::size_t cells, const Segmenter& segs,
+  std::size_t bucketSeeds(const VoxelGrid& g, std::size_t cells, const SegmentResult& segs,
                           std::int64_t best);
   /// Every cell new (no seeds) except the border and cells out of reach.
   void resetCells(const CellGrid& cells);
   /// Marks the cells within kReachCells (along x and y) of a cell holding voxels in reach_.
   void markReach(const CellGrid& cells);
   /// Prediction of the start cell.
-  HeightPlane startPlane(const VoxelGrid& g, const Segmenter& segs, std::int64_t best,
+  HeightPlane startPlane(const VoxelGrid& g, const SegmentResult& segs, std::int64_t best,
                          std::size_t start, const HeightPlane& gp) const;
   /// Next cell with seeds that the growth did not reach (from *next on), queued as a new start.
   bool nextIsland(const CellGrid& cells, std::size_t* next, std::uint32_t* cell);
@@ -81,8 +87,6 @@ class GroundModel {
   std::vector<std::uint8_t> near_q_;              // cell waits in queue_
   std::vector<std::uint8_t> near_y_;  // markReach(): a cell with voxels within reach along y
   std::vector<std::uint8_t> reach_;   // ... along x and y
-  std::vector<HeightPlane> final_;
-  std::vector<float> cos_;
 };
 
 }  // namespace voxel

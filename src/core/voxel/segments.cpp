@@ -32,7 +32,7 @@ void unite(std::uint32_t* uf, std::uint32_t a, std::uint32_t b) {
 
 }  // namespace
 
-std::int64_t Segmenter::run(const VoxelGroundFilterParams& p, VoxelGrid* g) {
+void Segmenter::run(const VoxelGroundFilterParams& p, VoxelGrid* g, SegmentResult* out) {
   Buffer<std::uint32_t>& flat = g->flat;
   // ---- height filter (paper, global plane only): flat voxels higher than the mean flat-voxel
   // height + margin are not ground seeds. The local model has its own, local, windows.
@@ -51,8 +51,8 @@ std::int64_t Segmenter::run(const VoxelGroundFilterParams& p, VoxelGrid* g) {
   // y - 1 .. y + 1), column y - 1 of its own row, and the voxel below it. Rows of flat-column ids
   // (two buffers, x parity) replace any search.
   const std::size_t nf = flat.size();
-  uf_.resize(nf);
-  std::uint32_t* u = uf_.data();
+  out->segment.resize(nf);
+  std::uint32_t* u = out->segment.data();
   for (std::size_t i = 0; i < nf; ++i) u[i] = static_cast<std::uint32_t>(i);
   const std::uint32_t* fl = flat.data();
   const std::uint64_t* vk = g->vkey.data();
@@ -130,7 +130,7 @@ std::int64_t Segmenter::run(const VoxelGroundFilterParams& p, VoxelGrid* g) {
   seg_points_.assign(nf, 0);
   for (std::size_t j = 0; j < nf; ++j) {
     const std::uint32_t r = findRoot(u, static_cast<std::uint32_t>(j));
-    u[j] = r;  // flattened: uf_[j] is the segment id (its root) from here on
+    u[j] = r;  // flattened: segment[j] is the segment id (its root) from here on
     ++seg_voxels_[r];
     seg_points_[r] += g->pointsIn(fl[j]);
   }
@@ -142,12 +142,15 @@ std::int64_t Segmenter::run(const VoxelGroundFilterParams& p, VoxelGrid* g) {
       best = static_cast<std::int64_t>(j);
     }
   }
-  return best;
+  out->best = best;
 }
 
-bool Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g,
-                            std::int64_t* best, HeightPlane* gp) {
-  if (*best < 0) return false;
+void Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g,
+                            SegmentResult* seg) {
+  seg->have_plane = seg->best >= 0;
+  if (!seg->have_plane) return;
+  const std::uint32_t* uf = seg->segment.data();
+  HeightPlane* gp = &seg->plane;
   // The plane of the largest segment that is not steeper than max_slope_deg: the largest one can
   // be a wall scanned line by line (its flat voxels stack up), see the docs.
   constexpr int kCandidates = 8;
@@ -159,7 +162,7 @@ bool Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
   };
   const std::size_t nf = g.flat.size();
   for (std::size_t j = 0; j < nf; ++j) {  // the largest segments, by voxels then points
-    if (uf_[j] != j) continue;
+    if (uf[j] != j) continue;
     int pos = ncand;
     while (pos > 0 && better(static_cast<std::uint32_t>(j), cand[pos - 1])) --pos;
     if (pos >= kCandidates) continue;
@@ -172,7 +175,7 @@ bool Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
   rank_.assign(nf, -1);  // a lookup instead of a search of the candidates per flat voxel
   for (int q = 0; q < ncand; ++q) rank_[cand[q]] = static_cast<std::int8_t>(q);
   for (std::size_t j = 0; j < nf; ++j) {
-    const int q = rank_[uf_[j]];
+    const int q = rank_[uf[j]];
     if (q < 0) continue;
     const std::uint32_t v = g.flat[j];
     for (std::uint32_t k = g.vstart[v]; k < g.vstart[v + 1]; ++k) {
@@ -186,16 +189,15 @@ bool Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
   Plane plane;
   for (int q = 0; q < ncand; ++q) {
     if (acc[q].fit(&plane) && plane.normal.z() >= min_nz) {
-      *best = cand[q];
+      seg->best = cand[q];
       gp->a = -plane.normal.x() / plane.normal.z();
       gp->b = -plane.normal.y() / plane.normal.z();
       gp->c = -plane.d / plane.normal.z();
-      return true;
+      return;
     }
   }
   *gp = HeightPlane();
   gp->c = zsum[0] / cnt[0];  // no sub-horizontal plane (one scan line): level, through the largest
-  return true;
 }
 
 }  // namespace voxel

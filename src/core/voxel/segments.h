@@ -6,28 +6,41 @@
 #include <cstdint>
 #include <vector>
 
-#include "ground_filter/voxel_ground_filter.h"
+#include "ground_filter/voxel_ground_filter_params.h"
 #include "voxel/voxel_grid.h"
 
 namespace ground_filter {
 namespace voxel {
 
+/// \brief What Segmenter writes: the segment of every flat voxel, the chosen segment and its
+///        plane (the ground model's start and, in global mode, the ground model itself).
+struct SegmentResult {
+  /// \brief Per flat voxel (index into VoxelGrid::flat): its segment id (the root of its
+  ///        union-find set; the parents while run() joins).
+  std::vector<std::uint32_t> segment;
+  /// \brief Segment id of the largest segment (run()), then of the one whose plane
+  ///        globalPlane() took; -1 without flat voxels.
+  std::int64_t best = -1;
+  /// \brief globalPlane(): whether `plane` holds a plane (false: no flat segment).
+  bool have_plane = false;
+  /// \brief globalPlane(): plane of segment `best`.
+  HeightPlane plane;
+};
+
 /// \brief Steps 3-5: height filter (global mode), 26-adjacency region growing over the flat
 ///        voxels of VoxelGrid::flat, the largest segment and its plane.
 class Segmenter {
  public:
-  /// \brief Runs steps 3-4 (the height filter shortens `g->flat`); returns the segment id of
-  ///        the largest segment (most voxels, then most points) or -1 without flat voxels.
-  std::int64_t run(const VoxelGroundFilterParams& p, VoxelGrid* g);
-  /// \brief Step 5: plane of the largest segment not steeper than max_slope_deg; sets `best` to
-  ///        its id. Returns false when there is no flat segment.
-  bool globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g, std::int64_t* best,
-                   HeightPlane* plane);
-  /// \brief Segment id (its root) of flat voxel `i` (index into VoxelGrid::flat), after run().
-  std::uint32_t segmentOf(std::size_t i) const { return uf_[i]; }
+  /// \brief Runs steps 3-4 (the height filter shortens `g->flat`): writes the segment of every
+  ///        flat voxel and the largest segment (most voxels, then most points) to `out`.
+  void run(const VoxelGroundFilterParams& p, VoxelGrid* g, SegmentResult* out);
+  /// \brief Step 5: plane of the largest segment of `seg` (run()'s result of this scan) not
+  ///        steeper than max_slope_deg; sets `seg->best`, `seg->plane` and `seg->have_plane`
+  ///        (false when there is no flat segment).
+  void globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g, SegmentResult* seg);
 
  private:
-  std::vector<std::uint32_t> uf_;  // union-find parents, indexed like VoxelGrid::flat
+  // Scratch; seg_voxels_ and seg_points_ carry run()'s segment sizes to globalPlane().
   std::vector<std::uint32_t> seg_voxels_;
   std::vector<std::uint64_t> seg_points_;
   std::vector<std::int32_t> rows_;  // two dense rows of flat ids (x parity)

@@ -41,7 +41,8 @@ void VegetationRule::stats(const VoxelGroundFilterParams& p, const VoxelGrid& g,
 }
 
 void VegetationRule::relabel(const VoxelGroundFilterParams& p, const VoxelGrid& g,
-                             const GroundModel& model, int t, int range, std::uint8_t* ground) {
+                             const GroundModelResult& model, int t, int range,
+                             std::uint8_t* ground) {
   const std::int32_t none = static_cast<std::int32_t>(g.columns());
   const int r = p.veg_radius;
   const int w = 2 * r + 1;
@@ -113,8 +114,9 @@ void VegetationRule::relabel(const VoxelGroundFilterParams& p, const VoxelGrid& 
 }
 
 void VegetationRule::run(const VoxelGroundFilterParams& p, const VoxelGrid& g,
-                         const GroundModel& model, const Classifier& cls, int threads,
-                         WorkerPool* pool, std::vector<std::uint8_t>* ground) {
+                         const GroundModelResult& model, int threads, WorkerPool* pool,
+                         ClassifyResult* cls) {
+  std::vector<std::uint8_t>* ground = &cls->ground;
   const std::size_t ncol = g.columns();
   clutter_.resize(ncol + 1);
   has_ground_.resize(ncol);
@@ -123,7 +125,7 @@ void VegetationRule::run(const VoxelGroundFilterParams& p, const VoxelGrid& g,
   const int nt = threads > 1 && g.points() >= kParallelMinPoints ? threads : 1;
   const int nch = nt == 1 ? 1 : 4 * nt;
   const std::uint8_t* labels = ground->data();
-  const float* h0 = cls.planeHeight().data();
+  const float* h0 = cls->plane_height.data();
   pool->run(nt, nch,
             [&](int, int c) { stats(p, g, h0, labels, ncol * c / nch, ncol * (c + 1) / nch); });
   // First column of each row x (size nx + 1).

@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "ground_filter/voxel_ground_filter.h"
+#include "ground_filter/voxel_ground_filter_params.h"
 #include "voxel/classify.h"
 #include "voxel/ground_model.h"
 #include "voxel/voxel_grid.h"
@@ -25,15 +25,16 @@ namespace voxel {
 ///        packs them into few voxels.
 class VegetationRule {
  public:
-  /// \brief Rewrites `ground` (per point, key order). `threads` > 1 splits the columns into
-  ///        ranges of whole rows; the labels do not depend on it.
-  void run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const GroundModel& model,
-           const Classifier& cls, int threads, WorkerPool* pool, std::vector<std::uint8_t>* ground);
+  /// \brief Rewrites `cls->ground` (per point, key order; read with cls->plane_height).
+  ///        `threads` > 1 splits the columns into ranges of whole rows; the labels do not
+  ///        depend on it.
+  void run(const VoxelGroundFilterParams& p, const VoxelGrid& g, const GroundModelResult& model,
+           int threads, WorkerPool* pool, ClassifyResult* cls);
 
  private:
   void stats(const VoxelGroundFilterParams& p, const VoxelGrid& g, const float* h0,
              const std::uint8_t* ground, std::size_t c0, std::size_t c1);
-  void relabel(const VoxelGroundFilterParams& p, const VoxelGrid& g, const GroundModel& model,
+  void relabel(const VoxelGroundFilterParams& p, const VoxelGrid& g, const GroundModelResult& model,
                int t, int range, std::uint8_t* ground);
 
   // Per column (+ an empty sentinel): points << 32 | voxels of its clutter voxels, and whether

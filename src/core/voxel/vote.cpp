@@ -18,7 +18,7 @@ void merge(ZRange* r, const ZRange& o) {
 
 }  // namespace
 
-void Voter::vote(const VoxelGrid& g, int t, int range, Classifier* cls) {
+void Voter::vote(const VoxelGrid& g, int t, int range, ClassifyResult* cls) {
   // A voxel's vote can differ from its own points' labels only when its neighbourhood holds
   // both ground and non-ground points: a column is looked at only when its 3 x 3 columns hold
   // both labels (OR of their label masks), and then only its voxels within one z step of a
@@ -102,7 +102,7 @@ void Voter::vote(const VoxelGrid& g, int t, int range, Classifier* cls) {
       });
 }
 
-void Voter::run(const VoxelGrid& g, int threads, WorkerPool* workers, Classifier* cls) {
+void Voter::run(const VoxelGrid& g, int threads, WorkerPool* workers, ClassifyResult* cls) {
   const int nt = threads > 1 && g.points() >= kParallelMinPoints ? threads : 1;
   const int nch = nt == 1 ? 1 : 4 * nt;  // ranges of whole rows
   splitRows(g, nch, &bounds_);

@@ -20,12 +20,12 @@ class Voter {
   /// \brief Rewrites `cls->ground` (the sums read the per-voxel ground counts of the
   ///        classification only, so relabelling as it goes is exact). `threads` > 1 splits the
   ///        columns into ranges of whole rows.
-  void run(const VoxelGrid& g, int threads, WorkerPool* pool, Classifier* cls);
+  void run(const VoxelGrid& g, int threads, WorkerPool* pool, ClassifyResult* cls);
 
  private:
   /// Votes, on thread t, the voxels of the columns of `range` (whole rows) whose neighbourhood
   /// holds both labels.
-  void vote(const VoxelGrid& g, int t, int range, Classifier* cls);
+  void vote(const VoxelGrid& g, int t, int range, ClassifyResult* cls);
 
   std::vector<std::size_t> bounds_;                 // column ranges (whole rows)
   std::vector<std::vector<std::int64_t>> id_rows_;  // per thread: column id << 2 | label mask

@@ -11,7 +11,7 @@
 #include <utility>
 #include <vector>
 
-#include "ground_filter/voxel_ground_filter.h"
+#include "ground_filter/voxel_ground_filter_params.h"
 
 namespace ground_filter {
 namespace voxel {
@@ -127,10 +127,10 @@ struct VoxelGrid {
 
   // Per voxel, key order.
   Buffer<std::uint64_t> vkey;
-  Buffer<std::uint32_t> vstart;       // CSR into the sorted points, size voxels + 1
-  std::vector<float> vx, vy, vz;      // centroid
-  std::vector<std::uint8_t> vflags;   // kFlat | kSeed
-  std::vector<std::uint32_t> vcell;   // ground-model cell
+  Buffer<std::uint32_t> vstart;      // CSR into the sorted points, size voxels + 1
+  std::vector<float> vx, vy, vz;     // centroid
+  std::vector<std::uint8_t> vflags;  // kFlat | kSeed
+  std::vector<std::uint32_t> vcell;  // ground-model cell
 
   // Columns (x, y): runs of voxels.
   Buffer<std::uint64_t> col_key;    // voxel key >> shift_y

@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "ground_filter/cloud_view.h"
-#include "ground_filter/voxel_ground_filter.h"
+#include "ground_filter/voxel_ground_filter_params.h"
 #include "ground_filter/working_volume.h"
 #include "simd/simd.h"
 #include "voxel/avx2_passes.h"
@@ -45,13 +45,13 @@ class Voxelizer {
   /// \brief Whether prepare() and build() may run their AVX2 passes (default: yes, where the
   ///        SIMD level in force, simd::active(), includes AVX2); tests compare both paths.
   void setUseAvx2(bool use) { use_avx2_ = use; }
-  /// \brief Whether the AVX2 passes run: allowed here and by the SIMD level in force.
-  bool useAvx2() const { return use_avx2_ && simd::allows(simd::Level::kAvx2) && cpuHasAvx2(); }
   /// \brief Whether the passes over points use SSE2 vectors (SIMD level sse and up on x86-64)
   ///        or plain floats (level portable; aarch64): the same keys, bounds and sums.
   static bool useSse();
 
  private:
+  // Whether the AVX2 passes run: allowed here and by the SIMD level in force.
+  bool useAvx2() const { return use_avx2_ && simd::allows(simd::Level::kAvx2) && cpuHasAvx2(); }
   struct RadixPlan {
     int lo = 0, passes = 0, digit = 1;
     std::uint32_t mask() const { return (1u << digit) - 1; }
@@ -63,7 +63,18 @@ class Voxelizer {
   template <class O>  // O: the V4 operations (voxelize.cpp)
   static void scanBounds(const CloudView& cloud, const DirectRead& direct, float* pts, bool avx2,
                          Chunk* ch);
+  // prepare(), after the bounds: sizes the key layout of `g` (throws when an axis is too long);
+  // returns the key bits.
+  int layoutKeys(const float lo[3], const float hi[3], double vs, std::size_t n, VoxelGrid* g);
+  // prepare()'s second pass: the keys of the `n` valid points and the radix digit counts.
+  void keyPass(double vs, int key_bits, std::size_t n, int nt, int nch, WorkerPool* pool,
+               VoxelGrid* g);
   void sort(int threads, WorkerPool* pool, VoxelGrid* g);
+  // build() pass 1: points in key order, voxels and their sums; returns the number of voxels.
+  std::size_t gatherPoints(int nt, WorkerPool* pool, VoxelGrid* g);
+  // build() pass 2, per voxel: centroids, flags, cells, columns, the flat and seed lists.
+  void voxelPasses(const VoxelGroundFilterParams& p, int nt, std::size_t nv, WorkerPool* pool,
+                   VoxelGrid* g, CellGrid* cells);
 
   // x y z 0 per input point (16-byte aligned vectors), absolute: build() subtracts min_ as it
   // gathers the valid points (one write of the copy fewer than storing relative coordinates).

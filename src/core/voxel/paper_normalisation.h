@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_SRC_CORE_PAPER_NORMALISATION_H
-#define GROUND_FILTER_SRC_CORE_PAPER_NORMALISATION_H
+#ifndef GROUND_FILTER_SRC_CORE_VOXEL_PAPER_NORMALISATION_H
+#define GROUND_FILTER_SRC_CORE_VOXEL_PAPER_NORMALISATION_H
 
 #include <cstddef>
 #include <cstdint>
@@ -8,6 +8,7 @@
 
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/ground_filter.h"
+#include "ground_filter/param_table.h"
 #include "ground_filter/voxel_ground_filter.h"
 
 namespace ground_filter {
@@ -15,6 +16,28 @@ namespace ground_filter {
 /// \brief The voxel method's parameters as the paper states them: 0.1 voxels, 0.04 flatness,
 ///        one global plane, 0.10 distance with the mean +- 1 std band, height margin 1.
 VoxelGroundFilterParams paperVoxelParams();
+
+/// \brief Parameters of `voxel_paper`: its own two (table()) and the voxel method's, which
+///        start from paperVoxelParams(). set() tries the own rows first, then the voxel
+///        method's (an unknown name is reported by the voxel table, as before).
+struct PaperVoxelParams : TableParams<PaperVoxelParams> {
+  int segment_points = 65536;       ///< points per segment, in input order [points] (65536)
+  bool paper_normalisation = true;  ///< logistic z-score mapping per segment [bool] (true)
+  VoxelGroundFilterParams voxel = paperVoxelParams();  ///< the voxel filter run on each segment
+
+  /// \brief Sets one field (own row or the voxel method's) from text.
+  /// \throws std::invalid_argument for an unknown name or a malformed value.
+  void set(const std::string& name, const std::string& value);
+  /// \brief The voxel method's checks, then the ranges of the own rows.
+  /// \throws std::invalid_argument naming the first bad field, its value and its range.
+  void validate() const;
+  /// \brief "name=value ..." of the own rows, then of the voxel method's.
+  std::string describe() const;
+  /// \brief The own rows: segment_points, paper_normalisation.
+  static const ParamTable<PaperVoxelParams>& table();
+  /// \brief "voxel_paper": the method's name (messages, makeGroundFilter()).
+  static const char* method() { return "voxel_paper"; }
+};
 
 /// \brief The authors' normalisation (MATLAB `standart.m`): each coordinate v of the valid
 ///        points of input indices [begin, end) becomes 1 / (1 + exp(-(v - mean) / std)), mean
@@ -34,10 +57,9 @@ void paperNormaliseSegment(const CloudView& cloud, std::size_t begin, std::size_
 ///        contract as every GroundFilter.
 class PaperNormalisedVoxelFilter : public GroundFilter {
  public:
-  /// \brief Stores the parameters.
-  /// \throws std::invalid_argument when params.validate() fails or segment_points < 3.
-  explicit PaperNormalisedVoxelFilter(const VoxelGroundFilterParams& params = paperVoxelParams(),
-                                      int segment_points = 65536, bool normalise = true);
+  /// \brief Validates and stores the parameters.
+  /// \throws std::invalid_argument when params.validate() fails.
+  explicit PaperNormalisedVoxelFilter(const PaperVoxelParams& params = PaperVoxelParams());
 
   void filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
               FilterStats* stats = nullptr) override;
@@ -54,4 +76,4 @@ class PaperNormalisedVoxelFilter : public GroundFilter {
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_PAPER_NORMALISATION_H
+#endif  // GROUND_FILTER_SRC_CORE_VOXEL_PAPER_NORMALISATION_H

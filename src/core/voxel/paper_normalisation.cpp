@@ -1,11 +1,22 @@
-#include "paper_normalisation.h"
+#include "voxel/paper_normalisation.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
-#include <stdexcept>
+#include <string>
+
+#include "common/threads_timing.h"
 
 namespace ground_filter {
+
+namespace {
+
+// The voxel filter's parameters, after the whole set passed validate().
+const VoxelGroundFilterParams& validated(const PaperVoxelParams& p) {
+  p.validate();
+  return p.voxel;
+}
+
+}  // namespace
 
 VoxelGroundFilterParams paperVoxelParams() {
   VoxelGroundFilterParams p;
@@ -58,20 +69,43 @@ void paperNormaliseSegment(const CloudView& cloud, std::size_t begin, std::size_
   }
 }
 
-PaperNormalisedVoxelFilter::PaperNormalisedVoxelFilter(const VoxelGroundFilterParams& params,
-                                                       int segment_points, bool normalise)
-    : voxel_(params),
-      segment_points_(static_cast<std::size_t>(std::max(segment_points, 0))),
-      normalise_(normalise) {
-  if (segment_points < 3) {
-    throw std::invalid_argument("segment_points = " + std::to_string(segment_points) +
-                                " is out of range [3, 2147483647] points");
-  }
+const ParamTable<PaperVoxelParams>& PaperVoxelParams::table() {
+  using P = PaperVoxelParams;
+  static const ParamTable<P> rows = {
+      {"segment_points", &P::segment_points, 3, 2147483647, "points", "points per segment"},
+      {"paper_normalisation", &P::paper_normalisation, 0, 0, "bool",
+       "logistic z-score mapping (false: metric)"},
+  };
+  return rows;
 }
+
+void PaperVoxelParams::set(const std::string& name, const std::string& value) {
+  for (const auto& spec : table()) {
+    if (name == spec.name) {
+      setParam(table(), method(), name, value, this);
+      return;
+    }
+  }
+  voxel.set(name, value);
+}
+
+void PaperVoxelParams::validate() const {
+  voxel.validate();
+  checkParamRanges(table(), *this);
+}
+
+std::string PaperVoxelParams::describe() const {
+  return describeParams(table(), *this) + " " + voxel.describe();
+}
+
+PaperNormalisedVoxelFilter::PaperNormalisedVoxelFilter(const PaperVoxelParams& params)
+    : voxel_(validated(params)),
+      segment_points_(static_cast<std::size_t>(params.segment_points)),
+      normalise_(params.paper_normalisation) {}
 
 void PaperNormalisedVoxelFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
                                         FilterStats* stats) {
-  const auto t0 = std::chrono::steady_clock::now();
+  const auto t0 = Clock::now();
   const std::size_t n = cloud.size();
   labels->assign(n, kNonGround);
   FilterStats st;
@@ -86,8 +120,7 @@ void PaperNormalisedVoxelFilter::filter(const CloudView& cloud, std::vector<std:
     for (std::size_t j = 0; j < index_.size(); ++j) (*labels)[index_[j]] = segment_labels_[j];
   }
   st.ground_points = static_cast<std::size_t>(std::count(labels->begin(), labels->end(), kGround));
-  st.total_ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  st.total_ms = msSince(t0);
   if (stats) *stats = st;
 }
 

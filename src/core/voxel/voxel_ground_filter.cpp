@@ -6,11 +6,11 @@
 #include <chrono>
 #include <stdexcept>
 
-#include "ground_filter/param_parse.h"
-#include "ground_filter/working_volume.h"
 #include "airborne/airborne_mode.h"
 #include "airborne/scan_type.h"
 #include "common/threads_timing.h"
+#include "ground_filter/param_parse.h"
+#include "ground_filter/working_volume.h"
 #include "voxel/classify.h"
 #include "voxel/ground_model.h"
 #include "voxel/segments.h"
@@ -24,19 +24,25 @@ namespace ground_filter {
 
 // ------------------------------------------------------------------------------------ filter
 
-// The stages (src/core/voxel/), each with its own scratch buffers, and the data they share.
+// The stages (src/core/voxel/), each holding only its own scratch buffers, and the results they
+// pass on (kept, so a repeated scan allocates nothing).
 struct VoxelGroundFilter::Impl {
-  voxel::VoxelGrid grid;
-  voxel::CellGrid cells;
+  // Stages, in run() order.
   voxel::Voxelizer voxelizer;
   voxel::Segmenter segmenter;
   voxel::GroundModel model;
   voxel::Classifier classifier;
   voxel::Voter voter;
   voxel::VegetationRule vegetation;  // veg_filter only
-  voxel::WorkerPool pool;            // threads > 1 only
-  MorphGround morph;                 // airborne scans only
-  ScanTypeSwitch scan;               // scan_type: this scan's mode
+  // Results: written by one stage, read (or rewritten) by the later ones.
+  voxel::VoxelGrid grid;                  // Voxelizer: points, voxels, columns, flat, seeds
+  voxel::CellGrid cells;                  // Voxelizer: cells holding voxels
+  voxel::SegmentResult segments;          // Segmenter: segment per flat voxel, ground plane
+  voxel::GroundModelResult ground_model;  // GroundModel: plane per cell
+  voxel::ClassifyResult classified;       // Classifier: labels (vote, vegetation rewrite them)
+  voxel::WorkerPool pool;                 // threads > 1 only
+  MorphGround morph;                      // airborne scans only
+  ScanTypeSwitch scan;                    // scan_type: this scan's mode
   explicit Impl(const VoxelGroundFilterParams& p) : scan(p.scan_type, p.morph_ground) {}
 };
 
@@ -117,40 +123,42 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
 
   // ---- 4. height filter, 5. region growing, largest segment
   t0 = Clock::now();
-  std::int64_t best = m.segmenter.run(p, &g);
+  voxel::SegmentResult& seg = m.segments;
+  m.segmenter.run(p, &g, &seg);
   stage("segments", t0);
 
   // ---- 6. plane of the largest segment (paper), local ground model
   t0 = Clock::now();
-  voxel::HeightPlane gp;
-  const bool have_plane = m.segmenter.globalPlane(p, g, &best, &gp);
+  m.segmenter.globalPlane(p, g, &seg);
+  const bool have_plane = seg.have_plane;
   if (have_plane) {
     if (p.local_planes) {
-      m.model.grow(p, g, m.cells, m.segmenter, gp, best);
+      m.model.grow(p, g, m.cells, seg, &m.ground_model);
     } else {
-      m.model.setGlobal(gp);
+      m.model.setGlobal(seg, &m.ground_model);
     }
   }
   stage("ground_model", t0);
 
   // ---- 7. per-point distance to the (cell) plane, optional mean +- std band
   t0 = Clock::now();
+  voxel::ClassifyResult& cls = m.classified;
   if (have_plane) {
-    m.classifier.run(p, g, m.cells, m.model, m.segmenter, best, threads, &m.pool);
+    m.classifier.run(p, g, m.cells, m.ground_model, seg, threads, &m.pool, &cls);
   } else {
-    m.classifier.ground.assign(n, 0);
+    cls.ground.assign(n, 0);
   }
   stage("classify", t0);
 
   // ---- 8. final 26-neighbourhood majority vote per voxel (point-weighted)
   t0 = Clock::now();
-  if (p.majority_vote && have_plane) m.voter.run(g, threads, &m.pool, &m.classifier);
+  if (p.majority_vote && have_plane) m.voter.run(g, threads, &m.pool, &cls);
   stage("vote", t0);
 
   // ---- 9. (added, veg_filter) ground points under porous clutter become non-ground
   if (p.veg_filter && have_plane) {
     t0 = Clock::now();
-    m.vegetation.run(p, g, m.model, m.classifier, threads, &m.pool, &m.classifier.ground);
+    m.vegetation.run(p, g, m.ground_model, threads, &m.pool, &cls);
     stage("vegetation", t0);
   }
 
@@ -161,7 +169,7 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
   const std::uint64_t slot_mask = (std::uint64_t{1} << g.slot_bits) - 1;
   const std::uint32_t* ord = g.order.data();
   const std::uint32_t* idx = g.point_index.data();
-  const std::uint8_t* gr = m.classifier.ground.data();
+  const std::uint8_t* gr = cls.ground.data();
   std::uint8_t* out = labels->data();
   if (g.packed && g.all_valid) {  // the common case, without the layout tests per point
     for (std::size_t i = 0; i < n; ++i) {
