@@ -21,7 +21,7 @@ gf_core_room(common plane_fit)
 gf_core_room(. filter_factory param_parse working_volume)
 gf_core_room(airborne morph_ground scan_type airborne_mode)
 # voxel method: the filter and its parameter table, one file per stage, the paper mode
-gf_core_room(voxel voxel_ground_filter voxel_ground_filter_params paper_normalisation)
+gf_core_room(voxel voxel_ground_filter voxel_ground_filter_params paper_voxel_filter)
 gf_core_room(voxel voxelize voxelize_build avx2_passes segments ground_model classify vote vegetation worker_pool)
 # normal method: the filter and its parameter table, one file per stage
 gf_core_room(. normal_ground_filter normal_ground_filter_params)

@@ -28,7 +28,7 @@
 #include "ground_filter/io/metrics.h"
 #include "ground_filter/io/scan_io.h"
 #include "ground_filter/scene/scene_generator.h"
-#include "voxel/paper_normalisation.h"
+#include "voxel/paper_voxel_filter.h"
 
 namespace gf = ground_filter;
 namespace fs = std::filesystem;

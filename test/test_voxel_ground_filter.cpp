@@ -18,7 +18,7 @@
 #include "gf_test_voxel.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/voxel_ground_filter.h"
-#include "voxel/paper_normalisation.h"
+#include "voxel/paper_voxel_filter.h"
 
 namespace gf = ground_filter;
 

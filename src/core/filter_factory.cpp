@@ -5,7 +5,7 @@
 #include "ground_filter/param_parse.h"
 #include "ground_filter/voxel_ground_filter.h"
 #include "ground_filter/working_volume.h"
-#include "voxel/paper_normalisation.h"
+#include "voxel/paper_voxel_filter.h"
 
 namespace ground_filter {
 

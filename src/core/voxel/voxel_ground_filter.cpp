@@ -10,7 +10,7 @@
 #include "airborne/scan_type.h"
 #include "common/threads_timing.h"
 #include "ground_filter/param_parse.h"
-#include "ground_filter/working_volume.h"
+#include "ground_filter/working_volume_params.h"
 #include "voxel/classify.h"
 #include "voxel/ground_model.h"
 #include "voxel/segments.h"

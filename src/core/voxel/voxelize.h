@@ -8,7 +8,7 @@
 
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/voxel_ground_filter_params.h"
-#include "ground_filter/working_volume.h"
+#include "ground_filter/working_volume_params.h"
 #include "simd/simd.h"
 #include "voxel/avx2_passes.h"
 #include "voxel/voxel_grid.h"

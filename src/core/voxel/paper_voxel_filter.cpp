@@ -1,4 +1,4 @@
-#include "voxel/paper_normalisation.h"
+#include "voxel/paper_voxel_filter.h"
 
 #include <algorithm>
 #include <cmath>
