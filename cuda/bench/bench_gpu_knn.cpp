@@ -28,8 +28,10 @@
 #include <vector>
 
 #include "brute_force_knn.h"  // readKittiBin (cuda/test/)
+#include "common/threads_timing.h"
 #include "ground_filter/cuda_knn.h"
 #include "ground_filter/normal_ground_filter.h"
+#include "knn_tuning.h"  // cuda/src: the query kernel's experiment knobs and work counters
 #include "neighbors/gpu_neighbor_search.h"
 #include "neighbors/kdtree_neighbor_search.h"
 #include "replicate_frames.h"
@@ -38,11 +40,8 @@ namespace gf = ground_filter;
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
+using gf::Clock;
+using gf::msSince;
 
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
@@ -152,33 +151,35 @@ FilterRow benchFilter(const std::string& label, const std::vector<float>& xyz, i
   return row;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+struct BenchOptions {
   std::string data = GF_DATA_DIR;
   std::vector<std::size_t> sizes = {0, 1000000, 5000000};  // 0 = one KITTI frame as is
   int reps = 5;
   int freps = 15;
   bool variants = false;
   bool filter = true;
+};
+
+/// Parses the command line; false (usage printed) on an unknown argument.
+bool parseArgs(int argc, char** argv, BenchOptions* o) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--data" && i + 1 < argc) {
-      data = argv[++i];
+      o->data = argv[++i];
     } else if (a == "--reps" && i + 1 < argc) {
-      reps = std::max(1, std::atoi(argv[++i]));
+      o->reps = std::max(1, std::atoi(argv[++i]));
     } else if (a == "--filter-reps" && i + 1 < argc) {
-      freps = std::max(1, std::atoi(argv[++i]));
+      o->freps = std::max(1, std::atoi(argv[++i]));
     } else if (a == "--variants") {
-      variants = true;
+      o->variants = true;
     } else if (a == "--no-filter") {
-      filter = false;
+      o->filter = false;
     } else if (a == "--sizes" && i + 1 < argc) {
-      sizes.clear();
+      o->sizes.clear();
       std::string s = argv[++i];
       for (std::size_t p = 0; p <= s.size();) {
         const std::size_t q = std::min(s.find(',', p), s.size());
-        sizes.push_back(std::strtoull(s.substr(p, q - p).c_str(), nullptr, 10));
+        o->sizes.push_back(std::strtoull(s.substr(p, q - p).c_str(), nullptr, 10));
         p = q + 1;
       }
     } else {
@@ -186,9 +187,14 @@ int main(int argc, char** argv) {
                    "usage: %s [--data DIR] [--sizes N,N,..] [--reps N] [--filter-reps N] "
                    "[--variants] [--no-filter]\n",
                    argv[0]);
-      return 2;
+      return false;
     }
   }
+  return true;
+}
+
+/// KITTI frames 000000.bin .. 000005.bin of `data` (those present).
+std::vector<std::vector<float>> loadFrames(const std::string& data) {
   std::vector<std::vector<float>> frames;
   for (int f = 0; f < 6; ++f) {
     char name[32];
@@ -196,12 +202,197 @@ int main(int argc, char** argv) {
     auto xyz = gf_test::readKittiBin(data + name);
     if (!xyz.empty()) frames.push_back(std::move(xyz));
   }
+  return frames;
+}
+
+/// Copy bandwidths on this machine, 64 MiB blocks.
+void printCopyBandwidth(int cores) {
+  const std::size_t bytes = 64u << 20;
+  void* d = nullptr;
+  void* h = nullptr;
+  if (cudaMalloc(&d, bytes) == cudaSuccess && cudaMallocHost(&h, bytes) == cudaSuccess) {
+    std::vector<char> user(bytes, 1);
+    cudaMemset(d, 7, bytes);
+    const double d2h_pinned =
+        timeMedian(5, [&] { cudaMemcpy(h, d, bytes, cudaMemcpyDeviceToHost); });
+    const double h2d_pinned =
+        timeMedian(5, [&] { cudaMemcpy(d, h, bytes, cudaMemcpyHostToDevice); });
+    const double d2h_pageable =
+        timeMedian(5, [&] { cudaMemcpy(user.data(), d, bytes, cudaMemcpyDeviceToHost); });
+    const double host_copy = timeMedian(5, [&] {
+#pragma omp parallel for schedule(static)
+      for (int s = 0; s < 64; ++s) {
+        std::memcpy(user.data() + (std::size_t(s) << 20),
+                    static_cast<char*>(h) + (std::size_t(s) << 20), std::size_t(1) << 20);
+      }
+    });
+    const double host_copy1 = timeMedian(5, [&] { std::memcpy(user.data(), h, bytes); });
+    auto gbs = [&](double ms) { return bytes / ms / 1e6; };
+    std::printf(
+        "copy bandwidth (GB/s, 64 MiB): D2H pinned %.1f, H2D pinned %.1f, D2H pageable "
+        "%.1f, host memcpy pinned->pageable %.1f (%d threads), %.1f (1 thread)\n\n",
+        gbs(d2h_pinned), gbs(h2d_pinned), gbs(d2h_pageable), gbs(host_copy), cores,
+        gbs(host_copy1));
+  }
+  cudaFree(d);
+  cudaFreeHost(h);
+}
+
+struct KnnRow {
+  std::string size;
+  double gpu_up, gpu_grid, gpu_query, gpu_total, gpu_device_only, cpu_total, cpu_build;
+  std::size_t rows_differ;
+};
+
+/// The GPU search (lists downloaded, and kept on the device) against the kd-tree on all cores;
+/// `r` timed calls each after a warm-up.
+KnnRow benchKnn(const std::string& label, const std::vector<float>& xyz, int k, int r) {
+  const std::size_t n = xyz.size() / 3;
+  gf::CudaKnn gpu;
+  std::vector<std::int32_t> gidx(n * k);
+  std::vector<float> gd2(n * k);
+  std::vector<double> up, grid, query, total, dev_only;
+  gpu.search(xyz.data(), n, k, gidx.data(), gd2.data());  // warm-up
+  for (int i = 0; i < std::max(r, 3); ++i) {
+    gpu.search(xyz.data(), n, k, gidx.data(), gd2.data());
+    const auto& t = gpu.lastTimings();
+    up.push_back(t.upload_ms);
+    grid.push_back(t.grid_ms);
+    query.push_back(t.query_ms);
+    total.push_back(t.total_ms);
+  }
+  {  // lists left on the device (what the filter does)
+    gf::CudaKnn dev;
+    dev.search(xyz.data(), n, k, nullptr, nullptr);
+    for (int i = 0; i < std::max(r, 3); ++i) {
+      dev.search(xyz.data(), n, k, nullptr, nullptr);
+      dev_only.push_back(dev.lastTimings().total_ms);
+    }
+  }
+  gf::KdTreeNeighborSearch cpu(0);
+  gf::NeighborLists cl;
+  std::vector<double> build;
+  const double cpu_ms = timeMedian(r, [&] {
+    cpu.search(xyz.data(), n, k, &cl);
+    build.push_back(cpu.lastBuildMs());
+  });
+  std::size_t differ = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    for (int j = 0; j < k; ++j) {
+      if (gidx[i * k + j] != cl.indices[i * k + j] || gd2[i * k + j] != cl.sq_dists[i * k + j]) {
+        ++differ;
+        break;
+      }
+    }
+  }
+  return {label,  median(up),    median(grid), median(query), median(total), median(dev_only),
+          cpu_ms, median(build), differ};
+}
+
+/// List merging and the identical-point skip (on/off), lists kept on the device; K 50 and the
+/// filter's K 64: one table line per variant (times, then work counters from a counting run).
+void benchVariants(const std::string& label, const std::vector<float>& xyz, int k, int r,
+                   std::vector<std::string>* lines) {
+  const std::size_t n = xyz.size() / 3;
+  struct V {
+    int k, merge_min;
+    bool skip;
+    int heavy;
+  };
+  for (const V& vv :
+       {V{k, 0, false, 0}, V{k, 6, true, 0}, V{k, 6, true, 2048}, V{k, 6, true, 8192},
+        V{k, 6, true, 32768}, V{64, 0, false, 0}, V{64, 6, true, 0}, V{64, 6, true, 8192}}) {
+    gf::CudaKnnTuning o;
+    o.merge_min = vv.merge_min;
+    o.skip_duplicates = vv.skip;
+    o.heavy_candidates = vv.heavy;
+    gf::CudaKnn v;
+    gf::CudaKnnTuningAccess::set(v, o);
+    std::vector<double> tq, tt;
+    v.search(xyz.data(), n, vv.k, nullptr, nullptr);
+    for (int i = 0; i < std::max(r, 5); ++i) {
+      v.search(xyz.data(), n, vv.k, nullptr, nullptr);
+      tq.push_back(v.lastTimings().query_ms);
+      tt.push_back(v.lastTimings().total_ms);
+    }
+    o.collect_stats = true;
+    gf::CudaKnn cs;
+    gf::CudaKnnTuningAccess::set(cs, o);
+    cs.search(xyz.data(), n, vv.k, nullptr, nullptr);
+    const gf::CudaKnnQueryStats& t = gf::CudaKnnTuningAccess::stats(cs);
+    char line[400];
+    std::snprintf(line, sizeof line,
+                  "| %s | K %d, merge from %d, skip identical %s, heavy from %d | %.2f | %.2f | "
+                  "%.0f | %.0f | %.2f | %.2f | %.0f | %.0f |",
+                  label.c_str(), vv.k, vv.merge_min, vv.skip ? "on" : "off", vv.heavy, median(tq),
+                  median(tt), t.candidates_per_query, t.insertions_per_query, t.shells_per_query,
+                  t.levels_per_query, t.mean_query_cycles, t.max_query_cycles);
+    lines->push_back(line);
+    if (vv.k == 64 && vv.merge_min == 6) {  // the slowest query without / with heavy
+      lines->push_back("|  | " + t.detail + " | | | | | | | | |");
+    }
+  }
+}
+
+void printKnnTable(int k, int cores, const std::vector<KnnRow>& rows) {
+  std::printf("K-nearest neighbours, K = %d (ms)\n\n", k);
+  std::printf(
+      "| points | GPU upload | GPU grid | GPU query + download | GPU total | GPU, lists "
+      "kept on device | kd-tree (%d threads) | of which build | speed-up | rows differing "
+      "|\n",
+      cores);
+  std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
+  for (const auto& r : rows) {
+    std::printf("| %s | %.2f | %.2f | %.2f | **%.2f** | %.2f | %.1f | %.1f | **%.0fx** | %zu |\n",
+                r.size.c_str(), r.gpu_up, r.gpu_grid, r.gpu_query, r.gpu_total, r.gpu_device_only,
+                r.cpu_total, r.cpu_build, r.cpu_total / r.gpu_total, r.rows_differ);
+  }
+}
+
+void printFilterTable(const std::vector<FilterRow>& rows) {
+  std::printf(
+      "\nWhole normal-vector filter (ms, medians; the three configurations run in turn in one "
+      "run). Stages: sort = NaN compaction + grid-column order; knn = kd-tree build + queries "
+      "(CPU) or grid + queries (GPU); GPU io = host packing / upload / labels download\n\n");
+  std::printf(
+      "| points | backend | runs | total | sort | knn | pca | vote | plane | GPU io | labels "
+      "differing from CPU (all cores) | speed-up vs CPU all cores |\n"
+      "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (const auto& r : rows) {
+    for (int c = 0; c < 3; ++c) {
+      const FilterCol& f = r.col[c];
+      std::printf(
+          "| %s | %s | %d | **%.2f** | %.2f | %.2f | %.2f | %.2f | %.2f | %s | %s | %.1fx |\n",
+          r.size.c_str(), f.name.c_str(), f.runs, f.total, f.sort, f.knn, f.pca, f.vote, f.plane,
+          c == 2 ? (fmt(f.pack) + " / " + fmt(f.up) + " / " + fmt(f.down)).c_str() : "",
+          c == 2 ? std::to_string(r.differ).c_str() : "", r.col[1].total / f.total);
+    }
+    if (!r.note.empty()) std::printf("|  | note: %s | | | | | | | | | | |\n", r.note.c_str());
+  }
+}
+
+void printVariantTable(const std::vector<std::string>& lines) {
+  if (lines.empty()) return;
+  std::printf(
+      "\nGPU KNN variants, lists kept on the device (ms; work per query from a run with "
+      "counters)\n\n| points | variant | query | total | candidates | "
+      "insertions | shells | levels | mean cycles | max cycles |\n"
+      "|---|---|---|---|---|---|---|---|---|---|\n");
+  for (const auto& l : lines) std::printf("%s\n", l.c_str());
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  BenchOptions opt;
+  if (!parseArgs(argc, argv, &opt)) return 2;
+  const std::vector<std::vector<float>> frames = loadFrames(opt.data);
   if (frames.empty()) {
-    std::fprintf(stderr, "no KITTI frames (000000.bin ...) in %s\n", data.c_str());
+    std::fprintf(stderr, "no KITTI frames (000000.bin ...) in %s\n", opt.data.c_str());
     return 1;
   }
   const std::vector<float> os128 =
-      gf_test::readKittiBin(data + "/os128_000000.bin");  // converted PCD
+      gf_test::readKittiBin(opt.data + "/os128_000000.bin");  // converted PCD
   std::string why;
   if (!gf::CudaKnn::deviceAvailable(&why)) {
     std::fprintf(stderr, "no usable CUDA device: %s\n", why.c_str());
@@ -213,49 +404,13 @@ int main(int argc, char** argv) {
   std::printf(
       "device: %s; CPU: %d cores (kd-tree and filter use all); K = %d; median of %d runs "
       "after a warm-up\n\n",
-      probe.deviceName().c_str(), cores, k, reps);
-
-  struct Row {
-    std::string size;
-    double gpu_up, gpu_grid, gpu_query, gpu_total, gpu_device_only, cpu_total, cpu_build;
-    std::size_t rows_differ;
-  };
-  if (variants) {  // copy bandwidths on this machine, 64 MiB blocks
-    const std::size_t bytes = 64u << 20;
-    void* d = nullptr;
-    void* h = nullptr;
-    if (cudaMalloc(&d, bytes) == cudaSuccess && cudaMallocHost(&h, bytes) == cudaSuccess) {
-      std::vector<char> user(bytes, 1);
-      cudaMemset(d, 7, bytes);
-      const double d2h_pinned =
-          timeMedian(5, [&] { cudaMemcpy(h, d, bytes, cudaMemcpyDeviceToHost); });
-      const double h2d_pinned =
-          timeMedian(5, [&] { cudaMemcpy(d, h, bytes, cudaMemcpyHostToDevice); });
-      const double d2h_pageable =
-          timeMedian(5, [&] { cudaMemcpy(user.data(), d, bytes, cudaMemcpyDeviceToHost); });
-      const double host_copy = timeMedian(5, [&] {
-#pragma omp parallel for schedule(static)
-        for (int s = 0; s < 64; ++s) {
-          std::memcpy(user.data() + (std::size_t(s) << 20),
-                      static_cast<char*>(h) + (std::size_t(s) << 20), std::size_t(1) << 20);
-        }
-      });
-      const double host_copy1 = timeMedian(5, [&] { std::memcpy(user.data(), h, bytes); });
-      auto gbs = [&](double ms) { return bytes / ms / 1e6; };
-      std::printf(
-          "copy bandwidth (GB/s, 64 MiB): D2H pinned %.1f, H2D pinned %.1f, D2H pageable "
-          "%.1f, host memcpy pinned->pageable %.1f (%d threads), %.1f (1 thread)\n\n",
-          gbs(d2h_pinned), gbs(h2d_pinned), gbs(d2h_pageable), gbs(host_copy), cores,
-          gbs(host_copy1));
-    }
-    cudaFree(d);
-    cudaFreeHost(h);
-  }
-  std::vector<Row> knn_rows;
+      probe.deviceName().c_str(), cores, k, opt.reps);
+  if (opt.variants) printCopyBandwidth(cores);
+  std::vector<KnnRow> knn_rows;
   std::vector<FilterRow> filter_rows;
   std::vector<std::string> variant_lines;
 
-  std::vector<std::size_t> todo = sizes;
+  std::vector<std::size_t> todo = opt.sizes;
   if (!os128.empty()) todo.push_back(static_cast<std::size_t>(-1));  // the Ouster frame last
   for (std::size_t want : todo) {
     const bool is_os = want == static_cast<std::size_t>(-1);
@@ -263,141 +418,18 @@ int main(int argc, char** argv) {
         is_os ? os128 : (want == 0 ? frames[0] : gf_test::replicateFrames(frames, want));
     const std::size_t n = xyz.size() / 3;
     const std::string label = is_os ? "OS-128 (240 k)" : sizeLabel(n);
-    const int r = n > 2000000 ? std::max(1, reps / 2) : reps;
+    const int r = n > 2000000 ? std::max(1, opt.reps / 2) : opt.reps;
     std::fprintf(stderr, "size %zu ...\n", n);
-
-    // ---- KNN
-    gf::CudaKnn gpu;
-    std::vector<std::int32_t> gidx(n * k);
-    std::vector<float> gd2(n * k);
-    std::vector<double> up, grid, query, total, dev_only;
-    gpu.search(xyz.data(), n, k, gidx.data(), gd2.data());  // warm-up
-    for (int i = 0; i < std::max(r, 3); ++i) {
-      gpu.search(xyz.data(), n, k, gidx.data(), gd2.data());
-      const auto& t = gpu.lastTimings();
-      up.push_back(t.upload_ms);
-      grid.push_back(t.grid_ms);
-      query.push_back(t.query_ms);
-      total.push_back(t.total_ms);
-    }
-    {  // lists left on the device (what the filter does)
-      gf::CudaKnn dev;
-      dev.search(xyz.data(), n, k, nullptr, nullptr);
-      for (int i = 0; i < std::max(r, 3); ++i) {
-        dev.search(xyz.data(), n, k, nullptr, nullptr);
-        dev_only.push_back(dev.lastTimings().total_ms);
-      }
-    }
-    gf::KdTreeNeighborSearch cpu(0);
-    gf::NeighborLists cl;
-    std::vector<double> build;
-    const double cpu_ms = timeMedian(r, [&] {
-      cpu.search(xyz.data(), n, k, &cl);
-      build.push_back(cpu.lastBuildMs());
-    });
-    std::size_t differ = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      for (int j = 0; j < k; ++j) {
-        if (gidx[i * k + j] != cl.indices[i * k + j] || gd2[i * k + j] != cl.sq_dists[i * k + j]) {
-          ++differ;
-          break;
-        }
-      }
-    }
-    knn_rows.push_back({label, median(up), median(grid), median(query), median(total),
-                        median(dev_only), cpu_ms, median(build), differ});
-
-    if (variants) {
-      // List merging and the identical-point skip (on/off), lists kept on the device; K 50 and the
-      // filter's K 64.
-      struct V {
-        int k, merge_min;
-        bool skip;
-        int heavy;
-      };
-      for (const V& vv :
-           {V{k, 0, false, 0}, V{k, 6, true, 0}, V{k, 6, true, 2048}, V{k, 6, true, 8192},
-            V{k, 6, true, 32768}, V{64, 0, false, 0}, V{64, 6, true, 0}, V{64, 6, true, 8192}}) {
-        gf::CudaKnnOptions o;
-        o.merge_min = vv.merge_min;
-        o.skip_duplicates = vv.skip;
-        o.heavy_candidates = vv.heavy;
-        gf::CudaKnn v(o);
-        std::vector<double> tq, tt;
-        v.search(xyz.data(), n, vv.k, nullptr, nullptr);
-        for (int i = 0; i < std::max(r, 5); ++i) {
-          v.search(xyz.data(), n, vv.k, nullptr, nullptr);
-          tq.push_back(v.lastTimings().query_ms);
-          tt.push_back(v.lastTimings().total_ms);
-        }
-        o.collect_stats = true;
-        gf::CudaKnn cs(o);
-        cs.search(xyz.data(), n, vv.k, nullptr, nullptr);
-        const auto& t = cs.lastTimings();
-        char line[400];
-        std::snprintf(
-            line, sizeof line,
-            "| %s | K %d, merge from %d, skip identical %s, heavy from %d | %.2f | %.2f | "
-            "%.0f | %.0f | %.2f | %.2f | %.0f | %.0f |",
-            label.c_str(), vv.k, vv.merge_min, vv.skip ? "on" : "off", vv.heavy, median(tq),
-            median(tt), t.candidates_per_query, t.insertions_per_query, t.shells_per_query,
-            t.levels_per_query, t.mean_query_cycles, t.max_query_cycles);
-        variant_lines.push_back(line);
-        if (vv.k == 64 && vv.merge_min == 6) {  // the slowest query without / with heavy
-          variant_lines.push_back("|  | " + t.detail + " | | | | | | | | |");
-        }
-      }
-    }
-    gidx.clear();
-    gidx.shrink_to_fit();
-    gd2.clear();
-    gd2.shrink_to_fit();
-    cl = gf::NeighborLists();
-
+    knn_rows.push_back(benchKnn(label, xyz, k, r));
+    if (opt.variants) benchVariants(label, xyz, k, r, &variant_lines);
     // ---- whole normal-vector filter: CPU 2 threads, CPU all cores, GPU, in turn
-    if (filter) {
-      filter_rows.push_back(benchFilter(label, xyz, n > 2000000 ? std::max(3, freps / 3) : freps));
+    if (opt.filter) {
+      const int freps = n > 2000000 ? std::max(3, opt.freps / 3) : opt.freps;
+      filter_rows.push_back(benchFilter(label, xyz, freps));
     }
   }
-
-  std::printf("K-nearest neighbours, K = %d (ms)\n\n", k);
-  std::printf(
-      "| points | GPU upload | GPU grid | GPU query + download | GPU total | GPU, lists "
-      "kept on device | kd-tree (%d threads) | of which build | speed-up | rows differing "
-      "|\n",
-      cores);
-  std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
-  for (const auto& r : knn_rows) {
-    std::printf("| %s | %.2f | %.2f | %.2f | **%.2f** | %.2f | %.1f | %.1f | **%.0fx** | %zu |\n",
-                r.size.c_str(), r.gpu_up, r.gpu_grid, r.gpu_query, r.gpu_total, r.gpu_device_only,
-                r.cpu_total, r.cpu_build, r.cpu_total / r.gpu_total, r.rows_differ);
-  }
-  std::printf(
-      "\nWhole normal-vector filter (ms, medians; the three configurations run in turn in one "
-      "run). Stages: sort = NaN compaction + grid-column order; knn = kd-tree build + queries "
-      "(CPU) or grid + queries (GPU); GPU io = host packing / upload / labels download\n\n");
-  std::printf(
-      "| points | backend | runs | total | sort | knn | pca | vote | plane | GPU io | labels "
-      "differing from CPU (all cores) | speed-up vs CPU all cores |\n"
-      "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
-  for (const auto& r : filter_rows) {
-    for (int c = 0; c < 3; ++c) {
-      const FilterCol& f = r.col[c];
-      std::printf(
-          "| %s | %s | %d | **%.2f** | %.2f | %.2f | %.2f | %.2f | %.2f | %s | %s | %.1fx |\n",
-          r.size.c_str(), f.name.c_str(), f.runs, f.total, f.sort, f.knn, f.pca, f.vote, f.plane,
-          c == 2 ? (fmt(f.pack) + " / " + fmt(f.up) + " / " + fmt(f.down)).c_str() : "",
-          c == 2 ? std::to_string(r.differ).c_str() : "", r.col[1].total / f.total);
-    }
-    if (!r.note.empty()) std::printf("|  | note: %s | | | | | | | | | | |\n", r.note.c_str());
-  }
-  if (!variant_lines.empty()) {
-    std::printf(
-        "\nGPU KNN variants, lists kept on the device (ms; work per query from a run with "
-        "counters)\n\n| points | variant | query | total | candidates | "
-        "insertions | shells | levels | mean cycles | max cycles |\n"
-        "|---|---|---|---|---|---|---|---|---|---|\n");
-    for (const auto& l : variant_lines) std::printf("%s\n", l.c_str());
-  }
+  printKnnTable(k, cores, knn_rows);
+  printFilterTable(filter_rows);
+  printVariantTable(variant_lines);
   return 0;
 }

@@ -136,12 +136,12 @@ CudaKnn::~CudaKnn() {
 const CudaKnnTimings& CudaKnn::lastTimings() const { return impl_->timings; }
 std::string CudaKnn::deviceName() const { return impl_->device_name; }
 std::size_t CudaKnn::deviceBytes() const { return impl_->device_bytes; }
-const CudaKnnOptions& CudaKnn::options() const { return impl_->opt; }
 
 void CudaKnn::search(const float* xyz, std::size_t n_in, int k, std::int32_t* indices,
                      float* sq_dists) {
   Impl& im = *impl_;
   im.timings = CudaKnnTimings();
+  im.stats = CudaKnnQueryStats();
   im.list_n = 0;
   const auto t_start = std::chrono::steady_clock::now();
   if (k < 1 || k > kMaxK) {
@@ -173,109 +173,122 @@ void CudaKnn::search(const float* xyz, std::size_t n_in, int k, std::int32_t* in
 
 void CudaKnn::Impl::searchOnDevice(const float* d_xyz, int n, int k, std::int32_t* indices,
                                    float* sq_dists) {
-  Impl& im = *this;
-  im.list_n = 0;
-  const std::size_t n_in = static_cast<std::size_t>(n);
+  list_n = 0;
   const bool download = indices != nullptr;
-  cudaStream_t st = im.stream;
   const auto t_start = std::chrono::steady_clock::now();
+  const std::size_t small_bytes = growSearchBuffers(static_cast<std::size_t>(n), k, sq_dists);
+  auto t0 = std::chrono::steady_clock::now();
+  const SortedCloud sorted_cloud = sortPoints(d_xyz, n, download, small_bytes);
+  const GridDesc g = buildGrid(sorted_cloud, n, k, download);
+  timings.grid_ms = msSince(t0);
+  t0 = std::chrono::steady_clock::now();
+  runQueries(g, n, k, indices, sq_dists);
+  timings.query_ms = msSince(t0);  // with the overlapped download and scatter
+  list_n = static_cast<std::size_t>(n);
+  list_k = k;
+  list_xyz = d_xyz;
+  if (tune.collect_stats) readQueryStats(n);
+  timings.total_ms = msSince(t_start);
+}
 
-  // ---- buffers for everything but the level tables
+// ---- buffers for everything but the level tables
+std::size_t CudaKnn::Impl::growSearchBuffers(std::size_t n_in, int k, bool dists) {
+  const int n = static_cast<int>(n_in);
   const std::size_t rows = n_in * static_cast<std::size_t>(k);
   std::size_t sort_temp_bytes = 0;
   {
     cub::DoubleBuffer<unsigned long long> kb(nullptr, nullptr);
     cub::DoubleBuffer<unsigned int> vb(nullptr, nullptr);
     GF_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(nullptr, sort_temp_bytes, kb, vb, n, 0,
-                                                  3 * kCoordBits, st));
+                                                  3 * kCoordBits, stream));
     std::size_t scan_bytes = 0;
     GF_CUDA_CHECK(cub::DeviceScan::InclusiveSum(nullptr, scan_bytes,
                                                 static_cast<unsigned int*>(nullptr),
-                                                static_cast<unsigned int*>(nullptr), n, st));
+                                                static_cast<unsigned int*>(nullptr), n, stream));
     sort_temp_bytes = std::max(sort_temp_bytes, scan_bytes);
   }
-  im.grow(im.keys_a, n_in * sizeof(unsigned long long), "the Morton keys");
-  im.grow(im.keys_b, n_in * sizeof(unsigned long long), "the Morton keys");
-  im.grow(im.vals_a, n_in * sizeof(unsigned int), "the sort order");
-  im.grow(im.vals_b, n_in * sizeof(unsigned int), "the sort order");
-  im.grow(im.start_level, n_in, "the cell starts");
-  im.grow(im.sorted, n_in * sizeof(float4), "the sorted points");
-  im.grow(im.sort_temp, sort_temp_bytes, "the sort scratch");
-  im.grow(im.run_id, n_in * sizeof(unsigned int), "the duplicate runs");
-  im.grow(im.run_end, n_in * sizeof(unsigned int), "the duplicate runs");
-  im.grow(im.run_stop, n_in * sizeof(unsigned int), "the duplicate runs");
-  if (im.opt.heavy_candidates > 0) {
-    im.grow(im.heavy, n_in * sizeof(unsigned int), "the heavy queries");
-    im.grow(im.heavy_counts, Impl::kMaxChunks * sizeof(unsigned int), "the heavy queries");
+  grow(keys_a, n_in * sizeof(unsigned long long), "the Morton keys");
+  grow(keys_b, n_in * sizeof(unsigned long long), "the Morton keys");
+  grow(vals_a, n_in * sizeof(unsigned int), "the sort order");
+  grow(vals_b, n_in * sizeof(unsigned int), "the sort order");
+  grow(start_level, n_in, "the cell starts");
+  grow(sorted, n_in * sizeof(float4), "the sorted points");
+  grow(sort_temp, sort_temp_bytes, "the sort scratch");
+  grow(run_id, n_in * sizeof(unsigned int), "the duplicate runs");
+  grow(run_end, n_in * sizeof(unsigned int), "the duplicate runs");
+  grow(run_stop, n_in * sizeof(unsigned int), "the duplicate runs");
+  if (tune.heavy_candidates > 0) {
+    grow(heavy, n_in * sizeof(unsigned int), "the heavy queries");
+    grow(heavy_counts, kMaxChunks * sizeof(unsigned int), "the heavy queries");
   }
-  const std::size_t small_bytes =
-      64 + 32 * sizeof(unsigned int) + kStatCount * sizeof(unsigned long long);
-  im.grow(im.small, small_bytes, "the bounds");
-  im.grow(im.out_idx, rows * sizeof(std::int32_t), "the neighbour indices");
-  if (sq_dists) im.grow(im.out_d2, rows * sizeof(float), "the neighbour distances");
-  im.h_small.ensure(small_bytes);
+  const std::size_t small_bytes = kSmallStats + kStatCount * sizeof(unsigned long long);
+  grow(small, small_bytes, "the bounds");
+  grow(out_idx, rows * sizeof(std::int32_t), "the neighbour indices");
+  if (dists) grow(out_d2, rows * sizeof(float), "the neighbour distances");
+  h_small.ensure(small_bytes);
+  return small_bytes;
+}
 
-  char* d_small = im.small.as<char>();
-  int* d_bounds = reinterpret_cast<int*>(d_small);          // 7 ints
-  float* d_frame = reinterpret_cast<float*>(d_small + 32);  // 5 floats
-  unsigned int* d_hist = reinterpret_cast<unsigned int*>(d_small + 64);
-  unsigned long long* d_stats =
-      reinterpret_cast<unsigned long long*>(d_small + 64 + 32 * sizeof(unsigned int));
-
-  // ---- bounds, keys, sort, cell-start levels
-  auto t0 = std::chrono::steady_clock::now();
+// ---- bounds, keys, sort, cell-start levels
+CudaKnn::Impl::SortedCloud CudaKnn::Impl::sortPoints(const float* d_xyz, int n, bool download,
+                                                     std::size_t small_bytes) {
+  const std::size_t n_in = static_cast<std::size_t>(n);
+  cudaStream_t st = stream;
+  char* d_small = small.as<char>();
+  int* d_bounds = reinterpret_cast<int*>(d_small);                   // 7 ints
+  float* d_frame = reinterpret_cast<float*>(d_small + kSmallFrame);  // 5 floats
+  unsigned int* d_hist = reinterpret_cast<unsigned int*>(d_small + kSmallHist);
   launchBoundsAndFrame(d_xyz, n, d_bounds, d_frame, st);
-  launchMorton(d_xyz, n, d_frame, im.keys_a.as<unsigned long long>(), im.vals_a.as<unsigned int>(),
-               st);
-  cub::DoubleBuffer<unsigned long long> kb(im.keys_a.as<unsigned long long>(),
-                                           im.keys_b.as<unsigned long long>());
-  cub::DoubleBuffer<unsigned int> vb(im.vals_a.as<unsigned int>(), im.vals_b.as<unsigned int>());
-  std::size_t temp_bytes = im.sort_temp.bytes;
-  GF_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(im.sort_temp.ptr, temp_bytes, kb, vb, n, 0,
-                                                3 * kCoordBits, st));
-  const unsigned long long* d_keys = kb.Current();
-  const unsigned int* d_order = vb.Current();
+  launchMorton(d_xyz, n, d_frame, keys_a.as<unsigned long long>(), vals_a.as<unsigned int>(), st);
+  cub::DoubleBuffer<unsigned long long> kb(keys_a.as<unsigned long long>(),
+                                           keys_b.as<unsigned long long>());
+  cub::DoubleBuffer<unsigned int> vb(vals_a.as<unsigned int>(), vals_b.as<unsigned int>());
+  std::size_t temp_bytes = sort_temp.bytes;
+  GF_CUDA_CHECK(
+      cub::DeviceRadixSort::SortPairs(sort_temp.ptr, temp_bytes, kb, vb, n, 0, 3 * kCoordBits, st));
+  const SortedCloud out{kb.Current(), vb.Current()};
   GF_CUDA_CHECK(cudaMemsetAsync(
       d_hist, 0, 32 * sizeof(unsigned int) + kStatCount * sizeof(unsigned long long), st));
-  if (im.opt.heavy_candidates > 0) {
-    GF_CUDA_CHECK(
-        cudaMemsetAsync(im.heavy_counts.ptr, 0, Impl::kMaxChunks * sizeof(unsigned int), st));
+  if (tune.heavy_candidates > 0) {
+    GF_CUDA_CHECK(cudaMemsetAsync(heavy_counts.ptr, 0, kMaxChunks * sizeof(unsigned int), st));
   }
-  launchCellStartLevel(d_keys, n, im.start_level.as<unsigned char>(), d_hist, st);
-  launchGather(d_xyz, d_order, n, im.sorted.as<float4>(), st);
+  launchCellStartLevel(out.keys, n, start_level.as<unsigned char>(), d_hist, st);
+  launchGather(d_xyz, out.order, n, sorted.as<float4>(), st);
   {  // runs of identical points (their indices ascend): the query skips the rest of a run
      // once one member cannot enter its list
-    unsigned int* d_run_id = im.run_id.as<unsigned int>();
-    unsigned int* d_run_end = im.run_end.as<unsigned int>();
-    launchRunHeads(im.sorted.as<float4>(), n, d_run_end, st);  // heads, for the scan
-    std::size_t scan_bytes = im.sort_temp.bytes;
+    unsigned int* d_run_id = run_id.as<unsigned int>();
+    unsigned int* d_run_end = run_end.as<unsigned int>();
+    launchRunHeads(sorted.as<float4>(), n, d_run_end, st);  // heads, for the scan
+    std::size_t scan_bytes = sort_temp.bytes;
     GF_CUDA_CHECK(
-        cub::DeviceScan::InclusiveSum(im.sort_temp.ptr, scan_bytes, d_run_end, d_run_id, n, st));
-    launchRunEnds(im.sorted.as<float4>(), d_run_id, n, d_run_end, im.run_stop.as<unsigned int>(),
-                  st);
+        cub::DeviceScan::InclusiveSum(sort_temp.ptr, scan_bytes, d_run_end, d_run_id, n, st));
+    launchRunEnds(sorted.as<float4>(), d_run_id, n, d_run_end, run_stop.as<unsigned int>(), st);
   }
   if (download) {  // the row order (sorted -> original) for the host-side scatter
-    im.h_order.ensure(n_in * sizeof(unsigned int));
-    GF_CUDA_CHECK(cudaEventRecord(im.order_done, st));
-    GF_CUDA_CHECK(cudaStreamWaitEvent(im.copy, im.order_done, 0));
-    GF_CUDA_CHECK(cudaMemcpyAsync(im.h_order.ptr, d_order, n_in * sizeof(unsigned int),
-                                  cudaMemcpyDeviceToHost, im.copy));
+    h_order.ensure(n_in * sizeof(unsigned int));
+    GF_CUDA_CHECK(cudaEventRecord(order_done, st));
+    GF_CUDA_CHECK(cudaStreamWaitEvent(copy, order_done, 0));
+    GF_CUDA_CHECK(cudaMemcpyAsync(h_order.ptr, out.order, n_in * sizeof(unsigned int),
+                                  cudaMemcpyDeviceToHost, copy));
   }
-  GF_CUDA_CHECK(
-      cudaMemcpyAsync(im.h_small.ptr, im.small.ptr, small_bytes, cudaMemcpyDeviceToHost, st));
+  GF_CUDA_CHECK(cudaMemcpyAsync(h_small.ptr, small.ptr, small_bytes, cudaMemcpyDeviceToHost, st));
   GF_CUDA_CHECK(cudaStreamSynchronize(st));
-
-  const int* h_bounds = im.h_small.as<int>();
-  const float* h_frame = reinterpret_cast<const float*>(im.h_small.as<char>() + 32);
-  const unsigned int* h_hist = reinterpret_cast<const unsigned int*>(im.h_small.as<char>() + 64);
+  const int* h_bounds = h_small.as<int>();
   if (h_bounds[6] > 0) {
-    GF_CUDA_CHECK(cudaStreamSynchronize(im.copy));
+    GF_CUDA_CHECK(cudaStreamSynchronize(copy));
     throw std::invalid_argument("CudaKnn::search: " + std::to_string(h_bounds[6]) + " of " +
                                 std::to_string(n) +
                                 " points have NaN/Inf coordinates; remove them first");
   }
+  return out;
+}
 
-  // ---- level choice: cells per level m_b = points starting a cell at level <= b
+// ---- level choice: cells per level m_b = points starting a cell at level <= b
+GridDesc CudaKnn::Impl::buildGrid(const SortedCloud& sorted_cloud, int n, int k, bool download) {
+  const std::size_t n_in = static_cast<std::size_t>(n);
+  const float* h_frame = reinterpret_cast<const float*>(h_small.as<char>() + kSmallFrame);
+  const unsigned int* h_hist =
+      reinterpret_cast<const unsigned int*>(h_small.as<char>() + kSmallHist);
   std::size_t cells[kMaxLevels];
   std::size_t acc = 0;
   for (int b = 0; b < kMaxLevels; ++b) {
@@ -301,7 +314,7 @@ void CudaKnn::Impl::searchOnDevice(const float* d_xyz, int n, int k, std::int32_
   const float mag = std::max({std::fabs(g.ox), std::fabs(g.oy), std::fabs(g.oz)}) + edge;
   g.eps = 8.f * std::numeric_limits<float>::epsilon() * mag;
   const int min_pts_auto = std::max(1, std::min(k, n) / 4);
-  g.min_points = im.opt.level_min_points > 0 ? im.opt.level_min_points : min_pts_auto;
+  g.min_points = tune.level_min_points > 0 ? tune.level_min_points : min_pts_auto;
 
   // Tables for levels finest..0; under a memory limit, drop the finest levels first.
   auto log2Cap = [&](int b) {
@@ -315,7 +328,7 @@ void CudaKnn::Impl::searchOnDevice(const float* d_xyz, int n, int k, std::int32_
     return s;
   };
   const std::size_t slot_bytes = sizeof(unsigned long long) + sizeof(uint2);
-  const std::size_t allow = im.allowance() + im.table_keys.bytes + im.table_vals.bytes;
+  const std::size_t allow = allowance() + table_keys.bytes + table_vals.bytes;
   while (finest > 0 && tableSlots(finest) * slot_bytes * 9 / 8 > allow) --finest;
   g.nlev = finest + 1;
   std::size_t off = 0;
@@ -328,110 +341,114 @@ void CudaKnn::Impl::searchOnDevice(const float* d_xyz, int n, int k, std::int32_
     lv.table_off = off;
     off += std::size_t(1) << lv.log2cap;
   }
-  im.grow(im.table_keys, off * sizeof(unsigned long long), "the grid cell tables");
-  im.grow(im.table_vals, off * sizeof(uint2), "the grid cell tables");
-  unsigned long long* d_tkeys = im.table_keys.as<unsigned long long>();
-  uint2* d_tvals = im.table_vals.as<uint2>();
-  GF_CUDA_CHECK(cudaMemsetAsync(d_tkeys, 0xff, off * sizeof(unsigned long long), st));
-  launchBuildCells(g, d_keys, im.start_level.as<unsigned char>(), n, d_tkeys, d_tvals, st);
-  if (download || im.opt.collect_stats) {  // the pipeline needs no sync here
-    GF_CUDA_CHECK(cudaStreamSynchronize(st));
+  grow(table_keys, off * sizeof(unsigned long long), "the grid cell tables");
+  grow(table_vals, off * sizeof(uint2), "the grid cell tables");
+  unsigned long long* d_tkeys = table_keys.as<unsigned long long>();
+  GF_CUDA_CHECK(cudaMemsetAsync(d_tkeys, 0xff, off * sizeof(unsigned long long), stream));
+  launchBuildCells(g, sorted_cloud.keys, start_level.as<unsigned char>(), n, d_tkeys,
+                   table_vals.as<uint2>(), stream);
+  if (download || tune.collect_stats) {  // the pipeline needs no sync here
+    GF_CUDA_CHECK(cudaStreamSynchronize(stream));
   }
-  im.timings.grid_ms = msSince(t0);
-  im.timings.levels = g.nlev;
-  im.timings.finest_bits = finest;
+  timings.levels = g.nlev;
+  timings.finest_bits = finest;
+  return g;
+}
 
-  // ---- queries in chunks of Morton-ordered rows; each chunk's rows download while the next
-  //      chunk computes, and the host scatters them to their original rows meanwhile.
-  t0 = std::chrono::steady_clock::now();
-  const int auto_chunks = std::max(1, std::min(Impl::kMaxChunks, (n + 32767) / 32768));
+// ---- queries in chunks of Morton-ordered rows; each chunk's rows download while the next
+//      chunk computes, and the host scatters them to their original rows meanwhile.
+void CudaKnn::Impl::runQueries(const GridDesc& g, int n, int k, std::int32_t* indices,
+                               float* sq_dists) {
+  const bool download = indices != nullptr;
+  const std::size_t rows = static_cast<std::size_t>(n) * static_cast<std::size_t>(k);
+  cudaStream_t st = stream;
+  const int auto_chunks = std::max(1, std::min(kMaxChunks, (n + 32767) / 32768));
   const int chunks =
-      !download ? 1
-                : (im.opt.download_chunks > 0 ? std::min(im.opt.download_chunks, Impl::kMaxChunks)
-                                              : auto_chunks);
+      !download
+          ? 1
+          : (tune.download_chunks > 0 ? std::min(tune.download_chunks, kMaxChunks) : auto_chunks);
   const int per_chunk = (n + chunks - 1) / chunks;
-  std::int32_t* d_idx = im.out_idx.as<std::int32_t>();
-  float* d_d2 = sq_dists ? im.out_d2.as<float>() : nullptr;
-  unsigned long long* stats = im.opt.collect_stats ? d_stats : nullptr;
+  std::int32_t* d_idx = out_idx.as<std::int32_t>();
+  float* d_d2 = sq_dists ? out_d2.as<float>() : nullptr;
+  unsigned long long* d_stats =
+      tune.collect_stats ? reinterpret_cast<unsigned long long*>(small.as<char>() + kSmallStats)
+                         : nullptr;
   if (download) {
-    im.h_idx.ensure(rows * sizeof(std::int32_t));
-    if (sq_dists) im.h_d2.ensure(rows * sizeof(float));
+    h_idx.ensure(rows * sizeof(std::int32_t));
+    if (sq_dists) h_d2.ensure(rows * sizeof(float));
   }
   for (int c = 0; c < chunks; ++c) {
     const int b = c * per_chunk, e = std::min(n, b + per_chunk);
     if (b >= e) break;
-    const bool heavy = im.opt.heavy_candidates > 0;
-    launchKnnQuery(g, im.sorted.as<float4>(), d_tkeys, d_tvals,
-                   im.opt.skip_duplicates ? im.run_stop.as<unsigned int>() : nullptr, n, b, e, k,
-                   im.opt.sort_cells, im.opt.merge_min,
-                   heavy ? static_cast<unsigned int>(im.opt.heavy_candidates) : 0u,
-                   heavy ? im.heavy.as<unsigned int>() : nullptr,
-                   heavy ? im.heavy_counts.as<unsigned int>() + c : nullptr, 2 * im.sms, d_idx,
-                   d_d2, stats, st);
+    const bool use_heavy = tune.heavy_candidates > 0;
+    launchKnnQuery(
+        g, sorted.as<float4>(), table_keys.as<unsigned long long>(), table_vals.as<uint2>(),
+        tune.skip_duplicates ? run_stop.as<unsigned int>() : nullptr, n, b, e, k, tune.sort_cells,
+        tune.merge_min, use_heavy ? static_cast<unsigned int>(tune.heavy_candidates) : 0u,
+        use_heavy ? heavy.as<unsigned int>() : nullptr,
+        use_heavy ? heavy_counts.as<unsigned int>() + c : nullptr, 2 * sms, d_idx, d_d2, d_stats,
+        st);
     if (download) {
       const std::size_t r0 = static_cast<std::size_t>(b) * k,
                         nr = static_cast<std::size_t>(e - b) * k;
-      GF_CUDA_CHECK(cudaEventRecord(im.kernel_done[c], st));
-      GF_CUDA_CHECK(cudaStreamWaitEvent(im.copy, im.kernel_done[c], 0));
-      GF_CUDA_CHECK(cudaMemcpyAsync(im.h_idx.as<std::int32_t>() + r0, d_idx + r0,
-                                    nr * sizeof(std::int32_t), cudaMemcpyDeviceToHost, im.copy));
+      GF_CUDA_CHECK(cudaEventRecord(kernel_done[c], st));
+      GF_CUDA_CHECK(cudaStreamWaitEvent(copy, kernel_done[c], 0));
+      GF_CUDA_CHECK(cudaMemcpyAsync(h_idx.as<std::int32_t>() + r0, d_idx + r0,
+                                    nr * sizeof(std::int32_t), cudaMemcpyDeviceToHost, copy));
       if (sq_dists) {
-        GF_CUDA_CHECK(cudaMemcpyAsync(im.h_d2.as<float>() + r0, d_d2 + r0, nr * sizeof(float),
-                                      cudaMemcpyDeviceToHost, im.copy));
+        GF_CUDA_CHECK(cudaMemcpyAsync(h_d2.as<float>() + r0, d_d2 + r0, nr * sizeof(float),
+                                      cudaMemcpyDeviceToHost, copy));
       }
-      GF_CUDA_CHECK(cudaEventRecord(im.copy_done[c], im.copy));
+      GF_CUDA_CHECK(cudaEventRecord(copy_done[c], copy));
     }
   }
   if (download) {
-    const unsigned int* order = im.h_order.as<unsigned int>();
-    const std::int32_t* h_idx = im.h_idx.as<std::int32_t>();
-    const float* h_d2 = sq_dists ? im.h_d2.as<float>() : nullptr;
+    const unsigned int* order = h_order.as<unsigned int>();
+    const std::int32_t* hi = h_idx.as<std::int32_t>();
+    const float* hd = sq_dists ? h_d2.as<float>() : nullptr;
     const std::size_t row_i = static_cast<std::size_t>(k) * sizeof(std::int32_t);
     const std::size_t row_f = static_cast<std::size_t>(k) * sizeof(float);
     for (int c = 0; c < chunks; ++c) {
       const int b = c * per_chunk, e = std::min(n, b + per_chunk);
       if (b >= e) break;
-      GF_CUDA_CHECK(cudaEventSynchronize(im.copy_done[c]));
+      GF_CUDA_CHECK(cudaEventSynchronize(copy_done[c]));
 #pragma omp parallel for schedule(static) if (e - b > 4096)
       for (int s = b; s < e; ++s) {
         const std::size_t dst = static_cast<std::size_t>(order[s]) * k;
-        std::memcpy(indices + dst, h_idx + static_cast<std::size_t>(s) * k, row_i);
-        if (h_d2) std::memcpy(sq_dists + dst, h_d2 + static_cast<std::size_t>(s) * k, row_f);
+        std::memcpy(indices + dst, hi + static_cast<std::size_t>(s) * k, row_i);
+        if (hd) std::memcpy(sq_dists + dst, hd + static_cast<std::size_t>(s) * k, row_f);
       }
     }
   }
   GF_CUDA_CHECK(cudaStreamSynchronize(st));
-  GF_CUDA_CHECK(cudaStreamSynchronize(im.copy));
-  im.timings.query_ms = msSince(t0);  // with the overlapped download and scatter
-  im.list_n = n_in;
-  im.list_k = k;
-  im.list_xyz = d_xyz;
-  if (stats) {
-    unsigned long long h[kStatCount];
-    GF_CUDA_CHECK(cudaMemcpy(h, d_stats, sizeof h, cudaMemcpyDeviceToHost));
-    im.timings.candidates_per_query = static_cast<double>(h[kStatCandidates]) / n;
-    im.timings.insertions_per_query = static_cast<double>(h[kStatInsertions]) / n;
-    im.timings.shells_per_query = static_cast<double>(h[kStatShells]) / n;
-    im.timings.levels_per_query = static_cast<double>(h[kStatLevels]) / n;
-    im.timings.mean_query_cycles = static_cast<double>(h[kStatCycles]) / n;
-    im.timings.max_query_cycles = static_cast<double>(h[kStatMaxCycles]);
-    auto asFloat = [](unsigned long long v) {
-      const unsigned int b = static_cast<unsigned int>(v);
-      float f;
-      std::memcpy(&f, &b, sizeof f);
-      return f;
-    };
-    std::ostringstream os;
-    os << h[kStatHeavy] << " heavy queries (second kernel), " << h[kStatOver100k]
-       << " queries > 1e5 cycles, " << h[kStatOver1M] << " > 1e6; slowest: " << h[kStatSlowCand]
-       << " candidates, " << h[kStatSlowIns] << " insertions, " << h[kStatSlowShells] << " shells, "
-       << h[kStatSlowLevels] << " levels, last level 2^" << h[kStatSlowBits] << " cells/axis (cell "
-       << edge / static_cast<float>(1u << h[kStatSlowBits]) << " m), bound "
-       << std::sqrt(asFloat(h[kStatSlowLim])) << " m, K-th distance "
-       << std::sqrt(asFloat(h[kStatSlowKd])) << " m";
-    im.timings.detail = os.str();
-  }
-  im.timings.total_ms = msSince(t_start);
+  GF_CUDA_CHECK(cudaStreamSynchronize(copy));
+}
+
+void CudaKnn::Impl::readQueryStats(int n) {
+  unsigned long long h[kStatCount];
+  GF_CUDA_CHECK(cudaMemcpy(h, small.as<char>() + kSmallStats, sizeof h, cudaMemcpyDeviceToHost));
+  const float edge = reinterpret_cast<const float*>(h_small.as<char>() + kSmallFrame)[3];
+  stats.candidates_per_query = static_cast<double>(h[kStatCandidates]) / n;
+  stats.insertions_per_query = static_cast<double>(h[kStatInsertions]) / n;
+  stats.shells_per_query = static_cast<double>(h[kStatShells]) / n;
+  stats.levels_per_query = static_cast<double>(h[kStatLevels]) / n;
+  stats.mean_query_cycles = static_cast<double>(h[kStatCycles]) / n;
+  stats.max_query_cycles = static_cast<double>(h[kStatMaxCycles]);
+  auto asFloat = [](unsigned long long v) {
+    const unsigned int b = static_cast<unsigned int>(v);
+    float f;
+    std::memcpy(&f, &b, sizeof f);
+    return f;
+  };
+  std::ostringstream os;
+  os << h[kStatHeavy] << " heavy queries (second kernel), " << h[kStatOver100k]
+     << " queries > 1e5 cycles, " << h[kStatOver1M] << " > 1e6; slowest: " << h[kStatSlowCand]
+     << " candidates, " << h[kStatSlowIns] << " insertions, " << h[kStatSlowShells] << " shells, "
+     << h[kStatSlowLevels] << " levels, last level 2^" << h[kStatSlowBits] << " cells/axis (cell "
+     << edge / static_cast<float>(1u << h[kStatSlowBits]) << " m), bound "
+     << std::sqrt(asFloat(h[kStatSlowLim])) << " m, K-th distance "
+     << std::sqrt(asFloat(h[kStatSlowKd])) << " m";
+  stats.detail = os.str();
 }
 
 void CudaKnn::neighborhoodPca(float* normals, float* eigenvalues, std::uint8_t* valid) {
@@ -484,5 +501,11 @@ void CudaKnn::countFlaggedNeighbors(const std::uint8_t* flags, std::uint16_t* fl
 }
 
 std::size_t CudaKnn::listPoints() const { return impl_->list_n; }
+
+void CudaKnnTuningAccess::set(CudaKnn& knn, const CudaKnnTuning& tuning) {
+  knn.impl_->tune = tuning;
+}
+const CudaKnnTuning& CudaKnnTuningAccess::get(const CudaKnn& knn) { return knn.impl_->tune; }
+const CudaKnnQueryStats& CudaKnnTuningAccess::stats(const CudaKnn& knn) { return knn.impl_->stats; }
 
 }  // namespace ground_filter

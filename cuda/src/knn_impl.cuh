@@ -13,12 +13,15 @@
 
 #include "cuda_util.cuh"
 #include "ground_filter/cuda_knn.h"
+#include "knn_grid.cuh"
+#include "knn_tuning.h"
 
 namespace ground_filter {
 
 struct CudaKnn::Impl {
   static constexpr int kMaxChunks = 16;
   CudaKnnOptions opt;
+  CudaKnnTuning tune;             // experiment knobs (tests, benchmark): knn_tuning.h
   cudaStream_t stream = nullptr;  // all kernels
   cudaStream_t copy = nullptr;    // result downloads, overlapping the next query chunk
   cudaEvent_t kernel_done[kMaxChunks] = {};
@@ -28,6 +31,7 @@ struct CudaKnn::Impl {
   int sms = 1;  // multiprocessors
   std::size_t device_bytes = 0;
   CudaKnnTimings timings;
+  CudaKnnQueryStats stats;  // with tune.collect_stats
   // The lists of the last search, kept on the device (rows in Morton order).
   std::size_t list_n = 0;
   int list_k = 0;
@@ -65,6 +69,30 @@ struct CudaKnn::Impl {
   /// Everything of search() after the points are on the device at `d_xyz` (n finite points):
   /// grid, queries; the lists stay on the device, and are downloaded when `indices` is set.
   void searchOnDevice(const float* d_xyz, int n, int k, std::int32_t* indices, float* sq_dists);
+
+  // The sections of searchOnDevice (cuda_knn.cu), in their order.
+  /// Layout of `small` (device) and `h_small` (its host copy): bounds (7 ints), frame (5 floats:
+  /// origin, edge, 1 / edge), level histogram (32 words), query counters (kStatCount).
+  static constexpr std::size_t kSmallFrame = 32, kSmallHist = 64,
+                               kSmallStats = 64 + 32 * sizeof(unsigned int);
+  /// Grows every buffer of a search but the level tables; returns the bytes of `small`.
+  std::size_t growSearchBuffers(std::size_t n, int k, bool dists);
+  /// The Morton-sorted points of a search, on the device.
+  struct SortedCloud {
+    const unsigned long long* keys;  // sorted Morton keys
+    const unsigned int* order;       // sorted -> original index
+  };
+  /// Bounds, Morton keys, sort, cell-start levels, duplicate runs; downloads `small` (and the
+  /// row order when `download`). \throws std::invalid_argument for NaN/Inf points.
+  SortedCloud sortPoints(const float* d_xyz, int n, bool download, std::size_t small_bytes);
+  /// Level choice from the histogram and the cell tables of levels finest..0; returns the grid.
+  cuda_impl::GridDesc buildGrid(const SortedCloud& sorted, int n, int k, bool download);
+  /// The query kernel in chunks; with `indices`, each chunk downloads while the next computes and
+  /// the host scatters its rows to their original places.
+  void runQueries(const cuda_impl::GridDesc& g, int n, int k, std::int32_t* indices,
+                  float* sq_dists);
+  /// Reads the query counters into `stats` (tune.collect_stats).
+  void readQueryStats(int n);
 
   void requireLists(const char* what) const {
     if (list_n == 0) {

@@ -192,6 +192,264 @@ struct QueryCounters {
   float lim = 0.f;
 };
 
+/// Upper bound of q's K-th squared distance: any k points bound it. Here the k points before q
+/// and the k points from q on in Morton order, whichever is closer: where the curve jumps far on
+/// one side of q, the other side still gives a tight bound. Candidates and cells beyond the bound
+/// are skipped from the start.
+__device__ __forceinline__ float kthDistanceBound(const float4* __restrict__ pts, int n,
+                                                  long long qi, int k, const float4& q, int lane) {
+  float lim = INFINITY;
+  if (n >= k) {
+    const long long lo = max(qi - k + 1, 0ll), hi = min(qi, static_cast<long long>(n - k));
+    lim = fminf(windowMax(pts, lo, k, q, lane), windowMax(pts, hi, k, q, lane));
+  }
+  return lim;
+}
+
+/// Level: the finest whose own cell holds >= min_points points, or, if finer, the finest whose
+/// cells are at least the bound's radius / kBoundCells (the k window points then lie within
+/// kBoundCells + 1 shells).
+/// The second rule keeps isolated points from landing on a coarse level whose shells hold a
+/// large part of the cloud. Lanes test one level each.
+__device__ __forceinline__ int startLevel(const GridDesc& g,
+                                          const unsigned long long* __restrict__ tkeys,
+                                          const uint2* __restrict__ tvals, std::uint32_t qx,
+                                          std::uint32_t qy, std::uint32_t qz, float lim, int lane) {
+  const unsigned full = 0xffffffffu;
+  bool ok = false, ok_r = false;
+  if (lane < g.nlev) {
+    const LevelDesc& lv = g.lv[lane];
+    const int s = kCoordBits - lv.bits;
+    const uint2 c = lookupCell(tkeys, tvals, lv, morton(qx >> s, qy >> s, qz >> s));
+    ok = static_cast<int>(c.y) >= g.min_points;
+    ok_r = kBoundCells * lv.cell >= sqrtf(lim);
+  }
+  const unsigned okm = __ballot_sync(full, ok), okr = __ballot_sync(full, ok_r);
+  return min(okm ? __ffs(okm) - 1 : g.nlev - 1, okr ? __ffs(okr) - 1 : g.nlev - 1);
+}
+
+/// The query's cell (cx, cy, cz) on one level: cell edge cs, cells per axis last + 1.
+struct QueryCell {
+  int cx, cy, cz, last;
+  float cs;
+};
+
+/// Cell index of coordinate v clamped to [-2, last + 2] (no int overflow for huge radii).
+__device__ __forceinline__ int clampedCell(float v, float o, const QueryCell& qc) {
+  return static_cast<int>(
+      fminf(fmaxf(floorf((v - o) / qc.cs), -2.f), static_cast<float>(qc.last + 2)));
+}
+
+/// Cell range [x0, x1] x [y0, y1] x [z0, z1] of shell r: the block of Chebyshev radius r, cut to
+/// the cells that can hold a point within `reach` (squared) of q.
+struct ShellBox {
+  int x0, x1, y0, y1, z0, z1;
+};
+
+__device__ __forceinline__ ShellBox shellBox(const GridDesc& g, const QueryCell& qc, int r,
+                                             const float4& q, float reach) {
+  ShellBox b;
+  b.x0 = max(qc.cx - r, 0);
+  b.x1 = min(qc.cx + r, qc.last);
+  b.y0 = max(qc.cy - r, 0);
+  b.y1 = min(qc.cy + r, qc.last);
+  b.z0 = max(qc.cz - r, 0);
+  b.z1 = min(qc.cz + r, qc.last);
+  if (reach < INFINITY) {  // only cells that can hold a point within it
+    const float rad = sqrtf(reach) + g.eps;
+    b.x0 = max(b.x0, clampedCell(q.x - rad, g.ox, qc) - 1);
+    b.x1 = min(b.x1, clampedCell(q.x + rad, g.ox, qc) + 1);
+    b.y0 = max(b.y0, clampedCell(q.y - rad, g.oy, qc) - 1);
+    b.y1 = min(b.y1, clampedCell(q.y + rad, g.oy, qc) + 1);
+    b.z0 = max(b.z0, clampedCell(q.z - rad, g.oz, qc) - 1);
+    b.z1 = min(b.z1, clampedCell(q.z + rad, g.oz, qc) + 1);
+  }
+  return b;
+}
+
+/// Lane's cell t of the box, looked up when it lies on shell r and its box distance to q is
+/// within min(w.kd, lim): `cell` (first sorted point, count; count 0 otherwise) and `key` (the
+/// box distance, +inf for an empty cell).
+__device__ __forceinline__ void shellCell(const GridDesc& g, const LevelDesc& lv,
+                                          const unsigned long long* __restrict__ tkeys,
+                                          const uint2* __restrict__ tvals, const QueryCell& qc,
+                                          const ShellBox& b, int r, int t, int total,
+                                          const float4& q, float kd, float lim, uint2& cell,
+                                          float& key) {
+  cell = make_uint2(0u, 0u);
+  key = INFINITY;
+  if (t >= total) return;
+  const int nx = b.x1 - b.x0 + 1, ny = b.y1 - b.y0 + 1;
+  const int ix = b.x0 + t % nx, iy = b.y0 + (t / nx) % ny, iz = b.z0 + t / (nx * ny);
+  const int cheb = max(max(abs(ix - qc.cx), abs(iy - qc.cy)), abs(iz - qc.cz));
+  if (cheb != r) return;
+  const float cs = qc.cs, eps = g.eps;
+  const float lx = g.ox + ix * cs, ly = g.oy + iy * cs, lz = g.oz + iz * cs;
+  const float ex = fmaxf(fmaxf(lx - q.x, q.x - (lx + cs)) - eps, 0.f);
+  const float ey = fmaxf(fmaxf(ly - q.y, q.y - (ly + cs)) - eps, 0.f);
+  const float ez = fmaxf(fmaxf(lz - q.z, q.z - (lz + cs)) - eps, 0.f);
+  const float box = ex * ex + ey * ey + ez * ez;
+  if (box <= fminf(kd, lim)) {
+    cell = lookupCell(tkeys, tvals, lv,
+                      morton(static_cast<std::uint32_t>(ix), static_cast<std::uint32_t>(iy),
+                             static_cast<std::uint32_t>(iz)));
+    if (cell.y) key = box;
+  }
+}
+
+/// What the candidate steps of one query read: the sorted points, the ends of the runs of
+/// identical points (null: no skip), the query, its bound, K, the merge threshold, the lane.
+struct QueryArgs {
+  const float4* __restrict__ pts;
+  const unsigned int* __restrict__ run_stop;
+  float4 q;
+  float lim;
+  int k, merge_min, lane;
+};
+
+/// The candidate at sorted position spos (valid lanes) against the list: d, id and the end of
+/// its run of identical points come back for the skip of consumeCells.
+template <bool kTwoHalves>
+__device__ __forceinline__ void consumeCandidate(const QueryArgs& a, bool valid, unsigned int spos,
+                                                 WarpList& w, unsigned int& n_ins, float& d,
+                                                 int& id, unsigned int& stop) {
+  const unsigned full = 0xffffffffu;
+  const int lane = a.lane, k = a.k;
+  const float lim = a.lim;
+  d = INFINITY;
+  id = kEmptyIndex;
+  stop = 0;
+  if (valid) {
+    const float4 p = a.pts[spos];
+    if (a.run_stop) stop = a.run_stop[spos];
+    d = sqDist(p.x, p.y, p.z, a.q.x, a.q.y, a.q.z);
+    id = __float_as_int(p.w);
+  }
+  const bool useful = valid && d <= lim;
+  unsigned m = __ballot_sync(full, useful && pairLess(d, id, w.kd, w.ki));
+  if (__popc(m) > 1 && __shfl_sync(full, w.ilo, 0) == kEmptyIndex) {
+    // Empty list: the batch, sorted, becomes the list (saves one insertion per point).
+    float sd = useful ? d : INFINITY;
+    int si = useful ? id : kEmptyIndex;
+    warpSortPairs(sd, si, lane);
+    w.dlo = sd;
+    w.ilo = si;
+    const int kl = (k - 1) & 31;
+    w.kd = (!kTwoHalves || k <= 32) ? __shfl_sync(full, w.dlo, kl) : INFINITY;
+    w.ki = (!kTwoHalves || k <= 32) ? __shfl_sync(full, w.ilo, kl) : kEmptyIndex;
+    n_ins += __popc(m);
+    m = 0;
+  } else if (a.merge_min > 0 && __popc(m) >= a.merge_min) {
+    // Many entrants: one bitonic merge costs about as much as 5 single insertions.
+    const bool in = (m >> lane) & 1u;
+    warpMerge<kTwoHalves>(w, in ? d : INFINITY, in ? id : kEmptyIndex, lane, k);
+    n_ins += __popc(m);
+    m = 0;
+  }
+  while (m) {
+    const int src = __ffs(m) - 1;
+    const float dd = __shfl_sync(full, d, src);
+    const int ii = __shfl_sync(full, id, src);
+    warpInsert<kTwoHalves>(w, dd, ii, lane, k);
+    ++n_ins;
+    m &= ~(1u << src);
+    m &= __ballot_sync(full, useful && pairLess(d, id, w.kd, w.ki));
+  }
+}
+
+/// Part of a heavy query: the points of sorted 32-blocks b with b mod nparts == part of the
+/// warp's cells, cell by cell (a partition of the points that no level or pruning choice
+/// changes).
+template <bool kTwoHalves>
+__device__ __forceinline__ void consumeCellsOfPart(const QueryArgs& a, const uint2& cell, int part,
+                                                   int nparts, WarpList& w, QueryCounters& c) {
+  const unsigned full = 0xffffffffu;
+  unsigned int todo = __ballot_sync(full, cell.y > 0);
+  while (todo) {
+    const int j = __ffs(todo) - 1;
+    todo &= todo - 1;
+    const unsigned int s0 = __shfl_sync(full, cell.x, j), s1 = s0 + __shfl_sync(full, cell.y, j);
+    c.cand += s1 - s0;
+    const unsigned int b0 = s0 >> 5;
+    const unsigned int first = b0 + (part + nparts - b0 % nparts) % nparts;
+    for (unsigned int blk = first; (blk << 5) < s1; blk += nparts) {
+      const unsigned int spos = (blk << 5) + a.lane;
+      float d;
+      int id;
+      unsigned int stop;
+      consumeCandidate<kTwoHalves>(a, spos >= s0 && spos < s1, spos, w, c.ins, d, id, stop);
+    }
+  }
+}
+
+/// The points of the warp's cells, their ranges concatenated across the warp, 32 at a time.
+/// Returns false once more than `abort_cands` candidates (0: never) were loaded (`scanned`).
+template <bool kTwoHalves>
+__device__ __forceinline__ bool consumeCells(const QueryArgs& a, const uint2& cell,
+                                             unsigned int abort_cands, unsigned int& scanned,
+                                             WarpList& w, QueryCounters& c) {
+  const unsigned full = 0xffffffffu;
+  const int lane = a.lane;
+  unsigned int incl = cell.y;
+  for (int o = 1; o < kWarp; o <<= 1) {
+    const unsigned int v = __shfl_up_sync(full, incl, o);
+    if (lane >= o) incl += v;
+  }
+  const unsigned int excl = incl - cell.y;
+  const unsigned int count = __shfl_sync(full, incl, 31);
+  c.cand += count;
+  for (unsigned int cb = 0; cb < count; cb += kWarp) {
+    // Too many candidates for one warp: leave the query to the heavy kernel (warp-uniform).
+    scanned += kWarp;
+    if (abort_cands && scanned > abort_cands) return false;
+    const unsigned int gpos = cb + lane;
+    int owner = 0;  // first lane whose inclusive sum exceeds gpos
+    for (int step = 16; step > 0; step >>= 1) {
+      const unsigned int v = __shfl_sync(full, incl, owner + step - 1);
+      if (v <= gpos) owner += step;
+    }
+    const unsigned int ostart = __shfl_sync(full, cell.x, owner);
+    const unsigned int oexcl = __shfl_sync(full, excl, owner);
+    const unsigned int spos = ostart + (gpos - oexcl);  // sorted position (valid lanes)
+    float d;
+    int id;
+    unsigned int stop;
+    consumeCandidate<kTwoHalves>(a, gpos < count, spos, w, c.ins, d, id, stop);
+    // Exact skip inside runs of identical points (e.g. thousands of no-return points at the
+    // origin): they share one distance and their indices ascend (stable sort), so once the
+    // last lane's point cannot enter the list (beyond lim, or not before the K-th pair) no
+    // later member of its run can.
+    if (a.run_stop) {
+      const int last = min(kWarp - 1, static_cast<int>(count - cb) - 1);
+      const float d_last = __shfl_sync(full, d, last);
+      const int id_last = __shfl_sync(full, id, last);
+      const unsigned int pos_last = __shfl_sync(full, spos, last);
+      const unsigned int stop_last = __shfl_sync(full, stop, last);
+      if (stop_last > pos_last + 1 &&
+          (!(d_last <= a.lim) || !pairLess(d_last, id_last, w.kd, w.ki))) {
+        cb += stop_last - pos_last - 1;
+      }
+    }
+  }
+  return true;
+}
+
+/// Distance from q to the outside of the visited block of cells of shell r (grid edges
+/// excluded); +inf when the block covers the whole grid.
+__device__ __forceinline__ float outsideDistance(const GridDesc& g, const QueryCell& qc, int r,
+                                                 const float4& q) {
+  const int cx = qc.cx, cy = qc.cy, cz = qc.cz, last = qc.last;
+  const float cs = qc.cs;
+  float bound = INFINITY;
+  if (cx - r > 0) bound = fminf(bound, q.x - (g.ox + (cx - r) * cs));
+  if (cx + r < last) bound = fminf(bound, g.ox + (cx + r + 1) * cs - q.x);
+  if (cy - r > 0) bound = fminf(bound, q.y - (g.oy + (cy - r) * cs));
+  if (cy + r < last) bound = fminf(bound, g.oy + (cy + r + 1) * cs - q.y);
+  if (cz - r > 0) bound = fminf(bound, q.z - (g.oz + (cz - r) * cs));
+  if (cz + r < last) bound = fminf(bound, g.oz + (cz + r + 1) * cs - q.z);
+  return bound;
+}
+
 /// The search of one query by one warp. Part `part` of `nparts` > 1: the warp takes only the points
 /// of the sorted 32-blocks b with b mod nparts == part, a fixed partition, and runs the search on
 /// them alone (its own K-th distance prunes and stops it), so the union of the parts' lists holds
@@ -205,217 +463,45 @@ __device__ __forceinline__ bool searchQuery(const GridDesc& g, const float4* __r
                                             int k, int merge_min, int part, int nparts,
                                             unsigned int abort_cands, int lane, WarpList& w,
                                             QueryCounters& c) {
-  const unsigned full = 0xffffffffu;
-  unsigned int& n_cand = c.cand;
-  unsigned int& n_ins = c.ins;
-  unsigned int& n_shell = c.shell;
-  unsigned int& n_lev = c.lev;
   unsigned int scanned = 0;  // candidates loaded so far (runs skipped do not count)
   const float4 q = pts[qi];
   const std::uint32_t qx = quantize(q.x, g.ox, g.inv), qy = quantize(q.y, g.oy, g.inv),
                       qz = quantize(q.z, g.oz, g.inv);
-
-  // Upper bound `lim` of the K-th squared distance: any k points bound it. Here the k points
-  // before q and the k points from q on in Morton order, whichever is closer: where the curve
-  // jumps far on one side of q, the other side still gives a tight bound. Candidates and cells
-  // beyond the bound are skipped from the start.
-  float lim = INFINITY;
-  if (n >= k) {
-    const long long lo = max(qi - k + 1, 0ll), hi = min(qi, static_cast<long long>(n - k));
-    lim = fminf(windowMax(pts, lo, k, q, lane), windowMax(pts, hi, k, q, lane));
-  }
-  // Level: the finest whose own cell holds >= min_points points, or, if finer, the finest whose
-  // cells are at least the bound's radius / kBoundCells (the k window points then lie within
-  // kBoundCells + 1 shells).
-  // The second rule keeps isolated points from landing on a coarse level whose shells hold a
-  // large part of the cloud. Lanes test one level each.
-  bool ok = false, ok_r = false;
-  if (lane < g.nlev) {
-    const LevelDesc& lv = g.lv[lane];
-    const int s = kCoordBits - lv.bits;
-    const uint2 c = lookupCell(tkeys, tvals, lv, morton(qx >> s, qy >> s, qz >> s));
-    ok = static_cast<int>(c.y) >= g.min_points;
-    ok_r = kBoundCells * lv.cell >= sqrtf(lim);
-  }
-  const unsigned okm = __ballot_sync(full, ok), okr = __ballot_sync(full, ok_r);
-  int li = min(okm ? __ffs(okm) - 1 : g.nlev - 1, okr ? __ffs(okr) - 1 : g.nlev - 1);
+  const float lim = kthDistanceBound(pts, n, qi, k, q, lane);
+  int li = startLevel(g, tkeys, tvals, qx, qy, qz, lim, lane);
+  const QueryArgs args{pts, run_stop, q, lim, k, merge_min, lane};
 
   for (;;) {  // one pass per level tried; a pass that starves moves to the next coarser level
-    ++n_lev;
+    ++c.lev;
     const LevelDesc& lv = g.lv[li];
     const int shift = kCoordBits - lv.bits;
-    const int cx = static_cast<int>(qx >> shift), cy = static_cast<int>(qy >> shift),
-              cz = static_cast<int>(qz >> shift);
-    const int last = (1 << lv.bits) - 1;
-    const float cs = lv.cell, eps = g.eps;
-    // Cell index of coordinate v clamped to [-2, last + 2] (no int overflow for huge radii).
-    auto cellOf = [&](float v, float o) {
-      return static_cast<int>(
-          fminf(fmaxf(floorf((v - o) / cs), -2.f), static_cast<float>(last + 2)));
-    };
+    const QueryCell qc{static_cast<int>(qx >> shift), static_cast<int>(qy >> shift),
+                       static_cast<int>(qz >> shift), (1 << lv.bits) - 1, lv.cell};
     w.dlo = w.dhi = w.kd = INFINITY;
     w.ilo = w.ihi = w.ki = kEmptyIndex;
     bool restart = false;
 
     for (int r = 0;; ++r) {
-      ++n_shell;
-      int x0 = max(cx - r, 0), x1 = min(cx + r, last);
-      int y0 = max(cy - r, 0), y1 = min(cy + r, last);
-      int z0 = max(cz - r, 0), z1 = min(cz + r, last);
-      const float reach = fminf(w.kd, lim);  // squared distance a useful point can have
-      if (reach < INFINITY) {                // only cells that can hold a point within it
-        const float rad = sqrtf(reach) + eps;
-        x0 = max(x0, cellOf(q.x - rad, g.ox) - 1);
-        x1 = min(x1, cellOf(q.x + rad, g.ox) + 1);
-        y0 = max(y0, cellOf(q.y - rad, g.oy) - 1);
-        y1 = min(y1, cellOf(q.y + rad, g.oy) + 1);
-        z0 = max(z0, cellOf(q.z - rad, g.oz) - 1);
-        z1 = min(z1, cellOf(q.z + rad, g.oz) + 1);
-      }
-      const int nx = x1 - x0 + 1, ny = y1 - y0 + 1, nz = z1 - z0 + 1;
+      ++c.shell;
+      // squared distance a useful point can have
+      const ShellBox b = shellBox(g, qc, r, q, fminf(w.kd, lim));
+      const int nx = b.x1 - b.x0 + 1, ny = b.y1 - b.y0 + 1, nz = b.z1 - b.z0 + 1;
       const int total = (nx > 0 && ny > 0 && nz > 0) ? nx * ny * nz : 0;
       for (int cbase = 0; cbase < total; cbase += kWarp) {
         // Each lane looks up one cell of the shell.
-        uint2 cell = make_uint2(0u, 0u);
-        float key = INFINITY;
-        const int t = cbase + lane;
-        if (t < total) {
-          const int ix = x0 + t % nx, iy = y0 + (t / nx) % ny, iz = z0 + t / (nx * ny);
-          const int cheb = max(max(abs(ix - cx), abs(iy - cy)), abs(iz - cz));
-          if (cheb == r) {
-            const float lx = g.ox + ix * cs, ly = g.oy + iy * cs, lz = g.oz + iz * cs;
-            const float ex = fmaxf(fmaxf(lx - q.x, q.x - (lx + cs)) - eps, 0.f);
-            const float ey = fmaxf(fmaxf(ly - q.y, q.y - (ly + cs)) - eps, 0.f);
-            const float ez = fmaxf(fmaxf(lz - q.z, q.z - (lz + cs)) - eps, 0.f);
-            const float box = ex * ex + ey * ey + ez * ez;
-            if (box <= fminf(w.kd, lim)) {
-              cell =
-                  lookupCell(tkeys, tvals, lv,
-                             morton(static_cast<std::uint32_t>(ix), static_cast<std::uint32_t>(iy),
-                                    static_cast<std::uint32_t>(iz)));
-              if (cell.y) key = box;
-            }
-          }
-        }
+        uint2 cell;
+        float key;
+        shellCell(g, lv, tkeys, tvals, qc, b, r, cbase + lane, total, q, w.kd, lim, cell, key);
         if (kSortCells) warpSortNonEmptyCells(key, cell, lane);
-        // The candidate at sorted position spos (valid lanes) against the list: d, id and the
-        // end of its run of identical points come back for the skip below.
-        auto consume = [&](bool valid, unsigned int spos, float& d, int& id, unsigned int& stop) {
-          d = INFINITY;
-          id = kEmptyIndex;
-          stop = 0;
-          if (valid) {
-            const float4 p = pts[spos];
-            if (run_stop) stop = run_stop[spos];
-            d = sqDist(p.x, p.y, p.z, q.x, q.y, q.z);
-            id = __float_as_int(p.w);
-          }
-          const bool useful = valid && d <= lim;
-          unsigned m = __ballot_sync(full, useful && pairLess(d, id, w.kd, w.ki));
-          if (__popc(m) > 1 && __shfl_sync(full, w.ilo, 0) == kEmptyIndex) {
-            // Empty list: the batch, sorted, becomes the list (saves one insertion per point).
-            float sd = useful ? d : INFINITY;
-            int si = useful ? id : kEmptyIndex;
-            warpSortPairs(sd, si, lane);
-            w.dlo = sd;
-            w.ilo = si;
-            const int kl = (k - 1) & 31;
-            w.kd = (!kTwoHalves || k <= 32) ? __shfl_sync(full, w.dlo, kl) : INFINITY;
-            w.ki = (!kTwoHalves || k <= 32) ? __shfl_sync(full, w.ilo, kl) : kEmptyIndex;
-            n_ins += __popc(m);
-            m = 0;
-          } else if (merge_min > 0 && __popc(m) >= merge_min) {
-            // Many entrants: one bitonic merge costs about as much as 5 single insertions.
-            const bool in = (m >> lane) & 1u;
-            warpMerge<kTwoHalves>(w, in ? d : INFINITY, in ? id : kEmptyIndex, lane, k);
-            n_ins += __popc(m);
-            m = 0;
-          }
-          while (m) {
-            const int src = __ffs(m) - 1;
-            const float dd = __shfl_sync(full, d, src);
-            const int ii = __shfl_sync(full, id, src);
-            warpInsert<kTwoHalves>(w, dd, ii, lane, k);
-            ++n_ins;
-            m &= ~(1u << src);
-            m &= __ballot_sync(full, useful && pairLess(d, id, w.kd, w.ki));
-          }
-        };
         if (nparts > 1) {
-          // Part of a heavy query: the points of sorted 32-blocks b with b mod nparts == part,
-          // cell by cell (a partition of the points that no level or pruning choice changes).
-          unsigned int todo = __ballot_sync(full, cell.y > 0);
-          while (todo) {
-            const int j = __ffs(todo) - 1;
-            todo &= todo - 1;
-            const unsigned int s0 = __shfl_sync(full, cell.x, j),
-                               s1 = s0 + __shfl_sync(full, cell.y, j);
-            n_cand += s1 - s0;
-            const unsigned int b0 = s0 >> 5;
-            const unsigned int first = b0 + (part + nparts - b0 % nparts) % nparts;
-            for (unsigned int blk = first; (blk << 5) < s1; blk += nparts) {
-              const unsigned int spos = (blk << 5) + lane;
-              float d;
-              int id;
-              unsigned int stop;
-              consume(spos >= s0 && spos < s1, spos, d, id, stop);
-            }
-          }
+          consumeCellsOfPart<kTwoHalves>(args, cell, part, nparts, w, c);
           continue;
         }
-        // Concatenate the cells' point ranges across the warp.
-        unsigned int incl = cell.y;
-        for (int o = 1; o < kWarp; o <<= 1) {
-          const unsigned int v = __shfl_up_sync(full, incl, o);
-          if (lane >= o) incl += v;
-        }
-        const unsigned int excl = incl - cell.y;
-        const unsigned int count = __shfl_sync(full, incl, 31);
-        n_cand += count;
-        for (unsigned int cb = 0; cb < count; cb += kWarp) {
-          // Too many candidates for one warp: leave the query to the heavy kernel (warp-uniform).
-          scanned += kWarp;
-          if (abort_cands && scanned > abort_cands) return false;
-          const unsigned int gpos = cb + lane;
-          int owner = 0;  // first lane whose inclusive sum exceeds gpos
-          for (int step = 16; step > 0; step >>= 1) {
-            const unsigned int v = __shfl_sync(full, incl, owner + step - 1);
-            if (v <= gpos) owner += step;
-          }
-          const unsigned int ostart = __shfl_sync(full, cell.x, owner);
-          const unsigned int oexcl = __shfl_sync(full, excl, owner);
-          const unsigned int spos = ostart + (gpos - oexcl);  // sorted position (valid lanes)
-          float d;
-          int id;
-          unsigned int stop;
-          consume(gpos < count, spos, d, id, stop);
-          // Exact skip inside runs of identical points (e.g. thousands of no-return points at the
-          // origin): they share one distance and their indices ascend (stable sort), so once the
-          // last lane's point cannot enter the list (beyond lim, or not before the K-th pair) no
-          // later member of its run can.
-          if (run_stop) {
-            const int last = min(kWarp - 1, static_cast<int>(count - cb) - 1);
-            const float d_last = __shfl_sync(full, d, last);
-            const int id_last = __shfl_sync(full, id, last);
-            const unsigned int pos_last = __shfl_sync(full, spos, last);
-            const unsigned int stop_last = __shfl_sync(full, stop, last);
-            if (stop_last > pos_last + 1 &&
-                (!(d_last <= lim) || !pairLess(d_last, id_last, w.kd, w.ki))) {
-              cb += stop_last - pos_last - 1;
-            }
-          }
-        }
+        if (!consumeCells<kTwoHalves>(args, cell, abort_cands, scanned, w, c)) return false;
       }
-      // Distance from q to the outside of the visited block of cells (grid edges excluded).
-      float bound = INFINITY;
-      if (cx - r > 0) bound = fminf(bound, q.x - (g.ox + (cx - r) * cs));
-      if (cx + r < last) bound = fminf(bound, g.ox + (cx + r + 1) * cs - q.x);
-      if (cy - r > 0) bound = fminf(bound, q.y - (g.oy + (cy - r) * cs));
-      if (cy + r < last) bound = fminf(bound, g.oy + (cy + r + 1) * cs - q.y);
-      if (cz - r > 0) bound = fminf(bound, q.z - (g.oz + (cz - r) * cs));
-      if (cz + r < last) bound = fminf(bound, g.oz + (cz + r + 1) * cs - q.z);
+      float bound = outsideDistance(g, qc, r, q);
       if (bound == INFINITY) break;  // the block covers the whole grid
-      bound -= eps;
+      bound -= g.eps;
       // Every point within lim visited: nothing farther can enter (ends a part of a heavy query
       // whose own points within lim are fewer than K).
       if (bound > 0.f && lim <= bound * bound) break;
@@ -423,7 +509,7 @@ __device__ __forceinline__ bool searchQuery(const GridDesc& g, const float4* __r
       // Still short of k points two shells out while the bound's ball needs many more shells:
       // this level is too fine around q; start again one level coarser rather than walking many
       // empty shells.
-      if (w.ki == kEmptyIndex && r >= kStarveShells && !(sqrtf(lim) <= (kBoundCells + 1) * cs) &&
+      if (w.ki == kEmptyIndex && r >= kStarveShells && !(sqrtf(lim) <= (kBoundCells + 1) * qc.cs) &&
           li + 1 < g.nlev) {
         restart = true;
         break;

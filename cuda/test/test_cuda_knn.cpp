@@ -15,10 +15,13 @@
 #include "brute_force_knn.h"
 #include "gpu_test.h"
 #include "ground_filter/cuda_knn.h"
+#include "knn_tuning.h"
 
 using ground_filter::CudaError;
 using ground_filter::CudaKnn;
 using ground_filter::CudaKnnOptions;
+using ground_filter::CudaKnnTuning;
+using ground_filter::CudaKnnTuningAccess;
 
 namespace {
 
@@ -325,15 +328,16 @@ TEST_F(CudaKnnTest, OptionsChangeSpeedNeverLists) {
   // Cells in raster order, work counters on, other level choices.
   for (int mp : {0, 1, 4, 40, 1000}) {
     for (bool sorted : {false, true}) {
-      CudaKnnOptions o;
+      CudaKnnTuning o;
       o.level_min_points = mp;
       o.sort_cells = sorted;
       o.collect_stats = true;
-      CudaKnn tuned(o);
+      CudaKnn tuned;
+      CudaKnnTuningAccess::set(tuned, o);
       const Lists c = run(tuned, xyz, 40);
       EXPECT_EQ(a.idx, c.idx) << "level_min_points = " << mp << ", sort_cells = " << sorted;
       EXPECT_EQ(a.d2, c.d2);
-      const auto& t = tuned.lastTimings();
+      const auto& t = CudaKnnTuningAccess::stats(tuned);
       EXPECT_GE(t.candidates_per_query, 40.0);
       EXPECT_GE(t.insertions_per_query, 40.0);
       EXPECT_LE(t.insertions_per_query, t.candidates_per_query);
@@ -345,10 +349,11 @@ TEST_F(CudaKnnTest, OptionsChangeSpeedNeverLists) {
   // Heavy queries split over 16 warps (outliers 100 m out), with any pipeline depth.
   for (int heavy : {0, 1, 100, 2000}) {
     for (int chunks : {1, 3}) {
-      CudaKnnOptions o;
+      CudaKnnTuning o;
       o.heavy_candidates = heavy;
       o.download_chunks = chunks;
-      CudaKnn split(o);
+      CudaKnn split;
+      CudaKnnTuningAccess::set(split, o);
       const Lists c = run(split, xyz, 40);
       EXPECT_EQ(a.idx, c.idx) << "heavy_candidates = " << heavy << ", " << chunks << " chunks";
       EXPECT_EQ(a.d2, c.d2);
@@ -356,9 +361,10 @@ TEST_F(CudaKnnTest, OptionsChangeSpeedNeverLists) {
   }
   // Any depth of the query/download pipeline.
   for (int chunks : {1, 3, 16}) {
-    CudaKnnOptions o;
+    CudaKnnTuning o;
     o.download_chunks = chunks;
-    CudaKnn piped(o);
+    CudaKnn piped;
+    CudaKnnTuningAccess::set(piped, o);
     const Lists c = run(piped, xyz, 40);
     EXPECT_EQ(a.idx, c.idx) << chunks << " chunks";
     EXPECT_EQ(a.d2, c.d2);
@@ -396,11 +402,12 @@ TEST_F(CudaKnnTest, ListMergingDuplicateSkipAndHeavySplitMatchBruteForce) {
       for (int heavy : {0, 1, 300}) {  // 1: nearly every query split over 16 warps
         for (int merge_min : {0, 1, 2, 6, 33}) {
           for (bool skip : {false, true}) {
-            CudaKnnOptions o;
+            CudaKnnTuning o;
             o.merge_min = merge_min;
             o.skip_duplicates = skip;
             o.heavy_candidates = heavy;
-            CudaKnn knn(o);
+            CudaKnn knn;
+            CudaKnnTuningAccess::set(knn, o);
             const Lists l = run(knn, *xyz, k);
             if (ref.idx.empty()) {
               expectExact(*xyz, k, l);

@@ -12,6 +12,8 @@
 
 namespace ground_filter {
 
+struct CudaKnnTuningAccess;
+
 /// \brief A failed CUDA call or a device-side limit (e.g. the memory cap); errorName() is the
 ///        CUDA error's name ("cudaErrorMemoryAllocation", ...).
 class CudaError : public std::runtime_error {
@@ -30,17 +32,9 @@ class CudaError : public std::runtime_error {
 struct CudaKnnOptions {
   int device = 0;                ///< CUDA device ordinal [index] (0)
   std::size_t memory_limit = 0;  ///< device bytes this instance may hold, 0 = 90 % of free [B] (0)
-  int level_min_points = 0;      ///< grid level choice: own cell holds >= this many, 0 = K/4 [pts]
-  bool sort_cells = true;        ///< visit each batch of cells nearest first [bool] (true)
-  bool collect_stats = false;    ///< count per-query work in CudaKnnTimings (slower) [bool] (false)
-  int download_chunks = 0;       ///< query/download pipeline depth, 0 = auto (<= 16) [chunks] (0)
-  bool skip_duplicates = true;   ///< skip runs of identical points that cannot enter [bool] (true)
-  int merge_min = 6;             ///< merge a batch's entrants in one go from this many [pts] (6)
-  int heavy_candidates = 8192;   ///< more candidates: query to 16 warps, 0 = never [pts] (8192)
 };
 
-/// \brief Wall times of the last CudaKnn calls (host clock, streams synchronised) [ms], and the
-///        per-query work counters when CudaKnnOptions::collect_stats is set.
+/// \brief Wall times of the last CudaKnn calls (host clock, streams synchronised) [ms].
 struct CudaKnnTimings {
   double upload_ms = 0.0;  ///< host -> device copy of the points
   double grid_ms = 0.0;    ///< bounds, Morton sort, cell tables
@@ -50,13 +44,6 @@ struct CudaKnnTimings {
   double count_ms = 0.0;   ///< the last countFlaggedNeighbors(), copies included
   int levels = 0;          ///< grid levels built (finest has 2^finest_bits cells per axis)
   int finest_bits = 0;     ///< log2 of cells per axis of the finest level
-  double candidates_per_query = 0.0;  ///< points whose distance was computed (collect_stats)
-  double insertions_per_query = 0.0;  ///< list insertions (collect_stats)
-  double shells_per_query = 0.0;      ///< shells of cells visited (collect_stats)
-  double levels_per_query = 0.0;      ///< grid levels tried (collect_stats)
-  double mean_query_cycles = 0.0;     ///< SM clock cycles per query, mean (collect_stats)
-  double max_query_cycles = 0.0;      ///< the slowest query's cycles (collect_stats)
-  std::string detail;                 ///< slow-query summary (collect_stats)
 };
 
 /// \brief Exact K-nearest-neighbour search on a CUDA GPU over a whole cloud at once.
@@ -71,7 +58,8 @@ struct CudaKnnTimings {
 /// than before; kernels run on one stream of this instance, downloads on a second one so they
 /// overlap the queries. Not thread-safe: one per thread.
 class CudaKnn {
-  friend class CudaNormalPipeline;  // runs the search on points already on the device
+  friend class CudaNormalPipeline;    // runs the search on points already on the device
+  friend struct CudaKnnTuningAccess;  // experiment knobs of the tests and the benchmark (private)
 
  public:
   /// \brief Largest supported K.
@@ -121,8 +109,6 @@ class CudaKnn {
   std::string deviceName() const;
   /// \brief Device bytes held now (persistent buffers).
   std::size_t deviceBytes() const;
-  /// \brief The options in use.
-  const CudaKnnOptions& options() const;
 
  private:
   struct Impl;

@@ -89,17 +89,20 @@ struct Row {
   std::vector<std::pair<std::string, double>> stages;  // name, median ms (execution order)
 };
 
-int run(const Options& opt) {
+/// The scan files of every PATH (a directory: its scan files, sorted).
+std::vector<std::string> listFiles(const Options& opt) {
   std::vector<std::string> files;
   for (const auto& p : opt.paths) {
     const std::vector<std::string> found = gf::listScanFiles(p);
     if (found.empty()) throw std::runtime_error(p + ": no .bin, .pcd or .ply files in directory");
     files.insert(files.end(), found.begin(), found.end());
   }
-  const std::vector<std::string> thread_values =
-      opt.threads.empty() ? std::vector<std::string>{""} : opt.threads;
+  return files;
+}
 
-  // One filter per thread setting, built before any loading so bad parameters fail fast.
+/// One filter per thread setting, built before any loading so bad parameters fail fast.
+std::vector<std::unique_ptr<gf::GroundFilter>> makeFilters(
+    const Options& opt, const std::vector<std::string>& thread_values) {
   std::vector<std::unique_ptr<gf::GroundFilter>> filters;
   for (const auto& t : thread_values) {
     gf::ParamSettings settings = opt.settings;
@@ -110,44 +113,45 @@ int run(const Options& opt) {
       throw UsageError(e.what());
     }
   }
+  return filters;
+}
 
-  std::vector<Row> rows;
-  std::vector<std::uint8_t> labels;
-  for (const auto& file : files) {
-    const gf::Scan scan = gf::loadScan(file);
-    const gf::CloudView view = gf::viewOf(scan.cloud);
-    for (std::size_t ti = 0; ti < filters.size(); ++ti) {
-      gf::GroundFilter& filter = *filters[ti];
-      gf::FilterStats stats;
-      for (int w = 0; w < opt.warmup; ++w) filter.filter(view, &labels, &stats);
-      std::vector<double> times;
-      std::vector<std::string> stage_order;
-      std::map<std::string, std::vector<double>> stage_times;
-      for (int r = 0; r < opt.repeat; ++r) {
-        stats = gf::FilterStats();
-        const auto t0 = std::chrono::steady_clock::now();
-        filter.filter(view, &labels, &stats);
-        times.push_back(cli::msSince(t0));
-        for (const auto& s : stats.stage_ms) {
-          auto& v = stage_times[s.first];
-          if (v.empty()) stage_order.push_back(s.first);
-          v.push_back(s.second);
-        }
-      }
-      Row row;
-      row.file = file;
-      row.threads = thread_values[ti];
-      row.label = gf::scanStem(file) + (row.threads.empty() ? "" : "@" + row.threads);
-      row.points = view.size();
-      row.median_ms = cli::median(times);
-      row.min_ms = *std::min_element(times.begin(), times.end());
-      row.max_ms = *std::max_element(times.begin(), times.end());
-      for (const auto& name : stage_order)
-        row.stages.emplace_back(name, cli::median(stage_times[name]));
-      rows.push_back(row);
+/// `filter` on one loaded file: warm-up calls, then the timed ones; medians per stage.
+Row benchFile(const Options& opt, gf::GroundFilter& filter, const std::string& file,
+              const std::string& threads, const gf::CloudView& view,
+              std::vector<std::uint8_t>* labels) {
+  gf::FilterStats stats;
+  for (int w = 0; w < opt.warmup; ++w) filter.filter(view, labels, &stats);
+  std::vector<double> times;
+  std::vector<std::string> stage_order;
+  std::map<std::string, std::vector<double>> stage_times;
+  for (int r = 0; r < opt.repeat; ++r) {
+    stats = gf::FilterStats();
+    const auto t0 = std::chrono::steady_clock::now();
+    filter.filter(view, labels, &stats);
+    times.push_back(cli::msSince(t0));
+    for (const auto& s : stats.stage_ms) {
+      auto& v = stage_times[s.first];
+      if (v.empty()) stage_order.push_back(s.first);
+      v.push_back(s.second);
     }
   }
+  Row row;
+  row.file = file;
+  row.threads = threads;
+  row.label = gf::scanStem(file) + (row.threads.empty() ? "" : "@" + row.threads);
+  row.points = view.size();
+  row.median_ms = cli::median(times);
+  row.min_ms = *std::min_element(times.begin(), times.end());
+  row.max_ms = *std::max_element(times.begin(), times.end());
+  for (const auto& name : stage_order)
+    row.stages.emplace_back(name, cli::median(stage_times[name]));
+  return row;
+}
 
+/// The totals table: one row per file and thread setting, the sums of medians per setting.
+void printTotals(const Options& opt, const std::vector<std::string>& thread_values,
+                 const std::vector<Row>& rows) {
   std::string settings;
   for (const auto& kv : opt.settings) settings += " " + kv.first + "=" + kv.second;
   std::printf("%s\n", cli::simdDescription().c_str());
@@ -176,8 +180,10 @@ int run(const Options& opt) {
                 "all files", t.empty() ? "default" : t.c_str(), pts, ms, "", "",
                 ms > 0 ? pts / (ms * 1e3) : 0.0);
   }
+}
 
-  // Per-stage medians: one row per stage (union, first-seen order), one column per file.
+/// Per-stage medians: one row per stage (union, first-seen order), one column per file.
+void printStages(const std::vector<Row>& rows) {
   std::vector<std::string> stage_names;
   for (const auto& r : rows) {
     for (const auto& s : r.stages) {
@@ -188,7 +194,7 @@ int run(const Options& opt) {
   }
   if (stage_names.empty()) {
     std::printf("\n(the filter reports no stage timings)\n");
-    return 0;
+    return;
   }
   std::size_t stage_w = 5;
   for (const auto& s : stage_names) stage_w = std::max(stage_w, s.size());
@@ -214,6 +220,24 @@ int run(const Options& opt) {
     }
     std::printf("\n");
   }
+}
+
+int run(const Options& opt) {
+  const std::vector<std::string> files = listFiles(opt);
+  const std::vector<std::string> thread_values =
+      opt.threads.empty() ? std::vector<std::string>{""} : opt.threads;
+  std::vector<std::unique_ptr<gf::GroundFilter>> filters = makeFilters(opt, thread_values);
+  std::vector<Row> rows;
+  std::vector<std::uint8_t> labels;
+  for (const auto& file : files) {
+    const gf::Scan scan = gf::loadScan(file);
+    const gf::CloudView view = gf::viewOf(scan.cloud);
+    for (std::size_t ti = 0; ti < filters.size(); ++ti) {
+      rows.push_back(benchFile(opt, *filters[ti], file, thread_values[ti], view, &labels));
+    }
+  }
+  printTotals(opt, thread_values, rows);
+  printStages(rows);
   return 0;
 }
 

@@ -258,127 +258,123 @@ void printRow(std::size_t name_w, const std::string& name, std::size_t points, s
   }
 }
 
-int run(const Options& opt) {
-  std::unique_ptr<gf::GroundFilter> filter;
+std::unique_ptr<gf::GroundFilter> makeFilter(const Options& opt) {
   try {
-    filter = gf::makeGroundFilter(opt.method, opt.settings);
+    return gf::makeGroundFilter(opt.method, opt.settings);
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
+}
 
+/// The scan files of every PATH (a directory: its scan files, sorted).
+std::vector<std::string> listFiles(const Options& opt) {
   std::vector<std::string> files;
   for (const auto& p : opt.paths) {
     const std::vector<std::string> found = gf::listScanFiles(p);
     if (found.empty()) throw std::runtime_error(p + ": no .bin, .pcd or .ply files in directory");
     files.insert(files.end(), found.begin(), found.end());
   }
+  return files;
+}
 
-  std::vector<FileResult> results;
-  std::vector<gf::ClassCount> classes;
-  std::vector<std::uint8_t> labels;
-  for (const auto& file : files) {
-    const gf::Scan scan = gf::loadScan(file);
-    const gf::CloudView view = gf::viewOf(scan.cloud);
-    std::vector<double> times;
-    gf::FilterStats stats;
-    for (int r = 0; r < opt.repeat; ++r) {
-      const auto t0 = std::chrono::steady_clock::now();
-      filter->filter(view, &labels, &stats);
-      times.push_back(cli::msSince(t0));
-    }
-    if (labels.size() != view.size()) {
-      throw std::runtime_error(file + ": filter returned " + std::to_string(labels.size()) +
-                               " labels for " + std::to_string(view.size()) + " points");
-    }
-    FileResult res;
-    res.file = file;
-    res.points = view.size();
-    res.ground = static_cast<std::size_t>(std::count(labels.begin(), labels.end(), 1));
-    res.ms = cli::median(times);
-    res.labelled = scan.labelled();
-    res.scan_type = stats.scan_type;
-    res.scan_reason = stats.scan_reason;
-    if (res.labelled) res.confusion = gf::countConfusion(labels, scan.truth);
-    if (opt.classes && res.labelled && !scan.semantic.empty()) {
-      gf::addClassCounts(labels, scan.truth, scan.semantic, &classes);
-    }
-    if (opt.drop_one > 0) res.drop = dropOne(filter.get(), view, labels, opt.drop_one);
-    if (!opt.labels_dir.empty()) {
-      if (opt.kitti_labels) {
-        gf::writeKittiLabels(opt.labels_dir, file, labels, opt.kitti_ids);
-      } else {
-        gf::writeLabels(opt.labels_dir, file, labels);
-      }
-    }
-    if (!opt.clouds_dir.empty()) gf::writeSplitClouds(opt.clouds_dir, file, scan.cloud, labels);
-    results.push_back(res);
+/// Filters one file (opt.repeat times), scores it, and writes its labels / clouds as asked;
+/// `labels` is scratch, `classes` gathers the per-class counts.
+FileResult evalFile(gf::GroundFilter* filter, const std::string& file, const Options& opt,
+                    std::vector<std::uint8_t>* labels_out, std::vector<gf::ClassCount>* classes) {
+  std::vector<std::uint8_t>& labels = *labels_out;
+  const gf::Scan scan = gf::loadScan(file);
+  const gf::CloudView view = gf::viewOf(scan.cloud);
+  std::vector<double> times;
+  gf::FilterStats stats;
+  for (int r = 0; r < opt.repeat; ++r) {
+    const auto t0 = std::chrono::steady_clock::now();
+    filter->filter(view, &labels, &stats);
+    times.push_back(cli::msSince(t0));
   }
+  if (labels.size() != view.size()) {
+    throw std::runtime_error(file + ": filter returned " + std::to_string(labels.size()) +
+                             " labels for " + std::to_string(view.size()) + " points");
+  }
+  FileResult res;
+  res.file = file;
+  res.points = view.size();
+  res.ground = static_cast<std::size_t>(std::count(labels.begin(), labels.end(), 1));
+  res.ms = cli::median(times);
+  res.labelled = scan.labelled();
+  res.scan_type = stats.scan_type;
+  res.scan_reason = stats.scan_reason;
+  if (res.labelled) res.confusion = gf::countConfusion(labels, scan.truth);
+  if (opt.classes && res.labelled && !scan.semantic.empty()) {
+    gf::addClassCounts(labels, scan.truth, scan.semantic, classes);
+  }
+  if (opt.drop_one > 0) res.drop = dropOne(filter, view, labels, opt.drop_one);
+  if (!opt.labels_dir.empty()) {
+    if (opt.kitti_labels) {
+      gf::writeKittiLabels(opt.labels_dir, file, labels, opt.kitti_ids);
+    } else {
+      gf::writeLabels(opt.labels_dir, file, labels);
+    }
+  }
+  if (!opt.clouds_dir.empty()) gf::writeSplitClouds(opt.clouds_dir, file, scan.cloud, labels);
+  return res;
+}
 
-  gf::Confusion pooled;
+/// The sums over all files (confusion over the labelled ones; ms = sum of the files' ms).
+struct Pooled {
+  gf::Confusion confusion;
   std::size_t points = 0, ground = 0, labelled_files = 0;
   double ms = 0.0;
+};
+
+Pooled pool(const std::vector<FileResult>& results) {
+  Pooled p;
   for (const auto& r : results) {
-    points += r.points;
-    ground += r.ground;
-    ms += r.ms;
+    p.points += r.points;
+    p.ground += r.ground;
+    p.ms += r.ms;
     if (r.labelled) {
-      pooled.add(r.confusion);
-      ++labelled_files;
+      p.confusion.add(r.confusion);
+      ++p.labelled_files;
     }
   }
+  return p;
+}
 
-  if (opt.json) {
-    std::ostringstream os;
-    os << "{\"files\":[";
-    for (std::size_t i = 0; i < results.size(); ++i) {
-      const auto& r = results[i];
-      os << (i ? "," : "") << jsonRecord(r.file, r.points, r.ground, r.ms, r.labelled, r.confusion)
-         << ",\"labelled\":" << (r.labelled ? "true" : "false")
-         << ",\"scan_type\":" << jsonString(r.scan_type)
-         << ",\"scan_reason\":" << jsonString(r.scan_reason) << "}";
-    }
-    os << "],\"pooled\":" << jsonRecord("pooled", points, ground, ms, labelled_files > 0, pooled)
-       << ",\"file_count\":" << results.size() << ",\"labelled_files\":" << labelled_files
-       << "},\"method\":" << jsonString(opt.method) << ",\"repeat\":" << opt.repeat;
-    if (opt.classes) {
-      os << ",\"classes\":[";
-      for (std::size_t i = 0; i < classes.size(); ++i) {
-        const auto& c = classes[i];
-        os << (i ? "," : "") << "{\"class\":" << c.cls
-           << ",\"name\":" << jsonString(gf::semanticKittiClassName(c.cls))
-           << ",\"truth\":" << static_cast<int>(c.truth) << ",\"points\":" << c.points
-           << ",\"labelled_ground\":" << c.labelled_ground << "}";
-      }
-      os << "]";
-    }
-    os << "}";
-    std::cout << os.str() << std::endl;
-    return 0;
+/// --json: exactly one JSON object (see usage()).
+void printJson(const Options& opt, const std::vector<FileResult>& results, const Pooled& pooled,
+               const std::vector<gf::ClassCount>& classes) {
+  std::ostringstream os;
+  os << "{\"files\":[";
+  for (std::size_t i = 0; i < results.size(); ++i) {
+    const auto& r = results[i];
+    os << (i ? "," : "") << jsonRecord(r.file, r.points, r.ground, r.ms, r.labelled, r.confusion)
+       << ",\"labelled\":" << (r.labelled ? "true" : "false")
+       << ",\"scan_type\":" << jsonString(r.scan_type)
+       << ",\"scan_reason\":" << jsonString(r.scan_reason) << "}";
   }
+  os << "],\"pooled\":"
+     << jsonRecord("pooled", pooled.points, pooled.ground, pooled.ms, pooled.labelled_files > 0,
+                   pooled.confusion)
+     << ",\"file_count\":" << results.size() << ",\"labelled_files\":" << pooled.labelled_files
+     << "},\"method\":" << jsonString(opt.method) << ",\"repeat\":" << opt.repeat;
+  if (opt.classes) {
+    os << ",\"classes\":[";
+    for (std::size_t i = 0; i < classes.size(); ++i) {
+      const auto& c = classes[i];
+      os << (i ? "," : "") << "{\"class\":" << c.cls
+         << ",\"name\":" << jsonString(gf::semanticKittiClassName(c.cls))
+         << ",\"truth\":" << static_cast<int>(c.truth) << ",\"points\":" << c.points
+         << ",\"labelled_ground\":" << c.labelled_ground << "}";
+    }
+    os << "]";
+  }
+  os << "}";
+  std::cout << os.str() << std::endl;
+}
 
-  std::size_t name_w = 6;
-  for (const auto& r : results) name_w = std::max(name_w, r.file.size());
-  std::string settings;
-  for (const auto& kv : opt.settings) settings += " " + kv.first + "=" + kv.second;
-  std::printf("%s\n", cli::simdDescription().c_str());
-  std::printf(
-      "method %s%s%s; ms = filter time per file%s; metrics in %%, ground = positive\n",
-      opt.method.c_str(), settings.empty() ? "" : ", settings", settings.c_str(),
-      opt.repeat > 1 ? (" (median of " + std::to_string(opt.repeat) + " runs)").c_str() : "");
-  std::printf("%-*s %9s %9s %9s %9s %8s %9s %8s %7s %7s %7s %7s %7s\n", static_cast<int>(name_w),
-              "file", "points", "ground", "ms", "tp", "fp", "tn", "fn", "acc", "prec", "recall",
-              "f1", "iou");
-  for (const auto& r : results) {
-    printRow(name_w, r.file, r.points, r.ground, r.ms, r.labelled, r.confusion);
-  }
-  printRow(name_w, "pooled", points, ground, ms, labelled_files > 0, pooled);
-  std::printf("%zu file(s), %zu labelled; pooled ms = sum over files\n", results.size(),
-              labelled_files);
-  std::printf("\nscan type per file (parameter scan_type)\n");
-  for (const auto& r : results) {
-    std::printf("%-*s %-8s %s\n", static_cast<int>(name_w), r.file.c_str(), r.scan_type.c_str(),
-                r.scan_reason.c_str());
-  }
+/// The table's extra sections: leave-one-out changes (--drop-one), per-class counts (--classes).
+void printExtras(const Options& opt, std::size_t name_w, const std::vector<FileResult>& results,
+                 const std::vector<gf::ClassCount>& classes) {
   if (opt.drop_one > 0) {
     std::printf(
         "\none point left out at a time (evenly spread finite points): labels of the other "
@@ -404,6 +400,53 @@ int run(const Options& opt) {
           pct(static_cast<double>(c.labelled_ground) / static_cast<double>(c.points)).c_str());
     }
     if (classes.empty()) std::printf("(no file with semantic classes)\n");
+  }
+}
+
+/// The default output: one table row per file and the pooled row, the scan types, the extras.
+void printTable(const Options& opt, const std::vector<FileResult>& results, const Pooled& pooled,
+                const std::vector<gf::ClassCount>& classes) {
+  std::size_t name_w = 6;
+  for (const auto& r : results) name_w = std::max(name_w, r.file.size());
+  std::string settings;
+  for (const auto& kv : opt.settings) settings += " " + kv.first + "=" + kv.second;
+  std::printf("%s\n", cli::simdDescription().c_str());
+  std::printf(
+      "method %s%s%s; ms = filter time per file%s; metrics in %%, ground = positive\n",
+      opt.method.c_str(), settings.empty() ? "" : ", settings", settings.c_str(),
+      opt.repeat > 1 ? (" (median of " + std::to_string(opt.repeat) + " runs)").c_str() : "");
+  std::printf("%-*s %9s %9s %9s %9s %8s %9s %8s %7s %7s %7s %7s %7s\n", static_cast<int>(name_w),
+              "file", "points", "ground", "ms", "tp", "fp", "tn", "fn", "acc", "prec", "recall",
+              "f1", "iou");
+  for (const auto& r : results) {
+    printRow(name_w, r.file, r.points, r.ground, r.ms, r.labelled, r.confusion);
+  }
+  printRow(name_w, "pooled", pooled.points, pooled.ground, pooled.ms, pooled.labelled_files > 0,
+           pooled.confusion);
+  std::printf("%zu file(s), %zu labelled; pooled ms = sum over files\n", results.size(),
+              pooled.labelled_files);
+  std::printf("\nscan type per file (parameter scan_type)\n");
+  for (const auto& r : results) {
+    std::printf("%-*s %-8s %s\n", static_cast<int>(name_w), r.file.c_str(), r.scan_type.c_str(),
+                r.scan_reason.c_str());
+  }
+  printExtras(opt, name_w, results, classes);
+}
+
+int run(const Options& opt) {
+  std::unique_ptr<gf::GroundFilter> filter = makeFilter(opt);
+  const std::vector<std::string> files = listFiles(opt);
+  std::vector<FileResult> results;
+  std::vector<gf::ClassCount> classes;
+  std::vector<std::uint8_t> labels;
+  for (const auto& file : files) {
+    results.push_back(evalFile(filter.get(), file, opt, &labels, &classes));
+  }
+  const Pooled pooled = pool(results);
+  if (opt.json) {
+    printJson(opt, results, pooled, classes);
+  } else {
+    printTable(opt, results, pooled, classes);
   }
   return 0;
 }

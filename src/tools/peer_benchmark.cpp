@@ -166,7 +166,9 @@ struct Row {
   std::vector<std::pair<std::string, double>> stage_med;  // --stages: median ms per stage
 };
 
-int run(const Options& opt) {
+/// The inputs: every PATH's scan files (default: three KITTI frames of the dev data) and the
+/// generated TLS scene (--tls-points), each replicated as asked.
+std::vector<Input> loadInputs(const Options& opt) {
   std::vector<Input> inputs;
   std::vector<std::string> paths = opt.paths;
   if (paths.empty() && opt.tls_points == 0) {
@@ -202,76 +204,79 @@ int run(const Options& opt) {
     in.truth.assign(g.truth.begin(), g.truth.end());
     inputs.push_back(replicate(std::move(in), opt.replicate, opt.replicate_row));
   }
+  return inputs;
+}
 
-  gf::ParamSettings settings = opt.settings;
-  settings.emplace_back("threads", std::to_string(opt.threads));
-  std::vector<Row> rows;
-  for (const Input& in : inputs) {
-    const std::size_t n = in.size();
-    const gf::CloudView view = gf::CloudView::packedXyz(in.xyz.data(), n);
-    auto voxel = gf::makeGroundFilter("voxel", settings);
-    std::vector<std::uint8_t> labels, peer_labels(n, 0);
-    // RANSAC input: the finite points (SACSegmentation itself drops nothing).
-    pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
-    std::vector<std::size_t> index;
-    if (opt.peer) cloud->reserve(n);
-    for (std::size_t i = 0; i < n && opt.peer; ++i) {
-      const float x = in.xyz[3 * i], y = in.xyz[3 * i + 1], z = in.xyz[3 * i + 2];
-      if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) continue;
-      cloud->push_back(pcl::PointXYZ(x, y, z));
-      index.push_back(i);
-    }
-    pcl::SACSegmentation<pcl::PointXYZ> seg;
-    seg.setOptimizeCoefficients(true);
-    seg.setModelType(pcl::SACMODEL_PLANE);
-    seg.setMethodType(pcl::SAC_RANSAC);
-    seg.setDistanceThreshold(0.2);
-    seg.setMaxIterations(1000);
-    seg.setInputCloud(cloud);
-    pcl::PointIndices inliers;
-    pcl::ModelCoefficients coefficients;
-
-    std::vector<double> tv, tp;
-    gf::FilterStats stats;
-    std::vector<std::pair<std::string, std::vector<double>>> stage_ms;
-    for (int r = 0; r < opt.warmup + opt.repeat; ++r) {
-      auto t0 = std::chrono::steady_clock::now();
-      voxel->filter(view, &labels, opt.stages ? &stats : nullptr);
-      const double v_ms = msSince(t0);
-      double p_ms = 0.0;
-      if (opt.peer) {
-        t0 = std::chrono::steady_clock::now();
-        seg.segment(inliers, coefficients);
-        p_ms = msSince(t0);
-      }
-      if (r < opt.warmup) continue;
-      for (const auto& st : opt.stages ? stats.stage_ms : decltype(stats.stage_ms)()) {
-        auto it = std::find_if(stage_ms.begin(), stage_ms.end(),
-                               [&](const auto& e) { return e.first == st.first; });
-        if (it == stage_ms.end()) it = stage_ms.insert(stage_ms.end(), {st.first, {}});
-        it->second.push_back(st.second);
-      }
-      tv.push_back(v_ms);
-      tp.push_back(p_ms);
-    }
-    Row row;
-    row.name = in.name;
-    row.points = n;
-    row.voxel_med = median(tv);
-    row.voxel_min = *std::min_element(tv.begin(), tv.end());
-    row.peer_med = median(tp);
-    row.peer_min = *std::min_element(tp.begin(), tp.end());
-    for (auto& st : stage_ms) row.stage_med.emplace_back(st.first, median(st.second));
-    if (!in.truth.empty()) {
-      row.voxel_f1 = gf::computeMetrics(gf::countConfusion(labels, in.truth)).f1;
-      if (opt.peer) {
-        for (int k : inliers.indices) peer_labels[index[static_cast<std::size_t>(k)]] = 1;
-        row.peer_f1 = gf::computeMetrics(gf::countConfusion(peer_labels, in.truth)).f1;
-      }
-    }
-    rows.push_back(row);
+/// One input: the voxel filter and (--peer) PCL's RANSAC plane alternated call by call, medians,
+/// minima, stage medians (--stages) and F1 where the input has truth.
+Row benchInput(const Options& opt, const gf::ParamSettings& settings, const Input& in) {
+  const std::size_t n = in.size();
+  const gf::CloudView view = gf::CloudView::packedXyz(in.xyz.data(), n);
+  auto voxel = gf::makeGroundFilter("voxel", settings);
+  std::vector<std::uint8_t> labels, peer_labels(n, 0);
+  // RANSAC input: the finite points (SACSegmentation itself drops nothing).
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+  std::vector<std::size_t> index;
+  if (opt.peer) cloud->reserve(n);
+  for (std::size_t i = 0; i < n && opt.peer; ++i) {
+    const float x = in.xyz[3 * i], y = in.xyz[3 * i + 1], z = in.xyz[3 * i + 2];
+    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) continue;
+    cloud->push_back(pcl::PointXYZ(x, y, z));
+    index.push_back(i);
   }
+  pcl::SACSegmentation<pcl::PointXYZ> seg;
+  seg.setOptimizeCoefficients(true);
+  seg.setModelType(pcl::SACMODEL_PLANE);
+  seg.setMethodType(pcl::SAC_RANSAC);
+  seg.setDistanceThreshold(0.2);
+  seg.setMaxIterations(1000);
+  seg.setInputCloud(cloud);
+  pcl::PointIndices inliers;
+  pcl::ModelCoefficients coefficients;
 
+  std::vector<double> tv, tp;
+  gf::FilterStats stats;
+  std::vector<std::pair<std::string, std::vector<double>>> stage_ms;
+  for (int r = 0; r < opt.warmup + opt.repeat; ++r) {
+    auto t0 = std::chrono::steady_clock::now();
+    voxel->filter(view, &labels, opt.stages ? &stats : nullptr);
+    const double v_ms = msSince(t0);
+    double p_ms = 0.0;
+    if (opt.peer) {
+      t0 = std::chrono::steady_clock::now();
+      seg.segment(inliers, coefficients);
+      p_ms = msSince(t0);
+    }
+    if (r < opt.warmup) continue;
+    for (const auto& st : opt.stages ? stats.stage_ms : decltype(stats.stage_ms)()) {
+      auto it = std::find_if(stage_ms.begin(), stage_ms.end(),
+                             [&](const auto& e) { return e.first == st.first; });
+      if (it == stage_ms.end()) it = stage_ms.insert(stage_ms.end(), {st.first, {}});
+      it->second.push_back(st.second);
+    }
+    tv.push_back(v_ms);
+    tp.push_back(p_ms);
+  }
+  Row row;
+  row.name = in.name;
+  row.points = n;
+  row.voxel_med = median(tv);
+  row.voxel_min = *std::min_element(tv.begin(), tv.end());
+  row.peer_med = median(tp);
+  row.peer_min = *std::min_element(tp.begin(), tp.end());
+  for (auto& st : stage_ms) row.stage_med.emplace_back(st.first, median(st.second));
+  if (!in.truth.empty()) {
+    row.voxel_f1 = gf::computeMetrics(gf::countConfusion(labels, in.truth)).f1;
+    if (opt.peer) {
+      for (int k : inliers.indices) peer_labels[index[static_cast<std::size_t>(k)]] = 1;
+      row.peer_f1 = gf::computeMetrics(gf::countConfusion(peer_labels, in.truth)).f1;
+    }
+  }
+  return row;
+}
+
+/// The table: one row per input, the sums of medians, the stage medians.
+void printRows(const Options& opt, const std::vector<Row>& rows) {
   std::printf("%s\n", cli::simdDescription().c_str());
   std::printf(
       "voxel (threads=%d, shipped flags) vs PCL SACSegmentation plane (RANSAC 0.2 m, 1000 "
@@ -308,6 +313,15 @@ int run(const Options& opt) {
     for (const auto& st : r.stage_med) std::printf(" %s %.3f", st.first.c_str(), st.second);
     std::printf("\n");
   }
+}
+
+int run(const Options& opt) {
+  const std::vector<Input> inputs = loadInputs(opt);
+  gf::ParamSettings settings = opt.settings;
+  settings.emplace_back("threads", std::to_string(opt.threads));
+  std::vector<Row> rows;
+  for (const Input& in : inputs) rows.push_back(benchInput(opt, settings, in));
+  printRows(opt, rows);
   return 0;
 }
 

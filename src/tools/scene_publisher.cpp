@@ -82,87 +82,176 @@ void toMessage(ground_filter::GeneratedScan scene, sensor_msgs::PointCloud2* msg
   toMessage(&scan, msg);
 }
 
+/// The node's private parameters (see the file comment).
+struct PublisherParams {
+  std::string input, frame_id, mode;
+  double rate = 10.0, speed = 10.0;
+  bool loop = true, wait_for_subscribers = true;
+  int max_scans = 0, seed = 1, tls_points = 2000000, nan_points = 0;
+};
+
+/// Reads and checks ~rate and the counts; false (logged) when one is out of range.
+bool readParams(const ros::NodeHandle& pnh, PublisherParams* p) {
+  pnh.param<std::string>("input", p->input, "");
+  pnh.param<std::string>("frame_id", p->frame_id, "velodyne");
+  pnh.param<std::string>("mode", p->mode, "lidar");
+  pnh.param("rate", p->rate, p->rate);
+  pnh.param("speed", p->speed, p->speed);
+  pnh.param("loop", p->loop, p->loop);
+  pnh.param("wait_for_subscribers", p->wait_for_subscribers, p->wait_for_subscribers);
+  pnh.param("max_scans", p->max_scans, p->max_scans);
+  pnh.param("seed", p->seed, p->seed);
+  pnh.param("tls_points", p->tls_points, p->tls_points);
+  pnh.param("nan_points", p->nan_points, p->nan_points);
+
+  if (!(p->rate > 0.0 && p->rate <= 1000.0)) {
+    ROS_FATAL("~rate = %g is out of range (0, 1000] Hz", p->rate);
+    return false;
+  }
+  if (p->max_scans < 0 || p->seed < 0 || p->tls_points < 0 || p->nan_points < 0) {
+    ROS_FATAL("~max_scans, ~seed, ~tls_points and ~nan_points must be >= 0");
+    return false;
+  }
+  return true;
+}
+
+/// The generated scene of ~mode with ~seed, ~tls_points, ~nan_points; false (logged) if invalid.
+bool sceneOf(const PublisherParams& p, ground_filter::SceneParams* scene) {
+  try {
+    *scene = ground_filter::builtinSceneParams(p.mode);  // scene layout and scanner of the kind
+  } catch (const std::exception& e) {
+    ROS_FATAL("~mode: %s", e.what());
+    return false;
+  }
+  scene->seed = static_cast<std::uint32_t>(p.seed);
+  scene->tls_points = static_cast<std::size_t>(p.tls_points);
+  scene->nan_points = static_cast<std::size_t>(p.nan_points);
+  try {
+    scene->validate();
+  } catch (const std::exception& e) {
+    ROS_FATAL("scene parameters: %s", e.what());
+    return false;
+  }
+  return true;
+}
+
+/// The scan files of ~input (none: the generated scene is published); false (logged) when
+/// ~input cannot be listed or holds no scan.
+bool inputFiles(const PublisherParams& p, std::vector<std::string>* files) {
+  if (!p.input.empty()) {
+    try {
+      *files = ground_filter::listScanFiles(p.input);
+    } catch (const std::exception& e) {
+      ROS_FATAL("~input: %s", e.what());
+      return false;
+    }
+    if (files->empty()) {
+      ROS_FATAL("~input '%s' holds no .bin/.pcd/.ply scan", p.input.c_str());
+      return false;
+    }
+    ROS_INFO("publishing %zu scan file(s) from %s at %g Hz%s", files->size(), p.input.c_str(),
+             p.rate, p.loop ? " (looping)" : "");
+  } else {
+    ROS_INFO("publishing the generated '%s' scene (seed %d) at %g Hz", p.mode.c_str(), p.seed,
+             p.rate);
+  }
+  return true;
+}
+
+/// The generated scene, one scan a call: the street scene's sensor drives along the path; the
+/// tripod does not move, so its (large) scan is generated once and re-stamped.
+class GeneratedSource {
+ public:
+  GeneratedSource(const PublisherParams& p, const ground_filter::SceneParams& scene)
+      : scene_(scene), drives_(p.mode == "lidar"), speed_(p.speed), rate_(p.rate) {}
+
+  /// Scan number `published` into `msg`; `what` describes it.
+  void next(std::uint32_t published, sensor_msgs::PointCloud2* msg, std::string* what) {
+    if (scene_.mode == ground_filter::SceneParams::Mode::kTls) {
+      if (!tls_cached_) {
+        toMessage(ground_filter::generateScene(scene_), &tls_cache_);
+        tls_cached_ = true;
+      }
+      *msg = tls_cache_;
+    } else {
+      if (drives_) {
+        const double span = kPathEndX - kPathStartX;
+        scene_.sensor_x = kPathStartX + std::fmod(published * speed_ / rate_, span);
+      }
+      scene_.noise_seed = published;
+      toMessage(ground_filter::generateScene(scene_), msg);
+    }
+    char buf[64];
+    std::snprintf(buf, sizeof(buf), "generated (sensor at x = %.1f m)", scene_.sensor_x);
+    *what = buf;
+  }
+
+ private:
+  ground_filter::SceneParams scene_;
+  bool drives_;  // only the street scene has a driving path
+  double speed_, rate_;
+  sensor_msgs::PointCloud2 tls_cache_;
+  bool tls_cached_ = false;
+};
+
+/// The scan files in turn (from the first again with ~loop).
+class FileSource {
+ public:
+  enum class Step { kScan, kSkip, kEnd, kFailed };
+
+  FileSource(std::vector<std::string> files, bool loop) : files_(std::move(files)), loop_(loop) {}
+
+  /// The next file into `msg`: kScan, kSkip (unreadable, logged), kEnd (all published, no
+  /// loop) or kFailed (no file could be read, logged).
+  Step next(sensor_msgs::PointCloud2* msg, std::string* what) {
+    if (index_ >= files_.size()) {
+      if (!loop_) return Step::kEnd;
+      index_ = 0;
+    }
+    const std::string& path = files_[index_++];
+    try {
+      ground_filter::Scan scan = ground_filter::loadScan(path);
+      toMessage(&scan, msg);
+      *what = path + (scan.labelled() ? "" : " (no labels)");
+      failures_in_a_row_ = 0;
+    } catch (const std::exception& e) {
+      ROS_ERROR("skipping %s: %s", path.c_str(), e.what());
+      if (++failures_in_a_row_ >= files_.size()) {
+        ROS_FATAL("no scan of ~input could be read");
+        return Step::kFailed;
+      }
+      return Step::kSkip;
+    }
+    return Step::kScan;
+  }
+
+ private:
+  std::vector<std::string> files_;
+  bool loop_;
+  std::size_t index_ = 0, failures_in_a_row_ = 0;
+};
+
 }  // namespace
 
 int main(int argc, char** argv) {
   ros::init(argc, argv, "scene_publisher");
   ros::NodeHandle pnh("~");
-
-  std::string input, frame_id, mode;
-  double rate = 10.0, speed = 10.0;
-  bool loop = true, wait_for_subscribers = true;
-  int max_scans = 0, seed = 1, tls_points = 2000000, nan_points = 0;
-  pnh.param<std::string>("input", input, "");
-  pnh.param<std::string>("frame_id", frame_id, "velodyne");
-  pnh.param<std::string>("mode", mode, "lidar");
-  pnh.param("rate", rate, rate);
-  pnh.param("speed", speed, speed);
-  pnh.param("loop", loop, loop);
-  pnh.param("wait_for_subscribers", wait_for_subscribers, wait_for_subscribers);
-  pnh.param("max_scans", max_scans, max_scans);
-  pnh.param("seed", seed, seed);
-  pnh.param("tls_points", tls_points, tls_points);
-  pnh.param("nan_points", nan_points, nan_points);
-
-  if (!(rate > 0.0 && rate <= 1000.0)) {
-    ROS_FATAL("~rate = %g is out of range (0, 1000] Hz", rate);
-    return 1;
-  }
-  if (max_scans < 0 || seed < 0 || tls_points < 0 || nan_points < 0) {
-    ROS_FATAL("~max_scans, ~seed, ~tls_points and ~nan_points must be >= 0");
-    return 1;
-  }
+  PublisherParams p;
   ground_filter::SceneParams scene;
-  try {
-    scene = ground_filter::builtinSceneParams(mode);  // scene layout and scanner of the kind
-  } catch (const std::exception& e) {
-    ROS_FATAL("~mode: %s", e.what());
-    return 1;
-  }
-  // Only the street scene has a driving path; the others keep the scanner where it stands.
-  const bool drives = mode == "lidar";
-  scene.seed = static_cast<std::uint32_t>(seed);
-  scene.tls_points = static_cast<std::size_t>(tls_points);
-  scene.nan_points = static_cast<std::size_t>(nan_points);
-  try {
-    scene.validate();
-  } catch (const std::exception& e) {
-    ROS_FATAL("scene parameters: %s", e.what());
-    return 1;
-  }
-
   std::vector<std::string> files;
-  if (!input.empty()) {
-    try {
-      files = ground_filter::listScanFiles(input);
-    } catch (const std::exception& e) {
-      ROS_FATAL("~input: %s", e.what());
-      return 1;
-    }
-    if (files.empty()) {
-      ROS_FATAL("~input '%s' holds no .bin/.pcd/.ply scan", input.c_str());
-      return 1;
-    }
-    ROS_INFO("publishing %zu scan file(s) from %s at %g Hz%s", files.size(), input.c_str(), rate,
-             loop ? " (looping)" : "");
-  } else {
-    ROS_INFO("publishing the generated '%s' scene (seed %d) at %g Hz", mode.c_str(), seed, rate);
-  }
+  if (!readParams(pnh, &p) || !sceneOf(p, &scene) || !inputFiles(p, &files)) return 1;
+  const bool generated = files.empty();
+  GeneratedSource gen(p, scene);
+  FileSource file_source(std::move(files), p.loop);
 
   ros::Publisher pub = pnh.advertise<sensor_msgs::PointCloud2>("output", 2);
-  if (wait_for_subscribers) {
+  if (p.wait_for_subscribers) {
     ROS_INFO("waiting for a subscriber on %s", pub.getTopic().c_str());
   }
-
-  // The tripod does not move: its (large) scan is generated once and re-stamped.
-  sensor_msgs::PointCloud2 tls_cache;
-  bool tls_cached = false;
-
-  ros::Rate loop_rate(rate);
+  ros::Rate loop_rate(p.rate);
   std::uint32_t published = 0;
-  std::size_t file_index = 0, failures_in_a_row = 0;
   while (ros::ok()) {
-    if (wait_for_subscribers && pub.getNumSubscribers() == 0) {
+    if (p.wait_for_subscribers && pub.getNumSubscribers() == 0) {
       ros::WallDuration(0.05).sleep();
       ros::spinOnce();
       continue;
@@ -170,51 +259,21 @@ int main(int argc, char** argv) {
     auto msg = boost::make_shared<sensor_msgs::PointCloud2>();
     const ros::WallTime t0 = ros::WallTime::now();
     std::string what;
-    if (files.empty()) {
-      if (scene.mode == ground_filter::SceneParams::Mode::kTls) {
-        if (!tls_cached) {
-          toMessage(ground_filter::generateScene(scene), &tls_cache);
-          tls_cached = true;
-        }
-        *msg = tls_cache;
-      } else {
-        if (drives) {
-          const double span = kPathEndX - kPathStartX;
-          scene.sensor_x = kPathStartX + std::fmod(published * speed / rate, span);
-        }
-        scene.noise_seed = published;
-        toMessage(ground_filter::generateScene(scene), msg.get());
-      }
-      char buf[64];
-      std::snprintf(buf, sizeof(buf), "generated (sensor at x = %.1f m)", scene.sensor_x);
-      what = buf;
+    if (generated) {
+      gen.next(published, msg.get(), &what);
     } else {
-      if (file_index >= files.size()) {
-        if (!loop) break;
-        file_index = 0;
-      }
-      const std::string& path = files[file_index++];
-      try {
-        ground_filter::Scan scan = ground_filter::loadScan(path);
-        toMessage(&scan, msg.get());
-        what = path + (scan.labelled() ? "" : " (no labels)");
-        failures_in_a_row = 0;
-      } catch (const std::exception& e) {
-        ROS_ERROR("skipping %s: %s", path.c_str(), e.what());
-        if (++failures_in_a_row >= files.size()) {
-          ROS_FATAL("no scan of ~input could be read");
-          return 1;
-        }
-        continue;
-      }
+      const FileSource::Step step = file_source.next(msg.get(), &what);
+      if (step == FileSource::Step::kEnd) break;
+      if (step == FileSource::Step::kFailed) return 1;
+      if (step == FileSource::Step::kSkip) continue;
     }
-    msg->header.frame_id = frame_id;
+    msg->header.frame_id = p.frame_id;
     msg->header.stamp = ros::Time::now();
     pub.publish(sensor_msgs::PointCloud2ConstPtr(msg));
     ROS_DEBUG("scan %u: %u points, %s, prepared in %.1f ms", published, msg->width * msg->height,
               what.c_str(), (ros::WallTime::now() - t0).toSec() * 1e3);
     ++published;
-    if (max_scans > 0 && published >= static_cast<std::uint32_t>(max_scans)) break;
+    if (p.max_scans > 0 && published >= static_cast<std::uint32_t>(p.max_scans)) break;
     ros::spinOnce();
     loop_rate.sleep();
   }

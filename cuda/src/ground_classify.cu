@@ -1,0 +1,133 @@
+// The distance test (see ground_classify.cuh).
+#include <cmath>
+
+#include "cuda_util.cuh"
+#include "ground_classify.cuh"
+#include "normal/cpu_gpu_common.h"
+
+namespace ground_filter {
+namespace cuda_impl {
+
+namespace {
+
+constexpr int kThreads = kGroundThreads;
+
+using normal::kMinTilePoints;
+
+__device__ inline double planeDistance(const PlaneDev& pl, const float* p) {
+  return ((pl.n[0] * (p[0] - pl.o[0]) + pl.n[1] * (p[1] - pl.o[1])) + pl.n[2] * (p[2] - pl.o[2])) +
+         pl.d;
+}
+
+/// Min of v over the block (all threads get it); `warp_s` holds one word per warp.
+__device__ inline double blockMin(double v, double* warp_s) {
+  for (int o = 16; o > 0; o >>= 1) v = fmin(v, __shfl_xor_sync(0xffffffffu, v, o));
+  if ((threadIdx.x & 31) == 0) warp_s[threadIdx.x >> 5] = v;
+  __syncthreads();
+  double r = warp_s[0];
+  for (unsigned int w = 1; w < blockDim.x / 32; ++w) r = fmin(r, warp_s[w]);
+  __syncthreads();
+  return r;
+}
+
+__global__ void __launch_bounds__(kThreads)
+    classifyKernel(const float* __restrict__ xyz, const unsigned int* __restrict__ src,
+                   const unsigned int* __restrict__ order, const std::uint8_t* __restrict__ voted,
+                   const unsigned int* __restrict__ tile_begin, const unsigned int* ntiles_dev,
+                   const unsigned int* __restrict__ vpos, const unsigned int* __restrict__ vlist,
+                   const GroundParamsDev p, const PlaneDev* __restrict__ planes,
+                   std::uint8_t* labels, unsigned int* ground_count, unsigned int* work) {
+  __shared__ unsigned int item_s;
+  __shared__ double band[2];
+  __shared__ double floor_min_s[kThreads / 32];
+  __shared__ unsigned int floor_count_s[kThreads / 32];
+  const unsigned int ntiles = *ntiles_dev;
+  unsigned int ground = 0;
+  for (;;) {
+    if (threadIdx.x == 0) item_s = atomicAdd(work, 1u);
+    __syncthreads();
+    const unsigned int t = item_s;
+    __syncthreads();
+    if (t >= ntiles) break;
+    const unsigned int b = tile_begin[t], e = tile_begin[t + 1];
+    const unsigned int m = vpos[e] - vpos[b];
+    PlaneDev plane = planes[0];
+    if (p.local_planes && m >= kMinTilePoints && planes[1 + t].valid) plane = planes[1 + t];
+    if (!plane.valid) continue;  // uniform
+    if (p.local_planes && m < kMinTilePoints && p.floor_share > 0.0) {
+      // As the CPU (plane.cpp, sparse-tile floor): the cloud-wide plane moved to the tile's
+      // lowest point when enough of the tile lies within plane_distance above it. Min and count
+      // are exact, so the order of the reduction does not matter.
+      const double up = plane.n[2] < 0.0 ? -1.0 : 1.0;
+      double low = HUGE_VAL;
+      for (unsigned int j = b + threadIdx.x; j < e; j += blockDim.x) {
+        low = fmin(low, up * planeDistance(plane, xyz + 3 * static_cast<std::size_t>(order[j])));
+      }
+      low = blockMin(low, floor_min_s);
+      if (low >= -p.floor_max_shift && low <= p.floor_max_shift) {  // uniform
+        unsigned int on_floor = 0;
+        for (unsigned int j = b + threadIdx.x; j < e; j += blockDim.x) {
+          const double h = up * planeDistance(plane, xyz + 3 * static_cast<std::size_t>(order[j]));
+          on_floor += h >= low && h <= low + p.plane_distance;
+        }
+        on_floor = blockSum(on_floor, floor_count_s);
+        if (static_cast<double>(on_floor) >= p.floor_share * static_cast<double>(e - b)) {
+          plane.d -= up * low;
+        }
+      }
+    }
+    double lo = -p.plane_distance, hi = p.plane_distance;
+    if (p.std_filter) {  // band of the voted points' distances, summed in the CPU's order
+      if (threadIdx.x == 0) {
+        double s = 0.0, s2 = 0.0;
+        unsigned long long c = 0;
+        for (unsigned int v = vpos[b]; v < vpos[e]; ++v) {
+          const double d = planeDistance(plane, xyz + 3 * static_cast<std::size_t>(vlist[v]));
+          if (fabs(d) <= p.plane_distance) {
+            s += d;
+            s2 += d * d;
+            ++c;
+          }
+        }
+        if (c > 0) {
+          const double mean = s / c;
+          const double sd = sqrt(fmax(0.0, s2 / c - mean * mean));
+          lo = fmax(lo, mean - p.std_multiplier * sd);
+          hi = fmin(hi, mean + p.std_multiplier * sd);
+        }
+        band[0] = lo;
+        band[1] = hi;
+      }
+      __syncthreads();
+      lo = band[0];
+      hi = band[1];
+      __syncthreads();
+    }
+    for (unsigned int j = b + threadIdx.x; j < e; j += blockDim.x) {
+      const unsigned int i = order[j];
+      if (!voted[i] && !p.plane_all_points) continue;
+      const double d = planeDistance(plane, xyz + 3 * static_cast<std::size_t>(i));
+      if (d >= lo && d <= hi) {
+        labels[src[i]] = 1;
+        ++ground;
+      }
+    }
+  }
+  for (int o = 16; o > 0; o >>= 1) ground += __shfl_xor_sync(0xffffffffu, ground, o);
+  if ((threadIdx.x & 31) == 0 && ground) atomicAdd(ground_count, ground);
+}
+
+}  // namespace
+
+void launchClassify(const float* xyz, const unsigned int* src, const unsigned int* order,
+                    const std::uint8_t* voted, const unsigned int* tile_begin,
+                    const unsigned int* ntiles, const unsigned int* vpos, const unsigned int* vlist,
+                    const GroundParamsDev& p, const PlaneDev* planes, std::uint8_t* labels,
+                    unsigned int* ground_count, unsigned int* work, int blocks, cudaStream_t st) {
+  classifyKernel<<<blocks, kThreads, 0, st>>>(xyz, src, order, voted, tile_begin, ntiles, vpos,
+                                              vlist, p, planes, labels, ground_count, work);
+  GF_CUDA_CHECK_LAUNCH();
+}
+
+}  // namespace cuda_impl
+}  // namespace ground_filter

@@ -1,0 +1,31 @@
+// Private: the RANSAC planes on the device (CPU: fitPlaneRansac): one block per
+// plane over a work queue, and the grid-wide least-squares refinement of a large cloud plane.
+#ifndef GROUND_FILTER_CUDA_SRC_GROUND_PLANES_CUH
+#define GROUND_FILTER_CUDA_SRC_GROUND_PLANES_CUH
+
+#include <cuda_runtime.h>
+
+#include <cstddef>
+#include <cstdint>
+
+#include "ground_common.cuh"
+
+namespace ground_filter {
+namespace cuda_impl {
+
+/// RANSAC planes: item 0 the cloud-wide plane (when a tile has < 3 voted points or without
+/// local planes; refined grid-wide when large), item 1 + t tile t. `work` and `need_global` are
+/// zeroed counters, `partial` holds refinePartialBytes(); `tiles_max` bounds the tile count.
+void launchPlanes(const float* xyz, const unsigned long long* sorted_keys,
+                  const unsigned int* tile_begin, const unsigned int* ntiles,
+                  const unsigned int* vpos, const unsigned int* vlist, const unsigned int* glist,
+                  const unsigned int* gcount, const GroundParamsDev& p, PlaneDev* planes,
+                  unsigned int* work, unsigned int* need_global, double* partial,
+                  std::size_t tiles_max, int blocks, cudaStream_t st);
+/// Bytes of the per-block partial sums of the grid-wide plane refinement.
+std::size_t refinePartialBytes();
+
+}  // namespace cuda_impl
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_CUDA_SRC_GROUND_PLANES_CUH

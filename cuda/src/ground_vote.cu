@@ -1,0 +1,83 @@
+// PCA candidates and the naive-Bayes vote (see ground_vote.cuh).
+#include <cmath>
+
+#include "cuda_util.cuh"
+#include "ground_vote.cuh"
+#include "knn_pca.cuh"
+
+namespace ground_filter {
+namespace cuda_impl {
+
+namespace {
+
+constexpr int kThreads = kGroundThreads;
+
+/// CPU: isFlat (planarity of Demantke et al. dominant and >= min_planarity).
+__device__ inline bool isFlat(const float eigen[3], double min_planarity) {
+  const double s1 = sqrt(static_cast<double>(eigen[2]));
+  const double s2 = sqrt(static_cast<double>(eigen[1]));
+  const double s3 = sqrt(static_cast<double>(eigen[0]));
+  if (!(s1 > 0.0)) return false;
+  const double linear = (s1 - s2) / s1, planar = (s2 - s3) / s1, scatter = s3 / s1;
+  return planar >= linear && planar >= scatter && planar >= min_planarity;
+}
+
+__global__ void pcaCandidatesKernel(const float* __restrict__ xyz, const float4* __restrict__ pts,
+                                    const std::int32_t* __restrict__ rows, int n,
+                                    const GroundParamsDev p, std::uint8_t* cand,
+                                    unsigned int* cand_count) {
+  const int s = blockIdx.x * blockDim.x + threadIdx.x;
+  bool c = false;
+  if (s < n) {
+    const float4 q = pts[s];
+    float nv[3], ev[3];
+    const bool ok = neighborhoodPcaOf(xyz, rows + static_cast<std::size_t>(s) * p.k, p.k, q.x, q.y,
+                                      q.z, nv, ev);
+    c = ok && isFlat(ev, p.min_planarity) && fabsf(nv[2]) >= p.min_abs_nz;
+    cand[__float_as_int(q.w)] = c;
+  }
+  const int total = __syncthreads_count(c);
+  if (threadIdx.x == 0 && total) atomicAdd(cand_count, static_cast<unsigned int>(total));
+}
+
+__global__ void voteKernel(const float4* __restrict__ pts, const std::int32_t* __restrict__ rows,
+                           int n, const GroundParamsDev p, const std::uint8_t* __restrict__ cand,
+                           const unsigned int* __restrict__ cand_count, std::uint8_t* voted) {
+  const int s = blockIdx.x * blockDim.x + threadIdx.x;
+  if (s >= n) return;
+  const int o = __float_as_int(pts[s].w);
+  if (!p.bayes_vote) {
+    voted[o] = cand[o];
+    return;
+  }
+  // CPU: ground when U u > V (m - u), U / V the candidates / others of the cloud.
+  const double U = static_cast<double>(*cand_count);
+  const double V = static_cast<double>(static_cast<unsigned int>(n) - *cand_count);
+  const std::int32_t* row = rows + static_cast<std::size_t>(s) * p.k;
+  int m = 0, u = 0;
+  for (; m < p.k; ++m) {
+    const int j = row[m];
+    if (j < 0) break;
+    u += cand[j];
+  }
+  voted[o] = U * u > V * (m - u);
+}
+
+}  // namespace
+
+void launchPcaCandidates(const float* xyz, const float4* pts, const std::int32_t* rows, int n,
+                         const GroundParamsDev& p, std::uint8_t* cand, unsigned int* cand_count,
+                         cudaStream_t st) {
+  pcaCandidatesKernel<<<blocksFor(n, 128), 128, 0, st>>>(xyz, pts, rows, n, p, cand, cand_count);
+  GF_CUDA_CHECK_LAUNCH();
+}
+
+void launchVote(const float4* pts, const std::int32_t* rows, int n, const GroundParamsDev& p,
+                const std::uint8_t* cand, const unsigned int* cand_count, std::uint8_t* voted,
+                cudaStream_t st) {
+  voteKernel<<<blocksFor(n, kThreads), kThreads, 0, st>>>(pts, rows, n, p, cand, cand_count, voted);
+  GF_CUDA_CHECK_LAUNCH();
+}
+
+}  // namespace cuda_impl
+}  // namespace ground_filter

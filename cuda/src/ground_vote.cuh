@@ -1,0 +1,28 @@
+// Private: PCA candidates and the naive-Bayes vote over the KNN rows on the device
+// (CPU: isFlat and the naive-Bayes vote of the normal method).
+#ifndef GROUND_FILTER_CUDA_SRC_GROUND_VOTE_CUH
+#define GROUND_FILTER_CUDA_SRC_GROUND_VOTE_CUH
+
+#include <cuda_runtime.h>
+
+#include <cstddef>
+#include <cstdint>
+
+#include "ground_common.cuh"
+
+namespace ground_filter {
+namespace cuda_impl {
+
+/// PCA of every KNN row, flatness and normal test: cand[original index] (0/1); cand_count += them.
+void launchPcaCandidates(const float* xyz, const float4* pts, const std::int32_t* rows, int n,
+                         const GroundParamsDev& p, std::uint8_t* cand, unsigned int* cand_count,
+                         cudaStream_t st);
+/// Naive-Bayes vote over each KNN row (or a copy of cand without bayes_vote).
+void launchVote(const float4* pts, const std::int32_t* rows, int n, const GroundParamsDev& p,
+                const std::uint8_t* cand, const unsigned int* cand_count, std::uint8_t* voted,
+                cudaStream_t st);
+
+}  // namespace cuda_impl
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_CUDA_SRC_GROUND_VOTE_CUH
