@@ -29,7 +29,7 @@ struct CudaNormalParams {
   bool plane_all_points = true;  ///< plane test labels every point, not only voted ones
   bool local_planes = true;      ///< one plane per tile instead of one for the cloud
   double tile_size = 4.0;        ///< tile edge for local planes [m]
-  double floor_share = 0.3;      ///< sparse tile: lowest-level share moving the cloud plane, 0 off
+  double floor_share = 0.15;     ///< sparse tile: lowest-level share moving the cloud plane, 0 off
   double floor_max_shift = 0.5;  ///< sparse tile: largest move of the cloud-wide plane [m]
 };
 
