@@ -30,8 +30,8 @@
 #include "brute_force_knn.h"  // readKittiBin (cuda/test/)
 #include "ground_filter/cuda_knn.h"
 #include "ground_filter/normal_ground_filter.h"
-#include "neighbors/gpu_neighbor_search.h"
-#include "neighbors/kdtree_neighbor_search.h"
+#include "normal/knn/gpu_neighbor_search.h"
+#include "normal/knn/kdtree_neighbor_search.h"
 #include "replicate_frames.h"
 
 namespace gf = ground_filter;
