@@ -182,6 +182,8 @@ if [ "${QUICK}" = 1 ]; then
     rostest=\$(cd build && make help | grep -o 'run_tests_ground_filter_rostest_voxel_nodelet[^ ]*' | head -n 1) && \
     catkin_make -j1 run_tests_ground_filter_gtest_test_core \
       run_tests_ground_filter_gtest_test_normal_ground_filter \
+      run_tests_ground_filter_gtest_test_normal_knn_pca \
+      run_tests_ground_filter_gtest_test_normal_internals \
       run_tests_ground_filter_gtest_test_kdtree_neighbor_search \${rostest} && \
     python3 ${CLONE_IN}/scripts/test_summary.py build/test_results"
 else

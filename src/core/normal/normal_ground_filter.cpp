@@ -160,8 +160,8 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   for (const auto& sg : ordered.segments) {
     const std::size_t b = sg.first, len = sg.second - sg.first;
     const std::size_t candidates = im.neighborhoods.run(
-        im.search.get(), ordered.xyz.data() + 3 * b, len, p.k, threads, p.min_planarity,
-        min_abs_nz, &im.lists, im.candidate.data() + b, &times);
+        im.search.get(), ordered.xyz.data() + 3 * b, len, p.k, threads, p.min_planarity, min_abs_nz,
+        &im.lists, im.candidate.data() + b, &times);
     t0 = Clock::now();
     im.vote.run(im.search.get(), im.lists, im.candidate.data() + b, len, candidates, p.bayes_vote,
                 threads, im.voted.data() + b);

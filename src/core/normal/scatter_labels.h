@@ -8,9 +8,10 @@
 namespace ground_filter {
 namespace normal {
 
-/// \brief Stage 6 (labels in input order): kGround at input index source[j] for every ordered point j with ground[j];
-///        every other entry of `labels` is left as it is (kNonGround). `threads` split the
-///        points (source is a permutation, so the result does not depend on them).
+/// \brief Stage 6 (labels in input order): kGround at input index source[j] for every ordered
+///        point j with ground[j]; every other entry of `labels` is left as it is (kNonGround).
+///        `threads` split the points (source is a permutation, so the result does not depend on
+///        them).
 /// \return the number of ground points.
 std::size_t scatterLabels(const std::vector<std::uint8_t>& ground,
                           const std::vector<std::uint32_t>& source,

@@ -7,9 +7,9 @@
 namespace ground_filter {
 namespace normal {
 
-void VoteStage::run(KnnBackend* search, const NeighborLists& lists,
-                    const std::uint8_t* candidate, std::size_t len, std::size_t candidates,
-                    bool bayes, int threads, std::uint8_t* voted) {
+void VoteStage::run(KnnBackend* search, const NeighborLists& lists, const std::uint8_t* candidate,
+                    std::size_t len, std::size_t candidates, bool bayes, int threads,
+                    std::uint8_t* voted) {
   if (!bayes) {
     std::copy_n(candidate, len, voted);
     return;

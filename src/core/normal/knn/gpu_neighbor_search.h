@@ -2,7 +2,8 @@
 #define GROUND_FILTER_SRC_CORE_NORMAL_KNN_GPU_NEIGHBOR_SEARCH_H
 
 // Only usable when the package is built with CUDA (GROUND_FILTER_HAVE_CUDA); use
-// makeNeighborSearch("gpu", ...) or makeKnnBackend("gpu", ...) to get it with the kd-tree fallback handled.
+// makeNeighborSearch("gpu", ...) or makeKnnBackend("gpu", ...) to get it with the kd-tree fallback
+// handled.
 
 #include <cstddef>
 #include <memory>

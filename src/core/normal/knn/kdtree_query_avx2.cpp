@@ -1,4 +1,5 @@
-// KdTreeNeighborSearch: the AVX2 top-K set (4 keys per register, candidates packed by a permutation table).
+// KdTreeNeighborSearch: the AVX2 top-K set (4 keys per register, candidates packed by a permutation
+// table).
 
 #include <algorithm>
 #include <cstdint>
