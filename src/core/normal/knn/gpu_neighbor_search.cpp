@@ -19,7 +19,7 @@ std::string describeCurrent() {
     throw;
   } catch (const CudaError& e) {
     return e.errorName() + ": " + e.what();
-  } catch (const std::exception&) {
+  } catch (const std::exception& e) {
     return e.what();
   }
 }
