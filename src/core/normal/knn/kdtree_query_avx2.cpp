@@ -25,6 +25,8 @@ namespace kdtree {
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #pragma GCC diagnostic ignored "-Wuninitialized"
 
+namespace {  // the set and its helpers; only the entry point below is shared
+
 constexpr std::uint64_t kNoKeyAvx2 = 0x7fffffffffffffffULL;
 
 GF_TARGET_AVX2_PATHS inline void compareExchange4(__m256i* a, __m256i* b) {
@@ -291,6 +293,8 @@ class TopKAvx2 {
   float thr_ = 0.f;
   bool empty_ = true;
 };
+
+}  // namespace
 
 GF_TARGET_AVX2_PATHS void queryRangeAvx2(const Tree& t, std::size_t pb, std::size_t pe, int k,
                                          std::int32_t* out_idx, float* out_dist) {

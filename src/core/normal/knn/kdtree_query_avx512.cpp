@@ -21,6 +21,8 @@ namespace kdtree {
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #pragma GCC diagnostic ignored "-Wuninitialized"
 
+namespace {  // the set and its helpers; only the entry point below is shared
+
 using simd::opaque;
 
 // Bitonic network on R zmm registers of 8 uint64 keys each, ascending.
@@ -288,6 +290,8 @@ class TopKAvx512 {
   float thr_ = 0.f;
   bool empty_ = true;
 };
+
+}  // namespace
 
 GF_TARGET_AVX512 void queryRangeAvx512(const Tree& t, std::size_t pb, std::size_t pe, int k,
                                        std::int32_t* out_idx, float* out_dist) {
