@@ -23,15 +23,18 @@ gf_core_room(airborne morph_ground scan_type airborne_mode)
 # voxel method: the filter and its parameter table, one file per stage, the paper mode
 gf_core_room(voxel voxel_ground_filter voxel_ground_filter_params paper_voxel_filter)
 gf_core_room(voxel voxelize voxelize_build avx2_passes segments ground_model classify vote vegetation worker_pool)
-# normal method: the filter and its parameter table, one file per stage
-gf_core_room(. normal_ground_filter normal_ground_filter_params)
-gf_core_room(normal order neighborhoods neighborhood_pca vote plane vegetation classify)
-# K nearest neighbours: kd-tree and the backend factory
-gf_core_room(neighbors kdtree_neighbor_search neighbor_search_factory)
+# normal method: the filter and its parameter table (and the settings derived from it), one file
+# per stage
+gf_core_room(normal normal_ground_filter normal_ground_filter_params)
+gf_core_room(normal order neighborhoods vote plane vegetation scatter_labels)
+# K nearest neighbours under the normal method (normal/knn/, below the rest of normal/): the
+# kd-tree (build, portable / AVX-512 / AVX2 queries), the PCA of the lists, the backend factory
+gf_core_room(normal/knn kdtree_neighbor_search kdtree_build kdtree_query_avx512 kdtree_query_avx2)
+gf_core_room(normal/knn neighborhood_pca neighbor_search_factory)
 # metrics (scan files are in ground_filter_io: they need PCL), generated scenes
 gf_core_room(io metrics)
 gf_core_room(scene scene_generator scene_terrain)
 
 # The CUDA adapter of the neighbour interface (and the whole-filter pipeline): added to the core
 # where CUDA is built.
-set(GF_CORE_CUDA_SOURCES src/core/neighbors/gpu_neighbor_search.cpp)
+set(GF_CORE_CUDA_SOURCES src/core/normal/knn/gpu_neighbor_search.cpp)

@@ -183,6 +183,8 @@ if [ "${QUICK}" = 1 ]; then
     catkin_make -j1 run_tests_ground_filter_gtest_test_core \
       run_tests_ground_filter_gtest_test_voxel_scale \
       run_tests_ground_filter_gtest_test_normal_ground_filter \
+      run_tests_ground_filter_gtest_test_normal_knn_pca \
+      run_tests_ground_filter_gtest_test_normal_internals \
       run_tests_ground_filter_gtest_test_kdtree_neighbor_search \${rostest} && \
     python3 ${CLONE_IN}/scripts/test_summary.py build/test_results"
 else

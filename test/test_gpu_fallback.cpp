@@ -10,13 +10,12 @@
 #include <string>
 #include <vector>
 
-#include "ground_filter/neighbors/neighbor_search_factory.h"
+#include "ground_filter/neighbor_search.h"
 #include "ground_filter/normal_ground_filter.h"
-#include "neighbors/kdtree_neighbor_search.h"
-#include "normal/normal_filter_pipeline.h"
+#include "normal/knn/kdtree_neighbor_search.h"
 #ifdef GROUND_FILTER_HAVE_CUDA
 #include "ground_filter/cuda_knn.h"
-#include "neighbors/gpu_neighbor_search.h"
+#include "normal/knn/gpu_neighbor_search.h"
 #endif
 
 namespace gf = ground_filter;
@@ -95,13 +94,13 @@ TEST(GpuFallback, NormalFilterReportsTheBackendThatRan) {
   EXPECT_GT(sg.ground_points, 0u);
 }
 
-/// A kd-tree backend that also offers the whole-filter hook: declines, or labels every point
-/// ground (to show whose labels the filter returns).
-class HookedKdTree : public gf::KdTreeNeighborSearch, public gf::NormalFilterPipeline {
+/// A kd-tree backend that also offers the whole-filter hook (KnnBackend::runNormalFilter):
+/// declines, or labels every point ground (to show whose labels the filter returns).
+class HookedKdTree : public gf::KdTreeNeighborSearch {
  public:
   HookedKdTree(bool accept, int* calls)
       : gf::KdTreeNeighborSearch(2), accept_(accept), calls_(calls) {}
-  bool runNormalFilter(const gf::CloudView& cloud, const gf::NormalGroundFilterParams&,
+  bool runNormalFilter(const gf::CloudView& cloud, const gf::CudaNormalParams&,
                        std::vector<std::uint8_t>* labels, gf::FilterStats* stats) override {
     ++*calls_;
     if (!accept_) return false;

@@ -39,7 +39,7 @@ PUBLIC_HEADERS = {
     "morph_ground_params.h", "neighbor_search.h", "normal_ground_filter.h",
     "normal_ground_filter_params.h",
     "param_parse.h", "param_table.h", "voxel_ground_filter.h", "voxel_ground_filter_params.h",
-    "working_volume.h", "working_volume_params.h", "neighbors/neighbor_search_factory.h", "io/metrics.h", "io/scan_io.h",
+    "working_volume.h", "working_volume_params.h", "io/metrics.h", "io/scan_io.h",
     "scene/scene_generator.h",
     "NormalGroundFilterConfig.h", "VoxelGroundFilterConfig.h",
 }

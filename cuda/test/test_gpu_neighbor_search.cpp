@@ -13,11 +13,11 @@
 #include "brute_force_knn.h"
 #include "gpu_test.h"
 #include "ground_filter/cuda_knn.h"
-#include "ground_filter/neighbors/neighbor_search_factory.h"
+#include "ground_filter/neighbor_search.h"
 #include "ground_filter/normal_ground_filter.h"
-#include "neighbors/gpu_neighbor_search.h"
-#include "neighbors/kdtree_neighbor_search.h"
-#include "normal/neighborhood_pca.h"
+#include "normal/knn/gpu_neighbor_search.h"
+#include "normal/knn/kdtree_neighbor_search.h"
+#include "normal/knn/neighborhood_pca.h"
 
 namespace gf = ground_filter;
 

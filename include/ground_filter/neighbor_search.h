@@ -3,14 +3,12 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
 
 namespace ground_filter {
-
-struct PointPca;       // per-point PCA (private: src/core/normal/neighborhood_pca.h)
-struct CandidateTest;  // ground-candidate settings (private: the same header)
 
 /// \brief K-nearest-neighbour lists of every point of a packed xyz cloud (the point itself
 ///        included, at distance 0).
@@ -24,9 +22,12 @@ struct NeighborLists {
   std::vector<float> sq_dists;        ///< points * k squared distances [m^2], +inf for -1 entries
 };
 
-/// \brief A K-nearest-neighbour backend (CPU kd-tree, CUDA grid, ...), chosen at run time.
+/// \brief A K-nearest-neighbour backend (CPU kd-tree, CUDA grid, ...), chosen at run time
+///        (makeNeighborSearch()).
 ///
-/// Implementations keep their scratch buffers between calls; one object per thread.
+/// Implementations keep their scratch buffers between calls; one object per thread. The core's
+/// own backends have more (fused PCA, lists kept on the GPU, the whole normal filter on the GPU)
+/// behind a private interface the normal filter uses; this is what a caller needs.
 class NeighborSearch {
  public:
   virtual ~NeighborSearch() = default;
@@ -40,55 +41,34 @@ class NeighborSearch {
   virtual std::string lastBackend() const { return name(); }
   /// \brief Why the last search() did not run on name() (e.g. the CUDA error); empty otherwise.
   virtual std::string lastNote() const { return std::string(); }
-  /// \brief Named parts of the last search()/searchWithPca() call and their wall times [ms], in
-  ///        order (e.g. {"kdtree_build", 6.0}, {"knn", 30.0}); empty when the backend does not
-  ///        time its parts (the caller then times the whole call). A reference to the backend's
-  ///        own list (valid until its next call), so reading it per scan allocates nothing.
+  /// \brief Named parts of the last search() call and their wall times [ms], in order (e.g.
+  ///        {"kdtree_build", 6.0}, {"knn", 30.0}); empty when the backend does not time its parts
+  ///        (the caller then times the whole call). A reference to the backend's own list (valid
+  ///        until its next call), so reading it per scan allocates nothing.
   virtual const std::vector<std::pair<std::string, double>>& lastStageMs() const {
     static const std::vector<std::pair<std::string, double>> kNone;
     return kNone;
   }
-
-  /// \brief search() and the PCA of every list (as computeNeighborhoodPca() in
-  ///        neighborhood_pca.h computes it, bit for bit) in one go, so a backend can work on each
-  ///        list while it is still in cache; `out` holds the lists afterwards as after search().
-  /// \return false when the backend does not do this (nothing done: call search() and
-  ///        neighborhoodPca()/computeNeighborhoodPca() instead).
-  virtual bool searchWithPca(const float* /*xyz*/, std::size_t /*n*/, int /*k*/,
-                             NeighborLists* /*out*/, std::vector<PointPca>* /*pca*/) {
-    return false;
-  }
-
-  /// \brief search() and the ground-candidate flag of every list (`candidate[i]`, `n` bytes: the
-  ///        same bytes as isCandidatePca() on computeNeighborhoodPca()'s result, see
-  ///        neighborhood_pca.h) in one go; `out` as after searchWithPca().
-  /// \return false when the backend does not do this (nothing done).
-  virtual bool searchWithCandidates(const float* /*xyz*/, std::size_t /*n*/, int /*k*/,
-                                    const CandidateTest& /*test*/, NeighborLists* /*out*/,
-                                    std::uint8_t* /*candidate*/) {
-    return false;
-  }
-
-  // Optional work on the lists where they were computed (GPU memory), so they need not come back
-  // to the host. A backend without it keeps the defaults (lists always on the host).
-
-  /// \brief Asks the backend to keep the lists of later search() calls on its device when it can;
-  ///        search() then fills `k` and `points` but may leave `indices`/`sq_dists` empty, and
-  ///        neighborhoodPca()/countFlaggedNeighbors() work on the kept lists. Whenever one of
-  ///        those returns false, the last search()'s lists are in its `out` on the host instead.
-  /// \return whether the backend keeps lists on a device.
-  virtual bool keepListsOnDevice(bool /*keep*/) { return false; }
-  /// \brief PCA of every neighbourhood of the last search(), as computeNeighborhoodPca()
-  ///        (neighborhood_pca.h) computes it; false when the lists are on the host.
-  virtual bool neighborhoodPca(std::vector<PointPca>* /*out*/) { return false; }
-  /// \brief For every point i of the last search(): `flagged[i]` = its neighbours j with
-  ///        `flags[j] != 0`, `neighbors[i]` = its valid neighbours; false when the lists are on
-  ///        the host.
-  virtual bool countFlaggedNeighbors(const std::uint8_t* /*flags*/, std::uint16_t* /*flagged*/,
-                                     std::uint16_t* /*neighbors*/) {
-    return false;
-  }
 };
+
+/// \brief Names accepted by makeNeighborSearch() ("kdtree", "gpu"), whether or not built with
+///        CUDA.
+std::vector<std::string> neighborSearchBackends();
+
+/// \brief True when this build and machine can run `backend` as itself (no fallback); "kdtree"
+///        always can. Otherwise `*why` (when given) gets the note makeNeighborSearch() would
+///        report (e.g. "GPU backend not available: built without CUDA"). Cheap: builds nothing.
+bool neighborSearchAvailable(const std::string& backend, std::string* why = nullptr);
+
+/// \brief Creates the K-nearest-neighbour backend `backend` using `threads` CPU threads
+///        (0 = all cores) for whatever runs on the CPU.
+///
+/// A backend this build cannot provide falls back to the kd-tree; the reason is then written to
+/// `*note` (e.g. "GPU backend not available: built without CUDA"), otherwise `*note` is cleared.
+/// The returned object's name() is the backend actually used.
+/// \throws std::invalid_argument for a name not in neighborSearchBackends().
+std::unique_ptr<NeighborSearch> makeNeighborSearch(const std::string& backend, int threads,
+                                                   std::string* note);
 
 }  // namespace ground_filter
 

@@ -8,10 +8,11 @@
 
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/neighbor_search.h"
 #include "ground_filter/normal_ground_filter_params.h"
 
 namespace ground_filter {
+
+class KnnBackend;  // the core's neighbour backends (private: src/core/normal/knn/knn_backend.h)
 
 /// \brief Normal-vector ground filter: K nearest neighbours, PCA normal and flatness per point,
 ///        ground candidates by normal angle, naive-Bayes neighbourhood vote, RANSAC plane(s) and
@@ -22,11 +23,11 @@ class NormalGroundFilter : public GroundFilter {
   ///        without CUDA falls back to the kd-tree, reported in FilterStats::note).
   /// \throws std::invalid_argument when params.validate() fails.
   explicit NormalGroundFilter(const NormalGroundFilterParams& params = NormalGroundFilterParams());
-  /// \brief As above with the neighbour backend given instead of made from params.knn_backend
-  ///        (tests, benchmarks, custom backends).
+  /// \brief As above with the neighbour backend given instead of made from params.knn_backend:
+  ///        one of the core's backends (tests and benchmarks inside the package, which see the
+  ///        private knn_backend.h).
   /// \throws std::invalid_argument when params.validate() fails or `search` is null.
-  NormalGroundFilter(const NormalGroundFilterParams& params,
-                     std::unique_ptr<NeighborSearch> search);
+  NormalGroundFilter(const NormalGroundFilterParams& params, std::unique_ptr<KnnBackend> search);
   ~NormalGroundFilter() override;
 
   void filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,

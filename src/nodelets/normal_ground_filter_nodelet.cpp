@@ -2,7 +2,7 @@
 
 #include <pluginlib/class_list_macros.hpp>
 
-#include "ground_filter/neighbors/neighbor_search_factory.h"
+#include "ground_filter/neighbor_search.h"
 
 namespace ground_filter {
 
@@ -11,9 +11,8 @@ void NormalGroundFilterNodelet::onParamsAccepted(const NormalGroundFilterParams&
   // selection, not per cloud.
   if (params.knn_backend != warned_backend_) {
     warned_backend_.clear();
-    if (!neighborSearchAvailable(params.knn_backend)) {
-      std::string note;
-      makeNeighborSearch(params.knn_backend, 1, &note);
+    std::string note;
+    if (!neighborSearchAvailable(params.knn_backend, &note)) {
       NODELET_WARN("knn_backend '%s' requested: %s; the kd-tree is used",
                    params.knn_backend.c_str(), note.c_str());
       warned_backend_ = params.knn_backend;

@@ -22,7 +22,7 @@
 #include "cli_args.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/io/scan_io.h"
-#include "neighbors/kdtree_neighbor_search.h"
+#include "normal/knn/kdtree_neighbor_search.h"
 
 namespace gf = ground_filter;
 namespace cli = ground_filter::cli;

@@ -1,7 +1,7 @@
-// Stages 2-3 of the normal filter: neighbour lists (through the NeighborSearch backend), PCA of
+// Stages 2-3 of the normal filter: neighbour lists (through the KnnBackend), PCA of
 // each neighbourhood, ground candidates.
 
-#include "neighborhoods.h"
+#include "normal/neighborhoods.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,18 +9,17 @@
 namespace ground_filter {
 namespace normal {
 
-bool isFlat(const PointPca& r, double min_planarity) { return isFlatPca(r, min_planarity); }
-
-std::size_t NeighborhoodStage::run(NeighborSearch* search, const float* xyz, std::size_t len, int k,
+std::size_t NeighborhoodStage::run(KnnBackend* search, const float* xyz, std::size_t len, int k,
                                    int threads, double min_planarity, double min_abs_nz,
-                                   std::uint8_t* candidate, StageTimes* times) {
+                                   NeighborLists* lists, std::uint8_t* candidate,
+                                   StageTimes* times) {
   auto t0 = Clock::now();
   // The kd-tree decides each list's candidate flag right after the list (cache), with the eigen
   // solver only where the cheap decision is not certain (neighborhood_pca.h).
   CandidateTest test;
   test.min_planarity = min_planarity;
   test.min_abs_nz = min_abs_nz;
-  if (search->searchWithCandidates(xyz, len, k, test, &lists_, candidate)) {
+  if (search->searchWithCandidates(xyz, len, k, test, lists, candidate)) {
     const double search_ms = msSince(t0);
     const auto& parts = search->lastStageMs();
     for (const auto& e : parts) times->add(e.first, e.second);
@@ -30,8 +29,8 @@ std::size_t NeighborhoodStage::run(NeighborSearch* search, const float* xyz, std
     return candidates;
   }
   // Others: the PCA of every list (the GPU's on the device), then the decision.
-  const bool have_pca = search->searchWithPca(xyz, len, k, &lists_, &pca_);
-  if (!have_pca) search->search(xyz, len, k, &lists_);
+  const bool have_pca = search->searchWithPca(xyz, len, k, lists, &pca_);
+  if (!have_pca) search->search(xyz, len, k, lists);
   const double search_ms = msSince(t0);
   const auto& parts = search->lastStageMs();
   for (const auto& e : parts) times->add(e.first, e.second);
@@ -39,7 +38,7 @@ std::size_t NeighborhoodStage::run(NeighborSearch* search, const float* xyz, std
 
   t0 = Clock::now();
   if (!have_pca && !search->neighborhoodPca(&pca_)) {
-    computeNeighborhoodPca(xyz, lists_, threads, &pca_);
+    computeNeighborhoodPca(xyz, *lists, threads, &pca_);
   }
   std::size_t candidates = 0;
   const int nt = static_cast<int>(std::min<std::size_t>(threads, len / 8192 + 1));

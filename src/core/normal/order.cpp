@@ -15,7 +15,7 @@ namespace ground_filter {
 namespace normal {
 
 std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_segments,
-                            int segment_points, int threads) {
+                            int segment_points, int threads, OrderedPoints* out) {
   const std::size_t total = cloud.size();
   raw_xyz_.resize(3 * total);
   raw_source_.resize(total);
@@ -31,17 +31,17 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
   {
     const int t = omp_get_thread_num(), nt_run = omp_get_num_threads();
     const std::size_t b = total * t / nt_run, e = total * (t + 1) / nt_run;
-    std::size_t out = b;
+    std::size_t kept = b;
     for (std::size_t i = b; i < e; ++i) {
-      float* o = &raw_xyz_[3 * out];
+      float* o = &raw_xyz_[3 * kept];
       if (!cloud.get(i, o, o + 1, o + 2)) continue;
-      raw_source_[out++] = static_cast<std::uint32_t>(i);
+      raw_source_[kept++] = static_cast<std::uint32_t>(i);
       min_x = std::min<double>(min_x, o[0]);
       min_y = std::min<double>(min_y, o[1]);
       max_x = std::max<double>(max_x, o[0]);
       max_y = std::max<double>(max_y, o[1]);
     }
-    block_count_[t + 1] = out - b;
+    block_count_[t + 1] = kept - b;
 #pragma omp barrier
 #pragma omp single
     {
@@ -60,14 +60,17 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
   const std::size_t valid = block_count_[0];
   raw_xyz_.resize(3 * valid);
   raw_source_.resize(valid);
-  extent_ = Extent{min_x, min_y, max_x, max_y};
+  out->extent = Extent{min_x, min_y, max_x, max_y};
   const std::size_t n = raw_source_.size();
-  xyz_.resize(3 * n);
-  source_.resize(n);
-  segments_.clear();
+  std::vector<float>& xyz = out->xyz;
+  std::vector<std::uint32_t>& source = out->source;
+  std::vector<std::pair<std::size_t, std::size_t>>& segments = out->segments;
+  xyz.resize(3 * n);
+  source.resize(n);
+  segments.clear();
   if (n == 0) return 0;
   // Coarsen the ordering grid for very wide clouds so cell indices fit in 32 bits.
-  const double cell = std::max(cell_size, extent_.size() / 4.0e9);
+  const double cell = std::max(cell_size, out->extent.size() / 4.0e9);
   keys_.resize(n);
   const int nt = static_cast<int>(std::min<std::size_t>(threads, n / 16384 + 1));
 #pragma omp parallel for num_threads(nt) schedule(static)
@@ -80,8 +83,8 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
 #pragma omp parallel for num_threads(nt) schedule(static)
   for (std::int64_t j = 0; j < static_cast<std::int64_t>(n); ++j) {
     const std::uint32_t s = order_[j];
-    std::copy_n(&raw_xyz_[3 * static_cast<std::size_t>(s)], 3, &xyz_[3 * j]);
-    source_[j] = raw_source_[s];
+    std::copy_n(&raw_xyz_[3 * static_cast<std::size_t>(s)], 3, &xyz[3 * j]);
+    source[j] = raw_source_[s];
   }
   // Segments of at most segment_points, cut at column borders (whole cloud when disabled).
   if (use_segments) {
@@ -94,11 +97,11 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
         while (cut > begin + 1 && keys_[order_[cut - 1]] == keys_[order_[cut]]) --cut;
         if (cut > begin + 1) end = cut;  // else one column is larger than a segment: split it
       }
-      segments_.emplace_back(begin, end);
+      segments.emplace_back(begin, end);
       begin = end;
     }
   } else {
-    segments_.emplace_back(0, n);
+    segments.emplace_back(0, n);
   }
   return n;
 }

@@ -20,36 +20,33 @@ struct Extent {
   double size() const { return std::max(max_x - min_x, max_y - min_y); }
 };
 
+/// \brief The output of OrderStage: the valid points of one scan in grid-column order.
+struct OrderedPoints {
+  std::vector<float> xyz;                                     ///< packed x y z, column order
+  std::vector<std::uint32_t> source;                          ///< input index of each point
+  std::vector<std::pair<std::size_t, std::size_t>> segments;  ///< [begin, end) in column order
+  Extent extent;                                              ///< bounding box of the points
+};
+
 /// \brief Stage 1 ("sort"): the finite points compacted and ordered by x/y grid column (Morton
 ///        order of the cells), so neighbouring points are close in memory, then cut into
-///        segments of whole columns.
+///        segments of whole columns. Holds only scratch memory, reused between scans.
 class OrderStage {
  public:
-  /// \brief Orders the valid points of `cloud` on a `cell_size` grid; with `use_segments`, cuts
-  ///        them into segments of at most `segment_points` (else one segment); `threads` for the
-  ///        per-point loops.
+  /// \brief Orders the valid points of `cloud` on a `cell_size` grid into `out`; with
+  ///        `use_segments`, cuts them into segments of at most `segment_points` (else one
+  ///        segment); `threads` for the per-point loops.
   /// \return the number of valid points.
   std::size_t run(const CloudView& cloud, double cell_size, bool use_segments, int segment_points,
-                  int threads);
-
-  /// \brief Valid points, packed x y z, in column order.
-  const std::vector<float>& xyz() const { return xyz_; }
-  /// \brief Input index of each ordered point.
-  const std::vector<std::uint32_t>& source() const { return source_; }
-  /// \brief Segments [begin, end) in column order.
-  const std::vector<std::pair<std::size_t, std::size_t>>& segments() const { return segments_; }
-  /// \brief Bounding box of the valid points.
-  const Extent& extent() const { return extent_; }
+                  int threads, OrderedPoints* out);
 
  private:
-  std::vector<float> raw_xyz_, xyz_;
-  std::vector<std::uint32_t> raw_source_, source_;
+  std::vector<float> raw_xyz_;
+  std::vector<std::uint32_t> raw_source_;
   std::vector<std::uint64_t> keys_;
   std::vector<std::uint32_t> order_;
   RadixSortScratch sort_scratch_;
   std::vector<std::size_t> block_count_;  // compaction: valid points before each block
-  std::vector<std::pair<std::size_t, std::size_t>> segments_;
-  Extent extent_;
 };
 
 }  // namespace normal

@@ -6,7 +6,7 @@
 #include <utility>
 #include <vector>
 
-#include "ground_filter/normal_ground_filter.h"
+#include "ground_filter/normal_ground_filter_params.h"
 #include "order.h"
 #include "common/plane_fit.h"
 

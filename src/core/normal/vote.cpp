@@ -1,15 +1,15 @@
 // Stage 4 of the normal filter: the naive-Bayes neighbourhood vote.
 
-#include "vote.h"
+#include "normal/vote.h"
 
 #include <algorithm>
 
 namespace ground_filter {
 namespace normal {
 
-void VoteStage::run(NeighborSearch* search, const NeighborLists& lists,
-                    const std::uint8_t* candidate, std::size_t len, std::size_t candidates,
-                    bool bayes, int threads, std::uint8_t* voted) {
+void VoteStage::run(KnnBackend* search, const NeighborLists& lists, const std::uint8_t* candidate,
+                    std::size_t len, std::size_t candidates, bool bayes, int threads,
+                    std::uint8_t* voted) {
   if (!bayes) {
     std::copy_n(candidate, len, voted);
     return;

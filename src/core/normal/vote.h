@@ -6,17 +6,19 @@
 #include <vector>
 
 #include "ground_filter/neighbor_search.h"
+#include "normal/knn/knn_backend.h"
 
 namespace ground_filter {
 namespace normal {
 
 /// \brief Stage 4 ("vote"): naive-Bayes vote of each point's neighbourhood over the candidates.
+///        Holds only scratch memory, reused between scans.
 class VoteStage {
  public:
   /// \brief voted[i] for the `len` points of a segment from their lists (`lists`, or the lists
   ///        `search` keeps on its device) and the `candidates` flagged in `candidate`; without
   ///        `bayes` the candidates are copied.
-  void run(NeighborSearch* search, const NeighborLists& lists, const std::uint8_t* candidate,
+  void run(KnnBackend* search, const NeighborLists& lists, const std::uint8_t* candidate,
            std::size_t len, std::size_t candidates, bool bayes, int threads, std::uint8_t* voted);
 
  private:

@@ -1,23 +1,27 @@
-#include "neighbors/gpu_neighbor_search.h"
+#include "normal/knn/gpu_neighbor_search.h"
 
 #include <algorithm>
-#include <cmath>
 #include <exception>
 #include <string>
 
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/normal_ground_filter_params.h"
-#include "neighbors/kdtree_neighbor_search.h"
-#include "normal/neighborhood_pca.h"
+#include "normal/knn/kdtree_neighbor_search.h"
+#include "normal/knn/neighborhood_pca.h"
 
 namespace ground_filter {
 
 namespace {
 
-/// "cudaErrorX: message" of a CUDA failure, or the message of anything else.
-std::string describe(const std::exception& e) {
-  const auto* ce = dynamic_cast<const CudaError*>(&e);
-  return ce ? ce->errorName() + ": " + e.what() : std::string(e.what());
+/// Inside a catch block: "cudaErrorX: message" of a CUDA failure, or the message of any other
+/// std::exception being handled.
+std::string describeCurrent() {
+  try {
+    throw;
+  } catch (const CudaError& e) {
+    return e.errorName() + ": " + e.what();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
 }
 
 }  // namespace
@@ -34,39 +38,18 @@ bool GpuNeighborSearch::keepListsOnDevice(bool keep) {
   return keep;
 }
 
-bool GpuNeighborSearch::runNormalFilter(const CloudView& cloud,
-                                        const NormalGroundFilterParams& params,
+bool GpuNeighborSearch::runNormalFilter(const CloudView& cloud, const CudaNormalParams& params,
                                         std::vector<std::uint8_t>* labels, FilterStats* stats) {
   host_scan_ = false;
-  // Segments and the bush-base rule (veg_filter) run on the host only.
-  if (params.use_segments || params.veg_filter || params.k > CudaKnn::kMaxK) return false;
-  CudaNormalParams cp;
-  cp.k = params.k;
-  cp.cell_size = params.cell_size;
-  // As NormalGroundFilter::filter(): the tilt allowed by the normal-angle window.
-  const double max_tilt_deg =
-      std::min(90.0 - params.min_normal_angle, params.max_normal_angle - 90.0);
-  cp.min_abs_nz = std::cos(max_tilt_deg * M_PI / 180.0);
-  cp.min_planarity = params.min_planarity;
-  cp.bayes_vote = params.bayes_vote;
-  cp.plane_distance = params.plane_distance;
-  cp.std_filter = params.std_filter;
-  cp.std_multiplier = params.std_multiplier;
-  cp.ransac_iterations = params.ransac_iterations;
-  cp.ransac_seed = params.ransac_seed;
-  cp.plane_all_points = params.plane_all_points;
-  cp.local_planes = params.local_planes;
-  cp.tile_size = params.tile_size;
-  cp.floor_share = params.floor_share;
-  cp.floor_max_shift = params.floor_max_shift;
+  if (params.k > CudaKnn::kMaxK) return false;
   lists_on_device_ = false;
   try {
     labels->resize(cloud.size());
-    pipeline_->run(cloud, cp, labels->data());
-  } catch (const std::exception& e) {
+    pipeline_->run(cloud, params, labels->data());
+  } catch (const std::exception&) {
     // This scan goes on the host: the filter's next search() runs the kd-tree.
     last_backend_ = "kdtree";
-    last_note_ = "GPU filter failed (" + describe(e) + "); using kdtree";
+    last_note_ = "GPU filter failed (" + describeCurrent() + "); using kdtree";
     host_scan_ = true;
     return false;
   }
@@ -122,8 +105,8 @@ void GpuNeighborSearch::search(const float* xyz, std::size_t n, int k, NeighborL
         knn_->search(xyz, n, k, out->indices.data(), out->sq_dists.data());
       }
       return;
-    } catch (const std::exception& e) {
-      last_note_ = "GPU search failed (" + describe(e) + "); using kdtree";
+    } catch (const std::exception&) {
+      last_note_ = "GPU search failed (" + describeCurrent() + "); using kdtree";
     }
   }
   // This scan on the CPU; the lists are complete either way.
@@ -148,8 +131,8 @@ bool GpuNeighborSearch::neighborhoodPca(std::vector<PointPca>* out) {
     pca_eigen_.resize(3 * n);
     pca_valid_.resize(n);
     knn_->neighborhoodPca(pca_normals_.data(), pca_eigen_.data(), pca_valid_.data());
-  } catch (const std::exception& e) {
-    recoverOnHost("PCA", describe(e));
+  } catch (const std::exception&) {
+    recoverOnHost("PCA", describeCurrent());
     return false;
   }
   out->resize(n);
@@ -174,8 +157,8 @@ bool GpuNeighborSearch::countFlaggedNeighbors(const std::uint8_t* flags, std::ui
   if (!lists_on_device_) return false;
   try {
     knn_->countFlaggedNeighbors(flags, flagged, neighbors);
-  } catch (const std::exception& e) {
-    recoverOnHost("neighbour count", describe(e));
+  } catch (const std::exception&) {
+    recoverOnHost("neighbour count", describeCurrent());
     return false;
   }
   return true;

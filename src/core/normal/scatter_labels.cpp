@@ -1,6 +1,6 @@
 // Stage 6 of the normal filter: labels back in input order.
 
-#include "classify.h"
+#include "normal/scatter_labels.h"
 
 #include <algorithm>
 #include <cstdint>
@@ -10,9 +10,9 @@
 namespace ground_filter {
 namespace normal {
 
-std::size_t classify(const std::vector<std::uint8_t>& ground,
-                     const std::vector<std::uint32_t>& source, std::vector<std::uint8_t>* labels,
-                     int threads) {
+std::size_t scatterLabels(const std::vector<std::uint8_t>& ground,
+                          const std::vector<std::uint32_t>& source,
+                          std::vector<std::uint8_t>* labels, int threads) {
   std::size_t count = 0;
   // source is a permutation: the threads write distinct labels.
   const int nt = static_cast<int>(std::min<std::size_t>(threads, ground.size() / 32768 + 1));

@@ -1,4 +1,5 @@
-// Stage "pca" of the normal filter: covariance of every K neighbourhood and its eigen
+// The PCA of neighbour lists (stage "pca" of the normal filter, also fused into the kd-tree
+// queries): covariance of every K neighbourhood and its eigen
 // decomposition, in double. With AVX-512 the nine sums of a neighbourhood are kept in two
 // registers, with AVX2 in three (lane by lane the same additions in the same order, products not
 // fused: the same bits as the scalar code). One neighbourhood per lane with gathers was 1.5x slower
@@ -6,9 +7,7 @@
 // friends decide it without the eigen solver where that is certain (see "Candidate decision"
 // below).
 
-#include "normal/neighborhood_pca.h"
-
-#include <omp.h>
+#include "normal/knn/neighborhood_pca.h"
 
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
@@ -16,6 +15,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "common/threads_timing.h"
 #include "simd/avx2_common.h"
 #include "simd/avx512_common.h"
 #include "simd/simd.h"
@@ -524,7 +524,7 @@ void computeNeighborhoodPca(const float* xyz, const NeighborLists& lists, int th
   out->resize(n);
   if (n == 0 || k <= 0) return;
   const SumsPath path = sumsPath();
-  const int all = threads > 0 ? threads : omp_get_num_procs();
+  const int all = resolveThreads(threads);
   const int nt = static_cast<int>(std::min<std::size_t>(all, n / 1024 + 1));
 #pragma omp parallel for num_threads(nt) schedule(static, 2048)
   for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
@@ -578,7 +578,7 @@ void computeNeighborhoodCandidates(const float* xyz, const NeighborLists& lists,
   CandidateCounts total;
   if (n > 0 && k > 0) {
     const SumsPath path = sumsPath();
-    const int all = threads > 0 ? threads : omp_get_num_procs();
+    const int all = resolveThreads(threads);
     const int nt = static_cast<int>(std::min<std::size_t>(all, n / 1024 + 1));
     std::size_t invalid = 0, early = 0, fast = 0, exact = 0;
 #pragma omp parallel for num_threads(nt) schedule(static, 2048) \

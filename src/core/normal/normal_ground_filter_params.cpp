@@ -1,17 +1,22 @@
 #include "ground_filter/normal_ground_filter_params.h"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
-#include "ground_filter/neighbors/neighbor_search_factory.h"
+#include "ground_filter/cuda_knn.h"
+#include "ground_filter/neighbor_search.h"
 #include "airborne/scan_type.h"
 #include "common/shared_param_rows.h"
+#include "normal/normal_settings.h"
 
 namespace ground_filter {
 
 // The one list of the normal-vector method's parameters; cfg/NormalGroundFilter.cfg must agree
-// (test_param_tables checks names, ranges, units and defaults).
+// (test_param_tables checks names, ranges, units and defaults). A parameter the GPU pipeline uses
+// goes into gpuNormalParams() below too (and CudaNormalParams); one it cannot honour, into
+// gpuSupports().
 const ParamTable<NormalGroundFilterParams>& NormalGroundFilterParams::table() {
   using P = NormalGroundFilterParams;
   static const ParamTable<P> rows = withSharedParamRows<P>({
@@ -63,4 +68,37 @@ void NormalGroundFilterParams::validate() const {
   }
 }
 
+namespace normal {
+
+double minAbsNormalZ(const NormalGroundFilterParams& p) {
+  const double max_tilt_deg = std::min(90.0 - p.min_normal_angle, p.max_normal_angle - 90.0);
+  return std::cos(max_tilt_deg * M_PI / 180.0);
+}
+
+bool gpuSupports(const NormalGroundFilterParams& p) {
+  // Segments and the bush-base rule run on the host only.
+  return !p.use_segments && !p.veg_filter && p.k <= CudaKnn::kMaxK;
+}
+
+CudaNormalParams gpuNormalParams(const NormalGroundFilterParams& p) {
+  CudaNormalParams g;
+  g.k = p.k;
+  g.cell_size = p.cell_size;
+  g.min_abs_nz = minAbsNormalZ(p);
+  g.min_planarity = p.min_planarity;
+  g.bayes_vote = p.bayes_vote;
+  g.plane_distance = p.plane_distance;
+  g.std_filter = p.std_filter;
+  g.std_multiplier = p.std_multiplier;
+  g.ransac_iterations = p.ransac_iterations;
+  g.ransac_seed = p.ransac_seed;
+  g.plane_all_points = p.plane_all_points;
+  g.local_planes = p.local_planes;
+  g.tile_size = p.tile_size;
+  g.floor_share = p.floor_share;
+  g.floor_max_shift = p.floor_max_shift;
+  return g;
+}
+
+}  // namespace normal
 }  // namespace ground_filter

@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_SRC_CORE_NEIGHBORS_KDTREE_NEIGHBOR_SEARCH_H
-#define GROUND_FILTER_SRC_CORE_NEIGHBORS_KDTREE_NEIGHBOR_SEARCH_H
+#ifndef GROUND_FILTER_SRC_CORE_NORMAL_KNN_KDTREE_NEIGHBOR_SEARCH_H
+#define GROUND_FILTER_SRC_CORE_NORMAL_KNN_KDTREE_NEIGHBOR_SEARCH_H
 
 #include <cstddef>
 #include <cstdint>
@@ -8,8 +8,8 @@
 #include <utility>
 #include <vector>
 
-#include "ground_filter/neighbor_search.h"
-#include "normal/neighborhood_pca.h"
+#include "normal/knn/knn_backend.h"
+#include "normal/knn/neighborhood_pca.h"
 
 namespace ground_filter {
 
@@ -21,7 +21,7 @@ namespace ground_filter {
 /// distance keep the lower point index, so the lists are unique and the same for any thread
 /// count and on every SIMD level (portable, AVX2, AVX-512). Squared distances are float `(dx*dx +
 /// dy*dy) + dz*dz` without fused multiply-adds. The tree and scratch memory are kept between calls.
-class KdTreeNeighborSearch : public NeighborSearch {
+class KdTreeNeighborSearch : public KnnBackend {
  public:
   /// \brief `threads` build and query threads (0 = all cores); `leaf_size` most points per
   ///        kd-tree leaf.
@@ -75,6 +75,11 @@ class KdTreeNeighborSearch : public NeighborSearch {
   struct Impl;
   void run(const float* xyz, std::size_t n, int k, NeighborLists* out, std::vector<PointPca>* pca,
            const CandidateTest* test = nullptr, std::uint8_t* candidate = nullptr);
+  // run()'s queries on the built tree, chunk by chunk in parallel, each chunk's PCA or candidate
+  // flags right after its lists (`kept`: rows in tree order into impl_->rows).
+  void queryChunks(const float* xyz, std::size_t kk, bool kept, NeighborLists* out,
+                   std::vector<PointPca>* pca, const CandidateTest* test, std::uint8_t* candidate,
+                   int threads);
   std::unique_ptr<Impl> impl_;
   int threads_;
   int leaf_size_;
@@ -93,4 +98,4 @@ class KdTreeNeighborSearch : public NeighborSearch {
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_NEIGHBORS_KDTREE_NEIGHBOR_SEARCH_H
+#endif  // GROUND_FILTER_SRC_CORE_NORMAL_KNN_KDTREE_NEIGHBOR_SEARCH_H

@@ -1,8 +1,9 @@
-#ifndef GROUND_FILTER_SRC_CORE_NEIGHBORS_GPU_NEIGHBOR_SEARCH_H
-#define GROUND_FILTER_SRC_CORE_NEIGHBORS_GPU_NEIGHBOR_SEARCH_H
+#ifndef GROUND_FILTER_SRC_CORE_NORMAL_KNN_GPU_NEIGHBOR_SEARCH_H
+#define GROUND_FILTER_SRC_CORE_NORMAL_KNN_GPU_NEIGHBOR_SEARCH_H
 
 // Only usable when the package is built with CUDA (GROUND_FILTER_HAVE_CUDA); use
-// makeNeighborSearch("gpu", ...) to get it with the kd-tree fallback handled.
+// makeNeighborSearch("gpu", ...) or makeKnnBackend("gpu", ...) to get it with the kd-tree fallback
+// handled.
 
 #include <cstddef>
 #include <memory>
@@ -12,7 +13,7 @@
 #include "ground_filter/cuda_knn.h"
 #include "ground_filter/cuda_normal_pipeline.h"
 #include "ground_filter/neighbor_search.h"
-#include "normal/normal_filter_pipeline.h"
+#include "normal/knn/knn_backend.h"
 
 namespace ground_filter {
 
@@ -24,7 +25,7 @@ class KdTreeNeighborSearch;
 /// Any CUDA error during a search or a whole-filter run (or k above CudaKnn::kMaxK) makes that
 /// one scan run on the CPU kd-tree instead; lastBackend() and lastNote() then say so and name the
 /// error. The next scan tries the GPU again.
-class GpuNeighborSearch : public NeighborSearch, public NormalFilterPipeline {
+class GpuNeighborSearch : public KnnBackend {
  public:
   /// \brief `threads` CPU threads for the kd-tree fallback (0 = all cores).
   /// \throws CudaError when no usable CUDA device is there.
@@ -44,11 +45,11 @@ class GpuNeighborSearch : public NeighborSearch, public NormalFilterPipeline {
   bool countFlaggedNeighbors(const std::uint8_t* flags, std::uint16_t* flagged,
                              std::uint16_t* neighbors) override;
 
-  /// \brief The whole filter on the GPU (NormalFilterPipeline). Declines (false) with
-  ///        use_segments or k > CudaKnn::kMaxK, leaving the scan to the per-stage path; on a
-  ///        CUDA error it returns false too and the next search() of this scan runs on the kd-tree
+  /// \brief The whole filter on the GPU (CudaNormalPipeline; the filter asks only when
+  ///        gpuSupports() its params). Declines (false) with k > CudaKnn::kMaxK; on a CUDA error
+  ///        it returns false too and the next search() of this scan runs on the kd-tree
   ///        (lastNote() names the error).
-  bool runNormalFilter(const CloudView& cloud, const NormalGroundFilterParams& params,
+  bool runNormalFilter(const CloudView& cloud, const CudaNormalParams& params,
                        std::vector<std::uint8_t>* labels, FilterStats* stats) override;
 
   /// \brief The CUDA search (timings of the last GPU search, device name).
@@ -79,4 +80,4 @@ class GpuNeighborSearch : public NeighborSearch, public NormalFilterPipeline {
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_NEIGHBORS_GPU_NEIGHBOR_SEARCH_H
+#endif  // GROUND_FILTER_SRC_CORE_NORMAL_KNN_GPU_NEIGHBOR_SEARCH_H

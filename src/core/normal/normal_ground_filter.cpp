@@ -1,48 +1,62 @@
 #include "ground_filter/normal_ground_filter.h"
 
-#include <omp.h>
-
-#include <algorithm>
-#include <cmath>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
 
-#include "ground_filter/neighbors/neighbor_search_factory.h"
-#include "ground_filter/param_parse.h"
 #include "airborne/airborne_mode.h"
-#include "normal/classify.h"
+#include "airborne/scan_type.h"
+#include "common/threads_timing.h"
+#include "normal/knn/knn_backend.h"
 #include "normal/neighborhoods.h"
-#include "normal/normal_filter_pipeline.h"
+#include "normal/normal_settings.h"
 #include "normal/order.h"
 #include "normal/plane.h"
+#include "normal/scatter_labels.h"
 #include "normal/stage_times.h"
 #include "normal/vegetation.h"
 #include "normal/vote.h"
-#include "airborne/scan_type.h"
-#include "common/threads_timing.h"
 
 namespace ground_filter {
 
 // ------------------------------------------------------------------------------------ filter
-// One file per stage under normal/; this file only wires them together.
+// One file per stage under normal/; this file only wires them together. A stage object holds
+// only its scratch memory; what a stage produces goes into the named results below, which the
+// next stages take as arguments (all memory kept between scans: no allocation per scan).
 
 struct NormalGroundFilter::Impl {
-  std::unique_ptr<NeighborSearch> search;
+  std::unique_ptr<KnnBackend> search;
+  // Settings derived from the params once (normal_settings.h).
+  double min_abs_nz = 0.0;
+  bool gpu_supported = false;
+  CudaNormalParams gpu_params;
+  // Stages (scratch memory only).
   normal::OrderStage order;
   normal::NeighborhoodStage neighborhoods;
   normal::VoteStage vote;
   normal::PlaneStage plane;
-  normal::VegetationStage vegetation;                  // veg_filter only
-  std::vector<std::uint8_t> candidate, voted, ground;  // per ordered point
-  std::vector<float> heights;                          // above the tile plane, veg_filter only
-  MorphGround morph;                                   // airborne scans only
-  ScanTypeSwitch scan;                                 // scan_type: this scan's mode
+  normal::VegetationStage vegetation;  // veg_filter only
+  MorphGround morph;                   // airborne scans only
+  ScanTypeSwitch scan;                 // scan_type: this scan's mode
+  // Per-scan results, in stage order.
+  normal::OrderedPoints ordered;                       // 1: valid points in column order
+  NeighborLists lists;                                 // 2: neighbour lists of one segment
+  std::vector<std::uint8_t> candidate, voted, ground;  // 3, 4, 5: per ordered point
+  std::vector<float> heights;                          // 5: above the tile plane, veg_filter only
   normal::StageTimes times;                            // per scan, memory kept
   FilterStats own_stats;                               // filled when the caller passes none
-  explicit Impl(const NormalGroundFilterParams& p) : scan(p.scan_type, p.morph_ground) {}
+  Impl(const NormalGroundFilterParams& p, std::unique_ptr<KnnBackend> backend)
+      : search(std::move(backend)),
+        min_abs_nz(normal::minAbsNormalZ(p)),
+        gpu_supported(normal::gpuSupports(p)),
+        gpu_params(normal::gpuNormalParams(p)),
+        scan(p.scan_type, p.morph_ground) {
+    if (!search) throw std::invalid_argument("NormalGroundFilter: null neighbour backend");
+    // A GPU backend keeps the lists in GPU memory; PCA and vote counts then run there.
+    search->keepListsOnDevice(true);
+  }
 };
 
 namespace {
@@ -69,20 +83,15 @@ void resetStats(FilterStats* st) {
 
 NormalGroundFilter::NormalGroundFilter(const NormalGroundFilterParams& params) : params_(params) {
   params_.validate();
-  impl_ = std::make_unique<Impl>(params_);
-  impl_->search = makeNeighborSearch(params_.knn_backend, params_.threads, &backend_note_);
-  // A GPU backend keeps the lists in GPU memory; PCA and vote counts then run there.
-  impl_->search->keepListsOnDevice(true);
+  impl_ = std::make_unique<Impl>(
+      params_, makeKnnBackend(params_.knn_backend, params_.threads, &backend_note_));
 }
 
 NormalGroundFilter::NormalGroundFilter(const NormalGroundFilterParams& params,
-                                       std::unique_ptr<NeighborSearch> search)
+                                       std::unique_ptr<KnnBackend> search)
     : params_(params) {
   params_.validate();
-  impl_ = std::make_unique<Impl>(params_);
-  if (!search) throw std::invalid_argument("NormalGroundFilter: null neighbour backend");
-  impl_->search = std::move(search);
-  impl_->search->keepListsOnDevice(true);
+  impl_ = std::make_unique<Impl>(params_, std::move(search));
 }
 
 NormalGroundFilter::~NormalGroundFilter() = default;
@@ -123,17 +132,17 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
 
   // ---- whole-filter hook (GPU): a backend that runs the whole filter on its device gets the
   //      scan first; false = it cannot (segments, k, device fault) and the steps below run.
-  if (auto* whole = dynamic_cast<NormalFilterPipeline*>(im.search.get())) {
-    if (whole->runNormalFilter(cloud, p, labels, &st)) {
-      st.total_ms = msSince(t_start);
-      return;
-    }
+  if (im.gpu_supported && im.search->runNormalFilter(cloud, im.gpu_params, labels, &st)) {
+    st.total_ms = msSince(t_start);
+    return;
   }
   // ---- end of the whole-filter hook
 
   // 1. Valid points in grid-column order, cut into segments.
   auto t0 = Clock::now();
-  const std::size_t n = im.order.run(cloud, p.cell_size, p.use_segments, p.segment_points, threads);
+  const std::size_t n =
+      im.order.run(cloud, p.cell_size, p.use_segments, p.segment_points, threads, &im.ordered);
+  const normal::OrderedPoints& ordered = im.ordered;
   st.invalid_points = cloud.size() - n;
   st.stage_ms.emplace_back("sort", msSince(t0));
   if (n == 0) {
@@ -142,21 +151,20 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   }
 
   // 2-4. Per segment: neighbours (computed once), PCA + candidates, naive-Bayes vote.
-  const double max_tilt_deg = std::min(90.0 - p.min_normal_angle, p.max_normal_angle - 90.0);
-  const double min_abs_nz = std::cos(max_tilt_deg * M_PI / 180.0);
+  const double min_abs_nz = im.min_abs_nz;
   im.candidate.assign(n, 0);
   im.voted.assign(n, 0);
   normal::StageTimes& times = im.times;
   times.clear();
   double vote_ms = 0.0;
-  for (const auto& sg : im.order.segments()) {
+  for (const auto& sg : ordered.segments) {
     const std::size_t b = sg.first, len = sg.second - sg.first;
-    const std::size_t candidates =
-        im.neighborhoods.run(im.search.get(), im.order.xyz().data() + 3 * b, len, p.k, threads,
-                             p.min_planarity, min_abs_nz, im.candidate.data() + b, &times);
+    const std::size_t candidates = im.neighborhoods.run(
+        im.search.get(), ordered.xyz.data() + 3 * b, len, p.k, threads, p.min_planarity, min_abs_nz,
+        &im.lists, im.candidate.data() + b, &times);
     t0 = Clock::now();
-    im.vote.run(im.search.get(), im.neighborhoods.lists(), im.candidate.data() + b, len, candidates,
-                p.bayes_vote, threads, im.voted.data() + b);
+    im.vote.run(im.search.get(), im.lists, im.candidate.data() + b, len, candidates, p.bayes_vote,
+                threads, im.voted.data() + b);
     vote_ms += msSince(t0);
   }
   // The backend that really ran (a GPU search may fall back to the kd-tree for one scan).
@@ -168,19 +176,19 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
 
   // 5. Plane(s) through the voted points and the distance test.
   t0 = Clock::now();
-  im.plane.run(im.order.xyz(), im.voted, im.order.extent(), p, min_abs_nz, threads, &im.ground,
+  im.plane.run(ordered.xyz, im.voted, ordered.extent, p, min_abs_nz, threads, &im.ground,
                p.veg_filter ? &im.heights : nullptr);
   st.stage_ms.emplace_back("plane", msSince(t0));
 
   // 5b. Optional bush-base rule (off by default; the GPU pipeline declines when it is on).
   if (p.veg_filter) {
     t0 = Clock::now();
-    im.vegetation.run(im.order.xyz(), im.heights, im.order.extent(), p, threads, &im.ground);
+    im.vegetation.run(ordered.xyz, im.heights, ordered.extent, p, threads, &im.ground);
     st.stage_ms.emplace_back("vegetation", msSince(t0));
   }
 
   // 6. Labels in input order.
-  st.ground_points = normal::classify(im.ground, im.order.source(), labels, threads);
+  st.ground_points = normal::scatterLabels(im.ground, ordered.source, labels, threads);
   st.total_ms = msSince(t_start);
 }
 

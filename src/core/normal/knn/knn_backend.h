@@ -1,0 +1,84 @@
+#ifndef GROUND_FILTER_SRC_CORE_NORMAL_KNN_KNN_BACKEND_H
+#define GROUND_FILTER_SRC_CORE_NORMAL_KNN_KNN_BACKEND_H
+
+// The neighbour backends' private interface: what the normal filter uses beyond the public
+// NeighborSearch (include/ground_filter/neighbor_search.h). Every backend of the core derives from
+// KnnBackend; a part a backend does not have keeps its default (false = not done, nothing
+// touched), and the filter then takes the plain path.
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "ground_filter/cloud_view.h"
+#include "ground_filter/cuda_normal_pipeline.h"
+#include "ground_filter/ground_filter.h"
+#include "ground_filter/neighbor_search.h"
+#include "normal/knn/neighborhood_pca.h"
+
+namespace ground_filter {
+
+/// \brief A NeighborSearch with the optional parts the normal filter uses.
+class KnnBackend : public NeighborSearch {
+ public:
+  /// \brief search() and the PCA of every list (as computeNeighborhoodPca() computes it, bit for
+  ///        bit) in one go, so a backend can work on each list while it is still in cache; `out`
+  ///        holds the lists afterwards as after search().
+  /// \return false when the backend does not do this (nothing done: call search() and
+  ///        neighborhoodPca()/computeNeighborhoodPca() instead).
+  virtual bool searchWithPca(const float* /*xyz*/, std::size_t /*n*/, int /*k*/,
+                             NeighborLists* /*out*/, std::vector<PointPca>* /*pca*/) {
+    return false;
+  }
+
+  /// \brief search() and the ground-candidate flag of every list (`candidate[i]`, `n` bytes: the
+  ///        same bytes as isCandidatePca() on computeNeighborhoodPca()'s result) in one go; `out`
+  ///        as after searchWithPca().
+  /// \return false when the backend does not do this (nothing done).
+  virtual bool searchWithCandidates(const float* /*xyz*/, std::size_t /*n*/, int /*k*/,
+                                    const CandidateTest& /*test*/, NeighborLists* /*out*/,
+                                    std::uint8_t* /*candidate*/) {
+    return false;
+  }
+
+  // Optional work on the lists where they were computed (GPU memory), so they need not come back
+  // to the host. A backend without it keeps the defaults (lists always on the host).
+
+  /// \brief Asks the backend to keep the lists of later search() calls on its device when it can;
+  ///        search() then fills `k` and `points` but may leave `indices`/`sq_dists` empty, and
+  ///        neighborhoodPca()/countFlaggedNeighbors() work on the kept lists. Whenever one of
+  ///        those returns false, the last search()'s lists are in its `out` on the host instead.
+  /// \return whether the backend keeps lists on a device.
+  virtual bool keepListsOnDevice(bool /*keep*/) { return false; }
+  /// \brief PCA of every neighbourhood of the last search(), as computeNeighborhoodPca()
+  ///        computes it; false when the lists are on the host.
+  virtual bool neighborhoodPca(std::vector<PointPca>* /*out*/) { return false; }
+  /// \brief For every point i of the last search(): `flagged[i]` = its neighbours j with
+  ///        `flags[j] != 0`, `neighbors[i]` = its valid neighbours; false when the lists are on
+  ///        the host.
+  virtual bool countFlaggedNeighbors(const std::uint8_t* /*flags*/, std::uint16_t* /*flagged*/,
+                                     std::uint16_t* /*neighbors*/) {
+    return false;
+  }
+
+  /// \brief The whole normal filter where the backend's lists live (the GPU): labels `cloud` as
+  ///        NormalGroundFilter::filter() would with the settings `params` (gpuNormalParams(), asked
+  ///        only when gpuSupports()): fills `labels` (cloud.size() entries) and, in `stats`,
+  ///        invalid_points, ground_points, backend and stage_ms.
+  /// \return false, touching neither, when it cannot run this scan (then lastBackend()/
+  ///        lastNote() say why, e.g. a device fault) and the filter runs its usual steps.
+  virtual bool runNormalFilter(const CloudView& /*cloud*/, const CudaNormalParams& /*params*/,
+                               std::vector<std::uint8_t>* /*labels*/, FilterStats* /*stats*/) {
+    return false;
+  }
+};
+
+/// \brief makeNeighborSearch() with the private interface: the backend the normal filter holds.
+std::unique_ptr<KnnBackend> makeKnnBackend(const std::string& backend, int threads,
+                                           std::string* note);
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_CORE_NORMAL_KNN_KNN_BACKEND_H

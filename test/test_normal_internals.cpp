@@ -1,0 +1,317 @@
+// Normal-vector filter internals: the same labels on every SIMD level, the radix sort of the
+// stages, huge-page advice on large scratch buffers.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <fstream>
+#include <initializer_list>
+#include <limits>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "gf_test_data.h"
+#include "gf_test_normal.h"
+#include "gf_test_points.h"
+#include "gf_test_scenes.h"
+#include "ground_filter/ground_filter.h"
+#include "ground_filter/io/metrics.h"
+#include "ground_filter/io/scan_io.h"
+#include "ground_filter/neighbor_search.h"
+#include "ground_filter/normal_ground_filter.h"
+#include "ground_filter/scene/scene_generator.h"
+#include "normal/knn/kdtree_neighbor_search.h"
+#include "normal/knn/neighborhood_pca.h"
+#include "normal/plane.h"
+#include "common/radix_sort.h"
+#include "simd/simd.h"
+
+namespace gf = ground_filter;
+
+using gf_test_normal::add;
+using gf_test_normal::Cloud;
+using gf_test_normal::plane;
+
+namespace {
+
+/// The SIMD levels with their own normal-filter code (kd-tree queries, neighbourhood sums) that
+/// this CPU runs.
+std::vector<gf::simd::Level> normalCodeLevels() {
+  std::vector<gf::simd::Level> levels;
+  for (gf::simd::Level l :
+       {gf::simd::Level::kPortable, gf::simd::Level::kAvx2, gf::simd::Level::kAvx512}) {
+    if (gf::simd::supported(l)) levels.push_back(l);
+  }
+  return levels;
+}
+
+/// Labels of `view` with the defaults (2 threads) under every level, against the portable ones.
+void expectSameLabelsOnEveryLevel(const gf::CloudView& view, int k) {
+  gf::NormalGroundFilterParams p;
+  p.threads = 2;
+  p.k = k;
+  std::vector<std::uint8_t> want, got;
+  {
+    const gf::simd::ScopedLevel scoped(gf::simd::Level::kPortable);
+    ASSERT_TRUE(scoped.ok());
+    gf::NormalGroundFilter f(p);
+    f.filter(view, &want);
+  }
+  ASSERT_EQ(want.size(), view.size());
+  std::size_t ground = 0;
+  for (std::uint8_t l : want) ground += l == 1;
+  for (gf::simd::Level level : normalCodeLevels()) {
+    const gf::simd::ScopedLevel scoped(level);
+    ASSERT_TRUE(scoped.ok());
+    gf::NormalGroundFilter f(p);
+    f.filter(view, &got);
+    f.filter(view, &got);  // the second scan on kept scratch memory
+    std::size_t diff = 0;
+    for (std::size_t i = 0; i < want.size(); ++i) diff += want[i] != got[i];
+    EXPECT_EQ(diff, 0u) << gf::simd::levelName(level) << ": labels differing from the portable "
+                        << "code's (" << ground << " ground of " << want.size() << ")";
+  }
+}
+
+}  // namespace
+
+TEST(NormalGroundFilterSimd, KittiLabelsSameOnEveryLevel) {
+  const std::string file = std::string(GF_DATA_DIR) + "/semantickitti/seq00/000000.bin";
+  GF_SKIP_WITHOUT_DATA(file);
+  const gf::Scan scan = gf::loadScan(file);
+  expectSameLabelsOnEveryLevel(gf::viewOf(scan.cloud), 64);
+}
+
+TEST(NormalGroundFilterSimd, BadInputSameOnEveryLevel) {
+  // A ground plane with NaN / Inf points, a pile of identical points, and clouds smaller than K.
+  Cloud c = plane(20.0, 0.25, -1.7, 0.05, 0.02, 4);
+  const float nan = std::numeric_limits<float>::quiet_NaN(),
+              inf = std::numeric_limits<float>::infinity();
+  for (std::size_t i = 0; i < c.size() / 3; i += 17) c[3 * i + (i % 3)] = i % 2 ? nan : inf;
+  for (int i = 0; i < 300; ++i) add(&c, 2.0, 3.0, -1.2);
+  for (int k : {8, 64}) {
+    SCOPED_TRACE("k " + std::to_string(k));
+    expectSameLabelsOnEveryLevel(gf::CloudView::packedXyz(c.data(), c.size() / 3), k);
+  }
+  const Cloud small(c.begin(), c.begin() + 3 * 40);
+  expectSameLabelsOnEveryLevel(gf::CloudView::packedXyz(small.data(), 40), 64);
+  const Cloud same(3 * 100, 1.5f);
+  expectSameLabelsOnEveryLevel(gf::CloudView::packedXyz(same.data(), 100), 64);
+}
+
+TEST(RadixSort, SortByKeyIsStableAndMatchesStdStableSort) {
+  // The core's one sort (voxel keys, grid-column and tile keys): narrow and full-width keys,
+  // many duplicates, constant keys, empty and single inputs; the same buffers reused.
+  std::mt19937_64 rng(3);
+  gf::RadixSortScratch scratch;
+  std::vector<std::uint32_t> order;
+  for (int bits : {0, 1, 8, 15, 16, 22, 31, 45, 64}) {
+    for (std::size_t n : {0u, 1u, 2u, 17u, 5000u}) {
+      std::vector<std::uint64_t> keys(n);
+      const std::uint64_t mask = bits == 64 ? ~0ULL : (std::uint64_t{1} << bits) - 1;
+      for (auto& k : keys) k = rng() & mask & (rng() % 4 == 0 ? ~0ULL : ~0xffULL);
+      std::vector<std::uint32_t> want(n);
+      for (std::size_t i = 0; i < n; ++i) want[i] = static_cast<std::uint32_t>(i);
+      std::stable_sort(want.begin(), want.end(),
+                       [&](std::uint32_t a, std::uint32_t b) { return keys[a] < keys[b]; });
+      gf::radixSortByKey(keys, &order, &scratch);
+      EXPECT_EQ(order, want) << "bits " << bits << ", n " << n;
+    }
+  }
+}
+
+namespace {
+
+// n packed key << slot | slot words (slots in order) of keys drawn by key(digit) with
+// `key_bits` bits, the voxel filter's digit layout for them and the digit counts of every pass.
+struct PackedWords {
+  int slot_bits = 0, passes = 0, digit = 0;
+  std::vector<std::uint64_t> words;
+  std::vector<std::uint32_t> hist;
+};
+template <class Key>
+PackedWords packedWords(int key_bits, std::size_t n, Key&& key) {
+  PackedWords w;
+  w.slot_bits = std::min(32, 64 - key_bits);
+  w.passes = (key_bits + gf::kRadixMaxDigitBits - 1) / gf::kRadixMaxDigitBits;
+  w.digit = (key_bits + w.passes - 1) / w.passes;
+  const std::uint32_t dmask = (1u << w.digit) - 1;
+  w.words.resize(n);
+  w.hist.assign(static_cast<std::size_t>(w.passes) << w.digit, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    w.words[i] = key(w.digit) << w.slot_bits | i;
+    for (int q = 0; q < w.passes; ++q) {
+      ++w.hist[(static_cast<std::size_t>(q) << w.digit) +
+               ((w.words[i] >> (w.slot_bits + q * w.digit)) & dmask)];
+    }
+  }
+  return w;
+}
+
+// for_blocks of the threaded sorts with the blocks in reverse order: the result must not depend
+// on which block runs first.
+auto reverseBlocks(int blocks) {
+  return [blocks](const auto& fn) {
+    for (int b = blocks - 1; b >= 0; --b) fn(b);
+  };
+}
+
+}  // namespace
+
+TEST(RadixSort, TopDownSortGivesTheLsdOrder) {
+  std::vector<std::uint32_t> counts;
+  // radixSortTopDown() (the voxel filter's sort of large scans) against radixScatter() on packed
+  // key << slot | slot words, slots in order: keys of 2-4 digits, clustered (buckets of every
+  // size: insertion, 8-bit passes, digits shared by a whole bucket) and spread, many duplicates.
+  std::mt19937_64 rng(11);
+  std::vector<std::uint64_t> tmp, tmp2;
+  for (int key_bits : {20, 31, 35, 41}) {
+    for (int spread : {0, 1}) {
+      const std::uint64_t kmask = (std::uint64_t{1} << key_bits) - 1;
+      // clustered: few distinct high bits, low bits from a small range (duplicates)
+      const PackedWords pw = packedWords(key_bits, 200000, [&](int) {
+        return spread ? rng() & kmask
+                      : ((rng() % 7) << (key_bits - 3) | (rng() % 300) << 4 | (rng() % 3)) & kmask;
+      });
+      const int slot_bits = pw.slot_bits, passes = pw.passes, digit = pw.digit;
+      const std::uint32_t dmask = (1u << digit) - 1;
+      const std::vector<std::uint64_t>& words = pw.words;
+      const std::vector<std::uint32_t>& hist = pw.hist;
+      std::vector<std::uint64_t> want = words, got = words;
+      std::vector<std::uint32_t> h1 = hist, h2 = hist;
+      gf::radixScatter<std::uint32_t>(slot_bits, passes, digit, h1.data(), &want, &tmp, nullptr,
+                                      nullptr);
+      // declines (nothing changed) when a bucket is too large
+      const std::uint32_t* top = hist.data() + (static_cast<std::size_t>(passes - 1) << digit);
+      const std::size_t largest = *std::max_element(top, top + dmask + 1);
+      EXPECT_FALSE(
+          gf::radixSortTopDown(slot_bits, passes, digit, h2.data(), &got, &tmp2, largest - 1));
+      EXPECT_EQ(got, words);
+      EXPECT_EQ(h2, hist);
+      ASSERT_TRUE(gf::radixSortTopDown(slot_bits, passes, digit, h2.data(), &got, &tmp2, largest));
+      ASSERT_TRUE(std::is_sorted(want.begin(), want.end()));
+      EXPECT_EQ(got, want) << "key bits " << key_bits << ", spread " << spread;
+      // The buckets split into ranges (the voxel filter's threads), run in any order.
+      for (int blocks : {2, 3, 7}) {
+        got = words;
+        h2 = hist;
+        ASSERT_TRUE(gf::radixSortTopDown(slot_bits, passes, digit, h2.data(), &got, &tmp2, largest,
+                                         blocks, &counts, reverseBlocks(blocks)));
+        EXPECT_EQ(got, want) << "key bits " << key_bits << ", spread " << spread << ", blocks "
+                             << blocks;
+      }
+    }
+  }
+}
+
+TEST(RadixSort, BlockScatterGivesTheSerialOrder) {
+  // radixScatterBlocks() (the voxel filter's LSD sort on several threads) against radixScatter()
+  // on packed key << slot | slot words: blocks run in reverse order, 1-7 blocks (sizes that do
+  // not divide n), a digit shared by every key (its pass skipped), many duplicates.
+  std::mt19937_64 rng(12);
+  std::vector<std::uint64_t> tmp;
+  std::vector<std::uint32_t> counts;
+  for (int key_bits : {20, 31, 35}) {
+    for (int narrow : {0, 1}) {
+      const std::uint64_t kmask = (std::uint64_t{1} << key_bits) - 1;
+      // narrow: the top digit is 0 for every key
+      PackedWords pw = packedWords(key_bits, 100003, [&](int digit) {
+        return narrow ? rng() % (std::uint64_t{1} << digit) : rng() & kmask;
+      });
+      const int slot_bits = pw.slot_bits, passes = pw.passes, digit = pw.digit;
+      const std::vector<std::uint64_t>& words = pw.words;
+      std::vector<std::uint64_t> want = words;
+      gf::radixScatter<std::uint32_t>(slot_bits, passes, digit, pw.hist.data(), &want, &tmp,
+                                      nullptr, nullptr);
+      ASSERT_TRUE(std::is_sorted(want.begin(), want.end()));
+      for (int blocks : {1, 2, 3, 7}) {
+        std::vector<std::uint64_t> got = words;
+        gf::radixScatterBlocks<std::uint32_t>(slot_bits, passes, digit, blocks, &got, &tmp, nullptr,
+                                              nullptr, &counts, reverseBlocks(blocks));
+        EXPECT_EQ(got, want) << "key bits " << key_bits << ", narrow " << narrow << ", blocks "
+                             << blocks;
+      }
+    }
+  }
+}
+
+TEST(RadixSort, ThreadedSortGivesTheSerialOrder) {
+  // Large enough for the per-thread blocks (kRadixPointsPerThread); 1, 2 and 3 threads must
+  // give std::stable_sort's order: narrow keys with many duplicates, one-pass and three-pass
+  // widths, a constant key (every pass skipped) and the tile keys' layout (x << 32 | y).
+  std::mt19937_64 rng(5);
+  gf::RadixSortScratch scratch;
+  std::vector<std::uint32_t> order;
+  const std::size_t n = 3 * gf::kRadixPointsPerThread + 17;
+  for (int kind = 0; kind < 5; ++kind) {
+    std::vector<std::uint64_t> keys(n);
+    for (auto& k : keys) {
+      const std::uint64_t r = rng();
+      k = kind == 0   ? r % 7
+          : kind == 1 ? r & 0x3fffff
+          : kind == 2 ? r & ((std::uint64_t{1} << 45) - 1)
+          : kind == 3 ? 12345
+                      : ((r % 40) << 32) | ((r >> 20) % 40);
+    }
+    std::vector<std::uint32_t> want(n);
+    for (std::size_t i = 0; i < n; ++i) want[i] = static_cast<std::uint32_t>(i);
+    std::stable_sort(want.begin(), want.end(),
+                     [&](std::uint32_t a, std::uint32_t b) { return keys[a] < keys[b]; });
+    for (int threads : {1, 2, 3}) {
+      order.assign(5, 7);  // stale contents must not matter
+      gf::radixSortByKey(keys, &order, &scratch, threads);
+      EXPECT_EQ(order, want) << "kind " << kind << ", threads " << threads;
+    }
+  }
+}
+
+namespace {
+
+/// VmFlags of the /proc/self/smaps mapping that holds `p` ("" when not found).
+std::string vmFlagsOf(const void* p) {
+  std::ifstream smaps("/proc/self/smaps");
+  const auto a = reinterpret_cast<std::uintptr_t>(p);
+  bool inside = false;
+  for (std::string line; std::getline(smaps, line);) {
+    unsigned long lo = 0, hi = 0;
+    if (std::sscanf(line.c_str(), "%lx-%lx ", &lo, &hi) == 2 && line.find(':') > 8) {
+      inside = a >= lo && a < hi;
+    } else if (inside && line.rfind("VmFlags:", 0) == 0) {
+      return line;
+    }
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(HugePages, LargeScratchBuffersAreAdvisedSmallOnesUntouched) {
+  // Resizes keep working for every size; a buffer that grows past kHugeBufferMinBytes is
+  // reallocated and madvise(MADV_HUGEPAGE)d (VmFlags "hg") before it is filled.
+  std::vector<std::uint64_t> small(10, 7), large;
+  gf::resizeScratch(&small, 1000);
+  EXPECT_EQ(small.size(), 1000u);
+  EXPECT_EQ(small[0], 7u);  // below the size: a plain resize keeps the contents
+  const std::size_t n = 2 * gf::kHugeBufferMinBytes / sizeof(std::uint64_t);
+  gf::resizeScratch(&large, n);
+  ASSERT_EQ(large.size(), n);
+  const std::uint64_t* block = large.data();
+  gf::resizeScratch(&large, n / 2);  // shrinking keeps the block
+  EXPECT_EQ(large.size(), n / 2);
+  EXPECT_EQ(large.data(), block);
+#if defined(__linux__)
+  std::ifstream thp("/sys/kernel/mm/transparent_hugepage/enabled");
+  if (!thp) GTEST_SKIP() << "no transparent huge pages in this kernel";
+  const std::string flags = vmFlagsOf(large.data() + n / 4);
+  ASSERT_FALSE(flags.empty()) << "mapping not found in /proc/self/smaps";
+  EXPECT_NE(flags.find(" hg"), std::string::npos) << flags;
+  EXPECT_EQ(vmFlagsOf(small.data()).find(" hg"), std::string::npos);
+#endif
+}
