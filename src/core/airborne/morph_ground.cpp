@@ -188,16 +188,21 @@ void MorphGround::surfaceWithoutObjects() {
 }
 
 void MorphGround::terrainSlope(double c, int w) {
-  // Slope of the provisional surface by central differences across +-w cells (clamped at the
-  // border): the terrain's slope at the scale of the largest object the opening removes.
+  // Slope of the provisional surface towards +-w cells (clamped at the border), the steeper
+  // side per axis: the terrain's slope at the scale of the largest object the opening removes
+  // (one-sided, so a symmetric crest, where a central difference is 0, gets its flanks' slope).
   tslope_.assign(dem_.size(), 0.0f);
   const float* d = dem_.data();
+  auto side = [c](float a, float b, int cells) {
+    return cells > 0 ? std::fabs(a - b) / (cells * c) : 0.0;
+  };
   for (int y = 0; y < ny_; ++y) {
     const int ya = std::max(0, y - w), yb = std::min(ny_ - 1, y + w);
     for (int x = 0; x < nx_; ++x) {
       const int xa = std::max(0, x - w), xb = std::min(nx_ - 1, x + w);
-      const double gx = xb > xa ? (d[y * nx_ + xb] - d[y * nx_ + xa]) / ((xb - xa) * c) : 0.0;
-      const double gy = yb > ya ? (d[yb * nx_ + x] - d[ya * nx_ + x]) / ((yb - ya) * c) : 0.0;
+      const float z = d[y * nx_ + x];
+      const double gx = 0.5 * (side(d[y * nx_ + xb], z, xb - x) + side(z, d[y * nx_ + xa], x - xa));
+      const double gy = 0.5 * (side(d[yb * nx_ + x], z, yb - y) + side(z, d[ya * nx_ + x], y - ya));
       tslope_[static_cast<std::size_t>(y) * nx_ + x] = static_cast<float>(std::hypot(gx, gy));
     }
   }
