@@ -47,8 +47,8 @@ class MorphGround {
   // slope is `slope`, or per cell max(slope, (*allow)[cell]) when allow is given.
   void openObjects(const MorphGroundSettings& s, double c, int rmax,
                    const std::vector<float>* allow, std::vector<std::uint8_t>* object);
-  void surfaceWithoutObjects();           // dem_ = zmin_ without object_ cells, gaps filled
-  void terrainSlope(double c, int w);     // tslope_ from dem_ across +-w cells
+  void surfaceWithoutObjects();        // dem_ = zmin_ without object_ cells, gaps filled
+  void terrainSlope(double c, int w);  // tslope_ from dem_ across +-w cells
   void joinTerrain(const MorphGroundSettings& s, double c);  // second-pass cells joined to terrain
 
   int nx_ = 0, ny_ = 0;
