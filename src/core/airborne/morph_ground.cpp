@@ -145,6 +145,103 @@ void MorphGround::fill(std::vector<float>* zp) {
   }
 }
 
+void MorphGround::openObjects(const MorphGroundSettings& s, double c, int rmax,
+                              const std::vector<float>* allow, std::vector<std::uint8_t>* object) {
+  // A cell that an opening of radius r lowers by more than the terrain could drop over r
+  // (allowed slope x r) lies on an object.
+  const std::size_t n = zfill_.size();
+  object->assign(n, 0);
+  std::vector<float>& last = dem_;
+  last = zfill_;
+  for (int r = 1; r <= rmax; ++r) {
+    erode(last, r, false, &eroded_);
+    erode(eroded_, r, true, &opened_);
+    const float rc = static_cast<float>(r * c);
+    const float thr = static_cast<float>(s.slope) * rc;
+    std::uint8_t* o = object->data();
+    if (allow == nullptr) {
+      for (std::size_t i = 0; i < n; ++i) {
+        if (last[i] - opened_[i] > thr) o[i] = 1;
+      }
+    } else {
+      const float* a = allow->data();
+      for (std::size_t i = 0; i < n; ++i) {
+        if (last[i] - opened_[i] > std::max(thr, a[i] * rc)) o[i] = 1;
+      }
+    }
+    last.swap(opened_);
+  }
+}
+
+void MorphGround::surfaceWithoutObjects() {
+  // The minimum raster without object cells, gaps filled.
+  const std::size_t n = zmin_.size();
+  dem_ = zmin_;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (object_[i]) dem_[i] = std::numeric_limits<float>::quiet_NaN();
+  }
+  fill(&dem_);
+  if (std::isnan(dem_[0])) {  // every cell an object: fall back to the minimum raster
+    dem_ = zmin_;
+    fill(&dem_);
+  }
+}
+
+void MorphGround::terrainSlope(double c, int w) {
+  // Slope of the provisional surface towards +-w cells (clamped at the border), the steeper
+  // side per axis: the terrain's slope at the scale of the largest object the opening removes
+  // (one-sided, so a symmetric crest, where a central difference is 0, gets its flanks' slope).
+  tslope_.assign(dem_.size(), 0.0f);
+  const float* d = dem_.data();
+  auto side = [c](float a, float b, int cells) {
+    return cells > 0 ? std::fabs(a - b) / (cells * c) : 0.0;
+  };
+  for (int y = 0; y < ny_; ++y) {
+    const int ya = std::max(0, y - w), yb = std::min(ny_ - 1, y + w);
+    for (int x = 0; x < nx_; ++x) {
+      const int xa = std::max(0, x - w), xb = std::min(nx_ - 1, x + w);
+      const float z = d[y * nx_ + x];
+      const double gx = 0.5 * (side(d[y * nx_ + xb], z, xb - x) + side(z, d[y * nx_ + xa], x - xa));
+      const double gy = 0.5 * (side(d[yb * nx_ + x], z, yb - y) + side(z, d[ya * nx_ + x], y - ya));
+      tslope_[static_cast<std::size_t>(y) * nx_ + x] = static_cast<float>(std::hypot(gx, gy));
+    }
+  }
+}
+
+void MorphGround::joinTerrain(const MorphGroundSettings& s, double c) {
+  // object1_: the first pass's objects, object_: the second's. Flood from the first pass's
+  // terrain through the cells only the second pass keeps, over steps of at most
+  // max(slope, terrain slope) x cell between the (gap-filled) minima; what the flood does not
+  // reach stays an object.
+  const std::size_t n = object_.size();
+  known_.assign(n, 0);  // reached
+  frontier_.clear();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!object1_[i]) {
+      known_[i] = 1;
+      frontier_.push_back(static_cast<std::int32_t>(i));
+    }
+  }
+  const int dx[4] = {-1, 1, 0, 0}, dy[4] = {0, 0, -1, 1};
+  for (std::size_t head = 0; head < frontier_.size(); ++head) {
+    const std::int32_t i = frontier_[head];
+    const int x = i % nx_, y = i / nx_;
+    for (int k = 0; k < 4; ++k) {
+      const int xx = x + dx[k], yy = y + dy[k];
+      if (xx < 0 || yy < 0 || xx >= nx_ || yy >= ny_) continue;
+      const std::int32_t j = yy * nx_ + xx;
+      if (known_[j] || object_[j]) continue;
+      const double step = std::max(s.slope, static_cast<double>(tslope_[j])) * c;
+      if (std::fabs(zfill_[j] - zfill_[i]) > step) continue;
+      known_[j] = 1;
+      frontier_.push_back(j);
+    }
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    if (object1_[i] && !known_[i]) object_[i] = 1;
+  }
+}
+
 std::size_t MorphGround::run(const CloudView& cloud, const MorphGroundSettings& s,
                              std::vector<std::uint8_t>* labels) {
   const std::size_t np = cloud.size();
@@ -188,33 +285,28 @@ std::size_t MorphGround::run(const CloudView& cloud, const MorphGroundSettings& 
     cell_of_[i] = cell;
     if (!(zmin_[cell] <= z)) zmin_[cell] = z;  // NaN compares false: first point wins
   }
-  std::vector<float>& last = dem_;
-  last = zmin_;
-  fill(&last);
+  zfill_ = zmin_;
+  fill(&zfill_);
 
-  // 2. Progressive opening: a cell that an opening of radius r lowers by more than the terrain
-  //    could drop over r (slope x r) lies on an object.
-  object_.assign(n, 0);
+  // 2. Progressive opening with SMRF's slope allowance everywhere, 3. provisional surface.
   const int rmax = std::max(1, static_cast<int>(std::ceil(s.window / c)));
-  for (int r = 1; r <= rmax; ++r) {
-    erode(last, r, false, &eroded_);
-    erode(eroded_, r, true, &opened_);
-    const float thr = static_cast<float>(s.slope * r * c);
-    for (std::size_t i = 0; i < n; ++i) {
-      if (last[i] - opened_[i] > thr) object_[i] = 1;
-    }
-    last.swap(opened_);
-  }
+  openObjects(s, c, rmax, nullptr, &object_);
+  surfaceWithoutObjects();
 
-  // 3. Provisional surface: the minimum raster without object cells, gaps filled.
-  dem_ = zmin_;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (object_[i]) dem_[i] = std::numeric_limits<float>::quiet_NaN();
-  }
-  fill(&dem_);
-  if (std::isnan(dem_[0])) {  // every cell an object: fall back to the minimum raster
-    dem_ = zmin_;
-    fill(&dem_);
+  // 3b. Steep terrain. An opening lowers a planar slope by nothing but cuts a convex break
+  //     (a ridge, a quarry edge, the top of a steep bank) by about the terrain slope x r, so
+  //     where the terrain is steeper than `slope` SMRF calls its breaks objects. Second pass:
+  //     the allowance per cell is the terrain's own slope (the provisional surface's, across the
+  //     largest window, wider than the objects it removed), at least `slope`. A cell that only
+  //     this pass keeps counts as terrain only when it joins the first pass's terrain through
+  //     cells whose minima differ by no more than that slope allows over one cell: a terrain
+  //     break is continuous, a roof or a crown on a slope stands above its surroundings.
+  terrainSlope(c, rmax);
+  if (*std::max_element(tslope_.begin(), tslope_.end()) > s.slope) {
+    object1_.swap(object_);
+    openObjects(s, c, rmax, &tslope_, &object_);
+    joinTerrain(s, c);
+    surfaceWithoutObjects();
   }
 
   // 4. Gradient magnitude (central differences, one-sided at the border).

@@ -43,12 +43,19 @@ class MorphGround {
  private:
   void fill(std::vector<float>* z);  // fill NaN cells (nearest rings, then Laplace sweeps)
   void erode(const std::vector<float>& in, int r, bool dilate, std::vector<float>* out);
+  // Progressive opening of zfill_ up to radius rmax: object cells into `object`; the allowed
+  // slope is `slope`, or per cell max(slope, (*allow)[cell]) when allow is given.
+  void openObjects(const MorphGroundSettings& s, double c, int rmax,
+                   const std::vector<float>* allow, std::vector<std::uint8_t>* object);
+  void surfaceWithoutObjects();        // dem_ = zmin_ without object_ cells, gaps filled
+  void terrainSlope(double c, int w);  // tslope_ from dem_ across +-w cells
+  void joinTerrain(const MorphGroundSettings& s, double c);  // second-pass cells joined to terrain
 
   int nx_ = 0, ny_ = 0;
   std::vector<std::int32_t> cell_of_;  // per point: cell index, -1 invalid
-  std::vector<float> zmin_, tmp_, eroded_, opened_, dem_, grad_;
+  std::vector<float> zmin_, zfill_, tmp_, eroded_, opened_, dem_, grad_, tslope_;
   std::vector<float> pad_;  // erode(): one row between two sentinels
-  std::vector<std::uint8_t> object_, known_;
+  std::vector<std::uint8_t> object_, object1_, known_;
   std::vector<std::int32_t> frontier_, next_, gaps_;
   std::vector<float> fill_vals_;  // fill(): the values of one ring
 };
