@@ -35,8 +35,8 @@ void require(bool ok, const char* what) {
 extern "C" int LLVMFuzzerInitialize(int* /*argc*/, char*** /*argv*/) {
   const char* method = std::getenv("GF_FUZZ_METHOD");
   // As the nodelet runs it (max_range 1000 m); one thread: libFuzzer runs inputs back to back.
-  g_filter = gf::makeGroundFilter(method ? method : "voxel",
-                                  {{"threads", "1"}, {"max_range", "1000"}});
+  g_filter =
+      gf::makeGroundFilter(method ? method : "voxel", {{"threads", "1"}, {"max_range", "1000"}});
   return 0;
 }
 

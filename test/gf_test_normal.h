@@ -19,7 +19,7 @@ inline void add(Cloud* c, double x, double y, double z) {
 
 /// Square grid of side `side` [m] at `step` spacing on z = z0 + slope_x * x, with Gaussian noise.
 inline Cloud plane(double side, double step, double z0, double slope_x = 0.0, double noise = 0.0,
-            unsigned seed = 1) {
+                   unsigned seed = 1) {
   std::mt19937 rng(seed);
   std::normal_distribution<double> n(0.0, noise > 0.0 ? noise : 1.0);
   Cloud c;

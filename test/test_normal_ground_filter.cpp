@@ -18,6 +18,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/radix_sort.h"
 #include "gf_test_data.h"
 #include "gf_test_normal.h"
 #include "gf_test_points.h"
@@ -31,7 +32,6 @@
 #include "normal/knn/kdtree_neighbor_search.h"
 #include "normal/knn/neighborhood_pca.h"
 #include "normal/plane.h"
-#include "common/radix_sort.h"
 #include "simd/simd.h"
 
 namespace gf = ground_filter;
@@ -647,8 +647,8 @@ TEST(NormalPlaneStage, SparseTileFloorFindsAFarVergeUnderAHedge) {
   for (double x = -1.9; x < 1.9; x += 0.05) {
     for (int row = 0; row < 10; ++row) add(&c, x, 24.0, 0.7 + 0.1 * row);
   }
-  const double verge_share = static_cast<double>(verge_end - near_end) /
-                             static_cast<double>(c.size() / 3 - near_end);
+  const double verge_share =
+      static_cast<double>(verge_end - near_end) / static_cast<double>(c.size() / 3 - near_end);
   ASSERT_GT(verge_share, 0.15);
   ASSERT_LT(verge_share, 0.3);
   const auto labels = run(c);

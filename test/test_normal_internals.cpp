@@ -17,6 +17,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/radix_sort.h"
 #include "gf_test_data.h"
 #include "gf_test_normal.h"
 #include "gf_test_points.h"
@@ -30,7 +31,6 @@
 #include "normal/knn/kdtree_neighbor_search.h"
 #include "normal/knn/neighborhood_pca.h"
 #include "normal/plane.h"
-#include "common/radix_sort.h"
 #include "simd/simd.h"
 
 namespace gf = ground_filter;

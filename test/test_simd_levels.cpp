@@ -19,11 +19,10 @@
 #include <string>
 #include <vector>
 
+#include "gf_test_alloc_counter.h"  // allocationCount()
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/scene/scene_generator.h"
 #include "simd/simd.h"
-
-#include "gf_test_alloc_counter.h"  // allocationCount()
 
 namespace gf = ground_filter;
 namespace simd = ground_filter::simd;

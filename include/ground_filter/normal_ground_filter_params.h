@@ -36,7 +36,7 @@ struct NormalGroundFilterParams : TableParams<NormalGroundFilterParams>, MorphGr
   double veg_min_base = 0.05;    ///< veg: relabel ground points this high or more [m] (0.05)
   double veg_max_density = 2.0;  ///< veg: clutter points per clutter voxel, 0 = any [points] (2.0)
   double floor_share = 0.15;     ///< sparse tile: cloud plane moved to its lowest point when this
-                                 ///< share of its points is within plane_distance above, 0 = off [1]
+                              ///< share of its points is within plane_distance above, 0 = off [1]
   double floor_max_shift = 0.5;  ///< sparse tile: move the cloud-wide plane at most this far [m]
   bool use_segments = false;     ///< paper's segments: no neighbours across borders [bool]
   int segment_points = 65536;    ///< points per segment, at most [points] (65536, paper)

@@ -7,7 +7,6 @@
 
 namespace ground_filter {
 
-
 /// \brief Hard limit of the working volume [m]: a point farther than this from the origin along
 ///        any axis is always out of range, also with max_range 0 (off).
 ///

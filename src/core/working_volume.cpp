@@ -7,6 +7,7 @@
 #include <string>
 #include <utility>
 
+#include "common/threads_timing.h"
 #include "ground_filter/param_parse.h"
 
 namespace ground_filter {
@@ -96,7 +97,6 @@ void WorkingVolumeFilter::setPose(const float origin[3], const float rotation[9]
 
 void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
                                  FilterStats* stats) {
-  using Clock = std::chrono::steady_clock;
   const auto t0 = Clock::now();
   const std::size_t n = cloud.size();
   // The usual case: the inner filter tests the volume on its way, no pass here. Not asked again
@@ -110,7 +110,7 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
     if (stats) {
       stats->out_of_range_points = 0;
       stats->near_points = 0;
-      stats->total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+      stats->total_ms = msSince(t0);
     }
     return;
   }
@@ -145,7 +145,7 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
     if (stats) {
       stats->out_of_range_points = 0;
       stats->near_points = 0;
-      stats->total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+      stats->total_ms = msSince(t0);
     }
     return;
   }
@@ -166,7 +166,7 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
       kept_.push_back(i);
     }
   }
-  const double pack_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  const double pack_ms = msSince(t0);
 
   FilterStats inner_stats;
   inner_labels_.clear();
@@ -193,7 +193,7 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
     stats->near_points = near;
     stats->ground_points = ground;
     stats->stage_ms.insert(stats->stage_ms.begin(), {"working volume", pack_ms});
-    stats->total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    stats->total_ms = msSince(t0);
   }
 }
 

@@ -6,8 +6,7 @@
 
 namespace ground_filter {
 
-GravityTransform::GravityTransform(ros::NodeHandle& nh, const std::string& frame,
-                                   double timeout_s)
+GravityTransform::GravityTransform(ros::NodeHandle& nh, const std::string& frame, double timeout_s)
     : frame_(frame), timeout_s_(timeout_s), listener_(buffer_, nh) {}
 
 bool GravityTransform::lookup(const std_msgs::Header& header, Eigen::Isometry3d* transform,

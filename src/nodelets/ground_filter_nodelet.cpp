@@ -127,11 +127,10 @@ void GroundFilterNodelet::onInit() {
   if (!(period > 0.0)) period = 1.0;
   updater_ = std::make_unique<diagnostic_updater::Updater>(*nh_, *pnh_, getName());
   updater_->setHardwareID("none");
-  updater_->add(methodName() + " ground filter",
-                [this](diagnostic_updater::DiagnosticStatusWrapper& status) {
-                  monitor_.diagnose(status, methodName(), gravity_ ? gravity_->frame() : "",
-                                    haveConfig());
-                });
+  updater_->add(
+      methodName() + " ground filter", [this](diagnostic_updater::DiagnosticStatusWrapper& status) {
+        monitor_.diagnose(status, methodName(), gravity_ ? gravity_->frame() : "", haveConfig());
+      });
   // Wall time and force_update(): the status keeps coming while a bag's simulated clock is
   // paused or over (Updater::update() would wait for the simulated period).
   diagnostic_timer_ = nh_->createWallTimer(
@@ -216,10 +215,10 @@ void GroundFilterNodelet::countAndWarn(std::atomic<std::uint64_t>* counter, int 
 void GroundFilterNodelet::checkStream(const std_msgs::Header& header) {
   const NodeletMonitor::StreamChange change = monitor_.checkStream(header);
   if (change.frame_changed) {
-    countAndWarn(&monitor_.counters().frame_changes, NodeletMonitor::kFrameChange,
-                 "input frame_id changed from '" + change.old_frame + "' to '" + header.frame_id +
-                     "'",
-                 "; every cloud is processed and published in its own frame");
+    countAndWarn(
+        &monitor_.counters().frame_changes, NodeletMonitor::kFrameChange,
+        "input frame_id changed from '" + change.old_frame + "' to '" + header.frame_id + "'",
+        "; every cloud is processed and published in its own frame");
   }
   if (change.went_back) {
     char by[64];

@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/threads_timing.h"
 #include "ground_filter/ground_filter.h"
 
 // The build sets it to the checkout's ../shared/data (CMakeLists.txt, target ground_filter_cli).
@@ -124,10 +125,8 @@ ParamSettings loadParamsFile(const std::string& path);
 /// \brief Median of `v` (mean of the two middle values for an even count; 0 for none).
 double median(std::vector<double> v);
 
-/// \brief Milliseconds since `t0` on the steady clock.
-inline double msSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
+/// \brief Milliseconds since `t0` on the steady clock (the core's one definition).
+using ::ground_filter::msSince;
 
 }  // namespace cli
 }  // namespace ground_filter

@@ -265,9 +265,9 @@ std::size_t MorphGround::run(const CloudView& cloud, const MorphGroundSettings& 
   // A raster with many more cells than points is mostly filled gaps and costs time for nothing
   // (the opening runs over every cell): a few stray points or one far outlier would otherwise
   // grow it to kMaxCells. The sparsest dev tiles have 6.4 cells a point at 1 m cells.
-  const double max_cells = std::min(static_cast<double>(kMaxCells),
-                                     std::max(static_cast<double>(kMinCells),
-                                              kMaxCellsPerPoint * static_cast<double>(valid)));
+  const double max_cells = std::min(
+      static_cast<double>(kMaxCells),
+      std::max(static_cast<double>(kMinCells), kMaxCellsPerPoint * static_cast<double>(valid)));
   while (cellsFor(c) > max_cells) c *= 1.25;
   nx_ = static_cast<int>(std::floor((x1 - x0) / c)) + 1;
   ny_ = static_cast<int>(std::floor((y1 - y0) / c)) + 1;

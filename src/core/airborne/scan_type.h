@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
-#include "ground_filter/cloud_view.h"
 #include "airborne/morph_ground.h"
+#include "ground_filter/cloud_view.h"
 
 namespace ground_filter {
 

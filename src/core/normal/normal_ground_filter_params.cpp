@@ -5,10 +5,10 @@
 #include <stdexcept>
 #include <string>
 
-#include "ground_filter/cuda_knn.h"
-#include "ground_filter/neighbor_search.h"
 #include "airborne/scan_type.h"
 #include "common/shared_param_rows.h"
+#include "ground_filter/cuda_knn.h"
+#include "ground_filter/neighbor_search.h"
 #include "normal/normal_settings.h"
 
 namespace ground_filter {

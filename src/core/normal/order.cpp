@@ -8,8 +8,8 @@
 #include <cstring>
 #include <limits>
 
-#include "cpu_gpu_common.h"
 #include "common/radix_sort.h"
+#include "cpu_gpu_common.h"
 
 namespace ground_filter {
 namespace normal {

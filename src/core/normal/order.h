@@ -7,8 +7,8 @@
 #include <utility>
 #include <vector>
 
-#include "ground_filter/cloud_view.h"
 #include "common/radix_sort.h"
+#include "ground_filter/cloud_view.h"
 
 namespace ground_filter {
 namespace normal {

@@ -9,8 +9,8 @@
 #include <cmath>
 #include <limits>
 
-#include "cpu_gpu_common.h"
 #include "common/radix_sort.h"
+#include "cpu_gpu_common.h"
 
 namespace ground_filter {
 namespace normal {
@@ -104,14 +104,8 @@ bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int
   return true;
 }
 
-void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
-                     const Extent& extent, const NormalGroundFilterParams& p, double min_abs_nz,
-                     int threads, std::vector<std::uint8_t>* ground_out,
-                     std::vector<float>* heights) {
-  const std::size_t n = voted.size();
-  std::vector<std::uint8_t>& ground = *ground_out;
-  ground.assign(n, 0);
-  if (heights) heights->assign(n, std::numeric_limits<float>::quiet_NaN());
+void PlaneStage::sortIntoTiles(const std::vector<float>& xyz, std::size_t n, const Extent& extent,
+                               const NormalGroundFilterParams& p, int threads) {
   keys_.resize(n);
   if (p.local_planes) {
     const double tile = std::max(p.tile_size, extent.size() / 4.0e9);
@@ -134,10 +128,15 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
     tiles_.emplace_back(b, e);
     b = e;
   }
+}
 
-  // Cloud-wide plane: the only one without local planes, the fallback for sparse tiles.
+bool PlaneStage::fitGlobalPlane(const std::vector<float>& xyz,
+                                const std::vector<std::uint8_t>& voted,
+                                const NormalGroundFilterParams& p, double min_abs_nz,
+                                std::uint64_t base_seed, int threads, Plane* global) {
   // Each thread's lists hold any tile (dynamic schedule: which thread gets which tile varies),
   // so a scan with the same tiles allocates nothing.
+  const std::size_t n = voted.size();
   std::size_t longest_tile = 0;
   for (const auto& tl : tiles_) longest_tile = std::max(longest_tile, tl.second - tl.first);
   thread_idx_.resize(threads);
@@ -146,7 +145,6 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
     thread_idx_[t].reserve(longest_tile);
     thread_eval_[t].reserve(kRansacEvalPoints);
   }
-  const std::uint64_t base_seed = ransacBaseSeed(static_cast<std::uint32_t>(p.ransac_seed));
   bool need_global = !p.local_planes;
   for (const auto& tl : tiles_) {
     if (need_global) break;
@@ -156,18 +154,79 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
     }
     need_global = count < kMinTilePoints;
   }
-  Plane global;
-  bool global_valid = false;
-  if (need_global) {
-    std::vector<std::uint32_t>& all_voted = thread_idx_[0];
-    all_voted.clear();
-    all_voted.reserve(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      if (voted[i]) all_voted.push_back(static_cast<std::uint32_t>(i));
-    }
-    global_valid = fitPlaneRansac(xyz.data(), all_voted, p.ransac_iterations, p.plane_distance,
-                                  min_abs_nz, base_seed, &thread_eval_[0], &global);
+  if (!need_global) return false;
+  std::vector<std::uint32_t>& all_voted = thread_idx_[0];
+  all_voted.clear();
+  all_voted.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (voted[i]) all_voted.push_back(static_cast<std::uint32_t>(i));
   }
+  return fitPlaneRansac(xyz.data(), all_voted, p.ransac_iterations, p.plane_distance, min_abs_nz,
+                        base_seed, &thread_eval_[0], global);
+}
+
+void PlaneStage::lowerToFloor(const std::vector<float>& xyz, std::size_t tb, std::size_t te,
+                              const NormalGroundFilterParams& p, Plane* plane) const {
+  // Sparse tile on the cloud-wide plane (the near road dominates it): far terrain that rises
+  // or falls beside the road is off it. When enough of the tile lies on its lowest level,
+  // that level is its ground (docs/normal_method.md, "Sparse-tile floor").
+  const double up = plane->normal.z() < 0.0 ? -1.0 : 1.0;
+  double low = std::numeric_limits<double>::infinity();
+  for (std::size_t j = tb; j < te; ++j) {
+    low = std::min(low, up * distanceOf(*plane, &xyz[3 * std::size_t{tile_order_[j]}]));
+  }
+  if (low >= -p.floor_max_shift && low <= p.floor_max_shift) {
+    std::size_t on_floor = 0;
+    for (std::size_t j = tb; j < te; ++j) {
+      const double h = up * distanceOf(*plane, &xyz[3 * std::size_t{tile_order_[j]}]);
+      on_floor += h >= low && h <= low + p.plane_distance;
+    }
+    if (static_cast<double>(on_floor) >= p.floor_share * static_cast<double>(te - tb)) {
+      plane->d -= up * low;
+    }
+  }
+}
+
+void PlaneStage::distanceBand(const std::vector<float>& xyz, const std::vector<std::uint32_t>& tv,
+                              const Plane& plane, const NormalGroundFilterParams& p, double* lo,
+                              double* hi) {
+  // Band of the voted points' signed distances within the threshold.
+  *lo = -p.plane_distance;
+  *hi = p.plane_distance;
+  if (!p.std_filter) return;
+  double s = 0.0, s2 = 0.0;
+  std::size_t c = 0;
+  for (std::uint32_t i : tv) {
+    const double d = distanceOf(plane, &xyz[3 * static_cast<std::size_t>(i)]);
+    if (std::abs(d) <= p.plane_distance) {
+      s += d;
+      s2 += d * d;
+      ++c;
+    }
+  }
+  if (c > 0) {
+    const double mean = s / c;
+    const double sd = std::sqrt(std::max(0.0, s2 / c - mean * mean));
+    *lo = std::max(*lo, mean - p.std_multiplier * sd);
+    *hi = std::min(*hi, mean + p.std_multiplier * sd);
+  }
+}
+
+void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
+                     const Extent& extent, const NormalGroundFilterParams& p, double min_abs_nz,
+                     int threads, std::vector<std::uint8_t>* ground_out,
+                     std::vector<float>* heights) {
+  const std::size_t n = voted.size();
+  std::vector<std::uint8_t>& ground = *ground_out;
+  ground.assign(n, 0);
+  if (heights) heights->assign(n, std::numeric_limits<float>::quiet_NaN());
+  sortIntoTiles(xyz, n, extent, p, threads);
+  const std::vector<std::uint64_t>& sorted = sort_scratch_.keys;  // keys_ in tile_order_
+
+  // Cloud-wide plane: the only one without local planes, the fallback for sparse tiles.
+  const std::uint64_t base_seed = ransacBaseSeed(static_cast<std::uint32_t>(p.ransac_seed));
+  Plane global;
+  const bool global_valid = fitGlobalPlane(xyz, voted, p, min_abs_nz, base_seed, threads, &global);
 
   const int nt = static_cast<int>(std::min<std::size_t>(threads, tiles_.size()));
 #pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
@@ -192,45 +251,10 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
     }
     if (!valid) continue;
     if (p.local_planes && tv.size() < kMinTilePoints && p.floor_share > 0.0) {
-      // Sparse tile on the cloud-wide plane (the near road dominates it): far terrain that rises
-      // or falls beside the road is off it. When enough of the tile lies on its lowest level,
-      // that level is its ground (docs/normal_method.md, "Sparse-tile floor").
-      const double up = plane.normal.z() < 0.0 ? -1.0 : 1.0;
-      double low = std::numeric_limits<double>::infinity();
-      for (std::size_t j = tb; j < te; ++j) {
-        low = std::min(low, up * distanceOf(plane, &xyz[3 * std::size_t{tile_order_[j]}]));
-      }
-      if (low >= -p.floor_max_shift && low <= p.floor_max_shift) {
-        std::size_t on_floor = 0;
-        for (std::size_t j = tb; j < te; ++j) {
-          const double h = up * distanceOf(plane, &xyz[3 * std::size_t{tile_order_[j]}]);
-          on_floor += h >= low && h <= low + p.plane_distance;
-        }
-        if (static_cast<double>(on_floor) >= p.floor_share * static_cast<double>(te - tb)) {
-          plane.d -= up * low;
-        }
-      }
+      lowerToFloor(xyz, tb, te, p, &plane);
     }
-    // Band of the voted points' signed distances within the threshold.
-    double lo = -p.plane_distance, hi = p.plane_distance;
-    if (p.std_filter) {
-      double s = 0.0, s2 = 0.0;
-      std::size_t c = 0;
-      for (std::uint32_t i : tv) {
-        const double d = distanceOf(plane, &xyz[3 * static_cast<std::size_t>(i)]);
-        if (std::abs(d) <= p.plane_distance) {
-          s += d;
-          s2 += d * d;
-          ++c;
-        }
-      }
-      if (c > 0) {
-        const double mean = s / c;
-        const double sd = std::sqrt(std::max(0.0, s2 / c - mean * mean));
-        lo = std::max(lo, mean - p.std_multiplier * sd);
-        hi = std::min(hi, mean + p.std_multiplier * sd);
-      }
-    }
+    double lo, hi;
+    distanceBand(xyz, tv, plane, p, &lo, &hi);
     if (heights) {  // for the vegetation stage: up = the side the plane's normal z points to
       const double up = plane.normal.z() < 0.0 ? -1.0 : 1.0;
       for (std::size_t j = tb; j < te; ++j) {

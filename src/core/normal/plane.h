@@ -6,9 +6,9 @@
 #include <utility>
 #include <vector>
 
+#include "common/plane_fit.h"
 #include "ground_filter/normal_ground_filter_params.h"
 #include "order.h"
-#include "common/plane_fit.h"
 
 namespace ground_filter {
 namespace normal {
@@ -33,6 +33,19 @@ class PlaneStage {
            std::vector<std::uint8_t>* ground, std::vector<float>* heights = nullptr);
 
  private:
+  // The steps of run(), in order.
+  void sortIntoTiles(const std::vector<float>& xyz, std::size_t n, const Extent& extent,
+                     const NormalGroundFilterParams& p, int threads);
+  // The cloud-wide plane when some tile is sparse (or local planes are off); false = none.
+  bool fitGlobalPlane(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
+                      const NormalGroundFilterParams& p, double min_abs_nz, std::uint64_t base_seed,
+                      int threads, Plane* global);
+  void lowerToFloor(const std::vector<float>& xyz, std::size_t tb, std::size_t te,
+                    const NormalGroundFilterParams& p, Plane* plane) const;
+  static void distanceBand(const std::vector<float>& xyz, const std::vector<std::uint32_t>& tv,
+                           const Plane& plane, const NormalGroundFilterParams& p, double* lo,
+                           double* hi);
+
   std::vector<std::uint64_t> keys_;
   std::vector<std::uint32_t> tile_order_;
   RadixSortScratch sort_scratch_;

@@ -5,9 +5,9 @@
 #include <cstdint>
 #include <vector>
 
+#include "common/radix_sort.h"
 #include "ground_filter/normal_ground_filter_params.h"
 #include "order.h"
-#include "common/radix_sort.h"
 
 namespace ground_filter {
 namespace normal {

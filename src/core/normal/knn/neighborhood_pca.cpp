@@ -1,11 +1,11 @@
 // The PCA of neighbour lists (stage "pca" of the normal filter, also fused into the kd-tree
 // queries): covariance of every K neighbourhood and its eigen
 // decomposition, in double. With AVX-512 the nine sums of a neighbourhood are kept in two
-// registers, with AVX2 in three (lane by lane the same additions in the same order, products not
-// fused: the same bits as the scalar code). One neighbourhood per lane with gathers was 1.5x slower
-// on Zen 4. The filter itself only needs each point's candidate bit: computeRowsCandidates() and
-// friends decide it without the eigen solver where that is certain (see "Candidate decision"
-// below).
+// registers, with AVX2 in three, with NEON (aarch64) in four (lane by lane the same additions in
+// the same order, products not fused: the same bits as the scalar code). One neighbourhood per lane
+// with gathers was 1.5x slower on Zen 4. The filter itself only needs each point's candidate bit:
+// computeRowsCandidates() and friends decide it without the eigen solver where that is certain (see
+// "Candidate decision" below).
 
 #include "normal/knn/neighborhood_pca.h"
 
@@ -19,6 +19,13 @@
 #include "simd/avx2_common.h"
 #include "simd/avx512_common.h"
 #include "simd/simd.h"
+
+#if defined(__aarch64__) && defined(__ARM_NEON)
+#include <arm_neon.h>
+#define GF_HAVE_NEON_PATHS 1
+#else
+#define GF_HAVE_NEON_PATHS 0
+#endif
 
 namespace ground_filter {
 
@@ -235,13 +242,62 @@ bool haveAvx2() { return false; }
 
 #endif  // GF_HAVE_AVX2_PATHS
 
+#if GF_HAVE_NEON_PATHS
+
+// NEON (aarch64): the nine sums in four registers of two doubles, [sx sy], [sxx sxy],
+// [sxz syz], [syy szz], and sz in a scalar; each lane added to in neighbour order as in
+// sumsScalar(), products not fused (the same bits).
+
+/// Keeps the compiler from fusing a product into a later addition (as simd::opaque()).
+inline float64x2_t opaqueNeon(float64x2_t v) {
+  asm("" : "+w"(v));
+  return v;
+}
+
+/// sumsScalar() of a full row (k valid entries), the same bits.
+void sumsNeon(const float* xyz, const std::int32_t* row, int k, std::size_t query, Moments* s) {
+  const float* q = xyz + 3 * query;
+  const float64x2_t oxy = vcvt_f64_f32(vld1_f32(q));
+  const double oz = q[2];
+  float64x2_t s_xy = vdupq_n_f64(0.0), s_xx_xy = s_xy, s_xz_yz = s_xy, s_yy_zz = s_xy;
+  double sz = 0.0;
+  for (int j = 0; j < k; ++j) {
+    const float* p = xyz + 3 * static_cast<std::size_t>(row[j]);
+    const float64x2_t d = vsubq_f64(vcvt_f64_f32(vld1_f32(p)), oxy);  // dx dy
+    const double dz = p[2] - oz;
+    const float64x2_t yz = vsetq_lane_f64(dz, vdupq_laneq_f64(d, 1), 1);  // dy dz
+    s_xy = vaddq_f64(s_xy, d);
+    sz += dz;
+    s_xx_xy = vaddq_f64(s_xx_xy, opaqueNeon(vmulq_laneq_f64(d, d, 0)));  // dx dx, dy dx
+    s_xz_yz = vaddq_f64(s_xz_yz, opaqueNeon(vmulq_n_f64(d, dz)));        // dx dz, dy dz
+    s_yy_zz = vaddq_f64(s_yy_zz, opaqueNeon(vmulq_f64(yz, yz)));         // dy dy, dz dz
+  }
+  *s = Moments{vgetq_lane_f64(s_xy, 0),
+               vgetq_lane_f64(s_xy, 1),
+               sz,
+               vgetq_lane_f64(s_xx_xy, 0),
+               vgetq_lane_f64(s_xx_xy, 1),
+               vgetq_lane_f64(s_xz_yz, 0),
+               vgetq_lane_f64(s_yy_zz, 0),
+               vgetq_lane_f64(s_xz_yz, 1),
+               vgetq_lane_f64(s_yy_zz, 1),
+               k};
+}
+
+bool haveNeon() { return simd::allows(simd::Level::kNeon); }
+
+#endif  // GF_HAVE_NEON_PATHS
+
 /// Which code computes the sums: chosen once per call of the public functions (the SIMD level
 /// in force can change between calls: tests run every level in one process).
-enum class SumsPath { kScalar, kAvx2, kAvx512 };
+enum class SumsPath { kScalar, kNeon, kAvx2, kAvx512 };
 
 SumsPath sumsPath() {
   if (haveAvx512()) return SumsPath::kAvx512;
   if (haveAvx2()) return SumsPath::kAvx2;
+#if GF_HAVE_NEON_PATHS
+  if (haveNeon()) return SumsPath::kNeon;
+#endif
   return SumsPath::kScalar;
 }
 
@@ -304,6 +360,12 @@ inline void sumsOf(const float* xyz, const std::int32_t* row, int k, std::size_t
 #if GF_HAVE_AVX2_PATHS
   if (path == SumsPath::kAvx2 && full) {
     sumsAvx2(xyz, row, k, query, s);
+    return;
+  }
+#endif
+#if GF_HAVE_NEON_PATHS
+  if (path == SumsPath::kNeon && full) {
+    sumsNeon(xyz, row, k, query, s);
     return;
   }
 #endif
@@ -449,7 +511,8 @@ inline std::uint8_t candidateOne(const float* xyz, const std::int32_t* row, int 
   Covariance c;
   bool fast_tried = false;  // fastCandidate() already undecided on the fast sums
 #if GF_HAVE_AVX512 || GF_HAVE_AVX2_PATHS
-  if (!t.exact_only && path != SumsPath::kScalar && k >= 3 && row[k - 1] >= 0) {
+  if (!t.exact_only && (path == SumsPath::kAvx512 || path == SumsPath::kAvx2) && k >= 3 &&
+      row[k - 1] >= 0) {
 #if GF_HAVE_AVX512
     if (path == SumsPath::kAvx512) sumsAvx512Fast(xyz, row, k, query, &s);
 #endif
