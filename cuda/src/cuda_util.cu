@@ -19,10 +19,6 @@ void checkCuda(cudaError_t err, const char* call, const char* file, int line) {
   throw CudaError(cudaGetErrorName(err), os.str());
 }
 
-double msSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
 void parallelCopy(void* dst, const void* src, std::size_t bytes) {
   constexpr std::size_t kSlice = 1u << 20;
   if (bytes < 2 * kSlice) {

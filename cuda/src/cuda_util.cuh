@@ -8,6 +8,8 @@
 #include <chrono>
 #include <cstddef>
 
+#include "common/threads_timing.h"
+
 namespace ground_filter {
 namespace cuda_impl {
 
@@ -25,8 +27,8 @@ void checkCuda(cudaError_t err, const char* call, const char* file, int line);
 namespace ground_filter {
 namespace cuda_impl {
 
-/// Milliseconds since `t0` (host clock).
-double msSince(std::chrono::steady_clock::time_point t0);
+/// \brief Milliseconds since `t0` (the core's one definition).
+using ::ground_filter::msSince;
 
 /// Blocks of `threads` covering `n` items.
 inline unsigned int blocksFor(std::size_t n, int threads) {
