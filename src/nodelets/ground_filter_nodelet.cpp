@@ -133,8 +133,10 @@ void GroundFilterNodelet::onInit() {
       });
   // Wall time and force_update(): the status keeps coming while a bag's simulated clock is
   // paused or over (Updater::update() would wait for the simulated period).
+  // Started by afterInit() (nodelet 1.10.0 loses a timer that fires while onInit() runs).
   diagnostic_timer_ = nh_->createWallTimer(
-      ros::WallDuration(period), [this](const ros::WallTimerEvent&) { updater_->force_update(); });
+      ros::WallDuration(period), [this](const ros::WallTimerEvent&) { updater_->force_update(); },
+      false, false);
   double trim_period = 1.0;
   pnh_->param("malloc_trim_period", trim_period, 1.0);
   if (!(trim_period >= 0.0 && trim_period <= 3600.0)) {
@@ -143,7 +145,8 @@ void GroundFilterNodelet::onInit() {
   }
   if (trim_period > 0.0) {
     trim_timer_ = nh_->createWallTimer(ros::WallDuration(trim_period),
-                                       [](const ros::WallTimerEvent&) { releaseFreeHeap(); });
+                                       [](const ros::WallTimerEvent&) { releaseFreeHeap(); },
+                                       false, false);
   }
 
   onInitFilter();
@@ -156,6 +159,27 @@ void GroundFilterNodelet::onInit() {
                   methodName().c_str(), e.what());
   }
   onInitPostProcess();
+  // nodelet 1.10.0 (Debian 11; fixed in 1.10.1, nodelet_core #106) drops every callback queued
+  // while onInit() runs: a subscriber that connected meanwhile never started the lazy input, and
+  // a timer that fired then never fired again. Once the queue runs: look again, start the timers.
+  after_init_timer_ = nh_->createWallTimer(
+      ros::WallDuration(0.05), [this](const ros::WallTimerEvent&) { afterInit(); }, true);
+}
+
+void GroundFilterNodelet::afterInit() {
+  diagnostic_timer_.start();
+  if (trim_timer_.isValid()) trim_timer_.start();
+  if (!lazy_) return;
+  boost::mutex::scoped_lock lock(connection_mutex_);
+  if (connection_status_ == nodelet_topic_tools::SUBSCRIBED) return;
+  for (const ros::Publisher& pub : publishers_) {
+    if (pub.getNumSubscribers() > 0) {
+      subscribe();
+      connection_status_ = nodelet_topic_tools::SUBSCRIBED;
+      ever_subscribed_ = true;
+      return;
+    }
+  }
 }
 
 void GroundFilterNodelet::setFilterFactory(FilterFactory factory, const WorkingVolume& volume,

@@ -116,6 +116,9 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
 
   void subscribe() override;
   void unsubscribe() override;
+  /// \brief Runs once after onInit(): starts the timers, subscribes the input if an output was
+  /// subscribed while onInit() ran (callbacks queued then are lost with nodelet 1.10.0).
+  void afterInit();
 
   /// \brief Counters for logs and diagnostics.
   const Counters& counters() const { return monitor_.counters(); }
@@ -177,6 +180,7 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   std::unique_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer diagnostic_timer_;
   ros::WallTimer trim_timer_;  // malloc_trim (glibc) every ~malloc_trim_period
+  ros::WallTimer after_init_timer_;  // one shot: afterInit()
 
   NodeletMonitor monitor_;  // counters, log throttles, diagnostics
 

@@ -209,8 +209,20 @@ Scan loadPclFile(const std::string& path, bool pcd) {
       Eigen::Quaternionf orientation;
       int version = 0, data_type = 0;
       unsigned int data_idx = 0;
-      if (reader.readHeader(path, header, origin, orientation, version, data_type, data_idx) < 0 ||
-          header.fields.empty() || header.point_step == 0) {
+      const int header_rc =
+          reader.readHeader(path, header, origin, orientation, version, data_type, data_idx);
+      if (header.fields.empty() || header.point_step == 0) {
+        fail(path, "cannot read PCD file: no valid PCD header (FIELDS/SIZE/TYPE missing)");
+      }
+      if (static_cast<std::size_t>(header.width) * header.height == 0) {
+        // No points: PCL 1.11 (Debian 11) refuses such a file
+        // ("No points to read"); PCL 1.13 reads it as an empty cloud. Same result everywhere.
+        header.data.clear();
+        header.row_step = 0;
+        scan.cloud = std::move(header);
+        return scan;
+      }
+      if (header_rc < 0) {
         fail(path, "cannot read PCD file: no valid PCD header (FIELDS/SIZE/TYPE missing)");
       }
     }
@@ -245,6 +257,20 @@ std::size_t fieldBytes(const pcl::PCLPointField& f) {
 }
 
 void writeBinaryPcd(const std::string& path, const pcl::PCLPointCloud2& cloud) {
+  if (cloud.data.empty()) {
+    // PCL 1.11 (Debian 11) refuses to write a cloud without points
+    // ("Input point cloud has no data!"); a split with no ground or no non-ground point is
+    // valid, so write the header alone (POINTS 0), as PCL 1.13 does.
+    std::ofstream f(path, std::ios::binary | std::ios::trunc);
+    if (!f) fail(path, "cannot write PCD file");
+    pcl::PCDWriter writer;
+    f << writer.generateHeaderBinary(cloud, Eigen::Vector4f::Zero(),
+                                     Eigen::Quaternionf::Identity())
+      << "DATA binary\n";
+    f.close();
+    if (!f) fail(path, "cannot write PCD file");
+    return;
+  }
   pcl::PCDWriter writer;
   int rc = -1;
   try {
