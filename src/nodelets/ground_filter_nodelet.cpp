@@ -144,9 +144,9 @@ void GroundFilterNodelet::onInit() {
     trim_period = 1.0;
   }
   if (trim_period > 0.0) {
-    trim_timer_ = nh_->createWallTimer(ros::WallDuration(trim_period),
-                                       [](const ros::WallTimerEvent&) { releaseFreeHeap(); },
-                                       false, false);
+    trim_timer_ = nh_->createWallTimer(
+        ros::WallDuration(trim_period), [](const ros::WallTimerEvent&) { releaseFreeHeap(); },
+        false, false);
   }
 
   onInitFilter();

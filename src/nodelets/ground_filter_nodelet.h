@@ -179,7 +179,7 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
 
   std::unique_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer diagnostic_timer_;
-  ros::WallTimer trim_timer_;  // malloc_trim (glibc) every ~malloc_trim_period
+  ros::WallTimer trim_timer_;        // malloc_trim (glibc) every ~malloc_trim_period
   ros::WallTimer after_init_timer_;  // one shot: afterInit()
 
   NodeletMonitor monitor_;  // counters, log throttles, diagnostics

@@ -264,8 +264,7 @@ void writeBinaryPcd(const std::string& path, const pcl::PCLPointCloud2& cloud) {
     std::ofstream f(path, std::ios::binary | std::ios::trunc);
     if (!f) fail(path, "cannot write PCD file");
     pcl::PCDWriter writer;
-    f << writer.generateHeaderBinary(cloud, Eigen::Vector4f::Zero(),
-                                     Eigen::Quaternionf::Identity())
+    f << writer.generateHeaderBinary(cloud, Eigen::Vector4f::Zero(), Eigen::Quaternionf::Identity())
       << "DATA binary\n";
     f.close();
     if (!f) fail(path, "cannot write PCD file");
