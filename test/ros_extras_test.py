@@ -285,6 +285,7 @@ class RosExtrasTest(RosTestCase):
         for text in ("~plane_distanse: unknown parameter", "~threads: 'two' is not an integer",
                      "~plane_distance: 50 is outside [0.001, 10]",
                      "~tf_timeout: 'fast' is not a number",
+                     "~queue_size: 0 is outside [1, 1000]",
                      "~body_box: body_box xmin = 1.000000 m is above xmax",
                      "min_range = 20.000000 m is not below max_range"):
             self.wait_for(lambda t=text: self.logged(Log.ERROR, t), "no ERROR: " + text,
@@ -292,6 +293,7 @@ class RosExtrasTest(RosTestCase):
         # The refused set left the defaults in use (reported back to the parameter server).
         self.assertFalse(rospy.has_param("/bad_filter/plane_distanse"))
         self.assertFalse(rospy.has_param("/bad_filter/tf_timeout"))
+        self.assertFalse(rospy.has_param("/bad_filter/queue_size"))
         self.assertFalse(rospy.has_param("/bad_filter/body_box"))
         self.wait_for(lambda: rospy.get_param("/bad_filter/min_range", None) == 0.0,
                       "min_range not back at its default", timeout=10.0)

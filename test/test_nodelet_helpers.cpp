@@ -443,6 +443,27 @@ TEST(ParamCheck, NamesEveryBadKey) {
   ASSERT_EQ(far.size(), 1u);
   EXPECT_NE(far[0].find("known: queue_size, lazy"), std::string::npos) << far[0];
   EXPECT_NE(errors[5].find("'two' is not an integer"), std::string::npos) << errors[5];
+
+  // The base parameters' numbers have ranges too (refused, not clamped in silence).
+  set.clear();
+  set["queue_size"] = XmlRpc::XmlRpcValue(0);
+  set["tf_timeout"] = XmlRpc::XmlRpcValue(50.0);
+  set["diagnostic_period"] = XmlRpc::XmlRpcValue(0.0);
+  set["malloc_trim_period"] = XmlRpc::XmlRpcValue(-1.0);
+  refused.clear();
+  const std::vector<std::string> base = gf::checkPrivateParams(set, known, &refused);
+  ASSERT_EQ(base.size(), 4u);
+  EXPECT_NE(base[0].find("diagnostic_period: 0 is outside [0.01, 3600]"), std::string::npos)
+      << base[0];
+  EXPECT_NE(base[1].find("malloc_trim_period: -1 is outside [0, 3600]"), std::string::npos)
+      << base[1];
+  EXPECT_NE(base[2].find("queue_size: 0 is outside [1, 1000]"), std::string::npos) << base[2];
+  EXPECT_NE(base[3].find("tf_timeout: 50 is outside [0, 10]"), std::string::npos) << base[3];
+  set.clear();
+  set["queue_size"] = XmlRpc::XmlRpcValue(1);
+  set["tf_timeout"] = XmlRpc::XmlRpcValue(0);
+  set["malloc_trim_period"] = XmlRpc::XmlRpcValue(0.0);  // 0 = off
+  EXPECT_TRUE(gf::checkPrivateParams(set, known, nullptr).empty());
 }
 
 namespace {

@@ -91,11 +91,8 @@ void GroundFilterNodelet::onInit() {
   NodeletLazy::onInit();
   NODELET_INFO("%s: %s", methodName().c_str(), simd::describe().c_str());
   checkParams();
+  // Ranges checked by checkParams(): a value outside was refused, the default applies.
   pnh_->param("queue_size", queue_size_, 3);
-  if (queue_size_ < 1) {
-    NODELET_WARN("~queue_size %d < 1, using 1", queue_size_);
-    queue_size_ = 1;
-  }
   pub_ground_ = advertise<sensor_msgs::PointCloud2>(*pnh_, "ground", 1);
   pub_nonground_ = advertise<sensor_msgs::PointCloud2>(*pnh_, "nonground", 1);
   // Plain advertise: a timing subscriber alone must not start the input subscription.
@@ -106,10 +103,6 @@ void GroundFilterNodelet::onInit() {
   double tf_timeout = 0.1;
   pnh_->param<std::string>("gravity_frame", gravity_frame, "");
   pnh_->param("tf_timeout", tf_timeout, 0.1);
-  if (!(tf_timeout >= 0.0 && tf_timeout <= 10.0)) {
-    NODELET_WARN("~tf_timeout %g s is outside [0, 10] s, using 0.1 s", tf_timeout);
-    tf_timeout = 0.1;
-  }
   if (!gravity_frame.empty()) {
     gravity_ = std::make_unique<GravityTransform>(*nh_, gravity_frame, tf_timeout);
     // Started while clouds wait for their transform (drainPending()), stopped when none does.
@@ -124,7 +117,6 @@ void GroundFilterNodelet::onInit() {
 
   double period = 1.0;
   pnh_->param("diagnostic_period", period, 1.0);
-  if (!(period > 0.0)) period = 1.0;
   updater_ = std::make_unique<diagnostic_updater::Updater>(*nh_, *pnh_, getName());
   updater_->setHardwareID("none");
   updater_->add(
@@ -139,10 +131,6 @@ void GroundFilterNodelet::onInit() {
       false, false);
   double trim_period = 1.0;
   pnh_->param("malloc_trim_period", trim_period, 1.0);
-  if (!(trim_period >= 0.0 && trim_period <= 3600.0)) {
-    NODELET_WARN("~malloc_trim_period %g s is outside [0, 3600] s, using 1 s", trim_period);
-    trim_period = 1.0;
-  }
   if (trim_period > 0.0) {
     trim_timer_ = nh_->createWallTimer(
         ros::WallDuration(trim_period), [](const ros::WallTimerEvent&) { releaseFreeHeap(); },

@@ -99,10 +99,23 @@ std::vector<ParamCheck> baseParamChecks() {
     c.type = type;
     return c;
   };
-  return {p("queue_size", T::kInt),           p("lazy", T::kBool),
-          p("verbose_connection", T::kBool),  p("duration_to_warn_no_connection", T::kDouble),
-          p("gravity_frame", T::kString),     p("tf_timeout", T::kDouble),
-          p("diagnostic_period", T::kDouble), p("malloc_trim_period", T::kDouble),
+  // Numbers with a range: a value outside is refused like a dynamic_reconfigure one (ERROR
+  // naming the key, the default stays), not clamped in silence.
+  auto r = [&p](const char* name, T type, double min, double max) {
+    ParamCheck c = p(name, type);
+    c.ranged = true;
+    c.min = min;
+    c.max = max;
+    return c;
+  };
+  return {r("queue_size", T::kInt, 1, 1000),
+          p("lazy", T::kBool),
+          p("verbose_connection", T::kBool),
+          p("duration_to_warn_no_connection", T::kDouble),
+          p("gravity_frame", T::kString),
+          r("tf_timeout", T::kDouble, 0.0, 10.0),
+          r("diagnostic_period", T::kDouble, 0.01, 3600.0),
+          r("malloc_trim_period", T::kDouble, 0.0, 3600.0),
           p("body_box", T::kDoubleList)};
 }
 
