@@ -110,6 +110,8 @@ CASES = [("voxel_ground_filter.launch", [], "VoxelGroundFilter", "ground_filter"
          ("play_bag.launch", ["bag:=/tmp/none.bag"], "VoxelGroundFilter", "ground_filter"),
          ("play_bag.launch", ["bag:=/tmp/none.bag", "method:=normal"], "NormalGroundFilter",
           "ground_filter"),
+         ("crop_and_filter.launch", [], "VoxelGroundFilter", "ground_filter"),
+         ("crop_and_filter.launch", ["method:=normal", "name:=cf"], "NormalGroundFilter", "cf"),
          ("demo.launch", [], "VoxelGroundFilter", "ground_filter"),
          ("demo.launch", ["method:=normal", "name:=gf_demo"], "NormalGroundFilter", "gf_demo")]
 
@@ -176,14 +178,15 @@ class LaunchParamsTest(unittest.TestCase):
         self.assertEqual(len(rviz), 1, listed)
         self.assertTrue(rviz[0].startswith("/front/"), rviz)
         # The remaps, read back the way roslaunch reads them.
-        for name, topic in (("front", "/lidar/points"), ("ground_filter", "/points_raw")):
-            argv = ["gui:=true", "name:=" + name]
-            if name == "front":
-                argv.append("input:=" + topic)
-            rviz = [n for n in load("ground_filter.launch", argv) if n.package == "rviz"][0]
-            self.assertEqual(rviz.namespace, "/%s/" % name)
-            self.assertIn(("input", topic), [tuple(r) for r in rviz.remap_args])
-            self.assertTrue(rviz.required)  # closing rviz ends the launch
+        for launch in ("ground_filter.launch", "crop_and_filter.launch"):
+            for name, topic in (("front", "/lidar/points"), ("ground_filter", "/points_raw")):
+                argv = ["gui:=true", "name:=" + name]
+                if name == "front":
+                    argv.append("input:=" + topic)
+                rviz = [n for n in load(launch, argv) if n.package == "rviz"][0]
+                self.assertEqual(rviz.namespace, "/%s/" % name, launch)
+                self.assertIn(("input", topic), [tuple(r) for r in rviz.remap_args], launch)
+                self.assertTrue(rviz.required, launch)  # closing rviz ends the launch
         demo = load("demo.launch", ["gui:=true", "name:=gf2", "topic:=/sim/points"])
         rviz = [n for n in demo if n.package == "rviz"][0]
         self.assertEqual(rviz.namespace, "/gf2/")
