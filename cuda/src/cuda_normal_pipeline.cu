@@ -165,7 +165,7 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   pl.orderColumns(im, n, bb, prm.cell_size);
 
   // ---- the sampled points (CPU: SampleStage), their K nearest neighbours (lists stay on the
-  //      device), PCA + candidates and vote; the others take the vote of the sample before them
+  //      device), PCA + candidates and vote; the others: OR of the samples before and after
   const int stride = std::max(1, prm.sample_stride);
   const int m = (n + stride - 1) / stride;
   const float* q = pl.xyz.as<float>();
@@ -182,7 +182,7 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   std::uint8_t* d_voted = pl.voted.as<std::uint8_t>();
   pl.candidatesAndVote(im, q, m, gp, stride > 1 ? pl.sampled_voted.as<std::uint8_t>() : d_voted);
   if (stride > 1) {
-    launchSpreadVotes(pl.sampled_voted.as<std::uint8_t>(), n, stride, d_voted, im.stream);
+    launchSpreadVotes(pl.sampled_voted.as<std::uint8_t>(), m, n, stride, d_voted, im.stream);
   }
   pl.planesAndLabels(im, n, n_in, bb, prm, gp);
   pl.downloadLabels(im, n_in, labels);

@@ -73,10 +73,13 @@ __global__ void sampleGatherKernel(const float* __restrict__ xyz, int m, int str
   sampled[3 * j + 2] = xyz[o + 2];
 }
 
-__global__ void spreadVotesKernel(const std::uint8_t* __restrict__ sampled_voted, int n, int stride,
-                                  std::uint8_t* __restrict__ voted) {
+__global__ void spreadVotesKernel(const std::uint8_t* __restrict__ sampled_voted, int m, int n,
+                                  int stride, std::uint8_t* __restrict__ voted) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i < n) voted[i] = sampled_voted[i / stride];
+  if (i >= n) return;
+  const int j = i / stride;
+  voted[i] =
+      i % stride == 0 ? sampled_voted[j] : (sampled_voted[j] | sampled_voted[min(j + 1, m - 1)]);
 }
 
 }  // namespace
@@ -86,9 +89,10 @@ void launchSampleGather(const float* xyz, int m, int stride, float* sampled, cud
   GF_CUDA_CHECK_LAUNCH();
 }
 
-void launchSpreadVotes(const std::uint8_t* sampled_voted, int n, int stride, std::uint8_t* voted,
-                       cudaStream_t st) {
-  spreadVotesKernel<<<blocksFor(n, kThreads), kThreads, 0, st>>>(sampled_voted, n, stride, voted);
+void launchSpreadVotes(const std::uint8_t* sampled_voted, int m, int n, int stride,
+                       std::uint8_t* voted, cudaStream_t st) {
+  spreadVotesKernel<<<blocksFor(n, kThreads), kThreads, 0, st>>>(sampled_voted, m, n, stride,
+                                                                 voted);
   GF_CUDA_CHECK_LAUNCH();
 }
 

@@ -153,8 +153,8 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   }
 
   // 2-4. Per segment: the sampled points (1b, every sample_stride-th), their neighbours
-  //      (computed once), PCA + candidates, naive-Bayes vote; the others take the vote of the
-  //      sampled point before them.
+  //      (computed once), PCA + candidates, naive-Bayes vote; each other point is voted when
+  //      the sampled point before or after it is.
   const double min_abs_nz = im.min_abs_nz;
   const int stride = p.sample_stride;
   im.candidate.assign(n, 0);

@@ -10,10 +10,10 @@ namespace normal {
 
 /// \brief Stage 1b ("sample", sample_stride > 1): the points that get a neighbourhood, a normal
 ///        and a vote are every stride-th point of a segment in column order; every other point
-///        takes the vote of the sampled point before it. Neighbouring points in column order
-///        share a 0.1 m column, so their neighbourhoods all but coincide: the sample keeps the
-///        area a normal sees (with k / stride neighbours) at 1 / stride of the queries.
-///        Holds only scratch memory, reused between scans.
+///        is voted when the sampled point before or after it is. Neighbouring points in column
+///        order share a 0.1 m column, so their neighbourhoods all but coincide: the sample keeps
+///        the area a normal sees (with k / stride neighbours) at 1 / stride of the queries. Holds
+///        only scratch memory, reused between scans.
 class SampleStage {
  public:
   /// \brief Gathers points 0, stride, 2 stride, ... of the `len` points at `xyz` (x y z packed).
@@ -25,7 +25,8 @@ class SampleStage {
   std::uint8_t* candidates() { return candidate_.data(); }
   /// \brief Votes of the sampled points (the vote stage writes them).
   std::uint8_t* votes() { return voted_.data(); }
-  /// \brief voted[i] = the vote of sampled point i / stride, for the `len` points of the segment.
+  /// \brief Votes of the `len` points of the segment: a sampled point's own, another point's
+  ///        the OR of the sampled points before and after it (the last one's alone at the end).
   void spread(std::size_t len, int stride, std::uint8_t* voted) const;
 
  private:
