@@ -377,8 +377,15 @@ TEST(NormalGroundFilter, StageTimesNameEveryStage) {
     names.push_back(e.first);
     EXPECT_GE(e.second, 0.0) << e.first;
   }
-  const std::vector<std::string> expected = {"sort", "kdtree_build", "knn", "pca", "vote", "plane"};
+  const std::vector<std::string> expected = {"sort", "sample", "kdtree_build", "knn",
+                                             "pca",  "vote",   "plane"};
   EXPECT_EQ(names, expected);
+  // Every point sampled: no sample stage.
+  gf::NormalGroundFilterParams p = groundLevel();
+  p.sample_stride = 1;
+  run(plane(6.0, 0.1, -1.73), p, &st);
+  EXPECT_EQ(st.stage_ms.size(), expected.size() - 1);
+  for (const auto& e : st.stage_ms) EXPECT_NE(e.first, "sample");
 }
 
 TEST(NormalPlaneStage, SparseTileFitsItsOwnPlaneFromThreeVotedPoints) {
@@ -442,6 +449,37 @@ TEST(NormalGroundFilterKitti, PooledF1AboveFloor) {
   RecordProperty("pooled_recall", std::to_string(m.recall));
   // Floor = measured pooled F1 with the defaults minus one point (README, "normal").
   EXPECT_GE(m.f1, kNormalF1Floor);
+}
+
+TEST(NormalGroundFilterKitti, SampledNormalsGiveTheEveryPointResult) {
+  // sample_stride 2 with k 40 (the default) against a normal for every point with k 64 (the
+  // previous default): the same ground model, so nearly the same labels and F1 (the measured
+  // differences are in docs/normal_method.md).
+  const std::string dir = std::string(GF_DATA_DIR) + "/semantickitti/seq00/";
+  GF_SKIP_WITHOUT_DATA(dir);
+  gf::NormalGroundFilterParams every = groundLevel();
+  every.sample_stride = 1;
+  every.k = 64;
+  gf::NormalGroundFilter sampled(groundLevel()), all(every);
+  gf::Confusion c_sampled, c_all;
+  std::size_t same = 0, total = 0;
+  for (const char* frame : {"000000", "000001", "000002"}) {
+    const gf::Scan scan = gf::loadScan(dir + frame + ".bin");
+    ASSERT_TRUE(scan.labelled()) << "no labels for " << frame << " in " << dir;
+    std::vector<std::uint8_t> a, b;
+    sampled.filter(gf::viewOf(scan.cloud), &a);
+    all.filter(gf::viewOf(scan.cloud), &b);
+    ASSERT_EQ(a.size(), b.size());
+    for (std::size_t i = 0; i < a.size(); ++i) same += a[i] == b[i];
+    total += a.size();
+    c_sampled.add(gf::countConfusion(a, scan.truth));
+    c_all.add(gf::countConfusion(b, scan.truth));
+  }
+  const double f1_sampled = gf::computeMetrics(c_sampled).f1;
+  const double f1_all = gf::computeMetrics(c_all).f1;
+  RecordProperty("agreement", std::to_string(100.0 * same / total));
+  EXPECT_GE(static_cast<double>(same), 0.98 * static_cast<double>(total));
+  EXPECT_NEAR(f1_sampled, f1_all, 0.003) << "sampled " << f1_sampled << ", every point " << f1_all;
 }
 
 // ------------------------------------------------------ bush-base rule (veg_filter, off default)

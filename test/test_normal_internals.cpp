@@ -31,6 +31,7 @@
 #include "normal/knn/kdtree_neighbor_search.h"
 #include "normal/knn/neighborhood_pca.h"
 #include "normal/plane.h"
+#include "normal/sample.h"
 #include "simd/simd.h"
 
 namespace gf = ground_filter;
@@ -104,6 +105,30 @@ TEST(NormalGroundFilterSimd, BadInputSameOnEveryLevel) {
   expectSameLabelsOnEveryLevel(gf::CloudView::packedXyz(small.data(), 40), 64);
   const Cloud same(3 * 100, 1.5f);
   expectSameLabelsOnEveryLevel(gf::CloudView::packedXyz(same.data(), 100), 64);
+}
+
+TEST(NormalSampleStage, GathersEveryStrideThPointAndSpreadsTheVotes) {
+  gf::normal::SampleStage st;
+  std::vector<float> xyz;
+  for (int i = 0; i < 7; ++i) xyz.insert(xyz.end(), {float(i), float(10 * i), float(-i)});
+  for (int stride : {1, 2, 3, 7, 16}) {
+    const std::size_t m = st.gather(xyz.data(), 7, stride);
+    ASSERT_EQ(m, static_cast<std::size_t>((7 + stride - 1) / stride)) << stride;
+    for (std::size_t j = 0; j < m; ++j) {
+      EXPECT_EQ(st.sampledXyz()[3 * j], float(j * stride)) << stride;
+      EXPECT_EQ(st.sampledXyz()[3 * j + 1], float(10 * j * stride)) << stride;
+      st.votes()[j] = static_cast<std::uint8_t>(j % 2);
+      EXPECT_EQ(st.candidates()[j], 0) << stride;
+    }
+    std::vector<std::uint8_t> voted(7, 9);
+    st.spread(7, stride, voted.data());
+    for (std::size_t i = 0; i < 7; ++i) {
+      const std::size_t j = i / stride, next = std::min(j + 1, m - 1);
+      const int expect = i % stride == 0 ? j % 2 : (j % 2) | (next % 2);
+      EXPECT_EQ(voted[i], expect) << stride << " " << i;
+    }
+  }
+  EXPECT_EQ(st.gather(xyz.data(), 0, 2), 0u);
 }
 
 TEST(RadixSort, SortByKeyIsStableAndMatchesStdStableSort) {

@@ -2,7 +2,8 @@
 //
 // run(): pack xyz (host, pinned) -> upload -> finite flags, scan, compaction + x/y bounds ->
 // [sync: count, bounds] -> column keys (CPU's cellIndex/spreadBits in double) -> stable radix
-// sort -> gather -> KNN on the device copy (CudaKnn's grid; it syncs once for its level choice)
+// sort -> gather -> [sample_stride > 1: every stride-th point] -> KNN on the device copy
+// (CudaKnn's grid; it syncs once for its level choice)
 // -> PCA + candidates -> vote -> tile keys -> stable sort -> tile heads / voted lists (scans) ->
 // RANSAC planes (one block per plane, work queue) -> distance test -> labels download.
 
@@ -79,8 +80,8 @@ struct CudaNormalPipeline::Impl {
   cudaEvent_t ev[kEvents] = {};
   CudaNormalTimings timings;
   DeviceBuffer in, flags, pos, raw_xyz, raw_src, keys_a, keys_b, vals_a, vals_b, xyz, src, cand,
-      voted, vflags, vpos, gflags, gpos, tile_begin, vlist, glist, planes, refine, labels, counters,
-      temp;
+      voted, sampled_xyz, sampled_voted, vflags, vpos, gflags, gpos, tile_begin, vlist, glist,
+      planes, refine, labels, counters, temp;
   PinnedBuffer h_in, h_small, h_labels;
 
   // The sections of run(), in their order; all on the KNN's stream `im.stream`.
@@ -99,8 +100,9 @@ struct CudaNormalPipeline::Impl {
   unsigned int compactFinite(CudaKnn::Impl& im, std::size_t n_in, XyBounds* bounds);
   /// Grid-column order of the n compacted points: xyz, src (event 2).
   void orderColumns(CudaKnn::Impl& im, int n, const XyBounds& bb, double cell_size);
-  /// PCA + candidates, vote (events 4, 5).
-  void candidatesAndVote(CudaKnn::Impl& im, int n, const GroundParamsDev& gp);
+  /// PCA + candidates, vote of the m searched points `q` into `out` (events 4, 5).
+  void candidatesAndVote(CudaKnn::Impl& im, const float* q, int m, const GroundParamsDev& gp,
+                         std::uint8_t* out);
   /// Tiles, RANSAC planes, distance test into `labels` (device, n_in entries; event 6).
   void planesAndLabels(CudaKnn::Impl& im, int n, std::size_t n_in, const XyBounds& bb,
                        const CudaNormalParams& prm, const GroundParamsDev& gp);
@@ -138,6 +140,10 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
     throw std::invalid_argument("CudaNormalPipeline::run: k = " + std::to_string(prm.k) +
                                 " is out of range [1, " + std::to_string(CudaKnn::kMaxK) + "]");
   }
+  if (prm.sample_stride < 1 || prm.sample_stride > 16) {
+    throw std::invalid_argument("CudaNormalPipeline::run: sample_stride = " +
+                                std::to_string(prm.sample_stride) + " is out of range [1, 16]");
+  }
   const std::size_t n_in = cloud.size();
   if (n_in >= (1u << 31) - 1) {
     throw std::invalid_argument("CudaNormalPipeline::run: " + std::to_string(n_in) +
@@ -158,14 +164,26 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   const int n = static_cast<int>(n_valid);
   pl.orderColumns(im, n, bb, prm.cell_size);
 
-  // ---- K nearest neighbours of the ordered points (lists stay on the device)
+  // ---- the sampled points (CPU: SampleStage), their K nearest neighbours (lists stay on the
+  //      device), PCA + candidates and vote; the others: OR of the samples before and after
+  const int stride = std::max(1, prm.sample_stride);
+  const int m = (n + stride - 1) / stride;
+  const float* q = pl.xyz.as<float>();
+  if (stride > 1) {
+    launchSampleGather(q, m, stride, pl.sampled_xyz.as<float>(), im.stream);
+    q = pl.sampled_xyz.as<float>();
+  }
   im.timings = CudaKnnTimings();
   im.stats = CudaKnnQueryStats();
-  im.searchOnDevice(pl.xyz.as<float>(), n, prm.k, nullptr, nullptr);
+  im.searchOnDevice(q, m, prm.k, nullptr, nullptr);
   GF_CUDA_CHECK(cudaEventRecord(pl.ev[3], im.stream));
 
   const GroundParamsDev gp = toDeviceParams(prm);
-  pl.candidatesAndVote(im, n, gp);
+  std::uint8_t* d_voted = pl.voted.as<std::uint8_t>();
+  pl.candidatesAndVote(im, q, m, gp, stride > 1 ? pl.sampled_voted.as<std::uint8_t>() : d_voted);
+  if (stride > 1) {
+    launchSpreadVotes(pl.sampled_voted.as<std::uint8_t>(), m, n, stride, d_voted, im.stream);
+  }
   pl.planesAndLabels(im, n, n_in, bb, prm, gp);
   pl.downloadLabels(im, n_in, labels);
   tm.total_ms = msSince(t_start);
@@ -200,6 +218,8 @@ void CudaNormalPipeline::Impl::growBuffers(CudaKnn::Impl& im, std::size_t n_in) 
   im.grow(src, n_in * u32, "the ordered points");
   im.grow(cand, n_in, "the candidates");
   im.grow(voted, n_in, "the votes");
+  im.grow(sampled_xyz, 3 * n_in * sizeof(float), "the sampled points");
+  im.grow(sampled_voted, n_in, "the votes");
   im.grow(vflags, (n_in + 1) * u32, "the tile lists");
   im.grow(vpos, (n_in + 1) * u32, "the tile lists");
   im.grow(gflags, (n_in + 1) * u32, "the tile lists");
@@ -294,15 +314,15 @@ void CudaNormalPipeline::Impl::orderColumns(CudaKnn::Impl& im, int n, const XyBo
 }
 
 // ---- PCA + candidates, vote
-void CudaNormalPipeline::Impl::candidatesAndVote(CudaKnn::Impl& im, int n,
-                                                 const GroundParamsDev& gp) {
+void CudaNormalPipeline::Impl::candidatesAndVote(CudaKnn::Impl& im, const float* q, int m,
+                                                 const GroundParamsDev& gp, std::uint8_t* out) {
   cudaStream_t st = im.stream;
   const float4* d_pts = im.sorted.as<float4>();
   const std::int32_t* d_rows = im.out_idx.as<std::int32_t>();
   std::uint8_t* d_cand = cand.as<std::uint8_t>();
-  launchPcaCandidates(xyz.as<float>(), d_pts, d_rows, n, gp, d_cand, candCount(), st);
+  launchPcaCandidates(q, d_pts, d_rows, m, gp, d_cand, candCount(), st);
   GF_CUDA_CHECK(cudaEventRecord(ev[4], st));
-  launchVote(d_pts, d_rows, n, gp, d_cand, candCount(), voted.as<std::uint8_t>(), st);
+  launchVote(d_pts, d_rows, m, gp, d_cand, candCount(), out, st);
   GF_CUDA_CHECK(cudaEventRecord(ev[5], st));
 }
 

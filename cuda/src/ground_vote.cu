@@ -63,7 +63,38 @@ __global__ void voteKernel(const float4* __restrict__ pts, const std::int32_t* _
   voted[o] = U * u > V * (m - u);
 }
 
+__global__ void sampleGatherKernel(const float* __restrict__ xyz, int m, int stride,
+                                   float* __restrict__ sampled) {
+  const int j = blockIdx.x * blockDim.x + threadIdx.x;
+  if (j >= m) return;
+  const std::size_t o = 3 * static_cast<std::size_t>(j) * stride;
+  sampled[3 * j] = xyz[o];
+  sampled[3 * j + 1] = xyz[o + 1];
+  sampled[3 * j + 2] = xyz[o + 2];
+}
+
+__global__ void spreadVotesKernel(const std::uint8_t* __restrict__ sampled_voted, int m, int n,
+                                  int stride, std::uint8_t* __restrict__ voted) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= n) return;
+  const int j = i / stride;
+  voted[i] =
+      i % stride == 0 ? sampled_voted[j] : (sampled_voted[j] | sampled_voted[min(j + 1, m - 1)]);
+}
+
 }  // namespace
+
+void launchSampleGather(const float* xyz, int m, int stride, float* sampled, cudaStream_t st) {
+  sampleGatherKernel<<<blocksFor(m, kThreads), kThreads, 0, st>>>(xyz, m, stride, sampled);
+  GF_CUDA_CHECK_LAUNCH();
+}
+
+void launchSpreadVotes(const std::uint8_t* sampled_voted, int m, int n, int stride,
+                       std::uint8_t* voted, cudaStream_t st) {
+  spreadVotesKernel<<<blocksFor(n, kThreads), kThreads, 0, st>>>(sampled_voted, m, n, stride,
+                                                                 voted);
+  GF_CUDA_CHECK_LAUNCH();
+}
 
 void launchPcaCandidates(const float* xyz, const float4* pts, const std::int32_t* rows, int n,
                          const GroundParamsDev& p, std::uint8_t* cand, unsigned int* cand_count,

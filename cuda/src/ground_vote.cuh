@@ -13,6 +13,12 @@
 namespace ground_filter {
 namespace cuda_impl {
 
+/// CPU: SampleStage::gather: sampled[j] = xyz[j * stride] (x y z packed), j < m.
+void launchSampleGather(const float* xyz, int m, int stride, float* sampled, cudaStream_t st);
+/// CPU: SampleStage::spread: a sampled point's vote, another point's the OR of the sampled
+/// points before and after it (m sampled points, n points).
+void launchSpreadVotes(const std::uint8_t* sampled_voted, int m, int n, int stride,
+                       std::uint8_t* voted, cudaStream_t st);
 /// PCA of every KNN row, flatness and normal test: cand[original index] (0/1); cand_count += them.
 void launchPcaCandidates(const float* xyz, const float4* pts, const std::int32_t* rows, int n,
                          const GroundParamsDev& p, std::uint8_t* cand, unsigned int* cand_count,

@@ -102,7 +102,7 @@ TEST_F(GpuPipelineTest, FilterOptionsGiveTheKdTreeLabels) {
     const char* what;
     gf::NormalGroundFilterParams p;
   };
-  std::vector<Case> cases(7);
+  std::vector<Case> cases(9);
   cases[0].what = "one plane";
   cases[0].p.local_planes = false;
   cases[1].what = "std band";
@@ -122,6 +122,13 @@ TEST_F(GpuPipelineTest, FilterOptionsGiveTheKdTreeLabels) {
   cases[6].what = "one plane, ransac_seed 7";
   cases[6].p.local_planes = false;
   cases[6].p.ransac_seed = 7;
+  cases[7].what = "every point sampled, k 64";
+  cases[7].p.sample_stride = 1;
+  cases[7].p.k = 64;
+  cases[8].what = "sample_stride 3, k 24, voted points only";
+  cases[8].p.sample_stride = 3;
+  cases[8].p.k = 24;
+  cases[8].p.plane_all_points = false;
   for (const auto& cs : cases) {
     const Compared c = compare(xyz, cs.p);
     EXPECT_EQ(c.sg.backend, "gpu") << cs.what << ": " << c.sg.note;

@@ -16,7 +16,8 @@ namespace ground_filter {
 /// \brief Parameters of CudaNormalPipeline::run(); the meaning of NormalGroundFilterParams's
 ///        fields of the same names (use_segments is not supported: the whole cloud is one set).
 struct CudaNormalParams {
-  int k = 50;                    ///< neighbours per point, itself included (1..CudaKnn::kMaxK)
+  int k = 50;                    ///< neighbours per sampled point, itself included (1..kMaxK)
+  int sample_stride = 1;         ///< normals and vote on every n-th ordered point (1..16)
   double cell_size = 0.10;       ///< x/y grid cell ordering points into columns [m]
   double min_abs_nz = 0.0;       ///< |n_z| of a candidate's and of a plane's normal, at least [1]
   double min_planarity = 0.0;    ///< flat: planarity dominant and >= this [1]

@@ -13,7 +13,9 @@ namespace ground_filter {
 ///        The airborne mode's morph_* fields come from MorphGroundParams.
 struct NormalGroundFilterParams : TableParams<NormalGroundFilterParams>, MorphGroundParams {
   double cell_size = 0.10;  ///< x/y grid cell ordering points into columns [m] (0.10)
-  int k = 64;  ///< neighbours per point, itself included [points] (64; paper 50; GPU k <= 64)
+  int k = 40;  ///< neighbours per sampled point, itself included [points] (40; paper 50; GPU <= 64)
+  int sample_stride =
+      2;  ///< normals and vote on every n-th point in column order [points] (2; paper 1)
   double min_normal_angle = 75.0;  ///< normal-to-horizontal window, low end [deg] (75; paper 80)
   double max_normal_angle =
       105.0;                     ///< normal-to-horizontal window, high end [deg] (105; paper 100)

@@ -14,6 +14,7 @@
 #include "normal/normal_settings.h"
 #include "normal/order.h"
 #include "normal/plane.h"
+#include "normal/sample.h"
 #include "normal/scatter_labels.h"
 #include "normal/stage_times.h"
 #include "normal/vegetation.h"
@@ -34,6 +35,7 @@ struct NormalGroundFilter::Impl {
   CudaNormalParams gpu_params;
   // Stages (scratch memory only).
   normal::OrderStage order;
+  normal::SampleStage sample;  // sample_stride > 1 only
   normal::NeighborhoodStage neighborhoods;
   normal::VoteStage vote;
   normal::PlaneStage plane;
@@ -150,8 +152,11 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     return;
   }
 
-  // 2-4. Per segment: neighbours (computed once), PCA + candidates, naive-Bayes vote.
+  // 2-4. Per segment: the sampled points (1b, every sample_stride-th), their neighbours
+  //      (computed once), PCA + candidates, naive-Bayes vote; each other point is voted when
+  //      the sampled point before or after it is.
   const double min_abs_nz = im.min_abs_nz;
+  const int stride = p.sample_stride;
   im.candidate.assign(n, 0);
   im.voted.assign(n, 0);
   normal::StageTimes& times = im.times;
@@ -159,12 +164,24 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   double vote_ms = 0.0;
   for (const auto& sg : ordered.segments) {
     const std::size_t b = sg.first, len = sg.second - sg.first;
-    const std::size_t candidates = im.neighborhoods.run(
-        im.search.get(), ordered.xyz.data() + 3 * b, len, p.k, threads, p.min_planarity, min_abs_nz,
-        &im.lists, im.candidate.data() + b, &times);
+    const float* pts = ordered.xyz.data() + 3 * b;
+    std::uint8_t* cand = im.candidate.data() + b;
+    std::uint8_t* vote = im.voted.data() + b;
+    std::size_t m = len;
+    if (stride > 1) {
+      t0 = Clock::now();
+      m = im.sample.gather(pts, len, stride);
+      pts = im.sample.sampledXyz();
+      cand = im.sample.candidates();
+      vote = im.sample.votes();
+      times.add("sample", msSince(t0));
+    }
+    const std::size_t candidates =
+        im.neighborhoods.run(im.search.get(), pts, m, p.k, threads, p.min_planarity, min_abs_nz,
+                             &im.lists, cand, &times);
     t0 = Clock::now();
-    im.vote.run(im.search.get(), im.lists, im.candidate.data() + b, len, candidates, p.bayes_vote,
-                threads, im.voted.data() + b);
+    im.vote.run(im.search.get(), im.lists, cand, m, candidates, p.bayes_vote, threads, vote);
+    if (stride > 1) im.sample.spread(len, stride, im.voted.data() + b);
     vote_ms += msSince(t0);
   }
   // The backend that really ran (a GPU search may fall back to the kd-tree for one scan).

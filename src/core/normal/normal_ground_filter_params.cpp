@@ -21,7 +21,8 @@ const ParamTable<NormalGroundFilterParams>& NormalGroundFilterParams::table() {
   using P = NormalGroundFilterParams;
   static const ParamTable<P> rows = withSharedParamRows<P>({
       {"knn_backend", &P::knn_backend, 0, 0, "enum", "kdtree (CPU) | gpu (whole filter on CUDA)"},
-      {"k", &P::k, 3, 256, "points", "neighbours per point, the point itself included"},
+      {"k", &P::k, 3, 256, "points", "neighbours per sampled point, itself included"},
+      {"sample_stride", &P::sample_stride, 1, 16, "points", "normals on every n-th point"},
       {"cell_size", &P::cell_size, 0.001, 1000.0, "m", "x/y grid cell ordering points"},
       {"min_normal_angle", &P::min_normal_angle, 0.0, 90.0, "deg", "normal window, low end"},
       {"max_normal_angle", &P::max_normal_angle, 90.0, 180.0, "deg", "normal window, high end"},
@@ -83,6 +84,7 @@ bool gpuSupports(const NormalGroundFilterParams& p) {
 CudaNormalParams gpuNormalParams(const NormalGroundFilterParams& p) {
   CudaNormalParams g;
   g.k = p.k;
+  g.sample_stride = p.sample_stride;
   g.cell_size = p.cell_size;
   g.min_abs_nz = minAbsNormalZ(p);
   g.min_planarity = p.min_planarity;
