@@ -75,7 +75,8 @@ failed=0
 # The gtests under emulation. By default a subset (qemu runs them 10-40x slower than native):
 # every SIMD-level test except the 5 M-point one, the voxel filter's known-answer tests except
 # its large scenes and thread-count sweeps, the working volume, the GPU fallback (no GPU: the
-# kd-tree path) and the scene generator without its TLS scans. The whole set with
+# kd-tree path), the scene generator without its TLS scans, and the kd-tree's exact lists on
+# every query path (portable and NEON against brute force and each other). The whole set with
 # GF_ARM64_FULL=1.
 declare -A filters=(
   [test_simd_levels]='-SimdLevels.FiveMillionPointsAtEveryLevel'
@@ -84,10 +85,11 @@ declare -A filters=(
   [test_working_volume]='*'
   [test_gpu_fallback]='*'
   [test_scene_generator]='-*Tls*'
+  [test_kdtree_neighbor_search]='*'
 )
 export GF_TEST_LAUNCHER="${QEMU[*]}"  # SimdLevels.EnvironmentIsReadOncePerProcess starts itself
 for t in test_simd_levels test_core test_voxel_scale test_working_volume test_gpu_fallback \
-  test_scene_generator; do
+  test_scene_generator test_kdtree_neighbor_search; do
   filter="${filters[${t}]}"
   [[ "${GF_ARM64_FULL:-0}" == 1 ]] && filter='*'
   args=(--gtest_filter="${filter}" --gtest_brief=1)
@@ -103,7 +105,7 @@ for t in test_simd_levels test_core test_voxel_scale test_working_volume test_gp
 done
 
 # Labels: the KITTI dev frames, x86-64 (its best SIMD level and portable) against aarch64 under
-# qemu (its level neon: today the same code as portable there).
+# qemu (its level neon: NEON kd-tree queries, PCA sums and voxel passes; and portable).
 frames=()
 for f in 0 1 2 3 4 5; do
   [[ -f "${DATA}/semantickitti/seq00/00000${f}.bin" ]] && frames+=("${DATA}/semantickitti/seq00/00000${f}.bin")
@@ -122,12 +124,13 @@ out="${BUILD}/labels"
 rm -rf "${out}"
 for name in voxel voxel_one_plane normal; do
   read -r -a cfg <<<"${configs[${name}]}"
-  for run in x86 x86_portable arm64; do
+  for run in x86 x86_portable arm64 arm64_portable; do
     mkdir -p "${out}/${name}/${run}"
     case "${run}" in
       x86) cmd=(env -u GF_SIMD "${BUILD}/x86/label_scans") ;;
       x86_portable) cmd=(env GF_SIMD=portable "${BUILD}/x86/label_scans") ;;
       arm64) cmd=(env -u GF_SIMD "${QEMU[@]}" "${BUILD}/arm64/label_scans") ;;
+      arm64_portable) cmd=(env GF_SIMD=portable "${QEMU[@]}" "${BUILD}/arm64/label_scans") ;;
     esac
     step "labels ${name} ${run}"
     "${cmd[@]}" "${out}/${name}/${run}" "${cfg[@]}" -- "${frames[@]}" | sed 's/, [0-9.]* ms$//'
@@ -135,7 +138,7 @@ for name in voxel voxel_one_plane normal; do
   for f in "${frames[@]}"; do
     b="$(basename "${f}" .bin).labels"
     ref="${out}/${name}/x86/${b}"
-    for run in x86_portable arm64; do
+    for run in x86_portable arm64 arm64_portable; do
       if [[ ! -s "${ref}" || ! -s "${out}/${name}/${run}/${b}" ]] ||
         [[ $(stat -c %s "${ref}") != $(stat -c %s "${out}/${name}/${run}/${b}") ]]; then
         echo "check_arm64: ${name} ${b}: ${run} labels missing or of another length" >&2

@@ -2,13 +2,17 @@
 #ifndef GROUND_FILTER_TEST_GF_TEST_POINTS_H
 #define GROUND_FILTER_TEST_GF_TEST_POINTS_H
 
+#include <cmath>
 #include <cstddef>
+#include <fstream>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "ground_filter/cloud_view.h"
+#ifndef GF_TEST_NO_SCAN_IO
 #include "ground_filter/io/scan_io.h"
+#endif
 
 namespace gf_test {
 
@@ -34,6 +38,22 @@ inline std::vector<float> randomCloud(std::size_t n, unsigned seed, bool cluster
   return c;
 }
 
+#ifdef GF_TEST_NO_SCAN_IO
+/// \brief Builds without PCL (test/core_only): the finite points of a KITTI .bin scan (float32
+///        x y z intensity records), x y z packed; no points for any other file.
+inline std::vector<float> finiteXyzOf(const std::string& file) {
+  std::vector<float> c;
+  if (file.size() < 4 || file.compare(file.size() - 4, 4, ".bin") != 0) return c;
+  std::ifstream in(file, std::ios::binary);
+  float r[4];
+  while (in.read(reinterpret_cast<char*>(r), sizeof(r))) {
+    if (std::isfinite(r[0]) && std::isfinite(r[1]) && std::isfinite(r[2])) {
+      c.insert(c.end(), {r[0], r[1], r[2]});
+    }
+  }
+  return c;
+}
+#else
 /// \brief The finite points of a scan file (ground_filter::loadScan()), x y z packed.
 inline std::vector<float> finiteXyzOf(const std::string& file) {
   const ground_filter::Scan scan = ground_filter::loadScan(file);
@@ -45,6 +65,7 @@ inline std::vector<float> finiteXyzOf(const std::string& file) {
   }
   return c;
 }
+#endif  // GF_TEST_NO_SCAN_IO
 
 }  // namespace gf_test
 

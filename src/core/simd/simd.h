@@ -11,9 +11,8 @@ namespace simd {
 ///        gives the same labels; a level only changes speed.
 ///
 /// kPortable: plain C++ (what any CPU runs); kSse: SSE2/SSE4 intrinsics (x86-64);
-/// kNeon: aarch64 (Advanced SIMD is part of it): the neighbourhood PCA sums; the rest runs
-/// the portable code; kAvx2: AVX2 + FMA-free arithmetic (x86-64);
-/// kAvx512: AVX-512F (x86-64).
+/// kNeon: aarch64 (Advanced SIMD is part of it): kd-tree queries, neighbourhood PCA sums,
+/// voxel point passes; kAvx2: AVX2 + FMA-free arithmetic (x86-64); kAvx512: AVX-512F (x86-64).
 enum class Level : int { kPortable = 0, kSse = 1, kNeon = 2, kAvx2 = 3, kAvx512 = 4 };
 
 /// \brief Lower-case name ("portable", "sse", "neon", "avx2", "avx512").

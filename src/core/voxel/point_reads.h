@@ -1,5 +1,5 @@
 // Private to the voxel filter: how the voxelizer's passes read a point (the V4 operations,
-// SSE2 or plain floats, and where x y z come from), shared by prepare() (voxelize.cpp) and
+// SSE2, NEON or plain floats, and where x y z come from), shared by prepare() (voxelize.cpp) and
 // build() (voxelize_build.cpp).
 #ifndef GROUND_FILTER_SRC_CORE_VOXEL_POINT_READS_H
 #define GROUND_FILTER_SRC_CORE_VOXEL_POINT_READS_H
@@ -14,16 +14,18 @@
 #include <type_traits>
 
 #include "ground_filter/cloud_view.h"
+#include "simd/neon_common.h"
 #include "voxel/avx2_passes.h"
 #include "voxel/voxelize.h"
 
 namespace ground_filter {
 namespace voxel {
 
-// Four floats x y z 0 of one point, two implementations with the same results lane by lane,
-// chosen per scan (Voxelizer::prepare()): Sse (SSE2, every x86-64, SIMD level sse and up) and
-// Plain (plain floats: SIMD level portable, and what aarch64 runs). Each one's operations are
-// static functions; the passes below are templates on the implementation (O).
+// Four floats x y z 0 of one point, implementations with the same results lane by lane, chosen
+// per scan (Voxelizer::prepare()): the vector one of the architecture, Sse (SSE2, every x86-64,
+// SIMD level sse and up) or Neon (every aarch64, SIMD level neon), and Plain (plain floats: SIMD
+// level portable). Each one's operations are static functions; the passes below are templates
+// on the implementation (O).
 struct Plain {
   struct V {
     float v[4];
@@ -74,6 +76,10 @@ struct Sse {
   using V = __m128;
   static V v4Load(const float* p) { return _mm_load_ps(p); }  // p 16-byte aligned
   static V v4LoadUnaligned(const float* p) { return _mm_loadu_ps(p); }
+  // x y z of p[0..2] and lane 3 zero (p[3] is read: it must exist).
+  static V v4LoadXyz0(const float* p) {
+    return _mm_and_ps(_mm_loadu_ps(p), _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1)));
+  }
   static void v4Store(float* p, V v) { _mm_store_ps(p, v); }
   static V v4Set(float x, float y, float z) { return _mm_set_ps(0.f, z, y, x); }
   static V v4Splat(float a) { return _mm_set1_ps(a); }
@@ -121,17 +127,66 @@ struct Sse {
     out[2] = static_cast<std::uint32_t>(_mm_cvtsi128_si32(_mm_srli_si128(q, 8)));
   }
 };
-constexpr bool kHaveSse = true;
+using Vec = Sse;
+constexpr bool kHaveVec = true;
+#elif GF_HAVE_NEON_PATHS
+struct Neon {
+  using V = float32x4_t;
+  static V v4Load(const float* p) { return vld1q_f32(p); }
+  static V v4LoadUnaligned(const float* p) { return vld1q_f32(p); }
+  static V v4LoadXyz0(const float* p) {  // see Sse::v4LoadXyz0()
+    const uint32x4_t xyz = {~0u, ~0u, ~0u, 0u};
+    return vreinterpretq_f32_u32(
+        vandq_u32(vld1q_u32(reinterpret_cast<const std::uint32_t*>(p)), xyz));
+  }
+  static void v4Store(float* p, V v) { vst1q_f32(p, v); }
+  static V v4Set(float x, float y, float z) { return V{x, y, z, 0.f}; }
+  static V v4Splat(float a) { return vdupq_n_f32(a); }
+  static V v4Sub(V a, V b) { return vsubq_f32(a, b); }
+  // a < b ? a : b and a > b ? a : b, as Plain and SSE (fmin / fmax differ for NaN).
+  static V v4Min(V a, V b) { return vbslq_f32(vcltq_f32(a, b), a, b); }
+  static V v4Max(V a, V b) { return vbslq_f32(vcgtq_f32(a, b), a, b); }
+  static V v4Add(V a, V b) { return vaddq_f32(a, b); }
+  static void v4StoreUnaligned(float* p, V v) { vst1q_f32(p, v); }
+  static V v4WithNegZ(V p) { return vsetq_lane_f32(-vgetq_lane_f32(p, 2), p, 3); }
+  static V v4SumsAndRange(V s, V h) {
+    return vsetq_lane_f32(vgetq_lane_f32(h, 3) + vgetq_lane_f32(h, 2), s, 3);
+  }
+  static bool v4Finite(V p) {  // as Sse::v4Finite()
+    return vminvq_u32(vceqq_f32(vsubq_f32(p, p), vdupq_n_f32(0.f))) != 0;
+  }
+  static V v4ZeroIf(V s, bool restart) {  // bit masks, as Sse
+    return vreinterpretq_f32_u32(
+        vandq_u32(vreinterpretq_u32_f32(s), vdupq_n_u32(restart ? 0u : ~0u)));
+  }
+  static V v4LowestIf(V h, bool restart) {
+    return vbslq_f32(vdupq_n_u32(restart ? ~0u : 0u),
+                     vdupq_n_f32(-std::numeric_limits<float>::infinity()), h);
+  }
+  // min(int(p * inv), last) per lane (p >= 0 and below 2^22, as Sse).
+  static void v4Cells(V p, float inv, const std::int32_t* last, std::uint32_t* out) {
+    const int32x4_t q = vminq_s32(vcvtq_s32_f32(vmulq_n_f32(p, inv)), vld1q_s32(last));
+    out[0] = static_cast<std::uint32_t>(vgetq_lane_s32(q, 0));
+    out[1] = static_cast<std::uint32_t>(vgetq_lane_s32(q, 1));
+    out[2] = static_cast<std::uint32_t>(vgetq_lane_s32(q, 2));
+  }
+};
+using Vec = Neon;
+constexpr bool kHaveVec = true;
 #else
-using Sse = Plain;  // never chosen (kHaveSse): Voxelizer::useSse() is false
-constexpr bool kHaveSse = false;
+using Vec = Plain;  // never chosen (kHaveVec): Voxelizer::useVector() is false
+constexpr bool kHaveVec = false;
 #endif
 
-// Calls f(O{}) with the implementation of the V4 operations: Sse or Plain.
+// Whether O is a vector implementation (reads records in place, DirectPoints).
+template <class O>
+constexpr bool kIsVector = !std::is_same<O, Plain>::value;
+
+// Calls f(O{}) with the implementation of the V4 operations: Vec or Plain.
 template <class F>
-void withOps(bool sse, F&& f) {
-  if (kHaveSse && sse) {
-    f(Sse{});
+void withOps(bool vec, F&& f) {
+  if (kHaveVec && vec) {
+    f(Vec{});
   } else {
     f(Plain{});
   }
@@ -162,45 +217,41 @@ struct FieldPoints {
   const void* address(std::size_t i) const { return view.data() + i * view.stride(); }
   std::size_t stride() const { return view.stride(); }
 };
-#if defined(__SSE2__)
+// The input records in place (x y z adjacent, vector implementations only).
+template <class O>
 struct DirectPoints {
+  using V4 = typename O::V;
   Voxelizer::DirectRead d;
-  __m128 load(std::size_t i) const {
+  V4 load(std::size_t i) const {
     const std::uint8_t* r = d.x + i * d.step;
     if (i < d.vector_end) {  // taken for all but the last record of packed x y z clouds
-      return _mm_and_ps(_mm_loadu_ps(reinterpret_cast<const float*>(r)),
-                        _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1)));
+      return O::v4LoadXyz0(reinterpret_cast<const float*>(r));
     }
     float c[3];
     std::memcpy(c, r, sizeof(c));
-    return Sse::v4Set(c[0], c[1], c[2]);
+    return O::v4Set(c[0], c[1], c[2]);
   }
   // x y z and a fourth lane of any value (the gather replaces it: no mask).
-  __m128 loadXyz(std::size_t i) const {
-    return i < d.vector_end ? _mm_loadu_ps(reinterpret_cast<const float*>(d.x + i * d.step))
+  V4 loadXyz(std::size_t i) const {
+    return i < d.vector_end ? O::v4LoadUnaligned(reinterpret_cast<const float*>(d.x + i * d.step))
                             : load(i);
   }
   const void* address(std::size_t i) const { return d.x + i * d.step; }
   std::size_t stride() const { return d.step; }
   DirectRead rows() const { return d; }
 };
-#endif
 
 // Calls f with where the key pass and the gather read the points: `copy` (x y z 0 per point),
-// or, Sse only, the input records in place when there is no copy (prepare() makes the copy
-// for every layout when it runs Plain).
+// or, vector implementations only, the input records in place when there is no copy (prepare()
+// makes the copy for every layout when it runs Plain).
 template <class O, class F>
 void withPoints(const Voxelizer::DirectRead& direct, const float* copy, F&& f) {
-#if defined(__SSE2__)
-  if constexpr (std::is_same<O, Sse>::value) {
+  if constexpr (kIsVector<O>) {
     if (!copy) {
-      f(DirectPoints{direct});
+      f(DirectPoints<O>{direct});
       return;
     }
   }
-#else
-  (void)direct;
-#endif
   f(CopyPoints<O>{copy});
 }
 

@@ -22,8 +22,8 @@ constexpr std::size_t kReadAhead = 32;
 
 // Keys (of the coordinates relative to the min corner) and digit counts of the valid points among
 // input [begin, end) (read from `pts`: the copy of scanBounds() or the input), written from slot
-// `slot` on. SSE2 (every x86-64): one point per vector; the arithmetic is the scalar one lane by
-// lane.
+// `slot` on. SSE2 (every x86-64) or NEON (aarch64): one point per vector; the arithmetic is the
+// scalar one lane by lane.
 template <class O, bool kPacked, bool kAllValid, int kPasses, class Points>
 void computeKeysT(const KeyJob job, const Points pts, std::size_t begin, std::size_t end,
                   std::size_t slot) {
@@ -119,19 +119,15 @@ void Voxelizer::scanBounds(const CloudView& cloud, const DirectRead& direct, flo
       hi = O::v4Max(p, hi);
     }
   };
-#if defined(__SSE2__)
-  if constexpr (std::is_same<O, Sse>::value) {
+  if constexpr (kIsVector<O>) {
     if (direct.x) {
-      scan(DirectPoints{direct});
+      scan(DirectPoints<O>{direct});
     } else {
       scan(FieldPoints<O>{cloud});
     }
   } else {
     scan(FieldPoints<O>{cloud});
   }
-#else
-  scan(FieldPoints<O>{cloud});
-#endif
   ch->valid = valid;
   alignas(16) float l[4], h[4];
   O::v4Store(l, lo);
@@ -142,7 +138,9 @@ void Voxelizer::scanBounds(const CloudView& cloud, const DirectRead& direct, flo
   }
 }
 
-bool Voxelizer::useSse() { return kHaveSse && simd::allows(simd::Level::kSse); }
+bool Voxelizer::useVector() {
+  return kHaveVec && (simd::allows(simd::Level::kSse) || simd::allows(simd::Level::kNeon));
+}
 
 void CellGrid::setup(const VoxelGroundFilterParams& p, std::uint64_t nx, std::uint64_t ny) {
   std::uint64_t border = 0;
@@ -173,8 +171,8 @@ void CellGrid::setup(const VoxelGroundFilterParams& p, std::uint64_t nx, std::ui
 std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, WorkerPool* pool,
                                const WorkingVolume* volume, VoxelGrid* g) {
   // The level of this scan, kept for build() (its point reads follow prepare()'s layout).
-  sse_ = useSse();
-  avx2_ = sse_ && useAvx2();
+  vec_ = useVector();
+  avx2_ = vec_ && useAvx2();
   const bool avx2 = avx2_;
   const std::size_t n_in = cloud.size();
   const int nt = threads > 1 && n_in >= kParallelMinPoints ? threads : 1;
@@ -186,21 +184,19 @@ std::size_t Voxelizer::prepare(const CloudView& cloud, double vs, int threads, W
   }
   // Layout: x y z adjacent in every record are read with one 16-byte load a point, except the
   // records that have fewer than 16 bytes left from x on (the last one of packed x y z).
-  // Plain (SIMD level portable, aarch64) always reads the copy, as aarch64 does.
+  // Plain (SIMD level portable) always reads the copy.
   direct_ = DirectRead();
-#if defined(__SSE2__)
-  if (sse_ && cloud.xyzAdjacent()) {
+  if (vec_ && cloud.xyzAdjacent()) {
     const std::size_t xo = cloud.xOffset(), step = cloud.stride(), bytes = n_in * step;
     direct_.x = cloud.data() + xo;
     direct_.step = step;
     direct_.vector_end =
         cloud.xyzFollowedByFloat() ? n_in : (bytes >= xo + 16 ? (bytes - xo - 16) / step + 1 : 0);
   }
-#endif
   // Pass 1: bounds and number of the valid points of every chunk (and the copy, copied()).
   if (copied()) resizeScratch(&pxyz_, 4 * n_in);
   float* const copy = copied() ? pxyz_.data() : nullptr;
-  withOps(sse_, [&](auto ops) {
+  withOps(vec_, [&](auto ops) {
     using O = decltype(ops);
     pool->run(nt, nch, [&](int, int c) { scanBounds<O>(cloud, direct_, copy, avx2, &chunks_[c]); });
   });
@@ -299,7 +295,7 @@ void Voxelizer::keyPass(double vs, int key_bits, std::size_t n, int nt, int nch,
     KeyJob own = job;
     own.hist = job.hist + per * static_cast<std::size_t>(t);
     const Chunk& ch = chunks_[c];
-    withOps(sse_, [&](auto ops) {
+    withOps(vec_, [&](auto ops) {
       using O = decltype(ops);
       withPoints<O>(direct_, copy, [&](const auto& pts) {
         computeKeys<O>(own, pts, ch.begin, ch.end, ch.out, avx2);

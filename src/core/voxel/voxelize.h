@@ -45,9 +45,10 @@ class Voxelizer {
   /// \brief Whether prepare() and build() may run their AVX2 passes (default: yes, where the
   ///        SIMD level in force, simd::active(), includes AVX2); tests compare both paths.
   void setUseAvx2(bool use) { use_avx2_ = use; }
-  /// \brief Whether the passes over points use SSE2 vectors (SIMD level sse and up on x86-64)
-  ///        or plain floats (level portable; aarch64): the same keys, bounds and sums.
-  static bool useSse();
+  /// \brief Whether the passes over points use vectors of 4 floats, SSE2 (SIMD level sse and up
+  ///        on x86-64) or NEON (level neon on aarch64), or plain floats (level portable): the
+  ///        same keys, bounds and sums.
+  static bool useVector();
 
  private:
   // Whether the AVX2 passes run: allowed here and by the SIMD level in force.
@@ -83,7 +84,7 @@ class Voxelizer {
   // (a wide record read twice at random in the gather cost more than the copy: os128).
   std::vector<float> pxyz_;
   bool use_avx2_ = true;
-  bool sse_ = false, avx2_ = false;  // this scan's passes (prepare(); build() keeps them)
+  bool vec_ = false, avx2_ = false;  // this scan's passes (prepare(); build() keeps them)
   std::size_t parallel_min_points_ = kParallelSortMinPoints;
   std::vector<std::uint32_t> block_counts_;      // sort() on several threads: digits per block
   std::vector<std::size_t> range_, voxel_base_;  // build(): points and first voxel per range

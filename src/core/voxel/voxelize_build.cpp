@@ -198,7 +198,7 @@ std::size_t Voxelizer::gatherPoints(int nt, WorkerPool* pool, VoxelGrid* g) {
   std::copy(min_, min_ + 3, job.min);
   job.min[3] = -min_[2];
   std::size_t nv = 0;
-  withOps(sse_, [&](auto ops) {
+  withOps(vec_, [&](auto ops) {
     using O = decltype(ops);
     withPoints<O>(direct_, copied() ? pxyz_.data() : nullptr, [&](const auto& pts) {
       if (nt == 1) {

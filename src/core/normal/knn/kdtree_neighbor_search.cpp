@@ -167,7 +167,6 @@ void KdTreeNeighborSearch::queryChunks(const float* xyz, std::size_t kk, bool ke
                                        NeighborLists* out, std::vector<PointPca>* pca,
                                        const CandidateTest* test, std::uint8_t* candidate,
                                        int threads) {
-  using kdtree::kMaxAvx2K;
   using kdtree::kMaxAvx512K;
   const KdTree& im = impl_->tree;
   const std::size_t n = im.pidx.size();
@@ -179,7 +178,11 @@ void KdTreeNeighborSearch::queryChunks(const float* xyz, std::size_t kk, bool ke
   const std::int64_t chunks = static_cast<std::int64_t>((n + kChunk - 1) / kChunk);
   const bool avx512 = use_avx512_ && kk <= kMaxAvx512K && simd::allows(simd::Level::kAvx512);
 #if GF_HAVE_AVX2_PATHS
-  const bool avx2 = !avx512 && has_avx2_ && kk <= kMaxAvx2K && simd::allows(simd::Level::kAvx2);
+  const bool avx2 =
+      !avx512 && has_avx2_ && kk <= kdtree::kMaxAvx2K && simd::allows(simd::Level::kAvx2);
+#endif
+#if GF_HAVE_NEON_PATHS
+  const bool neon = kk <= kdtree::kMaxNeonK && simd::allows(simd::Level::kNeon);
 #endif
   double knn_cpu = 0.0, pca_cpu = 0.0;  // summed over threads, to split the wall time
   std::size_t c_invalid = 0, c_early = 0, c_fast = 0, c_exact = 0;
@@ -198,6 +201,11 @@ void KdTreeNeighborSearch::queryChunks(const float* xyz, std::size_t kk, bool ke
 #if GF_HAVE_AVX2_PATHS
         if (avx2) {
       kdtree::queryRangeAvx2(im, pb, pe, static_cast<int>(kk), out_idx, out_dist);
+    } else
+#endif
+#if GF_HAVE_NEON_PATHS
+        if (neon) {
+      kdtree::queryRangeNeon(im, pb, pe, static_cast<int>(kk), out_idx, out_dist);
     } else
 #endif
     {

@@ -15,6 +15,7 @@
 
 #include "simd/avx2_common.h"
 #include "simd/avx512_common.h"
+#include "simd/neon_common.h"
 
 #if defined(__GNUC__)
 #define GF_KNN_ALWAYS_INLINE inline __attribute__((always_inline))
@@ -40,8 +41,9 @@
 // - With AVX-512 (checked at run time) candidates within the bound are computed 16 at a time and
 //   kept in a buffer; full buffers are sorted by a bitonic network and merged into the sorted
 //   top K (no per-candidate branches). With AVX2 only, the same scheme 8 distances at a time
-//   (candidates packed by a permutation table) and 4 keys per register. Otherwise a sorted array
-//   with insertion is used. The SIMD level in force (simd.h, GF_SIMD) picks among them.
+//   (candidates packed by a permutation table) and 4 keys per register; with NEON (aarch64) 4
+//   distances at a time and 2 keys per register. Otherwise a sorted array with insertion is used.
+//   The SIMD level in force (simd.h, GF_SIMD) picks among them.
 
 namespace ground_filter {
 namespace kdtree {
@@ -295,6 +297,12 @@ GF_TARGET_AVX512 void queryRangeAvx512(const Tree& t, std::size_t pb, std::size_
 #if GF_HAVE_AVX2_PATHS
 GF_TARGET_AVX2_PATHS void queryRangeAvx2(const Tree& t, std::size_t pb, std::size_t pe, int k,
                                          std::int32_t* out_idx, float* out_dist);
+#endif
+/// Largest K of the NEON code (128 registers of keys); larger K use the portable code.
+constexpr std::size_t kMaxNeonK = 256;
+#if GF_HAVE_NEON_PATHS
+void queryRangeNeon(const Tree& t, std::size_t pb, std::size_t pe, int k, std::int32_t* out_idx,
+                    float* out_dist);
 #endif
 /// Whether this CPU (and build) runs the AVX-512 / AVX2 query code.
 bool cpuHasAvx512();

@@ -18,14 +18,8 @@
 #include "common/threads_timing.h"
 #include "simd/avx2_common.h"
 #include "simd/avx512_common.h"
+#include "simd/neon_common.h"
 #include "simd/simd.h"
-
-#if defined(__aarch64__) && defined(__ARM_NEON)
-#include <arm_neon.h>
-#define GF_HAVE_NEON_PATHS 1
-#else
-#define GF_HAVE_NEON_PATHS 0
-#endif
 
 namespace ground_filter {
 
@@ -248,14 +242,9 @@ bool haveAvx2() { return false; }
 // [sxz syz], [syy szz], and sz in a scalar; each lane added to in neighbour order as in
 // sumsScalar(), products not fused (the same bits).
 
-/// Keeps the compiler from fusing a product into a later addition (as simd::opaque()).
-inline float64x2_t opaqueNeon(float64x2_t v) {
-  asm("" : "+w"(v));
-  return v;
-}
-
 /// sumsScalar() of a full row (k valid entries), the same bits.
 void sumsNeon(const float* xyz, const std::int32_t* row, int k, std::size_t query, Moments* s) {
+  using simd::neon::opaque;
   const float* q = xyz + 3 * query;
   const float64x2_t oxy = vcvt_f64_f32(vld1_f32(q));
   const double oz = q[2];
@@ -268,9 +257,9 @@ void sumsNeon(const float* xyz, const std::int32_t* row, int k, std::size_t quer
     const float64x2_t yz = vsetq_lane_f64(dz, vdupq_laneq_f64(d, 1), 1);  // dy dz
     s_xy = vaddq_f64(s_xy, d);
     sz += dz;
-    s_xx_xy = vaddq_f64(s_xx_xy, opaqueNeon(vmulq_laneq_f64(d, d, 0)));  // dx dx, dy dx
-    s_xz_yz = vaddq_f64(s_xz_yz, opaqueNeon(vmulq_n_f64(d, dz)));        // dx dz, dy dz
-    s_yy_zz = vaddq_f64(s_yy_zz, opaqueNeon(vmulq_f64(yz, yz)));         // dy dy, dz dz
+    s_xx_xy = vaddq_f64(s_xx_xy, opaque(vmulq_laneq_f64(d, d, 0)));  // dx dx, dy dx
+    s_xz_yz = vaddq_f64(s_xz_yz, opaque(vmulq_n_f64(d, dz)));        // dx dz, dy dz
+    s_yy_zz = vaddq_f64(s_yy_zz, opaque(vmulq_f64(yz, yz)));         // dy dy, dz dz
   }
   *s = Moments{vgetq_lane_f64(s_xy, 0),
                vgetq_lane_f64(s_xy, 1),
