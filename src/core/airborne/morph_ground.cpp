@@ -369,10 +369,20 @@ std::size_t MorphGround::run(const CloudView& cloud, const MorphGroundSettings& 
   //     break is continuous, a roof or a crown on a slope stands above its surroundings.
   terrainSlope(c, rmax);
   if (*std::max_element(tslope_.begin(), tslope_.end()) > s.slope) {
+    //     The provisional surface is flattened where the first pass cut a crest, so the slope
+    //     measured there is too low; a later pass measures it again on the last pass's surface
+    //     (stopping early when no cell changed).
     object1_.swap(object_);
-    openObjects(s, c, rmax, &tslope_, &object_);
-    joinTerrain(s, c);
-    surfaceWithoutObjects();
+    for (int pass = 0; pass < kSteepPasses; ++pass) {
+      if (pass > 0) {
+        terrainSlope(c, rmax);
+        prev_object_ = object_;
+      }
+      openObjects(s, c, rmax, &tslope_, &object_);
+      joinTerrain(s, c);
+      surfaceWithoutObjects();
+      if (pass > 0 && object_ == prev_object_) break;
+    }
   }
 
   // 4. Gradient magnitude (central differences, one-sided at the border).

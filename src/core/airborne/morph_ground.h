@@ -46,6 +46,9 @@ class MorphGround {
   static constexpr double kLowOutlierRadius = 3.0;
   static constexpr double kLowOutlierDrop = 2.0;
   static constexpr int kLowOutlierMinNeighbours = 6;
+  /// \brief Steep-terrain passes at most (the second measures the terrain slope again on the
+  ///        first's surface, which keeps more of a crest; skipped when nothing changes).
+  static constexpr int kSteepPasses = 2;
 
  private:
   void fill(std::vector<float>* z);  // fill NaN cells (nearest rings, then Laplace sweeps)
@@ -64,7 +67,7 @@ class MorphGround {
   std::vector<std::int32_t> cell_start_, cell_pts_;  // points bucketed by cell
   std::vector<float> zmin_, zfill_, tmp_, eroded_, opened_, dem_, grad_, tslope_;
   std::vector<float> pad_;  // erode(): one row between two sentinels
-  std::vector<std::uint8_t> object_, object1_, known_;
+  std::vector<std::uint8_t> object_, object1_, prev_object_, known_;
   std::vector<std::int32_t> frontier_, next_, gaps_;
   std::vector<float> fill_vals_;  // fill(): the values of one ring
 };
