@@ -261,6 +261,9 @@ void MorphGround::dropLowOutliers(const CloudView& cloud, double c) {
   }
   const int rc = static_cast<int>(std::ceil(kLowOutlierRadius / c));
   const double r2 = kLowOutlierRadius * kLowOutlierRadius;
+  // Cells within +-rs lie wholly within the radius of any point of the centre cell.
+  const int rs =
+      std::max(0, static_cast<int>(std::floor(kLowOutlierRadius / (c * std::sqrt(2.0)))) - 1);
   gaps_.clear();  // the cells whose minimum is an outlier
   for (int y = 0; y < ny_; ++y) {
     for (int x = 0; x < nx_; ++x) {
@@ -273,6 +276,14 @@ void MorphGround::dropLowOutliers(const CloudView& cloud, double c) {
       const double mx = cloud.x(m), my = cloud.y(m), mz = cloud.z(m);
       int count = 0;
       bool near = false;
+      // Shortcut: a neighbour cell lying wholly within the radius whose minimum is near.
+      for (int dy = -rs; dy <= rs && !near; ++dy) {
+        for (int dx = -rs; dx <= rs && !near; ++dx) {
+          const int xx = x + dx, yy = y + dy;
+          if ((dx == 0 && dy == 0) || xx < 0 || yy < 0 || xx >= nx_ || yy >= ny_) continue;
+          near = zmin_[static_cast<std::size_t>(yy) * nx_ + xx] - mz < kLowOutlierDrop;  // NaN: no
+        }
+      }
       for (int yy = std::max(0, y - rc); yy <= std::min(ny_ - 1, y + rc) && !near; ++yy) {
         for (int xx = std::max(0, x - rc); xx <= std::min(nx_ - 1, x + rc) && !near; ++xx) {
           const std::size_t kk = static_cast<std::size_t>(yy) * nx_ + xx;
