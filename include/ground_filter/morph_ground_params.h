@@ -12,7 +12,7 @@ namespace ground_filter {
 struct MorphGroundParams {
   bool morph_ground = false;   ///< airborne: morphological ground surface [bool] (false)
   double morph_cell = 1.0;     ///< morph: raster cell edge [m] (1.0)
-  double morph_slope = 0.15;   ///< morph: terrain slope the opening keeps, rise/run [1] (0.15)
+  double morph_slope = 0.1;    ///< morph: terrain slope the opening keeps, rise/run [1] (0.1)
   double morph_window = 18.0;  ///< morph: largest opening radius [m] (18)
   double morph_scale = 1.25;  ///< morph: plane_distance grows by this x surface gradient [m] (1.25)
   /// Scan kind: auto (decided per scan from the cloud) | ground | airborne | tls [enum] (auto).

@@ -242,6 +242,81 @@ void MorphGround::joinTerrain(const MorphGroundSettings& s, double c) {
   }
 }
 
+void MorphGround::dropLowOutliers(const CloudView& cloud, double c) {
+  // A cell's lowest return with at least kLowOutlierMinNeighbours other returns within
+  // kLowOutlierRadius (horizontally) and none of them less than kLowOutlierDrop above it lies on
+  // no surface: terrain, however steep, has returns near the lowest one. The cell's minimum
+  // becomes its next-lowest return (a gap when it had none); the outlier itself, far below the
+  // surface, is then labelled non-ground by the height test. Points are bucketed by cell first.
+  const std::size_t n = zmin_.size(), np = cell_of_.size();
+  cell_start_.assign(n + 1, 0);
+  for (std::size_t i = 0; i < np; ++i) {
+    if (cell_of_[i] >= 0) ++cell_start_[static_cast<std::size_t>(cell_of_[i]) + 1];
+  }
+  for (std::size_t k = 0; k < n; ++k) cell_start_[k + 1] += cell_start_[k];
+  cell_pts_.resize(static_cast<std::size_t>(cell_start_[n]));
+  next_.assign(cell_start_.begin(), cell_start_.end() - 1);  // fill position per cell
+  for (std::size_t i = 0; i < np; ++i) {
+    if (cell_of_[i] >= 0) cell_pts_[next_[cell_of_[i]]++] = static_cast<std::int32_t>(i);
+  }
+  const int rc = static_cast<int>(std::ceil(kLowOutlierRadius / c));
+  const double r2 = kLowOutlierRadius * kLowOutlierRadius;
+  // Cells within +-rs lie wholly within the radius of any point of the centre cell.
+  const int rs =
+      std::max(0, static_cast<int>(std::floor(kLowOutlierRadius / (c * std::sqrt(2.0)))) - 1);
+  gaps_.clear();  // the cells whose minimum is an outlier
+  for (int y = 0; y < ny_; ++y) {
+    for (int x = 0; x < nx_; ++x) {
+      const std::size_t k = static_cast<std::size_t>(y) * nx_ + x;
+      if (cell_start_[k] == cell_start_[k + 1]) continue;
+      std::int32_t m = cell_pts_[cell_start_[k]];
+      for (std::int32_t a = cell_start_[k] + 1; a < cell_start_[k + 1]; ++a) {
+        if (cloud.z(cell_pts_[a]) < cloud.z(m)) m = cell_pts_[a];
+      }
+      const double mx = cloud.x(m), my = cloud.y(m), mz = cloud.z(m);
+      int count = 0;
+      bool near = false;
+      // Shortcut: a neighbour cell lying wholly within the radius whose minimum is near.
+      for (int dy = -rs; dy <= rs && !near; ++dy) {
+        for (int dx = -rs; dx <= rs && !near; ++dx) {
+          const int xx = x + dx, yy = y + dy;
+          if ((dx == 0 && dy == 0) || xx < 0 || yy < 0 || xx >= nx_ || yy >= ny_) continue;
+          near = zmin_[static_cast<std::size_t>(yy) * nx_ + xx] - mz < kLowOutlierDrop;  // NaN: no
+        }
+      }
+      for (int yy = std::max(0, y - rc); yy <= std::min(ny_ - 1, y + rc) && !near; ++yy) {
+        for (int xx = std::max(0, x - rc); xx <= std::min(nx_ - 1, x + rc) && !near; ++xx) {
+          const std::size_t kk = static_cast<std::size_t>(yy) * nx_ + xx;
+          for (std::int32_t a = cell_start_[kk]; a < cell_start_[kk + 1]; ++a) {
+            const std::int32_t o = cell_pts_[a];
+            const double dx = cloud.x(o) - mx, dy = cloud.y(o) - my;
+            if (o == m || dx * dx + dy * dy > r2) continue;
+            ++count;
+            if (cloud.z(o) - mz < kLowOutlierDrop) {
+              near = true;
+              break;
+            }
+          }
+        }
+      }
+      if (!near && count >= kLowOutlierMinNeighbours) gaps_.push_back(static_cast<std::int32_t>(k));
+    }
+  }
+  for (const std::int32_t k : gaps_) {  // the next-lowest return, NaN when there is none
+    float lo = kInf, lo2 = kInf;
+    for (std::int32_t a = cell_start_[k]; a < cell_start_[k + 1]; ++a) {
+      const float z = cloud.z(cell_pts_[a]);
+      if (z < lo) {
+        lo2 = lo;
+        lo = z;
+      } else if (z < lo2) {
+        lo2 = z;
+      }
+    }
+    zmin_[k] = lo2 < kInf ? lo2 : std::numeric_limits<float>::quiet_NaN();
+  }
+}
+
 std::size_t MorphGround::run(const CloudView& cloud, const MorphGroundSettings& s,
                              std::vector<std::uint8_t>* labels) {
   const std::size_t np = cloud.size();
@@ -285,6 +360,8 @@ std::size_t MorphGround::run(const CloudView& cloud, const MorphGroundSettings& 
     cell_of_[i] = cell;
     if (!(zmin_[cell] <= z)) zmin_[cell] = z;  // NaN compares false: first point wins
   }
+  // 1b. Low outliers (multipath and other returns below the terrain) would pit the surface.
+  dropLowOutliers(cloud, c);
   zfill_ = zmin_;
   fill(&zfill_);
 
@@ -303,10 +380,20 @@ std::size_t MorphGround::run(const CloudView& cloud, const MorphGroundSettings& 
   //     break is continuous, a roof or a crown on a slope stands above its surroundings.
   terrainSlope(c, rmax);
   if (*std::max_element(tslope_.begin(), tslope_.end()) > s.slope) {
+    //     The provisional surface is flattened where the first pass cut a crest, so the slope
+    //     measured there is too low; a later pass measures it again on the last pass's surface
+    //     (stopping early when no cell changed).
     object1_.swap(object_);
-    openObjects(s, c, rmax, &tslope_, &object_);
-    joinTerrain(s, c);
-    surfaceWithoutObjects();
+    for (int pass = 0; pass < kSteepPasses; ++pass) {
+      if (pass > 0) {
+        terrainSlope(c, rmax);
+        prev_object_ = object_;
+      }
+      openObjects(s, c, rmax, &tslope_, &object_);
+      joinTerrain(s, c);
+      surfaceWithoutObjects();
+      if (pass > 0 && object_ == prev_object_) break;
+    }
   }
 
   // 4. Gradient magnitude (central differences, one-sided at the border).
