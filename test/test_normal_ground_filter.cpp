@@ -378,7 +378,7 @@ TEST(NormalGroundFilter, StageTimesNameEveryStage) {
     EXPECT_GE(e.second, 0.0) << e.first;
   }
   const std::vector<std::string> expected = {"sort", "sample", "kdtree_build", "knn",
-                                             "pca",  "vote",   "plane"};
+                                             "pca",  "vote",   "plane",        "local_ground"};
   EXPECT_EQ(names, expected);
   // Every point sampled: no sample stage.
   gf::NormalGroundFilterParams p = groundLevel();

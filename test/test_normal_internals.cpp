@@ -1,5 +1,5 @@
 // Normal-vector filter internals: the same labels on every SIMD level, the radix sort of the
-// stages, huge-page advice on large scratch buffers.
+// stages, huge-page advice on large scratch buffers, the local-ground stage.
 
 #include <gtest/gtest.h>
 
@@ -30,6 +30,7 @@
 #include "ground_filter/scene/scene_generator.h"
 #include "normal/knn/kdtree_neighbor_search.h"
 #include "normal/knn/neighborhood_pca.h"
+#include "normal/local_ground.h"
 #include "normal/plane.h"
 #include "normal/sample.h"
 #include "simd/simd.h"
@@ -339,4 +340,116 @@ TEST(HugePages, LargeScratchBuffersAreAdvisedSmallOnesUntouched) {
   EXPECT_NE(flags.find(" hg"), std::string::npos) << flags;
   EXPECT_EQ(vmFlagsOf(small.data()).find(" hg"), std::string::npos);
 #endif
+}
+
+// ---------------------------------------------------------------------- local ground plane
+
+namespace {
+
+// K nearest neighbours of every point by brute force (ties by lower index), rows of k entries.
+std::vector<std::int32_t> bruteKnn(const Cloud& c, int k) {
+  const std::size_t n = c.size() / 3;
+  std::vector<std::int32_t> rows(n * k);
+  std::vector<std::pair<float, std::int32_t>> d(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t j = 0; j < n; ++j) {
+      const float dx = c[3 * j] - c[3 * i], dy = c[3 * j + 1] - c[3 * i + 1],
+                  dz = c[3 * j + 2] - c[3 * i + 2];
+      d[j] = {dx * dx + dy * dy + dz * dz, static_cast<std::int32_t>(j)};
+    }
+    std::partial_sort(d.begin(), d.begin() + k, d.end());
+    for (int e = 0; e < k; ++e) rows[i * k + e] = d[e].second;
+  }
+  return rows;
+}
+
+}  // namespace
+
+TEST(NormalLocalGround, VergeSlopingAwayFromTheTilePlaneIsGroundABushOnItIsNot) {
+  // The stage alone (every point sampled), on the labels a road tile's plane leaves: a road at
+  // z = 0 for x < 1 and a verge falling away from it at 25 % (14 deg, inside the plane window)
+  // for x >= 1, labelled ground except the strip x [1.6, 2.0) that the road plane misses (more
+  // than plane_distance under it). A bush on the verge, 0.3 to 1 m over it, non-ground; and two
+  // test points above the verge at 0.08 m (over the band above) and under it at 0.08 m.
+  auto verge_z = [](double x) { return x < 1.0 ? 0.0 : -0.25 * (x - 1.0); };
+  Cloud c;
+  std::vector<std::uint8_t> ground;
+  std::vector<std::size_t> strip, bush;
+  for (int i = 0; i < 40; ++i) {
+    for (int j = 0; j < 30; ++j) {
+      const double x = 0.05 + 0.1 * i, y = 0.05 + 0.1 * j;
+      const bool missed = x >= 1.6 && x < 2.0;
+      if (missed) strip.push_back(c.size() / 3);
+      add(&c, x, y, verge_z(x));
+      ground.push_back(!missed);
+    }
+  }
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int b = 0; b < 150; ++b) {  // 0.6 m across at x 2.5, y 1.5
+    const double x = 2.2 + 0.6 * u(rng), y = 1.2 + 0.6 * u(rng);
+    bush.push_back(c.size() / 3);
+    add(&c, x, y, verge_z(x) + 0.3 + 0.7 * u(rng));
+    ground.push_back(0);
+  }
+  const std::size_t over = c.size() / 3;
+  add(&c, 3.02, 0.52, verge_z(3.02) + 0.08 / std::cos(std::atan(0.25)));
+  ground.push_back(0);
+  const std::size_t under = c.size() / 3;
+  add(&c, 3.02, 2.52, verge_z(3.02) - 0.08 / std::cos(std::atan(0.25)));
+  ground.push_back(0);
+
+  const gf::NormalGroundFilterParams p;  // the defaults: 8 ground neighbours, 0.10 / 0.05 m
+  const int k = 40;
+  const std::vector<std::int32_t> rows = bruteKnn(c, k);
+  const double min_abs_nz = std::cos(15.0 * M_PI / 180.0);
+  std::vector<std::uint8_t> out = ground;
+  gf::normal::LocalGroundStage stage;
+  const std::size_t added =
+      stage.run(c, rows.data(), nullptr, c.size() / 3, k, 1, p.local_ground_min,
+                p.local_ground_below, p.local_ground_above, min_abs_nz, 2, &out);
+  std::size_t strip_ground = 0, bush_ground = 0;
+  for (std::size_t i : strip) strip_ground += out[i];
+  for (std::size_t i : bush) bush_ground += out[i];
+  EXPECT_EQ(strip_ground, strip.size());
+  EXPECT_EQ(bush_ground, 0u);
+  EXPECT_EQ(out[over], 0);   // 0.08 m over the verge: an object's base may be there
+  EXPECT_EQ(out[under], 1);  // 0.08 m under it: nothing stands under the ground
+  EXPECT_EQ(added, strip.size() + 1);
+  // Ground stays ground; with more ground neighbours needed than a list holds, nothing changes.
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    if (ground[i]) ASSERT_EQ(out[i], 1) << i;
+  }
+  std::vector<std::uint8_t> none = ground;
+  EXPECT_EQ(stage.run(c, rows.data(), nullptr, c.size() / 3, k, 1, k + 1, p.local_ground_below,
+                      p.local_ground_above, min_abs_nz, 2, &none),
+            0u);
+  EXPECT_EQ(none, ground);
+  // A wider band above takes the point over the verge.
+  std::vector<std::uint8_t> wide = ground;
+  stage.run(c, rows.data(), nullptr, c.size() / 3, k, 1, p.local_ground_min, 0.10, 0.10, min_abs_nz,
+            2, &wide);
+  EXPECT_EQ(wide[over], 1);
+}
+
+TEST(NormalLocalGround, OnlyAddsGroundAndZeroTurnsItOff) {
+  // The whole filter on a generated street: the stage only turns non-ground points into ground.
+  gf::SceneParams sp;
+  sp.seed = 1;
+  const gf::GeneratedScan scan = gf::generateScene(sp);
+  gf::NormalGroundFilterParams on;
+  on.scan_type = "ground";
+  gf::NormalGroundFilterParams off = on;
+  off.local_ground_min = 0;
+  const auto view = gf::CloudView::packedXyz(scan.xyz.data(), scan.size());
+  std::vector<std::uint8_t> with, plain;
+  gf::NormalGroundFilter(on).filter(view, &with);
+  gf::NormalGroundFilter(off).filter(view, &plain);
+  ASSERT_EQ(with.size(), scan.size());
+  std::size_t added = 0;
+  for (std::size_t i = 0; i < with.size(); ++i) {
+    if (plain[i] == gf::kGround) ASSERT_EQ(with[i], gf::kGround) << i;
+    added += with[i] != plain[i];
+  }
+  EXPECT_GT(added, 0u);
 }

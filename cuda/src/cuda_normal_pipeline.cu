@@ -23,6 +23,7 @@
 #include "ground_classify.cuh"
 #include "ground_columns.cuh"
 #include "ground_filter/cuda_normal_pipeline.h"
+#include "ground_local.cuh"
 #include "ground_planes.cuh"
 #include "ground_tiles.cuh"
 #include "ground_vote.cuh"
@@ -64,6 +65,9 @@ GroundParamsDev toDeviceParams(const CudaNormalParams& prm) {
   gp.std_multiplier = prm.std_multiplier;
   gp.floor_share = prm.floor_share;
   gp.floor_max_shift = prm.floor_max_shift;
+  gp.local_ground_min = prm.local_ground_min;
+  gp.local_ground_below = prm.local_ground_below;
+  gp.local_ground_above = prm.local_ground_above;
   gp.bayes_vote = prm.bayes_vote;
   gp.std_filter = prm.std_filter;
   gp.plane_all_points = prm.plane_all_points;
@@ -106,6 +110,8 @@ struct CudaNormalPipeline::Impl {
   /// Tiles, RANSAC planes, distance test into `labels` (device, n_in entries; event 6).
   void planesAndLabels(CudaKnn::Impl& im, int n, std::size_t n_in, const XyBounds& bb,
                        const CudaNormalParams& prm, const GroundParamsDev& gp);
+  /// Local ground plane on the labels (local_ground_min > 0; before event 6).
+  void localGround(CudaKnn::Impl& im, int n, int m, int stride, const GroundParamsDev& gp);
   /// Labels and counts down into `out` (event 7), stage times from the events.
   void downloadLabels(CudaKnn::Impl& im, std::size_t n_in, std::uint8_t* out);
 };
@@ -185,6 +191,8 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
     launchSpreadVotes(pl.sampled_voted.as<std::uint8_t>(), m, n, stride, d_voted, im.stream);
   }
   pl.planesAndLabels(im, n, n_in, bb, prm, gp);
+  if (gp.local_ground_min > 0) pl.localGround(im, n, m, stride, gp);
+  GF_CUDA_CHECK(cudaEventRecord(pl.ev[6], im.stream));
   pl.downloadLabels(im, n_in, labels);
   tm.total_ms = msSince(t_start);
 }
@@ -383,7 +391,15 @@ void CudaNormalPipeline::Impl::planesAndLabels(CudaKnn::Impl& im, int n, std::si
   launchClassify(d_xyz, src.as<unsigned int>(), d_order, d_voted, tile_begin.as<unsigned int>(),
                  d_ntiles, vpos.as<unsigned int>(), vlist.as<unsigned int>(), gp, d_planes,
                  d_labels, groundCount(), workClassify(), classify_blocks, st);
-  GF_CUDA_CHECK(cudaEventRecord(ev[6], st));
+}
+
+// ---- local ground plane (CPU: LocalGroundStage), on the KNN's lists of the sampled points
+void CudaNormalPipeline::Impl::localGround(CudaKnn::Impl& im, int n, int m, int stride,
+                                           const GroundParamsDev& gp) {
+  // cand (the candidates, n bytes) is free after the vote: the sampled points' labels.
+  launchLocalGround(xyz.as<float>(), src.as<unsigned int>(), im.sorted.as<float4>(),
+                    im.out_idx.as<std::int32_t>(), n, m, stride, gp, cand.as<std::uint8_t>(),
+                    labels.as<std::uint8_t>(), groundCount(), im.stream);
 }
 
 // ---- labels (and counts) down

@@ -22,8 +22,11 @@ struct GroundParamsDev {
   double min_planarity;
   double plane_distance;
   double std_multiplier;
-  double floor_share;      // sparse tile: lowest-level share that moves the cloud plane, 0 = off
-  double floor_max_shift;  // sparse tile: largest move of the cloud plane [m]
+  double floor_share;         // sparse tile: lowest-level share that moves the cloud plane, 0 = off
+  double floor_max_shift;     // sparse tile: largest move of the cloud plane [m]
+  int local_ground_min;       // local ground: ground neighbours needed, 0 = off
+  double local_ground_below;  // local ground: under their plane at most [m]
+  double local_ground_above;  // local ground: over their plane at most [m]
   bool bayes_vote;
   bool std_filter;
   bool plane_all_points;

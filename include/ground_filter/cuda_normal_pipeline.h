@@ -32,6 +32,9 @@ struct CudaNormalParams {
   double tile_size = 4.0;        ///< tile edge for local planes [m]
   double floor_share = 0.15;     ///< sparse tile: lowest-level share moving the cloud plane, 0 off
   double floor_max_shift = 0.5;  ///< sparse tile: largest move of the cloud-wide plane [m]
+  int local_ground_min = 0;      ///< local ground: ground neighbours needed, 0 = off
+  double local_ground_below = 0.10;  ///< local ground: under their plane at most [m]
+  double local_ground_above = 0.05;  ///< local ground: over their plane at most [m]
 };
 
 /// \brief Device times of the stages of the last run() (CUDA events) and its counts.

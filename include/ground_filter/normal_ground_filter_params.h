@@ -40,8 +40,12 @@ struct NormalGroundFilterParams : TableParams<NormalGroundFilterParams>, MorphGr
   double floor_share = 0.15;     ///< sparse tile: cloud plane moved to its lowest point when this
                               ///< share of its points is within plane_distance above, 0 = off [1]
   double floor_max_shift = 0.5;  ///< sparse tile: move the cloud-wide plane at most this far [m]
-  bool use_segments = false;     ///< paper's segments: no neighbours across borders [bool]
-  int segment_points = 65536;    ///< points per segment, at most [points] (65536, paper)
+  int local_ground_min = 8;  ///< local ground: a point's list holds this many ground points, whose
+                             ///< plane it lies near, to become ground; 0 = off [points] (8)
+  double local_ground_below = 0.10;    ///< local ground: under that plane at most [m] (0.10)
+  double local_ground_above = 0.05;    ///< local ground: over that plane at most [m] (0.05)
+  bool use_segments = false;           ///< paper's segments: no neighbours across borders [bool]
+  int segment_points = 65536;          ///< points per segment, at most [points] (65536, paper)
   std::string knn_backend = "kdtree";  ///< neighbour search: kdtree | gpu [enum] (kdtree)
   int threads = 0;                     ///< worker threads, 0 = all cores [threads] (0)
 

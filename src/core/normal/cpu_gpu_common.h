@@ -69,6 +69,56 @@ constexpr unsigned int kRansacEvalPoints = 2048;  // hypotheses are scored on at
 // near road dominates (docs/normal_method.md, "Sparse tiles").
 constexpr unsigned int kMinTilePoints = 3;
 
+/// \brief Least-squares plane z = a x + b y + c through the ground neighbours of one point, in
+///        coordinates relative to that point (the local-ground stage, local_ground.h). add() in
+///        the neighbour list's order on the CPU and the GPU, so both round alike.
+struct LocalGroundFit {
+  int count = 0;
+  double sx = 0.0, sy = 0.0, sz = 0.0, sxx = 0.0, sxy = 0.0, syy = 0.0, sxz = 0.0, syz = 0.0;
+  GF_HOST_DEVICE void add(double x, double y, double z) {
+    ++count;
+    sx += x;
+    sy += y;
+    sz += z;
+    sxx += x * x;
+    sxy += x * y;
+    syy += y * y;
+    sxz += x * z;
+    syz += y * z;
+  }
+  /// \brief True when at least `min_count` points were added, they span an area (not one scan
+  ///        line: the smaller spread of their x/y is at least kLocalGroundMinSpread of the larger),
+  ///        the plane's normal is within the tilt `min_abs_nz` allows, and the point (the
+  ///        origin) lies at most `below` under the plane or `above` over it (distances along
+  ///        the plane's normal).
+  GF_HOST_DEVICE bool accepts(int min_count, double below, double above, double min_abs_nz) const;
+};
+
+/// \brief The x/y spread of a local-ground neighbour set across its longest direction, at least
+///        this share of the spread along it (det / trace^2 of the 2 x 2 covariance, which is
+///        about the ratio of its eigenvalues when that is small). Far points' neighbours lie on
+///        one or two scan lines, which fix no plane across them.
+constexpr double kLocalGroundMinSpread = 0.01;
+
+GF_HOST_DEVICE inline bool LocalGroundFit::accepts(int min_count, double below, double above,
+                                                   double min_abs_nz) const {
+  if (count < min_count || count < 3) return false;
+  const double inv = 1.0 / static_cast<double>(count);
+  const double mx = sx * inv, my = sy * inv, mz = sz * inv;
+  const double cxx = sxx - sx * mx, cxy = sxy - sx * my, cyy = syy - sy * my;
+  const double cxz = sxz - sx * mz, cyz = syz - sy * mz;
+  const double det = cxx * cyy - cxy * cxy;
+  const double tr = cxx + cyy;
+  if (!(det > kLocalGroundMinSpread * tr * tr)) return false;
+  const double a = (cxz * cyy - cyz * cxy) / det;
+  const double b = (cyz * cxx - cxz * cxy) / det;
+  const double c = mz - a * mx - b * my;  // the plane's z at the point's x/y, minus its z
+  const double g2 = 1.0 + a * a + b * b;  // 1 / n_z^2
+  if (min_abs_nz * min_abs_nz * g2 > 1.0) return false;
+  const double band = c >= 0.0 ? below : above;  // c > 0: the point is under the plane
+  return c * c <= band * band * g2;              // (c n_z)^2 <= band^2
+}
+
 }  // namespace normal
 }  // namespace ground_filter
 

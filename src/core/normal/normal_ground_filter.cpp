@@ -10,6 +10,7 @@
 #include "airborne/scan_type.h"
 #include "common/threads_timing.h"
 #include "normal/knn/knn_backend.h"
+#include "normal/local_ground.h"
 #include "normal/neighborhoods.h"
 #include "normal/normal_settings.h"
 #include "normal/order.h"
@@ -39,9 +40,10 @@ struct NormalGroundFilter::Impl {
   normal::NeighborhoodStage neighborhoods;
   normal::VoteStage vote;
   normal::PlaneStage plane;
-  normal::VegetationStage vegetation;  // veg_filter only
-  MorphGround morph;                   // airborne scans only
-  ScanTypeSwitch scan;                 // scan_type: this scan's mode
+  normal::LocalGroundStage local_ground;  // local_ground_min > 0 only
+  normal::VegetationStage vegetation;     // veg_filter only
+  MorphGround morph;                      // airborne scans only
+  ScanTypeSwitch scan;                    // scan_type: this scan's mode
   // Per-scan results, in stage order.
   normal::OrderedPoints ordered;                       // 1: valid points in column order
   NeighborLists lists;                                 // 2: neighbour lists of one segment
@@ -56,8 +58,10 @@ struct NormalGroundFilter::Impl {
         gpu_params(normal::gpuNormalParams(p)),
         scan(p.scan_type, p.morph_ground) {
     if (!search) throw std::invalid_argument("NormalGroundFilter: null neighbour backend");
-    // A GPU backend keeps the lists in GPU memory; PCA and vote counts then run there.
-    search->keepListsOnDevice(true);
+    // A GPU backend keeps the lists in GPU memory; PCA and vote counts then run there. The
+    // local-ground stage needs them on the host where the GPU pipeline does not run the filter.
+    const bool host_lists = p.local_ground_min > 0 && !gpu_supported && search->name() == "gpu";
+    search->keepListsOnDevice(!host_lists);
   }
 };
 
@@ -196,6 +200,20 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   im.plane.run(ordered.xyz, im.voted, ordered.extent, p, min_abs_nz, threads, &im.ground,
                p.veg_filter ? &im.heights : nullptr);
   st.stage_ms.emplace_back("plane", msSince(t0));
+
+  // 5a. Local ground plane (one neighbourhood set only: the lists of the last segment are kept).
+  if (p.local_ground_min > 0 && ordered.segments.size() == 1) {
+    t0 = Clock::now();
+    const std::int32_t* rows = nullptr;
+    const std::uint32_t* row_points = nullptr;
+    if (!im.search->keptRows(&rows, &row_points) && !im.lists.indices.empty()) {
+      rows = im.lists.indices.data();
+    }
+    im.local_ground.run(ordered.xyz, rows, row_points, im.lists.points, im.lists.k, stride,
+                        p.local_ground_min, p.local_ground_below, p.local_ground_above, min_abs_nz,
+                        threads, &im.ground);
+    st.stage_ms.emplace_back("local_ground", msSince(t0));
+  }
 
   // 5b. Optional bush-base rule (off by default; the GPU pipeline declines when it is on).
   if (p.veg_filter) {

@@ -38,6 +38,12 @@ const ParamTable<NormalGroundFilterParams>& NormalGroundFilterParams::table() {
       {"tile_size", &P::tile_size, 0.5, 100000.0, "m", "tile edge for local planes"},
       {"floor_share", &P::floor_share, 0.0, 1.0, "", "sparse tile: share on its lowest level"},
       {"floor_max_shift", &P::floor_max_shift, 0.0, 100.0, "m", "sparse tile: plane moved at most"},
+      {"local_ground_min", &P::local_ground_min, 0, 256, "points",
+       "local ground: ground neighbours needed, 0 = off"},
+      {"local_ground_below", &P::local_ground_below, 0.0, 10.0, "m",
+       "local ground: under their plane at most"},
+      {"local_ground_above", &P::local_ground_above, 0.0, 10.0, "m",
+       "local ground: over their plane at most"},
       {"veg_filter", &P::veg_filter, 0, 0, "bool", "ground under porous clutter is non-ground"},
       {"veg_cell", &P::veg_cell, 0.01, 10.0, "m", "veg: column edge and voxel height"},
       {"veg_min_height", &P::veg_min_height, 0.0, 10.0, "m", "veg: clutter band bottom"},
@@ -99,6 +105,9 @@ CudaNormalParams gpuNormalParams(const NormalGroundFilterParams& p) {
   g.tile_size = p.tile_size;
   g.floor_share = p.floor_share;
   g.floor_max_shift = p.floor_max_shift;
+  g.local_ground_min = p.use_segments ? 0 : p.local_ground_min;
+  g.local_ground_below = p.local_ground_below;
+  g.local_ground_above = p.local_ground_above;
   return g;
 }
 

@@ -272,6 +272,13 @@ bool KdTreeNeighborSearch::countFlaggedNeighbors(const std::uint8_t* flags, std:
   return true;
 }
 
+bool KdTreeNeighborSearch::keptRows(const std::int32_t** rows, const std::uint32_t** points) const {
+  if (!lists_kept_) return false;
+  *rows = impl_->rows.data();
+  *points = impl_->tree.pidx.data();
+  return true;
+}
+
 bool KdTreeNeighborSearch::keptLists(NeighborLists* out) const {
   if (!lists_kept_) return false;
   const KdTree& t = impl_->tree;

@@ -52,6 +52,7 @@ class KdTreeNeighborSearch : public KnnBackend {
   ///        search() always fills `out`.
   /// \return `keep`.
   bool keepListsOnDevice(bool keep) override;
+  bool keptRows(const std::int32_t** rows, const std::uint32_t** points) const override;
   /// \brief See NeighborSearch::countFlaggedNeighbors(); false unless the last call was a
   ///        searchWithPca() or searchWithCandidates() with kept lists (of at least K points).
   bool countFlaggedNeighbors(const std::uint8_t* flags, std::uint16_t* flagged,

@@ -63,6 +63,13 @@ class KnnBackend : public NeighborSearch {
     return false;
   }
 
+  /// \brief The last search()'s lists where the backend kept them on the host in its own row
+  ///        order: row r (`k` entries, all valid, at `rows + r * k`) is the list of point
+  ///        `points[r]`; false when they are in search()'s `out` (or on a device).
+  virtual bool keptRows(const std::int32_t** /*rows*/, const std::uint32_t** /*points*/) const {
+    return false;
+  }
+
   /// \brief The whole normal filter where the backend's lists live (the GPU): labels `cloud` as
   ///        NormalGroundFilter::filter() would with the settings `params` (gpuNormalParams(), asked
   ///        only when gpuSupports()): fills `labels` (cloud.size() entries) and, in `stats`,

@@ -1,0 +1,54 @@
+// Stage 5a of the normal filter: the local ground plane (local_ground.h).
+
+#include "normal/local_ground.h"
+
+#include <algorithm>
+
+#include "normal/cpu_gpu_common.h"
+
+namespace ground_filter {
+namespace normal {
+
+std::size_t LocalGroundStage::run(const std::vector<float>& xyz, const std::int32_t* rows,
+                                  const std::uint32_t* points, std::size_t m, int k, int stride,
+                                  int min_ground, double max_below, double max_above,
+                                  double min_abs_nz, int threads,
+                                  std::vector<std::uint8_t>* ground_io) {
+  std::vector<std::uint8_t>& ground = *ground_io;
+  const std::size_t n = ground.size();
+  const std::size_t s = static_cast<std::size_t>(std::max(1, stride));
+  if (n == 0 || m == 0 || k <= 0 || rows == nullptr) return 0;
+  // The sampled points' labels before this stage: every decision reads these only.
+  sampled_ground_.resize(m);
+  for (std::size_t j = 0; j < m; ++j) sampled_ground_[j] = ground[std::min(j * s, n - 1)];
+  std::size_t added = 0;
+  const int nt = static_cast<int>(std::min<std::size_t>(threads, m / 2048 + 1));
+#pragma omp parallel for num_threads(nt) schedule(static, 2048) reduction(+ : added)
+  for (std::int64_t rr = 0; rr < static_cast<std::int64_t>(m); ++rr) {
+    const std::size_t r = static_cast<std::size_t>(rr);
+    const std::size_t o = points ? points[r] : r;  // sampled point of this row
+    const std::int32_t* row = rows + r * static_cast<std::size_t>(k);
+    // The points that use this list: the sampled one and those after it up to the next.
+    for (std::size_t i = o * s; i < std::min(o * s + s, n); ++i) {
+      if (ground[i]) continue;
+      const float* q = &xyz[3 * i];
+      LocalGroundFit fit;
+      for (int e = 0; e < k && row[e] >= 0; ++e) {
+        const std::size_t j = static_cast<std::size_t>(row[e]);
+        if (!sampled_ground_[j]) continue;
+        const float* g = &xyz[3 * (j * s)];
+        fit.add(static_cast<double>(g[0]) - static_cast<double>(q[0]),
+                static_cast<double>(g[1]) - static_cast<double>(q[1]),
+                static_cast<double>(g[2]) - static_cast<double>(q[2]));
+      }
+      if (fit.accepts(min_ground, max_below, max_above, min_abs_nz)) {
+        ground[i] = 1;
+        ++added;
+      }
+    }
+  }
+  return added;
+}
+
+}  // namespace normal
+}  // namespace ground_filter
