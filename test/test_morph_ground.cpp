@@ -95,4 +95,48 @@ TEST(MorphGround, APitWithWallsIsNotAnOutlier) {
   EXPECT_EQ(floor_kept, floor);
 }
 
+// Under a dense canopy few pulses reach the ground: its returns can lie metres apart with only
+// canopy above them (here one every 5 m on a 1 % slope, canopy 12-25 m up at 4 returns per m²,
+// nothing in between). Each such return has canopy, and no return near its height, within 3 m,
+// as a low outlier has; it is not one: the ground continues within a few metres. Every ground
+// return must stay ground and the canopy non-ground (with the 3 m test alone all 144 ground
+// returns left the surface and 1,165 canopy returns came out ground).
+TEST(MorphGround, SparseGroundUnderACanopyIsNotAnOutlier) {
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> crown(12.f, 25.f), jitter(-0.2f, 0.2f);
+  auto height = [](float x, float y) { return 50.f + 0.01f * x + 0.005f * y; };
+  std::vector<float> xyz;
+  std::vector<std::uint8_t> truth;
+  for (float x = -30.f; x < 30.f; x += 5.f) {
+    for (float y = -30.f; y < 30.f; y += 5.f) {
+      const float gx = x + jitter(rng), gy = y + jitter(rng);
+      xyz.insert(xyz.end(), {gx, gy, height(gx, gy)});
+      truth.push_back(1);
+    }
+  }
+  for (float x = -32.f; x < 32.f; x += 0.5f) {
+    for (float y = -32.f; y < 32.f; y += 0.5f) {
+      xyz.insert(xyz.end(), {x, y, height(x, y) + crown(rng)});
+      truth.push_back(0);
+    }
+  }
+  gf::MorphGround morph;
+  std::vector<std::uint8_t> labels;
+  const std::size_t n = truth.size();
+  ASSERT_EQ(morph.run(gf::CloudView::packedXyz(xyz.data(), n), gf::MorphGroundSettings(), &labels),
+            n);
+  std::size_t ground = 0, ground_kept = 0, canopy_ground = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (truth[i]) {
+      ++ground;
+      ground_kept += labels[i];
+    } else {
+      canopy_ground += labels[i];
+    }
+  }
+  ASSERT_EQ(ground, 144u);
+  EXPECT_EQ(ground_kept, ground);
+  EXPECT_EQ(canopy_ground, 0u);
+}
+
 }  // namespace

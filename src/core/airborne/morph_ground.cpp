@@ -242,6 +242,24 @@ void MorphGround::joinTerrain(const MorphGroundSettings& s, double c) {
   }
 }
 
+bool MorphGround::aloneAtItsHeight(const CloudView& cloud, double c, int x, int y,
+                                   std::int32_t m) const {
+  const int ra = static_cast<int>(std::ceil(kLowOutlierAlone / c));
+  const double ra2 = kLowOutlierAlone * kLowOutlierAlone;
+  const double mx = cloud.x(m), my = cloud.y(m), mz = cloud.z(m);
+  for (int yy = std::max(0, y - ra); yy <= std::min(ny_ - 1, y + ra); ++yy) {
+    for (int xx = std::max(0, x - ra); xx <= std::min(nx_ - 1, x + ra); ++xx) {
+      const std::size_t kk = static_cast<std::size_t>(yy) * nx_ + xx;
+      for (std::int32_t a = cell_start_[kk]; a < cell_start_[kk + 1]; ++a) {
+        const std::int32_t o = cell_pts_[a];
+        const double dx = cloud.x(o) - mx, dy = cloud.y(o) - my;
+        if (o != m && dx * dx + dy * dy <= ra2 && cloud.z(o) - mz < kLowOutlierDrop) return false;
+      }
+    }
+  }
+  return true;
+}
+
 void MorphGround::dropLowOutliers(const CloudView& cloud, double c) {
   // A cell's lowest return with at least kLowOutlierMinNeighbours other returns within
   // kLowOutlierRadius (horizontally) and none of them less than kLowOutlierDrop above it lies on
@@ -299,7 +317,9 @@ void MorphGround::dropLowOutliers(const CloudView& cloud, double c) {
           }
         }
       }
-      if (!near && count >= kLowOutlierMinNeighbours) gaps_.push_back(static_cast<std::int32_t>(k));
+      if (near || count < kLowOutlierMinNeighbours) continue;
+      if (!aloneAtItsHeight(cloud, c, x, y, m)) continue;
+      gaps_.push_back(static_cast<std::int32_t>(k));
     }
   }
   for (const std::int32_t k : gaps_) {  // the next-lowest return, NaN when there is none

@@ -46,6 +46,10 @@ class MorphGround {
   static constexpr double kLowOutlierRadius = 3.0;
   static constexpr double kLowOutlierDrop = 2.0;
   static constexpr int kLowOutlierMinNeighbours = 6;
+  /// \brief ... and no other return within kLowOutlierAlone [m] (horizontally) less than
+  ///        kLowOutlierDrop above it: ground is a surface, so even the sparse ground returns under
+  ///        a dense canopy have others at their height within a few metres; an outlier has none.
+  static constexpr double kLowOutlierAlone = 10.0;
   /// \brief Steep-terrain passes at most (the second measures the terrain slope again on the
   ///        first's surface, which keeps more of a crest; skipped when nothing changes).
   static constexpr int kSteepPasses = 2;
@@ -61,6 +65,9 @@ class MorphGround {
   void terrainSlope(double c, int w);  // tslope_ from dem_ across +-w cells
   void joinTerrain(const MorphGroundSettings& s, double c);  // second-pass cells joined to terrain
   void dropLowOutliers(const CloudView& cloud, double c);    // zmin_ without low outliers
+  // Whether point m (cell x, y) has no other return within kLowOutlierAlone that is less than
+  // kLowOutlierDrop above it.
+  bool aloneAtItsHeight(const CloudView& cloud, double c, int x, int y, std::int32_t m) const;
 
   int nx_ = 0, ny_ = 0;
   std::vector<std::int32_t> cell_of_;                // per point: cell index, -1 invalid
