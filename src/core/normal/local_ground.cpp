@@ -28,6 +28,11 @@ std::size_t LocalGroundStage::run(const std::vector<float>& xyz, const std::int3
     const std::size_t r = static_cast<std::size_t>(rr);
     const std::size_t o = points ? points[r] : r;  // sampled point of this row
     const std::int32_t* row = rows + r * static_cast<std::size_t>(k);
+    // Too few ground neighbours for any point of the row (the fit would refuse it): skip the
+    // sums. Most non-ground points (objects, vegetation) end here.
+    int count = 0;
+    for (int e = 0; e < k && row[e] >= 0; ++e) count += sampled_ground_[row[e]];
+    if (count < min_ground) continue;
     // The points that use this list: the sampled one and those after it up to the next.
     for (std::size_t i = o * s; i < std::min(o * s + s, n); ++i) {
       if (ground[i]) continue;
