@@ -45,12 +45,13 @@ struct NormalGroundFilter::Impl {
   MorphGround morph;                      // airborne scans only
   ScanTypeSwitch scan;                    // scan_type: this scan's mode
   // Per-scan results, in stage order.
-  normal::OrderedPoints ordered;                       // 1: valid points in column order
-  NeighborLists lists;                                 // 2: neighbour lists of one segment
-  std::vector<std::uint8_t> candidate, voted, ground;  // 3, 4, 5: per ordered point
-  std::vector<float> heights;                          // 5: above the tile plane, veg_filter only
-  normal::StageTimes times;                            // per scan, memory kept
-  FilterStats own_stats;                               // filled when the caller passes none
+  normal::OrderedPoints ordered;  // 1: valid points in column order
+  NeighborLists lists;            // 2: neighbour lists of one segment
+  std::vector<std::uint8_t> candidate, voted,
+      ground;                  // 3 (sample_stride 1), 4, 5: per ordered point
+  std::vector<float> heights;  // 5: above the tile plane, veg_filter only
+  normal::StageTimes times;    // per scan, memory kept
+  FilterStats own_stats;       // filled when the caller passes none
   Impl(const NormalGroundFilterParams& p, std::unique_ptr<KnnBackend> backend)
       : search(std::move(backend)),
         min_abs_nz(normal::minAbsNormalZ(p)),
@@ -161,7 +162,8 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   //      the sampled point before or after it is.
   const double min_abs_nz = im.min_abs_nz;
   const int stride = p.sample_stride;
-  im.candidate.assign(n, 0);
+  // With sampling, the candidate flags and votes of the sampled points live in im.sample.
+  if (stride <= 1) im.candidate.assign(n, 0);
   im.voted.assign(n, 0);
   normal::StageTimes& times = im.times;
   times.clear();
@@ -169,8 +171,8 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   for (const auto& sg : ordered.segments) {
     const std::size_t b = sg.first, len = sg.second - sg.first;
     const float* pts = ordered.xyz.data() + 3 * b;
-    std::uint8_t* cand = im.candidate.data() + b;
-    std::uint8_t* vote = im.voted.data() + b;
+    std::uint8_t* cand;
+    std::uint8_t* vote;
     std::size_t m = len;
     if (stride > 1) {
       t0 = Clock::now();
@@ -179,6 +181,9 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
       cand = im.sample.candidates();
       vote = im.sample.votes();
       times.add("sample", msSince(t0));
+    } else {
+      cand = im.candidate.data() + b;
+      vote = im.voted.data() + b;
     }
     const std::size_t candidates =
         im.neighborhoods.run(im.search.get(), pts, m, p.k, threads, p.min_planarity, min_abs_nz,
