@@ -15,6 +15,17 @@ namespace gf = ground_filter;
 
 namespace {
 
+/// The airborne mode's labels of packed x y z points with the default settings (every point
+/// labelled).
+std::vector<std::uint8_t> morphLabels(const std::vector<float>& xyz) {
+  gf::MorphGround morph;
+  std::vector<std::uint8_t> labels;
+  const std::size_t n = xyz.size() / 3;
+  EXPECT_EQ(morph.run(gf::CloudView::packedXyz(xyz.data(), n), gf::MorphGroundSettings(), &labels),
+            n);
+  return labels;
+}
+
 // Multipath and other low-noise returns lie metres below the terrain with nothing near them. As a
 // cell's lowest return such a point would pit the surface (an opening removes bumps, not pits),
 // and the bilinear surface would drag the ground around it below the height test. Terrain: a 4 %
@@ -42,11 +53,9 @@ TEST(MorphGround, LowOutliersDoNotPitTheSurface) {
     xyz.insert(xyz.end(), {o[0], o[1], height(o[0], o[1]) - o[2]});
     truth.push_back(0);
   }
-  gf::MorphGround morph;
-  std::vector<std::uint8_t> labels;
   const std::size_t n = truth.size();
-  ASSERT_EQ(morph.run(gf::CloudView::packedXyz(xyz.data(), n), gf::MorphGroundSettings(), &labels),
-            n);
+  const std::vector<std::uint8_t> labels = morphLabels(xyz);
+  ASSERT_EQ(labels.size(), n);
   std::size_t near = 0, near_kept = 0, ground = 0, ground_kept = 0;
   for (std::size_t i = 0; i < n; ++i) {
     if (!truth[i]) {
@@ -81,9 +90,8 @@ TEST(MorphGround, APitWithWallsIsNotAnOutlier) {
       truth.push_back(1);
     }
   }
-  gf::MorphGround morph;
-  std::vector<std::uint8_t> labels;
-  morph.run(gf::CloudView::packedXyz(xyz.data(), truth.size()), gf::MorphGroundSettings(), &labels);
+  const std::vector<std::uint8_t> labels = morphLabels(xyz);
+  ASSERT_EQ(labels.size(), truth.size());
   std::size_t floor = 0, floor_kept = 0;
   for (std::size_t i = 0; i < truth.size(); ++i) {
     if (xyz[3 * i + 2] < -2.9f) {
@@ -120,11 +128,9 @@ TEST(MorphGround, SparseGroundUnderACanopyIsNotAnOutlier) {
       truth.push_back(0);
     }
   }
-  gf::MorphGround morph;
-  std::vector<std::uint8_t> labels;
   const std::size_t n = truth.size();
-  ASSERT_EQ(morph.run(gf::CloudView::packedXyz(xyz.data(), n), gf::MorphGroundSettings(), &labels),
-            n);
+  const std::vector<std::uint8_t> labels = morphLabels(xyz);
+  ASSERT_EQ(labels.size(), n);
   std::size_t ground = 0, ground_kept = 0, canopy_ground = 0;
   for (std::size_t i = 0; i < n; ++i) {
     if (truth[i]) {
