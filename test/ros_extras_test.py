@@ -365,6 +365,18 @@ class RosExtrasTest(RosTestCase):
                                     self.number(name, "processing time mean [ms]"))
             self.wait_for(lambda: self.number(name, "clouds out") >= 15, "clouds out >= 15")
             self.assertEqual(self.number(name, "dropped"), 0)
+            # Where the cloud lies: the middle of the bounding box of at most 4096 records
+            # spread evenly (finite ones), "x y z in 'frame' ...", printed to 0.1 m.
+            centre = self.value(name, "cloud centre [m]")
+            self.assertIsNotNone(centre, "diagnostics lack 'cloud centre [m]'")
+            self.assertIn("in 'velodyne'", centre)
+            got = [float(v) for v in centre.split()[:3]]
+            s = small[::max(1, small.shape[0] // 4096)]
+            s = s[np.isfinite(s["x"]) & np.isfinite(s["y"]) & np.isfinite(s["z"])]
+            for axis, g in zip(("x", "y", "z"), got):
+                c = s[axis].astype(np.float64)
+                self.assertAlmostEqual(g, 0.5 * (c.min() + c.max()), delta=0.051,
+                                       msg="cloud centre %s: %s" % (axis, centre))
             st = self.status(name)
             rospy.loginfo("flat_filter diagnostics: level %d '%s' %s", st.level, st.message,
                           {kv.key: kv.value for kv in st.values})

@@ -185,6 +185,42 @@ TEST(MakeCloudView, ContiguousAndPaddedRows) {
   }
 }
 
+TEST(SampledCentre, BoundingBoxMiddleOfFiniteRecordsAcrossPaddedRows) {
+  for (std::uint32_t pad : {0u, 8u}) {
+    PointCloud2 c = makeCloud(5, 3, pad);  // record i: x = i, y = 2 i, z = 3 i
+    gf::CloudLayout layout;
+    ASSERT_EQ(gf::checkPointCloud2(c, &layout, nullptr), gf::CloudRejectReason::kNone);
+    double m[3] = {-1.0, -1.0, -1.0};
+    ASSERT_TRUE(gf::sampledCentre(c, layout, 4096, m));
+    EXPECT_DOUBLE_EQ(m[0], 7.0);
+    EXPECT_DOUBLE_EQ(m[1], 14.0);
+    EXPECT_DOUBLE_EQ(m[2], 21.0);
+    // The last record (row 2, column 4) non-finite: left out.
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    std::memcpy(&c.data[2 * c.row_step + 4 * c.point_step + 8], &nan, sizeof(nan));
+    ASSERT_TRUE(gf::sampledCentre(c, layout, 4096, m));
+    EXPECT_DOUBLE_EQ(m[0], 6.5);
+    EXPECT_DOUBLE_EQ(m[2], 19.5);
+    // One sample: the first record only.
+    ASSERT_TRUE(gf::sampledCentre(c, layout, 1, m));
+    EXPECT_DOUBLE_EQ(m[0], 0.0);
+    EXPECT_DOUBLE_EQ(m[1], 0.0);
+  }
+}
+
+TEST(SampledCentre, EmptyOrAllNonFiniteGivesNone) {
+  gf::CloudLayout layout;
+  double m[3];
+  const PointCloud2 empty = makeCloud(0, 1);
+  ASSERT_EQ(gf::checkPointCloud2(empty, &layout, nullptr), gf::CloudRejectReason::kNone);
+  EXPECT_FALSE(gf::sampledCentre(empty, layout, 4096, m));
+  PointCloud2 c = makeCloud(4, 1);
+  ASSERT_EQ(gf::checkPointCloud2(c, &layout, nullptr), gf::CloudRejectReason::kNone);
+  const float inf = std::numeric_limits<float>::infinity();
+  for (std::uint32_t i = 0; i < 4; ++i) std::memcpy(&c.data[i * c.point_step + 4], &inf, 4);
+  EXPECT_FALSE(gf::sampledCentre(c, layout, 4096, m));
+}
+
 // ------------------------------------------------------------------------------ split
 
 TEST(SplitPointCloud2, EveryRecordOnceInOrderNaNToNonGround) {

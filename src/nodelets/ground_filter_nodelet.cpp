@@ -357,6 +357,17 @@ void GroundFilterNodelet::processCloud(const sensor_msgs::PointCloud2ConstPtr& m
                                        std::chrono::steady_clock::time_point t0) {
   const Eigen::Isometry3d identity = Eigen::Isometry3d::Identity();
   const Eigen::Isometry3d& pose = to_gravity ? *to_gravity : identity;
+  // Where the cloud lies, for the diagnostics: a survey tile in map coordinates can lie
+  // kilometres from rviz's default view. 4096 records read at most.
+  double centre[3];
+  if (sampledCentre(*msg, layout, 4096, centre)) {
+    char text[160];
+    std::snprintf(text, sizeof(text), "%.1f %.1f %.1f in '%s' (bounding box middle)", centre[0],
+                  centre[1], centre[2], msg->header.frame_id.c_str());
+    monitor_.recordCentre(text);
+  } else {
+    monitor_.recordCentre(std::string());
+  }
   ProcessedCloud out;
   {
     std::lock_guard<std::mutex> lock(process_mutex_);

@@ -58,6 +58,11 @@ void NodeletMonitor::recordCloud(double ms, const std::string& backend, const st
   if (!note.empty()) fallback_note_ = note;
 }
 
+void NodeletMonitor::recordCentre(const std::string& centre) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  centre_ = centre;
+}
+
 void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status,
                               const std::string& method, const std::string& gravity_frame,
                               bool have_config) {
@@ -67,7 +72,7 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
   CounterValues last;
   double ms_sum, ms_max, dt;
   std::uint64_t clouds;
-  std::string backend, note, scan_type;
+  std::string backend, note, scan_type, centre;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     ms_sum = window_ms_sum_;
@@ -78,6 +83,7 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
     backend = backend_;
     note = fallback_note_;
     scan_type = scan_type_;
+    centre = centre_;
     dt = std::max(1e-6, (now - last_diagnose_).toSec());
     last_diagnose_ = now;
     last = last_counts_;
@@ -131,6 +137,7 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
   status.add("method", method);
   status.add("backend", backend.empty() ? std::string("n/a (no neighbour search)") : backend);
   status.add("scan type", scan_type.empty() ? std::string("n/a (no cloud)") : scan_type);
+  status.add("cloud centre [m]", centre.empty() ? std::string("n/a (no finite point)") : centre);
   status.add("gravity frame", gravity_frame.empty() ? std::string("(input frame)") : gravity_frame);
   status.addf("input rate [Hz]", "%.2f", in_hz);
   status.addf("output rate [Hz]", "%.2f", out_hz);

@@ -101,6 +101,10 @@ class NodeletMonitor {
   void recordCloud(double ms, const std::string& backend, const std::string& note,
                    const std::string& scan_type = std::string());
 
+  /// \brief Remembers where the last cloud lies (text for the "cloud centre [m]" entry; empty:
+  ///        no finite point).
+  void recordCentre(const std::string& centre);
+
   /// \brief Fills the status: rates and times since the previous call, drops and stream
   ///        problems (WARN while they occur), totals; ERROR without a filter configuration.
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status, const std::string& method,
@@ -117,6 +121,7 @@ class NodeletMonitor {
   std::string backend_;        // FilterStats::backend of the last cloud
   std::string fallback_note_;  // last non-empty FilterStats::note
   std::string scan_type_;      // FilterStats::scan_type and scan_reason of the last cloud
+  std::string centre_;         // recordCentre() of the last cloud
   ros::WallTime last_diagnose_;
   CounterValues last_counts_;  // at the previous diagnostic update
   ros::WallTime last_log_[kLogSlotCount];

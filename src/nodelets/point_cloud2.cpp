@@ -3,6 +3,7 @@
 #include <ros/serialization.h>
 #include <sensor_msgs/PointField.h>
 
+#include <algorithm>
 #include <boost/make_shared.hpp>
 #include <cmath>
 #include <cstring>
@@ -166,6 +167,29 @@ CloudView makeCloudView(const sensor_msgs::PointCloud2& cloud, const CloudLayout
     }
   }
   return CloudView::packedXyz(scratch->data(), layout.points);
+}
+
+bool sampledCentre(const sensor_msgs::PointCloud2& cloud, const CloudLayout& layout,
+                   std::size_t max_samples, double centre[3]) {
+  if (layout.points == 0 || layout.width == 0 || max_samples == 0) return false;
+  const std::size_t step = std::max<std::size_t>(1, layout.points / max_samples);
+  double lo[3] = {0.0, 0.0, 0.0}, hi[3] = {0.0, 0.0, 0.0};
+  bool any = false;
+  for (std::size_t i = 0; i < layout.points; i += step) {
+    const std::uint8_t* rec = cloud.data.data() + (i / layout.width) * layout.row_step +
+                              (i % layout.width) * layout.point_step;
+    const double p[3] = {loadFloat(rec + layout.x_offset), loadFloat(rec + layout.y_offset),
+                         loadFloat(rec + layout.z_offset)};
+    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) continue;
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = any ? std::min(lo[a], p[a]) : p[a];
+      hi[a] = any ? std::max(hi[a], p[a]) : p[a];
+    }
+    any = true;
+  }
+  if (!any) return false;
+  for (int a = 0; a < 3; ++a) centre[a] = 0.5 * (lo[a] + hi[a]);
+  return true;
 }
 
 SplitCounts splitPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,

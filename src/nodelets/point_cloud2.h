@@ -78,6 +78,13 @@ SplitCounts splitPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayo
                              std::vector<std::uint8_t>* labels, sensor_msgs::PointCloud2* ground,
                              sensor_msgs::PointCloud2* nonground);
 
+/// \brief The middle of the x/y/z bounding box of at most `max_samples` records spread evenly
+///        over the cloud, finite ones only (diagnostics: where to point rviz at a survey tile
+///        whose coordinates lie far from its frame's origin). Reads no more than `max_samples`.
+/// \return false when the cloud is empty or no sampled record is finite.
+bool sampledCentre(const sensor_msgs::PointCloud2& cloud, const CloudLayout& layout,
+                   std::size_t max_samples, double centre[3]);
+
 /// \brief A CloudView of the cloud's x/y/z mapped through `transform` (e.g. sensor -> gravity
 ///        frame), packed into `scratch`; NaN/Inf points stay non-finite. Only the view moves: the
 ///        cloud itself (and so every output record) is left as it is.
