@@ -13,6 +13,7 @@
 #    sourced from /usr) and bad input (ROS 2 distro, broken setup.bash, no network).
 # --quick: the build, the core gtests, one rostest and the demo instead of every test.
 # --fresh: remove the cached root and compiler cache first (a cold run).
+# GF_PLATFORM_GCC9=0 leaves out the GCC 9 steps (scripts/check_gcc9.sh in the root, x86-64 and aarch64).
 # Compiles go through ccache (CMake's CMAKE_<LANG>_COMPILER_LAUNCHER environment variables, a cache
 # kept beside the root; GF_PLATFORM_CCACHE=0 turns it off), so a second run rebuilds fast.
 # Needs root (debootstrap, chroot, mount, unshare), debootstrap and git on this machine.
@@ -193,6 +194,14 @@ fi
 
 # ---------------------------------------------------------------- an existing ROS comes first
 step existing_ros --offline "bash ${CLONE_IN}/scripts/check_existing_ros.sh ${CLONE_IN}"
+
+# ---------------------------------------------------------------- the GCC 9 floor (focal, JetPack 5)
+# Not a README command: Debian 11's g++-9 (9.3.0) and aarch64-linux-gnu-g++-9 build the core, its
+# gtests run (aarch64 under qemu-user) and the labels of both builds agree (scripts/check_gcc9.sh).
+if [ "${GF_PLATFORM_GCC9:-1}" = 1 ]; then
+  step gcc9_install "bash ${CLONE_IN}/scripts/check_gcc9.sh --install"
+  step gcc9 --offline "bash ${CLONE_IN}/scripts/check_gcc9.sh"
+fi
 
 cleanup
 phase "done: $(grep -c ' passed ' "${CACHE}/results.txt") steps passed, \

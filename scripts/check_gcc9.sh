@@ -1,0 +1,121 @@
+#!/usr/bin/env bash
+# The compiler floor, GCC 9 (Ubuntu 20.04 / ROS Noetic, JetPack 5 on Jetson), for the ROS-free core
+# on x86-64 and aarch64:
+#   1. builds test/core_only (the core, its gtests and the label tool) with gcc-9 / g++-9 and runs
+#      the gtests;
+#   2. cross-builds the same with aarch64-linux-gnu-g++-9 (NEON paths included), runs the kd-tree
+#      gtest (portable and NEON queries against brute force) under qemu-aarch64 and labels KITTI
+#      000000 with both methods there; the labels must equal the x86-64 GCC 9 build's byte for byte.
+#
+#   bash scripts/check_gcc9.sh [--install]
+#     --install   only install what it needs (apt, as root) and exit: g++-9 g++-9-aarch64-linux-gnu
+#                 qemu-user cmake googletest libeigen3-dev (Debian 11, Ubuntu 20.04 / 22.04 carry them)
+#
+# scripts/check_platform.sh runs it in its Debian 11 root (Debian's GCC 9.3.0 packages). Environment:
+# GF_GCC9_BUILD (build folder, default /tmp/gf_check_gcc9), GF_DATA_DIR (default ../shared/data),
+# GF_JOBS (default nproc). Exit status: 0 all passed, 1 a build or test failed or labels differ,
+# 2 a tool is missing. Timings under qemu mean nothing; the script reports none.
+set -euo pipefail
+export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
+
+GF_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+BUILD="${GF_GCC9_BUILD:-/tmp/gf_check_gcc9}"
+DATA="${GF_DATA_DIR:-$(cd "${GF_ROOT}/.." && pwd)/shared/data}"
+JOBS="${GF_JOBS:-$(nproc 2>/dev/null || echo 2)}"
+SYSROOT=/usr/aarch64-linux-gnu
+PACKAGES=(g++-9 g++-9-aarch64-linux-gnu qemu-user cmake googletest libeigen3-dev)
+start=${SECONDS}
+step() { echo "== check_gcc9 [$((SECONDS - start)) s] $*"; }
+
+if [[ "${1:-}" == "--install" ]]; then
+  [[ "$(id -u)" == 0 ]] || { echo "check_gcc9: --install needs root (apt)" >&2; exit 2; }
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq -o DPkg::Lock::Timeout=900 >/dev/null || true
+  apt-get install -y -qq --no-install-recommends -o DPkg::Lock::Timeout=900 "${PACKAGES[@]}" \
+    >/dev/null
+  exit 0
+fi
+[[ $# -eq 0 ]] || { echo "usage: $0 [--install]" >&2; exit 2; }
+for tool in gcc-9 g++-9 aarch64-linux-gnu-gcc-9 aarch64-linux-gnu-g++-9 qemu-aarch64 cmake; do
+  command -v "${tool}" >/dev/null 2>&1 ||
+    { echo "check_gcc9: ${tool} not found (bash $0 --install: ${PACKAGES[*]})" >&2; exit 2; }
+done
+[[ -d /usr/src/googletest && -d /usr/include/eigen3 ]] ||
+  { echo "check_gcc9: needs /usr/src/googletest (googletest) and /usr/include/eigen3" >&2; exit 2; }
+
+failed=0
+# configure_build <dir> <cmake args...>: a fresh configure when the folder was made by another
+# checkout or compiler; the number of compiler warnings is reported (not an error).
+configure_build() {
+  local dir="$1"; shift
+  if [[ -f "${dir}/CMakeCache.txt" ]] &&
+     ! grep -qxF "CMAKE_HOME_DIRECTORY:INTERNAL=${GF_ROOT}/test/core_only" "${dir}/CMakeCache.txt"; then
+    rm -rf "${dir}"
+  fi
+  cmake -S "${GF_ROOT}/test/core_only" -B "${dir}" -DCMAKE_BUILD_TYPE=Release \
+    -DGF_DATA_DIR="${DATA}" "$@" >"${dir}.configure.log" 2>&1 ||
+    { cat "${dir}.configure.log"; return 1; }
+  grep -E "CXX compiler identification" "${dir}.configure.log" || true
+  cmake --build "${dir}" -j "${JOBS}" >"${dir}.build.log" 2>&1 ||
+    { grep -E "error|Error" "${dir}.build.log" | head -n 40; return 1; }
+  echo "compiler warnings: $(grep -c 'warning:' "${dir}.build.log" || true)"
+}
+mkdir -p "${BUILD}"
+
+step "x86-64 build with g++-9 (${BUILD}/x86)"
+if ! configure_build "${BUILD}/x86" -DCMAKE_C_COMPILER=gcc-9 -DCMAKE_CXX_COMPILER=g++-9; then
+  echo "check_gcc9: x86-64 build FAILED" >&2
+  exit 1
+fi
+for t in test_simd_levels test_core test_voxel_scale test_working_volume test_gpu_fallback \
+  test_scene_generator test_kdtree_neighbor_search; do
+  step "${t}"
+  if ! GF_TEST_LAUNCHER= "${BUILD}/x86/${t}" --gtest_brief=1; then
+    echo "check_gcc9: ${t} FAILED (x86-64, GCC 9)" >&2
+    failed=1
+  fi
+done
+
+step "aarch64 cross-build with aarch64-linux-gnu-g++-9 (${BUILD}/arm64)"
+if ! GF_AARCH64_CC=aarch64-linux-gnu-gcc-9 GF_AARCH64_CXX=aarch64-linux-gnu-g++-9 \
+  configure_build "${BUILD}/arm64" -DCMAKE_TOOLCHAIN_FILE="${GF_ROOT}/cmake/aarch64_toolchain.cmake"; then
+  echo "check_gcc9: aarch64 build FAILED" >&2
+  exit 1
+fi
+QEMU=(qemu-aarch64 -L "${SYSROOT}")
+step "qemu-aarch64 test_kdtree_neighbor_search"
+if ! GF_TEST_LAUNCHER="${QEMU[*]}" "${QEMU[@]}" "${BUILD}/arm64/test_kdtree_neighbor_search" \
+  --gtest_brief=1; then
+  echo "check_gcc9: test_kdtree_neighbor_search FAILED under qemu-aarch64 (GCC 9)" >&2
+  failed=1
+fi
+
+frame="${DATA}/semantickitti/seq00/000000.bin"
+if [[ ! -f "${frame}" ]]; then
+  echo "check_gcc9: no ${frame}: labels not compared" >&2
+else
+  out="${BUILD}/labels"
+  rm -rf "${out}"
+  declare -A configs=([voxel]='voxel' [normal]='normal knn_backend=kdtree threads=2')
+  for name in voxel normal; do
+    read -r -a cfg <<<"${configs[${name}]}"
+    mkdir -p "${out}/${name}/x86" "${out}/${name}/arm64"
+    step "labels ${name}: x86-64 and aarch64 (qemu), GCC 9"
+    env -u GF_SIMD "${BUILD}/x86/label_scans" "${out}/${name}/x86" "${cfg[@]}" -- "${frame}" |
+      sed 's/, [0-9.]* ms$//'
+    env -u GF_SIMD "${QEMU[@]}" "${BUILD}/arm64/label_scans" "${out}/${name}/arm64" "${cfg[@]}" \
+      -- "${frame}" | sed 's/, [0-9.]* ms$//'
+    a="${out}/${name}/x86/000000.labels"
+    b="${out}/${name}/arm64/000000.labels"
+    if [[ ! -s "${a}" || ! -s "${b}" ]] || [[ $(stat -c %s "${a}") != $(stat -c %s "${b}") ]]; then
+      echo "check_gcc9: ${name}: labels missing or of another length" >&2
+      failed=1
+      continue
+    fi
+    diff=$(cmp -l "${a}" "${b}" | wc -l || true)
+    echo "labels ${name} 000000: aarch64 vs x86-64 (GCC 9): ${diff} of $(stat -c %s "${a}") differ"
+    [[ "${diff}" == 0 ]] || failed=1
+  done
+fi
+step "done: $([[ ${failed} == 0 ]] && echo 'all passed' || echo FAILED)"
+exit "${failed}"
