@@ -70,7 +70,7 @@ fi
 for t in test_simd_levels test_core test_voxel_scale test_working_volume test_gpu_fallback \
   test_scene_generator test_kdtree_neighbor_search; do
   step "${t}"
-  if ! GF_TEST_LAUNCHER= "${BUILD}/x86/${t}" --gtest_brief=1; then
+  if ! GF_TEST_LAUNCHER='' "${BUILD}/x86/${t}" --gtest_brief=1; then
     echo "check_gcc9: ${t} FAILED (x86-64, GCC 9)" >&2
     failed=1
   fi
