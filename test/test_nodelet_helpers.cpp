@@ -201,6 +201,11 @@ TEST(SampledCentre, BoundingBoxMiddleOfFiniteRecordsAcrossPaddedRows) {
     ASSERT_TRUE(gf::sampledCentre(c, layout, 4096, m));
     EXPECT_DOUBLE_EQ(m[0], 6.5);
     EXPECT_DOUBLE_EQ(m[2], 19.5);
+    // At most max_samples records read: 8 of 15 at steps of 2 (0, 2, ..., 14, the last not
+    // finite) reach record 12; reading every record would reach 13 (6.5).
+    ASSERT_TRUE(gf::sampledCentre(c, layout, 8, m));
+    EXPECT_DOUBLE_EQ(m[0], 6.0);
+    EXPECT_DOUBLE_EQ(m[2], 18.0);
     // One sample: the first record only.
     ASSERT_TRUE(gf::sampledCentre(c, layout, 1, m));
     EXPECT_DOUBLE_EQ(m[0], 0.0);

@@ -360,14 +360,8 @@ void GroundFilterNodelet::processCloud(const sensor_msgs::PointCloud2ConstPtr& m
   // Where the cloud lies, for the diagnostics: a survey tile in map coordinates can lie
   // kilometres from rviz's default view. 4096 records read at most.
   double centre[3];
-  if (sampledCentre(*msg, layout, 4096, centre)) {
-    char text[160];
-    std::snprintf(text, sizeof(text), "%.1f %.1f %.1f in '%s' (bounding box middle)", centre[0],
-                  centre[1], centre[2], msg->header.frame_id.c_str());
-    monitor_.recordCentre(text);
-  } else {
-    monitor_.recordCentre(std::string());
-  }
+  const bool finite = sampledCentre(*msg, layout, 4096, centre);
+  monitor_.recordCentre(finite ? centre : nullptr, msg->header.frame_id);
   ProcessedCloud out;
   {
     std::lock_guard<std::mutex> lock(process_mutex_);

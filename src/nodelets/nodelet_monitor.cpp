@@ -58,9 +58,11 @@ void NodeletMonitor::recordCloud(double ms, const std::string& backend, const st
   if (!note.empty()) fallback_note_ = note;
 }
 
-void NodeletMonitor::recordCentre(const std::string& centre) {
+void NodeletMonitor::recordCentre(const double* centre, const std::string& frame_id) {
   std::lock_guard<std::mutex> lock(mutex_);
-  centre_ = centre;
+  centre_state_ = centre ? Centre::kKnown : Centre::kNoFinitePoint;
+  if (centre) std::copy(centre, centre + 3, centre_);
+  centre_frame_ = frame_id;
 }
 
 void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status,
@@ -72,7 +74,8 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
   CounterValues last;
   double ms_sum, ms_max, dt;
   std::uint64_t clouds;
-  std::string backend, note, scan_type, centre;
+  std::string backend, note, scan_type;
+  char centre[192] = "n/a (no cloud)";
   {
     std::lock_guard<std::mutex> lock(mutex_);
     ms_sum = window_ms_sum_;
@@ -83,7 +86,12 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
     backend = backend_;
     note = fallback_note_;
     scan_type = scan_type_;
-    centre = centre_;
+    if (centre_state_ == Centre::kKnown) {
+      std::snprintf(centre, sizeof(centre), "%.1f %.1f %.1f in '%s' (bounding box middle)",
+                    centre_[0], centre_[1], centre_[2], centre_frame_.c_str());
+    } else if (centre_state_ == Centre::kNoFinitePoint) {
+      std::snprintf(centre, sizeof(centre), "n/a (no finite point)");
+    }
     dt = std::max(1e-6, (now - last_diagnose_).toSec());
     last_diagnose_ = now;
     last = last_counts_;
@@ -137,7 +145,7 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
   status.add("method", method);
   status.add("backend", backend.empty() ? std::string("n/a (no neighbour search)") : backend);
   status.add("scan type", scan_type.empty() ? std::string("n/a (no cloud)") : scan_type);
-  status.add("cloud centre [m]", centre.empty() ? std::string("n/a (no finite point)") : centre);
+  status.add("cloud centre [m]", std::string(centre));
   status.add("gravity frame", gravity_frame.empty() ? std::string("(input frame)") : gravity_frame);
   status.addf("input rate [Hz]", "%.2f", in_hz);
   status.addf("output rate [Hz]", "%.2f", out_hz);

@@ -101,9 +101,10 @@ class NodeletMonitor {
   void recordCloud(double ms, const std::string& backend, const std::string& note,
                    const std::string& scan_type = std::string());
 
-  /// \brief Remembers where the last cloud lies (text for the "cloud centre [m]" entry; empty:
-  ///        no finite point).
-  void recordCentre(const std::string& centre);
+  /// \brief Remembers where the last cloud lies, for the "cloud centre [m]" entry: the middle of
+  ///        its bounding box in `frame_id`, or nullptr when it had no finite point. Formatted
+  ///        only when the status is filled.
+  void recordCentre(const double* centre, const std::string& frame_id);
 
   /// \brief Fills the status: rates and times since the previous call, drops and stream
   ///        problems (WARN while they occur), totals; ERROR without a filter configuration.
@@ -121,7 +122,10 @@ class NodeletMonitor {
   std::string backend_;        // FilterStats::backend of the last cloud
   std::string fallback_note_;  // last non-empty FilterStats::note
   std::string scan_type_;      // FilterStats::scan_type and scan_reason of the last cloud
-  std::string centre_;         // recordCentre() of the last cloud
+  enum class Centre { kNoCloud, kNoFinitePoint, kKnown };
+  Centre centre_state_ = Centre::kNoCloud;  // recordCentre() of the last cloud
+  double centre_[3] = {0.0, 0.0, 0.0};
+  std::string centre_frame_;
   ros::WallTime last_diagnose_;
   CounterValues last_counts_;  // at the previous diagnostic update
   ros::WallTime last_log_[kLogSlotCount];

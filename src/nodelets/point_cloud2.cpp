@@ -172,7 +172,7 @@ CloudView makeCloudView(const sensor_msgs::PointCloud2& cloud, const CloudLayout
 bool sampledCentre(const sensor_msgs::PointCloud2& cloud, const CloudLayout& layout,
                    std::size_t max_samples, double centre[3]) {
   if (layout.points == 0 || layout.width == 0 || max_samples == 0) return false;
-  const std::size_t step = std::max<std::size_t>(1, layout.points / max_samples);
+  const std::size_t step = (layout.points + max_samples - 1) / max_samples;  // <= max_samples reads
   double lo[3] = {0.0, 0.0, 0.0}, hi[3] = {0.0, 0.0, 0.0};
   bool any = false;
   for (std::size_t i = 0; i < layout.points; i += step) {
