@@ -15,6 +15,8 @@
 set -euo pipefail
 
 GF_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+# shellcheck source=scripts/compare_labels.sh
+source "${GF_ROOT}/scripts/compare_labels.sh"
 BUILD="${GF_ARM64_BUILD:-/tmp/gf_check_arm64}"
 DATA="${GF_DATA_DIR:-$(cd "${GF_ROOT}/.." && pwd)/shared/data}"
 JOBS="${GF_JOBS:-$(nproc 2>/dev/null || echo 2)}"
@@ -139,15 +141,8 @@ for name in voxel voxel_one_plane normal; do
     b="$(basename "${f}" .bin).labels"
     ref="${out}/${name}/x86/${b}"
     for run in x86_portable arm64 arm64_portable; do
-      if [[ ! -s "${ref}" || ! -s "${out}/${name}/${run}/${b}" ]] ||
-        [[ $(stat -c %s "${ref}") != $(stat -c %s "${out}/${name}/${run}/${b}") ]]; then
-        echo "check_arm64: ${name} ${b}: ${run} labels missing or of another length" >&2
-        failed=1
-        continue
-      fi
-      diff=$(cmp -l "${ref}" "${out}/${name}/${run}/${b}" | wc -l || true)
-      echo "labels ${name} ${b}: ${run} vs x86: ${diff} of $(stat -c %s "${ref}") differ"
-      [[ "${diff}" == 0 ]] || failed=1
+      gf_compare_labels check_arm64 "${name} ${b}: ${run} vs x86" "${ref}" \
+        "${out}/${name}/${run}/${b}" || failed=1
     done
   done
 done

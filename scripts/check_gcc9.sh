@@ -19,6 +19,8 @@ set -euo pipefail
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
 
 GF_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+# shellcheck source=scripts/compare_labels.sh
+source "${GF_ROOT}/scripts/compare_labels.sh"
 BUILD="${GF_GCC9_BUILD:-/tmp/gf_check_gcc9}"
 DATA="${GF_DATA_DIR:-$(cd "${GF_ROOT}/.." && pwd)/shared/data}"
 JOBS="${GF_JOBS:-$(nproc 2>/dev/null || echo 2)}"
@@ -105,16 +107,8 @@ else
       sed 's/, [0-9.]* ms$//'
     env -u GF_SIMD "${QEMU[@]}" "${BUILD}/arm64/label_scans" "${out}/${name}/arm64" "${cfg[@]}" \
       -- "${frame}" | sed 's/, [0-9.]* ms$//'
-    a="${out}/${name}/x86/000000.labels"
-    b="${out}/${name}/arm64/000000.labels"
-    if [[ ! -s "${a}" || ! -s "${b}" ]] || [[ $(stat -c %s "${a}") != $(stat -c %s "${b}") ]]; then
-      echo "check_gcc9: ${name}: labels missing or of another length" >&2
-      failed=1
-      continue
-    fi
-    diff=$(cmp -l "${a}" "${b}" | wc -l || true)
-    echo "labels ${name} 000000: aarch64 vs x86-64 (GCC 9): ${diff} of $(stat -c %s "${a}") differ"
-    [[ "${diff}" == 0 ]] || failed=1
+    gf_compare_labels check_gcc9 "${name} 000000: aarch64 vs x86-64 (GCC 9)" \
+      "${out}/${name}/x86/000000.labels" "${out}/${name}/arm64/000000.labels" || failed=1
   done
 fi
 step "done: $([[ ${failed} == 0 ]] && echo 'all passed' || echo FAILED)"
