@@ -207,6 +207,65 @@ TEST(ScanType, SteepTileIsAirborne) {
   EXPECT_EQ(d.type, gf::ScanType::kAirborne) << d.reason;
 }
 
+// Registered clouds (several sensor positions merged in one world frame, no sensor at the
+// origin) are ground-level; nadir clouds of the same worlds, dense ones included, stay airborne.
+TEST(ScanType, RegisteredCloudsAreGroundLevel) {
+  struct Case {
+    const char* kind;
+    const char* rule;  // words of the reason line of the rule that must decide
+  };
+  const Case cases[] = {{"mls", "side view"},
+                        {"mls_air", "side view"},
+                        {"slam", "side view"},
+                        {"stations", "density falls with range"},
+                        {"tls_far", "map coordinates"}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.kind);
+    const Cloud cloud = builtin(c.kind, 1);
+    gf::ScanTypeClassifier k;
+    const float o[3] = {0.f, 0.f, 0.f};
+    gf::ScanDecision d;
+    k.classify(cloud.view(), o, &d);
+    EXPECT_NE(d.type, gf::ScanType::kAirborne) << d.reason;
+    EXPECT_NE(d.reason.find(c.rule), std::string::npos) << d.reason;
+    // The map frame's origin is no sensor position: no range cut for the side-view and far
+    // decisions.
+    if (std::string(c.kind) != "stations") EXPECT_TRUE(d.registered) << d.reason;
+    const gf::ScanMeasures m = k.measure(cloud.view(), o);
+    EXPECT_LE(m.read, gf::ScanTypeClassifier::kMaxRead);
+  }
+}
+
+TEST(ScanType, NadirCloudsOfTheSameWorldsStayAirborne) {
+  // uav: a line scanner 40 m over the street (+-35 deg: walls seen obliquely, 25 points per
+  // 1 m column); corridor: a 30 m strip of the airborne tile; airborne:3, an unseen seed.
+  for (const char* kind : {"uav", "corridor"}) {
+    for (std::uint32_t seed : {1u, 2u}) {
+      SCOPED_TRACE(std::string(kind) + ":" + std::to_string(seed));
+      const gf::ScanDecision d = classify(builtin(kind, seed));
+      EXPECT_EQ(d.type, gf::ScanType::kAirborne) << d.reason;
+      EXPECT_FALSE(d.registered);
+      EXPECT_NE(d.reason.find("1 m columns"), std::string::npos) << d.reason;
+    }
+  }
+  EXPECT_EQ(classify(builtin("airborne", 3)).type, gf::ScanType::kAirborne);
+}
+
+TEST(ScanType, RegisteredCloudFarFromTheOriginIsNotCutByMaxRange) {
+  // One TLS station exported 2.4 km from the origin: with the nodelets' max_range (1000 m) no
+  // point is cut and the labels are those of the filter without a working volume.
+  const Cloud far = builtin("tls_far", 1);
+  for (const char* method : {"voxel", "normal"}) {
+    SCOPED_TRACE(method);
+    std::vector<std::uint8_t> cut, plain;
+    const gf::FilterStats st = runChecked(method, far, &cut, {{"max_range", "1000"}});
+    EXPECT_EQ(st.out_of_range_points, 0u) << st.scan_reason;
+    runChecked(method, far, &plain, {{"max_range", "0"}});
+    EXPECT_EQ(cut, plain);
+    EXPECT_GT(f1(cut, far), 0.97);
+  }
+}
+
 // ------------------------------------------------------------------- the modes it switches
 
 TEST(ScanType, AutoAllocatesNothingAfterTheFirstScan) {
@@ -384,6 +443,51 @@ TEST(ScanType, SensorOriginFarOutsideTheCloud) {
   // the points lie high above the origin, which reads as a tripod scanner's: same mode).
   EXPECT_EQ(classify(street, 4000.f, 0.f, 0.f).type, gf::ScanType::kGround);
   EXPECT_NE(classify(street, 0.f, -3000.f, -4000.f).type, gf::ScanType::kAirborne);
+}
+
+TEST(ScanType, WallSeenEdgeOnAndACloudInMillimetres) {
+  // Every point at one x (a wall seen edge-on: no footprint across), and a registered street
+  // given in millimetres: a decision, a reason, every point labelled, no crash.
+  Cloud wall;
+  for (int i = 0; i < 400; ++i) {
+    for (int j = 0; j < 40; ++j) wall.add(5.f, 0.1f * i - 20.f, 0.1f * j, j == 0);
+  }
+  Cloud mm = builtin("mls", 1);
+  for (float& v : mm.xyz) v *= 1000.f;
+  for (const Cloud* c : {&wall, &mm}) {
+    for (const char* method : {"voxel", "normal"}) {
+      std::vector<std::uint8_t> labels;
+      runChecked(method, *c, &labels, {{"max_range", "0"}});
+    }
+  }
+  EXPECT_FALSE(classify(wall).reason.empty());
+  // Millimetres: rule 4's columns are 1 unit wide, so each holds about one point and the rule
+  // does not judge (documented: the filters' lengths are metres too).
+  const gf::ScanDecision d = classify(mm);
+  EXPECT_NE(d.reason.find("1 m columns"), std::string::npos) << d.reason;
+  EXPECT_EQ(d.type, gf::ScanType::kAirborne) << d.reason;
+}
+
+TEST(ScanType, HugeCloudIsJudgedFromABoundedRead) {
+  // 6 M points (a registered street repeated along x): rule 4 reads at most kMaxRead of them.
+  const Cloud street = builtin("mls", 1);
+  Cloud big;
+  big.xyz.reserve(street.xyz.size() * 10);
+  for (int r = 0; r < 10; ++r) {
+    for (std::size_t i = 0; i < street.size(); ++i) {
+      big.xyz.insert(big.xyz.end(),
+                     {street.xyz[3 * i] + 100.f * r, street.xyz[3 * i + 1], street.xyz[3 * i + 2]});
+    }
+  }
+  gf::ScanTypeClassifier k;
+  const float o[3] = {0.f, 0.f, 0.f};
+  gf::ScanDecision d;
+  k.classify(big.view(), o, &d);
+  EXPECT_EQ(d.type, gf::ScanType::kGround) << d.reason;
+  const gf::ScanMeasures m = k.measure(big.view(), o);
+  EXPECT_GT(big.size(), 5000000u);
+  EXPECT_LE(m.read, gf::ScanTypeClassifier::kMaxRead);
+  EXPECT_GT(m.read, gf::ScanTypeClassifier::kMaxRead / 2);
 }
 
 TEST(ScanType, EmptyAndInvalidClouds) {

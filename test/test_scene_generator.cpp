@@ -286,8 +286,63 @@ TEST(SceneGenerator, VergeSlopesAwayFromTheRoadAndTrailIsHilly) {
   EXPECT_GT(hi - lo, 2.0);  // metres of relief within 40 m
 }
 
+// Registered clouds: positions merged in the world frame (plus its offset), truth exact there;
+// small variants of the built-in kinds (the sanitizer build runs this file).
+TEST(SceneGenerator, RegisteredCloudsAreInTheWorldFrameWithExactTruth) {
+  SceneParams mls = builtinSceneParams("mls");
+  mls.positions = 3;
+  mls.position_step = 10.0;
+  mls.azimuth_steps = 360;
+  mls.range_noise_sigma = 0.0;
+  SceneParams far = builtinSceneParams("tls_far");
+  far.tls_points = 20000;
+  far.range_noise_sigma = 0.0;
+  SceneParams uav = builtinSceneParams("uav");
+  uav.crop_half_length = 10.0;
+  uav.range_noise_sigma = 0.0;
+  SceneParams slam = builtinSceneParams("slam");
+  slam.positions = 3;
+  slam.azimuth_steps = 256;
+  slam.range_noise_sigma = 0.0;
+  slam.grass_roughness = 0.0;
+  for (const SceneParams* p : {&mls, &far, &uav, &slam}) {
+    SCOPED_TRACE(p == &mls ? "mls" : p == &far ? "tls_far" : p == &uav ? "uav" : "slam");
+    EXPECT_TRUE(sceneInWorldFrame(*p));
+    const GeneratedScan s = generateScene(*p);
+    expectConsistentSizes(s);
+    const Counts c = count(*p, s, p->curb_height + 2e-3);
+    EXPECT_GT(c.ground, 1000u);
+    EXPECT_GT(c.nonground_above_1m, 100u);
+    EXPECT_EQ(c.ground_off_surface, 0u);  // exact terrain in the world frame, offset included
+  }
+  // The positions are merged: more points than one of them, spread along x by the steps.
+  SceneParams one = mls;
+  one.positions = 1;
+  const GeneratedScan a = generateScene(one), b = generateScene(mls);
+  EXPECT_GT(b.size(), 2 * a.size());
+  float lo = 1e9f, hi = -1e9f;
+  for (std::size_t i = 0; i < b.size(); ++i) {
+    if (b.truth[i] != 1) continue;
+    lo = std::min(lo, b.xyz[3 * i]);
+    hi = std::max(hi, b.xyz[3 * i]);
+  }
+  EXPECT_GT(hi - lo, 2 * mls.position_step);
+  // The far station sits around its offset; the UAV sees down only (every point below it).
+  const GeneratedScan f = generateScene(far);
+  double mx = 0.0;
+  for (std::size_t i = 0; i < f.size(); ++i) mx += f.xyz[3 * i];
+  EXPECT_NEAR(mx / f.size(), far.world_offset_x, 60.0);
+  const GeneratedScan u = generateScene(uav);
+  for (std::size_t i = 0; i < u.size(); ++i) {
+    ASSERT_LT(u.xyz[3 * i + 2], sceneGroundHeight(uav, u.xyz[3 * i], u.xyz[3 * i + 1]) + 30.0);
+  }
+  SceneParams bad = mls;
+  bad.position_keep = 0.0;
+  EXPECT_THROW(bad.validate(), std::invalid_argument);
+}
+
 TEST(SceneGenerator, BuiltinKindsNameTheirSceneAndScanner) {
-  EXPECT_EQ(builtinSceneKinds().size(), 6u);
+  EXPECT_EQ(builtinSceneKinds().size(), 13u);
   for (const std::string& kind : builtinSceneKinds()) {
     EXPECT_NO_THROW(builtinSceneParams(kind).validate()) << kind;
   }

@@ -67,11 +67,12 @@ class GroundFilter {
   /// \brief The sensor origin in the view's frame (WorkingVolumeFilter::setOrigin passes its
   ///        centre on): scan_type auto looks at the points from there. Default: ignored.
   virtual void setSensorOrigin(float /*x*/, float /*y*/, float /*z*/) {}
-  /// \brief True when this filter will run `cloud` as an airborne scan (scan_type): the
-  ///        working volume then drops its max_range for this scan (a survey tile need not lie
+  /// \brief True when scan_type finds no sensor at the origin of `cloud`: an airborne scan, or
+  ///        a registered ground-level cloud (several sensor positions merged, a map tile). The
+  ///        working volume then drops its max_range for this scan (such a cloud need not lie
   ///        near the origin). The decision holds for the next filter() call, also when that
   ///        gets only part of `cloud`. Default: false.
-  virtual bool airborneScan(const CloudView& /*cloud*/) { return false; }
+  virtual bool noSensorAtOrigin(const CloudView& /*cloud*/) { return false; }
   /// \brief Short method name ("voxel", "normal").
   virtual std::string name() const = 0;
 };

@@ -36,7 +36,7 @@ class NormalGroundFilter : public GroundFilter {
   /// \brief The origin scan_type auto looks from.
   void setSensorOrigin(float x, float y, float z) override;
   /// \brief True when scan_type (or morph_ground) makes `cloud` an airborne scan.
-  bool airborneScan(const CloudView& cloud) override;
+  bool noSensorAtOrigin(const CloudView& cloud) override;
 
   /// \brief The parameters in use.
   const NormalGroundFilterParams& params() const { return params_; }

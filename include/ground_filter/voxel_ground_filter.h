@@ -43,7 +43,7 @@ class VoxelGroundFilter : public GroundFilter {
   /// \brief The origin scan_type auto looks from.
   void setSensorOrigin(float x, float y, float z) override;
   /// \brief True when scan_type (or morph_ground) makes `cloud` an airborne scan.
-  bool airborneScan(const CloudView& cloud) override;
+  bool noSensorAtOrigin(const CloudView& cloud) override;
 
   /// \brief The parameters in use.
   const VoxelGroundFilterParams& params() const { return params_; }

@@ -132,9 +132,9 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
     }
   };
   countOutside();
-  // An airborne scan (scan_type) is not cut by max_range: a survey tile need not lie near the
-  // origin. Only the hard limit holds.
-  if (out_of_range > 0 && volume.max_range > 0.0 && inner_->airborneScan(cloud)) {
+  // A cloud with no sensor at its origin (scan_type: airborne, or registered) is not cut by
+  // max_range: a survey tile or a map need not lie near the origin. Only the hard limit holds.
+  if (out_of_range > 0 && volume.max_range > 0.0 && inner_->noSensorAtOrigin(cloud)) {
     volume.max_range = 0.0;
     countOutside();
   }
@@ -171,7 +171,7 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
   FilterStats inner_stats;
   inner_labels_.clear();
   // Also with no point left: the inner filter still reports its scan type (and takes the
-  // decision airborneScan() kept).
+  // decision noSensorAtOrigin() kept).
   inner_->filter(CloudView::packedXyz(xyz_.data(), kept_.size()), &inner_labels_, &inner_stats);
   if (inner_labels_.size() != kept_.size()) {
     throw std::runtime_error(inner_->name() + " filter returned " +

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "airborne/scan_type.h"
 #include "cli_args.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/io/metrics.h"
@@ -28,7 +29,7 @@ const char kUsage[] =
     "usage: ground_filter_eval [--method NAME] [--params FILE] [--set NAME=VALUE]... [--json]\n"
     "                          [--classes] [--write-labels DIR] [--label-format F]\n"
     "                          [--kitti-ids GROUND,NONGROUND] [--write-clouds DIR]\n"
-    "                          [--repeat N] [--drop-one N] PATH...\n"
+    "                          [--repeat N] [--drop-one N] [--scan-measures] PATH...\n"
     "\n"
     "Runs a ground filter on every scan and prints per-file and pooled results: points, points\n"
     "labelled ground, filter time in ms, and where ground truth exists the confusion counts\n"
@@ -64,6 +65,10 @@ const char kUsage[] =
     "--drop-one N        stability check (table only): per file, N times, filter the scan without\n"
     "                    one finite point (evenly spread over the file) and count the labels of\n"
     "                    the other points that differ from the whole scan's\n"
+    "--scan-measures     with --json: each file's scan_type auto measures (JSON key\n"
+    "                    \"scan_measures\": top_share, column_top_share, column_mean, read,\n"
+    "                    steep_share, steep_depth, high_share, extent; docs/scan_types.md),\n"
+    "                    computed whatever the decision (scripts/crossval.py reads them)\n"
     "--help              this text\n"
     "\n"
     "Exit status: 0 ok, 1 a file could not be read/written or its labels do not match, 2 bad\n"
@@ -76,6 +81,7 @@ struct Options {
   gf::ParamSettings settings;
   bool json = false;
   bool classes = false;
+  bool scan_measures = false;
   std::string labels_dir;
   bool kitti_labels = false;  // --label-format kitti
   gf::KittiLabelIds kitti_ids;
@@ -136,6 +142,7 @@ struct FileResult {
   gf::Confusion confusion;
   DropResult drop;
   std::string scan_type, scan_reason;  // FilterStats of the last run (parameter scan_type)
+  gf::ScanMeasures measures;           // --scan-measures
 };
 
 Options parseArgs(int argc, char** argv) {
@@ -150,6 +157,8 @@ Options parseArgs(int argc, char** argv) {
           o.json = true;
         } else if (arg == "--classes") {
           o.classes = true;
+        } else if (arg == "--scan-measures") {
+          o.scan_measures = true;
         } else if (arg == "--write-labels") {
           o.labels_dir = args->value();
         } else if (arg == "--label-format") {
@@ -308,6 +317,10 @@ FileResult evalFile(gf::GroundFilter* filter, const std::string& file, const Opt
     gf::addClassCounts(labels, scan.truth, scan.semantic, classes);
   }
   if (opt.drop_one > 0) res.drop = dropOne(filter, view, labels, opt.drop_one);
+  if (opt.scan_measures) {
+    const float origin[3] = {0.f, 0.f, 0.f};
+    res.measures = gf::ScanTypeClassifier().measure(view, origin);
+  }
   if (!opt.labels_dir.empty()) {
     if (opt.kitti_labels) {
       gf::writeKittiLabels(opt.labels_dir, file, labels, opt.kitti_ids);
@@ -350,7 +363,16 @@ void printJson(const Options& opt, const std::vector<FileResult>& results, const
     os << (i ? "," : "") << jsonRecord(r.file, r.points, r.ground, r.ms, r.labelled, r.confusion)
        << ",\"labelled\":" << (r.labelled ? "true" : "false")
        << ",\"scan_type\":" << jsonString(r.scan_type)
-       << ",\"scan_reason\":" << jsonString(r.scan_reason) << "}";
+       << ",\"scan_reason\":" << jsonString(r.scan_reason);
+    if (opt.scan_measures) {
+      const gf::ScanMeasures& m = r.measures;
+      os << ",\"scan_measures\":{\"top_share\":" << m.top_share
+         << ",\"column_top_share\":" << m.column_top_share << ",\"column_mean\":" << m.column_mean
+         << ",\"read\":" << m.read << ",\"steep_share\":" << m.steep_share
+         << ",\"steep_depth\":" << m.steep_depth << ",\"high_share\":" << m.high_share
+         << ",\"extent\":" << m.extent << "}";
+    }
+    os << "}";
   }
   os << "],\"pooled\":"
      << jsonRecord("pooled", pooled.points, pooled.ground, pooled.ms, pooled.labelled_files > 0,

@@ -26,6 +26,8 @@ struct SceneParams {
     kTls,       ///< terrestrial laser scanner on a tripod: dense spherical sweep, 1-5 M returns
     kAirborne,  ///< nadir airborne scan of its own hilly world with buildings, trees, bushes and
                 ///< cars (layout ignored): airborne_density points per m2, world frame
+    kUav,       ///< low UAV line scanner flying along world x over the layout, uav_height up,
+                ///< rays across the track within +-uav_half_angle_deg of nadir, world frame
   };
   /// \brief World layout.
   enum class Layout {
@@ -67,7 +69,28 @@ struct SceneParams {
   /// Half-range of the uniform vertical noise of grass returns (blades, tufts) [m] (0.05);
   /// dirt gets a fifth of it, roads and sidewalks none. Only the non-street layouts have grass.
   double grass_roughness = 0.05;
-  double airborne_density = 1.5;  ///< kAirborne: pulses per m2 over the tile [points/m2] (1.5)
+  double airborne_density = 1.5;     ///< kAirborne: pulses per m2 over the tile [points/m2] (1.5)
+  double uav_height = 40.0;          ///< kUav: flying height over the ground below it [m] (40)
+  double uav_half_angle_deg = 35.0;  ///< kUav: half the across-track field of view [deg] (35)
+  double uav_line_step = 0.25;       ///< kUav: flight distance between scan lines [m] (0.25)
+  double uav_angle_step_deg = 0.25;  ///< kUav: angle between rays of a line [deg] (0.25)
+
+  // Registered clouds: several scanner positions merged in one world frame, as a mobile-mapping
+  // run, several TLS stations or a SLAM map tile give them (no sensor at the origin).
+  int positions = 1;              ///< scanner positions merged; 1: one scan [-] (1)
+  double position_step = 4.0;     ///< distance between positions along world x [m] (4)
+  double position_keep = 1.0;     ///< share of each position's points kept, evenly [-] (1)
+  bool follow_track = false;      ///< positions follow the trail's centre line (y) [-] (false)
+  double station_y = 0.0;         ///< positions alternate between y = +-station_y [m] (0)
+  bool world_frame = false;       ///< points in the world frame (+ world_offset), not the scanner's
+  double world_offset_x = 0.0;    ///< added to every x of a world-frame cloud [m] (0)
+  double world_offset_y = 0.0;    ///< added to every y of a world-frame cloud [m] (0)
+  double world_offset_z = 0.0;    ///< added to every z of a world-frame cloud [m] (0)
+  double crop_half_width = 0.0;   ///< world frame: keep |y| <= this (0: no crop) [m] (0)
+  double crop_half_length = 0.0;  ///< world frame: keep |x| <= this (0: no crop) [m] (0)
+  /// Share of extra returns from a nadir UAV pass over the same world (uav_* fields, a 10 deg
+  /// half angle) added to a registered cloud [-] (0): a map with a few airborne returns.
+  double airborne_extra = 0.0;
 
   // Terrain (world frame; road level z = slope_x * x + slope_y * y + ramp).
   double slope_x = 0.02;       ///< road slope along x (gentle) [m/m] (0.02)
@@ -115,7 +138,13 @@ struct GeneratedScan {
 ///        sloped lawns beside a road, HDL-64), `offroad` (grassland with bushes and undergrowth,
 ///        Ouster OS1-64 1.3 m up), `trail` (hilly dirt trail, Ouster OS1-64 1.3 m up),
 ///        `airborne` (nadir scan, 1.5 points/m2, of a 180 m tile with hills, an embankment,
-///        buildings, trees, bushes and cars; 5 cm height noise).
+///        buildings, trees, bushes and cars; 5 cm height noise). Registered clouds in a world
+///        frame (no sensor at the origin): `mls` (HDL-64 sweeps every 4 m along the street,
+///        merged), `stations` (three TLS stations 30 m apart), `slam` (OS1-64 sweeps every 2 m
+///        along the trail, a 60 m map tile), `tls_far` (one TLS station 2.4 km from the origin),
+///        `mls_air` (`mls` plus 3 % returns of a nadir UAV pass); nadir clouds of the same kind of
+///        world: `uav` (a line scanner 40 m up flying along the street, +-35 deg),
+///        `corridor` (the airborne tile cut to a 30 m wide strip).
 /// \throws std::invalid_argument naming the known kinds for any other name.
 SceneParams builtinSceneParams(const std::string& kind);
 
@@ -129,10 +158,14 @@ std::vector<std::string> builtinSceneKinds();
 /// \throws std::invalid_argument when params.validate() fails.
 GeneratedScan generateScene(const SceneParams& params);
 
-/// \brief Height of the terrain surface below (x, y) of the scanner frame of `params`, in that
-///        frame [m]: the exact surface the ground points were sampled from, before range noise
-///        and grass roughness (kStreet: the sidewalk level from the curb line on, i.e. world
-///        y >= curb_y).
+/// \brief True when generateScene() gives `params`' points in the world frame (registered
+///        clouds, kUav) rather than the scanner frame.
+bool sceneInWorldFrame(const SceneParams& params);
+
+/// \brief Height of the terrain surface below (x, y) of the output frame of `params` (the
+///        scanner frame, or the world frame plus world_offset), in that frame [m]: the exact
+///        surface the ground points were sampled from, before range noise and grass roughness
+///        (kStreet: the sidewalk level from the curb line on, i.e. world y >= curb_y).
 double sceneGroundHeight(const SceneParams& params, double x, double y);
 
 }  // namespace ground_filter

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <limits>
 #include <numeric>
 #include <stdexcept>
 
@@ -52,6 +53,12 @@ void validateScanTypeSetting(const std::string& value) {
 }
 
 ScanMeasures ScanTypeClassifier::measure(const CloudView& cloud, const float origin[3]) {
+  ScanMeasures m = measureSample(cloud, origin);
+  if (m.cells > 0) measureColumns(cloud, &m);
+  return m;
+}
+
+ScanMeasures ScanTypeClassifier::measureSample(const CloudView& cloud, const float origin[3]) {
   ScanMeasures m;
   const std::size_t n = cloud.size();
   const std::size_t step = std::max<std::size_t>(1, (n + kMaxSamples - 1) / kMaxSamples);
@@ -60,6 +67,7 @@ ScanMeasures ScanTypeClassifier::measure(const CloudView& cloud, const float ori
   zs_.clear();
   depth_.clear();
   std::size_t below = 0, high = 0;
+  double nearest2 = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < n; i += step) {
     float x, y, z;
     if (!cloud.get(i, &x, &y, &z)) continue;
@@ -73,12 +81,14 @@ ScanMeasures ScanTypeClassifier::measure(const CloudView& cloud, const float ori
     // Squared horizontal distance against squared height: the angles without a square root.
     const double h2 = static_cast<double>(dx) * dx + static_cast<double>(dy) * dy;
     const double dz2 = static_cast<double>(dz) * dz;
+    nearest2 = std::min(nearest2, h2 + dz2);
     if (dz < 0.f) ++below;
     if (dz < 0.f && h2 <= dz2) depth_.push_back(-dz);  // 45 deg or more below the origin
     if (dz > 0.f && dz2 >= kTan30 * kTan30 * h2) ++high;
   }
   m.sampled = xs_.size();
   if (m.sampled == 0) return m;
+  m.nearest = std::sqrt(nearest2);
   const double ns = static_cast<double>(m.sampled);
   m.below_share = below / ns;
   m.high_share = high / ns;
@@ -91,6 +101,10 @@ ScanMeasures ScanTypeClassifier::measure(const CloudView& cloud, const float ori
   tmp_ = ys_;
   const float y0 = quantile(&tmp_, 0.01), y1 = quantile(&tmp_, 0.99);
   m.extent = std::max(x1 - x0, y1 - y0);
+  box_[0] = x0;
+  box_[1] = x1;
+  box_[2] = y0;
+  box_[3] = y1;
   if (!(m.extent > 0.0)) return m;
   // About 16 points a cell on an evenly covered box, at most 64 cells a side.
   const int side = std::max(4, std::min(64, static_cast<int>(std::sqrt(ns / 16.0))));
@@ -114,9 +128,58 @@ ScanMeasures ScanTypeClassifier::measure(const CloudView& cloud, const float ori
   return m;
 }
 
+void ScanTypeClassifier::measureColumns(const CloudView& cloud, ScanMeasures* m) {
+  const float x0 = box_[0], x1 = box_[1], y0 = box_[2], y1 = box_[3];
+  const std::size_t n = cloud.size();
+  const std::size_t want = std::min(n, kMaxRead);
+  if (want == 0) return;
+  const double c = kColumn;
+  const std::uint64_t nx = static_cast<std::uint64_t>(std::ceil((x1 - x0) / c)) + 1;
+  keys_.clear();
+  // Point k of the read sits at k n / want plus a jitter below the step: an even spread that a
+  // scan pattern's period (rings, sweeps) cannot alias with.
+  const std::size_t step = n / want;
+  std::uint32_t lcg = 12345u;
+  for (std::size_t k = 0; k < want; ++k) {
+    std::size_t i = static_cast<std::size_t>(static_cast<double>(k) * n / want);
+    if (step > 1) {
+      lcg = lcg * 1664525u + 1013904223u;
+      i = std::min(n - 1, i + (lcg >> 8) % step);
+    }
+    float x, y, z;
+    if (!cloud.get(i, &x, &y, &z)) continue;
+    if (!(x >= x0 && x <= x1 && y >= y0 && y <= y1)) continue;
+    keys_.push_back(static_cast<std::uint64_t>((y - y0) / c) * nx +
+                    static_cast<std::uint64_t>((x - x0) / c));
+  }
+  m->read = keys_.size();
+  if (keys_.empty()) return;
+  std::sort(keys_.begin(), keys_.end());
+  counts_.clear();
+  for (std::size_t a = 0; a < keys_.size();) {
+    std::size_t b = a + 1;
+    while (b < keys_.size() && keys_[b] == keys_[a]) ++b;
+    counts_.push_back(static_cast<std::uint32_t>(b - a));
+    a = b;
+  }
+  m->columns = counts_.size();
+  m->column_mean = static_cast<double>(keys_.size()) / static_cast<double>(counts_.size());
+  const std::size_t top = (counts_.size() + 9) / 10;
+  std::nth_element(counts_.begin(), counts_.begin() + static_cast<std::ptrdiff_t>(top - 1),
+                   counts_.end(), std::greater<std::uint32_t>());
+  double in_top = 0.0;
+  for (std::size_t j = 0; j < top; ++j) in_top += counts_[j];
+  m->column_top_share = in_top / static_cast<double>(keys_.size());
+}
+
 void ScanTypeClassifier::classify(const CloudView& cloud, const float origin[3], ScanDecision* d) {
-  const ScanMeasures m = measure(cloud, origin);
+  ScanMeasures m = measureSample(cloud, origin);
+  const bool nadir_density = m.sampled >= kMinPoints && m.extent >= kMinExtent &&
+                             !(m.steep_share >= kSteepShare && m.steep_depth >= kNadirDepth) &&
+                             m.top_share < kConcentrated;
+  if (nadir_density) measureColumns(cloud, &m);
   char buf[kReasonRoom];
+  d->registered = false;
   const double cell = m.cell, top = 100.0 * m.top_share, below = 100.0 * m.below_share;
   const char* cell_fmt = cell < 10.0 ? "%.1f" : "%.0f";
   char cell_text[16];
@@ -139,15 +202,31 @@ void ScanTypeClassifier::classify(const CloudView& cloud, const float origin[3],
                   "down (a sensor looking down); the densest tenth of the %s m xy cells holds "
                   "%.0f %% of the points",
                   100.0 * m.steep_share, m.steep_depth, cell_text, top);
+  } else if (m.top_share < kConcentrated && m.column_mean >= kMinColumnMean &&
+             m.column_top_share >= kColumnConcentrated) {
+    d->type = ScanType::kGround;
+    d->registered = true;
+    std::snprintf(buf, sizeof(buf),
+                  "auto: side view: the densest tenth of the %.0f m xy columns holds %.0f %% of "
+                  "%zu points read (%.0f %% or more: density falls with range from each sensor "
+                  "position; a registered cloud), although the densest tenth of the %s m cells "
+                  "holds only %.0f %%",
+                  kColumn, 100.0 * m.column_top_share, m.read, 100.0 * kColumnConcentrated,
+                  cell_text, top);
   } else if (m.top_share < kConcentrated) {
     d->type = ScanType::kAirborne;
     std::snprintf(buf, sizeof(buf),
                   "auto: the densest tenth of the %s m xy cells holds %.0f %% of the points (even "
                   "sampling: nadir; a ground-level scan holds %.0f %% or more); %.0f %% below the "
-                  "origin",
-                  cell_text, top, 100.0 * kConcentrated, below);
+                  "origin; the densest tenth of the %.0f m columns holds %.0f %% of %zu points "
+                  "read (%.1f a column; a side view: %.0f %% or more at %.0f or more a column)",
+                  cell_text, top, 100.0 * kConcentrated, below, kColumn, 100.0 * m.column_top_share,
+                  m.read, m.column_mean, 100.0 * kColumnConcentrated, kMinColumnMean);
   } else {
-    d->type = m.high_share >= kTlsHighShare ? ScanType::kTls : ScanType::kGround;
+    // Rule 3 needs no sensor at the origin, so a scan exported in map coordinates is judged
+    // too; one with no point near the origin has its sensor elsewhere: no range cut.
+    d->registered = m.nearest > kFarOrigin;
+    d->type = m.high_share >= kTlsHighShare && !d->registered ? ScanType::kTls : ScanType::kGround;
     const int n = std::snprintf(buf, sizeof(buf),
                                 "auto: the densest tenth of the %s m xy cells holds %.0f %% of the "
                                 "points (density falls with range from a ground-level sensor); "
@@ -156,6 +235,10 @@ void ScanTypeClassifier::classify(const CloudView& cloud, const float origin[3],
     if (d->type == ScanType::kTls && n > 0 && static_cast<std::size_t>(n) < sizeof(buf)) {
       std::snprintf(buf + n, sizeof(buf) - n, ", %.0f %% 30 deg or more above it (tripod scanner)",
                     100.0 * m.high_share);
+    } else if (d->registered && n > 0 && static_cast<std::size_t>(n) < sizeof(buf)) {
+      std::snprintf(buf + n, sizeof(buf) - n,
+                    "; no point within %.0f m of the origin (map coordinates: no range cut)",
+                    kFarOrigin);
     }
   }
   d->reason.reserve(kReasonRoom);
@@ -166,13 +249,13 @@ ScanTypeSwitch::ScanTypeSwitch(const std::string& setting, bool morph_ground) {
   validateScanTypeSetting(setting);
   automatic_ = !morph_ground && setting == "auto";
   if (morph_ground) {
-    fixed_ = {ScanType::kAirborne, "morph_ground: true"};
+    fixed_ = {ScanType::kAirborne, false, "morph_ground: true"};
   } else if (setting == "airborne") {
-    fixed_ = {ScanType::kAirborne, "scan_type: airborne"};
+    fixed_ = {ScanType::kAirborne, false, "scan_type: airborne"};
   } else if (setting == "tls") {
-    fixed_ = {ScanType::kTls, "scan_type: tls"};
+    fixed_ = {ScanType::kTls, false, "scan_type: tls"};
   } else {
-    fixed_ = {ScanType::kGround, "scan_type: ground"};
+    fixed_ = {ScanType::kGround, false, "scan_type: ground"};
   }
 }
 

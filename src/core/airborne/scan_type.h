@@ -34,6 +34,9 @@ void validateScanTypeSetting(const std::string& value);
 /// \brief A decision: the type and why (for FilterStats and the eval tool).
 struct ScanDecision {
   ScanType type = ScanType::kGround;
+  /// A ground-level cloud with no single sensor at its origin (rule 4: registered sweeps or
+  /// stations, a map tile): max_range does not cut it.
+  bool registered = false;
   std::string reason;
 };
 
@@ -48,6 +51,12 @@ struct ScanMeasures {
   double steep_depth = 0.0;  ///< median depth of those below the origin [m]
   double high_share = 0.0;   ///< share of the points >= 30 deg above the origin
   double extent = 0.0;       ///< larger side of the (1-99 % trimmed) xy box [m]
+  double nearest = 0.0;      ///< distance of the nearest sampled point from the origin [m]
+  // Rule 4 (docs/scan_types.md): the same density pattern in 1 m columns over a bounded read.
+  std::size_t read = 0;           ///< valid points read for the columns (at most kMaxRead)
+  std::size_t columns = 0;        ///< occupied kColumn x kColumn columns
+  double column_mean = 0.0;       ///< read points per occupied column
+  double column_top_share = 0.0;  ///< share of the read points in the densest tenth of columns
 };
 
 /// \brief scan_type auto: tells a ground-level scan from an airborne one by where its points
@@ -79,11 +88,26 @@ class ScanTypeClassifier {
   /// \brief A tripod scanner: at least this share of the points 30 deg or more above the origin
   ///        (beyond the field of view of a vehicle's LiDAR); reported only, same mode as ground.
   static constexpr double kTlsHighShare = 0.03;
+  /// \brief A ground-level scan with no sampled point within this of the origin [m] was
+  ///        exported in map coordinates (a ground-level sensor always sees the ground within
+  ///        metres of itself): registered, no range cut.
+  static constexpr double kFarOrigin = 100.0;
+  /// \brief Rule 4 reads at most this many points, evenly spread (memory and time stop
+  ///        growing with the cloud past it).
+  static constexpr std::size_t kMaxRead = 1048576;
+  /// \brief Edge of rule 4's columns [m]: the scale of a side view's near field and walls.
+  static constexpr double kColumn = 1.0;
+  /// \brief Rule 4 judges only where the read holds at least this many points per occupied
+  ///        column on average (below it, counts of an even sampling scatter too much).
+  static constexpr double kMinColumnMean = 4.0;
+  /// \brief Rule 4: ground-level when the densest tenth of the columns holds at least this.
+  static constexpr double kColumnConcentrated = 0.32;
   /// \brief Room for the longest reason [chars]: reserved once, so a stream of scans allocates
   ///        nothing after the first.
-  static constexpr std::size_t kReasonRoom = 400;
+  static constexpr std::size_t kReasonRoom = 512;
 
-  /// \brief The measures behind the decision (origin: the sensor origin in the view's frame).
+  /// \brief The measures behind the decision (origin: the sensor origin in the view's frame),
+  ///        the side-view columns included (classify() reads those only when it needs them).
   ScanMeasures measure(const CloudView& cloud, const float origin[3]);
   /// \brief Decides the type of `cloud` and says why, into `d` (its reason string is reused:
   ///        no allocation after the first scan).
@@ -93,6 +117,14 @@ class ScanTypeClassifier {
   std::vector<float> xs_, ys_, tmp_;  // sampled points
   std::vector<float> zs_, depth_;
   std::vector<std::uint32_t> counts_;
+  std::vector<std::uint64_t> keys_;  // column of each point read by rule 4
+
+  float box_[4] = {0.f, 0.f, 0.f, 0.f};  // trimmed xy box: x0 x1 y0 y1
+
+  // Rules 1-3's measures (the sample, its cells, the view from the origin); keeps the box.
+  ScanMeasures measureSample(const CloudView& cloud, const float origin[3]);
+  // Rule 4's measures over the box kept by measureSample().
+  void measureColumns(const CloudView& cloud, ScanMeasures* m);
 };
 
 /// \brief Both methods' switch between their ground-level mode and the airborne one: resolves

@@ -109,8 +109,9 @@ void NormalGroundFilter::setSensorOrigin(float x, float y, float z) {
   impl_->scan.setOrigin(x, y, z);
 }
 
-bool NormalGroundFilter::airborneScan(const CloudView& cloud) {
-  return impl_->scan.pin(cloud).type == ScanType::kAirborne;
+bool NormalGroundFilter::noSensorAtOrigin(const CloudView& cloud) {
+  const ScanDecision& d = impl_->scan.pin(cloud);
+  return d.type == ScanType::kAirborne || d.registered;
 }
 
 void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,

@@ -308,6 +308,135 @@ GeneratedScan airborneScan(const SceneParams& p) {
   return scan;
 }
 
+// kUav: one line of rays across the track (azimuth +-90 deg), from nadir out to the half angle.
+Pattern uavPattern(const SceneParams& p) {
+  Pattern pat;
+  pat.max_range = p.uav_height / std::cos(p.uav_half_angle_deg * kDegToRad) + 50.0;
+  pat.azimuth = {0.5 * kPi, 1.5 * kPi};
+  const int n =
+      std::max(1, static_cast<int>(std::floor(p.uav_half_angle_deg / p.uav_angle_step_deg)));
+  for (int k = 0; k < n; ++k) {
+    pat.elevation.push_back((-90.0 + (k + 0.5) * p.uav_angle_step_deg) * kDegToRad);
+  }
+  return pat;
+}
+
+// Moves a scan from its scanner frame into the world frame (the scanner at `o`).
+void toWorld(GeneratedScan* s, const Vec3& o) {
+  for (std::size_t i = 0; i < s->size(); ++i) {
+    s->xyz[3 * i] = static_cast<float>(s->xyz[3 * i] + o.x);
+    s->xyz[3 * i + 1] = static_cast<float>(s->xyz[3 * i + 1] + o.y);
+    s->xyz[3 * i + 2] = static_cast<float>(s->xyz[3 * i + 2] + o.z);
+  }
+}
+
+void append(GeneratedScan* out, const GeneratedScan& s) {
+  out->xyz.insert(out->xyz.end(), s.xyz.begin(), s.xyz.end());
+  out->intensity.insert(out->intensity.end(), s.intensity.begin(), s.intensity.end());
+  out->ring.insert(out->ring.end(), s.ring.begin(), s.ring.end());
+  out->truth.insert(out->truth.end(), s.truth.begin(), s.truth.end());
+  out->semantic.insert(out->semantic.end(), s.semantic.begin(), s.semantic.end());
+}
+
+// A flight along world x at p.sensor_y: one scan line every uav_line_step over the layout.
+GeneratedScan uavScan(const SceneParams& p) {
+  const Pattern pat = uavPattern(p);
+  const double half = p.crop_half_length > 0.0 ? p.crop_half_length : p.scene_extent;
+  const int lines = static_cast<int>(std::floor(2.0 * half / p.uav_line_step)) + 1;
+  GeneratedScan out;
+  for (int k = 0; k < lines; ++k) {
+    SceneParams q = p;
+    q.sensor_x = -half + k * p.uav_line_step;
+    q.noise_seed = p.noise_seed * 100003u + static_cast<std::uint32_t>(k);
+    const Scene scene(q);
+    GeneratedScan s = castPattern(q, scene, pat, true);
+    toWorld(&s, scene.origin());
+    append(&out, s);
+  }
+  return out;
+}
+
+GeneratedScan singleScan(const SceneParams& params);
+
+// Positions along world x merged in the world frame, then cropped and offset.
+GeneratedScan registeredScan(const SceneParams& p) {
+  GeneratedScan out;
+  if (p.mode == SceneParams::Mode::kUav) {
+    out = uavScan(p);
+  } else {
+    for (int k = 0; k < p.positions; ++k) {
+      SceneParams q = p;
+      q.positions = 1;
+      q.world_frame = false;
+      q.sensor_x = p.sensor_x + (k - 0.5 * (p.positions - 1)) * p.position_step;
+      if (p.follow_track) q.sensor_y = trackCentre(q, q.sensor_x);
+      if (p.station_y != 0.0) q.sensor_y = (k % 2 == 0 ? 1.0 : -1.0) * p.station_y;
+      q.noise_seed = p.noise_seed * 1009u + static_cast<std::uint32_t>(k);
+      GeneratedScan s = singleScan(q);
+      thinTo(&s, static_cast<std::size_t>(std::ceil(p.position_keep * s.size())));
+      // Airborne tiles are in the world frame already (origin 0).
+      toWorld(&s, scannerOrigin(q));
+      append(&out, s);
+    }
+  }
+  if (p.airborne_extra > 0.0) {
+    SceneParams q = p;
+    q.mode = SceneParams::Mode::kUav;
+    q.uav_half_angle_deg = 10.0;
+    q.uav_line_step = 1.0;
+    GeneratedScan air = uavScan(q);
+    thinTo(&air, static_cast<std::size_t>(p.airborne_extra / (1.0 - p.airborne_extra) *
+                                          static_cast<double>(out.size())));
+    append(&out, air);
+  }
+  // Crop and offset in place.
+  std::size_t w = 0;
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const float x = out.xyz[3 * i], y = out.xyz[3 * i + 1], z = out.xyz[3 * i + 2];
+    if (p.crop_half_width > 0.0 && std::fabs(y) > p.crop_half_width) continue;
+    if (p.crop_half_length > 0.0 && std::fabs(x) > p.crop_half_length) continue;
+    out.xyz[3 * w] = static_cast<float>(x + p.world_offset_x);
+    out.xyz[3 * w + 1] = static_cast<float>(y + p.world_offset_y);
+    out.xyz[3 * w + 2] = static_cast<float>(z + p.world_offset_z);
+    out.intensity[w] = out.intensity[i];
+    out.ring[w] = out.ring[i];
+    out.truth[w] = out.truth[i];
+    out.semantic[w] = out.semantic[i];
+    ++w;
+  }
+  out.xyz.resize(3 * w);
+  out.intensity.resize(w);
+  out.ring.resize(w);
+  out.truth.resize(w);
+  out.semantic.resize(w);
+  return out;
+}
+
+// One scan in its scanner frame (kAirborne: its world frame).
+GeneratedScan singleScan(const SceneParams& params) {
+  const Scene scene(params);
+  GeneratedScan scan;
+  if (params.mode == SceneParams::Mode::kAirborne) {
+    scan = airborneScan(params);
+  } else if (params.mode == SceneParams::Mode::kLidar64) {
+    scan = castPattern(params, scene, lidarPattern(params), true);
+  } else {
+    // Size the ray grid from the hit ratio of a coarse pre-pass so that the returns come close
+    // to the budget without exceeding it (any excess is thinned evenly).
+    const double budget = static_cast<double>(params.tls_points);
+    const Pattern coarse = tlsPattern(params, std::max(budget / 16.0, 4000.0));
+    const double coarse_rays =
+        static_cast<double>(coarse.azimuth.size()) * static_cast<double>(coarse.elevation.size());
+    const double coarse_hits =
+        static_cast<double>(castPattern(params, scene, coarse, false).size());
+    const double ratio = coarse_hits > 0.0 ? coarse_hits / coarse_rays : 1.0;
+    const double rays = std::min(0.99 * budget / std::max(ratio, 0.05), 20.0 * budget);
+    scan = castPattern(params, scene, tlsPattern(params, rays), true);
+    thinTo(&scan, params.tls_points);
+  }
+  return scan;
+}
+
 }  // namespace
 }  // namespace scene
 
@@ -339,10 +468,25 @@ void SceneParams::validate() const {
   checkRange("scene_extent", scene_extent, 10.0, 2000.0, "m");
   checkRange("grass_roughness", grass_roughness, 0.0, 1.0, "m");
   checkRange("airborne_density", airborne_density, 0.05, 100.0, "points/m2");
+  checkRange("uav_height", uav_height, 2.0, 1000.0, "m");
+  checkRange("uav_half_angle_deg", uav_half_angle_deg, 1.0, 80.0, "deg");
+  checkRange("uav_line_step", uav_line_step, 0.02, 100.0, "m");
+  checkRange("uav_angle_step_deg", uav_angle_step_deg, 0.01, 10.0, "deg");
+  checkRange("positions", positions, 1, 1000, "");
+  checkRange("position_step", position_step, 0.1, 1000.0, "m");
+  checkRange("position_keep", position_keep, 0.001, 1.0, "");
+  checkRange("station_y", station_y, -50.0, 50.0, "m");
+  checkRange("world_offset_x", world_offset_x, -1e5, 1e5, "m");
+  checkRange("world_offset_y", world_offset_y, -1e5, 1e5, "m");
+  checkRange("world_offset_z", world_offset_z, -1e4, 1e4, "m");
+  checkRange("crop_half_width", crop_half_width, 0.0, 1e4, "m");
+  checkRange("crop_half_length", crop_half_length, 0.0, 1e4, "m");
+  checkRange("airborne_extra", airborne_extra, 0.0, 0.5, "");
 }
 
 std::vector<std::string> builtinSceneKinds() {
-  return {"lidar", "tls", "verge", "offroad", "trail", "airborne"};
+  return {"lidar",    "tls",  "verge",   "offroad", "trail", "airborne", "mls",
+          "stations", "slam", "tls_far", "mls_air", "uav",   "corridor"};
 }
 
 SceneParams builtinSceneParams(const std::string& kind) {
@@ -361,9 +505,50 @@ SceneParams builtinSceneParams(const std::string& kind) {
     params.vertical_max_deg = 16.6;
     params.azimuth_steps = 2048;
     params.sensor_height = 1.3;
-  } else if (kind == "airborne") {
+  } else if (kind == "airborne" || kind == "corridor") {
     params.mode = SceneParams::Mode::kAirborne;
     params.range_noise_sigma = 0.05;
+    if (kind == "corridor") {  // a 30 m wide strip of the tile: a corridor survey's footprint
+      params.world_frame = true;
+      params.crop_half_width = 15.0;
+    }
+  } else if (kind == "mls" || kind == "mls_air") {
+    params.positions = 21;  // 80 m of street, a sweep every 4 m, a quarter of each kept
+    params.position_keep = 0.25;
+    params.world_frame = true;
+    if (kind == "mls_air") params.airborne_extra = 0.03;
+  } else if (kind == "stations" || kind == "tls_far") {
+    params.mode = SceneParams::Mode::kTls;
+    params.world_frame = true;
+    if (kind == "stations") {
+      params.positions = 3;
+      params.position_step = 30.0;
+      params.station_y = 2.5;
+      params.tls_points = 300000;
+    } else {  // one station exported in map coordinates
+      params.tls_points = 500000;
+      params.world_offset_x = 2400.0;
+      params.world_offset_y = -1700.0;
+      params.world_offset_z = 310.0;
+    }
+  } else if (kind == "slam") {  // an off-road robot's map tile: OS1-64 sweeps along the trail
+    params.layout = SceneParams::Layout::kTrail;
+    params.uniform_beams = true;
+    params.vertical_min_deg = -16.6;
+    params.vertical_max_deg = 16.6;
+    params.azimuth_steps = 2048;
+    params.sensor_height = 1.3;
+    params.positions = 31;
+    params.position_step = 2.0;
+    params.position_keep = 0.2;
+    params.follow_track = true;
+    params.world_frame = true;
+    params.crop_half_width = 30.0;
+    params.crop_half_length = 30.0;
+  } else if (kind == "uav") {
+    params.mode = SceneParams::Mode::kUav;
+    params.world_frame = true;
+    params.crop_half_length = 80.0;
   } else {
     std::string known;
     for (const auto& k : builtinSceneKinds()) known += (known.empty() ? "" : ", ") + k;
@@ -374,31 +559,21 @@ SceneParams builtinSceneParams(const std::string& kind) {
 
 GeneratedScan generateScene(const SceneParams& params) {
   params.validate();
-  const scene::Scene scene(params);
-  GeneratedScan scan;
-  if (params.mode == SceneParams::Mode::kAirborne) {
-    scan = scene::airborneScan(params);
-  } else if (params.mode == SceneParams::Mode::kLidar64) {
-    scan = scene::castPattern(params, scene, scene::lidarPattern(params), true);
-  } else {
-    // Size the ray grid from the hit ratio of a coarse pre-pass so that the returns come close
-    // to the budget without exceeding it (any excess is thinned evenly).
-    const double budget = static_cast<double>(params.tls_points);
-    const scene::Pattern coarse = scene::tlsPattern(params, std::max(budget / 16.0, 4000.0));
-    const double coarse_rays =
-        static_cast<double>(coarse.azimuth.size()) * static_cast<double>(coarse.elevation.size());
-    const double coarse_hits =
-        static_cast<double>(scene::castPattern(params, scene, coarse, false).size());
-    const double ratio = coarse_hits > 0.0 ? coarse_hits / coarse_rays : 1.0;
-    const double rays = std::min(0.99 * budget / std::max(ratio, 0.05), 20.0 * budget);
-    scan = scene::castPattern(params, scene, scene::tlsPattern(params, rays), true);
-    scene::thinTo(&scan, params.tls_points);
-  }
+  GeneratedScan scan =
+      sceneInWorldFrame(params) ? scene::registeredScan(params) : scene::singleScan(params);
   scene::insertNans(&scan, params.nan_points);
   return scan;
 }
 
+bool sceneInWorldFrame(const SceneParams& params) {
+  return params.world_frame || params.positions > 1 || params.mode == SceneParams::Mode::kUav;
+}
+
 double sceneGroundHeight(const SceneParams& params, double x, double y) {
+  if (sceneInWorldFrame(params)) {
+    return scene::worldGroundHeight(params, x - params.world_offset_x, y - params.world_offset_y) +
+           params.world_offset_z;
+  }
   const scene::Vec3 o = scene::scannerOrigin(params);
   return scene::worldGroundHeight(params, x + o.x, y + o.y) - o.z;
 }

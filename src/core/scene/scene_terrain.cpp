@@ -103,7 +103,9 @@ std::uint16_t naturalClass(const SceneParams& p, double x, double y) {
 
 Vec3 scannerOrigin(const SceneParams& p) {
   if (p.mode == SceneParams::Mode::kAirborne) return {0.0, 0.0, 0.0};  // world frame
-  const double h = p.mode == SceneParams::Mode::kTls ? p.tripod_height : p.sensor_height;
+  const double h = p.mode == SceneParams::Mode::kTls   ? p.tripod_height
+                   : p.mode == SceneParams::Mode::kUav ? p.uav_height
+                                                       : p.sensor_height;
   return {p.sensor_x, p.sensor_y, worldGroundHeight(p, p.sensor_x, p.sensor_y) + h};
 }
 

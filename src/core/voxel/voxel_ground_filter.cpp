@@ -68,8 +68,9 @@ void VoxelGroundFilter::setSensorOrigin(float x, float y, float z) {
   impl_->scan.setOrigin(x, y, z);
 }
 
-bool VoxelGroundFilter::airborneScan(const CloudView& cloud) {
-  return impl_->scan.pin(cloud).type == ScanType::kAirborne;
+bool VoxelGroundFilter::noSensorAtOrigin(const CloudView& cloud) {
+  const ScanDecision& d = impl_->scan.pin(cloud);
+  return d.type == ScanType::kAirborne || d.registered;
 }
 
 bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
