@@ -191,7 +191,7 @@ class ReadmeShortTableTest(unittest.TestCase):
                 {mt: default for mt in methods}
             self.assertEqual(sorted(per), sorted(methods), "README row %s: %s" % (name, default))
             for mt in methods:
-                self.assertIn(name, cfg[mt], "README row %s: no such %s parameter" % (name, mt))
+                self.assertTrue(name in cfg[mt], "README row %s: no such %s parameter" % (name, mt))
                 self.assertEqual(per[mt], cfg[mt][name],
                                  "README row %s: %s default" % (name, mt))
             for other in set(cfg) - set(methods):
