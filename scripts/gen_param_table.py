@@ -9,7 +9,7 @@ the markers `<!-- params:begin -->` and `<!-- params:end -->` in docs/parameters
 around the markers is hand-written; the README keeps a short hand-written table and links there).
 
   scripts/gen_param_table.py            rewrite the block of docs/parameters.md in place
-  scripts/gen_param_table.py --check    exit 1 (and show a diff) when docs/parameters.md is out of date
+  scripts/gen_param_table.py --check    exit 1 (and show a diff) when docs/parameters.md is stale
   scripts/gen_param_table.py --print    print the generated block only
   scripts/gen_param_table.py --doc F    another Markdown file with the markers (tests)
 """
