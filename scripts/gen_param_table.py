@@ -1,15 +1,17 @@
 #!/usr/bin/env python3
-"""Generates the README's dynamic_reconfigure parameter tables from cfg/*.cfg.
+"""Generates the dynamic_reconfigure parameter tables of docs/parameters.md from cfg/*.cfg.
 
 Each .cfg is executed with a stand-in for dynamic_reconfigure's ParameterGenerator that records
 the gen.add()/gen.enum() calls (so shared helpers such as cfg/ground_filter_common.py are
 followed exactly as catkin follows them), and one Markdown table per group of each nodelet
 (gen.add_group) is written between
-the markers `<!-- params:begin -->` and `<!-- params:end -->` in README.md.
+the markers `<!-- params:begin -->` and `<!-- params:end -->` in docs/parameters.md (the text
+around the markers is hand-written; the README keeps a short hand-written table and links there).
 
-  scripts/gen_param_table.py            rewrite the README block in place
-  scripts/gen_param_table.py --check    exit 1 (and show a diff) when README.md is out of date
+  scripts/gen_param_table.py            rewrite the block of docs/parameters.md in place
+  scripts/gen_param_table.py --check    exit 1 (and show a diff) when docs/parameters.md is stale
   scripts/gen_param_table.py --print    print the generated block only
+  scripts/gen_param_table.py --doc F    another Markdown file with the markers (tests)
 """
 import argparse
 import difflib
@@ -22,6 +24,7 @@ import types
 BEGIN = "<!-- params:begin -->"
 END = "<!-- params:end -->"
 ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
+DOC = os.path.join("docs", "parameters.md")
 
 
 class _Param(object):
@@ -141,7 +144,7 @@ def _cell(text):
 def table_for(gen, cfg_rel):
     """One Markdown table per group of the .cfg (top-level parameters first, untitled)."""
     package, _, name = gen.generated
-    lines = ["#### `%s/%s`" % (package, name), "",
+    lines = ["## `%s/%s`" % (package, name), "",
              "From `%s` (dynamic_reconfigure; also settable as private parameters at start). "
              "One table per group, as rqt_reconfigure shows them." % cfg_rel]
     for group in [""] + gen.groups:
@@ -149,7 +152,7 @@ def table_for(gen, cfg_rel):
         if not params:
             continue
         if group:
-            lines += ["", "##### %s (`%s`)" % (group.replace("_", " ").capitalize(), name)]
+            lines += ["", "### %s (`%s`)" % (group.replace("_", " ").capitalize(), name)]
         lines += ["", "| Parameter | Type | Default | Min | Max | Description |",
                   "|---|---|---|---|---|---|"]
         lines += _rows(params)
@@ -182,50 +185,61 @@ def generate_block(root=ROOT):
     return "\n\n".join(parts)
 
 
-def replace_block(readme_text, block):
-    b = readme_text.find(BEGIN)
-    e = readme_text.find(END)
+def replace_block(doc_text, block, name=DOC):
+    b = doc_text.find(BEGIN)
+    e = doc_text.find(END)
     if b < 0 or e < 0 or e < b:
-        raise RuntimeError("README has no %s ... %s block" % (BEGIN, END))
-    return readme_text[:b + len(BEGIN)] + "\n" + block + "\n" + readme_text[e:]
+        raise RuntimeError("%s has no %s ... %s block: add the two marker lines where the "
+                           "tables go" % (name, BEGIN, END))
+    return doc_text[:b + len(BEGIN)] + "\n" + block + "\n" + doc_text[e:]
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     mode = ap.add_mutually_exclusive_group()
     mode.add_argument("--check", action="store_true",
-                      help="exit 1 when the README block differs from the .cfg files")
+                      help="exit 1 when the block in docs/parameters.md differs from the .cfg "
+                      "files")
     mode.add_argument("--print", action="store_true", help="print the block, change nothing")
     ap.add_argument("--root", default=ROOT, help="package root holding cfg/ (default: this repo)")
-    ap.add_argument("--readme", default=None, help="README to update/check (default ROOT/README.md)")
+    ap.add_argument("--doc", "--readme", dest="doc", default=None,
+                    help="Markdown file to update/check (default ROOT/%s)" % DOC)
     a = ap.parse_args(argv)
-    readme = a.readme or os.path.join(a.root, "README.md")
+    doc = a.doc or os.path.join(a.root, DOC)
     try:
         block = generate_block(a.root)
         if a.print:
             print(block)
             return 0
-        with open(readme) as f:
+        with open(doc) as f:
             old = f.read()
-        new = replace_block(old, block)
+        new = replace_block(old, block, doc)
     except (RuntimeError, OSError) as e:
         print("gen_param_table.py: error: %s" % e, file=sys.stderr)
         return 1
     if a.check:
         if new != old:
             sys.stdout.writelines(difflib.unified_diff(
-                old.splitlines(True), new.splitlines(True), readme, readme + " (from cfg/*.cfg)"))
-            print("gen_param_table.py: %s is out of date; run scripts/gen_param_table.py" % readme,
+                old.splitlines(True), new.splitlines(True), doc, doc + " (from cfg/*.cfg)"))
+            print("gen_param_table.py: %s is out of date; run scripts/gen_param_table.py" % doc,
                   file=sys.stderr)
             return 1
-        print("%s parameter tables are up to date" % readme)
+        print("%s parameter tables are up to date" % doc)
         return 0
     if new != old:
-        with open(readme, "w") as f:
-            f.write(new)
-        print("updated %s" % readme)
+        tmp = doc + ".tmp"
+        try:  # a whole file or none: write beside it, then rename over it
+            with open(tmp, "w") as f:
+                f.write(new)
+            os.replace(tmp, doc)
+        except OSError as e:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+            print("gen_param_table.py: error: cannot write %s: %s" % (doc, e), file=sys.stderr)
+            return 1
+        print("updated %s" % doc)
     else:
-        print("%s already up to date" % readme)
+        print("%s already up to date" % doc)
     return 0
 
 

@@ -1,11 +1,11 @@
-"""README parameter tables vs cfg/*.cfg, and the README/docs structure (run by
-catkin_add_nosetests after the build).
+"""Parameter tables vs cfg/*.cfg (run by catkin_add_nosetests after the build).
 
-Fails when README.md drifts from the .cfg files (fix: scripts/gen_param_table.py), and checks
-the generator itself against what catkin generated from the same .cfg files
+Fails when docs/parameters.md drifts from the .cfg files (fix: scripts/gen_param_table.py), and
+checks the generator itself against what catkin generated from the same .cfg files
 (devel: ground_filter.cfg.<Name>Config), so a table that looks right but is wrong also fails.
-ReadmeDocsTest: the README keeps the two commands verbatim and stays short, and every relative
-link (file and #anchor) in README.md and docs/*.md resolves.
+The README's short hand-written table of the parameters users change most names only real
+parameters, with their methods and defaults, and links to docs/parameters.md.
+(The README/docs structure and links: test_docs.py.)
 """
 import glob
 import importlib
@@ -18,6 +18,7 @@ import unittest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
 SCRIPT = os.path.join(ROOT, "scripts", "gen_param_table.py")
+DOC = os.path.join(ROOT, "docs", "parameters.md")
 sys.path.insert(0, os.path.join(ROOT, "scripts"))
 import gen_param_table  # noqa: E402
 
@@ -46,24 +47,25 @@ def tables(block):
 
 class ParamTableTest(unittest.TestCase):
 
-    def test_readme_is_up_to_date(self):
+    def test_doc_is_up_to_date(self):
         rc, out = run("--check")
-        self.assertEqual(rc, 0, "README.md parameter tables drifted from cfg/*.cfg; run "
+        self.assertEqual(rc, 0, "docs/parameters.md tables drifted from cfg/*.cfg; run "
                          "scripts/gen_param_table.py\n" + out)
+        self.assertIn("docs/parameters.md parameter tables are up to date", out)
 
     def test_check_detects_drift(self):
-        with open(os.path.join(ROOT, "README.md")) as f:
+        with open(DOC) as f:
             text = f.read()
         b = text.index(gen_param_table.BEGIN)
         e = text.index(gen_param_table.END)
         block = re.sub(r"(\| `\w+` \| \w+ \| )([^|]*)( \|)", r"\g<1>12345\3", text[b:e],
                        count=1)
         drifted = text[:b] + block + text[e:]
-        self.assertNotEqual(drifted, text, "no generated table row found in README.md")
+        self.assertNotEqual(drifted, text, "no generated table row found in docs/parameters.md")
         with tempfile.NamedTemporaryFile("w", suffix=".md", delete=False) as f:
             f.write(drifted)
         try:
-            rc, out = run("--check", "--readme", f.name)
+            rc, out = run("--check", "--doc", f.name)
             self.assertEqual(rc, 1, out)
             self.assertIn("12345", out)  # the diff shows the stale line
         finally:
@@ -158,101 +160,43 @@ class ParamTableTest(unittest.TestCase):
                                                delta=1e-6 * max(1.0, abs(float(want))))
 
 
-# Linked from the README before they land from another branch; checked like any file once present.
-PENDING_DOCS = {"docs/install.md"}
-# Issue 8: "at most ~200 lines", details in docs/. The generated parameter block grows with the
-# parameters, so only the hand-written lines around it are limited.
-README_MAX_PROSE_LINES = 170
-LINK = re.compile(r"(?<!!)\[[^\]]*\]\(([^)\s]+)\)|!\[[^\]]*\]\(([^)\s]+)\)")
+README_ROW = re.compile(r"^\| `(\w+)` \| (both|voxel|normal) \| ([^|]+) \| .+ \|$")
 
 
-def github_anchor(heading):
-    """The id GitHub gives a Markdown heading: lower case, punctuation dropped, spaces -> '-'."""
-    text = heading.strip().lower().replace("`", "").replace("*", "")
-    text = re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", text)  # a link in a heading keeps its text
-    return re.sub(r"[^\w\- ]", "", text, flags=re.UNICODE).replace(" ", "-")
+class ReadmeShortTableTest(unittest.TestCase):
+    """The README's ten parameters: real names, the right methods, the cfg's defaults."""
 
-
-def anchors(path):
-    """Anchors of every heading of a Markdown file (headings inside code blocks excluded)."""
-    out, fence = set(), False
-    with open(path) as f:
-        for line in f:
-            if line.startswith("```"):
-                fence = not fence
-            m = None if fence else re.match(r"^#{1,6} (.*?)\s*#*\s*$", line)
-            if m:
-                out.add(github_anchor(m.group(1)))
-    return out
-
-
-def broken_links(md_files, root=ROOT, pending=()):
-    """'file: target (why)' for every relative link whose file or #anchor does not exist."""
-    broken = []
-    for md in md_files:
-        with open(md) as f:
-            text = re.sub(r"```.*?```", "", f.read(), flags=re.S)  # no links in code blocks
-        for m in LINK.finditer(text):
-            target = m.group(1) or m.group(2)
-            if re.match(r"^[a-z]+:", target):
-                continue  # http(s), mailto: not checked here
-            path, _, anchor = target.partition("#")
-            dest = os.path.normpath(os.path.join(os.path.dirname(md), path)) if path else md
-            where = os.path.relpath(md, root)
-            if not os.path.exists(dest):
-                if os.path.relpath(dest, root) not in pending:
-                    broken.append("%s: %s (no such file)" % (where, target))
-                continue
-            if anchor and dest.endswith(".md") and anchor not in anchors(dest):
-                broken.append("%s: %s (no such heading)" % (where, target))
-    return broken
-
-
-class ReadmeDocsTest(unittest.TestCase):
-
-    def test_readme_two_commands_verbatim_and_short(self):
+    def test_readme_table_matches_cfg(self):
+        cfg = {}
+        for path in sorted(glob.glob(os.path.join(ROOT, "cfg", "*.cfg"))):
+            gen = gen_param_table.load_cfg(path)
+            method = {"VoxelGroundFilter": "voxel",
+                      "NormalGroundFilter": "normal"}[gen.generated[2]]
+            cfg[method] = {p.name: gen_param_table._fmt(p.default, p.type) for p in gen.params}
+        self.assertEqual(sorted(cfg), ["normal", "voxel"])
         with open(os.path.join(ROOT, "README.md")) as f:
-            lines = f.read().splitlines()
-        for cmd in ("bash scripts/demo.sh", "bash scripts/run_tests.sh"):
-            self.assertTrue(any(l.split("#")[0].strip() == cmd for l in lines),
-                            "README.md lost the command line: " + cmd)
-        with open(os.path.join(ROOT, ".ci", "run")) as f:
-            self.assertIn("bash scripts/run_tests.sh", f.read().splitlines(),
-                          ".ci/run must call the README's test command verbatim")
-        b = lines.index(gen_param_table.BEGIN)
-        e = lines.index(gen_param_table.END)
-        prose = len(lines) - (e - b + 1)
-        self.assertLessEqual(prose, README_MAX_PROSE_LINES,
-                             "README.md has %d lines besides the parameter tables; move details "
-                             "to docs/" % prose)
-
-    def test_relative_links_resolve(self):
-        files = [os.path.join(ROOT, "README.md")]
-        files += sorted(glob.glob(os.path.join(ROOT, "docs", "*.md")))
-        self.assertGreater(len(files), 1, "no docs/*.md found")
-        broken = broken_links(files, pending=PENDING_DOCS)
-        self.assertEqual(broken, [], "broken links:\n" + "\n".join(broken))
-
-    def test_link_checker_finds_broken_links(self):
-        self.assertEqual(github_anchor("Gravity frame (tilted sensors)"),
-                         "gravity-frame-tilted-sensors")
-        self.assertEqual(github_anchor("`ground_filter_eval` (accuracy)"),
-                         "ground_filter_eval-accuracy")
-        d = tempfile.mkdtemp()
-        try:
-            with open(os.path.join(d, "b.md"), "w") as f:
-                f.write("# B\n\n## Real heading\n\n```\n## Not a heading\n```\n")
-            with open(os.path.join(d, "a.md"), "w") as f:
-                f.write("[ok](b.md#real-heading) [bad anchor](b.md#not-a-heading) "
-                        "[no file](c.md) [pending](p.md) [web](https://example.org/x#y)\n"
-                        "```\n[in code](nowhere.md)\n```\n")
-            broken = broken_links([os.path.join(d, "a.md")], root=d, pending={"p.md"})
-            self.assertEqual(broken, ["a.md: b.md#not-a-heading (no such heading)",
-                                      "a.md: c.md (no such file)"])
-        finally:
-            for name in os.listdir(d):
-                os.remove(os.path.join(d, name))
-            os.rmdir(d)
+            text = f.read()
+        self.assertIn("(docs/parameters.md)", text, "README.md must link to docs/parameters.md")
+        self.assertNotIn(gen_param_table.BEGIN, text, "the generated tables live in "
+                         "docs/parameters.md, not in README.md")
+        rows = [README_ROW.match(l) for l in text.splitlines()]
+        rows = [m for m in rows if m]
+        self.assertEqual(len(rows), 10, "README.md: expected the ten parameters users change "
+                         "most, found %s" % [m.group(1) for m in rows])
+        for m in rows:
+            name, where, default = m.group(1), m.group(2), m.group(3).strip()
+            methods = ["voxel", "normal"] if where == "both" else [where]
+            # "voxel 1, normal 0" gives one default per method; else one for all of them.
+            per = dict(re.findall(r"(voxel|normal) (\S+?)(?:,|$)", default)) or \
+                {mt: default for mt in methods}
+            self.assertEqual(sorted(per), sorted(methods), "README row %s: %s" % (name, default))
+            for mt in methods:
+                self.assertTrue(name in cfg[mt], "README row %s: no such %s parameter" % (name, mt))
+                self.assertEqual(per[mt], cfg[mt][name],
+                                 "README row %s: %s default" % (name, mt))
+            for other in set(cfg) - set(methods):
+                self.assertNotIn(name, cfg[other], "README row %s is a parameter of both "
+                                 "methods: say 'both'" % name)
 
 
 if __name__ == "__main__":
