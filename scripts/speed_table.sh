@@ -10,11 +10,14 @@
 #                                               #   (sample_stride 1, k 64: the paper's way)
 # Rows: voxel (1 thread), normal (1 and 2 threads) at each GF_SIMD level the CPU has, and the
 # peers' drivers (one thread, their segmentation call only; CSF with REPEAT/2 calls).
-# Needs a build (bash -c 'source scripts/common.sh; gf_build'); data from ../shared/data.
+# Needs a build (bash -c 'source scripts/common.sh; gf_build'); data: $GF_DATA_DIR, else data/
+# (bash scripts/get_data.sh), else ../shared/data.
 set -euo pipefail
 export PATH="/usr/bin:/bin:${PATH}"
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-DATA="${GF_DATA_DIR:-${ROOT}/../shared/data}"
+# shellcheck source=scripts/common.sh
+source "${ROOT}/scripts/common.sh"
+DATA="$(gf_data_dir --required)"
 BIN="${GF_BIN:-${ROOT}/.ws/devel/lib/ground_filter}"
 PEER_BIN="${PEER_BIN:-/tmp/peers/build}"
 ROUNDS="${ROUNDS:-3}"
