@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Time per KITTI frame of both methods on every SIMD path this CPU runs, and of the peers built by
-# ../shared/peers (when present), alternating the tools in rounds; prints one markdown table with
+# Time per KITTI frame of both methods on every SIMD path this CPU runs, and of the peer drivers in
+# PEER_BIN (scripts/peers/README.md; when present), alternating the tools in rounds; prints one markdown table with
 # the CPU model, its SIMD levels and the load. Timings drift between minutes: read a table as a
 # whole (the ratios), never one row against another run's.
 #   bash scripts/speed_table.sh                 # 3 rounds, 15 timed calls per frame and tool
@@ -15,11 +15,11 @@
 set -euo pipefail
 export PATH="/usr/bin:/bin:${PATH}"
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-# shellcheck source=scripts/common.sh
+# shellcheck source=/dev/null
 source "${ROOT}/scripts/common.sh"
 DATA="$(gf_data_dir --required)"
 BIN="${GF_BIN:-${ROOT}/.ws/devel/lib/ground_filter}"
-PEER_BIN="${PEER_BIN:-/tmp/peers/build}"
+PEER_BIN="${PEER_BIN:-${GF_PEERS_DIR:-${HOME}/.cache/ground_filter_peers}/build}"
 ROUNDS="${ROUNDS:-3}"
 REPEAT="${REPEAT:-15}"
 PEERS="${PEERS-patchworkpp linefit csf pcl_ransac pcl_ransac_native}"
@@ -55,7 +55,7 @@ for p in ${PEERS}; do
   if [ -x "${drv}" ]; then
     TOOLS+=("${p}|peer ${drv}")
   else
-    echo "speed_table.sh: ${drv} not built: row ${p} left out (bash ../shared/peers/build.sh)" >&2
+    echo "speed_table.sh: ${drv} not built: row ${p} left out (scripts/peers/README.md; PEER_BIN)" >&2
   fi
 done
 
