@@ -82,8 +82,8 @@ class RealManifest(unittest.TestCase):
     def test_copy_of_the_data_folder(self):
         src = data_dir(optional=True)
         if src is None or not os.path.isdir(os.path.join(src, "semantickitti")):
-            self.skipTest("no data folder ($GF_DATA_DIR, data/, ../shared/data): run "
-                          "scripts/get_data.sh")
+            self.skipTest("no data folder with semantickitti/ (%s; $GF_DATA_DIR, data/, "
+                          "../shared/data): run scripts/get_data.sh" % src)
         with tempfile.TemporaryDirectory() as tmp:
             dest = os.path.join(tmp, "data")
             rc, out, err = run(["--from", src, "--dest", dest])
