@@ -8,8 +8,8 @@
 #                                      googletest libeigen3-dev; the data folder for the labels)
 #
 # Environment: GF_ARM64_BUILD (build folder, default /tmp/gf_check_arm64), GF_DATA_DIR (data folder,
-# default data/, else ../shared/data: scripts/common.sh gf_data_dir), GF_JOBS (default nproc), GF_ARM64_RESULTS (folder for gtest XML results;
-# default none), GF_ARM64_FULL=1 (run every gtest, slow under emulation; default: the subset
+# default data/, else ../shared/data: scripts/common.sh gf_data_dir), GF_JOBS (default nproc),
+# GF_ARM64_RESULTS (folder for gtest XML results; default none), GF_ARM64_FULL=1 (run every gtest, slow under emulation; default: the subset
 # below). Exit status: 0 all passed, 1 a test failed or labels differ, 2 a tool is missing.
 # Timings under qemu say nothing about an ARM64 CPU's speed: the script reports none.
 set -euo pipefail

@@ -12,8 +12,8 @@
 #                 qemu-user cmake googletest libeigen3-dev (Debian 11, Ubuntu 20.04 / 22.04 carry them)
 #
 # scripts/check_platform.sh runs it in its Debian 11 root (Debian's GCC 9.3.0 packages). Environment:
-# GF_GCC9_BUILD (build folder, default /tmp/gf_check_gcc9), GF_DATA_DIR (data folder, default data/, else ../shared/data: scripts/common.sh gf_data_dir; the
-# data tests skip without one),
+# GF_GCC9_BUILD (build folder, default /tmp/gf_check_gcc9), GF_DATA_DIR (data folder, default
+# data/, else ../shared/data: scripts/common.sh gf_data_dir; the data tests skip without one),
 # GF_JOBS (default nproc). Exit status: 0 all passed, 1 a build or test failed or labels differ,
 # 2 a tool is missing. Timings under qemu mean nothing; the script reports none.
 set -euo pipefail

@@ -154,7 +154,8 @@ def convert_isprs(utm, ground, out):
     gkey = np.ascontiguousarray(gxyz).view("V12").ravel()
     label = np.isin(key, gkey).astype(np.uint32)
     if label.sum() == 0:
-        raise ConvertError("%s: no point of %s matches: not the tile's ground cloud" % (utm, ground))
+        raise ConvertError("%s: no point of %s matches: not the tile's ground cloud" %
+                           (utm, ground))
     ox, oy = tile_offset(xyz)
     columns = [("x", (xyz[:, 0].astype(np.float64) - ox).astype(np.float32)),
                ("y", (xyz[:, 1].astype(np.float64) - oy).astype(np.float32)),

@@ -50,7 +50,8 @@ def read_manifest(path):
                              (PROG, path, n, len(cols)))
         rel, sha, convert, sources, source_sha, licence = cols
         if os.path.isabs(rel) or ".." in rel.split("/"):
-            raise SystemExit("%s: %s line %d: path %r leaves the data folder" % (PROG, path, n, rel))
+            raise SystemExit("%s: %s line %d: path %r leaves the data folder" %
+                             (PROG, path, n, rel))
         urls, shas = sources.split(), source_sha.split()
         if len(urls) != len(shas) or not urls:
             raise SystemExit("%s: %s line %d: %d sources but %d source checksums" %
@@ -120,7 +121,8 @@ def download(url, dest_file, want, timeout):
     if got != want:
         remove_quietly(dest_file)
         raise Failure("%s: downloaded file has sha256 %s, manifest says %s (partial download or "
-                      "changed source): run again, or take a copy with --from DIR" % (real, got, want))
+                      "changed source): run again, or take a copy with --from DIR" %
+                      (real, got, want))
 
 
 def make_from_sources(row, dest, timeout):
@@ -284,7 +286,8 @@ def main(argv=None):
     if failed:
         say("%d of %d files not made in %s:" % (len(failed), len(rows), dest))
         for path, why in failed:
-            say("  %s%s" % (path, " (not tried: no network)" if why.startswith("not tried") else ""))
+            untried = why.startswith("not tried")
+            say("  %s%s" % (path, " (not tried: no network)" if untried else ""))
         return 1
     print("%s: all %d files present, checksums match" % (dest, len(rows)))
     return 0

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Time per KITTI frame of both methods on every SIMD path this CPU runs, and of the peer drivers in
-# PEER_BIN (scripts/peers/README.md; when present), alternating the tools in rounds; prints one markdown table with
-# the CPU model, its SIMD levels and the load. Timings drift between minutes: read a table as a
+# PEER_BIN (scripts/peers/README.md; when present), alternating the tools in rounds; prints one
+# markdown table with the CPU model, its SIMD levels and the load. Timings drift between minutes: read a table as a
 # whole (the ratios), never one row against another run's.
 #   bash scripts/speed_table.sh                 # 3 rounds, 15 timed calls per frame and tool
 #   ROUNDS=5 REPEAT=21 bash scripts/speed_table.sh
@@ -55,7 +55,7 @@ for p in ${PEERS}; do
   if [ -x "${drv}" ]; then
     TOOLS+=("${p}|peer ${drv}")
   else
-    echo "speed_table.sh: ${drv} not built: row ${p} left out (scripts/peers/README.md; PEER_BIN)" >&2
+    echo "speed_table.sh: ${drv} not built: row ${p} left out (scripts/peers/README.md)" >&2
   fi
 done
 

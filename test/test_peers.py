@@ -39,7 +39,8 @@ if os.environ.get("FAIL_PEER"):
     sys.exit("fake peer: failing on purpose")
 a = sys.argv[1:]
 out = a[a.index("--out") + 1]
-files = [f for i, f in enumerate(a) if not f.startswith("--") and a[i - 1] not in ("--out", "--repeats")]
+files = [f for i, f in enumerate(a)
+         if not f.startswith("--") and a[i - 1] not in ("--out", "--repeats")]
 for f in files:
     z = np.fromfile(f, dtype="<f4").reshape(-1, 4)[:, 2]
     stem = os.path.splitext(os.path.basename(f))[0]

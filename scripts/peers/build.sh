@@ -10,7 +10,8 @@ export PATH="/usr/bin:/bin:${PATH}"
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 BUILD="${GF_PEERS_DIR:-${HOME}/.cache/ground_filter_peers}/build"
 mkdir -p "${BUILD}" || { echo "build.sh: cannot create ${BUILD}: set GF_PEERS_DIR" >&2; exit 1; }
-if ! cmake -S "${HERE}" -B "${BUILD}" -DCMAKE_BUILD_TYPE=Release >"${BUILD}/configure.log" 2>&1; then
+if ! cmake -S "${HERE}" -B "${BUILD}" -DCMAKE_BUILD_TYPE=Release >"${BUILD}/configure.log" 2>&1
+then
   tail -n 20 "${BUILD}/configure.log" >&2
   echo "build.sh: configure failed (needs cmake, g++, libpcl-dev): ${BUILD}/configure.log" >&2
   exit 1

@@ -33,7 +33,8 @@ if [ -z "${PEERS}" ] && [ -d "${PEER_BIN}" ]; then
   PEERS="$(find "${PEER_BIN}" -maxdepth 1 -name '*_driver' -perm -u+x |
            sed 's|.*/||; s|_driver$||' | sort | tr '\n' ' ')"
 fi
-[ -n "${PEERS// /}" ] || die "no <peer>_driver in ${PEER_BIN}: build the drivers (scripts/peers/README.md) or set PEER_BIN"
+[ -n "${PEERS// /}" ] ||
+  die "no <peer>_driver in ${PEER_BIN}: build the drivers (scripts/peers/README.md) or set PEER_BIN"
 
 K="${DATA}/semantickitti/seq00"
 group_files() {
@@ -64,7 +65,10 @@ for g in ${GROUPS_ASKED}; do
   [ "${#files[@]}" -gt 0 ] || die "no files for group ${g} in ${DATA}: run bash scripts/get_data.sh"
   for p in ${PEERS}; do
     var="PEER_GROUPS_${p}"
-    case "${p}" in patchwork* | linefit*) default="kitti offroad" ;; *) default="kitti offroad isprs airborne" ;; esac
+    case "${p}" in
+      patchwork* | linefit*) default="kitti offroad" ;;  # they assume a sensor at the origin
+      *) default="kitti offroad isprs airborne" ;;
+    esac
     [[ " ${!var:-${default}} " == *" ${g} "* ]] || continue
     drv="${PEER_BIN}/${p}_driver"
     out="${TMP}/${g}/${p}"
@@ -76,7 +80,8 @@ for g in ${GROUPS_ASKED}; do
       echo "run_peers.sh: ${drv} failed on ${g}:" >&2
       tail -n 5 "${row}.log" >&2
       failed=1
-    elif ! "${EVAL}" --json --score-labels "${out}" "${files[@]}" >"${row}.json" 2>"${row}.err"; then
+    elif ! "${EVAL}" --json --score-labels "${out}" "${files[@]}" >"${row}.json" \
+          2>"${row}.err"; then
       python3 -c 'import json,sys; print(json.dumps({"error": open(sys.argv[1]).read().strip()}))' \
         "${row}.err" >"${row}.json"
       failed=1
