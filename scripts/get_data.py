@@ -257,13 +257,18 @@ def main(argv=None):
 
     if a.src and not os.path.isdir(a.src):
         raise SystemExit("%s: --from %s: no such folder" % (PROG, a.src))
+    missing = [r for r in rows if not (os.path.isfile(os.path.join(dest, r["path"])) and
+                                       sha256_of(os.path.join(dest, r["path"])) == r["sha256"])]
+    if not missing:  # nothing to write: a read-only complete folder is fine
+        print("%s: all %d files present, checksums match" % (dest, len(rows)))
+        return 0
     check_writable(dest)
     failed, offline = [], False
     for r in rows:
-        final = os.path.join(dest, r["path"])
-        if os.path.isfile(final) and sha256_of(final) == r["sha256"]:
+        if r not in missing:
             print("ok       %s (already there)" % r["path"])
             continue
+        final = os.path.join(dest, r["path"])
         if offline:
             failed.append((r["path"], "not tried: no network"))
             continue

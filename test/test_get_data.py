@@ -142,9 +142,17 @@ class Synthetic(unittest.TestCase):
             with open(os.path.join(self.dest, rel), "rb") as f:
                 self.assertEqual(f.read(), body)
         self.assertEqual(leftovers(self.dest), [])
+        shutil.rmtree(self.src)  # a second run fetches nothing: the sources are not needed
+        os.chmod(self.dest, 0o555)  # nor a writable folder
         rc, out, err = run(["--dest", self.dest], **self.env)
         self.assertEqual(rc, 0, err)
-        self.assertEqual(out.count("already there"), 2)
+        self.assertIn("all 2 files present", out)
+        os.unlink(os.path.join(self.dest, "b", "two.bin"))  # only the missing file is fetched
+        os.chmod(self.dest, 0o755)
+        rc, out, err = run(["--dest", self.dest], **self.env)
+        self.assertEqual(rc, 1)
+        self.assertIn("ok       a/one.bin (already there)", out)
+        self.assertIn("b/two.bin", err)
 
     def test_no_network(self):
         env = dict(self.env, GF_DATA_BASE_URL="http://127.0.0.1:%d" % free_port())
