@@ -5,11 +5,11 @@
 # qemu-aarch64 and compares the labels byte by byte (they must be identical).
 #
 #   scripts/check_arm64.sh            (needs: g++-aarch64-linux-gnu qemu-user cmake
-#                                      googletest libeigen3-dev; ../shared/data for the labels)
+#                                      googletest libeigen3-dev; the data folder for the labels)
 #
-# Environment: GF_ARM64_BUILD (build folder, default /tmp/gf_check_arm64), GF_DATA_DIR (default
-# ../shared/data), GF_JOBS (default nproc), GF_ARM64_RESULTS (folder for gtest XML results;
-# default none), GF_ARM64_FULL=1 (run every gtest, slow under emulation; default: the subset
+# Environment: GF_ARM64_BUILD (build folder, default /tmp/gf_check_arm64), GF_DATA_DIR (data folder,
+# default data/, else ../shared/data: scripts/common.sh gf_data_dir), GF_JOBS (default nproc),
+# GF_ARM64_RESULTS (folder for gtest XML results; default none), GF_ARM64_FULL=1 (run every gtest, slow under emulation; default: the subset
 # below). Exit status: 0 all passed, 1 a test failed or labels differ, 2 a tool is missing.
 # Timings under qemu say nothing about an ARM64 CPU's speed: the script reports none.
 set -euo pipefail
@@ -18,7 +18,10 @@ GF_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # shellcheck source=scripts/compare_labels.sh
 source "${GF_ROOT}/scripts/compare_labels.sh"
 BUILD="${GF_ARM64_BUILD:-/tmp/gf_check_arm64}"
-DATA="${GF_DATA_DIR:-$(cd "${GF_ROOT}/.." && pwd)/shared/data}"
+# shellcheck source=scripts/common.sh
+source "${GF_ROOT}/scripts/common.sh"
+DATA="$(gf_data_dir --optional)"
+DATA="${DATA:-${GF_ROOT}/data}"  # none: the data tests skip, naming this folder
 JOBS="${GF_JOBS:-$(nproc 2>/dev/null || echo 2)}"
 SYSROOT=/usr/aarch64-linux-gnu
 QEMU=(qemu-aarch64 -L "${SYSROOT}")

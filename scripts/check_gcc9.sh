@@ -12,7 +12,8 @@
 #                 qemu-user cmake googletest libeigen3-dev (Debian 11, Ubuntu 20.04 / 22.04 carry them)
 #
 # scripts/check_platform.sh runs it in its Debian 11 root (Debian's GCC 9.3.0 packages). Environment:
-# GF_GCC9_BUILD (build folder, default /tmp/gf_check_gcc9), GF_DATA_DIR (default ../shared/data),
+# GF_GCC9_BUILD (build folder, default /tmp/gf_check_gcc9), GF_DATA_DIR (data folder, default
+# data/, else ../shared/data: scripts/common.sh gf_data_dir; the data tests skip without one),
 # GF_JOBS (default nproc). Exit status: 0 all passed, 1 a build or test failed or labels differ,
 # 2 a tool is missing. Timings under qemu mean nothing; the script reports none.
 set -euo pipefail
@@ -22,7 +23,10 @@ GF_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # shellcheck source=scripts/compare_labels.sh
 source "${GF_ROOT}/scripts/compare_labels.sh"
 BUILD="${GF_GCC9_BUILD:-/tmp/gf_check_gcc9}"
-DATA="${GF_DATA_DIR:-$(cd "${GF_ROOT}/.." && pwd)/shared/data}"
+# shellcheck source=scripts/common.sh
+source "${GF_ROOT}/scripts/common.sh"
+DATA="$(gf_data_dir --optional)"
+DATA="${DATA:-${GF_ROOT}/data}"  # none: the data tests skip, naming this folder
 JOBS="${GF_JOBS:-$(nproc 2>/dev/null || echo 2)}"
 SYSROOT=/usr/aarch64-linux-gnu
 PACKAGES=(g++-9 g++-9-aarch64-linux-gnu qemu-user cmake googletest libeigen3-dev)

@@ -4,7 +4,8 @@
 # 1. debootstraps a minimal Debian root (--variant=minbase, this machine's Debian mirror) once and
 #    keeps it under ${GF_PLATFORM_CACHE:-/var/tmp/ground_filter_platform}/<release>/root;
 # 2. clones this checkout's HEAD (committed work only) into it as /work/ground_filter, with the
-#    shared data bind-mounted read-only at /work/shared/data (the tests' ../shared/data);
+#    data folder (scripts/common.sh gf_data_dir: $GF_DATA_DIR, data/, ../shared/data) bind-mounted
+#    read-only at /work/shared/data (the clone's ../shared/data);
 # 3. runs `bash scripts/demo.sh` and `bash scripts/run_tests.sh` there; the install step
 #    (apt, scripts/common.sh gf_install_deps) has the network, the demo and the tests run in a
 #    network namespace of their own (loopback only: no port or X display shared with this machine,
@@ -48,7 +49,10 @@ fi
 command -v unshare >/dev/null || die "unshare (util-linux) is missing"
 
 GF_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-DATA="${GF_DATA:-$(cd "${GF_ROOT}/.." && pwd)/shared/data}"
+# shellcheck source=scripts/common.sh
+source "${GF_ROOT}/scripts/common.sh"
+DATA="$(gf_data_dir --optional)"
+DATA="${DATA:-${GF_ROOT}/data}"
 CACHE="${GF_PLATFORM_CACHE:-/var/tmp/ground_filter_platform}/${RELEASE}"
 ROOT="${CACHE}/root"
 CLONE_IN="/work/ground_filter"   # path inside the root; the data is at /work/shared/data

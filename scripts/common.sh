@@ -95,6 +95,37 @@ gf_ros_env() {
   fi
 }
 
+# The evaluation data folder, one rule for every script and tool (get_data.py, gf_data.py and
+# src/tools/cli_args.cpp follow it too): $GF_DATA_DIR when set (an error when it is not a
+# folder), else <repo>/data (scripts/get_data.sh fills it) when it exists, else
+# <repo>/../shared/data when it exists; else an error saying to run scripts/get_data.sh.
+#   DATA="$(gf_data_dir --required)"  # stops the caller (set -e) without data
+#   DATA="$(gf_data_dir --optional)"  # empty without data (for steps that skip without it)
+gf_data_dir() {
+  local optional=0 root d
+  [ "${1:-}" = --optional ] && optional=1
+  if [ -n "${GF_DATA_DIR:-}" ]; then
+    if [ -d "${GF_DATA_DIR}" ]; then
+      (cd "${GF_DATA_DIR}" && pwd -P)
+      return 0
+    fi
+    echo "[ground_filter] GF_DATA_DIR=${GF_DATA_DIR} is not a folder: fix or unset it" \
+      "(bash scripts/get_data.sh --dest DIR fills a folder)" >&2
+    return 1
+  fi
+  root="$(cd "${GF_ROOT}" && pwd -P)"
+  for d in "${root}/data" "${root}/../shared/data"; do
+    if [ -d "${d}" ]; then
+      (cd "${d}" && pwd -P)
+      return 0
+    fi
+  done
+  [ "${optional}" = 1 ] && return 0
+  echo "[ground_filter] no data: run bash scripts/get_data.sh (fills ${root}/data)," \
+    "or set GF_DATA_DIR to a copy" >&2
+  return 1
+}
+
 gf_die() {
   echo "[ground_filter] ERROR: $*" >&2
   echo "[ground_filter] nothing was installed or changed." >&2

@@ -4,7 +4,7 @@
 # scan. It ends by itself after `scans` scans (default 30; with gui:=true when rviz is closed)
 # and exits 0 only when scans were
 # received. Arguments are roslaunch args, e.g.
-#   bash scripts/demo.sh input:=../shared/data/semantickitti/seq00 scans:=12
+#   bash scripts/demo.sh input:=data/semantickitti/seq00 scans:=12   (bash scripts/get_data.sh)
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 

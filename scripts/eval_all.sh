@@ -15,7 +15,16 @@
 set -euo pipefail
 export PATH="/usr/bin:/bin:${PATH}"
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-DATA="${GF_DATA_DIR:-${ROOT}/../shared/data}"
+# (source=/dev/null: shellcheck would take a function's local array of common.sh for this file's)
+# shellcheck source=/dev/null
+source "${ROOT}/scripts/common.sh"
+# Data folder: $GF_DATA_DIR, else data/ (scripts/get_data.sh), else ../shared/data; needed only
+# for the default groups.
+if [ -z "${GROUPS_DEF:-}" ]; then
+  DATA="$(gf_data_dir --required)"
+else
+  DATA="$(gf_data_dir --optional)"
+fi
 EVAL="${GF_EVAL:-${ROOT}/.ws/devel/lib/ground_filter/ground_filter_eval}"
 METHODS="${METHODS:-voxel normal normal@vehicle_lidar_normal voxel_paper}"
 SEEDS="${SEEDS:-}"  # ransac_seed values for the normal method (the voxel methods have no seed)

@@ -4,12 +4,15 @@
 #   scripts/label_snapshot.sh OUT_DIR [EVAL_BINARY]      # write OUT_DIR/<case>/<stem>.gnd
 #   scripts/label_snapshot.sh --compare DIR_A DIR_B       # count differing labels per case
 # Cases: voxel, normal and voxel_paper with defaults; every config/*.yaml with its method;
-# generated scenes (2 seeds each). Data from ../shared/data (GF_DATA overrides); cases whose
-# data is missing are skipped with a line saying so.
+# generated scenes (2 seeds each). Data: $GF_DATA_DIR, else data/ (scripts/get_data.sh), else
+# ../shared/data; cases whose data is missing are skipped with a line saying so.
 set -euo pipefail
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-DATA="${GF_DATA:-${HERE}/../shared/data}"
+# shellcheck source=scripts/common.sh
+source "${HERE}/scripts/common.sh"
+DATA="$(gf_data_dir --optional)"
+DATA="${DATA:-${HERE}/data}"
 
 if [ "${1:-}" = "--compare" ]; then
   [ $# -eq 3 ] || { echo "usage: $0 --compare DIR_A DIR_B" >&2; exit 2; }

@@ -14,7 +14,7 @@ written at bag time = its stamp, so `rosbag play --clock` replays it at the give
 
 Example:
   scripts/make_bag.py -o /tmp/seq00.bag --rate 10 --frame-id velodyne --topic /points_raw \\
-      ../shared/data/semantickitti/seq00
+      data/semantickitti/seq00   # bash scripts/get_data.sh
 """
 import argparse
 import os

@@ -3,7 +3,7 @@
 
 The GPU machine's standalone build (cuda/run_gpu_checks.sh) has no PCL; its benchmark and tests
 read the Ouster OS-128 scan from .carry/data/os128_000000.bin, made with:
-    python3 scripts/pcd_to_kitti_bin.py ../shared/data/unlabelled/os128_000000.pcd \\
+    python3 scripts/pcd_to_kitti_bin.py data/unlabelled/os128_000000.pcd \\
         .carry/data/os128_000000.bin
 Every record is kept, non-finite points included (the filter's own NaN rule applies to them).
 """

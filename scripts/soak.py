@@ -432,8 +432,9 @@ def main():
     r = sub.add_parser("run")
     r.add_argument("--minutes", type=float, default=2.0)
     r.add_argument("--rate", type=float, default=20.0)
-    r.add_argument("--scan", default=os.path.join(ROOT, "..", "shared", "data", "unlabelled",
-                                                  "os128_000000.pcd"))
+    r.add_argument("--scan", default=None,
+                   help="scan to publish (default: unlabelled/os128_000000.pcd of the data "
+                   "folder, scripts/gf_data.py)")
     r.add_argument("--results", default="")
     r.add_argument("--malloc-trim-period", type=float, default=None,
                    help="the nodelets' ~malloc_trim_period [s] (default: theirs, 1 s; 0 = off)")
@@ -442,6 +443,13 @@ def main():
     p.add_argument("--rate", type=float, default=20.0)
     sub.add_parser("reconfigure")
     a = ap.parse_args()
+    if a.cmd == "run" and a.scan is None:
+        sys.path.insert(0, HERE)
+        from gf_data import NoDataError, data_dir
+        try:
+            a.scan = os.path.join(data_dir(), "unlabelled", "os128_000000.pcd")
+        except NoDataError as e:
+            sys.exit("soak.py: %s" % e)
     if a.cmd == "publish":
         return publish(a.scan, a.rate)
     if a.cmd == "reconfigure":

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Soak test of the nodelets (scripts/soak.py says what it does and what passes).
 #   scripts/soak.sh [MINUTES] [--results DIR] [--rate HZ] [--scan PATH] [--malloc-trim-period S]
-# Default 10 minutes at 20 Hz of ../shared/data/unlabelled/os128_000000.pcd. Needs the catkin
+# Default 10 minutes at 20 Hz of unlabelled/os128_000000.pcd of the data folder ($GF_DATA_DIR,
+# data/ of bash scripts/get_data.sh, ../shared/data). Needs the catkin
 # build in .ws/ (scripts/run_tests.sh or gf_build). Starts its own roscore on a free port unless
 # ROS_MASTER_URI is set; ROS_HOSTNAME defaults to loopback. Logs: .ws/soak_logs/.
 set -euo pipefail

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Time per KITTI frame of both methods on every SIMD path this CPU runs, and of the peers built by
-# ../shared/peers (when present), alternating the tools in rounds; prints one markdown table with
-# the CPU model, its SIMD levels and the load. Timings drift between minutes: read a table as a
+# Time per KITTI frame of both methods on every SIMD path this CPU runs, and of the peer drivers in
+# PEER_BIN (scripts/peers/README.md; when present), alternating the tools in rounds; prints one
+# markdown table with the CPU model, its SIMD levels and the load. Timings drift between minutes: read a table as a
 # whole (the ratios), never one row against another run's.
 #   bash scripts/speed_table.sh                 # 3 rounds, 15 timed calls per frame and tool
 #   ROUNDS=5 REPEAT=21 bash scripts/speed_table.sh
@@ -10,13 +10,16 @@
 #                                               #   (sample_stride 1, k 64: the paper's way)
 # Rows: voxel (1 thread), normal (1 and 2 threads) at each GF_SIMD level the CPU has, and the
 # peers' drivers (one thread, their segmentation call only; CSF with REPEAT/2 calls).
-# Needs a build (bash -c 'source scripts/common.sh; gf_build'); data from ../shared/data.
+# Needs a build (bash -c 'source scripts/common.sh; gf_build'); data: $GF_DATA_DIR, else data/
+# (bash scripts/get_data.sh), else ../shared/data.
 set -euo pipefail
 export PATH="/usr/bin:/bin:${PATH}"
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-DATA="${GF_DATA_DIR:-${ROOT}/../shared/data}"
+# shellcheck source=/dev/null
+source "${ROOT}/scripts/common.sh"
+DATA="$(gf_data_dir --required)"
 BIN="${GF_BIN:-${ROOT}/.ws/devel/lib/ground_filter}"
-PEER_BIN="${PEER_BIN:-/tmp/peers/build}"
+PEER_BIN="${PEER_BIN:-${GF_PEERS_DIR:-${HOME}/.cache/ground_filter_peers}/build}"
 ROUNDS="${ROUNDS:-3}"
 REPEAT="${REPEAT:-15}"
 PEERS="${PEERS-patchworkpp linefit csf pcl_ransac pcl_ransac_native}"
@@ -52,7 +55,7 @@ for p in ${PEERS}; do
   if [ -x "${drv}" ]; then
     TOOLS+=("${p}|peer ${drv}")
   else
-    echo "speed_table.sh: ${drv} not built: row ${p} left out (bash ../shared/peers/build.sh)" >&2
+    echo "speed_table.sh: ${drv} not built: row ${p} left out (scripts/peers/README.md)" >&2
   fi
 done
 

@@ -3,7 +3,8 @@
 
 Each file is one serialised sensor_msgs/PointCloud2 (as it travels on a ROS connection), valid
 ones and malformed ones. Small on purpose (a few KB). Regenerate with:
-  python3 test/fuzz_make_corpus.py [--data ../shared/data] [--out test/fuzz_corpus]
+  python3 test/fuzz_make_corpus.py [--data DATA] [--out test/fuzz_corpus]
+(DATA: the data folder, default as scripts/gf_data.py: $GF_DATA_DIR, data/, ../shared/data)
 Crash reproducers found by scripts/fuzz.sh are added to the same folder as crash-*.
 """
 import argparse
@@ -11,6 +12,7 @@ import io
 import math
 import os
 import struct
+import sys
 
 from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import String
@@ -65,9 +67,16 @@ def xyzi(p):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=os.path.join(HERE, "..", "..", "shared", "data"))
+    ap.add_argument("--data", default=None)
     ap.add_argument("--out", default=os.path.join(HERE, "fuzz_corpus"))
     a = ap.parse_args()
+    if a.data is None:
+        sys.path.insert(0, os.path.join(HERE, "..", "scripts"))
+        from gf_data import NoDataError, data_dir
+        try:
+            a.data = data_dir()
+        except NoDataError as e:
+            sys.exit("fuzz_make_corpus.py: %s" % e)
     os.makedirs(a.out, exist_ok=True)
     pts = kitti_points(a.data)  # ~310 points of a real scan, ground and objects
     base_fields = [field("x", 0, F32), field("y", 4, F32), field("z", 8, F32),

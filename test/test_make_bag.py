@@ -1,5 +1,6 @@
 """scripts/make_bag.py: scan readers (KITTI .bin, PCD ascii/binary/binary_compressed) and the bag
-it writes, checked against hand-made inputs and the real files of ../shared/data."""
+it writes, checked against hand-made inputs and the real files of the data folder
+(scripts/gf_data.py: $GF_DATA_DIR, data/, ../shared/data)."""
 import os
 import shutil
 import struct
@@ -14,8 +15,9 @@ ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
 SCRIPT = os.path.join(ROOT, "scripts", "make_bag.py")
 sys.path.insert(0, os.path.join(ROOT, "scripts"))
 import make_bag  # noqa: E402
+from gf_data import data_dir  # noqa: E402
 
-DATA = os.environ.get("GF_DATA_DIR", os.path.join(ROOT, "..", "shared", "data"))
+DATA = data_dir(optional=True) or os.path.join(ROOT, "data")
 KITTI = os.path.join(DATA, "semantickitti", "seq00")
 OS128 = os.path.join(DATA, "unlabelled", "os128_000000.pcd")  # binary_compressed, organised
 # Without the data (a user's own workspace) those tests are skipped with the reason, not passed.

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "gf_test_data.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/scene/scene_generator.h"
 #include "ground_filter/voxel_ground_filter.h"
@@ -39,9 +40,11 @@ std::vector<float> loadKittiXyz(const std::string& path) {
   return xyz;
 }
 
+const std::string kKittiFrame = std::string(GF_DATA_DIR) + "/semantickitti/seq00/000000.bin";
+
+// The frame's x y z; the tests that call it start with GF_SKIP_WITHOUT_DATA(kKittiFrame).
 const std::vector<float>& kittiFrame() {
-  static const std::vector<float> xyz =
-      loadKittiXyz(std::string(GF_DATA_DIR) + "/semantickitti/seq00/000000.bin");
+  static const std::vector<float> xyz = loadKittiXyz(kKittiFrame);
   return xyz;
 }
 
@@ -105,6 +108,7 @@ TEST(WorkingVolume, ValidateRanges) {
 
 // The failure: without the working volume one far point fails the whole scan.
 TEST(WorkingVolume, BareVoxelFilterFailsOnOneFarPoint) {
+  GF_SKIP_WITHOUT_DATA(kKittiFrame);
   std::vector<float> xyz = kittiFrame();
   xyz.insert(xyz.end(), {300e3f, 0.f, 0.f});
   gf::VoxelGroundFilter bare;
@@ -116,6 +120,7 @@ TEST(WorkingVolume, BareVoxelFilterFailsOnOneFarPoint) {
 // 1, 10 and 1000 far points at random places in a KITTI frame: they are non-ground and
 // counted; every other point keeps the label it gets without them.
 TEST(WorkingVolume, FarPointsInKittiFrameLeaveOtherLabelsUnchanged) {
+  GF_SKIP_WITHOUT_DATA(kKittiFrame);
   const std::vector<float>& frame = kittiFrame();
   const std::size_t n = frame.size() / 3;
   ASSERT_GT(n, 100000u);
@@ -177,6 +182,7 @@ TEST(WorkingVolume, FarPointsInKittiFrameLeaveOtherLabelsUnchanged) {
 // max_range cuts a real frame: points beyond it are non-ground and counted; NaN points are
 // counted as invalid, not as out of range; each point is counted once.
 TEST(WorkingVolume, MaxRangeAndNaNCounts) {
+  GF_SKIP_WITHOUT_DATA(kKittiFrame);
   std::vector<float> xyz = kittiFrame();
   const std::size_t n = xyz.size() / 3;
   const float nan = std::numeric_limits<float>::quiet_NaN();
@@ -233,6 +239,7 @@ TEST(WorkingVolume, AllOutOfRangeAndEmpty) {
 
 // The origin moves the volume (the nodelet centres it on the sensor in the gravity frame).
 TEST(WorkingVolume, OriginMovesTheVolume) {
+  GF_SKIP_WITHOUT_DATA(kKittiFrame);
   std::vector<float> xyz = kittiFrame();
   const std::size_t n = xyz.size() / 3;
   for (std::size_t i = 0; i < n; ++i) xyz[3 * i] += 3000.f;  // sensor at x = 3 km
@@ -256,6 +263,7 @@ TEST(WorkingVolume, OriginMovesTheVolume) {
 // max_range just above its farthest point: the box corners are farther), the wrapper checks the
 // points itself. Labels equal the bare filter's in both cases.
 TEST(WorkingVolume, VolumeTestedOnTheBounds) {
+  GF_SKIP_WITHOUT_DATA(kKittiFrame);
   const std::vector<float>& xyz = kittiFrame();
   const std::size_t n = xyz.size() / 3;
   const gf::CloudView view = gf::CloudView::packedXyz(xyz.data(), n);

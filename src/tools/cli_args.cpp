@@ -1,5 +1,7 @@
 #include "cli_args.h"
 
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <cstdlib>
 #include <exception>
@@ -36,9 +38,29 @@ int runTool(const char* tool, const std::function<int()>& body) {
 
 std::string simdDescription() { return simd::describe(); }
 
+namespace {
+bool isDirectory(const std::string& path) {
+  struct stat st;
+  return ::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode);
+}
+}  // namespace
+
 std::string dataDir() {
   const char* env = std::getenv("GF_DATA_DIR");
-  return env && *env ? env : GF_DEFAULT_DATA_DIR;
+  if (env && *env) {
+    if (!isDirectory(env)) {
+      throw std::runtime_error(std::string("GF_DATA_DIR=") + env +
+                               " is not a folder: fix or unset it (bash scripts/get_data.sh "
+                               "--dest DIR fills a folder)");
+    }
+    return env;
+  }
+  for (const char* d : {GF_REPO_DIR "/data", GF_REPO_DIR "/../shared/data"}) {
+    if (isDirectory(d)) return d;
+  }
+  throw std::runtime_error("no data: run bash " GF_REPO_DIR
+                           "/scripts/get_data.sh (fills " GF_REPO_DIR
+                           "/data), set GF_DATA_DIR, or name the input files");
 }
 
 bool ArgCursor::next() {

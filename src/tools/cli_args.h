@@ -14,10 +14,13 @@
 #include "common/threads_timing.h"
 #include "ground_filter/ground_filter.h"
 
-// The build sets it to the checkout's ../shared/data (CMakeLists.txt, target ground_filter_cli).
-#ifndef GF_DEFAULT_DATA_DIR
-#define GF_DEFAULT_DATA_DIR "../shared/data"
+// The checkout: its data/ (scripts/get_data.sh) and ../shared/data are the default data folders
+// (cli::dataDir()). The build sets it (CMakeLists.txt, target ground_filter_cli).
+#ifndef GF_REPO_DIR
+#define GF_REPO_DIR "."
 #endif
+// The default data folders as the tools' --help texts name them.
+#define GF_DEFAULT_DATA_DIR GF_REPO_DIR "/data, else " GF_REPO_DIR "/../shared/data"
 
 namespace ground_filter {
 namespace cli {
@@ -31,8 +34,10 @@ struct UsageError : std::runtime_error {
 ///        and gives 2, any other exception "TOOL: error: message" and gives 1.
 int runTool(const char* tool, const std::function<int()>& body);
 
-/// \brief Folder of the default inputs: $GF_DATA_DIR when set and not empty, else the build-time
-///        GF_DEFAULT_DATA_DIR.
+/// \brief Folder of the default inputs, the rule of scripts/common.sh gf_data_dir: $GF_DATA_DIR
+///        when set and not empty (a std::runtime_error when it is not a folder), else
+///        GF_REPO_DIR/data when it exists, else GF_REPO_DIR/../shared/data when it exists, else
+///        a std::runtime_error saying to run scripts/get_data.sh.
 std::string dataDir();
 
 /// \brief One header line for timings: the CPU model and the SIMD path taken (the level in

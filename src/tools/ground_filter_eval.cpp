@@ -8,7 +8,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
+#include <fstream>
 #include <iostream>
+#include <iterator>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -29,7 +31,8 @@ const char kUsage[] =
     "usage: ground_filter_eval [--method NAME] [--params FILE] [--set NAME=VALUE]... [--json]\n"
     "                          [--classes] [--write-labels DIR] [--label-format F]\n"
     "                          [--kitti-ids GROUND,NONGROUND] [--write-clouds DIR]\n"
-    "                          [--repeat N] [--drop-one N] [--scan-measures] PATH...\n"
+    "                          [--repeat N] [--drop-one N] [--score-labels DIR]\n"
+    "                          [--scan-measures] PATH...\n"
     "\n"
     "Runs a ground filter on every scan and prints per-file and pooled results: points, points\n"
     "labelled ground, filter time in ms, and where ground truth exists the confusion counts\n"
@@ -38,7 +41,9 @@ const char kUsage[] =
     "PATH                a .bin (KITTI, sibling .label = SemanticKITTI truth), .pcd (a 'label'\n"
     "                    field = ISPRS truth: 1 ground, 0 not, other = ignored) or .ply file; a\n"
     "                    directory (all such files in it, sorted); or builtin:KIND[:SEED], KIND\n"
-    "                    lidar, tls, verge, offroad or trail (generated scene, exact truth)\n"
+    "                    one of lidar, tls, verge, offroad, trail, airborne, or the registered\n"
+    "                    mls, mls_air, stations, slam, tls_far, or uav, corridor (generated\n"
+    "                    scene, exact truth; include/ground_filter/scene/scene_generator.h)\n"
     "--method NAME       filter method: voxel (default), normal, voxel_paper\n"
     "--params FILE       parameters from a flat YAML file (config/*.yaml, 'name: value')\n"
     "--set NAME=VALUE    override a filter parameter (repeatable; after --params)\n"
@@ -69,6 +74,9 @@ const char kUsage[] =
     "                    \"scan_measures\": top_share, column_top_share, column_mean, read,\n"
     "                    steep_share, steep_depth, high_share, extent; docs/scan_types.md),\n"
     "                    computed whatever the decision (scripts/crossval.py reads them)\n"
+    "--score-labels DIR  run no filter: score DIR/<stem>.gnd (as --write-labels writes them,\n"
+    "                    e.g. another ground filter's) against each scan's truth, same protocol\n"
+    "                    and output; ms is 0; not with --drop-one or --repeat\n"
     "--help              this text\n"
     "\n"
     "Exit status: 0 ok, 1 a file could not be read/written or its labels do not match, 2 bad\n"
@@ -86,6 +94,7 @@ struct Options {
   bool kitti_labels = false;  // --label-format kitti
   gf::KittiLabelIds kitti_ids;
   std::string clouds_dir;
+  std::string score_dir;  // --score-labels: labels read from DIR/<stem>.gnd, no filter run
   int repeat = 1;
   int drop_one = 0;
   std::vector<std::string> paths;
@@ -189,6 +198,8 @@ Options parseArgs(int argc, char** argv) {
           o.kitti_ids.nonground = static_cast<std::uint16_t>(ids[1]);
         } else if (arg == "--write-clouds") {
           o.clouds_dir = args->value();
+        } else if (arg == "--score-labels") {
+          o.score_dir = args->value();
         } else {
           return filter_args.consume(args);
         }
@@ -196,8 +207,12 @@ Options parseArgs(int argc, char** argv) {
       });
   if (o.paths.empty()) throw UsageError("no PATH given");
   if (o.json && o.drop_one > 0) throw UsageError("--drop-one prints a table: not with --json");
+  if (!o.score_dir.empty() && (o.drop_one > 0 || o.repeat != 1)) {
+    throw UsageError("--score-labels runs no filter: not with --drop-one or --repeat");
+  }
   o.method = filter_args.method;
   o.settings = filter_args.settings();
+  if (!o.score_dir.empty()) o.method = "labels:" + o.score_dir;  // the JSON's "method"
   return o;
 }
 
@@ -286,6 +301,26 @@ std::vector<std::string> listFiles(const Options& opt) {
   return files;
 }
 
+/// --score-labels: `dir`/<stem>.gnd of `file`, one 0/1 byte per point of the scan.
+std::vector<std::uint8_t> readGndLabels(const std::string& dir, const std::string& file,
+                                        std::size_t points) {
+  const std::string path = dir + "/" + gf::scanStem(file) + ".gnd";
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(path + ": cannot open (labels of " + file + ")");
+  std::vector<std::uint8_t> labels((std::istreambuf_iterator<char>(in)),
+                                   std::istreambuf_iterator<char>());
+  if (labels.size() != points) {
+    throw std::runtime_error(path + ": " + std::to_string(labels.size()) + " labels for the " +
+                             std::to_string(points) + " points of " + file);
+  }
+  const auto bad = std::find_if(labels.begin(), labels.end(), [](std::uint8_t v) { return v > 1; });
+  if (bad != labels.end()) {
+    throw std::runtime_error(path + ": label " + std::to_string(*bad) + " at point " +
+                             std::to_string(bad - labels.begin()) + " (0 or 1 expected)");
+  }
+  return labels;
+}
+
 /// Filters one file (opt.repeat times), scores it, and writes its labels / clouds as asked;
 /// `labels` is scratch, `classes` gathers the per-class counts.
 FileResult evalFile(gf::GroundFilter* filter, const std::string& file, const Options& opt,
@@ -295,7 +330,11 @@ FileResult evalFile(gf::GroundFilter* filter, const std::string& file, const Opt
   const gf::CloudView view = gf::viewOf(scan.cloud);
   std::vector<double> times;
   gf::FilterStats stats;
-  for (int r = 0; r < opt.repeat; ++r) {
+  if (!opt.score_dir.empty()) {
+    labels = readGndLabels(opt.score_dir, file, view.size());
+    times.push_back(0.0);
+  }
+  for (int r = 0; filter && r < opt.repeat; ++r) {
     const auto t0 = std::chrono::steady_clock::now();
     filter->filter(view, &labels, &stats);
     times.push_back(cli::msSince(t0));
@@ -456,7 +495,8 @@ void printTable(const Options& opt, const std::vector<FileResult>& results, cons
 }
 
 int run(const Options& opt) {
-  std::unique_ptr<gf::GroundFilter> filter = makeFilter(opt);
+  std::unique_ptr<gf::GroundFilter> filter;
+  if (opt.score_dir.empty()) filter = makeFilter(opt);
   const std::vector<std::string> files = listFiles(opt);
   std::vector<FileResult> results;
   std::vector<gf::ClassCount> classes;

@@ -203,7 +203,8 @@ Options parseArgs(int argc, char** argv) {
 }
 
 int run(Options o) {
-  const std::string data = cli::dataDir();
+  // The data folder only when a default input is needed (cli::dataDir() fails without one).
+  const std::string data = o.paths.empty() ? cli::dataDir() : std::string();
   std::printf("%s\n", cli::simdDescription().c_str());
   if (o.large > 0) {
     if (o.paths.empty()) {
