@@ -68,7 +68,7 @@ def groups(data, quick):
 # (method, parameter, default, grid, which groups). Grids bracket the default on both sides.
 PARAMS = [
     ("voxel", "plane_distance", 0.15, [0.08, 0.10, 0.12, 0.15, 0.20, 0.25], "ground"),
-    ("voxel", "flatness_threshold", 0.04, [0.02, 0.03, 0.04, 0.06, 0.08], "ground"),
+    ("voxel", "flatness_threshold", 0.08, [0.02, 0.03, 0.04, 0.06, 0.08, 0.10, 0.12, 0.16], "ground"),
     ("voxel", "height_margin", 1.0, [0.5, 0.75, 1.0, 1.5, 2.0], "ground"),
     ("voxel", "seed_window", 0.2, [0.1, 0.15, 0.2, 0.3, 0.4], "ground"),
     ("voxel", "tile_size", 1.0, [0.5, 1.0, 2.0, 4.0], "ground"),
@@ -177,6 +177,10 @@ def print_param(title, table, default, limit):
     print("|---|---|---|---|---|---|")
     for g, v, fv, fd, d in rows:
         print("| %s | %g | %.2f | %.2f | %+.2f | %s |" % (g, v, fv, fd, d, plat[g]))
+    values = sorted(next(iter(table.values())).keys())
+    print("\nF1 per value: | group | %s |" % " | ".join("%g" % v for v in values))
+    for g, by_v in table.items():
+        print("| %s | %s |" % (g, " | ".join("%.2f" % by_v[v] for v in values)))
     return worst
 
 

@@ -15,7 +15,7 @@ namespace ground_filter {
 ///        The airborne mode's morph_* fields come from MorphGroundParams.
 struct VoxelGroundFilterParams : TableParams<VoxelGroundFilterParams>, MorphGroundParams {
   double voxel_size = 0.10;          ///< voxel edge length [m] (0.10, paper)
-  double flatness_threshold = 0.04;  ///< flat voxel: max z - min z below this [m] (0.04)
+  double flatness_threshold = 0.08;  ///< flat voxel: max z - min z below this [m] (0.08)
   int min_points_per_voxel = 2;      ///< voxels with fewer points are never flat [points] (2)
   double height_margin = 1.0;        ///< global: cut over mean flat z; local: seed depth [m] (1.0)
   double seed_window = 0.2;          ///< local: seeds at most this above the prediction [m] (0.2)
