@@ -42,7 +42,9 @@ gen street (lidar:1,2)||builtin:lidar:1 builtin:lidar:2
 gen verge (verge:1,2)||builtin:verge:1 builtin:verge:2
 gen offroad (offroad:1,2)||builtin:offroad:1 builtin:offroad:2
 gen trail (trail:1,2)||builtin:trail:1 builtin:trail:2
-gen airborne (airborne:1,2), preset airborne|preset:airborne|builtin:airborne:1 builtin:airborne:2}"
+gen airborne (airborne:1,2), preset airborne|preset:airborne|builtin:airborne:1 builtin:airborne:2
+gen registered (mls, slam, stations, tls_far)||builtin:mls:1 builtin:slam:1 builtin:stations:1 builtin:tls_far:1
+gen nadir (uav, corridor)||builtin:uav:1 builtin:corridor:1}"
 
 TMP="$(mktemp -d)"
 trap 'rm -rf "${TMP}"' EXIT
