@@ -528,11 +528,10 @@ using Lost = std::vector<std::uint64_t>;
 
 }  // namespace
 
-// seq keeps a counter (rospy, rosbag, make_bag.py): once it has been +1 three times in a row,
-// each gap is exact, whatever the stamps say.
+// seq keeps a counter (rospy, rosbag, make_bag.py): once it is confirmed (three small forward
+// steps in a row, two of them +1), each gap is exact, whatever the stamps say.
 TEST(InputGapCounter, SeqGapsAreExact) {
   gf::InputGapCounter c;
-  // The first steps only confirm the counter: a gap there counts nothing yet.
   EXPECT_EQ(feed(&c, {{10, 1.0}, {11, 1.1}, {12, 1.2}, {13, 1.3}}), Lost({0, 0, 0, 0}));
   EXPECT_EQ(feed(&c, {{15, 1.5}, {16, 1.6}, {20, 1.61}, {21, 1.62}}), Lost({1, 0, 3, 0}));
   const auto gap = c.step(23, 9.0, "velodyne");  // stamps jump, seq says one lost
@@ -540,6 +539,18 @@ TEST(InputGapCounter, SeqGapsAreExact) {
   EXPECT_EQ(gap.lost, 1u);
   EXPECT_EQ(gap.seq_from, 21u);
   EXPECT_EQ(gap.seq_to, 23u);
+  // A bag's second scan lost while the filter built its first: counted once seq is confirmed,
+  // named from the seq before it.
+  gf::InputGapCounter b;
+  EXPECT_EQ(feed(&b, {{0, 0.0}, {2, 0.2}, {3, 0.3}}), Lost({0, 0, 0}));
+  const auto late = b.step(4, 0.4, "velodyne");
+  EXPECT_EQ(late.lost, 1u);
+  EXPECT_TRUE(late.by_seq);
+  EXPECT_EQ(late.seq_from, 0u);
+  EXPECT_EQ(late.seq_to, 4u);
+  // seq steps of 2 every time are no counter of these clouds: nothing counted.
+  gf::InputGapCounter two;
+  EXPECT_EQ(feed(&two, {{0, 0.0}, {2, 0.1}, {4, 0.2}, {6, 0.3}, {8, 0.4}}), Lost(5, 0));
 }
 
 // uint32 wrap-around is a step of one; a publisher that restarts its counter (seq back to 0)
@@ -557,10 +568,10 @@ TEST(InputGapCounter, SeqWrapAndRestart) {
             Lost({0, 0, 0, 0, 0, 0, 1}));
   // Restart: seq 0 again (a restarted driver, a bag loop), stamps still every 0.1 s.
   EXPECT_EQ(feed(&c, {{4, 0.7}, {5, 0.8}, {0, 0.9}, {1, 1.0}}), Lost({0, 0, 0, 0}));
-  // Not counting by seq yet (one +1 step): a seq gap is judged by the stamps, which are regular.
+  // Not confirmed again yet (one +1 step): the gap 1 -> 5 waits, counted with the confirmation.
   EXPECT_EQ(feed(&c, {{5, 1.1}}), Lost({0}));
-  EXPECT_EQ(feed(&c, {{6, 1.2}, {7, 1.3}, {8, 1.4}, {10, 1.5}}), Lost({0, 0, 0, 1}));
-  // A jump beyond kMaxSeqStep is no gap (another publisher's counter).
+  EXPECT_EQ(feed(&c, {{6, 1.2}, {7, 1.3}, {8, 1.4}, {10, 1.5}}), Lost({3, 0, 0, 1}));
+  // A jump beyond kMaxSeqStep is no gap (another publisher's counter); the stamps are regular.
   EXPECT_EQ(feed(&c, {{10 + 5000, 1.6}}), Lost({0}));
 }
 

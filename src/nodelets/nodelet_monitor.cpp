@@ -28,26 +28,40 @@ InputGapCounter::Gap InputGapCounter::step(std::uint32_t seq, double stamp_s,
     have_last_ = false;
     steps_.clear();
     next_ = 0;
+    seq_run_ = seq_ones_ = 0;
+    seq_counting_ = false;
   }
   if (have_last_) {
     const std::uint32_t d = seq - last_seq_;  // uint32: the wrap 2^32 - 1 -> 0 is a step of 1
     const double dt = stamp_s - last_stamp_;
     gap.step_s = dt;
     gap.period_s = period();
-    if (seq_run_ >= kSeqConfirm && d >= 2 && d <= kMaxSeqStep) {
-      gap.lost = d - 1;
-      gap.by_seq = true;
-      gap.seq_from = last_seq_;
-      gap.seq_to = seq;
-    } else if (seq_run_ < kSeqConfirm && gap.period_s > 0.0 && dt > 1.5 * gap.period_s &&
-               dt <= kMaxGapPeriods * gap.period_s) {
-      gap.lost = static_cast<std::uint64_t>(std::lround(dt / gap.period_s)) - 1;
-    }
-    // seq counts once it has been +1 kSeqConfirm times in a row; a gap within range keeps it.
-    if (d == 1) {
+    if (d >= 1 && d <= kMaxSeqStep) {  // seq may be a counter: it decides, not the stamps
+      if (seq_run_ == 0) {
+        seq_pending_ = 0;
+        seq_pending_from_ = last_seq_;
+      }
       ++seq_run_;
-    } else if (!(gap.by_seq)) {
-      seq_run_ = 0;
+      if (d == 1) ++seq_ones_;
+      if (seq_counting_) {
+        gap.lost = d - 1;
+        gap.seq_from = last_seq_;
+      } else {
+        seq_pending_ += d - 1;  // gaps before the counter is confirmed count once it is
+        if (seq_run_ >= kSeqConfirm && seq_ones_ >= kSeqConfirm - 1) {
+          seq_counting_ = true;
+          gap.lost = seq_pending_;
+          gap.seq_from = seq_pending_from_;
+        }
+      }
+      gap.by_seq = gap.lost > 0;
+      gap.seq_to = seq;
+    } else {
+      seq_run_ = seq_ones_ = 0;
+      seq_counting_ = false;
+      if (gap.period_s > 0.0 && dt > 1.5 * gap.period_s && dt <= kMaxGapPeriods * gap.period_s) {
+        gap.lost = static_cast<std::uint64_t>(std::lround(dt / gap.period_s)) - 1;
+      }
     }
     if (dt > 0.0) {  // the period from forward steps only (a bag loop goes back)
       if (steps_.size() < kWindow) {

@@ -23,15 +23,17 @@ namespace ground_filter {
 ///        holds its mutex); no ROS calls, unit-tested on its own.
 ///
 /// The rule, one step() per cloud in arrival order:
-///  - seq: once kSeqConfirm steps in a row were +1 (rospy and rosbag keep a counter there; many
-///    C++ drivers leave it 0), a step of d in [2, kMaxSeqStep] means d - 1 clouds lost. Any other
-///    step (0, going back, a restart at 0, a larger jump) counts nothing and leaves seq counting
-///    until kSeqConfirm +1 steps again. The arithmetic is uint32, so the wrap 2^32 - 1 -> 0 is +1.
-///  - stamps, while seq does not count: the input period is the median of the last kWindow
-///    positive stamp steps (at least kMinSteps of them); a step above 1.5 periods means
-///    round(step / period) - 1 clouds lost. A stamp that goes back or repeats (a bag loop, a
-///    restarted driver), or a step above kMaxGapPeriods periods (a hole in a recording) counts
-///    nothing. Estimated: a sensor that itself skipped a scan counts too.
+///  - seq: a step of d in [1, kMaxSeqStep] means d - 1 clouds lost, once seq is known to count
+///    (rospy, rosbag and make_bag.py keep a counter there; many C++ drivers leave it 0):
+///    kSeqConfirm or more such steps in a row, kSeqConfirm - 1 of them +1. The gaps of those
+///    first steps count when the counter is confirmed (a bag whose second scan was lost). Any other
+///    step (0, going back, a restart at 0, a larger jump) counts nothing by seq and starts the
+///    confirmation again. The arithmetic is uint32, so the wrap 2^32 - 1 -> 0 is +1.
+///  - stamps, on the steps where seq does not look like a counter: the input period is the median
+///    of the last kWindow positive stamp steps (at least kMinSteps of them); a step above 1.5
+///    periods means round(step / period) - 1 clouds lost. A stamp that goes back or repeats (a
+///    bag loop, a restarted driver), or a step above kMaxGapPeriods periods (a hole in a
+///    recording) counts nothing. Estimated: a sensor that itself skipped a scan counts too.
 ///  - a frame_id change (two sensors on one topic) forgets the previous cloud and the period;
 ///    restart() (the lazy subscription started again) forgets the previous cloud only.
 /// When the filter loses a scan after nearly every one, the median step is itself two periods and
@@ -66,9 +68,13 @@ class InputGapCounter {
   std::uint32_t last_seq_ = 0;
   double last_stamp_ = 0.0;
   std::string frame_;
-  int seq_run_ = 0;            // +1 seq steps in a row (counting once >= kSeqConfirm)
-  std::vector<double> steps_;  // recent positive stamp steps, ring of kWindow
-  std::size_t next_ = 0;       // ring position
+  int seq_run_ = 0;                     // seq steps in a row within [1, kMaxSeqStep]
+  int seq_ones_ = 0;                    // of which +1
+  bool seq_counting_ = false;           // seq confirmed as a counter
+  std::uint64_t seq_pending_ = 0;       // clouds missing while it was not confirmed yet
+  std::uint32_t seq_pending_from_ = 0;  // seq before the first of those steps
+  std::vector<double> steps_;           // recent positive stamp steps, ring of kWindow
+  std::size_t next_ = 0;                // ring position
 };
 
 /// \brief What a ground filter nodelet counts and reports: counters, per-kind log throttles,
