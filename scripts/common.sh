@@ -310,8 +310,33 @@ gf_install_deps() {
 
 gf_build() {
   mkdir -p "${GF_WS}/src"
-  # The workspace links back to the repository, so edits need no copy.
-  ln -sfn "${GF_ROOT}" "${GF_WS}/src/ground_filter"
+  # The workspace's package links back to the repository, so edits need no copy. Where the
+  # workspace lies inside the repository (the default .ws/), one link to the whole repository
+  # would be a loop (.ws/src/ground_filter/.ws/src/ground_filter/...) that rosrun's `find -L`
+  # reports on every call ("File system loop detected"). There the package is a folder with one
+  # link per top-level entry of the repository, less .git and the workspaces (.ws*); the links
+  # are renewed by every build (an entry added at the top needs a gf_build, a catkin_make alone
+  # does not see it). CMake finds the repository through package.xml's real path.
+  local pkg="${GF_WS}/src/ground_filter" root_real ws_real top entry name
+  root_real="$(cd "${GF_ROOT}" && pwd -P)"
+  ws_real="$(cd "${GF_WS}" && pwd -P)"
+  if [[ "${ws_real}/" == "${root_real}/"* ]]; then
+    top="${ws_real#"${root_real}/"}"
+    top="${top%%/*}"
+    if [ -L "${pkg}" ]; then rm -f "${pkg}"; fi  # the former link to the whole repository
+    mkdir -p "${pkg}"
+    for entry in "${root_real}"/* "${root_real}"/.[!.]*; do
+      [ -e "${entry}" ] || continue
+      name="${entry##*/}"
+      case "${name}" in .git | .ws* | .carry | .device | "${top}") continue ;; esac
+      ln -sfn "${entry}" "${pkg}/${name}"
+    done
+    for entry in "${pkg}"/* "${pkg}"/.[!.]*; do  # links to entries since removed
+      if [ -L "${entry}" ] && [ ! -e "${entry}" ]; then rm -f "${entry}"; fi
+    done
+  else
+    ln -sfn "${GF_ROOT}" "${pkg}"
+  fi
   cd "${GF_WS}"
   local jobs
   jobs="$(nproc 2>/dev/null || echo 2)"
@@ -320,4 +345,7 @@ gf_build() {
   # shellcheck disable=SC1091
   source "${GF_WS}/devel/setup.bash"
   set -u
+  echo "[ground_filter] built. In your shell: source ${GF_WS}/devel/setup.bash; the tools:" \
+    "rosrun ground_filter ground_filter_eval ... (or export" \
+    "PATH=\"${GF_WS}/devel/lib/ground_filter:\$PATH\" to call them by name)"
 }

@@ -18,7 +18,6 @@ import rospy
 import rostest
 import tf2_ros
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import TransformStamped
 from rosgraph_msgs.msg import Log
 from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import String
@@ -102,16 +101,10 @@ class RosExtrasTest(RosTestCase):
         for i, n in enumerate(("x", "y", "z")):
             cls.tilted[n] = tilted[:, i].astype(np.float32)
 
-        cls.tf = tf2_ros.StaticTransformBroadcaster()
-        t = TransformStamped()
-        t.header.stamp = rospy.Time.now()
-        t.header.frame_id = "base_link"
-        t.child_frame_id = "velodyne_tilted"
-        half = math.radians(TILT_DEG) / 2
-        t.transform.rotation.y = math.sin(half)
-        t.transform.rotation.w = math.cos(half)
-        t.transform.translation.z = 1.73
-        cls.tf.sendTransform(t)
+        # base_link <- velodyne_tilted comes from scripts/static_tf.py (ros_extras.test), the
+        # route for Debian, whose packages lack tf2_ros' static_transform_publisher.
+        cls.tf_buffer = tf2_ros.Buffer()
+        cls.tf_listener = tf2_ros.TransformListener(cls.tf_buffer)
 
         cls.lock = threading.Lock()
         cls.diag = {}
@@ -120,6 +113,7 @@ class RosExtrasTest(RosTestCase):
         cls.collect_rosout(("/rosout",))
         cls.pubs = {n: rospy.Publisher("/gf_extras/" + n, PointCloud2, queue_size=20)
                     for n in ("flat", "tilted", "notf", "body", "bad")}
+        cls.pubs["lost"] = rospy.Publisher("/gf_extras/lost", PointCloud2, queue_size=100)
 
     @classmethod
     def _on_diag(cls, msg):
@@ -171,7 +165,22 @@ class RosExtrasTest(RosTestCase):
 
     def test_gravity_frame_tilted_kitti(self):
         """A 20-degree tilted sensor with its static transform gives the labels of the
-        untilted frame (>= 99 %); outputs stay in the tilted frame with the input records."""
+        untilted frame (>= 99 %); outputs stay in the tilted frame with the input records.
+        The transform comes from `rosrun ground_filter static_tf.py` (yaw pitch roll order of
+        static_transform_publisher): it must be the 20-degree rotation about y, 1.73 m up."""
+        t = self.tf_buffer.lookup_transform("base_link", "velodyne_tilted", rospy.Time(0),
+                                            rospy.Duration(20.0)).transform
+        half = math.radians(TILT_DEG) / 2
+        got = [t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w,
+               t.translation.x, t.translation.y, t.translation.z]
+        np.testing.assert_allclose(got, [0, math.sin(half), 0, math.cos(half), 0, 0, 1.73],
+                                   atol=1e-9, err_msg="static_tf.py published another transform")
+        # Bad arguments: a message naming the argument, exit status 2, nothing published.
+        bad = subprocess.run(["rosrun", PKG, "static_tf.py", "0", "0", "x", "0", "0", "0",
+                              "base_link", "other"], stdout=subprocess.PIPE,
+                             stderr=subprocess.STDOUT, universal_newlines=True, timeout=60)
+        self.assertEqual(bad.returncode, 2, bad.stdout)
+        self.assertIn("Z = 'x' is not a number", bad.stdout)
         topics = ["/flat_filter/labeled", "/tilted_filter/labeled", "/tilted_filter/ground",
                   "/tilted_filter/nonground", "/yaml_filter/labeled"]
         out = Outputs(topics)
@@ -267,8 +276,10 @@ class RosExtrasTest(RosTestCase):
 
     def test_bad_yaml_refused_naming_each_key(self):
         """A YAML with an unknown key, wrong types, a value out of range, a body box with
-        min > max and min_range above max_range: one ERROR per key, the defaults stay, the
-        filter still splits clouds."""
+        min > max and min_range above max_range: one short ERROR line per key, the defaults
+        stay, the filter still splits clouds. A key an earlier launch of this name left on the
+        parameter server (e.g. the other method's) is cleared by the launch file, not seen."""
+        rospy.set_param("/bad_filter/earlier_launch_key", 4)
         launch = subprocess.Popen(
             ["roslaunch", PKG, "%s_ground_filter.launch" % rospy.get_param("~method"),
              "manager:=gf_extras_manager", "name:=bad_filter", "input:=/gf_extras/bad",
@@ -290,6 +301,20 @@ class RosExtrasTest(RosTestCase):
                      "min_range = 20.000000 m is not below max_range"):
             self.wait_for(lambda t=text: self.logged(Log.ERROR, t), "no ERROR: " + text,
                           timeout=30.0)
+        # An unknown key far from every name: one short line, not the list of every name.
+        self.wait_for(lambda: self.logged(Log.ERROR, "~sensor_colour: unknown parameter"),
+                      "no ERROR for sensor_colour", timeout=30.0)
+        with self.rosout_lock:
+            # The start-up check's lines ("METHOD: parameter ~KEY: why; refused, ...").
+            lines = [m.msg for m in self.rosout
+                     if m.level >= Log.ERROR and ": parameter ~" in m.msg]
+        self.assertGreaterEqual(len(lines), 6)
+        for line in lines:
+            self.assertLess(len(line), 200, "ERROR line of %d characters: %s" % (len(line), line))
+        # clear_params: the key of an earlier launch never reached the nodelet.
+        self.assertFalse(self.logged(Log.ERROR, "earlier_launch_key"),
+                         "the launch kept a key of an earlier launch (no clear_params)")
+        self.assertFalse(rospy.has_param("/bad_filter/earlier_launch_key"))
         # The refused set left the defaults in use (reported back to the parameter server).
         self.assertFalse(rospy.has_param("/bad_filter/plane_distanse"))
         self.assertFalse(rospy.has_param("/bad_filter/tf_timeout"))
@@ -298,6 +323,22 @@ class RosExtrasTest(RosTestCase):
         self.wait_for(lambda: rospy.get_param("/bad_filter/min_range", None) == 0.0,
                       "min_range not back at its default", timeout=10.0)
         self.assertAlmostEqual(rospy.get_param("/bad_filter/plane_distance"), 0.15)
+        # A set refused at run time through dynparam: it exits 0 and prints nothing (it drops
+        # the server's reply), but the reply, the parameter server and `dynparam get` hold the
+        # kept value, and the diagnostics name the reason.
+        dyn = ["rosrun", "dynamic_reconfigure", "dynparam"]
+        run = subprocess.run(dyn + ["set", "/bad_filter", "min_range", "5000"],
+                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                             universal_newlines=True, timeout=60)
+        self.assertEqual(run.returncode, 0, run.stdout)
+        got = subprocess.run(dyn + ["get", "/bad_filter"], stdout=subprocess.PIPE,
+                             stderr=subprocess.STDOUT, universal_newlines=True, timeout=60)
+        self.assertIn("'min_range': 0.0", got.stdout)
+        self.assertEqual(rospy.get_param("/bad_filter/min_range"), 0.0)
+        self.wait_for(lambda: "min_range = 5000" in (self.value("bad_filter",
+                                                                "last refused parameter set")
+                                                     or ""),
+                      "diagnostics do not name the refused set", timeout=10.0)
         self.assertEqual(rospy.get_param("/bad_filter/max_range"), 1000.0)
         out = Outputs(["/bad_filter/ground", "/bad_filter/nonground"])
         try:
@@ -309,6 +350,56 @@ class RosExtrasTest(RosTestCase):
             self.assertEqual(out.get("/bad_filter/ground", stamp).width +
                              out.get("/bad_filter/nonground", stamp).width, 20000)
         finally:
+            out.close()
+
+    def test_lost_clouds_counted(self):
+        """A burst faster than the filter into ~queue_size 1: roscpp drops queued clouds without
+        a word; the seq gaps (rospy numbers every message) count them: clouds in + lost = clouds
+        sent, a WARN names them, the diagnostics turn WARN."""
+        name, key = "lost_filter", "lost before the filter (seq/stamp gaps)"
+        pub = self.pubs["lost"]
+        statuses = []
+        sub = rospy.Subscriber("/diagnostics", DiagnosticArray, lambda m: statuses.extend(
+            st for st in m.status if st.name.startswith(name + ":")), queue_size=50)
+        out = Outputs(["/%s/ground" % name])
+        try:
+            self.connect(pub)
+            self.wait_for(lambda: out.subs[0].get_num_connections() > 0,
+                          "no connection to /%s/ground" % name)
+            msg = make_cloud(self.rec, "velodyne", self.next_stamp())
+            sent = 0
+            # One at a time (each after its output): nothing lost, seq counting confirmed.
+            for _ in range(4):
+                msg.header.stamp = self.next_stamp()
+                stamp = msg.header.stamp
+                pub.publish(msg)
+                sent += 1
+                self.wait_for(lambda s=stamp: out.get("/%s/ground" % name, s) is not None,
+                              "no output for a single cloud")
+            self.assertEqual(self.number(name, key) or 0, 0)
+            for _ in range(30):  # a burst: the manager's queue keeps only the newest
+                msg.header.stamp = self.next_stamp()
+                pub.publish(msg)
+                sent += 1
+            last = msg.header.stamp
+            self.wait_for(lambda: out.get("/%s/ground" % name, last) is not None,
+                          "no output for the last cloud of the burst (it is never dropped)")
+            self.wait_for(lambda: (self.number(name, "clouds in") or 0) +
+                          (self.number(name, key) or 0) == sent,
+                          "clouds in + lost != %d sent: in %s, lost %s" % (
+                              sent, self.number(name, "clouds in"), self.number(name, key)),
+                          timeout=10.0)
+            lost = self.number(name, key)
+            self.assertGreater(lost, 0, "a 30-cloud burst into a queue of 1 lost nothing?")
+            self.assertEqual(out.count("/%s/ground" % name), sent - lost)
+            self.wait_for(lambda: self.logged(Log.WARN, "lost before the filter (seq "),
+                          "no WARN naming the lost clouds", timeout=10.0)
+            self.wait_for(lambda: any(st.level == DiagnosticStatus.WARN and
+                                      "lost before the filter" in st.message
+                                      for st in list(statuses)),
+                          "diagnostics not WARN while clouds were lost", timeout=10.0)
+        finally:
+            sub.unregister()
             out.close()
 
     def test_gravity_frame_never_arrives(self):

@@ -59,9 +59,18 @@ TEST(GpuFallback, GpuChoiceGivesKdTreeListsAndSaysWhy) {
   EXPECT_EQ(search->lastBackend(), "kdtree");
   EXPECT_EQ(got.indices, ref.indices);
 #ifdef GROUND_FILTER_HAVE_CUDA
-  // Built with CUDA, no usable device: the note names the CUDA error.
-  EXPECT_EQ(note.rfind("GPU backend unavailable: cuda", 0), 0u) << note;
+  // Built with CUDA, no usable device: the note names the CUDA error; a machine without a GPU
+  // or without an NVIDIA driver is told so (the runtime's own text for a missing driver is
+  // "CUDA driver version is insufficient", which reads like an old driver).
+  EXPECT_EQ(note.rfind("GPU backend unavailable: ", 0), 0u) << note;
+  EXPECT_NE(note.find("cudaError"), std::string::npos) << note;
   EXPECT_NE(note.find("; using kdtree"), std::string::npos) << note;
+  EXPECT_EQ(note.find("driver version is insufficient"), std::string::npos) << note;
+  std::string why;
+  if (!gf::CudaKnn::deviceAvailable(&why) && (why.find("cudaErrorNoDevice") != std::string::npos ||
+                                              why.find("no NVIDIA driver") != std::string::npos)) {
+    EXPECT_NE(note.find(": no CUDA device on this machine"), std::string::npos) << note;
+  }
 #else
   EXPECT_NE(note.find("built without CUDA"), std::string::npos) << note;
 #endif

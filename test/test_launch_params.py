@@ -160,6 +160,44 @@ class LaunchParamsTest(unittest.TestCase):
                 self.assertNotIn("/%s/%s" % (name, key), params,
                                  "%s sets %s although nobody asked for it" % (launch, key))
 
+    def test_relaunch_starts_from_defaults_and_its_yaml(self):
+        """A second launch under the same master (here: the other method after the first) must
+        not inherit the first launch's keys: every filter node clears its private namespace.
+        roslaunch applies a launch to the parameter server as in ROSLaunchRunner: first the
+        namespaces in clear_params are deleted, then every parameter is set; that is replayed
+        here on a dict, no master needed."""
+        def apply(server, config):
+            for ns in config.clear_params:
+                for key in [k for k in server if k.startswith(ns)]:
+                    del server[key]
+            server.update({k: p.value for k, p in config.params.items()})
+
+        for launch, args, cfg, name in CASES:
+            ns = "/%s/" % name
+            config = load_config(launch, ["params_file:=" + self.yamls[cfg][0]] + args)
+            self.assertIn(ns, config.clear_params,
+                          "%s %s: node %s has no clear_params" % (launch, " ".join(args), name))
+            # First the other method with every key of its YAML, then this launch without one.
+            other = "NormalGroundFilter" if cfg == "VoxelGroundFilter" else "VoxelGroundFilter"
+            server = {}
+            apply(server, load_config(launch, ["params_file:=" + self.yamls[other][0]] + args))
+            second = load_config(launch, list(args))
+            apply(server, second)
+            left = sorted(k for k in server if k.startswith(ns) and k not in second.params)
+            self.assertEqual(left, [], "%s %s: keys of the earlier launch stay on the server"
+                             % (launch, " ".join(args)))
+        # Every launch file that loads a filter was replayed (none slipped out of CASES).
+        launches = {c[0] for c in CASES}
+        for f in os.listdir(os.path.join(ROOT, "launch")):
+            with open(os.path.join(ROOT, "launch", f)) as fh:
+                text = fh.read()
+            if "_ground_filter.launch" in text or "ground_filter.launch\"" in text or \
+                    "load ground_filter/" in text:
+                self.assertIn(f, launches, "%s loads a filter but is not in CASES" % f)
+        # The body crop of crop_and_filter.launch too (its box would stay from an earlier launch).
+        crop = load_config("crop_and_filter.launch", ["name:=cf"])
+        self.assertIn("/cf_body_crop/", crop.clear_params)
+
     def test_demo_gui_streams_until_closed(self):
         self.assertEqual(dump("demo.launch")["/demo_monitor/max_scans"], 30)
         self.assertEqual(dump("demo.launch", "gui:=true")["/demo_monitor/max_scans"], 0)

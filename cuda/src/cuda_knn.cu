@@ -49,7 +49,27 @@ bool CudaKnn::deviceAvailable(std::string* why, int device) {
   int count = 0;
   cudaError_t err = cudaGetDeviceCount(&count);
   if (err != cudaSuccess) {
-    if (why) *why = std::string(cudaGetErrorName(err)) + ": " + cudaGetErrorString(err);
+    if (why) {
+      // The CUDA error's name first (CudaError::errorName()). No GPU, or no NVIDIA driver at
+      // all: the runtime then says "CUDA driver version is insufficient"
+      // (cudaErrorInsufficientDriver, driver version 0), which reads like an old driver. Only a
+      // driver that is there and too old gets that wording.
+      int driver = 0;
+      cudaDriverGetVersion(&driver);
+      if (err == cudaErrorNoDevice || (err == cudaErrorInsufficientDriver && driver == 0)) {
+        *why = std::string(cudaGetErrorName(err)) + ": no CUDA device on this machine" +
+               (driver == 0 ? " (no NVIDIA driver loaded)" : "");
+      } else if (err == cudaErrorInsufficientDriver) {
+        int runtime = 0;
+        cudaRuntimeGetVersion(&runtime);
+        *why = std::string(cudaGetErrorName(err)) + ": the NVIDIA driver supports CUDA " +
+               std::to_string(driver / 1000) + "." + std::to_string(driver % 1000 / 10) +
+               ", this build needs " + std::to_string(runtime / 1000) + "." +
+               std::to_string(runtime % 1000 / 10) + " (update the driver)";
+      } else {
+        *why = std::string(cudaGetErrorName(err)) + ": " + cudaGetErrorString(err);
+      }
+    }
     cudaGetLastError();  // clear
     return false;
   }

@@ -54,6 +54,7 @@ void GroundFilterNodelet::checkParams() {
   std::vector<std::string> refused;
   for (const std::string& e : checkPrivateParams(set, known, &refused)) {
     ++monitor_.counters().config_rejected;
+    monitor_.recordRefused("~" + e);
     NODELET_ERROR("%s: parameter ~%s; refused, the default stays", methodName().c_str(), e.c_str());
   }
   for (const std::string& key : refused) pnh_->deleteParam(key);
@@ -73,6 +74,7 @@ void GroundFilterNodelet::checkParams() {
       body_box_ = values;
     } catch (const std::invalid_argument& e) {
       ++monitor_.counters().config_rejected;
+      monitor_.recordRefused(std::string("~body_box: ") + e.what());
       NODELET_ERROR("%s: parameter ~body_box: %s; refused, no body box", methodName().c_str(),
                     e.what());
       pnh_->deleteParam("body_box");
@@ -186,11 +188,13 @@ void GroundFilterNodelet::setFilterFactory(FilterFactory factory, const WorkingV
 
 void GroundFilterNodelet::reportRejectedConfig(const std::string& what) {
   ++monitor_.counters().config_rejected;
+  monitor_.recordRefused(what);
   NODELET_ERROR("%s: parameters refused, keeping the previous ones: %s", methodName().c_str(),
                 what.c_str());
 }
 
 void GroundFilterNodelet::subscribe() {
+  monitor_.restartStream();  // clouds sent while unsubscribed are not lost ones
   ros::SubscribeOptions ops;
   ops.topic = "input";
   ops.queue_size = queue_size_;
@@ -231,6 +235,24 @@ void GroundFilterNodelet::checkStream(const std_msgs::Header& header) {
         &monitor_.counters().frame_changes, NodeletMonitor::kFrameChange,
         "input frame_id changed from '" + change.old_frame + "' to '" + header.frame_id + "'",
         "; every cloud is processed and published in its own frame");
+  }
+  if (change.gap.lost) {
+    const NodeletMonitor::StreamChange::Gap& gap = change.gap;
+    const auto n = (monitor_.counters().clouds_lost += gap.lost);
+    if (monitor_.logNow(NodeletMonitor::kLost)) {
+      char how[96];
+      if (gap.by_seq) {
+        std::snprintf(how, sizeof(how), "seq %u -> %u", gap.seq_from, gap.seq_to);
+      } else {
+        std::snprintf(how, sizeof(how), "stamp step %.3f s, input period %.3f s", gap.step_s,
+                      gap.period_s);
+      }
+      NODELET_WARN(
+          "%s: %llu input cloud%s lost before the filter (%s; %llu so far): the input queue "
+          "(~queue_size %d) was full while the filter was busy, or the sender skipped them",
+          methodName().c_str(), static_cast<unsigned long long>(gap.lost), gap.lost == 1 ? "" : "s",
+          how, static_cast<unsigned long long>(n), queue_size_);
+    }
   }
   if (change.went_back) {
     char by[64];

@@ -54,8 +54,9 @@ namespace ground_filter {
 /// the outputs; published only while it has subscribers; not watched by the lazy subscription).
 /// Diagnostics (diagnostic_updater, /diagnostics, status "NODELET_NAME: METHOD ground filter"):
 /// input/output rate, processing time mean/max, drop counts by reason, NaN/Inf points, points
-/// out of the working volume, backend fallbacks and the backend in use; WARN while clouds are
-/// dropped or the stream is irregular.
+/// out of the working volume, backend fallbacks and the backend in use, input clouds lost before
+/// the callback (estimated from seq / stamp gaps: InputGapCounter) and how busy the filter is;
+/// WARN while clouds are dropped or lost, the filter cannot keep up or the stream is irregular.
 ///
 /// Working volume (dynamic_reconfigure `max_range` and `min_range`, every leaf; private
 /// parameter `~body_box`, a list [xmin, xmax, ymin, ymax, zmin, zmax] in the input frame, read

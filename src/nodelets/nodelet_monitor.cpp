@@ -3,11 +3,136 @@
 #include <diagnostic_msgs/DiagnosticStatus.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 namespace ground_filter {
 
+constexpr int InputGapCounter::kSeqConfirm;
+constexpr std::uint32_t InputGapCounter::kMaxSeqStep;
+constexpr std::size_t InputGapCounter::kWindow;
+constexpr std::size_t InputGapCounter::kMinSteps;
+constexpr double InputGapCounter::kMaxGapPeriods;
+
+double InputGapCounter::period() const {
+  if (steps_.size() < kMinSteps) return 0.0;
+  std::vector<double> sorted = steps_;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  return sorted[sorted.size() / 2];
+}
+
+InputGapCounter::Gap InputGapCounter::step(std::uint32_t seq, double stamp_s,
+                                           const std::string& frame_id) {
+  Gap gap;
+  if (have_last_ && frame_id != frame_) {  // another sensor: nothing to compare with
+    have_last_ = false;
+    steps_.clear();
+    next_ = 0;
+    seq_run_ = seq_ones_ = 0;
+    seq_counting_ = false;
+  }
+  if (have_last_) {
+    const std::uint32_t d = seq - last_seq_;  // uint32: the wrap 2^32 - 1 -> 0 is a step of 1
+    const double dt = stamp_s - last_stamp_;
+    gap.step_s = dt;
+    gap.period_s = period();
+    if (d >= 1 && d <= kMaxSeqStep) {  // seq may be a counter: it decides, not the stamps
+      if (seq_run_ == 0) {
+        seq_pending_ = 0;
+        seq_pending_from_ = last_seq_;
+      }
+      ++seq_run_;
+      if (d == 1) ++seq_ones_;
+      if (seq_counting_) {
+        gap.lost = d - 1;
+        gap.seq_from = last_seq_;
+      } else {
+        seq_pending_ += d - 1;  // gaps before the counter is confirmed count once it is
+        if (seq_run_ >= kSeqConfirm && seq_ones_ >= kSeqConfirm - 1) {
+          seq_counting_ = true;
+          gap.lost = seq_pending_;
+          gap.seq_from = seq_pending_from_;
+        }
+      }
+      gap.by_seq = gap.lost > 0;
+      gap.seq_to = seq;
+    } else {
+      seq_run_ = seq_ones_ = 0;
+      seq_counting_ = false;
+      if (gap.period_s > 0.0 && dt > 1.5 * gap.period_s && dt <= kMaxGapPeriods * gap.period_s) {
+        gap.lost = static_cast<std::uint64_t>(std::lround(dt / gap.period_s)) - 1;
+      }
+    }
+    if (dt > 0.0) {  // the period from forward steps only (a bag loop goes back)
+      if (steps_.size() < kWindow) {
+        steps_.push_back(dt);
+      } else {
+        steps_[next_] = dt;
+      }
+      next_ = (next_ + 1) % kWindow;
+    }
+  }
+  have_last_ = true;
+  last_seq_ = seq;
+  last_stamp_ = stamp_s;
+  frame_ = frame_id;
+  return gap;
+}
+
 constexpr double NodeletMonitor::kLogPeriodS;
+
+namespace {
+
+// How busy the filter was in one diagnostic window; busy < 0: not known (no cloud).
+struct Load {
+  double busy = -1.0;
+  double mean_ms = 0.0;
+  double between_ms = 0.0;
+};
+
+// Cannot keep up: clouds lost before the callback (seq / stamp gaps, InputGapCounter), or the
+// filter busy nearly all the wall time between the clouds' arrivals. A filter that keeps up idles
+// between clouds; one that does not takes the next cloud as soon as it is done (the input queue
+// fills and drops the oldest), so its processing time approaches the time between arrivals. Wall
+// time: a bag played slower or faster is judged by what it really delivers. Appends the problems
+// (", "-separated) to *problems.
+Load loadCheck(std::uint64_t lost, std::uint64_t clouds, double ms_sum, std::uint64_t arrivals,
+               double arrival_sum, std::string* problems) {
+  Load load;
+  if (clouds && arrivals && arrival_sum > 0.0) {
+    load.mean_ms = ms_sum / clouds;
+    load.between_ms = 1000.0 * arrival_sum / arrivals;
+    load.busy = load.mean_ms / load.between_ms;
+  }
+  std::string text;
+  if (lost) text = std::to_string(lost) + " lost before the filter (input queue full?)";
+  if (load.busy >= 0.9) {
+    char busy[160];
+    std::snprintf(busy, sizeof(busy),
+                  "filter busy %.0f %% of the time (%.1f ms a cloud, one every %.1f ms): it "
+                  "cannot keep up with its input",
+                  100.0 * load.busy, load.mean_ms, load.between_ms);
+    text += (text.empty() ? "" : ", ") + std::string(busy);
+  }
+  if (!text.empty()) *problems += (problems->empty() ? "" : ", ") + text;
+  return load;
+}
+
+void addLoad(diagnostic_updater::DiagnosticStatusWrapper& status, double period_s,
+             const Load& load) {
+  if (period_s > 0.0) {
+    status.addf("input period [ms] (stamps)", "%.1f", 1000.0 * period_s);
+  } else {
+    status.add("input period [ms] (stamps)", "n/a (too few clouds)");
+  }
+  if (load.busy >= 0.0) {
+    status.addf("busy [%] (processing / time between clouds)", "%.0f", 100.0 * load.busy);
+  } else {
+    status.add("busy [%] (processing / time between clouds)", "n/a (too few clouds)");
+  }
+}
+
+}  // namespace
 
 NodeletMonitor::CounterValues NodeletMonitor::Counters::values() const {
   CounterValues v;
@@ -41,10 +166,23 @@ NodeletMonitor::StreamChange NodeletMonitor::checkStream(const std_msgs::Header&
     if (change.frame_changed) change.old_frame = last_frame_id_;
     if (change.went_back) change.back_s = (last_stamp_ - header.stamp).toSec();
   }
+  change.gap = gaps_.step(header.seq, header.stamp.toSec(), header.frame_id);
+  const ros::WallTime now = ros::WallTime::now();
+  if (!last_arrival_.isZero()) {
+    window_arrival_sum_ += (now - last_arrival_).toSec();
+    ++window_arrivals_;
+  }
+  last_arrival_ = now;
   last_frame_id_ = header.frame_id;
   last_stamp_ = header.stamp;
   have_last_ = true;
   return change;
+}
+
+void NodeletMonitor::restartStream() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  gaps_.restart();
+  last_arrival_ = ros::WallTime();
 }
 
 void NodeletMonitor::recordCloud(double ms, const std::string& backend, const std::string& note,
@@ -56,6 +194,11 @@ void NodeletMonitor::recordCloud(double ms, const std::string& backend, const st
   backend_ = backend;
   scan_type_ = scan_type;
   if (!note.empty()) fallback_note_ = note;
+}
+
+void NodeletMonitor::recordRefused(const std::string& why) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  refused_ = why;
 }
 
 void NodeletMonitor::recordCentre(const double* centre, const std::string& frame_id) {
@@ -72,9 +215,9 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
   const ros::WallTime now = ros::WallTime::now();
   const CounterValues total = counters_.values();
   CounterValues last;
-  double ms_sum, ms_max, dt;
-  std::uint64_t clouds;
-  std::string backend, note, scan_type;
+  double ms_sum, ms_max, dt, arrival_sum, period_s;
+  std::uint64_t clouds, arrivals;
+  std::string backend, note, scan_type, refused;
   char centre[192] = "n/a (no cloud)";
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -83,9 +226,15 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
     clouds = window_clouds_;
     window_ms_sum_ = window_ms_max_ = 0.0;
     window_clouds_ = 0;
+    arrival_sum = window_arrival_sum_;
+    arrivals = window_arrivals_;
+    window_arrival_sum_ = 0.0;
+    window_arrivals_ = 0;
+    period_s = gaps_.period();
     backend = backend_;
     note = fallback_note_;
     scan_type = scan_type_;
+    refused = refused_;
     if (centre_state_ == Centre::kKnown) {
       std::snprintf(centre, sizeof(centre), "%.1f %.1f %.1f in '%s' (bounding box middle)",
                     centre_[0], centre_[1], centre_[2], centre_frame_.c_str());
@@ -115,6 +264,8 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
       item("frame_id changes", &CounterValues::frame_changes),
       item("stamps going back", &CounterValues::stamps_backwards),
   };
+  const Item lost = item("lost before the filter", &CounterValues::clouds_lost);
+  const Item sets = item("parameter sets refused", &CounterValues::config_rejected);
   const double in_hz = (total.clouds_in - last.clouds_in) / dt;
   const double out_hz = (total.clouds_out - last.clouds_out) / dt;
 
@@ -131,6 +282,10 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
     if (s.delta)
       problems += (problems.empty() ? "" : ", ") + std::to_string(s.delta) + " " + s.name;
   }
+  if (sets.delta) {
+    problems += (problems.empty() ? "" : ", ") + std::to_string(sets.delta) + " " + sets.name;
+  }
+  const Load load = loadCheck(lost.delta, clouds, ms_sum, arrivals, arrival_sum, &problems);
   if (!have_config) {
     status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "no filter configuration");
   } else if (!problems.empty()) {
@@ -161,6 +316,9 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
   status.add("dropped", static_cast<ull>(total.dropped()));
   for (const Item& d : drops)
     status.add(std::string("dropped: ") + d.name, static_cast<ull>(d.total));
+  // Never received, so neither in "clouds in" nor in "dropped".
+  status.add("lost before the filter (seq/stamp gaps)", static_cast<ull>(lost.total));
+  addLoad(status, period_s, load);
   status.add("invalid points (NaN/Inf)", static_cast<ull>(total.invalid_points));
   status.add("out of range points", static_cast<ull>(total.out_of_range_points));
   status.add("near points (min_range, body_box)", static_cast<ull>(total.near_points));
@@ -169,6 +327,7 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
   status.add("last fallback", note.empty() ? std::string("none") : note);
   for (const Item& s : stream) status.add(s.name, static_cast<ull>(s.total));
   status.add("refused parameter sets", static_cast<ull>(total.config_rejected));
+  status.add("last refused parameter set", refused.empty() ? std::string("none") : refused);
 }
 
 }  // namespace ground_filter

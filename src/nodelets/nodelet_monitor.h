@@ -10,10 +10,72 @@
 #include <cstdint>
 #include <mutex>
 #include <string>
+#include <vector>
 
 #include "point_cloud2.h"
 
 namespace ground_filter {
+
+/// \brief Counts input clouds that were lost before the filter's callback saw them, from gaps in
+///        header.seq and header.stamp. roscpp drops the oldest message of a full subscription
+///        queue (`~queue_size`) without telling the subscriber, so a filter slower than its input
+///        loses scans in silence; the gaps are their only trace. Not thread-safe (the monitor
+///        holds its mutex); no ROS calls, unit-tested on its own.
+///
+/// The rule, one step() per cloud in arrival order:
+///  - seq: a step of d in [1, kMaxSeqStep] means d - 1 clouds lost, once seq is known to count
+///    (rospy, rosbag and make_bag.py keep a counter there; many C++ drivers leave it 0):
+///    kSeqConfirm or more such steps in a row, kSeqConfirm - 1 of them +1. The gaps of those
+///    first steps count when the counter is confirmed (a bag whose second scan was lost). Any other
+///    step (0, going back, a restart at 0, a larger jump) counts nothing by seq and starts the
+///    confirmation again. The arithmetic is uint32, so the wrap 2^32 - 1 -> 0 is +1.
+///  - stamps, on the steps where seq does not look like a counter: the input period is the median
+///    of the last kWindow positive stamp steps (at least kMinSteps of them); a step above 1.5
+///    periods means round(step / period) - 1 clouds lost. A stamp that goes back or repeats (a
+///    bag loop, a restarted driver), or a step above kMaxGapPeriods periods (a hole in a
+///    recording) counts nothing. Estimated: a sensor that itself skipped a scan counts too.
+///  - a frame_id change (two sensors on one topic) forgets the previous cloud and the period;
+///    restart() (the lazy subscription started again) forgets the previous cloud only.
+/// When the filter loses a scan after nearly every one, the median step is itself two periods and
+/// nothing is counted; the monitor's "cannot keep up" rule (processing time against the wall time
+/// between clouds) covers that case.
+class InputGapCounter {
+ public:
+  static constexpr int kSeqConfirm = 3;
+  static constexpr std::uint32_t kMaxSeqStep = 1000;
+  static constexpr std::size_t kWindow = 15;
+  static constexpr std::size_t kMinSteps = 5;
+  static constexpr double kMaxGapPeriods = 20.0;
+
+  /// \brief What one cloud's header says about the clouds before it.
+  struct Gap {
+    std::uint64_t lost = 0;  ///< clouds missing between the previous cloud and this one
+    bool by_seq = false;     ///< counted from seq (exact) rather than from stamps
+    std::uint32_t seq_from = 0, seq_to = 0;  ///< the seq step, when by_seq
+    double step_s = 0.0;                     ///< the stamp step [s]
+    double period_s = 0.0;                   ///< the input period then [s] (0: not known yet)
+  };
+
+  /// \brief Takes one cloud's header fields; returns the gap before it.
+  Gap step(std::uint32_t seq, double stamp_s, const std::string& frame_id);
+  /// \brief The next cloud is not compared with the last one (the input was unsubscribed).
+  void restart() { have_last_ = false; }
+  /// \brief Median of the recent stamp steps [s], 0 while fewer than kMinSteps are known.
+  double period() const;
+
+ private:
+  bool have_last_ = false;
+  std::uint32_t last_seq_ = 0;
+  double last_stamp_ = 0.0;
+  std::string frame_;
+  int seq_run_ = 0;                     // seq steps in a row within [1, kMaxSeqStep]
+  int seq_ones_ = 0;                    // of which +1
+  bool seq_counting_ = false;           // seq confirmed as a counter
+  std::uint64_t seq_pending_ = 0;       // clouds missing while it was not confirmed yet
+  std::uint32_t seq_pending_from_ = 0;  // seq before the first of those steps
+  std::vector<double> steps_;           // recent positive stamp steps, ring of kWindow
+  std::size_t next_ = 0;                // ring position
+};
 
 /// \brief What a ground filter nodelet counts and reports: counters, per-kind log throttles,
 ///        stream checks and the /diagnostics status. Thread-safe; publishes and logs nothing
@@ -37,17 +99,18 @@ class NodeletMonitor {
     T frame_changes{0};        ///< clouds whose frame_id differs from the last
     T stamps_backwards{0};     ///< clouds stamped before the previous one
     T fallbacks{0};            ///< clouds with a FilterStats::note (fallback)
+    T clouds_lost{0};          ///< never received: lost before the callback (InputGapCounter)
 
     /// \brief Every counter above, in order (copies walk this list).
-    static const std::array<T CounterSet::*, 13>& all() {
-      static const std::array<T CounterSet::*, 13> members = {
+    static const std::array<T CounterSet::*, 14>& all() {
+      static const std::array<T CounterSet::*, 14> members = {
           &CounterSet::clouds_in,        &CounterSet::clouds_out,
           &CounterSet::clouds_rejected,  &CounterSet::clouds_no_transform,
           &CounterSet::not_cloud,        &CounterSet::filter_errors,
           &CounterSet::invalid_points,   &CounterSet::out_of_range_points,
           &CounterSet::config_rejected,  &CounterSet::frame_changes,
           &CounterSet::stamps_backwards, &CounterSet::fallbacks,
-          &CounterSet::near_points};
+          &CounterSet::near_points,      &CounterSet::clouds_lost};
       return members;
     }
     /// \brief Clouds received but not published, all reasons.
@@ -69,6 +132,7 @@ class NodeletMonitor {
     kFrameChange,
     kStampBack,
     kLabeled,
+    kLost,
     kLogSlotCount
   };
 
@@ -78,6 +142,8 @@ class NodeletMonitor {
     std::string old_frame;   ///< previous frame_id, when it changed
     bool went_back = false;  ///< stamp before the previous one
     double back_s = 0.0;     ///< by how much [s]
+    using Gap = InputGapCounter::Gap;
+    Gap gap;  ///< clouds lost before this one (gap.lost, counted by the caller)
   };
 
   /// \brief Seconds between two log lines of the same slot.
@@ -96,10 +162,18 @@ class NodeletMonitor {
   /// \brief Compares `header` with the previous cloud's and remembers it.
   StreamChange checkStream(const std_msgs::Header& header);
 
+  /// \brief The input was (re)subscribed: the next cloud is not compared with the last one.
+  void restartStream();
+
   /// \brief Records one published cloud: callback-to-publish time [ms], the backend that ran
   ///        and its fallback note (empty: none); the scan type it ran as and why (FilterStats).
   void recordCloud(double ms, const std::string& backend, const std::string& note,
                    const std::string& scan_type = std::string());
+
+  /// \brief Remembers why the last parameter set was refused (the "last refused parameter set"
+  ///        entry: `dynparam set` shows no reason, it exits 0 and only the reply holds the kept
+  ///        values).
+  void recordRefused(const std::string& why);
 
   /// \brief Remembers where the last cloud lies, for the "cloud centre [m]" entry: the middle of
   ///        its bounding box in `frame_id`, or nullptr when it had no finite point. Formatted
@@ -116,12 +190,17 @@ class NodeletMonitor {
   std::string last_frame_id_;  // stream checks
   ros::Time last_stamp_;
   bool have_last_ = false;
+  InputGapCounter gaps_;             // lost clouds from seq / stamp gaps
+  ros::WallTime last_arrival_;       // callback entry of the previous cloud (checkStream)
+  double window_arrival_sum_ = 0.0;  // wall time between consecutive clouds in this window [s]
+  std::uint64_t window_arrivals_ = 0;
   double window_ms_sum_ = 0.0;  // processing times since the last diagnostic update
   double window_ms_max_ = 0.0;
   std::uint64_t window_clouds_ = 0;
   std::string backend_;        // FilterStats::backend of the last cloud
   std::string fallback_note_;  // last non-empty FilterStats::note
   std::string scan_type_;      // FilterStats::scan_type and scan_reason of the last cloud
+  std::string refused_;        // why the last parameter set was refused
   enum class Centre { kNoCloud, kNoFinitePoint, kKnown };
   Centre centre_state_ = Centre::kNoCloud;  // recordCentre() of the last cloud
   double centre_[3] = {0.0, 0.0, 0.0};

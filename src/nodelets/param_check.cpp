@@ -137,12 +137,12 @@ std::vector<std::string> checkPrivateParams(const std::map<std::string, XmlRpc::
         const std::size_t d = editDistance(key, k.name);
         if (d < best) best = d, near = &k;
       }
+      // One short line: the full list of names (~1 kB) per key flooded the log when a YAML of
+      // the other method was loaded.
       if (near) {
         why = "unknown parameter (did you mean " + near->name + "?)";
       } else {
-        std::string names;
-        for (const ParamCheck& k : known) names += (names.empty() ? "" : ", ") + k.name;
-        why = "unknown parameter (known: " + names + ")";
+        why = "unknown parameter of this method (another method's key? see the parameter table)";
       }
     } else if (!typeOk(kv.second, spec->type)) {
       why = show(kv.second) + " is not " + typeName(spec->type);
