@@ -117,6 +117,7 @@ class GroundSurface {
   std::vector<float> occ_, z_, gx_, gy_;  // per grid cell: 1 occupied else 0; plane (fill)
   std::vector<std::uint8_t> flags_;       // per grid cell: occupied, point, refit bits
   std::vector<std::int32_t> slot_;        // per grid cell: its occupied-cell index, or -1
+  std::vector<std::int32_t> point_cell_;  // per point: its grid cell, or -1 (for the refit)
   std::vector<std::uint32_t> occupied_;   // grid cell of each occupied cell, first seen first
   std::vector<std::uint32_t> order_;      // occupied-cell indices by grid cell, ascending
   std::vector<Accum> acc_;                // per occupied cell

@@ -107,9 +107,15 @@ void GroundSurface::accumulate(const CloudView& cloud, const std::vector<std::ui
   std::int32_t* slot = slot_.data();
   const Fit* fit = fit_.data();
   Accum* acc = acc_.data();
+  std::int32_t* point_cell = point_cell_.data();
   for (std::size_t i = 0; i < n; ++i) {
     const bool ground = label[i] == 1;
-    if (refit && !ground) continue;
+    if (refit) {
+      const std::int32_t c = point_cell[i];
+      if (!ground || c < 0 || !(flags[c] & kRefit)) continue;
+    } else {
+      point_cell[i] = -1;
+    }
     float x, y, z;
     if (!in.get(i, &x, &y, &z)) continue;
     const float fx = (x - x0) * inv, fy = (y - y0) * inv;
@@ -117,11 +123,11 @@ void GroundSurface::accumulate(const CloudView& cloud, const std::vector<std::ui
     // fx, fy >= 0: truncation is floor, and cheaper.
     const int ix = static_cast<int>(fx), iy = static_cast<int>(fy);
     const std::size_t g = static_cast<std::size_t>(iy) * nx + static_cast<std::size_t>(ix);
+    point_cell[i] = static_cast<std::int32_t>(g);
     if (!ground) {
       flags[g] |= kPoint;
       continue;
     }
-    if (refit && !(flags[g] & kRefit)) continue;
     std::int32_t s = slot[g];
     if (s < 0) {
       s = slot[g] = static_cast<std::int32_t>(occupied_.size());
@@ -303,6 +309,7 @@ void GroundSurface::build(const CloudView& cloud, const std::vector<std::uint8_t
   const std::size_t cells = static_cast<std::size_t>(nx_) * static_cast<std::size_t>(ny_);
   flags_.assign(cells, 0);
   slot_.assign(cells, -1);
+  point_cell_.resize(n);
   // Fit, refit the noisy cells without their outliers.
   accumulate(cloud, labels, false);
   const std::size_t occ = occupied_.size();
