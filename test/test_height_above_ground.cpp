@@ -1,7 +1,7 @@
 // Height above ground (include/ground_filter/height_above_ground.h): exact heights on a tilted
 // plane, a kerb, single-point cells, negative heights, invalid points, no ground, points beyond
 // the radius, the accuracy on a generated street scene with its truth labels, bad parameters,
-// determinism.
+// determinism, no allocation once the buffers are sized.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "gf_test_alloc_counter.h"  // allocationCount()
 #include "gf_test_scenes.h"
 #include "ground_filter/height_above_ground.h"
 #include "ground_filter/scene/scene_generator.h"
@@ -269,6 +270,21 @@ TEST(HeightAboveGround, TwoBuildsGiveIdenticalHeights) {
     const gf::SurfaceCell &p = a.cells()[k - 1], &q = a.cells()[k];
     EXPECT_TRUE(p.y < q.y || (p.y == q.y && p.x < q.x)) << k;
   }
+}
+
+TEST(HeightAboveGround, NoAllocationAfterTheFirstScan) {
+  const gf::SceneParams params = gf::builtinSceneParams("lidar");
+  const gf::GeneratedScan scan = gf::generateScene(params);
+  const gf::CloudView view = gf::CloudView::packedXyz(scan.xyz.data(), scan.size());
+  gf::GroundSurface s;
+  std::vector<float> h;
+  s.build(view, scan.truth, gf::GroundSurfaceParams());
+  s.heights(view, &h);
+  const std::size_t before = allocationCount().load();
+  s.build(view, scan.truth, gf::GroundSurfaceParams());
+  s.heights(view, &h);
+  EXPECT_EQ(allocationCount().load() - before, 0u);
+  EXPECT_FALSE(s.cells().empty());
 }
 
 }  // namespace
