@@ -53,17 +53,17 @@ struct SurfaceCell {
 /// In each occupied cell a least-squares plane z = a + b dx + c dy is fitted through the
 /// cell's ground points when they are 3 or more and spread in x and y (else their mean z, no
 /// slope); where the points' rms residual exceeds 0.02 m it is refitted once without the points
-/// more than 2.5 rms off it. The
-/// elevation below (x, y) blends the planes of the four cells whose centres surround (x, y),
-/// each evaluated at (x, y), with bilinear weights: continuous across cells, exact on a plane,
-/// following slopes. A cell without ground points takes the inverse-distance-weighted (1/d^2)
-/// average of the planes of the occupied cells within `radius`, each extrapolated to its
-/// centre; none within `radius`: no elevation. Cells without elevation drop out of the blend;
-/// all four without: NaN. An occupied cell more than 0.25 m above the median of its occupied
-/// neighbours' planes (3 or more of the 8, extrapolated to its centre) is taken for low
-/// vegetation or an object labelled ground: it is left out of cells() and filled like an empty
-/// cell (steps up to 0.25 m, kerbs, stay). Negative heights (ditches, reflections below the ground)
-/// are kept.
+/// more than 2.5 rms off it; the cell's elevation is its plane at the cell centre. A cell
+/// without ground points takes the inverse-distance-weighted (1/d^2) average of the planes of
+/// the occupied cells within `radius`, each extrapolated to its centre (so a fill follows
+/// slopes); none within `radius`: no elevation. An occupied cell more than 0.25 m above the
+/// median of its occupied neighbours' planes (3 or more of the 8, extrapolated to its centre) is
+/// taken for low vegetation or an object labelled ground: it is left out of cells() and filled
+/// like an empty cell (steps up to 0.25 m, kerbs, stay). The elevation below (x, y) is the
+/// bilinear interpolation of the elevations at the four cell centres around (x, y): continuous,
+/// exact on a plane. Cells without elevation drop out of it (the weights of the others are
+/// renormalised); all four without: NaN. Negative heights (ditches, reflections below the
+/// ground) are kept.
 ///
 /// Buffers are kept between scans: after the first scan of a given extent, build() allocates
 /// nothing. Not thread-safe for concurrent build(); heightAbove()/heights() are const.
@@ -95,10 +95,10 @@ class GroundSurface {
   struct Fit {
     double z, gx, gy, rms;  // z relative to z_ref_ at the cell centre; slope [m/m]; residual
   };
-  /// Per grid cell: elevation at the centre, slope, and `has` 1 defined, 0 undefined (no
-  /// ground within the radius), -1 not computed yet (see slowElevation()).
-  struct Plane {
-    float z, gx, gy, has;
+  /// Per grid cell: elevation at the centre and `has`: 1 defined, 0 undefined (no ground
+  /// within the radius), -1 not computed yet (see slowElevation()).
+  struct Centre {
+    float z, has;
   };
   void chooseGrid(double min_x, double min_y, double max_x, double max_y, double radius,
                   double cell);
@@ -106,14 +106,14 @@ class GroundSurface {
   Fit fitCell(const Accum& a) const;
   void dropSpikes();
   void fill();
-  bool idw(int i, int j, Plane* out) const;
+  bool idw(int i, int j, Centre* out) const;
   float slowElevation(float x, float y) const;
 
   double cell_ = 1.0, radius_ = 5.0;
   double z_ref_ = 0.0;         // z the sums are taken from
   float x0_ = 0.f, y0_ = 0.f;  // lower-left corner of the grid
   int nx_ = 0, ny_ = 0;
-  std::vector<Plane> plane_;              // per grid cell, row by row
+  std::vector<Centre> centre_;            // per grid cell, row by row
   std::vector<float> occ_, z_, gx_, gy_;  // per grid cell: 1 occupied else 0; plane (fill)
   std::vector<std::uint8_t> flags_;       // per grid cell: occupied, point, refit bits
   std::vector<std::int32_t> slot_;        // per grid cell: its occupied-cell index, or -1

@@ -218,17 +218,17 @@ void GroundSurface::dropSpikes() {
     if (!(flags_[g] & kSpike)) continue;
     flags_[g] &= static_cast<std::uint8_t>(~kOccupied);
     occ_[g] = 0.f;
-    plane_[g].has = -1.f;
+    centre_[g].has = -1.f;
   }
 }
 
 // Inverse-distance-weighted elevation at the centre of cell (i, j) from the planes of the
-// occupied cells within the radius, each extrapolated to that centre; the slope likewise.
-bool GroundSurface::idw(int i, int j, Plane* out) const {
+// occupied cells within the radius, each extrapolated to that centre.
+bool GroundSurface::idw(int i, int j, Centre* out) const {
   const int reach = static_cast<int>(std::floor(radius_ / cell_));
   const int side = 2 * reach + 1;
   const float cell = static_cast<float>(cell_);
-  float sw = 0.f, sz = 0.f, sgx = 0.f, sgy = 0.f;
+  float sw = 0.f, sz = 0.f;
   const int i_lo = std::max(0, i - reach), i_hi = std::min(nx_ - 1, i + reach);
   for (int jj = std::max(0, j - reach); jj <= std::min(ny_ - 1, j + reach); ++jj) {
     // kernel_ entry of (ii, jj): k0 + ii.
@@ -240,11 +240,9 @@ bool GroundSurface::idw(int i, int j, Plane* out) const {
       const float w = kernel_[static_cast<std::size_t>(k0 + ii)] * occ_[g];
       sw += w;
       sz += w * (z_[g] + gx_[g] * static_cast<float>(i - ii) * cell + gy_[g] * dy);
-      sgx += w * gx_[g];
-      sgy += w * gy_[g];
     }
   }
-  *out = sw > 0.f ? Plane{sz / sw, sgx / sw, sgy / sw, 1.f} : Plane{0.f, 0.f, 0.f, 0.f};
+  *out = sw > 0.f ? Centre{sz / sw, 1.f} : Centre{0.f, 0.f};
   return sw > 0.f;
 }
 
@@ -273,7 +271,7 @@ void GroundSurface::fill() {
         }
       }
       if (!wanted) continue;
-      idw(i, j, &plane_[g]);
+      idw(i, j, &centre_[g]);
     }
   }
 }
@@ -335,14 +333,14 @@ void GroundSurface::build(const CloudView& cloud, const std::vector<std::uint8_t
   z_.assign(cells, 0.f);
   gx_.assign(cells, 0.f);
   gy_.assign(cells, 0.f);
-  plane_.assign(cells, Plane{0.f, 0.f, 0.f, -1.f});
+  centre_.assign(cells, Centre{0.f, -1.f});
   for (std::size_t s = 0; s < occ; ++s) {
     const std::uint32_t g = occupied_[s];
     occ_[g] = 1.f;
     z_[g] = static_cast<float>(fit_[s].z + z_ref_);
     gx_[g] = static_cast<float>(fit_[s].gx);
     gy_[g] = static_cast<float>(fit_[s].gy);
-    plane_[g] = Plane{z_[g], gx_[g], gy_[g], 1.f};
+    centre_[g] = Centre{z_[g], 1.f};
   }
   dropSpikes();
   // The cells in grid order (occupied_ is in the order of the points).
@@ -365,7 +363,7 @@ void GroundSurface::build(const CloudView& cloud, const std::vector<std::uint8_t
 // elevation() anywhere: cells the build cloud did not need are filled here, on the fly.
 float GroundSurface::slowElevation(float x, float y) const {
   if (nx_ == 0 || !std::isfinite(x) || !std::isfinite(y)) return kNaN;
-  const float inv = static_cast<float>(1.0 / cell_), cell = static_cast<float>(cell_);
+  const float inv = static_cast<float>(1.0 / cell_);
   const float u = (x - x0_) * inv - 0.5f, v = (y - y0_) * inv - 0.5f;
   if (!(u >= -1.f && v >= -1.f && u < nx_ && v < ny_)) return kNaN;
   const int i0 = static_cast<int>(std::floor(u)), j0 = static_cast<int>(std::floor(v));
@@ -376,12 +374,11 @@ float GroundSurface::slowElevation(float x, float y) const {
       const int i = i0 + di, j = j0 + dj;
       const float w = (di ? tx : 1.f - tx) * (dj ? ty : 1.f - ty);
       if (i < 0 || i >= nx_ || j < 0 || j >= ny_ || !(w > 0.f)) continue;
-      Plane p = plane_[static_cast<std::size_t>(j) * nx_ + i];
+      Centre p = centre_[static_cast<std::size_t>(j) * nx_ + i];
       if (p.has < 0.f) idw(i, j, &p);
       if (p.has == 0.f) continue;
-      const float z = p.z, gx = p.gx, gy = p.gy;
       sw += w;
-      sz += w * (z + gx * (u - i) * cell + gy * (v - j) * cell);
+      sz += w * p.z;
     }
   }
   return sw > 1e-6f ? sz / sw : kNaN;
@@ -399,11 +396,11 @@ void GroundSurface::heights(const CloudView& cloud, std::vector<float>* out) con
   out->resize(n);
   float* h = out->data();
   const XyzReader in(cloud);
-  const float inv = static_cast<float>(1.0 / cell_), cell = static_cast<float>(cell_);
+  const float inv = static_cast<float>(1.0 / cell_);
   const float hi_u = static_cast<float>(nx_ - 1), hi_v = static_cast<float>(ny_ - 1);
   const float x0 = x0_, y0 = y0_;
   const std::size_t nx = static_cast<std::size_t>(nx_);
-  const Plane* plane = plane_.data();
+  const Centre* centre = centre_.data();
   for (std::size_t i = 0; i < n; ++i) {
     float x, y, z;
     if (!in.get(i, &x, &y, &z)) {
@@ -418,19 +415,17 @@ void GroundSurface::heights(const CloudView& cloud, std::vector<float>* out) con
     // Inside the grid: the four cells around (x, y), each computed by build().
     const int i0 = static_cast<int>(u), j0 = static_cast<int>(v);
     const float tx = u - static_cast<float>(i0), ty = v - static_cast<float>(j0);
-    const Plane* p0 = plane + static_cast<std::size_t>(j0) * nx + static_cast<std::size_t>(i0);
-    const Plane a = p0[0], b = p0[1], c = p0[nx], d = p0[nx + 1];
+    const Centre* p0 = centre + static_cast<std::size_t>(j0) * nx + static_cast<std::size_t>(i0);
+    const Centre a = p0[0], b = p0[1], c = p0[nx], d = p0[nx + 1];
     if (std::min(std::min(a.has, b.has), std::min(c.has, d.has)) < 0.f) {
       h[i] = z - slowElevation(x, y);
       continue;
     }
-    const float du = tx * cell, dv = ty * cell, eu = du - cell, ev = dv - cell;
     const float wa = (1.f - tx) * (1.f - ty) * a.has, wb = tx * (1.f - ty) * b.has;
     const float wc = (1.f - tx) * ty * c.has, wd = tx * ty * d.has;
     const float sw = wa + wb + wc + wd;
     // An undefined cell holds z = 0 and weight 0.
-    const float sz = wa * (a.z + a.gx * du + a.gy * dv) + wb * (b.z + b.gx * eu + b.gy * dv) +
-                     wc * (c.z + c.gx * du + c.gy * ev) + wd * (d.z + d.gx * eu + d.gy * ev);
+    const float sz = wa * a.z + wb * b.z + wc * c.z + wd * d.z;
     h[i] = sw > 1e-6f ? z - sz / sw : kNaN;
   }
 }
