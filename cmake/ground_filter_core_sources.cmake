@@ -36,6 +36,8 @@ gf_core_room(normal/knn neighborhood_pca neighbor_search_factory)
 # metrics (scan files are in ground_filter_io: they need PCL), generated scenes
 gf_core_room(io metrics)
 gf_core_room(scene scene_generator scene_terrain)
+# height above ground: the ground surface from a filter's labels
+gf_core_room(hag height_above_ground)
 
 # The CUDA adapter of the neighbour interface (and the whole-filter pipeline): added to the core
 # where CUDA is built.

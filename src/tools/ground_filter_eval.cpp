@@ -19,6 +19,7 @@
 #include "airborne/scan_type.h"
 #include "cli_args.h"
 #include "ground_filter/ground_filter.h"
+#include "ground_filter/height_above_ground.h"
 #include "ground_filter/io/metrics.h"
 #include "ground_filter/io/scan_io.h"
 
@@ -32,7 +33,7 @@ const char kUsage[] =
     "                          [--classes] [--write-labels DIR] [--label-format F]\n"
     "                          [--kitti-ids GROUND,NONGROUND] [--write-clouds DIR]\n"
     "                          [--repeat N] [--drop-one N] [--score-labels DIR]\n"
-    "                          [--scan-measures] PATH...\n"
+    "                          [--scan-measures] [--hag] PATH...\n"
     "\n"
     "Runs a ground filter on every scan and prints per-file and pooled results: points, points\n"
     "labelled ground, filter time in ms, and where ground truth exists the confusion counts\n"
@@ -74,6 +75,19 @@ const char kUsage[] =
     "                    \"scan_measures\": top_share, column_top_share, column_mean, read,\n"
     "                    steep_share, steep_depth, high_share, extent; docs/scan_types.md),\n"
     "                    computed whatever the decision (scripts/crossval.py reads them)\n"
+    "--hag               also build the ground surface from each scan's labels (those of\n"
+    "                    --score-labels where given) and compute every point's height above\n"
+    "                    ground (include/ground_filter/height_above_ground.h, default\n"
+    "                    GroundSurfaceParams) and print, per file and pooled: ms of\n"
+    "                    build + heights (min and median of --repeat runs), the share of finite\n"
+    "                    points with a NaN height; for builtin: scenes the median and p95 of\n"
+    "                    |height - (z - true terrain)|; for labelled scans the median, p5, p95 of\n"
+    "                    the heights of truly-ground points and their share within +-0.1 m, and\n"
+    "                    the median, p5, p95 of truly-non-ground points' heights [m]. JSON: key\n"
+    "                    \"hag\" in each file and at the top (pooled): ms_min, ms_median,\n"
+    "                    nan_share, error_median, error_p95, ground_median, ground_p5,\n"
+    "                    ground_p95, ground_within_0_1, nonground_median, nonground_p5,\n"
+    "                    nonground_p95 (null where undefined)\n"
     "--score-labels DIR  run no filter: score DIR/<stem>.gnd (as --write-labels writes them,\n"
     "                    e.g. another ground filter's) against each scan's truth, same protocol\n"
     "                    and output; ms is 0; not with --drop-one or --repeat\n"
@@ -90,6 +104,7 @@ struct Options {
   bool json = false;
   bool classes = false;
   bool scan_measures = false;
+  bool hag = false;  // --hag
   std::string labels_dir;
   bool kitti_labels = false;  // --label-format kitti
   gf::KittiLabelIds kitti_ids;
@@ -142,6 +157,88 @@ DropResult dropOne(gf::GroundFilter* filter, const gf::CloudView& view,
   return out;
 }
 
+// --hag: heights above ground of one file (or pooled).
+struct HagResult {
+  std::vector<float> error;         // builtin: |height - (z - terrain)| of the finite heights
+  std::vector<float> ground;        // heights of truly-ground points (finite)
+  std::vector<float> nonground;     // heights of truly-non-ground points (finite)
+  std::vector<double> ms;           // build + heights, one per run
+  std::size_t finite = 0, nan = 0;  // finite points; of them NaN heights
+  void add(const HagResult& o) {
+    error.insert(error.end(), o.error.begin(), o.error.end());
+    ground.insert(ground.end(), o.ground.begin(), o.ground.end());
+    nonground.insert(nonground.end(), o.nonground.begin(), o.nonground.end());
+    finite += o.finite;
+    nan += o.nan;
+  }
+};
+
+/// The q-quantile (nearest rank, 0..1) of `v`; NaN when empty. Sorts `v`.
+double quantile(std::vector<float>* v, double q) {
+  if (v->empty()) return NAN;
+  const std::size_t k = static_cast<std::size_t>(std::lround(q * (v->size() - 1)));
+  std::nth_element(v->begin(), v->begin() + static_cast<std::ptrdiff_t>(k), v->end());
+  return (*v)[k];
+}
+
+/// The numbers --hag prints: keys of the JSON, in table order.
+std::vector<std::pair<std::string, double>> hagNumbers(HagResult h, double ms_min, double ms_med) {
+  const double within =
+      std::count_if(h.ground.begin(), h.ground.end(), [](float v) { return std::fabs(v) <= 0.1f; });
+  return {{"ms_min", ms_min},
+          {"ms_median", ms_med},
+          {"nan_share", h.finite ? static_cast<double>(h.nan) / h.finite : NAN},
+          {"error_median", quantile(&h.error, 0.5)},
+          {"error_p95", quantile(&h.error, 0.95)},
+          {"ground_median", quantile(&h.ground, 0.5)},
+          {"ground_p5", quantile(&h.ground, 0.05)},
+          {"ground_p95", quantile(&h.ground, 0.95)},
+          {"ground_within_0_1", h.ground.empty() ? NAN : within / h.ground.size()},
+          {"nonground_median", quantile(&h.nonground, 0.5)},
+          {"nonground_p5", quantile(&h.nonground, 0.05)},
+          {"nonground_p95", quantile(&h.nonground, 0.95)}};
+}
+
+/// --hag on one filtered scan: the surface from `labels`, `repeat` times, and the statistics.
+HagResult hagOf(const gf::Scan& scan, const gf::CloudView& view,
+                const std::vector<std::uint8_t>& labels, int repeat) {
+  HagResult h;
+  gf::GroundSurface surface;
+  std::vector<float> heights;
+  for (int r = 0; r < repeat; ++r) {
+    const auto t0 = std::chrono::steady_clock::now();
+    surface.build(view, labels, gf::GroundSurfaceParams());
+    surface.heights(view, &heights);
+    h.ms.push_back(cli::msSince(t0));
+  }
+  // builtin:KIND[:SEED] (loadScan() has checked the path): the exact terrain is known.
+  const std::string prefix = "builtin:";
+  const bool terrain = scan.path.compare(0, prefix.size(), prefix) == 0;
+  gf::SceneParams scene;
+  if (terrain) {
+    const std::string spec = scan.path.substr(prefix.size());
+    const std::size_t colon = spec.find(':');
+    scene = gf::builtinSceneParams(spec.substr(0, colon));
+    if (colon != std::string::npos) {
+      scene.seed = static_cast<std::uint32_t>(std::stoul(spec.substr(colon + 1)));
+    }
+  }
+  for (std::size_t i = 0; i < view.size(); ++i) {
+    float x, y, z;
+    if (!view.get(i, &x, &y, &z)) continue;
+    ++h.finite;
+    const float v = heights[i];
+    if (std::isnan(v)) {
+      ++h.nan;
+      continue;
+    }
+    if (terrain) h.error.push_back(std::fabs(v - (z - gf::sceneGroundHeight(scene, x, y))));
+    if (scan.labelled() && scan.truth[i] == 1) h.ground.push_back(v);
+    if (scan.labelled() && scan.truth[i] == 0) h.nonground.push_back(v);
+  }
+  return h;
+}
+
 struct FileResult {
   std::string file;
   std::size_t points = 0;
@@ -152,6 +249,7 @@ struct FileResult {
   DropResult drop;
   std::string scan_type, scan_reason;  // FilterStats of the last run (parameter scan_type)
   gf::ScanMeasures measures;           // --scan-measures
+  HagResult hag;                       // --hag
 };
 
 Options parseArgs(int argc, char** argv) {
@@ -168,6 +266,8 @@ Options parseArgs(int argc, char** argv) {
           o.classes = true;
         } else if (arg == "--scan-measures") {
           o.scan_measures = true;
+        } else if (arg == "--hag") {
+          o.hag = true;
         } else if (arg == "--write-labels") {
           o.labels_dir = args->value();
         } else if (arg == "--label-format") {
@@ -355,6 +455,7 @@ FileResult evalFile(gf::GroundFilter* filter, const std::string& file, const Opt
   if (opt.classes && res.labelled && !scan.semantic.empty()) {
     gf::addClassCounts(labels, scan.truth, scan.semantic, classes);
   }
+  if (opt.hag) res.hag = hagOf(scan, view, labels, opt.repeat);
   if (opt.drop_one > 0) res.drop = dropOne(filter, view, labels, opt.drop_one);
   if (opt.scan_measures) {
     const float origin[3] = {0.f, 0.f, 0.f};
@@ -392,10 +493,37 @@ Pooled pool(const std::vector<FileResult>& results) {
   return p;
 }
 
+/// --hag numbers of each file, then of all files pooled (ms: sums of the files' min / median).
+std::vector<std::vector<std::pair<std::string, double>>> hagTable(
+    const std::vector<FileResult>& results) {
+  std::vector<std::vector<std::pair<std::string, double>>> rows;
+  HagResult all;
+  double ms_min = 0.0, ms_med = 0.0;
+  for (const auto& r : results) {
+    const double mn = *std::min_element(r.hag.ms.begin(), r.hag.ms.end());
+    const double md = cli::median(r.hag.ms);
+    rows.push_back(hagNumbers(r.hag, mn, md));
+    all.add(r.hag);
+    ms_min += mn;
+    ms_med += md;
+  }
+  rows.push_back(hagNumbers(std::move(all), ms_min, ms_med));
+  return rows;
+}
+
+std::string hagJson(const std::vector<std::pair<std::string, double>>& numbers) {
+  std::string out = "{";
+  for (const auto& kv : numbers) {
+    out += (out.size() > 1 ? "," : "") + jsonString(kv.first) + ":" + jsonNumber(kv.second, 6);
+  }
+  return out + "}";
+}
+
 /// --json: exactly one JSON object (see usage()).
 void printJson(const Options& opt, const std::vector<FileResult>& results, const Pooled& pooled,
                const std::vector<gf::ClassCount>& classes) {
   std::ostringstream os;
+  const auto hag = opt.hag ? hagTable(results) : decltype(hagTable(results))();
   os << "{\"files\":[";
   for (std::size_t i = 0; i < results.size(); ++i) {
     const auto& r = results[i];
@@ -403,6 +531,7 @@ void printJson(const Options& opt, const std::vector<FileResult>& results, const
        << ",\"labelled\":" << (r.labelled ? "true" : "false")
        << ",\"scan_type\":" << jsonString(r.scan_type)
        << ",\"scan_reason\":" << jsonString(r.scan_reason);
+    if (opt.hag) os << ",\"hag\":" << hagJson(hag[i]);
     if (opt.scan_measures) {
       const gf::ScanMeasures& m = r.measures;
       os << ",\"scan_measures\":{\"top_share\":" << m.top_share
@@ -418,6 +547,7 @@ void printJson(const Options& opt, const std::vector<FileResult>& results, const
                    pooled.confusion)
      << ",\"file_count\":" << results.size() << ",\"labelled_files\":" << pooled.labelled_files
      << "},\"method\":" << jsonString(opt.method) << ",\"repeat\":" << opt.repeat;
+  if (opt.hag) os << ",\"hag\":" << hagJson(hag.back());
   if (opt.classes) {
     os << ",\"classes\":[";
     for (std::size_t i = 0; i < classes.size(); ++i) {
@@ -445,6 +575,35 @@ void printExtras(const Options& opt, std::size_t name_w, const std::vector<FileR
     for (const auto& r : results) {
       std::printf("%-*s %9zu %9zu %9zu %9zu %9zu\n", static_cast<int>(name_w), r.file.c_str(),
                   r.points, r.drop.drops, r.drop.unchanged, r.drop.median, r.drop.max);
+    }
+  }
+  if (opt.hag) {
+    std::printf(
+        "\nheight above ground (--hag), m; ms = surface build + heights (min, median of %d "
+        "run(s));\nnan = finite points without a height; err = |height - (z - true terrain)| "
+        "(builtin: scenes);\ngnd / ngnd = heights of truly-ground / non-ground points, "
+        "gnd_0.1 = %% of gnd within +-0.1 m\n",
+        opt.repeat);
+    std::printf("%-*s %7s %7s %6s %7s %7s %7s %7s %7s %7s %8s %8s %8s\n", static_cast<int>(name_w),
+                "file", "ms_min", "ms_med", "nan%", "err_med", "err_p95", "gnd_med", "gnd_p5",
+                "gnd_p95", "gnd_0.1", "ngnd_med", "ngnd_p5", "ngnd_p95");
+    const auto rows = hagTable(results);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      std::printf("%-*s", static_cast<int>(name_w),
+                  i < results.size() ? results[i].file.c_str() : "pooled");
+      for (const auto& kv : rows[i]) {
+        const bool share = kv.first == "nan_share" || kv.first == "ground_within_0_1";
+        char buf[32];
+        std::snprintf(buf, sizeof(buf), "%.3f", kv.second);
+        const int w = kv.first.compare(0, 9, "nonground") == 0 ? 8
+                      : kv.first == "nan_share"                ? 6
+                                                               : 7;
+        std::printf(" %*s", w,
+                    share                      ? pct(kv.second).c_str()
+                    : std::isfinite(kv.second) ? buf
+                                               : "-");
+      }
+      std::printf("\n");
     }
   }
   if (opt.classes) {
