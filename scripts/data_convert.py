@@ -25,6 +25,9 @@ import tempfile
 
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import make_bag  # noqa: E402 (the PCD LZF decoder; numpy only)
+
 # RELLIS-3D ontology ids -> ground protocol of the data README (offroad/).
 RELLIS_GROUND = (1, 3, 10, 23, 31, 33)  # dirt, grass, asphalt, concrete, puddle, mud
 RELLIS_NONGROUND = (4, 5, 8, 9, 12, 15, 17, 18, 19, 27)  # tree, pole, vehicle, object, building,
@@ -37,37 +40,12 @@ class ConvertError(Exception):
 
 
 def lzf_decompress(data, out_len):
-    """LZF (liblzf) decompression, as PCD's binary_compressed uses it."""
-    out = bytearray(out_len)
-    ip = op = 0
-    n = len(data)
-    while ip < n:
-        ctrl = data[ip]
-        ip += 1
-        if ctrl < 32:  # literal run of ctrl + 1 bytes
-            ln = ctrl + 1
-            if ip + ln > n or op + ln > out_len:
-                raise ConvertError("corrupt LZF data (literal run past the end)")
-            out[op:op + ln] = data[ip:ip + ln]
-            ip += ln
-            op += ln
-        else:  # back reference
-            ln = ctrl >> 5
-            if ln == 7:
-                ln += data[ip]
-                ip += 1
-            ref = op - ((ctrl & 0x1f) << 8) - 1 - data[ip]
-            ip += 1
-            ln += 2
-            if ref < 0 or op + ln > out_len:
-                raise ConvertError("corrupt LZF data (back reference out of range)")
-            for _ in range(ln):  # may overlap: byte by byte
-                out[op] = out[ref]
-                op += 1
-                ref += 1
-    if op != out_len:
-        raise ConvertError("corrupt LZF data: %d bytes, header says %d" % (op, out_len))
-    return bytes(out)
+    """LZF (liblzf) decompression, as PCD's binary_compressed uses it: make_bag.py's decoder,
+    its errors as ConvertError."""
+    try:
+        return make_bag.lzf_decompress(data, out_len)
+    except ValueError as e:
+        raise ConvertError("corrupt LZF data: %s" % e)
 
 
 def read_pcd(path):
