@@ -50,6 +50,7 @@ void GroundFilterNodelet::checkParams() {
     if (pnh_->getParam(key, v)) set[key] = v;
   }
   std::vector<ParamCheck> known = baseParamChecks();
+  for (const ParamCheck& c : hagParamChecks()) known.push_back(c);
   for (const ParamCheck& c : leafParams()) known.push_back(c);
   std::vector<std::string> refused;
   for (const std::string& e : checkPrivateParams(set, known, &refused)) {
@@ -100,6 +101,8 @@ void GroundFilterNodelet::onInit() {
   // Plain advertise: a timing subscriber alone must not start the input subscription.
   pub_time_ = pnh_->advertise<std_msgs::Float64>("processing_time_ms", 10);
   pub_labeled_ = advertise<sensor_msgs::PointCloud2>(*pnh_, "labeled", 1);
+  hag_.init(*pnh_, advertise<sensor_msgs::PointCloud2>(*pnh_, "ground_surface", 1),
+            advertise<sensor_msgs::PointCloud2>(*pnh_, "obstacles", 1));
 
   std::string gravity_frame;
   double tf_timeout = 0.1;
@@ -385,6 +388,7 @@ void GroundFilterNodelet::processCloud(const sensor_msgs::PointCloud2ConstPtr& m
   const bool finite = sampledCentre(*msg, layout, 4096, centre);
   monitor_.recordCentre(finite ? centre : nullptr, msg->header.frame_id);
   ProcessedCloud out;
+  HagClouds hag;
   {
     std::lock_guard<std::mutex> lock(process_mutex_);
     std::string build_error;
@@ -408,10 +412,16 @@ void GroundFilterNodelet::processCloud(const sensor_msgs::PointCloud2ConstPtr& m
     processPointCloud2(*msg, layout, filter_.get(), to_gravity,
                        pub_labeled_.getNumSubscribers() > 0, &buffers_, &out);
     if (!build_error.empty()) out.filter_error = build_error;
+    hag_.process(*msg, layout, to_gravity, buffers_,
+                 to_gravity ? gravity_->frame() : msg->header.frame_id, &out, &hag);
     if (!out.filter_error.empty()) filter_.reset();  // rebuilt from scratch for the next cloud
   }
   publish(out,
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  hag_.publish(hag);
+  if (!hag.error.empty() && monitor_.logNow(NodeletMonitor::kLabeled)) {
+    NODELET_WARN("%s: no height_above_ground field: %s", methodName().c_str(), hag.error.c_str());
+  }
 }
 
 void GroundFilterNodelet::publish(const ProcessedCloud& out, double ms) {

@@ -19,6 +19,7 @@
 #include "gravity_transform.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/working_volume.h"
+#include "hag_outputs.h"
 #include "nodelet_monitor.h"
 #include "param_check.h"
 #include "params_from_config.h"
@@ -124,6 +125,9 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   /// \brief Counters for logs and diagnostics.
   const Counters& counters() const { return monitor_.counters(); }
 
+  /// \brief Installs a validated obstacle band of ~obstacles (height above ground).
+  void setObstacleBand(const ObstacleBand& band) { hag_.setBand(band); }
+
  private:
   /// One installed configuration; its address identifies it, so the cloud callback can tell
   /// when its filter object is stale.
@@ -195,6 +199,7 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   std::unique_ptr<WorkingVolumeFilter> filter_;
   CloudProcessingBuffers buffers_;
   std::string logged_note_;  // last backend note written to the log
+  HagOutputs hag_;           // height above ground: fields, ~ground_surface, ~obstacles
 };
 
 /// \brief A leaf's parameter plumbing, shared by every filter nodelet: a dynamic_reconfigure
@@ -244,9 +249,11 @@ class ReconfigurableFilterNodelet : public GroundFilterNodelet {
     volume.max_range = config.max_range;
     volume.min_range = config.min_range;
     volume.body_box = bodyBox();
+    ObstacleBand band{config.obstacle_min_height, config.obstacle_max_height};
     try {
       params.validate();
       volume.validate();
+      band.validate();
     } catch (const std::invalid_argument& e) {
       reportRejectedConfig(e.what());
       // The server publishes `config` after this returns: show what is really in use.
@@ -258,6 +265,7 @@ class ReconfigurableFilterNodelet : public GroundFilterNodelet {
       params = paramsFromConfigTable<Params>(config);
       volume.max_range = config.max_range;
       volume.min_range = config.min_range;
+      band = ObstacleBand{config.obstacle_min_height, config.obstacle_max_height};
       try {
         volume.validate();
       } catch (const std::invalid_argument&) {
@@ -267,6 +275,7 @@ class ReconfigurableFilterNodelet : public GroundFilterNodelet {
     last_good_ = config;
     have_good_ = true;
     onParamsAccepted(params);
+    setObstacleBand(band);
     setFilterFactory([params]() { return std::make_unique<Filter>(params); }, volume,
                      params.describe());
   }
