@@ -56,7 +56,7 @@ struct NormalGroundFilter::Impl {
       : search(std::move(backend)),
         min_abs_nz(normal::minAbsNormalZ(p)),
         gpu_supported(normal::gpuSupports(p)),
-        gpu_params(normal::gpuNormalParams(p)),
+        gpu_params(p, min_abs_nz),
         scan(p.scan_type, p.morph_ground) {
     if (!search) throw std::invalid_argument("NormalGroundFilter: null neighbour backend");
     // A GPU backend keeps the lists in GPU memory; PCA and vote counts then run there. The
