@@ -7,7 +7,6 @@
 
 #include "airborne/scan_type.h"
 #include "common/shared_param_rows.h"
-#include "ground_filter/cuda_knn.h"
 #include "ground_filter/neighbor_search.h"
 #include "normal/normal_settings.h"
 
@@ -50,8 +49,8 @@ double minAbsNormalZ(const NormalGroundFilterParams& p) {
 }
 
 bool gpuSupports(const NormalGroundFilterParams& p) {
-  // Segments and the bush-base rule run on the host only.
-  return !p.use_segments && !p.veg_filter && p.k <= CudaKnn::kMaxK;
+  // Segments and the bush-base rule run on the host only (k: the GPU executor's own limit).
+  return !p.use_segments && !p.veg_filter;
 }
 
 }  // namespace normal

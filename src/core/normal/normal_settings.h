@@ -15,7 +15,8 @@ namespace normal {
 double minAbsNormalZ(const NormalGroundFilterParams& p);
 
 /// \brief True when the GPU pipeline (CudaNormalPipeline) runs the filter with `p` as the CPU
-///        steps do: not with segments, the bush-base rule (veg_filter) or k above CudaKnn::kMaxK.
+///        steps do: not with segments or the bush-base rule (veg_filter); k above CudaKnn::kMaxK
+///        the GPU executor declines itself (makeGpuNormalExecutor()).
 bool gpuSupports(const NormalGroundFilterParams& p);
 
 }  // namespace normal
