@@ -39,6 +39,7 @@ gf_core_room(scene scene_generator scene_terrain)
 # height above ground: the ground surface from a filter's labels
 gf_core_room(hag height_above_ground)
 
-# The CUDA adapter of the neighbour interface (and the whole-filter pipeline): added to the core
+# The CUDA adapters of the neighbour interface and of the whole-filter executor: added to the core
 # where CUDA is built.
-set(GF_CORE_CUDA_SOURCES src/core/normal/knn/gpu_neighbor_search.cpp)
+set(GF_CORE_CUDA_SOURCES src/core/normal/knn/gpu_neighbor_search.cpp
+                         src/core/normal/gpu_normal_executor.cpp)

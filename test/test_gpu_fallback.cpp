@@ -12,6 +12,7 @@
 
 #include "ground_filter/neighbor_search.h"
 #include "ground_filter/normal_ground_filter.h"
+#include "normal/filter_executor.h"
 #include "normal/knn/kdtree_neighbor_search.h"
 #ifdef GROUND_FILTER_HAVE_CUDA
 #include "ground_filter/cuda_knn.h"
@@ -103,28 +104,29 @@ TEST(GpuFallback, NormalFilterReportsTheBackendThatRan) {
   EXPECT_GT(sg.ground_points, 0u);
 }
 
-/// A kd-tree backend that also offers the whole-filter hook (KnnBackend::runNormalFilter):
-/// declines, or labels every point ground (to show whose labels the filter returns).
-class HookedKdTree : public gf::KdTreeNeighborSearch {
+/// An executor of the whole filter (NormalFilterExecutor, beside the CPU stages): declines
+/// (naming why), or labels every point ground (to show whose labels the filter returns).
+class FakeExecutor : public gf::NormalFilterExecutor {
  public:
-  HookedKdTree(bool accept, int* calls)
-      : gf::KdTreeNeighborSearch(2), accept_(accept), calls_(calls) {}
-  bool runNormalFilter(const gf::CloudView& cloud, const gf::CudaNormalParams&,
-                       std::vector<std::uint8_t>* labels, gf::FilterStats* stats) override {
+  FakeExecutor(bool accept, int* calls) : accept_(accept), calls_(calls) {}
+  std::string name() const override { return "fake"; }
+  bool run(const gf::CloudView& cloud, std::vector<std::uint8_t>* labels,
+           gf::FilterStats* stats) override {
     ++*calls_;
     if (!accept_) return false;
     labels->assign(cloud.size(), gf::kGround);
     stats->ground_points = cloud.size();
-    stats->backend = "hook";
+    stats->backend = "fake";
     return true;
   }
+  std::string lastNote() const override { return accept_ ? "" : "fake declined"; }
 
  private:
   bool accept_;
   int* calls_;
 };
 
-TEST(GpuFallback, WholeFilterHookDeclinesOrReplacesTheSteps) {
+TEST(GpuFallback, WholeFilterExecutorDeclinesOrReplacesTheStages) {
   const auto xyz = scene(8000, 3);
   const auto cloud = gf::CloudView::packedXyz(xyz.data(), 8000);
   gf::NormalGroundFilterParams p;
@@ -137,15 +139,19 @@ TEST(GpuFallback, WholeFilterHookDeclinesOrReplacesTheSteps) {
   gf::FilterStats st;
   plain.filter(cloud, &ref, &st);
   int calls = 0;
-  gf::NormalGroundFilter declined(p, std::make_unique<HookedKdTree>(false, &calls));
+  gf::NormalGroundFilter declined(p, std::make_unique<gf::KdTreeNeighborSearch>(2),
+                                  std::make_unique<FakeExecutor>(false, &calls));
+  EXPECT_EQ(declined.backend(), "fake");
   declined.filter(cloud, &got, &st);
   EXPECT_EQ(calls, 1);
-  EXPECT_EQ(got, ref);  // declined: the usual steps on the same backend
+  EXPECT_EQ(got, ref);  // declined: the CPU stages on the kd-tree
   EXPECT_EQ(st.backend, "kdtree");
-  gf::NormalGroundFilter taken(p, std::make_unique<HookedKdTree>(true, &calls));
+  EXPECT_EQ(st.note, "fake declined");
+  gf::NormalGroundFilter taken(p, std::make_unique<gf::KdTreeNeighborSearch>(2),
+                               std::make_unique<FakeExecutor>(true, &calls));
   taken.filter(cloud, &got, &st);
   EXPECT_EQ(calls, 2);
-  EXPECT_EQ(st.backend, "hook");
+  EXPECT_EQ(st.backend, "fake");
   EXPECT_EQ(st.input_points, 8000u);
   ASSERT_EQ(got.size(), 8000u);
   EXPECT_EQ(std::count(got.begin(), got.end(), gf::kGround), 8000);

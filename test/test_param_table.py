@@ -79,14 +79,47 @@ class ParamTableTest(unittest.TestCase):
         for path in cfgs:
             name = os.path.splitext(os.path.basename(path))[0]
             self.assertIn(name, parsed, "no table for " + path)
-            # Independent of the generator: names in gen.add(...) of the .cfg and its helpers.
+            # Independent of the generator: names in gen.add(...) of the .cfg and its helpers
+            # and in the GF_PARAM lines of the definition files the .cfg reads.
             sources = [path] + glob.glob(os.path.join(ROOT, "cfg", "*.py"))
             added = set()
             for src in sources:
                 with open(src) as f:
                     added |= set(re.findall(r"\.add\(\s*[\"'](\w+)[\"']", f.read()))
+            with open(path) as f:
+                defs = re.findall(r"\"(\w+\.def)\"", f.read())
+            self.assertTrue(defs, path + " names no params/*.def")
+            for d in defs:
+                with open(os.path.join(ROOT, "include", "ground_filter", "params", d)) as f:
+                    added |= set(re.findall(r"^GF_PARAM\(\s*\w+,\s*(\w+),", f.read(), re.M))
             for p in parsed[name]:
                 self.assertIn(p, added, "%s: table row %s not in any gen.add" % (name, p))
+
+    def test_def_reader_reads_every_line(self):
+        """cfg/ground_filter_common.py's .def reader: every GF_PARAM line or an error (a line it
+        skipped would be a C++ parameter missing from the .cfg)."""
+        saved = dict(sys.modules)
+        sys.modules.update(gen_param_table._stub_modules())
+        sys.path.insert(0, os.path.join(ROOT, "cfg"))
+        try:
+            import ground_filter_common as common
+            rows = common.read_def("normal_params.def")
+            k = [p for p in rows if p["name"] == "k"][0]
+            self.assertEqual((k["type"], k["default"], k["min"], k["max"], k["unit"], k["group"]),
+                             ("int", 40, 3, 256, "points", "core"))
+            self.assertIn("[points] (paper: 50)", common.cfg_description(k))
+            with tempfile.NamedTemporaryFile("w", suffix=".def", delete=False) as f:
+                f.write('// comment\nGF_PARAM(int, a, 1, 0, 2, "", core, "", "one")\n'
+                        'GF_PARAM(int, b, (1 << 2), 0, 8, "", core, "", "two")\n')
+            try:
+                with self.assertRaises(ValueError):
+                    common.read_def(f.name)
+            finally:
+                os.remove(f.name)
+        finally:
+            sys.path.pop(0)
+            sys.modules.clear()
+            sys.modules.update(saved)
 
     def test_one_table_per_catkin_group(self):
         """Each row sits under the heading of its dynamic_reconfigure group (gen.add_group)."""

@@ -53,28 +53,6 @@ struct XyBounds {
   double min_x, min_y, max_x, max_y;
 };
 
-/// The device filter's scalars from the host parameters (the GPU-mirrored fields).
-GroundParamsDev toDeviceParams(const CudaNormalParams& prm) {
-  GroundParamsDev gp;
-  gp.k = prm.k;
-  gp.iterations = prm.ransac_iterations;
-  gp.seed = normal::ransacBaseSeed(static_cast<std::uint32_t>(prm.ransac_seed));
-  gp.min_abs_nz = prm.min_abs_nz;
-  gp.min_planarity = prm.min_planarity;
-  gp.plane_distance = prm.plane_distance;
-  gp.std_multiplier = prm.std_multiplier;
-  gp.floor_share = prm.floor_share;
-  gp.floor_max_shift = prm.floor_max_shift;
-  gp.local_ground_min = prm.local_ground_min;
-  gp.local_ground_below = prm.local_ground_below;
-  gp.local_ground_above = prm.local_ground_above;
-  gp.bayes_vote = prm.bayes_vote;
-  gp.std_filter = prm.std_filter;
-  gp.plane_all_points = prm.plane_all_points;
-  gp.local_planes = prm.local_planes;
-  return gp;
-}
-
 }  // namespace
 
 struct CudaNormalPipeline::Impl {
@@ -146,9 +124,9 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
     throw std::invalid_argument("CudaNormalPipeline::run: k = " + std::to_string(prm.k) +
                                 " is out of range [1, " + std::to_string(CudaKnn::kMaxK) + "]");
   }
-  if (prm.sample_stride < 1 || prm.sample_stride > 16) {
+  if (prm.sample_stride < 1) {  // the range: NormalGroundFilterParams::validate()
     throw std::invalid_argument("CudaNormalPipeline::run: sample_stride = " +
-                                std::to_string(prm.sample_stride) + " is out of range [1, 16]");
+                                std::to_string(prm.sample_stride) + " is below 1");
   }
   const std::size_t n_in = cloud.size();
   if (n_in >= (1u << 31) - 1) {
@@ -172,7 +150,7 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
 
   // ---- the sampled points (CPU: SampleStage), their K nearest neighbours (lists stay on the
   //      device), PCA + candidates and vote; the others: OR of the samples before and after
-  const int stride = std::max(1, prm.sample_stride);
+  const int stride = prm.sample_stride;
   const int m = (n + stride - 1) / stride;
   const float* q = pl.xyz.as<float>();
   if (stride > 1) {
@@ -184,7 +162,7 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   im.searchOnDevice(q, m, prm.k, nullptr, nullptr);
   GF_CUDA_CHECK(cudaEventRecord(pl.ev[3], im.stream));
 
-  const GroundParamsDev gp = toDeviceParams(prm);
+  const GroundParamsDev& gp = prm;
   std::uint8_t* d_voted = pl.voted.as<std::uint8_t>();
   pl.candidatesAndVote(im, q, m, gp, stride > 1 ? pl.sampled_voted.as<std::uint8_t>() : d_voted);
   if (stride > 1) {

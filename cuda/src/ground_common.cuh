@@ -10,28 +10,14 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "ground_filter/cuda_normal_pipeline.h"
+
 namespace ground_filter {
 namespace cuda_impl {
 
-/// Scalar parameters of the device filter (see NormalGroundFilterParams).
-struct GroundParamsDev {
-  int k;
-  int iterations;
-  std::uint64_t seed;  // base seed of the RANSAC draws (CPU: ransacBaseSeed())
-  double min_abs_nz;   // |n_z| of a candidate's normal, and of a plane's, at least
-  double min_planarity;
-  double plane_distance;
-  double std_multiplier;
-  double floor_share;         // sparse tile: lowest-level share that moves the cloud plane, 0 = off
-  double floor_max_shift;     // sparse tile: largest move of the cloud plane [m]
-  int local_ground_min;       // local ground: ground neighbours needed, 0 = off
-  double local_ground_below;  // local ground: under their plane at most [m]
-  double local_ground_above;  // local ground: over their plane at most [m]
-  bool bayes_vote;
-  bool std_filter;
-  bool plane_all_points;
-  bool local_planes;
-};
+/// Settings of the device filter: the host's own struct (ground_filter/cuda_normal_pipeline.h),
+/// passed to the kernels by value.
+using GroundParamsDev = CudaNormalParams;
 
 /// Plane n . (p - o) + d = 0, as the CPU's Plane.
 struct PlaneDev {

@@ -125,8 +125,8 @@ __device__ inline Hypothesis ransacHypotheses(const float* __restrict__ xyz,
   best.n[1] = 0.0;
   best.n[2] = 1.0;
   best.d = 0.0;
-  double needed = p.iterations;
-  for (int it = 0; it < p.iterations && it < needed; ++it) {  // uniform over the block
+  double needed = p.ransac_iterations;
+  for (int it = 0; it < p.ransac_iterations && it < needed; ++it) {  // uniform over the block
     const std::uint64_t a = rng.next() % m, b = rng.next() % m, c = rng.next() % m;
     if (a == b || a == c || b == c) continue;
     double pa[3], pb[3], pc[3];
@@ -290,6 +290,7 @@ __global__ void __launch_bounds__(kPlaneThreads)
   __shared__ unsigned int item_s;
   const unsigned int ntiles = *ntiles_dev;
   const bool need_global = !p.local_planes || *need_global_dev;
+  const std::uint64_t base_seed = normal::ransacBaseSeed(static_cast<std::uint32_t>(p.ransac_seed));
   for (;;) {
     if (threadIdx.x == 0) item_s = atomicAdd(work, 1u);
     __syncthreads();
@@ -300,7 +301,8 @@ __global__ void __launch_bounds__(kPlaneThreads)
     if (item == 0) {
       if (need_global) {
         const unsigned int m = *gcount;
-        fitPlaneBlock(xyz, glist, m, p, p.seed, m > kSerialRefineMax, evp, stage, red, shd, &plane);
+        fitPlaneBlock(xyz, glist, m, p, base_seed, m > kSerialRefineMax, evp, stage, red, shd,
+                      &plane);
       } else {
         plane.valid = 0;
       }
@@ -308,7 +310,7 @@ __global__ void __launch_bounds__(kPlaneThreads)
       const unsigned int t = item - 1, b = tile_begin[t], e = tile_begin[t + 1];
       const unsigned int m = vpos[e] - vpos[b];
       if (p.local_planes && m >= kMinTilePoints) {
-        const std::uint64_t seed = p.seed ^ (keys[b] * 0x9e3779b97f4a7c15ULL);
+        const std::uint64_t seed = base_seed ^ (keys[b] * 0x9e3779b97f4a7c15ULL);
         fitPlaneBlock(xyz, vlist + vpos[b], m, p, seed, false, evp, stage, red, shd, &plane);
       } else {
         plane.valid = 0;

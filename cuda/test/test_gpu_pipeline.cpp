@@ -19,7 +19,8 @@
 #include "ground_filter/cuda_knn.h"
 #include "ground_filter/cuda_normal_pipeline.h"
 #include "ground_filter/normal_ground_filter.h"
-#include "normal/knn/gpu_neighbor_search.h"
+#include "normal/gpu_normal_executor.h"
+#include "normal/knn/kdtree_neighbor_search.h"
 #include "replicate_frames.h"
 
 namespace gf = ground_filter;
@@ -248,7 +249,8 @@ TEST_F(GpuPipelineTest, OutOfMemoryFallsBackToTheKdTreeForThatScan) {
   opt.memory_limit = 1 << 20;  // the pipeline cannot take this scan
   gf::NormalGroundFilterParams p;
   p.knn_backend = "gpu";
-  gf::NormalGroundFilter fg(p, std::make_unique<gf::GpuNeighborSearch>(0, opt));
+  gf::NormalGroundFilter fg(p, std::make_unique<gf::KdTreeNeighborSearch>(0),
+                            std::make_unique<gf::GpuNormalExecutor>(p, opt));
   p.knn_backend = "kdtree";
   gf::NormalGroundFilter fc(p);
   std::vector<std::uint8_t> lg, lc;

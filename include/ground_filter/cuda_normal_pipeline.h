@@ -10,31 +10,21 @@
 
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/cuda_knn.h"
+#include "ground_filter/params/normal_filter_settings.h"
 
 namespace ground_filter {
 
-/// \brief Parameters of CudaNormalPipeline::run(); the meaning of NormalGroundFilterParams's
-///        fields of the same names (use_segments is not supported: the whole cloud is one set).
-struct CudaNormalParams {
-  int k = 50;                    ///< neighbours per sampled point, itself included (1..kMaxK)
-  int sample_stride = 1;         ///< normals and vote on every n-th ordered point (1..16)
-  double cell_size = 0.10;       ///< x/y grid cell ordering points into columns [m]
-  double min_abs_nz = 0.0;       ///< |n_z| of a candidate's and of a plane's normal, at least [1]
-  double min_planarity = 0.0;    ///< flat: planarity dominant and >= this [1]
-  bool bayes_vote = true;        ///< naive-Bayes vote over each K neighbourhood
-  double plane_distance = 0.15;  ///< max point-to-plane distance of a ground point [m]
-  bool std_filter = false;       ///< also require the mean +- std band of distances
-  double std_multiplier = 1.0;   ///< width of that band in standard deviations [1]
-  int ransac_iterations = 100;   ///< RANSAC hypotheses per plane, at most
-  int ransac_seed = 0;           ///< RANSAC generator seed, 0 = the built-in one
-  bool plane_all_points = true;  ///< plane test labels every point, not only voted ones
-  bool local_planes = true;      ///< one plane per tile instead of one for the cloud
-  double tile_size = 4.0;        ///< tile edge for local planes [m]
-  double floor_share = 0.15;     ///< sparse tile: lowest-level share moving the cloud plane, 0 off
-  double floor_max_shift = 0.5;  ///< sparse tile: largest move of the cloud-wide plane [m]
-  int local_ground_min = 0;      ///< local ground: ground neighbours needed, 0 = off
-  double local_ground_below = 0.10;  ///< local ground: under their plane at most [m]
-  double local_ground_above = 0.05;  ///< local ground: over their plane at most [m]
+/// \brief Settings of CudaNormalPipeline::run(), host and device alike (the kernels take it by
+///        value): the normal method's plain parameters (NormalFilterSettings, generated from
+///        include/ground_filter/params/normal_params.def, so a NormalGroundFilterParams is one;
+///        use_segments and veg_filter are not supported: the whole cloud is one set) and the
+///        |n_z| bound derived from its normal-angle window. Built once per parameter set.
+struct CudaNormalParams : NormalFilterSettings {
+  CudaNormalParams() = default;
+  /// \brief The settings `s` and their |n_z| bound (the core's normal::minAbsNormalZ()).
+  CudaNormalParams(const NormalFilterSettings& s, double min_abs_nz_of_s)
+      : NormalFilterSettings(s), min_abs_nz(min_abs_nz_of_s) {}
+  double min_abs_nz = 0.0;  ///< |n_z| of a candidate's and of a plane's normal, at least [1]
 };
 
 /// \brief Device times of the stages of the last run() (CUDA events) and its counts.
@@ -72,7 +62,8 @@ class CudaNormalPipeline {
 
   /// \brief Labels every point of `cloud` (kGround = 1 / kNonGround = 0; NaN/Inf points 0) into
   ///        `labels` (cloud.size() entries).
-  /// \throws std::invalid_argument for k outside [1, CudaKnn::kMaxK] or >= 2^31 points.
+  /// \throws std::invalid_argument for k outside [1, CudaKnn::kMaxK], sample_stride below 1
+  ///         (the other ranges are NormalGroundFilterParams::validate()'s) or >= 2^31 points.
   /// \throws CudaError for any CUDA failure or when the memory limit is too small.
   void run(const CloudView& cloud, const CudaNormalParams& params, std::uint8_t* labels);
 

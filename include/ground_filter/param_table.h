@@ -10,27 +10,59 @@
 
 namespace ground_filter {
 
-/// \brief One row of a parameter table: the single place a parameter's name, struct member,
-///        range, unit and description are written. set(), validate(), the log line, the docs
-///        table and the drift test against the .cfg files all read it. (C++14: no std::variant,
-///        so installed headers stay usable from C++14 packages.)
+/// \brief One row of a parameter table, generated from the method's parameter definition file
+///        (include/ground_filter/params/*.def, GF_PARAM_ROW of params/param_def.h), which the
+///        .cfg files read too. set(), validate() and the log line read the rows. (C++14: no
+///        std::variant, so installed headers stay usable from C++14 packages.)
 template <class P>
 struct ParamSpec {
   /// \brief Type of the struct member.
   enum class Type { kDouble, kInt, kBool, kString };
 
   /// \brief A double member with its range.
-  ParamSpec(const char* n, double P::*m, double lo, double hi, const char* u, const char* d)
-      : name(n), type(Type::kDouble), as_double(m), min(lo), max(hi), unit(u), description(d) {}
+  ParamSpec(const char* n, double P::*m, double lo, double hi, const char* u, const char* d,
+            const char* pp = "")
+      : name(n),
+        type(Type::kDouble),
+        as_double(m),
+        min(lo),
+        max(hi),
+        unit(u),
+        description(d),
+        paper(pp) {}
   /// \brief An int member with its range.
-  ParamSpec(const char* n, int P::*m, double lo, double hi, const char* u, const char* d)
-      : name(n), type(Type::kInt), as_int(m), min(lo), max(hi), unit(u), description(d) {}
+  ParamSpec(const char* n, int P::*m, double lo, double hi, const char* u, const char* d,
+            const char* pp = "")
+      : name(n),
+        type(Type::kInt),
+        as_int(m),
+        min(lo),
+        max(hi),
+        unit(u),
+        description(d),
+        paper(pp) {}
   /// \brief A bool member (no range).
-  ParamSpec(const char* n, bool P::*m, double lo, double hi, const char* u, const char* d)
-      : name(n), type(Type::kBool), as_bool(m), min(lo), max(hi), unit(u), description(d) {}
+  ParamSpec(const char* n, bool P::*m, double lo, double hi, const char* u, const char* d,
+            const char* pp = "")
+      : name(n),
+        type(Type::kBool),
+        as_bool(m),
+        min(lo),
+        max(hi),
+        unit(u),
+        description(d),
+        paper(pp) {}
   /// \brief A string member (its values are checked by the struct's validate()).
-  ParamSpec(const char* n, std::string P::*m, double lo, double hi, const char* u, const char* d)
-      : name(n), type(Type::kString), as_string(m), min(lo), max(hi), unit(u), description(d) {}
+  ParamSpec(const char* n, std::string P::*m, double lo, double hi, const char* u, const char* d,
+            const char* pp = "")
+      : name(n),
+        type(Type::kString),
+        as_string(m),
+        min(lo),
+        max(hi),
+        unit(u),
+        description(d),
+        paper(pp) {}
 
   const char* name;                     ///< parameter name (CLI, YAML, dynamic_reconfigure)
   Type type;                            ///< which of the members below is set
@@ -41,7 +73,8 @@ struct ParamSpec {
   double min;                           ///< smallest valid value (numbers only)
   double max;                           ///< largest valid value (numbers only)
   const char* unit;         ///< unit as written in the .cfg description ("m", "deg", "" = none)
-  const char* description;  ///< one line: what it does
+  const char* description;  ///< what it does (the .cfg's text before the unit)
+  const char* paper;        ///< the paper's value, "" = none
 
   /// \brief True for double and int members (the ones with a range).
   bool isNumber() const { return type == Type::kDouble || type == Type::kInt; }

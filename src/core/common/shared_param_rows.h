@@ -5,29 +5,22 @@
 #include <initializer_list>
 
 #include "ground_filter/param_table.h"
+#include "ground_filter/params/param_def.h"
 
 namespace ground_filter {
 
-/// \brief A method's own rows followed by the rows every method has, in one place so their
-///        ranges cannot drift apart: the airborne morphological ground mode (morph_*, the same
-///        MorphGround stage in both filters), the worker threads and scan_type (which picks that
-///        mode per scan). P needs the members named
-///        below.
+/// \brief A method's own rows followed by the rows every method has
+///        (include/ground_filter/params/morph_params.def: the airborne morphological ground mode,
+///        the same MorphGround stage in both filters, and scan_type, which picks that mode per
+///        scan). P derives from MorphGroundParams.
 template <typename P>
 ParamTable<P> withSharedParamRows(std::initializer_list<ParamSpec<P>> own) {
   ParamTable<P> rows(own);
-  rows.insert(
-      rows.end(),
-      {
-          {"morph_ground", &P::morph_ground, 0, 0, "bool",
-           "airborne: morphological ground surface"},
-          {"morph_cell", &P::morph_cell, 0.05, 100.0, "m", "morph: raster cell edge"},
-          {"morph_slope", &P::morph_slope, 0.0, 10.0, "", "morph: slope kept by the opening"},
-          {"morph_window", &P::morph_window, 0.1, 1000.0, "m", "morph: largest opening radius"},
-          {"morph_scale", &P::morph_scale, 0.0, 100.0, "m", "morph: threshold per unit gradient"},
-          {"threads", &P::threads, 0, 256, "threads", "worker threads, 0 = all cores"},
-          {"scan_type", &P::scan_type, 0, 0, "enum", "auto | ground | airborne | tls"},
-      });
+  rows.insert(rows.end(), {
+#define GF_PARAM GF_PARAM_ROW
+#include "ground_filter/params/morph_params.def"
+#undef GF_PARAM
+                          });
   return rows;
 }
 

@@ -9,6 +9,7 @@
 #include "airborne/airborne_mode.h"
 #include "airborne/scan_type.h"
 #include "common/threads_timing.h"
+#include "normal/filter_executor.h"
 #include "normal/knn/knn_backend.h"
 #include "normal/local_ground.h"
 #include "normal/neighborhoods.h"
@@ -29,11 +30,10 @@ namespace ground_filter {
 // next stages take as arguments (all memory kept between scans: no allocation per scan).
 
 struct NormalGroundFilter::Impl {
-  std::unique_ptr<KnnBackend> search;
+  std::unique_ptr<KnnBackend> search;              // the CPU stages' neighbour search
+  std::unique_ptr<NormalFilterExecutor> executor;  // whole filter elsewhere (GPU), or null
   // Settings derived from the params once (normal_settings.h).
   double min_abs_nz = 0.0;
-  bool gpu_supported = false;
-  CudaNormalParams gpu_params;
   // Stages (scratch memory only).
   normal::OrderStage order;
   normal::SampleStage sample;  // sample_stride > 1 only
@@ -52,16 +52,17 @@ struct NormalGroundFilter::Impl {
   std::vector<float> heights;  // 5: above the tile plane, veg_filter only
   normal::StageTimes times;    // per scan, memory kept
   FilterStats own_stats;       // filled when the caller passes none
-  Impl(const NormalGroundFilterParams& p, std::unique_ptr<KnnBackend> backend)
+  Impl(const NormalGroundFilterParams& p, std::unique_ptr<KnnBackend> backend,
+       std::unique_ptr<NormalFilterExecutor> exec)
       : search(std::move(backend)),
+        executor(std::move(exec)),
         min_abs_nz(normal::minAbsNormalZ(p)),
-        gpu_supported(normal::gpuSupports(p)),
-        gpu_params(normal::gpuNormalParams(p)),
         scan(p.scan_type, p.morph_ground) {
     if (!search) throw std::invalid_argument("NormalGroundFilter: null neighbour backend");
     // A GPU backend keeps the lists in GPU memory; PCA and vote counts then run there. The
-    // local-ground stage needs them on the host where the GPU pipeline does not run the filter.
-    const bool host_lists = p.local_ground_min > 0 && !gpu_supported && search->name() == "gpu";
+    // local-ground stage needs them on the host. (A GPU search serves the CPU stages only where
+    // the whole filter has no GPU executor: with one, the stages search on the kd-tree.)
+    const bool host_lists = p.local_ground_min > 0 && search->name() == "gpu";
     search->keepListsOnDevice(!host_lists);
   }
 };
@@ -90,20 +91,37 @@ void resetStats(FilterStats* st) {
 
 NormalGroundFilter::NormalGroundFilter(const NormalGroundFilterParams& params) : params_(params) {
   params_.validate();
+  // knn_backend gpu with settings the GPU honours: the whole filter on the GPU, its CPU stages
+  // (for a scan it declines) on the kd-tree; otherwise the stages with the requested search.
+  std::unique_ptr<NormalFilterExecutor> executor;
+#ifdef GROUND_FILTER_HAVE_CUDA
+  if (params_.knn_backend == "gpu" && normal::gpuSupports(params_)) {
+    executor = makeGpuNormalExecutor(params_);
+  }
+#endif
   impl_ = std::make_unique<Impl>(
-      params_, makeKnnBackend(params_.knn_backend, params_.threads, &backend_note_));
+      params_,
+      makeKnnBackend(executor ? "kdtree" : params_.knn_backend, params_.threads, &backend_note_),
+      std::move(executor));
 }
 
 NormalGroundFilter::NormalGroundFilter(const NormalGroundFilterParams& params,
                                        std::unique_ptr<KnnBackend> search)
+    : NormalGroundFilter(params, std::move(search), nullptr) {}
+
+NormalGroundFilter::NormalGroundFilter(const NormalGroundFilterParams& params,
+                                       std::unique_ptr<KnnBackend> search,
+                                       std::unique_ptr<NormalFilterExecutor> executor)
     : params_(params) {
   params_.validate();
-  impl_ = std::make_unique<Impl>(params_, std::move(search));
+  impl_ = std::make_unique<Impl>(params_, std::move(search), std::move(executor));
 }
 
 NormalGroundFilter::~NormalGroundFilter() = default;
 
-std::string NormalGroundFilter::backend() const { return impl_->search->name(); }
+std::string NormalGroundFilter::backend() const {
+  return impl_->executor ? impl_->executor->name() : impl_->search->name();
+}
 
 void NormalGroundFilter::setSensorOrigin(float x, float y, float z) {
   impl_->scan.setOrigin(x, y, z);
@@ -123,7 +141,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   FilterStats& st = stats ? *stats : im.own_stats;
   resetStats(&st);
   st.input_points = cloud.size();
-  st.backend = im.search->name();
+  st.backend = backend();
   st.note = backend_note_;
   labels->assign(cloud.size(), kNonGround);
 
@@ -138,13 +156,15 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     return;
   }
 
-  // ---- whole-filter hook (GPU): a backend that runs the whole filter on its device gets the
-  //      scan first; false = it cannot (segments, k, device fault) and the steps below run.
-  if (im.gpu_supported && im.search->runNormalFilter(cloud, im.gpu_params, labels, &st)) {
-    st.total_ms = msSince(t_start);
-    return;
+  // ---- the whole filter on the executor (GPU) when the filter has one; when it declines the scan
+  //      (a device fault) the stages below run it on the CPU.
+  if (im.executor) {
+    if (im.executor->run(cloud, labels, &st)) {
+      st.total_ms = msSince(t_start);
+      return;
+    }
+    st.note += (st.note.empty() ? "" : "; ") + im.executor->lastNote();
   }
-  // ---- end of the whole-filter hook
 
   // 1. Valid points in grid-column order, cut into segments.
   auto t0 = Clock::now();

@@ -2,10 +2,9 @@
 #define GROUND_FILTER_SRC_CORE_NORMAL_NORMAL_SETTINGS_H
 
 // Settings derived from NormalGroundFilterParams, defined beside the parameter table
-// (normal_ground_filter_params.cpp) so a new parameter is added, and mirrored to the GPU, in one
-// file.
+// (normal_ground_filter_params.cpp). The GPU pipeline takes the params' NormalFilterSettings
+// base as they are (CudaNormalParams), so a new plain parameter reaches it without a copy.
 
-#include "ground_filter/cuda_normal_pipeline.h"
 #include "ground_filter/normal_ground_filter_params.h"
 
 namespace ground_filter {
@@ -16,11 +15,9 @@ namespace normal {
 double minAbsNormalZ(const NormalGroundFilterParams& p);
 
 /// \brief True when the GPU pipeline (CudaNormalPipeline) runs the filter with `p` as the CPU
-///        steps do: not with segments, the bush-base rule (veg_filter) or k above CudaKnn::kMaxK.
+///        steps do: not with segments or the bush-base rule (veg_filter); k above CudaKnn::kMaxK
+///        the GPU executor declines itself (makeGpuNormalExecutor()).
 bool gpuSupports(const NormalGroundFilterParams& p);
-
-/// \brief The GPU pipeline's settings for `p` (meaningful where gpuSupports(p)).
-CudaNormalParams gpuNormalParams(const NormalGroundFilterParams& p);
 
 }  // namespace normal
 }  // namespace ground_filter

@@ -27,9 +27,7 @@ std::string describeCurrent() {
 }  // namespace
 
 GpuNeighborSearch::GpuNeighborSearch(int threads, const CudaKnnOptions& options)
-    : pipeline_(std::make_unique<CudaNormalPipeline>(options)),
-      knn_(&pipeline_->knn()),
-      threads_(threads) {}
+    : knn_(std::make_unique<CudaKnn>(options)), threads_(threads) {}
 
 GpuNeighborSearch::~GpuNeighborSearch() = default;
 
@@ -38,42 +36,7 @@ bool GpuNeighborSearch::keepListsOnDevice(bool keep) {
   return keep;
 }
 
-bool GpuNeighborSearch::runNormalFilter(const CloudView& cloud, const CudaNormalParams& params,
-                                        std::vector<std::uint8_t>* labels, FilterStats* stats) {
-  host_scan_ = false;
-  if (params.k > CudaKnn::kMaxK) return false;
-  lists_on_device_ = false;
-  try {
-    labels->resize(cloud.size());
-    pipeline_->run(cloud, params, labels->data());
-  } catch (const std::exception&) {
-    // This scan goes on the host: the filter's next search() runs the kd-tree.
-    last_backend_ = "kdtree";
-    last_note_ = "GPU filter failed (" + describeCurrent() + "); using kdtree";
-    host_scan_ = true;
-    return false;
-  }
-  last_backend_ = "gpu";
-  last_note_.clear();
-  const CudaNormalTimings& t = pipeline_->lastTimings();
-  stats->invalid_points = cloud.size() - t.valid_points;
-  stats->ground_points = t.ground_points;
-  stats->backend = "gpu";
-  stats->stage_ms = {{"pack", t.pack_ms},   {"upload", t.upload_ms},    {"sort", t.sort_ms},
-                     {"knn", t.knn_ms},     {"pca", t.pca_ms},          {"vote", t.vote_ms},
-                     {"plane", t.plane_ms}, {"download", t.download_ms}};
-  return true;
-}
-
 void GpuNeighborSearch::search(const float* xyz, std::size_t n, int k, NeighborLists* out) {
-  if (host_scan_) {  // the whole-filter run of this scan failed: keep its note, use the kd-tree
-    host_scan_ = false;
-    lists_on_device_ = false;
-    if (!fallback_) fallback_ = std::make_unique<KdTreeNeighborSearch>(threads_);
-    fallback_->search(xyz, n, k, out);
-    last_backend_ = fallback_->name();
-    return;
-  }
   last_backend_ = "gpu";
   last_note_.clear();
   lists_on_device_ = false;

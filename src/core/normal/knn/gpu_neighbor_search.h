@@ -11,7 +11,6 @@
 #include <vector>
 
 #include "ground_filter/cuda_knn.h"
-#include "ground_filter/cuda_normal_pipeline.h"
 #include "ground_filter/neighbor_search.h"
 #include "normal/knn/knn_backend.h"
 
@@ -19,11 +18,11 @@ namespace ground_filter {
 
 class KdTreeNeighborSearch;
 
-/// \brief NeighborSearch on a CUDA GPU (CudaKnn) that also runs the whole normal-vector filter
-///        there (CudaNormalPipeline); a scan the GPU cannot do runs on a kd-tree.
+/// \brief NeighborSearch on a CUDA GPU (CudaKnn); a scan the GPU cannot do runs on a kd-tree.
+///        (The whole normal filter on the GPU is an executor of its own: GpuNormalExecutor.)
 ///
-/// Any CUDA error during a search or a whole-filter run (or k above CudaKnn::kMaxK) makes that
-/// one scan run on the CPU kd-tree instead; lastBackend() and lastNote() then say so and name the
+/// Any CUDA error during a search (or k above CudaKnn::kMaxK) makes that one scan run on the CPU
+/// kd-tree instead; lastBackend() and lastNote() then say so and name the
 /// error. The next scan tries the GPU again.
 class GpuNeighborSearch : public KnnBackend {
  public:
@@ -45,31 +44,20 @@ class GpuNeighborSearch : public KnnBackend {
   bool countFlaggedNeighbors(const std::uint8_t* flags, std::uint16_t* flagged,
                              std::uint16_t* neighbors) override;
 
-  /// \brief The whole filter on the GPU (CudaNormalPipeline; the filter asks only when
-  ///        gpuSupports() its params). Declines (false) with k > CudaKnn::kMaxK; on a CUDA error
-  ///        it returns false too and the next search() of this scan runs on the kd-tree
-  ///        (lastNote() names the error).
-  bool runNormalFilter(const CloudView& cloud, const CudaNormalParams& params,
-                       std::vector<std::uint8_t>* labels, FilterStats* stats) override;
-
   /// \brief The CUDA search (timings of the last GPU search, device name).
   const CudaKnn& cudaKnn() const { return *knn_; }
-  /// \brief The whole-filter pipeline (timings of the last GPU filter run).
-  const CudaNormalPipeline& pipeline() const { return *pipeline_; }
 
  private:
   /// Runs the last search again on the kd-tree into its `out` after a CUDA error in `what`.
   void recoverOnHost(const std::string& what, const std::string& error);
 
-  std::unique_ptr<CudaNormalPipeline> pipeline_;
-  CudaKnn* knn_;                                    // the pipeline's
+  std::unique_ptr<CudaKnn> knn_;
   std::unique_ptr<KdTreeNeighborSearch> fallback_;  // created on the first fallback
   int threads_;
   std::string last_backend_ = "gpu";
   std::string last_note_;
   bool keep_on_device_ = false;
   bool lists_on_device_ = false;  // the last search's lists are (only) in GPU memory
-  bool host_scan_ = false;        // the whole-filter run failed: this scan's search on the CPU
   const float* last_xyz_ = nullptr;
   std::size_t last_n_ = 0;
   int last_k_ = 0;

@@ -2,7 +2,9 @@
 #define GROUND_FILTER_SRC_CORE_NORMAL_KNN_KNN_BACKEND_H
 
 // The neighbour backends' private interface: what the normal filter uses beyond the public
-// NeighborSearch (include/ground_filter/neighbor_search.h). Every backend of the core derives from
+// NeighborSearch (include/ground_filter/neighbor_search.h): searches and work on their lists.
+// The whole filter on another device is an executor beside the CPU stages instead
+// (normal/filter_executor.h). Every backend of the core derives from
 // KnnBackend; a part a backend does not have keeps its default (false = not done, nothing
 // touched), and the filter then takes the plain path.
 
@@ -13,7 +15,6 @@
 #include <vector>
 
 #include "ground_filter/cloud_view.h"
-#include "ground_filter/cuda_normal_pipeline.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/neighbor_search.h"
 #include "normal/knn/neighborhood_pca.h"
@@ -67,17 +68,6 @@ class KnnBackend : public NeighborSearch {
   ///        order: row r (`k` entries, all valid, at `rows + r * k`) is the list of point
   ///        `points[r]`; false when they are in search()'s `out` (or on a device).
   virtual bool keptRows(const std::int32_t** /*rows*/, const std::uint32_t** /*points*/) const {
-    return false;
-  }
-
-  /// \brief The whole normal filter where the backend's lists live (the GPU): labels `cloud` as
-  ///        NormalGroundFilter::filter() would with the settings `params` (gpuNormalParams(), asked
-  ///        only when gpuSupports()): fills `labels` (cloud.size() entries) and, in `stats`,
-  ///        invalid_points, ground_points, backend and stage_ms.
-  /// \return false, touching neither, when it cannot run this scan (then lastBackend()/
-  ///        lastNote() say why, e.g. a device fault) and the filter runs its usual steps.
-  virtual bool runNormalFilter(const CloudView& /*cloud*/, const CudaNormalParams& /*params*/,
-                               std::vector<std::uint8_t>* /*labels*/, FilterStats* /*stats*/) {
     return false;
   }
 };

@@ -1,0 +1,45 @@
+#ifndef GROUND_FILTER_SRC_CORE_NORMAL_FILTER_EXECUTOR_H
+#define GROUND_FILTER_SRC_CORE_NORMAL_FILTER_EXECUTOR_H
+
+// An executor of the whole normal-vector filter beside the CPU pipeline (the stages of
+// NormalGroundFilter::filter()): the filter chooses one when its parameters ask for it
+// (knn_backend gpu, settings the GPU honours) and runs its own stages when it declines a scan.
+// The neighbour backends (normal/knn/knn_backend.h) only search.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "ground_filter/cloud_view.h"
+#include "ground_filter/ground_filter.h"
+#include "ground_filter/normal_ground_filter_params.h"
+
+namespace ground_filter {
+
+/// \brief The whole normal filter on another device, for one parameter set (given when it is
+///        made).
+class NormalFilterExecutor {
+ public:
+  virtual ~NormalFilterExecutor() = default;
+  /// \brief Its name in FilterStats::backend ("gpu").
+  virtual std::string name() const = 0;
+  /// \brief Labels `cloud` as NormalGroundFilter::filter()'s stages would: fills `labels`
+  ///        (cloud.size() entries) and, in `stats`, invalid_points, ground_points, backend and
+  ///        stage_ms.
+  /// \return false, touching neither, when it cannot run this scan (lastNote() says why, e.g. a
+  ///         device fault); the filter then runs its stages. The next scan tries again.
+  virtual bool run(const CloudView& cloud, std::vector<std::uint8_t>* labels,
+                   FilterStats* stats) = 0;
+  /// \brief Why the last run() declined; empty after one that ran.
+  virtual std::string lastNote() const = 0;
+};
+
+/// \brief The CUDA executor (CudaNormalPipeline) for `params`, or null when there is no usable
+///        device or k is above what it searches (CudaKnn::kMaxK). Call only where the package is
+///        built with CUDA (GROUND_FILTER_HAVE_CUDA) and normal::gpuSupports(params).
+std::unique_ptr<NormalFilterExecutor> makeGpuNormalExecutor(const NormalGroundFilterParams& params);
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_CORE_NORMAL_FILTER_EXECUTOR_H

@@ -1,0 +1,51 @@
+#include "normal/gpu_normal_executor.h"
+
+#include <exception>
+#include <string>
+
+#include "normal/normal_settings.h"
+
+namespace ground_filter {
+
+GpuNormalExecutor::GpuNormalExecutor(const NormalGroundFilterParams& params,
+                                     const CudaKnnOptions& options)
+    : settings_(params, normal::minAbsNormalZ(params)),
+      pipeline_(std::make_unique<CudaNormalPipeline>(options)) {}
+
+GpuNormalExecutor::~GpuNormalExecutor() = default;
+
+bool GpuNormalExecutor::run(const CloudView& cloud, std::vector<std::uint8_t>* labels,
+                            FilterStats* stats) {
+  try {
+    labels->resize(cloud.size());
+    pipeline_->run(cloud, settings_, labels->data());
+  } catch (const CudaError& e) {
+    last_note_ = "GPU filter failed (" + e.errorName() + ": " + e.what() + "); using kdtree";
+    return false;
+  } catch (const std::exception& e) {
+    last_note_ = "GPU filter failed (" + std::string(e.what()) + "); using kdtree";
+    return false;
+  }
+  last_note_.clear();
+  const CudaNormalTimings& t = pipeline_->lastTimings();
+  stats->invalid_points = cloud.size() - t.valid_points;
+  stats->ground_points = t.ground_points;
+  stats->backend = name();
+  stats->stage_ms = {{"pack", t.pack_ms},   {"upload", t.upload_ms},    {"sort", t.sort_ms},
+                     {"knn", t.knn_ms},     {"pca", t.pca_ms},          {"vote", t.vote_ms},
+                     {"plane", t.plane_ms}, {"download", t.download_ms}};
+  return true;
+}
+
+std::unique_ptr<NormalFilterExecutor> makeGpuNormalExecutor(
+    const NormalGroundFilterParams& params) {
+  std::string why;
+  if (params.k > CudaKnn::kMaxK || !CudaKnn::deviceAvailable(&why)) return nullptr;
+  try {
+    return std::make_unique<GpuNormalExecutor>(params);
+  } catch (const std::exception&) {
+    return nullptr;  // the neighbour backend's factory reports the same failure
+  }
+}
+
+}  // namespace ground_filter

@@ -1,0 +1,44 @@
+#ifndef GROUND_FILTER_SRC_CORE_NORMAL_GPU_NORMAL_EXECUTOR_H
+#define GROUND_FILTER_SRC_CORE_NORMAL_GPU_NORMAL_EXECUTOR_H
+
+// Only usable when the package is built with CUDA (GROUND_FILTER_HAVE_CUDA); the filter gets it
+// through makeGpuNormalExecutor() (filter_executor.h).
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "ground_filter/cuda_knn.h"
+#include "ground_filter/cuda_normal_pipeline.h"
+#include "normal/filter_executor.h"
+
+namespace ground_filter {
+
+/// \brief The whole normal filter on a CUDA GPU (CudaNormalPipeline) with the settings of one
+///        parameter set, built once. Any CUDA error in a run declines that one scan (the filter
+///        runs its CPU stages; lastNote() names the error); the next scan tries the GPU again.
+class GpuNormalExecutor : public NormalFilterExecutor {
+ public:
+  /// \brief For `params` (normal::gpuSupports(params) must hold).
+  /// \throws CudaError when no usable CUDA device is there.
+  explicit GpuNormalExecutor(const NormalGroundFilterParams& params,
+                             const CudaKnnOptions& options = CudaKnnOptions());
+  ~GpuNormalExecutor() override;
+
+  std::string name() const override { return "gpu"; }
+  bool run(const CloudView& cloud, std::vector<std::uint8_t>* labels, FilterStats* stats) override;
+  std::string lastNote() const override { return last_note_; }
+
+  /// \brief The pipeline (timings of the last run).
+  const CudaNormalPipeline& pipeline() const { return *pipeline_; }
+
+ private:
+  CudaNormalParams settings_;
+  std::unique_ptr<CudaNormalPipeline> pipeline_;
+  std::string last_note_;
+};
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_CORE_NORMAL_GPU_NORMAL_EXECUTOR_H
