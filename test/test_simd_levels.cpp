@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "gf_test_alloc_counter.h"  // allocationCount()
+#include "ground_filter/build_info.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/scene/scene_generator.h"
 #include "simd/simd.h"
@@ -285,6 +286,25 @@ TEST(SimdLevels, ResolveFallsBackToBestWithAReason) {
       EXPECT_EQ(simd::resolveLevel(simd::levelName(l), &msg), simd::best());
       EXPECT_NE(msg.find("cannot run it"), std::string::npos) << msg;
     }
+  }
+}
+
+// The public build-info call (logged by the nodelets) follows the level in force.
+TEST(SimdLevels, BuildInfoNamesTheLevelInForce) {
+  for (simd::Level level : {simd::Level::kPortable, simd::best()}) {
+    simd::ScopedLevel scoped(level);
+    ASSERT_TRUE(scoped.ok());
+    const gf::BuildInfo info = gf::buildInfo();
+    EXPECT_EQ(info.simd_level, simd::levelName(level));
+    EXPECT_EQ(info.simd_best, simd::levelName(simd::best()));
+    EXPECT_EQ(info.summary.find(simd::describe()), 0u) << info.summary;
+    EXPECT_FALSE(info.compiler.empty());
+    EXPECT_NE(info.summary.find(info.compiler), std::string::npos) << info.summary;
+    // Without the CUDA backend in the build, the GPU is never available, and the note says why.
+    if (!info.cuda_built) EXPECT_FALSE(info.cuda_available);
+    EXPECT_EQ(info.cuda_note.empty(), info.cuda_available) << info.cuda_note;
+    EXPECT_NE(info.summary.find(info.cuda_available ? "CUDA yes" : "CUDA no ("), std::string::npos)
+        << info.summary;
   }
 }
 
