@@ -300,12 +300,21 @@ TEST(SimdLevels, BuildInfoNamesTheLevelInForce) {
     EXPECT_EQ(info.summary.find(simd::describe()), 0u) << info.summary;
     EXPECT_FALSE(info.compiler.empty());
     EXPECT_NE(info.summary.find(info.compiler), std::string::npos) << info.summary;
-    // Without the CUDA backend in the build, the GPU is never available, and the note says why.
-    if (!info.cuda_built) EXPECT_FALSE(info.cuda_available);
-    EXPECT_EQ(info.cuda_note.empty(), info.cuda_available) << info.cuda_note;
-    EXPECT_NE(info.summary.find(info.cuda_available ? "CUDA yes" : "CUDA no ("), std::string::npos)
+    // Not probed: the GPU is not asked; the line says whether CUDA is built.
+    EXPECT_FALSE(info.cuda_probed);
+    EXPECT_FALSE(info.cuda_available);
+    EXPECT_NE(info.summary.find(info.cuda_built ? "CUDA built" : "CUDA not built"),
+              std::string::npos)
         << info.summary;
   }
+  // Probed: without the CUDA backend in the build the GPU is never available; the note says why.
+  const gf::BuildInfo probed = gf::buildInfo(true);
+  EXPECT_TRUE(probed.cuda_probed);
+  if (!probed.cuda_built) EXPECT_FALSE(probed.cuda_available);
+  EXPECT_EQ(probed.cuda_note.empty(), probed.cuda_available) << probed.cuda_note;
+  EXPECT_NE(probed.summary.find(probed.cuda_available ? "CUDA yes" : "CUDA no ("),
+            std::string::npos)
+      << probed.summary;
 }
 
 // The child side of EnvironmentIsReadOncePerProcess: prints what GF_SIMD gave this process.

@@ -19,7 +19,7 @@ std::string compilerName() {
 
 }  // namespace
 
-BuildInfo buildInfo() {
+BuildInfo buildInfo(bool probe_gpu) {
   BuildInfo info;
   info.simd_level = simd::levelName(simd::active());
   info.simd_best = simd::levelName(simd::best());
@@ -28,9 +28,13 @@ BuildInfo buildInfo() {
 #if defined(GROUND_FILTER_HAVE_CUDA)
   info.cuda_built = true;
 #endif
-  info.cuda_available = neighborSearchAvailable("gpu", &info.cuda_note);
-  info.summary = simd::describe() + "; " + info.compiler + "; CUDA " +
-                 (info.cuda_available ? std::string("yes") : "no (" + info.cuda_note + ")");
+  std::string cuda = info.cuda_built ? "built" : "not built";
+  if (probe_gpu) {
+    info.cuda_probed = true;
+    info.cuda_available = neighborSearchAvailable("gpu", &info.cuda_note);
+    cuda = info.cuda_available ? "yes" : "no (" + info.cuda_note + ")";
+  }
+  info.summary = simd::describe() + "; " + info.compiler + "; CUDA " + cuda;
   return info;
 }
 
