@@ -8,6 +8,23 @@ filters and WorkingVolume::validate().
 from dynamic_reconfigure.parameter_generator_catkin import double_t, int_t
 
 
+# ---- height above ground (issue 42): the band of ~obstacles (src/nodelets/hag_outputs.h).
+# Nodelet-only parameters (no filter table row: test_param_tables' kNodeletOnly); the private
+# start parameters hag_field, hag_cell, hag_radius are in src/nodelets/hag_outputs.cpp
+# (hagParamChecks(), HagOutputs::init()).
+def add_height_above_ground_parameters(gen):
+    """Adds the obstacle band of ~obstacles (group "height_above_ground"); min < max is checked
+    by the nodelet (a set with min >= max is refused)."""
+    hag = gen.add_group("height_above_ground", type="")
+    hag.add("obstacle_min_height", double_t, 0,
+            "~obstacles: non-ground points at least this high above the ground surface; below "
+            "obstacle_max_height [m]", 0.2, -10.0, 100.0)
+    hag.add("obstacle_max_height", double_t, 0,
+            "~obstacles: non-ground points at most this high above the ground surface (an "
+            "overhang above it is left out) [m]", 2.5, -10.0, 1000.0)
+# ---- end height above ground
+
+
 def add_common_parameters(gen, performance, threads_default=1, threads_note=""):
     """Adds the parameters every ground filter nodelet has (level 0: all rebuild the filter).
 
@@ -33,3 +50,4 @@ def add_common_parameters(gen, performance, threads_default=1, threads_note=""):
                "part in the ground model, are non-ground and counted (near points); below "
                "max_range; 0 = off; see also the private parameter body_box [m]",
                0.0, 0.0, 5000.0)
+    add_height_above_ground_parameters(gen)

@@ -15,9 +15,15 @@ by the input queue policy (no "dropped" reason and no filter error in the diagno
 least-squares trend of 20 s window medians is printed too, for information: with clouds in
 flight RSS swings by ~150 MB within seconds, more than the limit.
 
-  soak.py run --minutes M [--results DIR] [--rate HZ] [--scan PATH]
+A robot's load (--robot-load): the parameters stay as the launch files set them (no
+reconfigurer, no publisher restart) and two more cases must pass: no cloud lost (every published
+cloud processed and published by every nodelet) and the callback-to-publish p99 below the scan
+period. --nodelets picks which nodelets run, --simd sets GF_SIMD for the manager.
+
+  soak.py run --minutes M [--results DIR] [--rate HZ] [--scan PATH] [--nodelets voxel,normal]
+              [--simd LEVEL] [--robot-load]
   soak.py publish --scan PATH --rate HZ        (child process)
-  soak.py reconfigure                          (child process)
+  soak.py reconfigure --nodelets LIST          (child process)
 """
 import argparse
 import os
@@ -44,6 +50,11 @@ def publish(scan_path, rate):
     rospy.init_node("soak_publisher", anonymous=True, disable_signals=True)
     pub = rospy.Publisher(INPUT, PointCloud2, queue_size=2)
     msg = make_bag.to_message(scan, "os_sensor", rospy.Time.now(), 0)
+    # Clouds published before the manager has connected would count as lost.
+    deadline = time.monotonic() + 30.0
+    while pub.get_num_connections() == 0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.5)
     period = 1.0 / rate
     n = 0
     stop = []
@@ -90,11 +101,11 @@ NORMAL_SETS = [
 ]
 
 
-def reconfigure():
+def reconfigure(nodelets):
     import rospy
     import dynamic_reconfigure.client as drc
     rospy.init_node("soak_reconfigure", anonymous=True)
-    clients = {name: drc.Client("/" + name, timeout=30) for name in NODELETS}
+    clients = {name: drc.Client("/" + name, timeout=30) for name in nodelets}
     sets = {"soak_voxel": VOXEL_SETS, "soak_normal": NORMAL_SETS}
     i = 0
     while not rospy.is_shutdown():
@@ -123,6 +134,16 @@ def rss_kb(pid):
             if line.startswith("VmRSS:"):
                 return int(line.split()[1])
     return None
+
+
+def cpu_s(pid):
+    """User + system CPU seconds of process `pid` (all its threads); None when gone."""
+    try:
+        with open("/proc/%d/stat" % pid) as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / float(os.sysconf("SC_CLK_TCK"))
+    except (OSError, IndexError, ValueError):
+        return None
 
 
 def percentile(values, q):
@@ -175,6 +196,9 @@ def run(args):
     from std_msgs.msg import Float64
 
     env = dict(os.environ)
+    nodelets = {n: NODELETS[n] for n in args.nodelets}
+    if args.simd:
+        env["GF_SIMD"] = args.simd
     procs = []
     logdir = os.path.join(ROOT, ".ws", "soak_logs")
     os.makedirs(logdir, exist_ok=True)
@@ -212,7 +236,7 @@ def run(args):
                                     "nodelet", "manager", "__name:=soak_manager"])
         trim = ([] if args.malloc_trim_period is None
                 else ["_malloc_trim_period:=%g" % args.malloc_trim_period])
-        for name, plugin in NODELETS.items():
+        for name, plugin in nodelets.items():
             # --no-bond: on a machine loaded far past its cores (other builds), the loader's
             # bond heartbeats timed out after ~60 s and the manager unloaded both nodelets
             # ("Bond broken, exiting"); the soak measures the manager, not bondcpp.
@@ -225,13 +249,13 @@ def run(args):
             names = dict(subs).get(INPUT, [])
             return len(names) >= 1 and all(
                 any(t == "/%s/ground" % n for t, _ in master.getPublishedTopics(""))
-                for n in NODELETS)
+                for n in nodelets)
         if not wait_for(subscribed, 60, "the nodelets"):
             raise RuntimeError("nodelets did not come up")
         rospy.init_node("soak_monitor", anonymous=True, disable_signals=True)
 
-        outputs = {n: {"ground": {}, "nonground": {}} for n in NODELETS}
-        latency = {n: [] for n in NODELETS}
+        outputs = {n: {"ground": {}, "nonground": {}} for n in nodelets}
+        latency = {n: [] for n in nodelets}
         diag = {}
 
         def on_output(msg, key):
@@ -243,12 +267,12 @@ def run(args):
 
         def on_diag(msg):
             for st in msg.status:
-                for n in NODELETS:
+                for n in nodelets:
                     if st.name.startswith("/" + n + ":") or st.name.startswith(n + ":"):
                         diag[n] = {kv.key: kv.value for kv in st.values}
 
         subs = []
-        for n in NODELETS:
+        for n in nodelets:
             for part in ("ground", "nonground"):
                 subs.append(rospy.Subscriber("/%s/%s" % (n, part), rospy.AnyMsg, on_output,
                                              (n, part), queue_size=50))
@@ -260,10 +284,12 @@ def run(args):
         warmup_s = min(60.0, total_s / 4.0)
         pub_cmd = [sys.executable, os.path.abspath(__file__), "publish", "--scan", args.scan,
                    "--rate", str(args.rate)]
-        reconf = start("reconfigure", [sys.executable, os.path.abspath(__file__), "reconfigure"])
+        reconf = None if args.robot_load else start(
+            "reconfigure", [sys.executable, os.path.abspath(__file__), "reconfigure",
+                            "--nodelets", ",".join(nodelets)])
         publishers = [start("publisher1", pub_cmd)]
         import dynamic_reconfigure.client as drc
-        ref_clients = {n: drc.Client("/" + n, timeout=30) for n in NODELETS}
+        ref_clients = {n: drc.Client("/" + n, timeout=30) for n in nodelets}
 
         def quiescent_rss():
             """RSS of the idle manager with the reference parameters: the reconfigurer is
@@ -272,11 +298,13 @@ def run(args):
             malloc_trim has run; median of 5 samples 1 s apart. The same state at warm-up end
             and at the end, so their difference is retained memory, not the working set of
             the clouds in flight (which swings by ~150 MB at 20 Hz)."""
-            os.killpg(reconf.pid, signal.SIGSTOP)
+            if reconf is not None:
+                os.killpg(reconf.pid, signal.SIGSTOP)
             try:
-                for n, client in ref_clients.items():
-                    client.update_configuration(REFERENCE_SETS[n])
-                time.sleep(5.0)
+                if reconf is not None:  # a robot-load run keeps the launch parameters
+                    for n, client in ref_clients.items():
+                        client.update_configuration(REFERENCE_SETS[n])
+                    time.sleep(5.0)
                 os.killpg(publishers[-1].pid, signal.SIGSTOP)
                 try:
                     time.sleep(10.0)
@@ -287,16 +315,18 @@ def run(args):
                 finally:
                     os.killpg(publishers[-1].pid, signal.SIGCONT)
             finally:
-                os.killpg(reconf.pid, signal.SIGCONT)
+                if reconf is not None:
+                    os.killpg(reconf.pid, signal.SIGCONT)
             samples = sorted(k for k in samples if k is not None)
             return samples[len(samples) // 2] if samples else None
 
         t0 = time.monotonic()
+        cpu_mark = cpu_end = None
         rss = []
         restarted = False
         quiet = {}
         print("[soak] %g min at %g Hz of %s into %s (warm-up %.0f s)"
-              % (args.minutes, args.rate, os.path.basename(args.scan), ", ".join(NODELETS),
+              % (args.minutes, args.rate, os.path.basename(args.scan), ", ".join(nodelets),
                  warmup_s))
         while time.monotonic() - t0 < total_s:
             time.sleep(1.0)
@@ -309,13 +339,17 @@ def run(args):
             if "start" not in quiet and t >= warmup_s:
                 quiet["start"] = quiescent_rss()
                 quiet["start_t"] = time.monotonic() - t0
+                cpu_mark = (time.monotonic(), cpu_s(manager.pid),
+                            {n: float(diag.get(n, {}).get("clouds out", "nan")) for n in nodelets})
                 print("[soak] quiescent RSS after warm-up: %s KB" % quiet["start"])
             if "end" not in quiet and t >= total_s - 20.0 and "start" in quiet:
+                cpu_end = (time.monotonic(), cpu_s(manager.pid),
+                           {n: float(diag.get(n, {}).get("clouds out", "nan")) for n in nodelets})
                 quiet["end"] = quiescent_rss()
                 quiet["end_t"] = time.monotonic() - t0
                 print("[soak] quiescent RSS at the end: %s KB" % quiet["end"])
                 break
-            if not restarted and t >= total_s / 2:
+            if not restarted and not args.robot_load and t >= total_s / 2:
                 stop(publishers[-1])
                 time.sleep(1.0)
                 publishers.append(start("publisher2", pub_cmd))
@@ -323,7 +357,8 @@ def run(args):
                 print("[soak] publisher restarted at %.0f s" % t)
         for p in publishers:
             stop(p)
-        stop(reconf)
+        if reconf is not None:
+            stop(reconf)
         time.sleep(3.0)  # outputs still in flight, one more diagnostic update
         alive = manager.poll() is None
         published = 0
@@ -332,8 +367,10 @@ def run(args):
                 for line in f:
                     if line.startswith("published "):
                         published += int(line.split()[1])
-        with open(os.path.join(logdir, "reconfigure.log")) as f:
-            reconf_text = f.read().strip().splitlines()[-1:] or ["?"]
+        reconf_text = ["parameters fixed (robot load)"]
+        if reconf is not None:
+            with open(os.path.join(logdir, "reconfigure.log")) as f:
+                reconf_text = f.read().strip().splitlines()[-1:] or ["?"]
 
         # ---- report
         expected = None
@@ -346,8 +383,11 @@ def run(args):
                  "alive" if alive else "DEAD (exit %s)" % manager.returncode))
         conserved_ok = True
         drops_ok = True
+        none_lost = True
+        p99_ok = True
+        period_ms = 1000.0 / args.rate
         lines = []
-        for n in NODELETS:
+        for n in nodelets:
             g, ng = outputs[n]["ground"], outputs[n]["nonground"]
             pairs = set(g) & set(ng)
             bad = [s for s in pairs if g[s] + ng[s] != expected]
@@ -370,9 +410,22 @@ def run(args):
                    d.get("refused parameter sets", "?"), oor, percentile(lat, 50),
                    percentile(lat, 99), max(lat) if lat else float("nan"), len(lat)))
             conserved_ok &= not bad and len(pairs) > 0
+            none_lost &= clouds_in == published and clouds_out == clouds_in and not unpaired
+            p99_ok &= bool(lat) and percentile(lat, 99) < period_ms
             drops_ok &= clouds_in >= 0 and all(v == 0 for v in reasons.values()) and ferr == 0
         for line in lines:
             print(line)
+        if cpu_mark and cpu_end and cpu_mark[1] is not None and cpu_end[1] is not None:
+            # The manager's CPU between the two quiescent samples (publisher paused during the
+            # first one's last 15 s only): cores it kept busy, and CPU per cloud when one nodelet
+            # runs (the cores a rate needs = CPU per cloud x rate).
+            wall = cpu_end[0] - cpu_mark[0]
+            cpu = cpu_end[1] - cpu_mark[1]
+            out = sum(cpu_end[2][n] - cpu_mark[2][n] for n in nodelets)
+            per_cloud = ("%.1f ms CPU per cloud out (%d clouds)" % (1000.0 * cpu / out, out)
+                         if len(nodelets) == 1 and out > 0 else "per-cloud CPU: run one nodelet")
+            print("[soak] manager CPU after warm-up: %.1f s in %.1f s wall = %.2f cores busy; %s"
+                  % (cpu, wall, cpu / wall if wall > 0 else float("nan"), per_cloud))
         # Informative only: the trend of the medians of 20 s windows (one full cycle of both
         # reconfigure lists) while clouds are in flight.
         after = [(t, k) for t, k in rss if t >= warmup_s]
@@ -411,6 +464,11 @@ def run(args):
              % (quiet.get("start"), quiet.get("end"), quiet_min, quiet_growth, limit_kb, trend)),
             ("drops_only_by_queue_policy", drops_ok, "\n".join(lines)),
         ]
+        if args.robot_load:
+            results += [
+                ("no_cloud_lost", none_lost, "\n".join(lines)),
+                ("latency_p99_below_%.0fms" % period_ms, p99_ok, "\n".join(lines)),
+            ]
     except Exception as e:  # reported as a failed case: the summary must not miss it
         print("[soak] FAILED: %s" % e)
         results = [("soak_setup", False, str(e))]
@@ -436,13 +494,27 @@ def main():
                    help="scan to publish (default: unlabelled/os128_000000.pcd of the data "
                    "folder, scripts/gf_data.py)")
     r.add_argument("--results", default="")
+    r.add_argument("--nodelets", default="voxel,normal",
+                   help="comma-separated: voxel, normal (default both, in one manager)")
+    r.add_argument("--simd", default="",
+                   help="GF_SIMD for the manager (e.g. avx2: the path of a CPU without AVX-512)")
+    r.add_argument("--robot-load", action="store_true",
+                   help="fixed parameters, no publisher restart; pass needs no cloud lost and "
+                   "latency p99 below the scan period")
     r.add_argument("--malloc-trim-period", type=float, default=None,
                    help="the nodelets' ~malloc_trim_period [s] (default: theirs, 1 s; 0 = off)")
     p = sub.add_parser("publish")
     p.add_argument("--scan", required=True)
     p.add_argument("--rate", type=float, default=20.0)
-    sub.add_parser("reconfigure")
+    c = sub.add_parser("reconfigure")
+    c.add_argument("--nodelets", default="soak_voxel,soak_normal")
     a = ap.parse_args()
+    if a.cmd == "run":
+        names = [n.strip() for n in a.nodelets.split(",") if n.strip()]
+        unknown = [n for n in names if "soak_" + n not in NODELETS]
+        if not names or unknown:
+            sys.exit("soak.py: --nodelets takes voxel and/or normal, not %s" % (unknown or "''"))
+        a.nodelets = ["soak_" + n for n in names]
     if a.cmd == "run" and a.scan is None:
         sys.path.insert(0, HERE)
         from gf_data import NoDataError, data_dir
@@ -453,7 +525,7 @@ def main():
     if a.cmd == "publish":
         return publish(a.scan, a.rate)
     if a.cmd == "reconfigure":
-        return reconfigure()
+        return reconfigure(a.nodelets.split(","))
     return run(a)
 
 

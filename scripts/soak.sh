@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
 # Soak test of the nodelets (scripts/soak.py says what it does and what passes).
 #   scripts/soak.sh [MINUTES] [--results DIR] [--rate HZ] [--scan PATH] [--malloc-trim-period S]
+#                   [--nodelets voxel,normal] [--simd LEVEL] [--robot-load]
+# A robot's load, e.g. 30 minutes at 10 Hz, both nodelets, the AVX2 path, parameters fixed:
+#   scripts/soak.sh 30 --rate 10 --simd avx2 --robot-load
 # Default 10 minutes at 20 Hz of unlabelled/os128_000000.pcd of the data folder ($GF_DATA_DIR,
 # data/ of bash scripts/get_data.sh, ../shared/data). Needs the catkin
 # build in .ws/ (scripts/run_tests.sh or gf_build). Starts its own roscore on a free port unless
@@ -11,9 +14,11 @@ MINUTES=10
 EXTRA=()
 while [ $# -gt 0 ]; do
   case "$1" in
-    --results|--rate|--scan|--malloc-trim-period) EXTRA+=("$1" "$2"); shift 2 ;;
+    --results|--rate|--scan|--malloc-trim-period|--nodelets|--simd) EXTRA+=("$1" "$2"); shift 2 ;;
+    --robot-load) EXTRA+=("$1"); shift ;;
     [0-9]*) MINUTES="$1"; shift ;;
-    *) echo "usage: $0 [MINUTES] [--results DIR] [--rate HZ] [--scan PATH] [--malloc-trim-period S]" >&2; exit 2 ;;
+    *) echo "usage: $0 [MINUTES] [--results DIR] [--rate HZ] [--scan PATH] [--malloc-trim-period S]" \
+         "[--nodelets voxel,normal] [--simd LEVEL] [--robot-load]" >&2; exit 2 ;;
   esac
 done
 set +u

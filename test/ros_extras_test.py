@@ -31,7 +31,8 @@ from rostest_helpers import RosTestCase  # noqa: E402
 
 REC = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4"), ("idx", "<u4")])
 LABELED = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4"),
-                    ("idx", "<u4"), ("ground", "u1"), ("pad", "V3")])
+                    ("idx", "<u4"), ("ground", "u1"), ("pad", "V3"),
+                    ("height_above_ground", "<f4")])
 
 
 def make_cloud(rec, frame_id, stamp):

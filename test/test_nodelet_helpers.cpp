@@ -343,9 +343,11 @@ std::vector<std::string> knownVoxelParamNames() {
 TEST(VoxelCfg, SameParameterNamesAsParams) {
   std::vector<std::string> cfg_names;
   for (const auto& d : gf::VoxelGroundFilterConfig::__getParamDescriptions__()) {
-    // max_range and min_range belong to the working volume around every filter, not to its
-    // Params.
-    if (d->name != "max_range" && d->name != "min_range") cfg_names.push_back(d->name);
+    // max_range and min_range belong to the working volume around every filter, the obstacle
+    // band to the height-above-ground outputs (hag_outputs.h), not to its Params.
+    if (d->name != "max_range" && d->name != "min_range" && d->name.rfind("obstacle_", 0) != 0) {
+      cfg_names.push_back(d->name);
+    }
   }
   std::vector<std::string> params_names = knownVoxelParamNames();
   ASSERT_FALSE(params_names.empty()) << "could not read the names from set()'s error message";
@@ -369,6 +371,7 @@ TEST(VoxelCfg, EveryParameterMapsToItsFieldAndItsRangeValidates) {
   ASSERT_FALSE(descriptions.empty());
   for (const auto& d : descriptions) {
     if (d->name == "max_range" || d->name == "min_range") continue;  // WorkingVolume, below
+    if (d->name.rfind("obstacle_", 0) == 0) continue;  // ObstacleBand (test_hag_outputs)
     if (d->type == "str") continue;  // no range: an enum (scan_type's values: test_scan_type)
     for (const auto* bound :
          {&gf::VoxelGroundFilterConfig::__getMin__(), &gf::VoxelGroundFilterConfig::__getMax__()}) {

@@ -17,7 +17,8 @@ namespace gf = ground_filter;
 namespace {
 
 // cfg parameters that belong to the nodelet, not to a filter's params struct.
-const std::set<std::string> kNodeletOnly = {"max_range", "min_range"};
+const std::set<std::string> kNodeletOnly = {"max_range", "min_range", "obstacle_min_height",
+                                            "obstacle_max_height"};
 
 double asDouble(const boost::any& v) {
   if (v.type() == typeid(double)) return boost::any_cast<double>(v);

@@ -400,7 +400,7 @@ TEST(SceneGenerator, AirborneTileHasExactTruthAndRelief) {
 TEST(SceneGenerator, InvalidParametersAreRefused) {
   SceneParams p;
   p.mode = SceneParams::Mode::kTls;
-  p.tls_points = 6000000;  // over the 5 M budget
+  p.tls_points = 200000000;  // over the 100 M budget
   EXPECT_THROW(generateScene(p), std::invalid_argument);
   SceneParams q;
   q.beams = 0;

@@ -1,6 +1,5 @@
 #include "ground_filter_nodelet.h"
 
-#include <algorithm>
 #include <boost/make_shared.hpp>
 #include <chrono>
 #include <exception>
@@ -45,6 +44,7 @@ void GroundFilterNodelet::checkParams() {
     if (pnh_->getParam(key, v)) set[key] = v;
   }
   std::vector<ParamCheck> known = baseParamChecks();
+  for (const ParamCheck& c : hagParamChecks()) known.push_back(c);
   for (const ParamCheck& c : leafParams()) known.push_back(c);
   std::vector<std::string> refused;
   for (const std::string& e : checkPrivateParams(set, known, &refused)) {
@@ -264,6 +264,7 @@ void GroundFilterNodelet::processCloud(const sensor_msgs::PointCloud2ConstPtr& m
   const bool finite = sampledCentre(*msg, layout, 4096, centre);
   monitor_.recordCentre(finite ? centre : nullptr, msg->header.frame_id);
   ProcessedCloud out;
+  HagClouds hag;
   {
     std::lock_guard<std::mutex> lock(process_mutex_);
     std::string build_error;
@@ -287,10 +288,12 @@ void GroundFilterNodelet::processCloud(const sensor_msgs::PointCloud2ConstPtr& m
     processPointCloud2(*msg, layout, filter_.get(), to_gravity, outputs_->wantLabeled(), &buffers_,
                        &out);
     if (!build_error.empty()) out.filter_error = build_error;
+    outputs_->hag().process(*msg, layout, to_gravity, buffers_,
+                            to_gravity ? tf_wait_->frame() : msg->header.frame_id, &out, &hag);
     if (!out.filter_error.empty()) filter_.reset();  // rebuilt from scratch for the next cloud
   }
   outputs_->publish(
-      out,
+      out, hag,
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
 }
 

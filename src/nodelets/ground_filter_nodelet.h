@@ -78,6 +78,9 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   /// \brief Counters for logs and diagnostics.
   const Counters& counters() const { return monitor_.counters(); }
 
+  /// \brief Installs a validated obstacle band of ~obstacles (height above ground).
+  void setObstacleBand(const ObstacleBand& band) { outputs_->hag().setBand(band); }
+
  private:
   /// One installed configuration; its address identifies it, so the cloud callback can tell
   /// when its filter object is stale.

@@ -19,12 +19,14 @@ void OutputPublisher::advertise(ros::NodeHandle& pnh, const AdvertiseLazy& lazy)
   // Plain advertise: a timing subscriber alone must not start the input subscription.
   pub_time_ = pnh.advertise<std_msgs::Float64>("processing_time_ms", 10);
   pub_labeled_ = lazy("labeled");
+  hag_.init(pnh, lazy("ground_surface"), lazy("obstacles"));
 }
 
-void OutputPublisher::publish(const ProcessedCloud& out, double ms) {
+void OutputPublisher::publish(const ProcessedCloud& out, const HagClouds& hag, double ms) {
   pub_ground_.publish(sensor_msgs::PointCloud2ConstPtr(out.ground));
   pub_nonground_.publish(sensor_msgs::PointCloud2ConstPtr(out.nonground));
   if (out.labeled) pub_labeled_.publish(sensor_msgs::PointCloud2ConstPtr(out.labeled));
+  hag_.publish(hag);
   NodeletMonitor::Counters& counters = monitor_->counters();
   ++counters.clouds_out;
   counters.invalid_points += out.counts.invalid;
@@ -41,6 +43,9 @@ void OutputPublisher::publish(const ProcessedCloud& out, double ms) {
   }
   if (!out.labeled_error.empty() && monitor_->logNow(NodeletMonitor::kLabeled)) {
     NODELET_WARN("%s: ~labeled not published: %s", method, out.labeled_error.c_str());
+  }
+  if (!hag.error.empty() && monitor_->logNow(NodeletMonitor::kLabeled)) {
+    NODELET_WARN("%s: no height_above_ground field: %s", method, hag.error.c_str());
   }
   const std::string& note = out.stats.note;
   if (!note.empty()) {

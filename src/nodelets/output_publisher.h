@@ -7,6 +7,7 @@
 #include <functional>
 #include <string>
 
+#include "hag_outputs.h"
 #include "nodelet_monitor.h"
 #include "point_cloud2.h"
 
@@ -17,7 +18,8 @@ namespace ground_filter {
 ///        per-cloud entries, throttled logs of filter errors, fallbacks and far points.
 ///
 /// The one place where a filtered cloud goes out: an extra output is advertised in advertise()
-/// and published in publish() from what ProcessedCloud carries.
+/// and published in publish() from what ProcessedCloud (and HagClouds: height above ground)
+/// carries.
 class OutputPublisher {
  public:
   /// \brief Advertises a lazy PointCloud2 output (NodeletLazy::advertise(): its subscribers
@@ -33,8 +35,12 @@ class OutputPublisher {
   /// \brief True while `~labeled` has subscribers (only then is it built).
   bool wantLabeled() const { return pub_labeled_.getNumSubscribers() > 0; }
 
-  /// \brief Publishes one processed cloud and records its counts, time [ms] and backend.
-  void publish(const ProcessedCloud& out, double ms);
+  /// \brief Height above ground: its parameters, ~ground_surface and ~obstacles.
+  HagOutputs& hag() { return hag_; }
+
+  /// \brief Publishes one processed cloud (and its height-above-ground clouds) and records its
+  ///        counts, time [ms] and backend.
+  void publish(const ProcessedCloud& out, const HagClouds& hag, double ms);
 
   /// \brief The nodelet's name: the NODELET_* log macros use it.
   const std::string& getName() const { return name_; }
@@ -48,6 +54,7 @@ class OutputPublisher {
   ros::Publisher pub_labeled_;
   ros::Publisher pub_time_;
   std::string logged_note_;  // last backend note written to the log
+  HagOutputs hag_;           // height above ground: fields, ~ground_surface, ~obstacles
 };
 
 }  // namespace ground_filter

@@ -63,9 +63,11 @@ class ReconfigurableFilterNodelet : public GroundFilterNodelet {
     volume.max_range = config.max_range;
     volume.min_range = config.min_range;
     volume.body_box = bodyBox();
+    ObstacleBand band{config.obstacle_min_height, config.obstacle_max_height};
     try {
       params.validate();
       volume.validate();
+      band.validate();
     } catch (const std::invalid_argument& e) {
       reportRejectedConfig(e.what());
       // The server publishes `config` after this returns: show what is really in use.
@@ -77,6 +79,7 @@ class ReconfigurableFilterNodelet : public GroundFilterNodelet {
       params = paramsFromConfigTable<Params>(config);
       volume.max_range = config.max_range;
       volume.min_range = config.min_range;
+      band = ObstacleBand{config.obstacle_min_height, config.obstacle_max_height};
       try {
         volume.validate();
       } catch (const std::invalid_argument&) {
@@ -86,6 +89,7 @@ class ReconfigurableFilterNodelet : public GroundFilterNodelet {
     last_good_ = config;
     have_good_ = true;
     onParamsAccepted(params);
+    setObstacleBand(band);
     setFilterFactory([params]() { return std::make_unique<Filter>(params); }, volume,
                      params.describe());
   }

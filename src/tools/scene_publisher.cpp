@@ -20,7 +20,7 @@
 //                                sweep), verge, offroad, trail (fixed scanner, new noise)
 //   ~seed (int, 1)               scene layout seed
 //   ~speed (double, 10)          sensor speed along the road [m/s]
-//   ~tls_points (int, 2000000)   TLS point budget [points] (1 k..5 M)
+//   ~tls_points (int, 2000000)   TLS point budget [points] (1 k..100 M)
 //   ~nan_points (int, 0)         NaN points added to each scan (robustness demo) [points]
 #include <pcl_conversions/pcl_conversions.h>
 #include <ros/ros.h>

@@ -23,7 +23,7 @@ struct SceneParams {
   /// \brief Scanner model.
   enum class Mode {
     kLidar64,   ///< spinning 64-beam LiDAR on a car (HDL-64-like), ~100 k returns
-    kTls,       ///< terrestrial laser scanner on a tripod: dense spherical sweep, 1-5 M returns
+    kTls,       ///< terrestrial laser scanner on a tripod: dense spherical sweep, 1-100 M returns
     kAirborne,  ///< nadir airborne scan of its own hilly world with buildings, trees, bushes and
                 ///< cars (layout ignored): airborne_density points per m2, world frame
     kUav,       ///< low UAV line scanner flying along world x over the layout, uav_height up,
@@ -58,7 +58,7 @@ struct SceneParams {
   bool uniform_beams = false;  ///< beams evenly spread (Ouster) instead of HDL-64's split (false)
 
   // Terrestrial scanner (kTls).
-  std::size_t tls_points = 2000000;      ///< point budget, never exceeded [points] (2 M; 1 k..5 M)
+  std::size_t tls_points = 2000000;      ///< point budget, never exceeded [points] (2 M; 1 k..100 M)
   double tls_min_elevation_deg = -60.0;  ///< lowest ray elevation [deg] (-60)
   double tls_max_elevation_deg = 60.0;   ///< highest ray elevation [deg] (60)
   double tls_max_range = 120.0;          ///< farther hits give no return [m] (120)

@@ -228,22 +228,37 @@ bool GroundSurface::idw(int i, int j, Centre* out) const {
   const int reach = static_cast<int>(std::floor(radius_ / cell_));
   const int side = 2 * reach + 1;
   const float cell = static_cast<float>(cell_);
-  float sw = 0.f, sz = 0.f;
+  // Two partial sums (even / odd ii): two add chains instead of one; dx kept as a float that
+  // steps by the cell (an int-to-float conversion a term was the slow part).
+  float sw0 = 0.f, sw1 = 0.f, sz0 = 0.f, sz1 = 0.f;
   const int i_lo = std::max(0, i - reach), i_hi = std::min(nx_ - 1, i + reach);
+  const float* kernel = kernel_.data();
+  const float *occ = occ_.data(), *zs = z_.data(), *gxs = gx_.data(), *gys = gy_.data();
+  const float dx_lo = static_cast<float>(i - i_lo) * cell;
   for (int jj = std::max(0, j - reach); jj <= std::min(ny_ - 1, j + reach); ++jj) {
-    // kernel_ entry of (ii, jj): k0 + ii.
-    const std::ptrdiff_t k0 = static_cast<std::ptrdiff_t>(jj - j + reach) * side + reach - i;
+    // kernel entry of (ii, jj): k[ii]; grid cell: row + ii.
+    const float* k = kernel + (static_cast<std::ptrdiff_t>(jj - j + reach) * side + reach - i);
     const std::size_t row = static_cast<std::size_t>(jj) * nx_;
+    const float *o = occ + row, *zr = zs + row, *gxr = gxs + row, *gyr = gys + row;
     const float dy = static_cast<float>(j - jj) * cell;
-    for (int ii = i_lo; ii <= i_hi; ++ii) {
-      const std::size_t g = row + ii;
-      const float w = kernel_[static_cast<std::size_t>(k0 + ii)] * occ_[g];
-      sw += w;
-      sz += w * (z_[g] + gx_[g] * static_cast<float>(i - ii) * cell + gy_[g] * dy);
+    float dx = dx_lo;
+    int ii = i_lo;
+    for (; ii + 1 <= i_hi; ii += 2, dx -= 2.f * cell) {
+      const float w0 = k[ii] * o[ii], w1 = k[ii + 1] * o[ii + 1];
+      sw0 += w0;
+      sw1 += w1;
+      sz0 += w0 * (zr[ii] + gxr[ii] * dx + gyr[ii] * dy);
+      sz1 += w1 * (zr[ii + 1] + gxr[ii + 1] * (dx - cell) + gyr[ii + 1] * dy);
+    }
+    if (ii <= i_hi) {
+      const float w = k[ii] * o[ii];
+      sw0 += w;
+      sz0 += w * (zr[ii] + gxr[ii] * dx + gyr[ii] * dy);
     }
   }
-  *out = sw > 0.f ? Centre{sz / sw, 1.f} : Centre{0.f, 0.f};
-  return sw > 0.f;
+  const float w = sw0 + sw1, z = sz0 + sz1;
+  *out = w > 0.f ? Centre{z / w, 1.f} : Centre{0.f, 0.f};
+  return w > 0.f;
 }
 
 // Fills the empty cells that a point of the build cloud may blend (its cell and the 8 around).
@@ -421,11 +436,15 @@ void GroundSurface::heights(const CloudView& cloud, std::vector<float>* out) con
       h[i] = z - slowElevation(x, y);
       continue;
     }
-    const float wa = (1.f - tx) * (1.f - ty) * a.has, wb = tx * (1.f - ty) * b.has;
-    const float wc = (1.f - tx) * ty * c.has, wd = tx * ty * d.has;
-    const float sw = wa + wb + wc + wd;
+    const float wa = (1.f - tx) * (1.f - ty), wb = tx * (1.f - ty);
+    const float wc = (1.f - tx) * ty, wd = tx * ty;
     // An undefined cell holds z = 0 and weight 0.
     const float sz = wa * a.z + wb * b.z + wc * c.z + wd * d.z;
+    if (a.has + b.has + c.has + d.has == 4.f) {
+      h[i] = z - sz;  // the common case: no renormalisation (no division)
+      continue;
+    }
+    const float sw = wa * a.has + wb * b.has + wc * c.has + wd * d.has;
     h[i] = sw > 1e-6f ? z - sz / sw : kNaN;
   }
 }

@@ -451,7 +451,7 @@ void SceneParams::validate() const {
   checkRange("vertical_max_deg", vertical_max_deg, vertical_min_deg, 89.0, "deg");
   checkRange("min_range", min_range, 0.0, 10.0, "m");
   checkRange("lidar_max_range", lidar_max_range, min_range + 0.1, 1000.0, "m");
-  checkRange("tls_points", static_cast<double>(tls_points), 1000.0, 5e6, "points");
+  checkRange("tls_points", static_cast<double>(tls_points), 1000.0, 1e8, "points");
   checkRange("tls_min_elevation_deg", tls_min_elevation_deg, -89.0, 89.0, "deg");
   checkRange("tls_max_elevation_deg", tls_max_elevation_deg, tls_min_elevation_deg + 1.0, 89.0,
              "deg");

@@ -1,0 +1,232 @@
+#include "hag_outputs.h"
+
+#include <sensor_msgs/PointField.h>
+
+#include <boost/make_shared.hpp>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+namespace ground_filter {
+
+namespace {
+
+sensor_msgs::PointField field(const char* name, std::uint32_t offset, std::uint8_t type) {
+  sensor_msgs::PointField f;
+  f.name = name;
+  f.offset = offset;
+  f.datatype = type;
+  f.count = 1;
+  return f;
+}
+
+}  // namespace
+
+void ObstacleBand::validate() const {
+  if (!(std::isfinite(min_height) && std::isfinite(max_height) && min_height < max_height)) {
+    std::ostringstream os;
+    os << "obstacle_min_height (" << min_height << " m) must be below obstacle_max_height ("
+       << max_height << " m)";
+    throw std::invalid_argument(os.str());
+  }
+}
+
+bool withFloatField(const sensor_msgs::PointCloud2& in, const char* name,
+                    const std::vector<float>& values, sensor_msgs::PointCloud2* out,
+                    std::string* why) {
+  const sensor_msgs::PointField* existing = nullptr;
+  for (const auto& f : in.fields) {
+    if (f.name == name) existing = &f;
+  }
+  const std::size_t in_step = in.point_step, n = std::size_t{in.width} * in.height;
+  std::size_t offset = (in_step + 3) / 4 * 4, step = offset + sizeof(float);
+  out->fields = in.fields;
+  if (existing) {
+    if (existing->datatype != sensor_msgs::PointField::FLOAT32 || existing->count != 1) {
+      if (why) *why = std::string("the input has a field '") + name + "' that is not a float32";
+      return false;
+    }
+    offset = existing->offset;
+    step = in_step;
+  } else {
+    out->fields.push_back(
+        field(name, static_cast<std::uint32_t>(offset), sensor_msgs::PointField::FLOAT32));
+  }
+  out->header = in.header;
+  out->height = in.height;
+  out->width = in.width;
+  out->is_bigendian = in.is_bigendian;
+  out->is_dense = in.is_dense;
+  out->point_step = static_cast<std::uint32_t>(step);
+  out->row_step = static_cast<std::uint32_t>(step * in.width);
+  out->data.assign(step * n, 0);
+  const std::uint8_t* src = in.data.data();
+  std::uint8_t* dst = out->data.data();
+  for (std::size_t i = 0; i < n; ++i, src += in_step, dst += step) {
+    std::memcpy(dst, src, in_step);
+    std::memcpy(dst + offset, &values[i], sizeof(float));
+  }
+  return true;
+}
+
+void makeSurfaceCloud(const GroundSurface& surface, const std_msgs::Header& header,
+                      sensor_msgs::PointCloud2* out) {
+  using PF = sensor_msgs::PointField;
+  const std::vector<SurfaceCell>& cells = surface.cells();
+  out->header = header;
+  out->fields = {field("x", 0, PF::FLOAT32), field("y", 4, PF::FLOAT32), field("z", 8, PF::FLOAT32),
+                 field("points", 12, PF::UINT32), field("confidence", 16, PF::FLOAT32)};
+  out->is_bigendian = false;
+  out->is_dense = true;
+  out->point_step = 20;
+  out->height = 1;
+  out->width = static_cast<std::uint32_t>(cells.size());
+  out->row_step = out->point_step * out->width;
+  out->data.resize(std::size_t{out->row_step});
+  std::uint8_t* dst = out->data.data();
+  for (const SurfaceCell& c : cells) {
+    std::memcpy(dst, &c.x, 4);
+    std::memcpy(dst + 4, &c.y, 4);
+    std::memcpy(dst + 8, &c.z, 4);
+    std::memcpy(dst + 12, &c.points, 4);
+    std::memcpy(dst + 16, &c.confidence, 4);
+    dst += 20;
+  }
+}
+
+void makeObstacleCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
+                       const std::vector<std::uint8_t>& labels, const std::vector<float>& heights,
+                       const ObstacleBand& band, sensor_msgs::PointCloud2* out) {
+  const float lo = static_cast<float>(band.min_height), hi = static_cast<float>(band.max_height);
+  auto inBand = [&](std::size_t i) {
+    return labels[i] == kNonGround && heights[i] >= lo && heights[i] <= hi;  // NaN: false
+  };
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < layout.points; ++i) n += inBand(i) ? 1 : 0;
+  const std::size_t step = layout.point_step;
+  out->header = in.header;
+  out->fields = in.fields;
+  out->is_bigendian = in.is_bigendian;
+  out->is_dense = true;  // a NaN/Inf record has a NaN height
+  out->point_step = in.point_step;
+  out->height = 1;
+  out->width = static_cast<std::uint32_t>(n);
+  out->row_step = static_cast<std::uint32_t>(n * step);
+  out->data.resize(n * step);
+  std::uint8_t* dst = out->data.data();
+  for (std::size_t r = 0, i = 0; r < layout.height; ++r) {
+    const std::uint8_t* rec = in.data.data() + r * layout.row_step;
+    for (std::size_t c = 0; c < layout.width; ++c, ++i, rec += step) {
+      if (!inBand(i)) continue;
+      std::memcpy(dst, rec, step);
+      dst += step;
+    }
+  }
+}
+
+void gatherByLabel(const std::vector<float>& heights, const std::vector<std::uint8_t>& labels,
+                   std::uint8_t label, std::vector<float>* out) {
+  out->clear();
+  for (std::size_t i = 0; i < labels.size(); ++i) {
+    if (labels[i] == label) out->push_back(heights[i]);
+  }
+}
+
+std::vector<ParamCheck> hagParamChecks() {
+  std::vector<ParamCheck> out(3);
+  out[0].name = "hag_field";
+  out[0].type = ParamCheck::Type::kBool;
+  out[1].name = "hag_cell";  // GroundSurfaceParams::validate()'s ranges
+  out[1].ranged = true;
+  out[1].min = 0.05;
+  out[1].max = 100.0;
+  out[2].name = "hag_radius";
+  out[2].ranged = true;
+  out[2].min = 0.0;
+  out[2].max = 1000.0;
+  return out;
+}
+
+void HagOutputs::init(const ros::NodeHandle& pnh, const ros::Publisher& surface,
+                      const ros::Publisher& obstacles) {
+  pub_surface_ = surface;
+  pub_obstacles_ = obstacles;
+  pnh.param("hag_field", hag_field_, false);
+  pnh.param("hag_cell", params_.cell, 1.0);
+  pnh.param("hag_radius", params_.radius, 5.0);
+}
+
+void HagOutputs::setBand(const ObstacleBand& band) {
+  std::lock_guard<std::mutex> lock(band_mutex_);
+  band_ = band;
+}
+
+void HagOutputs::process(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
+                         const Eigen::Isometry3d* to_gravity, const CloudProcessingBuffers& buffers,
+                         const std::string& frame, ProcessedCloud* out, HagClouds* clouds) {
+  const bool want_surface = pub_surface_.getNumSubscribers() > 0;
+  const bool want_obstacles = pub_obstacles_.getNumSubscribers() > 0;
+  const bool want_heights = out->labeled || hag_field_ || want_obstacles;
+  if (!want_heights && !want_surface) return;  // no surface build when no output wants it
+  const std::vector<std::uint8_t>& labels = buffers.labels;
+  // The view the filter saw: the transformed or packed x/y/z when there was one.
+  CloudView view;
+  if (layout.points && (to_gravity || !layout.contiguous)) {
+    view = CloudView::packedXyz(buffers.xyz.data(), layout.points);
+  } else if (layout.points) {
+    view = CloudView(in.data.data(), layout.points, layout.point_step, layout.x_offset,
+                     layout.y_offset, layout.z_offset);
+  }
+  // A failed filter labelled everything non-ground (and may have left `xyz` stale): no
+  // ground, no surface, every height NaN.
+  const bool failed =
+      !out->filter_error.empty() || view.size() != labels.size() ||
+      (view.size() && (to_gravity || !layout.contiguous) && buffers.xyz.size() < 3 * layout.points);
+  if (failed) view = CloudView();
+  surface_.build(view, failed ? std::vector<std::uint8_t>() : labels, params_);
+  if (want_surface) {
+    clouds->surface = boost::make_shared<sensor_msgs::PointCloud2>();
+    std_msgs::Header header = in.header;
+    header.frame_id = frame;
+    makeSurfaceCloud(surface_, header, clouds->surface.get());
+  }
+  if (!want_heights) return;
+  if (failed) {
+    heights_.assign(layout.points, std::numeric_limits<float>::quiet_NaN());
+  } else {
+    surface_.heights(view, &heights_);
+  }
+  if (want_obstacles) {
+    ObstacleBand band;
+    {
+      std::lock_guard<std::mutex> lock(band_mutex_);
+      band = band_;
+    }
+    clouds->obstacles = boost::make_shared<sensor_msgs::PointCloud2>();
+    makeObstacleCloud(in, layout, labels, heights_, band, clouds->obstacles.get());
+  }
+  auto addField = [&](sensor_msgs::PointCloud2Ptr* cloud, const std::vector<float>& values) {
+    auto with = boost::make_shared<sensor_msgs::PointCloud2>();
+    if (withFloatField(**cloud, kHeightFieldName, values, with.get(), &clouds->error)) {
+      *cloud = with;
+    }
+  };
+  if (out->labeled) addField(&out->labeled, heights_);
+  if (hag_field_) {
+    gatherByLabel(heights_, labels, kGround, &split_);
+    addField(&out->ground, split_);
+    gatherByLabel(heights_, labels, kNonGround, &split_);
+    addField(&out->nonground, split_);
+  }
+}
+
+void HagOutputs::publish(const HagClouds& clouds) {
+  if (clouds.surface) pub_surface_.publish(sensor_msgs::PointCloud2ConstPtr(clouds.surface));
+  if (clouds.obstacles) {
+    pub_obstacles_.publish(sensor_msgs::PointCloud2ConstPtr(clouds.obstacles));
+  }
+}
+
+}  // namespace ground_filter

@@ -1,0 +1,192 @@
+// The clouds of the height-above-ground outputs (src/nodelets/hag_outputs.h) without a ROS graph:
+// the float field, the surface cloud, the obstacle band, bad input (no ground, NaN, a point
+// below the surface).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "gf_test_clouds.h"
+#include "hag_outputs.h"
+
+namespace gf = ground_filter;
+using sensor_msgs::PointCloud2;
+using sensor_msgs::PointField;
+
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+float floatAt(const PointCloud2& c, std::size_t i, std::size_t offset) {
+  float v;
+  std::memcpy(&v, c.data.data() + i * c.point_step + offset, sizeof(float));
+  return v;
+}
+
+// 14-byte records: x, y, z (f32), id (u16: the point index); rows padded by `row_pad` bytes.
+struct Scene {
+  std::vector<float> xyz;
+  std::vector<std::uint8_t> labels;
+  void add(float x, float y, float z, std::uint8_t label) {
+    xyz.insert(xyz.end(), {x, y, z});
+    labels.push_back(label);
+  }
+  std::size_t size() const { return labels.size(); }
+  PointCloud2 cloud(std::uint32_t height = 1, std::uint32_t row_pad = 0) const {
+    const std::uint32_t w = static_cast<std::uint32_t>(size() / height);
+    return gf_test::buildCloud(
+        {gf_test::field("x", 0, PointField::FLOAT32), gf_test::field("y", 4, PointField::FLOAT32),
+         gf_test::field("z", 8, PointField::FLOAT32), gf_test::field("id", 12, PointField::UINT16)},
+        14, w, height, row_pad, 0xEE, 1, [&](std::uint8_t* rec, std::uint32_t i) {
+          std::memcpy(rec, &xyz[3 * i], 12);
+          const std::uint16_t id = static_cast<std::uint16_t>(i);
+          std::memcpy(rec + 12, &id, 2);
+        });
+  }
+};
+
+// A flat 10 m x 10 m ground (z 0, 0.25 m grid), a post (1 point every 0.1 m up to 3 m) at
+// (5.1, 5.1), a ditch point 0.4 m below the ground, a NaN point.
+Scene postScene() {
+  Scene s;
+  for (float y = 0.05f; y < 10.f; y += 0.25f) {
+    for (float x = 0.05f; x < 10.f; x += 0.25f) s.add(x, y, 0.f, gf::kGround);
+  }
+  for (float z = 0.05f; z < 3.f; z += 0.1f) s.add(5.1f, 5.1f, z, gf::kNonGround);
+  s.add(2.2f, 7.7f, -0.4f, gf::kNonGround);
+  s.add(kNaN, 1.f, 1.f, gf::kNonGround);
+  while (s.size() % 4) s.add(1.f, 1.f, 0.f, gf::kGround);  // 4 rows in cloud(4, ...)
+  return s;
+}
+
+}  // namespace
+
+TEST(HagOutputs, FloatFieldAppendedAlignedOrWrittenInPlace) {
+  const Scene s = postScene();
+  const PointCloud2 in = s.cloud();
+  std::vector<float> v(s.size());
+  for (std::size_t i = 0; i < v.size(); ++i) v[i] = 0.5f * static_cast<float>(i);
+  PointCloud2 out;
+  std::string why;
+  ASSERT_TRUE(gf::withFloatField(in, gf::kHeightFieldName, v, &out, &why)) << why;
+  ASSERT_EQ(out.fields.size(), 5u);
+  EXPECT_EQ(out.fields.back().name, "height_above_ground");
+  EXPECT_EQ(out.fields.back().offset, 16u);  // 14 rounded up to 4
+  EXPECT_EQ(out.point_step, 20u);
+  EXPECT_EQ(out.width, in.width);
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    ASSERT_EQ(std::memcmp(&out.data[i * 20], &in.data[i * 14], 14), 0);
+    ASSERT_EQ(floatAt(out, i, 16), v[i]);
+  }
+  // Again on its own output: the field is overwritten, the record does not grow.
+  for (float& x : v) x = -x;
+  PointCloud2 again;
+  ASSERT_TRUE(gf::withFloatField(out, gf::kHeightFieldName, v, &again, &why)) << why;
+  EXPECT_EQ(again.point_step, 20u);
+  EXPECT_EQ(again.fields.size(), 5u);
+  EXPECT_EQ(floatAt(again, 3, 16), v[3]);
+  // A field of that name but another type: refused, named.
+  PointCloud2 bad = in;
+  bad.fields[3].name = gf::kHeightFieldName;
+  EXPECT_FALSE(gf::withFloatField(bad, gf::kHeightFieldName, v, &again, &why));
+  EXPECT_NE(why.find("height_above_ground"), std::string::npos);
+}
+
+TEST(HagOutputs, ObstacleBandKeepsWholeRecordsInTheBand) {
+  const Scene s = postScene();
+  for (const std::uint32_t pad : {0u, 7u}) {
+    const PointCloud2 in = s.cloud(4, pad);
+    gf::CloudLayout layout;
+    ASSERT_EQ(gf::checkPointCloud2(in, &layout, nullptr), gf::CloudRejectReason::kNone);
+    gf::GroundSurface surface;
+    surface.build(gf::CloudView::packedXyz(s.xyz.data(), s.size()), s.labels,
+                  gf::GroundSurfaceParams());
+    std::vector<float> h;
+    surface.heights(gf::CloudView::packedXyz(s.xyz.data(), s.size()), &h);
+    PointCloud2 obs;
+    gf::ObstacleBand band;  // 0.2 .. 2.5 m
+    gf::makeObstacleCloud(in, layout, s.labels, h, band, &obs);
+    EXPECT_EQ(obs.header.frame_id, in.header.frame_id);
+    EXPECT_EQ(obs.point_step, 14u);
+    EXPECT_EQ(obs.height, 1u);
+    std::size_t want = 0;
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      want += s.labels[i] == gf::kNonGround && h[i] >= 0.2f && h[i] <= 2.5f;
+    }
+    EXPECT_EQ(want, 23u);  // the post from 0.25 to 2.45 m
+    ASSERT_EQ(obs.width, want);
+    for (std::size_t k = 0; k < obs.width; ++k) {
+      std::uint16_t id;
+      std::memcpy(&id, &obs.data[k * 14 + 12], 2);
+      EXPECT_NEAR(floatAt(obs, k, 8), s.xyz[3 * id + 2], 0.f);  // the record of point `id`
+      EXPECT_GE(h[id], 0.2f);
+    }
+    // The ditch point lies below the surface: a negative height, never an obstacle.
+    std::size_t ditch = 0;
+    while (s.xyz[3 * ditch + 2] != -0.4f) ++ditch;
+    EXPECT_NEAR(h[ditch], -0.4f, 1e-3f);
+  }
+}
+
+TEST(HagOutputs, NoGroundGivesNanHeightsEmptySurfaceNoObstacles) {
+  Scene s = postScene();
+  s.labels.assign(s.size(), gf::kNonGround);
+  const PointCloud2 in = s.cloud();
+  gf::CloudLayout layout;
+  ASSERT_EQ(gf::checkPointCloud2(in, &layout, nullptr), gf::CloudRejectReason::kNone);
+  gf::GroundSurface surface;
+  const gf::CloudView view = gf::CloudView::packedXyz(s.xyz.data(), s.size());
+  surface.build(view, s.labels, gf::GroundSurfaceParams());
+  std::vector<float> h;
+  surface.heights(view, &h);
+  for (const float x : h) ASSERT_TRUE(std::isnan(x));
+  PointCloud2 obs, surf;
+  gf::makeObstacleCloud(in, layout, s.labels, h, gf::ObstacleBand(), &obs);
+  EXPECT_EQ(obs.width, 0u);
+  EXPECT_TRUE(obs.data.empty());
+  gf::makeSurfaceCloud(surface, in.header, &surf);
+  EXPECT_EQ(surf.width, 0u);
+  EXPECT_EQ(surf.fields.size(), 5u);
+}
+
+TEST(HagOutputs, SurfaceCloudOnePointPerCell) {
+  const Scene s = postScene();
+  gf::GroundSurface surface;
+  surface.build(gf::CloudView::packedXyz(s.xyz.data(), s.size()), s.labels,
+                gf::GroundSurfaceParams());
+  std_msgs::Header header;
+  header.frame_id = "base_link";
+  PointCloud2 surf;
+  gf::makeSurfaceCloud(surface, header, &surf);
+  ASSERT_EQ(surf.width, surface.cells().size());
+  EXPECT_EQ(surf.width, 100u);  // 10 x 10 cells of 1 m
+  EXPECT_EQ(surf.header.frame_id, "base_link");
+  const char* names[] = {"x", "y", "z", "points", "confidence"};
+  for (int f = 0; f < 5; ++f) EXPECT_EQ(surf.fields[f].name, names[f]);
+  EXPECT_EQ(surf.fields[3].datatype, PointField::UINT32);
+  for (std::size_t k = 0; k < surf.width; ++k) {
+    const gf::SurfaceCell& c = surface.cells()[k];
+    EXPECT_EQ(floatAt(surf, k, 0), c.x);
+    EXPECT_EQ(floatAt(surf, k, 8), c.z);
+    std::uint32_t n;
+    std::memcpy(&n, &surf.data[k * 20 + 12], 4);
+    EXPECT_EQ(n, c.points);
+    EXPECT_GT(floatAt(surf, k, 16), 0.f);
+  }
+}
+
+TEST(HagOutputs, GatherByLabelAndBandValidation) {
+  std::vector<float> out;
+  gf::gatherByLabel({1.f, 2.f, 3.f, 4.f}, {1, 0, 1, 0}, 0, &out);
+  EXPECT_EQ(out, (std::vector<float>{2.f, 4.f}));
+  gf::ObstacleBand band;
+  EXPECT_NO_THROW(band.validate());
+  band.min_height = 2.5;
+  EXPECT_THROW(band.validate(), std::invalid_argument);  // min == max
+  band.min_height = std::nan("");
+  EXPECT_THROW(band.validate(), std::invalid_argument);
+}
