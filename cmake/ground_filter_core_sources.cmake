@@ -18,7 +18,7 @@ set(GF_CORE_SOURCES)
 # surface (airborne mode of both methods), scan_type (which mode a scan runs in)
 gf_core_room(simd simd)
 gf_core_room(common plane_fit)
-gf_core_room(. filter_factory param_parse working_volume)
+gf_core_room(. build_info filter_factory param_parse working_volume)
 gf_core_room(airborne morph_ground scan_type airborne_mode)
 # voxel method: the filter and its parameter table, one file per stage, the paper mode
 gf_core_room(voxel voxel_ground_filter voxel_ground_filter_params paper_voxel_filter)

@@ -47,7 +47,8 @@ ALLOWED = {
     # The CUDA library: the public API, the common helpers, and the headers written to compile
     # for the kernels too (named *cpu_gpu_common.h, see SHARED_WITH_CUDA).
     "cuda": {"public", "common", "cuda_api"},
-    "nodelets": {"public", "common", "core_top"},
+    # Only the public API: the nodelets library is built without the core's private headers.
+    "nodelets": {"public"},
     # Benchmarks time single stages (e.g. the kd-tree against PCL's): any core room.
     "tools": {"public", "common", "airborne", "io_scene", "knn", "voxel", "normal", "core_top"},
     "tests": {"public", "common", "airborne", "io_scene", "knn", "voxel", "normal", "core_top",

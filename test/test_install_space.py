@@ -40,7 +40,7 @@ PUBLIC_HEADERS = {
     "normal_ground_filter_params.h",
     "param_parse.h", "param_table.h", "voxel_ground_filter.h", "voxel_ground_filter_params.h",
     "working_volume.h", "working_volume_params.h", "io/metrics.h", "io/scan_io.h",
-    "scene/scene_generator.h", "height_above_ground.h",
+    "scene/scene_generator.h", "height_above_ground.h", "build_info.h",
     "params/param_def.h", "params/normal_filter_settings.h",
     "NormalGroundFilterConfig.h", "VoxelGroundFilterConfig.h",
 }

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "gf_test_alloc_counter.h"  // allocationCount()
+#include "ground_filter/build_info.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/scene/scene_generator.h"
 #include "simd/simd.h"
@@ -286,6 +287,34 @@ TEST(SimdLevels, ResolveFallsBackToBestWithAReason) {
       EXPECT_NE(msg.find("cannot run it"), std::string::npos) << msg;
     }
   }
+}
+
+// The public build-info call (logged by the nodelets) follows the level in force.
+TEST(SimdLevels, BuildInfoNamesTheLevelInForce) {
+  for (simd::Level level : {simd::Level::kPortable, simd::best()}) {
+    simd::ScopedLevel scoped(level);
+    ASSERT_TRUE(scoped.ok());
+    const gf::BuildInfo info = gf::buildInfo();
+    EXPECT_EQ(info.simd_level, simd::levelName(level));
+    EXPECT_EQ(info.simd_best, simd::levelName(simd::best()));
+    EXPECT_EQ(info.summary.find(simd::describe()), 0u) << info.summary;
+    EXPECT_FALSE(info.compiler.empty());
+    EXPECT_NE(info.summary.find(info.compiler), std::string::npos) << info.summary;
+    // Not probed: the GPU is not asked; the line says whether CUDA is built.
+    EXPECT_FALSE(info.cuda_probed);
+    EXPECT_FALSE(info.cuda_available);
+    EXPECT_NE(info.summary.find(info.cuda_built ? "CUDA built" : "CUDA not built"),
+              std::string::npos)
+        << info.summary;
+  }
+  // Probed: without the CUDA backend in the build the GPU is never available; the note says why.
+  const gf::BuildInfo probed = gf::buildInfo(true);
+  EXPECT_TRUE(probed.cuda_probed);
+  if (!probed.cuda_built) EXPECT_FALSE(probed.cuda_available);
+  EXPECT_EQ(probed.cuda_note.empty(), probed.cuda_available) << probed.cuda_note;
+  EXPECT_NE(probed.summary.find(probed.cuda_available ? "CUDA yes" : "CUDA no ("),
+            std::string::npos)
+      << probed.summary;
 }
 
 // The child side of EnvironmentIsReadOncePerProcess: prints what GF_SIMD gave this process.

@@ -1,17 +1,13 @@
 #include "ground_filter_nodelet.h"
 
-#include <std_msgs/Float64.h>
-
-#include <algorithm>
 #include <boost/make_shared.hpp>
 #include <chrono>
-#include <cstdio>
 #include <exception>
 #include <map>
 #include <utility>
 
 #include "cloud_subscription_helper.h"
-#include "simd/simd.h"
+#include "ground_filter/build_info.h"
 
 #if defined(__GLIBC__)
 #include <malloc.h>
@@ -20,8 +16,6 @@
 namespace ground_filter {
 
 namespace {
-
-constexpr double kLogPeriodS = NodeletMonitor::kLogPeriodS;
 
 // Hands the heap's free pages back to the OS. glibc keeps freed memory of its per-thread arenas
 // (cloud buffers of changing size, filter rebuilds on reconfigure) mapped: without this the
@@ -92,55 +86,38 @@ void GroundFilterNodelet::checkParams() {
 
 void GroundFilterNodelet::onInit() {
   NodeletLazy::onInit();
-  NODELET_INFO("%s: %s", methodName().c_str(), simd::describe().c_str());
+  NODELET_INFO("%s: %s", methodName().c_str(), buildInfo().summary.c_str());
   checkParams();
   // Ranges checked by checkParams(): a value outside was refused, the default applies.
   pnh_->param("queue_size", queue_size_, 3);
-  pub_ground_ = advertise<sensor_msgs::PointCloud2>(*pnh_, "ground", 1);
-  pub_nonground_ = advertise<sensor_msgs::PointCloud2>(*pnh_, "nonground", 1);
-  // Plain advertise: a timing subscriber alone must not start the input subscription.
-  pub_time_ = pnh_->advertise<std_msgs::Float64>("processing_time_ms", 10);
-  pub_labeled_ = advertise<sensor_msgs::PointCloud2>(*pnh_, "labeled", 1);
-  hag_.init(*pnh_, advertise<sensor_msgs::PointCloud2>(*pnh_, "ground_surface", 1),
-            advertise<sensor_msgs::PointCloud2>(*pnh_, "obstacles", 1));
+  input_ = std::make_unique<InputReporter>(getName(), methodName(), pnh_->resolveName("input"),
+                                           queue_size_, &monitor_);
+  outputs_ = std::make_unique<OutputPublisher>(getName(), methodName(), &monitor_);
+  outputs_->advertise(*pnh_, [this](const std::string& topic) {
+    return advertise<sensor_msgs::PointCloud2>(*pnh_, topic, 1);
+  });
 
   std::string gravity_frame;
   double tf_timeout = 0.1;
   pnh_->param<std::string>("gravity_frame", gravity_frame, "");
   pnh_->param("tf_timeout", tf_timeout, 0.1);
   if (!gravity_frame.empty()) {
-    gravity_ = std::make_unique<GravityTransform>(*nh_, gravity_frame, tf_timeout);
-    // Started while clouds wait for their transform (drainPending()), stopped when none does.
-    tf_retry_timer_ = nh_->createWallTimer(
-        ros::WallDuration(0.005), [this](const ros::WallTimerEvent&) { drainPending(); }, false,
-        false);
+    // The single-threaded queue (nh_ is NodeletLazy's multi-threaded one): clouds come out one
+    // at a time, in the order their transforms arrive.
+    tf_wait_ = std::make_unique<TfWaitQueue>(
+        getNodeHandle(), gravity_frame, tf_timeout, queue_size_,
+        [this](const sensor_msgs::PointCloud2ConstPtr& msg, const CloudLayout& layout,
+               const Eigen::Isometry3d& to_gravity,
+               TfWaitQueue::Clock::time_point t0) { processCloud(msg, layout, &to_gravity, t0); },
+        [this](const sensor_msgs::PointCloud2ConstPtr& msg, const std::string& why) {
+          input_->noTransform(*msg, tf_wait_->frame(), why);
+        });
     NODELET_INFO(
         "%s: clouds are classified in gravity frame '%s' (tf timeout %.3f s); outputs "
         "keep the input frame",
         methodName().c_str(), gravity_frame.c_str(), tf_timeout);
   }
-
-  double period = 1.0;
-  pnh_->param("diagnostic_period", period, 1.0);
-  updater_ = std::make_unique<diagnostic_updater::Updater>(*nh_, *pnh_, getName());
-  updater_->setHardwareID("none");
-  updater_->add(
-      methodName() + " ground filter", [this](diagnostic_updater::DiagnosticStatusWrapper& status) {
-        monitor_.diagnose(status, methodName(), gravity_ ? gravity_->frame() : "", haveConfig());
-      });
-  // Wall time and force_update(): the status keeps coming while a bag's simulated clock is
-  // paused or over (Updater::update() would wait for the simulated period).
-  // Started by afterInit() (nodelet 1.10.0 loses a timer that fires while onInit() runs).
-  diagnostic_timer_ = nh_->createWallTimer(
-      ros::WallDuration(period), [this](const ros::WallTimerEvent&) { updater_->force_update(); },
-      false, false);
-  double trim_period = 1.0;
-  pnh_->param("malloc_trim_period", trim_period, 1.0);
-  if (trim_period > 0.0) {
-    trim_timer_ = nh_->createWallTimer(
-        ros::WallDuration(trim_period), [](const ros::WallTimerEvent&) { releaseFreeHeap(); },
-        false, false);
-  }
+  setUpDiagnostics();
 
   onInitFilter();
   // Build the first filter object now, before the input is subscribed: the first cloud of a
@@ -157,6 +134,30 @@ void GroundFilterNodelet::onInit() {
   // a timer that fired then never fired again. Once the queue runs: look again, start the timers.
   after_init_timer_ = nh_->createWallTimer(
       ros::WallDuration(0.05), [this](const ros::WallTimerEvent&) { afterInit(); }, true);
+}
+
+void GroundFilterNodelet::setUpDiagnostics() {
+  double period = 1.0;
+  pnh_->param("diagnostic_period", period, 1.0);
+  updater_ = std::make_unique<diagnostic_updater::Updater>(*nh_, *pnh_, getName());
+  updater_->setHardwareID("none");
+  updater_->add(
+      methodName() + " ground filter", [this](diagnostic_updater::DiagnosticStatusWrapper& status) {
+        monitor_.diagnose(status, methodName(), tf_wait_ ? tf_wait_->frame() : "", haveConfig());
+      });
+  // Wall time and force_update(): the status keeps coming while a bag's simulated clock is
+  // paused or over (Updater::update() would wait for the simulated period).
+  // Started by afterInit() (nodelet 1.10.0 loses a timer that fires while onInit() runs).
+  diagnostic_timer_ = nh_->createWallTimer(
+      ros::WallDuration(period), [this](const ros::WallTimerEvent&) { updater_->force_update(); },
+      false, false);
+  double trim_period = 1.0;
+  pnh_->param("malloc_trim_period", trim_period, 1.0);
+  if (trim_period > 0.0) {
+    trim_timer_ = nh_->createWallTimer(
+        ros::WallDuration(trim_period), [](const ros::WallTimerEvent&) { releaseFreeHeap(); },
+        false, false);
+  }
 }
 
 void GroundFilterNodelet::afterInit() {
@@ -205,75 +206,11 @@ void GroundFilterNodelet::subscribe() {
   ops.datatype = ros::message_traits::datatype<sensor_msgs::PointCloud2>();
   ops.helper = boost::make_shared<CloudSubscriptionHelper>(
       [this](const sensor_msgs::PointCloud2ConstPtr& msg) { cloudCallback(msg); },
-      [this](const std::string& what, const std::string& from) { onNotCloud(what, from); });
+      [this](const std::string& what, const std::string& from) { input_->notCloud(what, from); });
   sub_input_ = pnh_->subscribe(ops);
 }
 
 void GroundFilterNodelet::unsubscribe() { sub_input_.shutdown(); }
-
-void GroundFilterNodelet::logRejected(CloudRejectReason reason, const std::string& message) {
-  std::uint64_t suppressed = 0;
-  if (!monitor_.logNow(static_cast<int>(reason), &suppressed)) return;
-  std::string more;
-  if (suppressed) {
-    more = " (" + std::to_string(suppressed) + " more with this reason since the last message)";
-  }
-  NODELET_ERROR("rejected PointCloud2 on %s (%s): %s; nothing published for it%s",
-                sub_input_.getTopic().c_str(), reasonName(reason), message.c_str(), more.c_str());
-}
-
-void GroundFilterNodelet::countAndWarn(std::atomic<std::uint64_t>* counter, int slot,
-                                       const std::string& what, const char* then) {
-  const auto n = ++*counter;
-  if (monitor_.logNow(slot)) {
-    NODELET_WARN("%s: %s (%llu so far)%s", methodName().c_str(), what.c_str(),
-                 static_cast<unsigned long long>(n), then);
-  }
-}
-
-void GroundFilterNodelet::checkStream(const std_msgs::Header& header) {
-  const NodeletMonitor::StreamChange change = monitor_.checkStream(header);
-  if (change.frame_changed) {
-    countAndWarn(
-        &monitor_.counters().frame_changes, NodeletMonitor::kFrameChange,
-        "input frame_id changed from '" + change.old_frame + "' to '" + header.frame_id + "'",
-        "; every cloud is processed and published in its own frame");
-  }
-  if (change.gap.lost) {
-    const NodeletMonitor::StreamChange::Gap& gap = change.gap;
-    const auto n = (monitor_.counters().clouds_lost += gap.lost);
-    if (monitor_.logNow(NodeletMonitor::kLost)) {
-      char how[96];
-      if (gap.by_seq) {
-        std::snprintf(how, sizeof(how), "seq %u -> %u", gap.seq_from, gap.seq_to);
-      } else {
-        std::snprintf(how, sizeof(how), "stamp step %.3f s, input period %.3f s", gap.step_s,
-                      gap.period_s);
-      }
-      NODELET_WARN(
-          "%s: %llu input cloud%s lost before the filter (%s; %llu so far): the input queue "
-          "(~queue_size %d) was full while the filter was busy, or the sender skipped them",
-          methodName().c_str(), static_cast<unsigned long long>(gap.lost), gap.lost == 1 ? "" : "s",
-          how, static_cast<unsigned long long>(n), queue_size_);
-    }
-  }
-  if (change.went_back) {
-    char by[64];
-    std::snprintf(by, sizeof(by), "%.3f s", change.back_s);
-    countAndWarn(
-        &monitor_.counters().stamps_backwards, NodeletMonitor::kStampBack,
-        std::string("input stamp went back by ") + by + " (a bag loop or a restarted driver?)",
-        "; the cloud is processed as usual");
-  }
-}
-
-void GroundFilterNodelet::onNotCloud(const std::string& what, const std::string& publisher) {
-  countAndWarn(&monitor_.counters().not_cloud, NodeletMonitor::kNotCloud,
-               "dropped a message on " + sub_input_.getTopic() + " from " +
-                   (publisher.empty() ? std::string("an unknown publisher") : publisher) + ": " +
-                   what,
-               "");
-}
 
 bool GroundFilterNodelet::haveConfig() {
   std::lock_guard<std::mutex> lock(config_mutex_);
@@ -298,81 +235,20 @@ void GroundFilterNodelet::updateFilter() {
 
 void GroundFilterNodelet::cloudCallback(const sensor_msgs::PointCloud2ConstPtr& msg) {
   const auto t0 = std::chrono::steady_clock::now();
-  NodeletMonitor::Counters& counters = monitor_.counters();
-  ++counters.clouds_in;
-  checkStream(msg->header);
+  ++monitor_.counters().clouds_in;
+  input_->checkStream(msg->header);
 
   CloudLayout layout;
   std::string why;
   const CloudRejectReason reason = checkPointCloud2(*msg, &layout, &why);
   if (reason != CloudRejectReason::kNone) {
-    ++counters.clouds_rejected;
-    logRejected(reason, why);
+    input_->rejected(reason, why);
     return;
   }
-
-  if (!gravity_ || msg->header.frame_id == gravity_->frame()) {
+  if (!tf_wait_ || msg->header.frame_id == tf_wait_->frame()) {
     processCloud(msg, layout, nullptr, t0);
-    return;
-  }
-  // Queued, then taken at once when the transform is there: a cloud whose transform is late
-  // waits in the queue, not in this thread.
-  {
-    std::lock_guard<std::mutex> lock(pending_mutex_);
-    pending_.push_back(PendingCloud{
-        msg, layout, ros::WallTime::now() + ros::WallDuration(gravity_->timeout()), t0});
-    if (pending_.size() > static_cast<std::size_t>(queue_size_)) {
-      const sensor_msgs::PointCloud2ConstPtr old = pending_.front().msg;
-      pending_.pop_front();
-      char when[64];
-      std::snprintf(when, sizeof(when), "' at t=%.3f: ", old->header.stamp.toSec());
-      countAndWarn(&counters.clouds_no_transform, NodeletMonitor::kNoTransform,
-                   "no transform from '" + old->header.frame_id + "' to gravity frame '" +
-                       gravity_->frame() + when + std::to_string(queue_size_) +
-                       " newer clouds wait for theirs (~queue_size); cloud dropped",
-                   "");
-    }
-  }
-  drainPending();
-}
-
-void GroundFilterNodelet::drainPending() {
-  std::lock_guard<std::mutex> drain(drain_mutex_);
-  while (true) {
-    PendingCloud cloud;
-    {
-      std::lock_guard<std::mutex> lock(pending_mutex_);
-      if (pending_.empty()) {
-        tf_retry_timer_.stop();
-        return;
-      }
-      cloud = pending_.front();
-    }
-    Eigen::Isometry3d to_gravity = Eigen::Isometry3d::Identity();
-    std::string why;
-    const bool found = gravity_->lookup(cloud.msg->header, &to_gravity, &why);
-    if (!found && ros::WallTime::now() < cloud.deadline && ros::ok()) {
-      tf_retry_timer_.start();  // no-op when running
-      return;
-    }
-    {
-      std::lock_guard<std::mutex> lock(pending_mutex_);
-      // Only this function pops the front, besides an overflow that dropped it meanwhile.
-      if (pending_.empty() || pending_.front().msg != cloud.msg) continue;
-      pending_.pop_front();
-    }
-    if (found) {
-      processCloud(cloud.msg, cloud.layout, &to_gravity, cloud.t0);
-      continue;
-    }
-    char when[96];
-    std::snprintf(when, sizeof(when),
-                  "' at t=%.3f within %.3f s: ", cloud.msg->header.stamp.toSec(),
-                  gravity_->timeout());
-    countAndWarn(&monitor_.counters().clouds_no_transform, NodeletMonitor::kNoTransform,
-                 "no transform from '" + cloud.msg->header.frame_id + "' to gravity frame '" +
-                     gravity_->frame() + when + why + "; cloud dropped",
-                 "");
+  } else {
+    tf_wait_->add(msg, layout, t0);  // processCloud() once its transform is there
   }
 }
 
@@ -409,72 +285,16 @@ void GroundFilterNodelet::processCloud(const sensor_msgs::PointCloud2ConstPtr& m
       filter_.reset();  // processPointCloud2 publishes the cloud as all non-ground
       build_error = e.what();
     }
-    processPointCloud2(*msg, layout, filter_.get(), to_gravity,
-                       pub_labeled_.getNumSubscribers() > 0, &buffers_, &out);
+    processPointCloud2(*msg, layout, filter_.get(), to_gravity, outputs_->wantLabeled(), &buffers_,
+                       &out);
     if (!build_error.empty()) out.filter_error = build_error;
-    hag_.process(*msg, layout, to_gravity, buffers_,
-                 to_gravity ? gravity_->frame() : msg->header.frame_id, &out, &hag);
+    outputs_->hag().process(*msg, layout, to_gravity, buffers_,
+                            to_gravity ? tf_wait_->frame() : msg->header.frame_id, &out, &hag);
     if (!out.filter_error.empty()) filter_.reset();  // rebuilt from scratch for the next cloud
   }
-  publish(out,
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-  hag_.publish(hag);
-  if (!hag.error.empty() && monitor_.logNow(NodeletMonitor::kLabeled)) {
-    NODELET_WARN("%s: no height_above_ground field: %s", methodName().c_str(), hag.error.c_str());
-  }
-}
-
-void GroundFilterNodelet::publish(const ProcessedCloud& out, double ms) {
-  pub_ground_.publish(sensor_msgs::PointCloud2ConstPtr(out.ground));
-  pub_nonground_.publish(sensor_msgs::PointCloud2ConstPtr(out.nonground));
-  if (out.labeled) pub_labeled_.publish(sensor_msgs::PointCloud2ConstPtr(out.labeled));
-  NodeletMonitor::Counters& counters = monitor_.counters();
-  ++counters.clouds_out;
-  counters.invalid_points += out.counts.invalid;
-  counters.out_of_range_points += out.stats.out_of_range_points;
-  counters.near_points += out.stats.near_points;
-  const std::size_t points = out.counts.ground + out.counts.nonground;
-  if (!out.filter_error.empty()) {
-    ++counters.filter_errors;
-    NODELET_ERROR_THROTTLE(kLogPeriodS,
-                           "%s filter failed on a %zu-point cloud (published as all "
-                           "non-ground): %s",
-                           methodName().c_str(), points, out.filter_error.c_str());
-  }
-  if (!out.labeled_error.empty() && monitor_.logNow(NodeletMonitor::kLabeled)) {
-    NODELET_WARN("%s: ~labeled not published: %s", methodName().c_str(), out.labeled_error.c_str());
-  }
-  const std::string& note = out.stats.note;
-  if (!note.empty()) {
-    ++counters.fallbacks;
-    // A new reason (no device, a CUDA error) is logged at once; a repeated one once a minute.
-    if (note != logged_note_) {
-      NODELET_WARN("%s: %s", methodName().c_str(), note.c_str());
-      logged_note_ = note;
-    } else {
-      NODELET_WARN_THROTTLE(60.0, "%s: %s", methodName().c_str(), note.c_str());
-    }
-  }
-  if (out.stats.out_of_range_points) {
-    NODELET_WARN_THROTTLE(kLogPeriodS,
-                          "%s: %zu of %zu points outside the working volume (max_range, hard "
-                          "limit %.0f m per axis) published as non-ground",
-                          methodName().c_str(), out.stats.out_of_range_points, points,
-                          kWorkingVolumeHardLimit);
-  }
-  monitor_.recordCloud(ms, out.stats.backend, note,
-                       out.stats.scan_type + (out.stats.scan_reason.empty() ? "" : " (") +
-                           out.stats.scan_reason + (out.stats.scan_reason.empty() ? "" : ")"));
-  NODELET_DEBUG(
-      "%s: %zu points in, %zu ground, %zu non-ground (%zu NaN/Inf, %zu out of range), filter "
-      "%.2f ms, total %.2f ms",
-      methodName().c_str(), points, out.counts.ground, out.counts.nonground, out.counts.invalid,
-      out.stats.out_of_range_points, out.stats.total_ms, ms);
-  if (pub_time_.getNumSubscribers() > 0) {
-    auto t = boost::make_shared<std_msgs::Float64>();
-    t->data = ms;
-    pub_time_.publish(std_msgs::Float64ConstPtr(t));
-  }
+  outputs_->publish(
+      out, hag,
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
 }
 
 }  // namespace ground_filter

@@ -5,7 +5,7 @@
 
 #include "ground_filter/NormalGroundFilterConfig.h"
 #include "ground_filter/normal_ground_filter.h"
-#include "ground_filter_nodelet.h"
+#include "reconfigurable_filter_nodelet.h"
 
 namespace ground_filter {
 

@@ -3,7 +3,7 @@
 
 #include "ground_filter/VoxelGroundFilterConfig.h"
 #include "ground_filter/voxel_ground_filter.h"
-#include "ground_filter_nodelet.h"
+#include "reconfigurable_filter_nodelet.h"
 
 namespace ground_filter {
 
