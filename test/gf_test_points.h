@@ -11,7 +11,7 @@
 
 #include "ground_filter/cloud_view.h"
 #ifndef GF_TEST_NO_SCAN_IO
-#include "ground_filter/io/scan_io.h"
+#include "eval/scan_io.h"
 #endif
 
 namespace gf_test {

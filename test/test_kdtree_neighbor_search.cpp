@@ -17,8 +17,8 @@
 #include "gf_test_data.h"
 #include "gf_test_points.h"
 #include "ground_filter/cloud_view.h"
-#include "normal/knn/kdtree_neighbor_search.h"
-#include "normal/knn/neighborhood_pca.h"
+#include "knn/kdtree_neighbor_search.h"
+#include "knn/neighborhood_pca.h"
 #include "simd/simd.h"
 
 // nanoflann is an optional test dependency (CMakeLists.txt defines GF_HAVE_NANOFLANN when found).

@@ -56,7 +56,7 @@ class TestLayout(unittest.TestCase):
                   '#include "ground_filter/voxel_ground_filter.h"\n')                # class
             write(tmp, "src/core/voxel/other.cpp", '#include "normal/x.h"\n')         # sideways
             write(tmp, "src/core/normal/x.h", "\n")
-            write(tmp, "src/core/normal/knn/tree.cpp", '#include "normal/x.h"\n')     # up
+            write(tmp, "src/core/knn/tree.cpp", '#include "normal/x.h"\n')     # up
             write(tmp, "src/core/voxel/voxel_ground_filter.cpp",
                   '#include "ground_filter/voxel_ground_filter.h"\n#include "voxel/stage.h"\n')
             write(tmp, "src/core/newroom/a.cpp", "\n")  # no room: top of the core, allowed
@@ -65,7 +65,7 @@ class TestLayout(unittest.TestCase):
             self.assertIn("src/core/common/util.h:1: common includes src/core/voxel/stage.h", out)
             self.assertIn("src/core/voxel/stage.h:1: includes the filter class", out)
             self.assertIn("src/core/voxel/other.cpp:1: voxel includes src/core/normal/x.h", out)
-            self.assertIn("src/core/normal/knn/tree.cpp:1: knn includes src/core/normal/x.h", out)
+            self.assertIn("src/core/knn/tree.cpp:1: knn includes src/core/normal/x.h", out)
             self.assertNotIn("voxel_ground_filter.cpp", out)  # its own class and its stages
             self.assertIn("4 point the wrong way", out)
         finally:

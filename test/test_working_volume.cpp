@@ -14,9 +14,9 @@
 #include <string>
 #include <vector>
 
+#include "eval/scene_generator.h"
 #include "gf_test_data.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/scene/scene_generator.h"
 #include "ground_filter/voxel_ground_filter.h"
 #include "ground_filter/working_volume.h"
 

@@ -19,7 +19,7 @@
 #include "ground_filter/cuda_knn.h"
 #include "ground_filter/cuda_normal_pipeline.h"
 #include "ground_filter/normal_ground_filter.h"
-#include "normal/knn/gpu_neighbor_search.h"
+#include "knn/gpu_neighbor_search.h"
 #include "replicate_frames.h"
 
 namespace gf = ground_filter;

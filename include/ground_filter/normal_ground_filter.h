@@ -12,7 +12,7 @@
 
 namespace ground_filter {
 
-class KnnBackend;  // the core's neighbour backends (private: src/core/normal/knn/knn_backend.h)
+class KnnBackend;  // the core's neighbour backends (private: src/core/knn/knn_backend.h)
 
 /// \brief Normal-vector ground filter: K nearest neighbours, PCA normal and flatness per point,
 ///        ground candidates by normal angle, naive-Bayes neighbourhood vote, RANSAC plane(s) and

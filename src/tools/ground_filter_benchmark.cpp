@@ -14,8 +14,8 @@
 #include <vector>
 
 #include "cli_args.h"
+#include "eval/scan_io.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/io/scan_io.h"
 
 namespace gf = ground_filter;
 namespace cli = ground_filter::cli;

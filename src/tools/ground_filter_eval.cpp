@@ -18,10 +18,10 @@
 
 #include "airborne/scan_type.h"
 #include "cli_args.h"
+#include "eval/metrics.h"
+#include "eval/scan_io.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/height_above_ground.h"
-#include "ground_filter/io/metrics.h"
-#include "ground_filter/io/scan_io.h"
 
 namespace gf = ground_filter;
 namespace cli = ground_filter::cli;
@@ -44,7 +44,7 @@ const char kUsage[] =
     "                    directory (all such files in it, sorted); or builtin:KIND[:SEED], KIND\n"
     "                    one of lidar, tls, verge, offroad, trail, airborne, or the registered\n"
     "                    mls, mls_air, stations, slam, tls_far, or uav, corridor (generated\n"
-    "                    scene, exact truth; include/ground_filter/scene/scene_generator.h)\n"
+    "                    scene, exact truth; src/eval/scene_generator.h)\n"
     "--method NAME       filter method: voxel (default), normal, voxel_paper\n"
     "--params FILE       parameters from a flat YAML file (config/*.yaml, 'name: value')\n"
     "--set NAME=VALUE    override a filter parameter (repeatable; after --params)\n"

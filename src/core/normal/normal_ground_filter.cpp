@@ -9,7 +9,7 @@
 #include "airborne/airborne_mode.h"
 #include "airborne/scan_type.h"
 #include "common/threads_timing.h"
-#include "normal/knn/knn_backend.h"
+#include "knn/knn_backend.h"
 #include "normal/local_ground.h"
 #include "normal/neighborhoods.h"
 #include "normal/normal_settings.h"

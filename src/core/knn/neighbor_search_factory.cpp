@@ -4,12 +4,12 @@
 #include <stdexcept>
 
 #include "ground_filter/neighbor_search.h"
-#include "normal/knn/kdtree_neighbor_search.h"
-#include "normal/knn/knn_backend.h"
+#include "knn/kdtree_neighbor_search.h"
+#include "knn/knn_backend.h"
 
 #ifdef GROUND_FILTER_HAVE_CUDA
 #include "ground_filter/cuda_knn.h"
-#include "normal/knn/gpu_neighbor_search.h"
+#include "knn/gpu_neighbor_search.h"
 #endif
 
 namespace ground_filter {

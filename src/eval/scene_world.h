@@ -1,7 +1,7 @@
 // Private to the scene generator: the objects and terrain of a generated scene and the ray cast
 // against them (scene_generator.cpp casts the scan patterns).
-#ifndef GROUND_FILTER_SRC_CORE_SCENE_SCENE_WORLD_H
-#define GROUND_FILTER_SRC_CORE_SCENE_SCENE_WORLD_H
+#ifndef GROUND_FILTER_SRC_EVAL_SCENE_WORLD_H
+#define GROUND_FILTER_SRC_EVAL_SCENE_WORLD_H
 
 #include <algorithm>
 #include <cmath>
@@ -9,8 +9,8 @@
 #include <random>
 #include <vector>
 
-#include "ground_filter/scene/scene_generator.h"
-#include "scene/scene_terrain.h"
+#include "eval/scene_generator.h"
+#include "eval/scene_terrain.h"
 
 namespace ground_filter {
 namespace scene {
@@ -448,4 +448,4 @@ class Scene {
 }  // namespace scene
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_SCENE_SCENE_WORLD_H
+#endif  // GROUND_FILTER_SRC_EVAL_SCENE_WORLD_H

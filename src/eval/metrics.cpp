@@ -1,4 +1,4 @@
-#include "ground_filter/io/metrics.h"
+#include "eval/metrics.h"
 
 #include <algorithm>
 #include <limits>

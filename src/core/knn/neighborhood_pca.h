@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_SRC_CORE_NORMAL_KNN_NEIGHBORHOOD_PCA_H
-#define GROUND_FILTER_SRC_CORE_NORMAL_KNN_NEIGHBORHOOD_PCA_H
+#ifndef GROUND_FILTER_SRC_CORE_KNN_NEIGHBORHOOD_PCA_H
+#define GROUND_FILTER_SRC_CORE_KNN_NEIGHBORHOOD_PCA_H
 
 #include <cstddef>
 #include <cstdint>
@@ -79,4 +79,4 @@ void computeOrderedRowsCandidates(const float* xyz, const std::int32_t* rows, in
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_NORMAL_KNN_NEIGHBORHOOD_PCA_H
+#endif  // GROUND_FILTER_SRC_CORE_KNN_NEIGHBORHOOD_PCA_H

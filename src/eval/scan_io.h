@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_IO_SCAN_IO_H
-#define GROUND_FILTER_IO_SCAN_IO_H
+#ifndef GROUND_FILTER_SRC_EVAL_SCAN_IO_H
+#define GROUND_FILTER_SRC_EVAL_SCAN_IO_H
 
 #include <pcl/PCLPointCloud2.h>
 
@@ -9,8 +9,8 @@
 #include <utility>
 #include <vector>
 
+#include "eval/scene_generator.h"
 #include "ground_filter/cloud_view.h"
-#include "ground_filter/scene/scene_generator.h"
 
 namespace ground_filter {
 
@@ -116,4 +116,4 @@ std::pair<std::string, std::string> writeSplitClouds(const std::string& dir,
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_IO_SCAN_IO_H
+#endif  // GROUND_FILTER_SRC_EVAL_SCAN_IO_H

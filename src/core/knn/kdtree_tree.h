@@ -1,9 +1,9 @@
-#ifndef GROUND_FILTER_SRC_CORE_NORMAL_KNN_KDTREE_TREE_H
-#define GROUND_FILTER_SRC_CORE_NORMAL_KNN_KDTREE_TREE_H
+#ifndef GROUND_FILTER_SRC_CORE_KNN_KDTREE_TREE_H
+#define GROUND_FILTER_SRC_CORE_KNN_KDTREE_TREE_H
 
 // Inside of KdTreeNeighborSearch, shared by its files: the tree (kdtree_build.cpp builds it), the
 // sort keys, and the query loop every top-K set runs in (the sets: SortedKeys below,
-// kdtree_query_avx512.cpp, kdtree_query_avx2.cpp). Private to normal/knn/.
+// kdtree_query_avx512.cpp, kdtree_query_avx2.cpp). Private to knn/.
 
 #include <algorithm>
 #include <cmath>
@@ -311,4 +311,4 @@ bool cpuHasAvx2();
 }  // namespace kdtree
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_NORMAL_KNN_KDTREE_TREE_H
+#endif  // GROUND_FILTER_SRC_CORE_KNN_KDTREE_TREE_H

@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "normal/knn/kdtree_tree.h"
+#include "knn/kdtree_tree.h"
 
 namespace ground_filter {
 namespace kdtree {

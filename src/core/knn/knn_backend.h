@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_SRC_CORE_NORMAL_KNN_KNN_BACKEND_H
-#define GROUND_FILTER_SRC_CORE_NORMAL_KNN_KNN_BACKEND_H
+#ifndef GROUND_FILTER_SRC_CORE_KNN_KNN_BACKEND_H
+#define GROUND_FILTER_SRC_CORE_KNN_KNN_BACKEND_H
 
 // The neighbour backends' private interface: what the normal filter uses beyond the public
 // NeighborSearch (include/ground_filter/neighbor_search.h). Every backend of the core derives from
@@ -16,7 +16,7 @@
 #include "ground_filter/cuda_normal_pipeline.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/neighbor_search.h"
-#include "normal/knn/neighborhood_pca.h"
+#include "knn/neighborhood_pca.h"
 
 namespace ground_filter {
 
@@ -88,4 +88,4 @@ std::unique_ptr<KnnBackend> makeKnnBackend(const std::string& backend, int threa
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_NORMAL_KNN_KNN_BACKEND_H
+#endif  // GROUND_FILTER_SRC_CORE_KNN_KNN_BACKEND_H

@@ -1,4 +1,4 @@
-#include "ground_filter/scene/scene_generator.h"
+#include "eval/scene_generator.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,9 +6,9 @@
 #include <random>
 #include <stdexcept>
 
+#include "eval/scene_terrain.h"
+#include "eval/scene_world.h"
 #include "ground_filter/param_parse.h"
-#include "scene/scene_terrain.h"
-#include "scene/scene_world.h"
 
 namespace ground_filter {
 namespace scene {

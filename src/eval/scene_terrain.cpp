@@ -1,4 +1,4 @@
-#include "scene/scene_terrain.h"
+#include "eval/scene_terrain.h"
 
 #include <algorithm>
 #include <cmath>

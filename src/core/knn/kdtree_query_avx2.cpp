@@ -6,7 +6,7 @@
 #include <cstring>
 #include <limits>
 
-#include "normal/knn/kdtree_tree.h"
+#include "knn/kdtree_tree.h"
 #include "simd/avx2_common.h"
 #include "simd/avx512_common.h"
 #include "simd/simd.h"

@@ -1,13 +1,13 @@
 // Private to the scene generator: shapes, materials and the terrain height functions of the
 // generated scenes (scene_terrain.cpp), shared by the scene (scene_world.h) and the scan
 // patterns (scene_generator.cpp).
-#ifndef GROUND_FILTER_SRC_CORE_SCENE_SCENE_TERRAIN_H
-#define GROUND_FILTER_SRC_CORE_SCENE_SCENE_TERRAIN_H
+#ifndef GROUND_FILTER_SRC_EVAL_SCENE_TERRAIN_H
+#define GROUND_FILTER_SRC_EVAL_SCENE_TERRAIN_H
 
 #include <cstdint>
 #include <limits>
 
-#include "ground_filter/scene/scene_generator.h"
+#include "eval/scene_generator.h"
 
 namespace ground_filter {
 namespace scene {
@@ -113,4 +113,4 @@ double minGroundOver(const SceneParams& p, double x0, double x1, double y0, doub
 }  // namespace scene
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_SCENE_SCENE_TERRAIN_H
+#endif  // GROUND_FILTER_SRC_EVAL_SCENE_TERRAIN_H

@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_SCENE_SCENE_GENERATOR_H
-#define GROUND_FILTER_SCENE_SCENE_GENERATOR_H
+#ifndef GROUND_FILTER_SRC_EVAL_SCENE_GENERATOR_H
+#define GROUND_FILTER_SRC_EVAL_SCENE_GENERATOR_H
 
 #include <cstddef>
 #include <cstdint>
@@ -170,4 +170,4 @@ double sceneGroundHeight(const SceneParams& params, double x, double y);
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SCENE_SCENE_GENERATOR_H
+#endif  // GROUND_FILTER_SRC_EVAL_SCENE_GENERATOR_H

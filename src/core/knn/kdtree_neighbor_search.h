@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_SRC_CORE_NORMAL_KNN_KDTREE_NEIGHBOR_SEARCH_H
-#define GROUND_FILTER_SRC_CORE_NORMAL_KNN_KDTREE_NEIGHBOR_SEARCH_H
+#ifndef GROUND_FILTER_SRC_CORE_KNN_KDTREE_NEIGHBOR_SEARCH_H
+#define GROUND_FILTER_SRC_CORE_KNN_KDTREE_NEIGHBOR_SEARCH_H
 
 #include <cstddef>
 #include <cstdint>
@@ -8,8 +8,8 @@
 #include <utility>
 #include <vector>
 
-#include "normal/knn/knn_backend.h"
-#include "normal/knn/neighborhood_pca.h"
+#include "knn/knn_backend.h"
+#include "knn/neighborhood_pca.h"
 
 namespace ground_filter {
 
@@ -99,4 +99,4 @@ class KdTreeNeighborSearch : public KnnBackend {
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_NORMAL_KNN_KDTREE_NEIGHBOR_SEARCH_H
+#endif  // GROUND_FILTER_SRC_CORE_KNN_KDTREE_NEIGHBOR_SEARCH_H

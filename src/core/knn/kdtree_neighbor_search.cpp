@@ -1,4 +1,4 @@
-#include "normal/knn/kdtree_neighbor_search.h"
+#include "knn/kdtree_neighbor_search.h"
 
 #include <algorithm>
 #include <cstdint>
@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "common/threads_timing.h"
-#include "normal/knn/kdtree_tree.h"
+#include "knn/kdtree_tree.h"
 #include "simd/simd.h"
 
 // The tree and the query loop: kdtree_tree.h; the build: kdtree_build.cpp; the SIMD top-K sets:

@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_IO_METRICS_H
-#define GROUND_FILTER_IO_METRICS_H
+#ifndef GROUND_FILTER_SRC_EVAL_METRICS_H
+#define GROUND_FILTER_SRC_EVAL_METRICS_H
 
 #include <cstdint>
 #include <vector>
@@ -68,4 +68,4 @@ void addClassCounts(const std::vector<std::uint8_t>& labels, const std::vector<s
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_IO_METRICS_H
+#endif  // GROUND_FILTER_SRC_EVAL_METRICS_H

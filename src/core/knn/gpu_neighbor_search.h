@@ -1,5 +1,5 @@
-#ifndef GROUND_FILTER_SRC_CORE_NORMAL_KNN_GPU_NEIGHBOR_SEARCH_H
-#define GROUND_FILTER_SRC_CORE_NORMAL_KNN_GPU_NEIGHBOR_SEARCH_H
+#ifndef GROUND_FILTER_SRC_CORE_KNN_GPU_NEIGHBOR_SEARCH_H
+#define GROUND_FILTER_SRC_CORE_KNN_GPU_NEIGHBOR_SEARCH_H
 
 // Only usable when the package is built with CUDA (GROUND_FILTER_HAVE_CUDA); use
 // makeNeighborSearch("gpu", ...) or makeKnnBackend("gpu", ...) to get it with the kd-tree fallback
@@ -13,7 +13,7 @@
 #include "ground_filter/cuda_knn.h"
 #include "ground_filter/cuda_normal_pipeline.h"
 #include "ground_filter/neighbor_search.h"
-#include "normal/knn/knn_backend.h"
+#include "knn/knn_backend.h"
 
 namespace ground_filter {
 
@@ -80,4 +80,4 @@ class GpuNeighborSearch : public KnnBackend {
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_NORMAL_KNN_GPU_NEIGHBOR_SEARCH_H
+#endif  // GROUND_FILTER_SRC_CORE_KNN_GPU_NEIGHBOR_SEARCH_H

@@ -1,12 +1,12 @@
-#include "normal/knn/gpu_neighbor_search.h"
+#include "knn/gpu_neighbor_search.h"
 
 #include <algorithm>
 #include <exception>
 #include <string>
 
 #include "ground_filter/ground_filter.h"
-#include "normal/knn/kdtree_neighbor_search.h"
-#include "normal/knn/neighborhood_pca.h"
+#include "knn/kdtree_neighbor_search.h"
+#include "knn/neighborhood_pca.h"
 
 namespace ground_filter {
 

@@ -7,7 +7,7 @@
 // computeRowsCandidates() and friends decide it without the eigen solver where that is certain (see
 // "Candidate decision" below).
 
-#include "normal/knn/neighborhood_pca.h"
+#include "knn/neighborhood_pca.h"
 
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>

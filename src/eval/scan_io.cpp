@@ -1,4 +1,4 @@
-#include "ground_filter/io/scan_io.h"
+#include "eval/scan_io.h"
 
 #include <pcl/common/io.h>
 #include <pcl/io/pcd_io.h>
@@ -14,7 +14,7 @@
 #include <fstream>
 #include <stdexcept>
 
-#include "ground_filter/scene/scene_generator.h"
+#include "eval/scene_generator.h"
 
 namespace ground_filter {
 
