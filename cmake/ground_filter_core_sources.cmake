@@ -43,6 +43,6 @@ set(GF_CORE_CUDA_SOURCES src/core/knn/gpu_neighbor_search.cpp)
 # The evaluation kit (src/eval/: ground_filter_eval_kit, a static library of the tools and tests,
 # never linked into the core or the nodelets): metrics and the generated scenes (Eigen only), and
 # the scan files (KITTI .bin, PCD, PLY, labels) where PCL is built.
-set(GF_EVAL_KIT_SOURCES src/eval/metrics.cpp src/eval/scene_generator.cpp
+set(GF_EVAL_KIT_SOURCES src/eval/kitti_bin.cpp src/eval/metrics.cpp src/eval/scene_generator.cpp
     src/eval/scene_terrain.cpp)
 set(GF_EVAL_KIT_PCL_SOURCES src/eval/scan_io.cpp)

@@ -90,6 +90,7 @@ def resolve(root, rel_file, target):
 
 
 def source_files(root):
+    """The C++ and CUDA files under SOURCE_DIRS (also scripts/check_sizes.py's), relative."""
     for d in SOURCE_DIRS:
         top = os.path.join(root, d)
         for dirpath, _, names in os.walk(top):

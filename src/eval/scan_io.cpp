@@ -488,6 +488,16 @@ std::vector<std::string> listScanFiles(const std::string& path_or_dir) {
   return files;
 }
 
+std::vector<std::string> listScanFiles(const std::vector<std::string>& paths) {
+  std::vector<std::string> files;
+  for (const auto& p : paths) {
+    const std::vector<std::string> found = listScanFiles(p);
+    if (found.empty()) throw std::runtime_error(p + ": no .bin, .pcd or .ply files in directory");
+    files.insert(files.end(), found.begin(), found.end());
+  }
+  return files;
+}
+
 Scan loadScan(const std::string& path) {
   if (isBuiltin(path)) return loadBuiltinScan(path);
   checkRegularFile(path);

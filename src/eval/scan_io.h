@@ -62,6 +62,10 @@ std::string semanticKittiClassName(std::uint16_t cls);
 /// \throws std::runtime_error when the path does not exist.
 std::vector<std::string> listScanFiles(const std::string& path_or_dir);
 
+/// \brief The scan files of every path in `paths` (listScanFiles of each), in order.
+/// \throws std::runtime_error when a path does not exist or a directory holds no scan file.
+std::vector<std::string> listScanFiles(const std::vector<std::string>& paths);
+
 /// \brief Zero-copy view of the float32 x/y/z fields of `cloud`.
 /// \throws std::runtime_error when x, y or z is missing or not float32, or the buffer is shorter
 ///         than its header says or has padded rows.

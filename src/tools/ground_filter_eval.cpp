@@ -390,17 +390,6 @@ std::unique_ptr<gf::GroundFilter> makeFilter(const Options& opt) {
   }
 }
 
-/// The scan files of every PATH (a directory: its scan files, sorted).
-std::vector<std::string> listFiles(const Options& opt) {
-  std::vector<std::string> files;
-  for (const auto& p : opt.paths) {
-    const std::vector<std::string> found = gf::listScanFiles(p);
-    if (found.empty()) throw std::runtime_error(p + ": no .bin, .pcd or .ply files in directory");
-    files.insert(files.end(), found.begin(), found.end());
-  }
-  return files;
-}
-
 /// --score-labels: `dir`/<stem>.gnd of `file`, one 0/1 byte per point of the scan.
 std::vector<std::uint8_t> readGndLabels(const std::string& dir, const std::string& file,
                                         std::size_t points) {
@@ -656,7 +645,7 @@ void printTable(const Options& opt, const std::vector<FileResult>& results, cons
 int run(const Options& opt) {
   std::unique_ptr<gf::GroundFilter> filter;
   if (opt.score_dir.empty()) filter = makeFilter(opt);
-  const std::vector<std::string> files = listFiles(opt);
+  const std::vector<std::string> files = gf::listScanFiles(opt.paths);
   std::vector<FileResult> results;
   std::vector<gf::ClassCount> classes;
   std::vector<std::uint8_t> labels;

@@ -12,23 +12,13 @@
 #include <string>
 #include <vector>
 
+#include "eval/kitti_bin.h"
 #include "ground_filter/ground_filter.h"
 #include "simd/simd.h"
 
 namespace gf = ground_filter;
 
 namespace {
-
-std::vector<float> readKittiBin(const std::string& path) {
-  std::ifstream in(path, std::ios::binary | std::ios::ate);
-  if (!in) throw std::runtime_error("cannot open " + path);
-  const std::size_t bytes = static_cast<std::size_t>(in.tellg());
-  if (bytes % 16 != 0) throw std::runtime_error(path + ": not 16-byte x y z intensity records");
-  std::vector<float> rec(bytes / sizeof(float));
-  in.seekg(0);
-  in.read(reinterpret_cast<char*>(rec.data()), static_cast<std::streamsize>(bytes));
-  return rec;
-}
 
 std::string stem(const std::string& path) {
   const std::size_t slash = path.find_last_of('/');
@@ -59,7 +49,7 @@ int main(int argc, char** argv) {
     std::printf("%s; method %s\n", gf::simd::describe().c_str(), method.c_str());
     std::vector<std::uint8_t> labels;
     for (++i; i < argc; ++i) {
-      const std::vector<float> rec = readKittiBin(argv[i]);
+      const std::vector<float> rec = gf::readKittiRecords(argv[i]);
       const gf::CloudView view(rec.data(), rec.size() / 4, 16, 0, 4, 8);
       const auto t0 = std::chrono::steady_clock::now();
       filter->filter(view, &labels);
