@@ -77,5 +77,5 @@ if(NOT GF_SANITIZE)  # long under the sanitizers; the SIMD levels and exact list
   target_compile_definitions(test_kdtree_neighbor_search PRIVATE GF_TEST_NO_SCAN_IO)
   # Labels of KITTI .bin scans with both methods (scripts/check_arm64.sh compares architectures).
   add_executable(label_scans ${GF_SOURCE_ROOT}/test/label_scans.cpp)
-  target_link_libraries(label_scans ground_filter_core_private)
+  target_link_libraries(label_scans ground_filter_eval_kit ground_filter_core_private)
 endif()
