@@ -1,4 +1,4 @@
-# Cross build for aarch64 with Debian's g++-aarch64-linux-gnu (test/core_only,
+# Cross build for aarch64 with Debian's g++-aarch64-linux-gnu (-DGF_CORE_ONLY=ON,
 # scripts/check_arm64.sh). Programs built with it run under qemu-aarch64 -L /usr/aarch64-linux-gnu.
 set(CMAKE_SYSTEM_NAME Linux)
 set(CMAKE_SYSTEM_PROCESSOR aarch64)

@@ -17,8 +17,8 @@ set(GF_CORE_SOURCES)
 # shared: makeGroundFilter, parameter parsing, plane fit, working volume, morphological ground
 # surface (airborne mode of both methods), scan_type (which mode a scan runs in)
 gf_core_room(simd simd)
-gf_core_room(common plane_fit)
-gf_core_room(. build_info filter_factory param_parse working_volume)
+gf_core_room(common plane_fit param_parse)
+gf_core_room(. build_info filter_factory working_volume)
 gf_core_room(airborne morph_ground scan_type airborne_mode)
 # voxel method: the filter and its parameter table, one file per stage, the paper mode
 gf_core_room(voxel voxel_ground_filter voxel_ground_filter_params paper_voxel_filter)
@@ -27,19 +27,23 @@ gf_core_room(voxel voxelize voxelize_build avx2_passes segments ground_model cla
 # per stage
 gf_core_room(normal normal_ground_filter normal_ground_filter_params)
 gf_core_room(normal order sample neighborhoods vote plane local_ground vegetation scatter_labels)
-# K nearest neighbours under the normal method (normal/knn/, below the rest of normal/): the
+# K nearest neighbours, a room below the normal method that uses it (knn/): the
 # kd-tree (build, portable / AVX-512 / AVX2 / NEON queries), the PCA of the lists, the backend
 # factory
-gf_core_room(normal/knn kdtree_neighbor_search kdtree_build kdtree_query_avx512 kdtree_query_avx2
+gf_core_room(knn kdtree_neighbor_search kdtree_build kdtree_query_avx512 kdtree_query_avx2
              kdtree_query_neon)
-gf_core_room(normal/knn neighborhood_pca neighbor_search_factory)
-# metrics (scan files are in ground_filter_io: they need PCL), generated scenes
-gf_core_room(io metrics)
-gf_core_room(scene scene_generator scene_terrain)
+gf_core_room(knn neighborhood_pca neighbor_search_factory)
 # height above ground: the ground surface from a filter's labels
 gf_core_room(hag height_above_ground)
 
 # The CUDA adapters of the neighbour interface and of the whole-filter executor: added to the core
 # where CUDA is built.
-set(GF_CORE_CUDA_SOURCES src/core/normal/knn/gpu_neighbor_search.cpp
+set(GF_CORE_CUDA_SOURCES src/core/knn/gpu_neighbor_search.cpp
                          src/core/normal/gpu_normal_executor.cpp)
+
+# The evaluation kit (src/eval/: ground_filter_eval_kit, a static library of the tools and tests,
+# never linked into the core or the nodelets): metrics and the generated scenes (Eigen only), and
+# the scan files (KITTI .bin, PCD, PLY, labels) where PCL is built.
+set(GF_EVAL_KIT_SOURCES src/eval/kitti_bin.cpp src/eval/metrics.cpp src/eval/scene_generator.cpp
+    src/eval/scene_terrain.cpp)
+set(GF_EVAL_KIT_PCL_SOURCES src/eval/scan_io.cpp)

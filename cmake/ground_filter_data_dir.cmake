@@ -2,8 +2,8 @@
 # time, the rule of scripts/common.sh gf_data_dir: $ENV{GF_DATA_DIR} when set (an error when it is
 # not a folder), else <repository>/data (scripts/get_data.sh) when it exists, else
 # <repository>/../shared/data when it exists. With none, <repository>/data: the data tests then
-# report themselves skipped, naming it. Included by CMakeLists.txt, test/core_only and
-# test/sanitize; a -DGF_DATA_DIR=... given to CMake comes first (the callers check it).
+# report themselves skipped, naming it. Included by CMakeLists.txt (also with
+# -DGF_CORE_ONLY=ON); a -DGF_DATA_DIR=... given to CMake comes first (the callers check it).
 function(gf_resolve_data_dir repo out)
   get_filename_component(repo "${repo}" REALPATH)
   if(NOT "$ENV{GF_DATA_DIR}" STREQUAL "")

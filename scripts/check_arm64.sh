@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# ARM64 check without ARM64 hardware: cross-builds the ROS/PCL-free core and its gtests
-# (test/core_only/CMakeLists.txt) with Debian's g++-aarch64-linux-gnu, runs the gtests under
-# qemu-user, then labels the KITTI dev frames with both methods on this x86-64 machine and under
+# ARM64 check without ARM64 hardware: cross-builds the ROS/PCL-free core and its gtests (cmake
+# -DGF_CORE_ONLY=ON: cmake/gf_core_only.cmake) with Debian's g++-aarch64-linux-gnu, runs the gtests
+# under qemu-user, then labels the KITTI dev frames with both methods on this x86-64 machine and under
 # qemu-aarch64 and compares the labels byte by byte (they must be identical).
 #
 #   scripts/check_arm64.sh            (needs: g++-aarch64-linux-gnu qemu-user cmake
@@ -15,15 +15,9 @@
 set -euo pipefail
 
 GF_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-# shellcheck source=scripts/compare_labels.sh
-source "${GF_ROOT}/scripts/compare_labels.sh"
+# shellcheck source=scripts/core_only_lib.sh
+source "${GF_ROOT}/scripts/core_only_lib.sh"  # DATA, JOBS, SYSROOT, gf_core_only_configure
 BUILD="${GF_ARM64_BUILD:-/tmp/gf_check_arm64}"
-# shellcheck source=scripts/common.sh
-source "${GF_ROOT}/scripts/common.sh"
-DATA="$(gf_data_dir --optional)"
-DATA="${DATA:-${GF_ROOT}/data}"  # none: the data tests skip, naming this folder
-JOBS="${GF_JOBS:-$(nproc 2>/dev/null || echo 2)}"
-SYSROOT=/usr/aarch64-linux-gnu
 QEMU=(qemu-aarch64 -L "${SYSROOT}")
 start=$(date +%s)
 
@@ -55,25 +49,13 @@ launcher() {
 
 step() { echo "== check_arm64 [$(($(date +%s) - start)) s] $*"; }
 
-mkdir -p "${BUILD}"
-# A build folder configured from another checkout (CMake refuses it) is started afresh.
-for dir in "${BUILD}/arm64" "${BUILD}/x86"; do
-  if [ -f "${dir}/CMakeCache.txt" ] &&
-     ! grep -qxF "CMAKE_HOME_DIRECTORY:INTERNAL=${GF_ROOT}/test/core_only" "${dir}/CMakeCache.txt"; then
-    echo "check_arm64: ${dir} was configured from another checkout: starting it afresh"
-    rm -rf "${dir}"
-  fi
-done
 step "cross-build for aarch64 (${BUILD}/arm64)"
-cmake -S "${GF_ROOT}/test/core_only" -B "${BUILD}/arm64" -DCMAKE_BUILD_TYPE=Release \
-  -DCMAKE_TOOLCHAIN_FILE="${GF_ROOT}/cmake/aarch64_toolchain.cmake" -DGF_DATA_DIR="${DATA}" \
-  $(launcher "${BUILD}/arm64") >"${BUILD}/arm64-configure.log" 2>&1 ||
-  { cat "${BUILD}/arm64-configure.log"; exit 1; }
+gf_core_only_configure check_arm64 "${BUILD}/arm64" \
+  -DCMAKE_TOOLCHAIN_FILE="${GF_ROOT}/cmake/aarch64_toolchain.cmake" $(launcher "${BUILD}/arm64") ||
+  exit 1
 cmake --build "${BUILD}/arm64" -j "${JOBS}"
 step "x86-64 build of the label tool (${BUILD}/x86)"
-cmake -S "${GF_ROOT}/test/core_only" -B "${BUILD}/x86" -DCMAKE_BUILD_TYPE=Release \
-  -DGF_DATA_DIR="${DATA}" $(launcher "${BUILD}/x86") >"${BUILD}/x86-configure.log" 2>&1 ||
-  { cat "${BUILD}/x86-configure.log"; exit 1; }
+gf_core_only_configure check_arm64 "${BUILD}/x86" $(launcher "${BUILD}/x86") || exit 1
 cmake --build "${BUILD}/x86" -j "${JOBS}" --target label_scans
 
 failed=0

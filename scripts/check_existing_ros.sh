@@ -22,6 +22,20 @@ check() {  # check <name> <passed|failed> <detail>
   echo "CHECK $1 $2 $3"
   [ "$2" = passed ] || fails=$((fails + 1))
 }
+# failed_with_log <name> <log name> <lines>: the case failed; its exit status (rc) and the last
+# lines of ${LOG}/<log name>.log.
+failed_with_log() { check "$1" failed "rc ${rc}: $(tail -n "$3" "${LOG}/$2.log" | tr '\n' ' ')"; }
+# expect_stop <name> <log name> <reason regex>: passed when the command failed (rc), its log
+# gives the reason and says nothing was changed, and the package state is as before.
+expect_stop() {
+  local log="${LOG}/$2.log"
+  if [ "${rc}" != 0 ] && grep -q -- "$3" "${log}" &&
+     grep -q "nothing was installed or changed" "${log}" && [ "$(state)" = "${before}" ]; then
+    check "$1" passed "stops: $(grep -m1 -o -- "$3" "${log}")"
+  else
+    failed_with_log "$1" "$2" 5
+  fi
+}
 state() { md5sum /var/lib/dpkg/status | cut -d' ' -f1; ls -la /opt/ros 2>/dev/null | md5sum | cut -d' ' -f1; }
 had_opt_ros=0
 [ -e /opt/ros ] && had_opt_ros=1
@@ -70,7 +84,7 @@ if [ "${rc}" = 0 ] && grep -q "using the installed ROS Debian" "${LOG}/demo.log"
    ! grep -q "installing with apt" "${LOG}/demo.log" && [ "$(state)" = "${before}" ]; then
   check demo passed "demo.sh with ROS_DISTRO=Debian sourced, offline: $(grep -m1 -E '^\[demo\] done' "${LOG}/demo.log")"
 else
-  check demo failed "rc ${rc}: $(tail -n 8 "${LOG}/demo.log" | tr '\n' ' ')"
+  failed_with_log demo demo 8
 fi
 
 # 3. A missing dependency, no rosdep: the key and the package to install, nothing changed.
@@ -85,18 +99,13 @@ if [ "${rc}" != 0 ] && grep -q "rosdep is not installed" "${LOG}/missing.log" &&
    grep -q "ros-noetic-diagnostic-updater" "${LOG}/missing.log" && [ "$(state)" = "${before}" ]; then
   check missing_dep passed "stops: $(grep -m1 -o 'Install these keys: [^-]*' "${LOG}/missing.log")"
 else
-  check missing_dep failed "rc ${rc}: $(tail -n 5 "${LOG}/missing.log" | tr '\n' ' ')"
+  failed_with_log missing_dep missing 5
 fi
 
 # 4. ROS_DISTRO names a ROS 2 distro.
 ROS_DISTRO=humble bash scripts/demo.sh >"${LOG}/ros2.log" 2>&1
 rc=$?
-if [ "${rc}" != 0 ] && grep -q "ROS_DISTRO=humble is ROS 2" "${LOG}/ros2.log" &&
-   grep -q "nothing was installed or changed" "${LOG}/ros2.log" && [ "$(state)" = "${before}" ]; then
-  check ros2_distro passed "stops: $(grep -m1 -o 'ROS_DISTRO=humble is ROS 2[^.]*' "${LOG}/ros2.log")"
-else
-  check ros2_distro failed "rc ${rc}: $(tail -n 5 "${LOG}/ros2.log" | tr '\n' ' ')"
-fi
+expect_stop ros2_distro ros2 'ROS_DISTRO=humble is ROS 2[^.]*'
 
 # 5. Half-installed: ROS_DISTRO=noetic, /opt/ros/noetic without setup.bash, catkin_make hidden.
 mv "${FAKE}/setup.bash" "${FAKE}/setup.bash.gf_hidden"
@@ -109,7 +118,7 @@ mv "${FAKE}/setup.bash.gf_hidden" "${FAKE}/setup.bash"
 if [ "${rc}" != 0 ] && grep -q "half-installed" "${LOG}/half.log" && [ "$(state)" = "${before}" ]; then
   check half_installed passed "stops: $(grep -m1 -o 'ROS_DISTRO=noetic but [^:]*' "${LOG}/half.log")"
 else
-  check half_installed failed "rc ${rc}: $(tail -n 5 "${LOG}/half.log" | tr '\n' ' ')"
+  failed_with_log half_installed half 5
 fi
 
 # 6. No ROS, no network, something to apt-install: stops before any change.
@@ -119,12 +128,7 @@ before="$(state)"
 bash -c \
   'source scripts/common.sh; GF_APT_SYSTEM_PACKAGES+=(hello); gf_install_deps' >"${LOG}/offline.log" 2>&1
 rc=$?
-if [ "${rc}" != 0 ] && grep -q "apt-get update failed" "${LOG}/offline.log" &&
-   grep -q "nothing was installed or changed" "${LOG}/offline.log" && [ "$(state)" = "${before}" ]; then
-  check no_network passed "stops: $(grep -m1 -o 'apt-get update failed ([^)]*)' "${LOG}/offline.log")"
-else
-  check no_network failed "rc ${rc}: $(tail -n 5 "${LOG}/offline.log" | tr '\n' ' ')"
-fi
+expect_stop no_network offline 'apt-get update failed ([^)]*)'
 
 echo "[existing_ros] logs in ${LOG}; $((6 - fails)) passed, ${fails} failed"
 [ "${fails}" = 0 ]

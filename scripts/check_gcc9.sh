@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The compiler floor, GCC 9 (Ubuntu 20.04 / ROS Noetic, JetPack 5 on Jetson), for the ROS-free core
 # on x86-64 and aarch64:
-#   1. builds test/core_only (the core, its gtests and the label tool) with gcc-9 / g++-9 and runs
+#   1. builds the core-only project (-DGF_CORE_ONLY=ON: the core, its gtests and the label tool) with gcc-9 / g++-9 and runs
 #      the gtests;
 #   2. cross-builds the same with aarch64-linux-gnu-g++-9 (NEON paths included), runs the kd-tree
 #      gtest (portable and NEON queries against brute force) under qemu-aarch64 and labels KITTI
@@ -20,15 +20,9 @@ set -euo pipefail
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
 
 GF_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-# shellcheck source=scripts/compare_labels.sh
-source "${GF_ROOT}/scripts/compare_labels.sh"
+# shellcheck source=scripts/core_only_lib.sh
+source "${GF_ROOT}/scripts/core_only_lib.sh"  # DATA, JOBS, SYSROOT, gf_core_only_configure
 BUILD="${GF_GCC9_BUILD:-/tmp/gf_check_gcc9}"
-# shellcheck source=scripts/common.sh
-source "${GF_ROOT}/scripts/common.sh"
-DATA="$(gf_data_dir --optional)"
-DATA="${DATA:-${GF_ROOT}/data}"  # none: the data tests skip, naming this folder
-JOBS="${GF_JOBS:-$(nproc 2>/dev/null || echo 2)}"
-SYSROOT=/usr/aarch64-linux-gnu
 PACKAGES=(g++-9 g++-9-aarch64-linux-gnu qemu-user cmake googletest libeigen3-dev)
 start=${SECONDS}
 step() { echo "== check_gcc9 [$((SECONDS - start)) s] $*"; }
@@ -50,17 +44,11 @@ done
   { echo "check_gcc9: needs /usr/src/googletest (googletest) and /usr/include/eigen3" >&2; exit 2; }
 
 failed=0
-# configure_build <dir> <cmake args...>: a fresh configure when the folder was made by another
-# checkout or compiler; the number of compiler warnings is reported (not an error).
+# configure_build <dir> <cmake args...>: the core-only build; the number of compiler warnings is
+# reported (not an error).
 configure_build() {
   local dir="$1"; shift
-  if [[ -f "${dir}/CMakeCache.txt" ]] &&
-     ! grep -qxF "CMAKE_HOME_DIRECTORY:INTERNAL=${GF_ROOT}/test/core_only" "${dir}/CMakeCache.txt"; then
-    rm -rf "${dir}"
-  fi
-  cmake -S "${GF_ROOT}/test/core_only" -B "${dir}" -DCMAKE_BUILD_TYPE=Release \
-    -DGF_DATA_DIR="${DATA}" "$@" >"${dir}.configure.log" 2>&1 ||
-    { cat "${dir}.configure.log"; return 1; }
+  gf_core_only_configure check_gcc9 "${dir}" "$@" || return 1
   grep -E "CXX compiler identification" "${dir}.configure.log" || true
   cmake --build "${dir}" -j "${JOBS}" >"${dir}.build.log" 2>&1 ||
     { grep -E "error|Error" "${dir}.build.log" | head -n 40; return 1; }

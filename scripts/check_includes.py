@@ -5,9 +5,9 @@
 
 The rooms and what each may include are the table below (docs/architecture.md#rooms shows the
 same order). A quoted include is resolved against the including file's folder, then against the
-include roots (include/, src/core/, src/nodelets/, src/tools/, cuda/src/, test/); angle-bracket
-includes (system, ROS, PCL, Eigen) and generated headers that do not exist in the tree are not
-rooms and are ignored. Also fails on a file that belongs to no room, so a new folder gets a row.
+include roots (include/, src/core/, src/ (eval/), src/nodelets/, src/tools/, cuda/src/, test/);
+angle-bracket includes (system, ROS, PCL, Eigen) and generated headers that do not exist in the
+tree are not rooms and are ignored. Also fails on a file that belongs to no room, so a new folder gets a row.
 """
 import os
 import re
@@ -20,12 +20,13 @@ ROOMS = [
     ("cuda_api", ["include/ground_filter/cuda_knn.h", "include/ground_filter/cuda_normal_pipeline.h"]),
     ("common", ["src/core/common/", "src/core/simd/"]),
     ("airborne", ["src/core/airborne/"]),
-    ("io_scene", ["src/core/io/", "src/core/scene/"]),
     ("hag", ["src/core/hag/"]),
-    ("knn", ["src/core/normal/knn/"]),
+    ("knn", ["src/core/knn/"]),
     ("voxel", ["src/core/voxel/"]),
     ("normal", ["src/core/normal/"]),
     ("core_top", ["src/core/"]),
+    # The evaluation kit (scan files, metrics, generated scenes): outside the core, on its API.
+    ("eval", ["src/eval/"]),
     ("cuda", ["cuda/src/"]),
     ("nodelets", ["src/nodelets/"]),
     ("tools", ["src/tools/"]),
@@ -38,21 +39,22 @@ ALLOWED = {
     "cuda_api": {"public"},
     "common": {"public"},
     "airborne": {"public", "common"},
-    "io_scene": {"public", "common"},
     "hag": {"public", "common"},
     "knn": {"public", "common"},
     "voxel": {"public", "common", "airborne"},
     "normal": {"public", "common", "airborne", "knn"},
-    "core_top": {"public", "common", "airborne", "io_scene", "knn", "voxel", "normal"},
+    "core_top": {"public", "common", "airborne", "hag", "knn", "voxel", "normal"},
+    "eval": {"public"},
     # The CUDA library: the public API, the common helpers, and the headers written to compile
     # for the kernels too (named *cpu_gpu_common.h, see SHARED_WITH_CUDA).
     "cuda": {"public", "common", "cuda_api"},
     # Only the public API: the nodelets library is built without the core's private headers.
     "nodelets": {"public"},
     # Benchmarks time single stages (e.g. the kd-tree against PCL's): any core room.
-    "tools": {"public", "common", "airborne", "io_scene", "knn", "voxel", "normal", "core_top"},
-    "tests": {"public", "common", "airborne", "io_scene", "knn", "voxel", "normal", "core_top",
-              "cuda_api", "cuda", "nodelets", "tools"},
+    "tools": {"public", "common", "airborne", "hag", "knn", "voxel", "normal", "core_top",
+              "eval"},
+    "tests": {"public", "common", "airborne", "hag", "knn", "voxel", "normal", "core_top",
+              "eval", "cuda_api", "cuda", "nodelets", "tools"},
 }
 
 # Public headers of whole filters: the rooms below the filters use the params structs
@@ -61,21 +63,21 @@ ALLOWED = {
 FILTER_HEADERS = {"include/ground_filter/voxel_ground_filter.h",
                   "include/ground_filter/normal_ground_filter.h",
                   "include/ground_filter/working_volume.h"}
-STAGE_ROOMS = {"common", "airborne", "io_scene", "knn", "voxel", "normal"}
+STAGE_ROOMS = {"common", "airborne", "knn", "voxel", "normal"}
 
 # The core's CUDA adapters (compiled only where CUDA is built): the only core files that may
 # include the CUDA library's interface (cuda_api). The rest of the core reaches the GPU through
-# the neighbour backends (normal/knn/knn_backend.h) and the executor (normal/filter_executor.h).
-CUDA_ADAPTERS = {"src/core/normal/knn/gpu_neighbor_search.h",
-                 "src/core/normal/knn/gpu_neighbor_search.cpp",
-                 "src/core/normal/knn/neighbor_search_factory.cpp",
+# the neighbour backends (knn/knn_backend.h) and the executor (normal/filter_executor.h).
+CUDA_ADAPTERS = {"src/core/knn/gpu_neighbor_search.h",
+                 "src/core/knn/gpu_neighbor_search.cpp",
+                 "src/core/knn/neighbor_search_factory.cpp",
                  "src/core/normal/gpu_normal_executor.h",
                  "src/core/normal/gpu_normal_executor.cpp"}
 
 # Headers of a method room that the CUDA kernels compile as well (host/device shared maths).
 SHARED_WITH_CUDA = re.compile(r"cpu_gpu_common\.h$")
 
-INCLUDE_ROOTS = ["include", "src/core", "src/nodelets", "src/tools", "cuda/src", "test",
+INCLUDE_ROOTS = ["include", "src/core", "src", "src/nodelets", "src/tools", "cuda/src", "test",
                  "cuda/test"]
 SOURCE_DIRS = ["include", "src", "cuda/src", "cuda/test", "cuda/bench", "test"]
 EXTENSIONS = (".h", ".hpp", ".cpp", ".cu", ".cuh")
@@ -101,6 +103,7 @@ def resolve(root, rel_file, target):
 
 
 def source_files(root):
+    """The C++ and CUDA files under SOURCE_DIRS (also scripts/check_sizes.py's), relative."""
     for d in SOURCE_DIRS:
         top = os.path.join(root, d)
         for dirpath, _, names in os.walk(top):

@@ -48,11 +48,9 @@ if ! command -v debootstrap >/dev/null; then
 fi
 command -v unshare >/dev/null || die "unshare (util-linux) is missing"
 
-GF_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # shellcheck source=scripts/common.sh
-source "${GF_ROOT}/scripts/common.sh"
-DATA="$(gf_data_dir --optional)"
-DATA="${DATA:-${GF_ROOT}/data}"
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"  # GF_ROOT
+DATA="$(gf_data_dir --or-repo)"
 CACHE="${GF_PLATFORM_CACHE:-/var/tmp/ground_filter_platform}/${RELEASE}"
 ROOT="${CACHE}/root"
 CLONE_IN="/work/ground_filter"   # path inside the root; the data is at /work/shared/data

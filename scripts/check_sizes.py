@@ -13,22 +13,12 @@ import os
 import re
 import sys
 
+from check_includes import source_files  # the same C++/CUDA files, one walker
+
 MAX_FILE_LINES = 700
 MAX_FUNCTION_LINES = 120  # body lines between the braces
-SOURCE_DIRS = ["include", "src", "cuda/src", "cuda/test", "cuda/bench", "test"]
-EXTENSIONS = (".h", ".hpp", ".cpp", ".cu", ".cuh")
 NOT_FUNCTION = re.compile(r"^(namespace\b|class\b|struct\b|union\b|enum\b|using\b|typedef\b|"
                           r"extern\s+\"C\"\s*\{|#|//|/\*|\*|}|template\s*<[^>]*>\s*$)")
-
-
-def source_files(root):
-    for d in SOURCE_DIRS:
-        for dirpath, _, names in os.walk(os.path.join(root, d)):
-            if "fuzz_corpus" in dirpath:
-                continue
-            for n in sorted(names):
-                if n.endswith(EXTENSIONS):
-                    yield os.path.relpath(os.path.join(dirpath, n), root)
 
 
 def functions(lines):

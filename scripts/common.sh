@@ -101,9 +101,11 @@ gf_ros_env() {
 # <repo>/../shared/data when it exists; else an error saying to run scripts/get_data.sh.
 #   DATA="$(gf_data_dir --required)"  # stops the caller (set -e) without data
 #   DATA="$(gf_data_dir --optional)"  # empty without data (for steps that skip without it)
+#   DATA="$(gf_data_dir --or-repo)"   # <repo>/data without data (tests then skip, naming it)
 gf_data_dir() {
   local optional=0 root d
   [ "${1:-}" = --optional ] && optional=1
+  [ "${1:-}" = --or-repo ] && optional=2
   if [ -n "${GF_DATA_DIR:-}" ]; then
     if [ -d "${GF_DATA_DIR}" ]; then
       (cd "${GF_DATA_DIR}" && pwd -P)
@@ -121,6 +123,7 @@ gf_data_dir() {
     fi
   done
   [ "${optional}" = 1 ] && return 0
+  [ "${optional}" = 2 ] && { echo "${GF_ROOT}/data"; return 0; }
   echo "[ground_filter] no data: run bash scripts/get_data.sh (fills ${root}/data)," \
     "or set GF_DATA_DIR to a copy" >&2
   return 1

@@ -26,3 +26,15 @@ def data_dir(optional=False):
         return None
     raise NoDataError("no data: run bash scripts/get_data.sh (fills %s), or set GF_DATA_DIR "
                       "to a copy" % os.path.join(ROOT, "data"))
+
+
+def built_tool(name="ground_filter_eval"):
+    """A tool of this build (e.g. ground_filter_eval): the devel spaces on CMAKE_PREFIX_PATH, then
+    the checkout's .ws; None when it is not built."""
+    prefixes = os.environ.get("CMAKE_PREFIX_PATH", "").split(os.pathsep)
+    prefixes.append(os.path.join(ROOT, ".ws", "devel"))
+    for prefix in prefixes:
+        path = os.path.join(prefix, "lib", "ground_filter", name)
+        if prefix and os.access(path, os.X_OK):
+            return path
+    return None

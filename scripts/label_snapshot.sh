@@ -7,12 +7,10 @@
 # generated scenes (2 seeds each). Data: $GF_DATA_DIR, else data/ (scripts/get_data.sh), else
 # ../shared/data; cases whose data is missing are skipped with a line saying so.
 set -euo pipefail
-export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
-HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # shellcheck source=scripts/common.sh
-source "${HERE}/scripts/common.sh"
-DATA="$(gf_data_dir --optional)"
-DATA="${DATA:-${HERE}/data}"
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"  # GF_ROOT, PATH with /usr/bin first
+HERE="${GF_ROOT}"
+DATA="$(gf_data_dir --or-repo)"
 
 if [ "${1:-}" = "--compare" ]; then
   [ $# -eq 3 ] || { echo "usage: $0 --compare DIR_A DIR_B" >&2; exit 2; }

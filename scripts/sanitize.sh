@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Builds the ROS-free core with clang and -fsanitize=address,undefined in .ws_asan/ (git-ignored)
-# and runs its gtests there; results as JUnit XML for scripts/test_summary.py.
+# Builds the ROS-free core with clang and -fsanitize=address,undefined in .ws_asan/ (git-ignored;
+# cmake -DGF_CORE_ONLY=ON -DGF_SANITIZE=ON: cmake/gf_core_only.cmake) and runs its gtests there;
+# results as JUnit XML for scripts/test_summary.py.
 #   scripts/sanitize.sh [--results DIR] [--build-only]
 # DIR defaults to .ws_asan/test_results. The libFuzzer target of scripts/fuzz.sh is built here too.
 set -euo pipefail
@@ -18,10 +19,17 @@ SAN_BUILD="${GF_ROOT}/.ws_asan"
 JUNIT="${GF_ROOT}/scripts/sanitize_junit.py"
 
 # Build. A failure is reported as a failed test case, not as a silent skip.
+# A folder configured from another source (CMake refuses it) is built afresh (its test binaries
+# too: the loop below runs every asan_test_*; the fuzz corpus and artifacts stay).
+if [ -f "${SAN_BUILD}/CMakeCache.txt" ] &&
+   ! grep -qxF "CMAKE_HOME_DIRECTORY:INTERNAL=${GF_ROOT}" "${SAN_BUILD}/CMakeCache.txt"; then
+  rm -rf "${SAN_BUILD:?}/CMakeCache.txt" "${SAN_BUILD}/CMakeFiles" "${SAN_BUILD}"/asan_test_*
+fi
 mkdir -p "${SAN_BUILD}" "${RESULTS}"
 build_log="${SAN_BUILD}/build.log"
 if ! (cd "${SAN_BUILD}" &&
-      CXX=clang++ cmake -S "${GF_ROOT}/test/sanitize" -B . -DCMAKE_BUILD_TYPE=None \
+      CXX=clang++ cmake -S "${GF_ROOT}" -B . -DGF_CORE_ONLY=ON -DGF_SANITIZE=ON \
+        -DCMAKE_BUILD_TYPE=None \
         ${CMAKE_CXX_COMPILER_LAUNCHER:+-DCMAKE_CXX_COMPILER_LAUNCHER=${CMAKE_CXX_COMPILER_LAUNCHER}} \
         > "${build_log}" 2>&1 &&
       nice -n 5 cmake --build . -j"$(nproc 2>/dev/null || echo 2)" >> "${build_log}" 2>&1); then

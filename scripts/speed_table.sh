@@ -13,10 +13,9 @@
 # Needs a build (bash -c 'source scripts/common.sh; gf_build'); data: $GF_DATA_DIR, else data/
 # (bash scripts/get_data.sh), else ../shared/data.
 set -euo pipefail
-export PATH="/usr/bin:/bin:${PATH}"
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-# shellcheck source=/dev/null
-source "${ROOT}/scripts/common.sh"
+# shellcheck source=scripts/common.sh
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"  # GF_ROOT, PATH with /usr/bin first
+ROOT="${GF_ROOT}"
 DATA="$(gf_data_dir --required)"
 BIN="${GF_BIN:-${ROOT}/.ws/devel/lib/ground_filter}"
 PEER_BIN="${PEER_BIN:-${GF_PEERS_DIR:-${HOME}/.cache/ground_filter_peers}/build}"

@@ -4,14 +4,15 @@
 
 #include <cmath>
 #include <cstddef>
-#include <fstream>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "ground_filter/cloud_view.h"
-#ifndef GF_TEST_NO_SCAN_IO
-#include "ground_filter/io/scan_io.h"
+#ifdef GF_TEST_NO_SCAN_IO
+#include "eval/kitti_bin.h"
+#else
+#include "eval/scan_io.h"
 #endif
 
 namespace gf_test {
@@ -44,11 +45,10 @@ inline std::vector<float> randomCloud(std::size_t n, unsigned seed, bool cluster
 inline std::vector<float> finiteXyzOf(const std::string& file) {
   std::vector<float> c;
   if (file.size() < 4 || file.compare(file.size() - 4, 4, ".bin") != 0) return c;
-  std::ifstream in(file, std::ios::binary);
-  float r[4];
-  while (in.read(reinterpret_cast<char*>(r), sizeof(r))) {
-    if (std::isfinite(r[0]) && std::isfinite(r[1]) && std::isfinite(r[2])) {
-      c.insert(c.end(), {r[0], r[1], r[2]});
+  const std::vector<float> r = ground_filter::readKittiRecords(file);
+  for (std::size_t i = 0; i + 3 < r.size(); i += 4) {
+    if (std::isfinite(r[i]) && std::isfinite(r[i + 1]) && std::isfinite(r[i + 2])) {
+      c.insert(c.end(), {r[i], r[i + 1], r[i + 2]});
     }
   }
   return c;

@@ -90,6 +90,28 @@ inline std::vector<std::size_t> groundNearFootprint(const TruthCloud& c, float c
   return idx;
 }
 
+/// \brief A bush beside a car (the vegetation rule's scene of both methods).
+struct BushAndCar {
+  TruthCloud c;
+  std::vector<std::size_t> bush_base;  ///< the bush's base points
+  std::vector<std::size_t> by_car;     ///< the ground within 0.3 m of the car's footprint
+};
+
+/// \brief Flat noisy ground (z = 0, 5 cm grid, 5 mm noise, x and y from -half to half m) with a
+///        porous bush at (2, 0) (radius 0.6 m, 0.9 m high, addPorousBush) and a car-like box
+///        (4 x 1.8 m, faces on a 5 cm grid, from z0 to z0 + h) at (car_x, car_y).
+inline BushAndCar bushAndCar(unsigned seed, float half, float car_x, float car_y, float z0,
+                             float h) {
+  std::mt19937 rng(seed);
+  BushAndCar s;
+  addSurface(
+      &s.c, -half, half, -half, half, 0.05f, [](float, float) { return 0.f; }, 0.005f, &rng);
+  addPorousBush(&s.c, 2.f, 0.f, 0.f, 0.6f, 0.9f, &rng, &s.bush_base);
+  addBox(&s.c, car_x, car_y, 4.f, 1.8f, z0, h, 0.05f);
+  s.by_car = groundNearFootprint(s.c, car_x, car_y, 4.f, 1.8f, 0.3f);
+  return s;
+}
+
 /// \brief Share of the points `idx` labelled ground (0 for none).
 inline double groundShare(const std::vector<std::uint8_t>& labels,
                           const std::vector<std::size_t>& idx) {

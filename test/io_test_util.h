@@ -25,11 +25,11 @@
 #include <vector>
 
 #include "cli_args.h"
+#include "eval/metrics.h"
+#include "eval/scan_io.h"
+#include "eval/scene_generator.h"
 #include "gf_test_data.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/io/metrics.h"
-#include "ground_filter/io/scan_io.h"
-#include "ground_filter/scene/scene_generator.h"
 #include "voxel/paper_voxel_filter.h"
 
 namespace gf_io_test {

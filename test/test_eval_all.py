@@ -3,25 +3,16 @@ the normal method (one run per ransac_seed; the voxel methods have no seed)."""
 import json
 import os
 import subprocess
+import sys
 import unittest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "scripts"))
+from gf_data import built_tool  # noqa: E402
+
 SCRIPT = os.path.join(ROOT, "scripts", "eval_all.sh")
 SCENE = "builtin:trail:1"  # generated, exact truth, no data directory; seeds 0 and 3 differ
-
-
-def find_eval():
-    """ground_filter_eval of this build: the devel spaces on CMAKE_PREFIX_PATH, then .ws."""
-    prefixes = os.environ.get("CMAKE_PREFIX_PATH", "").split(os.pathsep)
-    prefixes.append(os.path.join(ROOT, ".ws", "devel"))
-    for prefix in prefixes:
-        path = os.path.join(prefix, "lib", "ground_filter", "ground_filter_eval")
-        if prefix and os.access(path, os.X_OK):
-            return path
-    return None
-
-
-EVAL = find_eval()
+EVAL = built_tool()
 
 
 def eval_f1(method, *settings):

@@ -12,11 +12,11 @@
 
 #include "ground_filter/neighbor_search.h"
 #include "ground_filter/normal_ground_filter.h"
+#include "knn/kdtree_neighbor_search.h"
 #include "normal/filter_executor.h"
-#include "normal/knn/kdtree_neighbor_search.h"
 #ifdef GROUND_FILTER_HAVE_CUDA
 #include "ground_filter/cuda_knn.h"
-#include "normal/knn/gpu_neighbor_search.h"
+#include "knn/gpu_neighbor_search.h"
 #endif
 
 namespace gf = ground_filter;

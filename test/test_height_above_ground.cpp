@@ -12,10 +12,10 @@
 #include <string>
 #include <vector>
 
+#include "eval/scene_generator.h"
 #include "gf_test_alloc_counter.h"  // allocationCount()
 #include "gf_test_scenes.h"
 #include "ground_filter/height_above_ground.h"
-#include "ground_filter/scene/scene_generator.h"
 
 namespace gf = ground_filter;
 using gf_test::TruthCloud;

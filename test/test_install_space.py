@@ -31,16 +31,15 @@ from ros_launch_helpers import Process, free_port, loopback_env  # noqa: E402
 CONFIG = "gf_install_test.json"  # written by CMakeLists.txt next to where this test runs
 ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
 # The public API, relative to include/ground_filter/: the filters and their parameters, the
-# cloud view, the neighbour interface and factory, the host-clean CUDA classes, scan files and
-# metrics (libground_filter_io), generated scenes; and the nodelets' dynamic_reconfigure Config
-# types (generated). Everything else is private (src/).
+# cloud view, the neighbour interface and factory, the host-clean CUDA classes, height above
+# ground; and the nodelets' dynamic_reconfigure Config types (generated). Everything else is
+# private (src/), the evaluation kit too (src/eval/: linked statically into the tools).
 PUBLIC_HEADERS = {
     "cloud_view.h", "cuda_knn.h", "cuda_normal_pipeline.h", "ground_filter.h",
     "morph_ground_params.h", "neighbor_search.h", "normal_ground_filter.h",
     "normal_ground_filter_params.h",
     "param_parse.h", "param_table.h", "voxel_ground_filter.h", "voxel_ground_filter_params.h",
-    "working_volume.h", "working_volume_params.h", "io/metrics.h", "io/scan_io.h",
-    "scene/scene_generator.h", "height_above_ground.h", "build_info.h",
+    "working_volume.h", "working_volume_params.h", "height_above_ground.h", "build_info.h",
     "params/param_def.h", "params/normal_filter_settings.h",
     "NormalGroundFilterConfig.h", "VoxelGroundFilterConfig.h",
 }

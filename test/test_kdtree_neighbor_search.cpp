@@ -17,8 +17,8 @@
 #include "gf_test_data.h"
 #include "gf_test_points.h"
 #include "ground_filter/cloud_view.h"
-#include "normal/knn/kdtree_neighbor_search.h"
-#include "normal/knn/neighborhood_pca.h"
+#include "knn/kdtree_neighbor_search.h"
+#include "knn/neighborhood_pca.h"
 #include "simd/simd.h"
 
 // nanoflann is an optional test dependency (CMakeLists.txt defines GF_HAVE_NANOFLANN when found).
@@ -82,6 +82,17 @@ std::vector<Level> codePaths() {
 
 std::string nameOf(Level l) { return gf::simd::levelName(l); }
 
+/// Runs `body(level)` once under each code path of codePaths() (a failure names the path).
+template <typename Body>
+void forEachCodePath(Body body) {
+  for (Level level : codePaths()) {
+    const gf::simd::ScopedLevel scoped(level);
+    ASSERT_TRUE(scoped.ok());
+    SCOPED_TRACE(nameOf(level));
+    body(level);
+  }
+}
+
 void expectSameLists(const gf::NeighborLists& want, const gf::NeighborLists& got) {
   ASSERT_EQ(got.k, want.k);
   ASSERT_EQ(got.points, want.points);
@@ -123,9 +134,7 @@ using NanoflannTree =
 
 TEST(KdTreeNeighborSearchExact, RandomCloudsEveryK) {
   // K up to 64, 128 and 256 use different AVX-512 list sizes; 300 only the portable code.
-  for (Level level : codePaths()) {
-    const gf::simd::ScopedLevel scoped(level);
-    ASSERT_TRUE(scoped.ok());
+  forEachCodePath([&](Level level) {
     gf::KdTreeNeighborSearch search(2, 16);
     gf::NeighborLists got;
     for (bool clustered : {false, true}) {
@@ -137,7 +146,7 @@ TEST(KdTreeNeighborSearchExact, RandomCloudsEveryK) {
         expectSameLists(bruteForce(c, k), got);
       }
     }
-  }
+  });
 }
 
 namespace {
@@ -164,9 +173,7 @@ Cloud coincidentCloud() {
 
 TEST(KdTreeNeighborSearchExact, ManyCoincidentPoints) {
   const Cloud c = coincidentCloud();
-  for (Level level : codePaths()) {
-    const gf::simd::ScopedLevel scoped(level);
-    ASSERT_TRUE(scoped.ok());
+  forEachCodePath([&](Level level) {
     for (int leaf : {4, 32}) {
       gf::KdTreeNeighborSearch search(2, leaf);
       gf::NeighborLists got;
@@ -176,15 +183,13 @@ TEST(KdTreeNeighborSearchExact, ManyCoincidentPoints) {
         expectSameLists(bruteForce(c, k), got);
       }
     }
-  }
+  });
 }
 
 TEST(KdTreeNeighborSearchExact, OneAndTwoBuildThreadsAgree) {
   // The build places each leaf's points in index order, with two threads from both ends of every
   // leaf: odd sizes, coincident points on both sides of n / 2, default leaf size.
-  for (Level level : codePaths()) {
-    const gf::simd::ScopedLevel scoped(level);
-    ASSERT_TRUE(scoped.ok());
+  forEachCodePath([&](Level level) {
     for (std::size_t n : {257u, 1001u, 4099u}) {
       Cloud c = randomCloud(n, 5u, true);
       for (std::size_t i = 0; i < n; i += 5) c[3 * i] = c[3 * i + 1] = c[3 * i + 2] = 0.f;
@@ -202,7 +207,7 @@ TEST(KdTreeNeighborSearchExact, OneAndTwoBuildThreadsAgree) {
         }
       }
     }
-  }
+  });
 }
 
 TEST(KdTreeNeighborSearchExact, RegularGridTiesAndLine) {
@@ -214,9 +219,7 @@ TEST(KdTreeNeighborSearchExact, RegularGridTiesAndLine) {
     }
   }
   for (int i = 0; i < 300; ++i) line.insert(line.end(), {0.1f * (i % 150), 2.f, 1.f});  // doubled
-  for (Level level : codePaths()) {
-    const gf::simd::ScopedLevel scoped(level);
-    ASSERT_TRUE(scoped.ok());
+  forEachCodePath([&](Level level) {
     gf::KdTreeNeighborSearch search(1, 8);
     gf::NeighborLists got;
     for (const Cloud* c : {&grid, &line}) {
@@ -226,13 +229,11 @@ TEST(KdTreeNeighborSearchExact, RegularGridTiesAndLine) {
         expectSameLists(bruteForce(*c, k), got);
       }
     }
-  }
+  });
 }
 
 TEST(KdTreeNeighborSearchExact, SmallClouds) {
-  for (Level level : codePaths()) {
-    const gf::simd::ScopedLevel scoped(level);
-    ASSERT_TRUE(scoped.ok());
+  forEachCodePath([&](Level level) {
     gf::KdTreeNeighborSearch search(2);
     gf::NeighborLists got;
     for (std::size_t n : {1u, 2u, 49u, 50u, 51u}) {
@@ -241,15 +242,13 @@ TEST(KdTreeNeighborSearchExact, SmallClouds) {
       search.search(c.data(), n, 50, &got);
       expectSameLists(bruteForce(c, 50), got);
     }
-  }
+  });
 }
 
 TEST(KdTreeNeighborSearchExact, AllPointsIdenticalEveryLevel) {
   // Every distance 0: the lists are the K lowest indices, on every level, also for K up to 256
   // and for fewer points than K.
-  for (Level level : codePaths()) {
-    const gf::simd::ScopedLevel scoped(level);
-    ASSERT_TRUE(scoped.ok());
+  forEachCodePath([&](Level level) {
     for (std::size_t n : {10u, 700u}) {
       const Cloud c(3 * n, 1.25f);
       gf::KdTreeNeighborSearch search(2, 16);
@@ -260,7 +259,7 @@ TEST(KdTreeNeighborSearchExact, AllPointsIdenticalEveryLevel) {
         expectSameLists(bruteForce(c, k), got);
       }
     }
-  }
+  });
 }
 
 TEST(KdTreeNeighborSearchExact, InfiniteDistancesEveryLevel) {
@@ -272,9 +271,7 @@ TEST(KdTreeNeighborSearchExact, InfiniteDistancesEveryLevel) {
     c[3 * i] = (i % 2 ? 1e30f : -1e30f);
     c[3 * i + 2] = 1e30f;
   }
-  for (Level level : codePaths()) {
-    const gf::simd::ScopedLevel scoped(level);
-    ASSERT_TRUE(scoped.ok());
+  forEachCodePath([&](Level level) {
     gf::KdTreeNeighborSearch search(2, 8);
     gf::NeighborLists got;
     for (int k : {3, 64, 256}) {
@@ -282,7 +279,7 @@ TEST(KdTreeNeighborSearchExact, InfiniteDistancesEveryLevel) {
       search.search(c.data(), c.size() / 3, k, &got);
       expectSameLists(bruteForce(c, k), got);
     }
-  }
+  });
 }
 
 TEST(KdTreeNeighborSearchExact, LevelsAgreeOnLargeK) {
@@ -291,13 +288,11 @@ TEST(KdTreeNeighborSearchExact, LevelsAgreeOnLargeK) {
   const Cloud c = randomCloud(5000, 21u, true);
   for (int k : {16, 17, 32, 33, 63, 64, 100, 128, 129, 255, 256}) {
     std::vector<gf::NeighborLists> lists;
-    for (Level level : codePaths()) {
-      const gf::simd::ScopedLevel scoped(level);
-      ASSERT_TRUE(scoped.ok());
+    forEachCodePath([&](Level) {
       gf::KdTreeNeighborSearch search(2, 64);
       lists.emplace_back();
       search.search(c.data(), c.size() / 3, k, &lists.back());
-    }
+    });
     for (std::size_t p = 1; p < lists.size(); ++p) {
       SCOPED_TRACE(nameOf(codePaths()[p]) + " k " + std::to_string(k));
       expectSameLists(lists.front(), lists[p]);
@@ -331,13 +326,11 @@ TEST(KdTreeNeighborSearchExact, KittiFrameMatchesNanoflann) {
   }
 
   std::vector<gf::NeighborLists> lists;
-  for (Level level : codePaths()) {
-    const gf::simd::ScopedLevel scoped(level);
-    ASSERT_TRUE(scoped.ok());
+  forEachCodePath([&](Level) {
     gf::KdTreeNeighborSearch search(0);
     lists.emplace_back();
     search.search(c.data(), n, k, &lists.back());
-  }
+  });
   const gf::NeighborLists& got = lists.front();
   std::size_t dist_rows = 0, set_rows = 0;
   for (std::size_t i = 0; i < n; ++i) {
@@ -410,9 +403,7 @@ void expectKeptListsSame(const Cloud& c, int k, Level level, int leaf) {
 
 TEST(KdTreeNeighborSearchExact, KeptListsSameAsReference) {
   const Cloud coincident = coincidentCloud();
-  for (Level level : codePaths()) {
-    const gf::simd::ScopedLevel scoped(level);
-    ASSERT_TRUE(scoped.ok());
+  forEachCodePath([&](Level level) {
     for (bool clustered : {false, true}) {
       const Cloud c = randomCloud(3000, clustered ? 7u : 3u, clustered);
       for (int k : {1, 8, 64, 65, 300}) {
@@ -427,7 +418,7 @@ TEST(KdTreeNeighborSearchExact, KeptListsSameAsReference) {
     }
     SCOPED_TRACE("small cloud");
     expectKeptListsSame(randomCloud(40, 5, true), 64, level, 64);
-  }
+  });
 }
 
 TEST(KdTreeNeighborSearchExact, KeptListsSameOnRealScans) {
@@ -473,9 +464,7 @@ void expectPcaSameOnEveryLevel(const Cloud& c, const gf::NeighborLists& l) {
     ASSERT_EQ(want_cand[i], gf::isCandidatePca(want[i], test.min_planarity, test.min_abs_nz));
     candidates += want_cand[i];
   }
-  for (Level level : codePaths()) {
-    const gf::simd::ScopedLevel scoped(level);
-    ASSERT_TRUE(scoped.ok());
+  forEachCodePath([&](Level level) {
     SCOPED_TRACE(nameOf(level));
     gf::computeNeighborhoodPca(c.data(), l, 2, &got);
     gf::computeNeighborhoodCandidates(c.data(), l, 2, test, got_cand.data(), nullptr);
@@ -490,7 +479,7 @@ void expectPcaSameOnEveryLevel(const Cloud& c, const gf::NeighborLists& l) {
     EXPECT_EQ(pca_diff, 0u) << "points whose PCA differs from the portable code's";
     EXPECT_EQ(cand_diff, 0u) << "points whose candidate flag differs (" << candidates
                              << " candidates)";
-  }
+  });
 }
 
 }  // namespace

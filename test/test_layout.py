@@ -21,11 +21,18 @@ def run(script, root):
     return p.returncode, p.stdout
 
 
-def write(root, rel, text):
-    path = os.path.join(root, rel)
-    os.makedirs(os.path.dirname(path), exist_ok=True)
-    with open(path, "w") as f:
-        f.write(text)
+def run_planted(script, files):
+    """`script` on a temporary tree of `files` ({relative path: text}): (exit status, output)."""
+    tmp = tempfile.mkdtemp()
+    try:
+        for rel, text in files.items():
+            path = os.path.join(tmp, rel)
+            os.makedirs(os.path.dirname(path), exist_ok=True)
+            with open(path, "w") as f:
+                f.write(text)
+        return run(script, tmp)
+    finally:
+        shutil.rmtree(tmp)
 
 
 class TestLayout(unittest.TestCase):
@@ -46,48 +53,40 @@ class TestLayout(unittest.TestCase):
         self.assertEqual(p.returncode, 0, p.stdout)
 
     def test_include_checker_finds_planted_cycles(self):
-        tmp = tempfile.mkdtemp()
-        try:
-            write(tmp, "include/ground_filter/voxel_ground_filter_params.h", "\n")
-            write(tmp, "include/ground_filter/voxel_ground_filter.h",
-                  '#include "ground_filter/voxel_ground_filter_params.h"\n')
-            write(tmp, "src/core/common/util.h", '#include "voxel/stage.h"\n')       # up
-            write(tmp, "src/core/voxel/stage.h",
-                  '#include "ground_filter/voxel_ground_filter.h"\n')                # class
-            write(tmp, "src/core/voxel/other.cpp", '#include "normal/x.h"\n')         # sideways
-            write(tmp, "src/core/normal/x.h", "\n")
-            write(tmp, "src/core/normal/knn/tree.cpp", '#include "normal/x.h"\n')     # up
-            write(tmp, "src/core/voxel/voxel_ground_filter.cpp",
-                  '#include "ground_filter/voxel_ground_filter.h"\n#include "voxel/stage.h"\n')
-            write(tmp, "src/core/newroom/a.cpp", "\n")  # no room: top of the core, allowed
-            rc, out = run(INCLUDES, tmp)
-            self.assertEqual(rc, 1, out)
-            self.assertIn("src/core/common/util.h:1: common includes src/core/voxel/stage.h", out)
-            self.assertIn("src/core/voxel/stage.h:1: includes the filter class", out)
-            self.assertIn("src/core/voxel/other.cpp:1: voxel includes src/core/normal/x.h", out)
-            self.assertIn("src/core/normal/knn/tree.cpp:1: knn includes src/core/normal/x.h", out)
-            self.assertNotIn("voxel_ground_filter.cpp", out)  # its own class and its stages
-            self.assertIn("4 point the wrong way", out)
-        finally:
-            shutil.rmtree(tmp)
+        rc, out = run_planted(INCLUDES, {
+            "include/ground_filter/voxel_ground_filter_params.h": "\n",
+            "include/ground_filter/voxel_ground_filter.h":
+                '#include "ground_filter/voxel_ground_filter_params.h"\n',
+            "src/core/common/util.h": '#include "voxel/stage.h"\n',                  # up
+            "src/core/voxel/stage.h": '#include "ground_filter/voxel_ground_filter.h"\n',  # class
+            "src/core/voxel/other.cpp": '#include "normal/x.h"\n',                   # sideways
+            "src/core/normal/x.h": "\n",
+            "src/core/knn/tree.cpp": '#include "normal/x.h"\n',                      # up
+            "src/core/voxel/voxel_ground_filter.cpp":
+                '#include "ground_filter/voxel_ground_filter.h"\n#include "voxel/stage.h"\n',
+            "src/core/newroom/a.cpp": "\n",  # no room: top of the core, allowed
+        })
+        self.assertEqual(rc, 1, out)
+        self.assertIn("src/core/common/util.h:1: common includes src/core/voxel/stage.h", out)
+        self.assertIn("src/core/voxel/stage.h:1: includes the filter class", out)
+        self.assertIn("src/core/voxel/other.cpp:1: voxel includes src/core/normal/x.h", out)
+        self.assertIn("src/core/knn/tree.cpp:1: knn includes src/core/normal/x.h", out)
+        self.assertNotIn("voxel_ground_filter.cpp", out)  # its own class and its stages
+        self.assertIn("4 point the wrong way", out)
 
     def test_size_checker_finds_planted_long_function_and_file(self):
-        tmp = tempfile.mkdtemp()
-        try:
-            body = "".join("  x += %d;\n" % i for i in range(121))
-            write(tmp, "src/core/voxel/long.cpp",
-                  "namespace a {\n\nint longOne(int x,\n            int y) {\n" + body +
-                  "  return x;\n}\n\nint shortOne() {\n  return 1;\n}\n\n}  // namespace a\n")
-            write(tmp, "src/core/voxel/big.h", "// line\n" * 701)
-            rc, out = run(SIZES, tmp)
-            self.assertEqual(rc, 1, out)
-            self.assertIn("src/core/voxel/long.cpp:3: longOne: 122 lines", out)
-            self.assertNotIn("shortOne", out)
-            self.assertIn("src/core/voxel/big.h: 701 lines", out)
-            self.assertIn("2 over the limits", out)
-        finally:
-            shutil.rmtree(tmp)
-
+        body = "".join("  x += %d;\n" % i for i in range(121))
+        rc, out = run_planted(SIZES, {
+            "src/core/voxel/long.cpp":
+                "namespace a {\n\nint longOne(int x,\n            int y) {\n" + body +
+                "  return x;\n}\n\nint shortOne() {\n  return 1;\n}\n\n}  // namespace a\n",
+            "src/core/voxel/big.h": "// line\n" * 701,
+        })
+        self.assertEqual(rc, 1, out)
+        self.assertIn("src/core/voxel/long.cpp:3: longOne: 122 lines", out)
+        self.assertNotIn("shortOne", out)
+        self.assertIn("src/core/voxel/big.h: 701 lines", out)
+        self.assertIn("2 over the limits", out)
 
 if __name__ == "__main__":
     unittest.main()

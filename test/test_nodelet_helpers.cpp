@@ -30,8 +30,7 @@ using sensor_msgs::PointField;
 
 namespace {
 
-using gf_test::field;
-using gf_test::makeCloud;
+using namespace gf_test;  // NOLINT(build/namespaces): the cloud builders (gf_test_clouds.h)
 
 const std::uint8_t* record(const PointCloud2& c, std::size_t i) {
   return c.data.data() + (i / c.width) * c.row_step + (i % c.width) * c.point_step;

@@ -19,18 +19,18 @@
 #include <vector>
 
 #include "common/radix_sort.h"
+#include "eval/metrics.h"
+#include "eval/scan_io.h"
+#include "eval/scene_generator.h"
 #include "gf_test_data.h"
 #include "gf_test_normal.h"
 #include "gf_test_points.h"
 #include "gf_test_scenes.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/io/metrics.h"
-#include "ground_filter/io/scan_io.h"
 #include "ground_filter/neighbor_search.h"
 #include "ground_filter/normal_ground_filter.h"
-#include "ground_filter/scene/scene_generator.h"
-#include "normal/knn/kdtree_neighbor_search.h"
-#include "normal/knn/neighborhood_pca.h"
+#include "knn/kdtree_neighbor_search.h"
+#include "knn/neighborhood_pca.h"
 #include "normal/plane.h"
 #include "simd/simd.h"
 
@@ -486,29 +486,22 @@ TEST(NormalGroundFilterKitti, SampledNormalsGiveTheEveryPointResult) {
 
 namespace {
 
-/// Noisy flat ground (z = 0, 5 cm grid, 12 x 12 m) with a porous bush at (2, 0) (radius 0.6 m,
-/// 0.9 m high, gf_test::addPorousBush) and a solid car-like box (faces on a 5 cm grid,
-/// 0.3-1.5 m) at (-3, 3). Marks the bush base, the ground within 0.3 m of the box's footprint
-/// and all ground points.
+/// gf_test::bushAndCar (12 x 12 m, the car at (-3, 3) from 0.25 to 1.5 m) as packed x y z, and
+/// all ground points.
 struct BushScene {
   Cloud c;
   std::vector<std::size_t> bush_base, by_car, ground;
 };
 
 BushScene bushScene(unsigned seed) {
-  std::mt19937 rng(seed);
-  gf_test::TruthCloud t;
+  gf_test::BushAndCar t = gf_test::bushAndCar(seed, 6.f, -3.f, 3.f, 0.25f, 1.25f);
   BushScene s;
-  gf_test::addSurface(
-      &t, -6, 6, -6, 6, 0.05f, [](float, float) { return 0.f; }, 0.005f, &rng);
-  gf_test::addPorousBush(&t, 2.f, 0.f, 0.f, 0.6f, 0.9f, &rng, &s.bush_base);
-  const float cx = -3.f, cy = 3.f, sx = 4.f, sy = 1.8f;
-  gf_test::addBox(&t, cx, cy, sx, sy, 0.25f, 1.25f, 0.05f);
-  s.by_car = gf_test::groundNearFootprint(t, cx, cy, sx, sy, 0.3f);
-  for (std::size_t i = 0; i < t.size(); ++i) {
-    if (t.truth[i]) s.ground.push_back(i);
+  for (std::size_t i = 0; i < t.c.size(); ++i) {
+    if (t.c.truth[i]) s.ground.push_back(i);
   }
-  s.c = std::move(t.xyz);
+  s.c = std::move(t.c.xyz);
+  s.bush_base = std::move(t.bush_base);
+  s.by_car = std::move(t.by_car);
   return s;
 }
 

@@ -1,4 +1,4 @@
-// Normal-vector filter, neighbour search and PCA (normal/knn/): the kd-tree against brute force,
+// Normal-vector filter, neighbour search and PCA (knn/): the kd-tree against brute force,
 // the factory, the PCA against hand-computed covariances, the candidate-only PCA against the
 // Eigen path, the fused kd-tree calls against search + PCA.
 
@@ -19,18 +19,18 @@
 #include <vector>
 
 #include "common/radix_sort.h"
+#include "eval/metrics.h"
+#include "eval/scan_io.h"
+#include "eval/scene_generator.h"
 #include "gf_test_data.h"
 #include "gf_test_normal.h"
 #include "gf_test_points.h"
 #include "gf_test_scenes.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/io/metrics.h"
-#include "ground_filter/io/scan_io.h"
 #include "ground_filter/neighbor_search.h"
 #include "ground_filter/normal_ground_filter.h"
-#include "ground_filter/scene/scene_generator.h"
-#include "normal/knn/kdtree_neighbor_search.h"
-#include "normal/knn/neighborhood_pca.h"
+#include "knn/kdtree_neighbor_search.h"
+#include "knn/neighborhood_pca.h"
 #include "normal/plane.h"
 #include "simd/simd.h"
 

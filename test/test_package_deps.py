@@ -58,11 +58,13 @@ def key(name):
 
 def cpp_includes(rel):
     """Top-level folder of each #include; quoted includes found next to the file or in the
-    package's own include directories (include/, src/core/) are the package's own."""
+    package's own include directories (include/, src/core/, src/ for eval/) are the package's
+    own."""
     here = os.path.dirname(os.path.join(ROOT, rel))
     names = set()
     for quote, path in re.findall(r'#include\s*([<"])([A-Za-z0-9_]+/[^">]*)[">]', read(rel)):
-        own_dirs = (here, os.path.join(ROOT, "src", "core"), os.path.join(ROOT, "include"))
+        own_dirs = (here, os.path.join(ROOT, "src", "core"), os.path.join(ROOT, "src"),
+                    os.path.join(ROOT, "include"))
         if quote == '"' and any(os.path.exists(os.path.join(d, path)) for d in own_dirs):
             continue
         names.add(path.split("/", 1)[0])

@@ -11,22 +11,10 @@ import unittest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "scripts"))
-from gf_data import data_dir  # noqa: E402
+from gf_data import built_tool, data_dir  # noqa: E402
 
-
-
-def find_eval():
-    """ground_filter_eval of this build: the devel spaces on CMAKE_PREFIX_PATH, then .ws."""
-    prefixes = os.environ.get("CMAKE_PREFIX_PATH", "").split(os.pathsep)
-    prefixes.append(os.path.join(ROOT, ".ws", "devel"))
-    for prefix in prefixes:
-        path = os.path.join(prefix, "lib", "ground_filter", "ground_filter_eval")
-        if prefix and os.access(path, os.X_OK):
-            return path
-    return os.path.join(ROOT, ".ws", "devel", "lib", "ground_filter", "ground_filter_eval")
-
-
-EVAL = os.environ.get("GF_EVAL") or find_eval()
+EVAL = (os.environ.get("GF_EVAL") or built_tool()
+        or os.path.join(ROOT, ".ws", "devel", "lib", "ground_filter", "ground_filter_eval"))
 RUN_PEERS = os.path.join(ROOT, "scripts", "peers", "run_peers.sh")
 SCENE = "builtin:lidar:1"
 

@@ -23,8 +23,7 @@ using sensor_msgs::PointField;
 
 namespace {
 
-using gf_test::field;
-using gf_test::makeCloud;
+using namespace gf_test;  // NOLINT(build/namespaces): the cloud builders (gf_test_clouds.h)
 
 gf::CloudLayout layoutOf(const PointCloud2& c) {
   gf::CloudLayout layout;

@@ -14,10 +14,10 @@
 #include <vector>
 
 #include "airborne/scan_type.h"
+#include "eval/metrics.h"
+#include "eval/scene_generator.h"
 #include "gf_test_alloc_counter.h"  // allocationCount()
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/io/metrics.h"
-#include "ground_filter/scene/scene_generator.h"
 #include "ground_filter/voxel_ground_filter.h"
 #include "ground_filter/working_volume.h"
 

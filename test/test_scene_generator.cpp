@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "ground_filter/scene/scene_generator.h"
+#include "eval/scene_generator.h"
 
 namespace ground_filter {
 namespace {

@@ -19,10 +19,10 @@
 #include <string>
 #include <vector>
 
+#include "eval/scene_generator.h"
 #include "gf_test_alloc_counter.h"  // allocationCount()
 #include "ground_filter/build_info.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/scene/scene_generator.h"
 #include "simd/simd.h"
 
 namespace gf = ground_filter;

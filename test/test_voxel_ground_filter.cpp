@@ -28,15 +28,8 @@ constexpr double kVoxelF1Floor = 0.9624;
 namespace {
 
 using Cloud = gf_test::TruthCloud;
-using gf_test::addBox;
-using gf_test::addPorousBush;
-using gf_test::addSurface;
-using gf_test::agreement;
-using gf_test::groundLevel;
-using gf_test::groundShare;
-using gf_test::run;
-using gf_test::slopeWithBox;
-using gf_test::vegetationRule;
+// The shared scenes and voxel helpers (gf_test_scenes.h, gf_test_voxel.h).
+using namespace gf_test;  // NOLINT(build/namespaces)
 
 /// A level 16 m x 16 m noisy plane with a 2 m x 1.8 m x 1.5 m box standing on it at (3, 2).
 Cloud planeWithBox(unsigned seed) {
@@ -479,44 +472,19 @@ TEST(VoxelGroundFilter, DeterministicForAnyThreadCount) {
 
 // ------------------------------------------------------------------ vegetation rule (veg_filter)
 
-namespace {
-
-/// Flat noisy ground (z = 0, 5 cm grid) with a porous bush at (2, 0) (radius 0.6 m, 0.9 m
-/// high, addPorousBush) and a car-like box (4 x 1.8 x 1.2 m on 0.3 m of clearance, faces
-/// on a 5 cm grid) beside the road at (-5, 4). Marks the bush base points and the road points
-/// within 0.3 m of the box's footprint.
-struct BushAndCar {
-  Cloud c;
-  std::vector<std::size_t> bush_base, road_by_car;
-};
-
-BushAndCar bushAndCar(unsigned seed) {
-  std::mt19937 rng(seed);
-  BushAndCar s;
-  Cloud& c = s.c;
-  addSurface(
-      &c, -10, 10, -10, 10, 0.05f, [](float, float) { return 0.f; }, 0.005f, &rng);
-  addPorousBush(&c, 2.f, 0.f, 0.f, 0.6f, 0.9f, &rng, &s.bush_base);
-  const float cx = -5.f, cy = 4.f, sx = 4.f, sy = 1.8f;
-  addBox(&c, cx, cy, sx, sy, 0.3f, 1.2f, 0.05f);
-  s.road_by_car = gf_test::groundNearFootprint(c, cx, cy, sx, sy, 0.3f);
-  return s;
-}
-
-}  // namespace
-
 TEST(VoxelGroundFilterVegetation, BushBaseIsNonGroundRoadBesideACarStaysGround) {
-  const BushAndCar s = bushAndCar(31);
+  // 20 x 20 m; the car (4 x 1.8 x 1.2 m on 0.3 m of clearance) beside the road at (-5, 4).
+  const gf_test::BushAndCar s = gf_test::bushAndCar(31, 10.f, -5.f, 4.f, 0.3f, 1.2f);
   ASSERT_GT(s.bush_base.size(), 250u);
-  ASSERT_GT(s.road_by_car.size(), 500u);
+  ASSERT_GT(s.by_car.size(), 500u);
   const auto off = run(s.c, vegetationRule(false));
   const auto on = run(s.c, vegetationRule(true));
   // Without the rule the bush base lies inside the ground band (what the rule is for).
   EXPECT_GT(groundShare(off, s.bush_base), 0.8);
   EXPECT_LT(groundShare(on, s.bush_base), 0.1);
   // The road beside the car, and the ground under the bush (within 5 cm of the model), stay.
-  EXPECT_GT(groundShare(on, s.road_by_car), 0.99);
-  EXPECT_EQ(groundShare(on, s.road_by_car), groundShare(off, s.road_by_car));
+  EXPECT_GT(groundShare(on, s.by_car), 0.99);
+  EXPECT_EQ(groundShare(on, s.by_car), groundShare(off, s.by_car));
   std::size_t ground = 0, ground_kept = 0;
   for (std::size_t i = 0; i < s.c.size(); ++i) {
     if (!s.c.truth[i]) continue;

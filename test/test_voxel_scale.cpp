@@ -29,15 +29,8 @@ namespace gf = ground_filter;
 namespace {
 
 using Cloud = gf_test::TruthCloud;
-using gf_test::addBox;
-using gf_test::addPorousBush;
-using gf_test::addSurface;
-using gf_test::agreement;
-using gf_test::groundLevel;
-using gf_test::groundShare;
-using gf_test::run;
-using gf_test::slopeWithBox;
-using gf_test::vegetationRule;
+// The shared scenes and voxel helpers (gf_test_scenes.h, gf_test_voxel.h).
+using namespace gf_test;  // NOLINT(build/namespaces)
 
 }  // namespace
 

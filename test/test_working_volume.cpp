@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <limits>
 #include <memory>
 #include <random>
@@ -14,9 +13,10 @@
 #include <string>
 #include <vector>
 
+#include "eval/kitti_bin.h"
+#include "eval/scene_generator.h"
 #include "gf_test_data.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/scene/scene_generator.h"
 #include "ground_filter/voxel_ground_filter.h"
 #include "ground_filter/working_volume.h"
 
@@ -24,27 +24,11 @@ namespace gf = ground_filter;
 
 namespace {
 
-// x y z of a KITTI .bin (float32 x y z intensity per point).
-std::vector<float> loadKittiXyz(const std::string& path) {
-  std::ifstream in(path, std::ios::binary | std::ios::ate);
-  if (!in) throw std::runtime_error("cannot open " + path);
-  const std::size_t bytes = static_cast<std::size_t>(in.tellg());
-  std::vector<float> rec(bytes / sizeof(float));
-  in.seekg(0);
-  in.read(reinterpret_cast<char*>(rec.data()), static_cast<std::streamsize>(rec.size() * 4));
-  std::vector<float> xyz;
-  xyz.reserve(rec.size() / 4 * 3);
-  for (std::size_t i = 0; i + 3 < rec.size(); i += 4) {
-    xyz.insert(xyz.end(), {rec[i], rec[i + 1], rec[i + 2]});
-  }
-  return xyz;
-}
-
 const std::string kKittiFrame = std::string(GF_DATA_DIR) + "/semantickitti/seq00/000000.bin";
 
 // The frame's x y z; the tests that call it start with GF_SKIP_WITHOUT_DATA(kKittiFrame).
 const std::vector<float>& kittiFrame() {
-  static const std::vector<float> xyz = loadKittiXyz(kKittiFrame);
+  static const std::vector<float> xyz = gf::readKittiXyz(kKittiFrame);
   return xyz;
 }
 

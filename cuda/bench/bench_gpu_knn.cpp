@@ -31,9 +31,9 @@
 #include "common/threads_timing.h"
 #include "ground_filter/cuda_knn.h"
 #include "ground_filter/normal_ground_filter.h"
+#include "knn/gpu_neighbor_search.h"
+#include "knn/kdtree_neighbor_search.h"
 #include "knn_tuning.h"  // cuda/src: the query kernel's experiment knobs and work counters
-#include "normal/knn/gpu_neighbor_search.h"
-#include "normal/knn/kdtree_neighbor_search.h"
 #include "replicate_frames.h"
 
 namespace gf = ground_filter;

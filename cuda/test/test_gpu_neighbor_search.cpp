@@ -15,9 +15,9 @@
 #include "ground_filter/cuda_knn.h"
 #include "ground_filter/neighbor_search.h"
 #include "ground_filter/normal_ground_filter.h"
-#include "normal/knn/gpu_neighbor_search.h"
-#include "normal/knn/kdtree_neighbor_search.h"
-#include "normal/knn/neighborhood_pca.h"
+#include "knn/gpu_neighbor_search.h"
+#include "knn/kdtree_neighbor_search.h"
+#include "knn/neighborhood_pca.h"
 
 namespace gf = ground_filter;
 

@@ -19,8 +19,8 @@
 #include "ground_filter/cuda_knn.h"
 #include "ground_filter/cuda_normal_pipeline.h"
 #include "ground_filter/normal_ground_filter.h"
+#include "knn/kdtree_neighbor_search.h"
 #include "normal/gpu_normal_executor.h"
-#include "normal/knn/kdtree_neighbor_search.h"
 #include "replicate_frames.h"
 
 namespace gf = ground_filter;

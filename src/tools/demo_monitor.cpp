@@ -31,7 +31,7 @@
 #include <string>
 #include <vector>
 
-#include "ground_filter/io/metrics.h"
+#include "eval/metrics.h"
 
 namespace {
 

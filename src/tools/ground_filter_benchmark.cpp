@@ -14,8 +14,8 @@
 #include <vector>
 
 #include "cli_args.h"
+#include "eval/scan_io.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/io/scan_io.h"
 
 namespace gf = ground_filter;
 namespace cli = ground_filter::cli;
@@ -88,17 +88,6 @@ struct Row {
   double median_ms = 0.0, min_ms = 0.0, max_ms = 0.0;
   std::vector<std::pair<std::string, double>> stages;  // name, median ms (execution order)
 };
-
-/// The scan files of every PATH (a directory: its scan files, sorted).
-std::vector<std::string> listFiles(const Options& opt) {
-  std::vector<std::string> files;
-  for (const auto& p : opt.paths) {
-    const std::vector<std::string> found = gf::listScanFiles(p);
-    if (found.empty()) throw std::runtime_error(p + ": no .bin, .pcd or .ply files in directory");
-    files.insert(files.end(), found.begin(), found.end());
-  }
-  return files;
-}
 
 /// One filter per thread setting, built before any loading so bad parameters fail fast.
 std::vector<std::unique_ptr<gf::GroundFilter>> makeFilters(
@@ -223,7 +212,7 @@ void printStages(const std::vector<Row>& rows) {
 }
 
 int run(const Options& opt) {
-  const std::vector<std::string> files = listFiles(opt);
+  const std::vector<std::string> files = gf::listScanFiles(opt.paths);
   const std::vector<std::string> thread_values =
       opt.threads.empty() ? std::vector<std::string>{""} : opt.threads;
   std::vector<std::unique_ptr<gf::GroundFilter>> filters = makeFilters(opt, thread_values);

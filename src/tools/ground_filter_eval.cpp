@@ -18,10 +18,10 @@
 
 #include "airborne/scan_type.h"
 #include "cli_args.h"
+#include "eval/metrics.h"
+#include "eval/scan_io.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/height_above_ground.h"
-#include "ground_filter/io/metrics.h"
-#include "ground_filter/io/scan_io.h"
 
 namespace gf = ground_filter;
 namespace cli = ground_filter::cli;
@@ -44,7 +44,7 @@ const char kUsage[] =
     "                    directory (all such files in it, sorted); or builtin:KIND[:SEED], KIND\n"
     "                    one of lidar, tls, verge, offroad, trail, airborne, or the registered\n"
     "                    mls, mls_air, stations, slam, tls_far, or uav, corridor (generated\n"
-    "                    scene, exact truth; include/ground_filter/scene/scene_generator.h)\n"
+    "                    scene, exact truth; src/eval/scene_generator.h)\n"
     "--method NAME       filter method: voxel (default), normal, voxel_paper\n"
     "--params FILE       parameters from a flat YAML file (config/*.yaml, 'name: value')\n"
     "--set NAME=VALUE    override a filter parameter (repeatable; after --params)\n"
@@ -390,17 +390,6 @@ std::unique_ptr<gf::GroundFilter> makeFilter(const Options& opt) {
   }
 }
 
-/// The scan files of every PATH (a directory: its scan files, sorted).
-std::vector<std::string> listFiles(const Options& opt) {
-  std::vector<std::string> files;
-  for (const auto& p : opt.paths) {
-    const std::vector<std::string> found = gf::listScanFiles(p);
-    if (found.empty()) throw std::runtime_error(p + ": no .bin, .pcd or .ply files in directory");
-    files.insert(files.end(), found.begin(), found.end());
-  }
-  return files;
-}
-
 /// --score-labels: `dir`/<stem>.gnd of `file`, one 0/1 byte per point of the scan.
 std::vector<std::uint8_t> readGndLabels(const std::string& dir, const std::string& file,
                                         std::size_t points) {
@@ -656,7 +645,7 @@ void printTable(const Options& opt, const std::vector<FileResult>& results, cons
 int run(const Options& opt) {
   std::unique_ptr<gf::GroundFilter> filter;
   if (opt.score_dir.empty()) filter = makeFilter(opt);
-  const std::vector<std::string> files = listFiles(opt);
+  const std::vector<std::string> files = gf::listScanFiles(opt.paths);
   std::vector<FileResult> results;
   std::vector<gf::ClassCount> classes;
   std::vector<std::uint8_t> labels;

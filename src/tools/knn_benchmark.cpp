@@ -20,9 +20,9 @@
 #include <vector>
 
 #include "cli_args.h"
+#include "eval/scan_io.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/io/scan_io.h"
-#include "normal/knn/kdtree_neighbor_search.h"
+#include "knn/kdtree_neighbor_search.h"
 
 namespace gf = ground_filter;
 namespace cli = ground_filter::cli;

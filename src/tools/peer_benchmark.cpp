@@ -25,9 +25,9 @@
 #include <vector>
 
 #include "cli_args.h"
-#include "ground_filter/io/metrics.h"
-#include "ground_filter/io/scan_io.h"
-#include "ground_filter/scene/scene_generator.h"
+#include "eval/metrics.h"
+#include "eval/scan_io.h"
+#include "eval/scene_generator.h"
 #include "ground_filter/voxel_ground_filter.h"
 
 namespace gf = ground_filter;

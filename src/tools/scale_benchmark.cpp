@@ -16,9 +16,9 @@
 #include <vector>
 
 #include "cli_args.h"
+#include "eval/scene_generator.h"
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/scene/scene_generator.h"
 
 namespace gf = ground_filter;
 namespace cli = ground_filter::cli;

@@ -33,8 +33,8 @@
 #include <utility>
 #include <vector>
 
-#include "ground_filter/io/scan_io.h"
-#include "ground_filter/scene/scene_generator.h"
+#include "eval/scan_io.h"
+#include "eval/scene_generator.h"
 
 namespace {
 

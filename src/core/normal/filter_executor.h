@@ -4,7 +4,7 @@
 // An executor of the whole normal-vector filter beside the CPU pipeline (the stages of
 // NormalGroundFilter::filter()): the filter chooses one when its parameters ask for it
 // (knn_backend gpu, settings the GPU honours) and runs its own stages when it declines a scan.
-// The neighbour backends (normal/knn/knn_backend.h) only search.
+// The neighbour backends (knn/knn_backend.h) only search.
 
 #include <cstdint>
 #include <memory>

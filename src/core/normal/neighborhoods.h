@@ -6,8 +6,8 @@
 #include <vector>
 
 #include "ground_filter/neighbor_search.h"
-#include "normal/knn/knn_backend.h"
-#include "normal/knn/neighborhood_pca.h"
+#include "knn/knn_backend.h"
+#include "knn/neighborhood_pca.h"
 #include "normal/stage_times.h"
 
 namespace ground_filter {

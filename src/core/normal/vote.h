@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "ground_filter/neighbor_search.h"
-#include "normal/knn/knn_backend.h"
+#include "knn/knn_backend.h"
 
 namespace ground_filter {
 namespace normal {

@@ -1,0 +1,159 @@
+// KdTreeNeighborSearch: the tree build (median splits, parallel subtrees).
+
+#include <omp.h>
+#if defined(__SSE__)
+#include <xmmintrin.h>
+#endif
+
+#include <algorithm>
+#include <cstdint>
+#include <vector>
+
+#include "knn/kdtree_tree.h"
+
+namespace ground_filter {
+namespace kdtree {
+
+namespace {
+
+/// Nodes of a subtree of `size` points when every node of more than `leaf` points is split in
+/// halves (nodes whose points all coincide stop earlier and leave their slots unused).
+std::uint32_t subtreeNodes(std::uint32_t size, std::uint32_t leaf) {
+  // The sizes at one depth are s or s + 1: count the nodes of each.
+  std::uint64_t total = 0, small = 1, large = 0;
+  std::uint32_t s = size;
+  while (small + large > 0) {
+    total += small + large;
+    const std::uint64_t split_small = s > leaf ? small : 0, split_large = s + 1 > leaf ? large : 0;
+    if (s % 2 == 0) {  // s -> s/2 + s/2, s+1 -> s/2 + (s/2 + 1)
+      small = 2 * split_small + split_large;
+      large = split_large;
+    } else {  // s -> (s-1)/2 + (s+1)/2, s+1 -> (s+1)/2 + (s+1)/2
+      small = split_small;
+      large = split_small + 2 * split_large;
+    }
+    s /= 2;
+  }
+  return static_cast<std::uint32_t>(total);
+}
+
+/// Points at or above this many build their two subtrees as parallel tasks.
+constexpr std::uint32_t kTaskPoints = 8192;
+
+}  // namespace
+
+void KdTree::buildNode(std::uint32_t id, std::uint32_t b, std::uint32_t e) {
+  Node& nd = nodes[id];
+  alignas(16) float lo[4], hi[4];
+#if defined(__SSE__)
+  // One SSE register per point (x, y, z, index bits; lane 3 unused). min_ps(p, lo) is
+  // p < lo ? p : lo, the same value as std::min(lo, p), also for signed zeros.
+  __m128 lo4 = _mm_loadu_ps(&pts[b].x), hi4 = lo4;
+  for (std::uint32_t i = b + 1; i < e; ++i) {
+    const __m128 p = _mm_loadu_ps(&pts[i].x);
+    lo4 = _mm_min_ps(p, lo4);
+    hi4 = _mm_max_ps(p, hi4);
+  }
+  _mm_store_ps(lo, lo4);
+  _mm_store_ps(hi, hi4);
+#else
+  lo[0] = hi[0] = pts[b].x;
+  lo[1] = hi[1] = pts[b].y;
+  lo[2] = hi[2] = pts[b].z;
+  for (std::uint32_t i = b + 1; i < e; ++i) {
+    const Point& p = pts[i];
+    lo[0] = std::min(lo[0], p.x);
+    hi[0] = std::max(hi[0], p.x);
+    lo[1] = std::min(lo[1], p.y);
+    hi[1] = std::max(hi[1], p.y);
+    lo[2] = std::min(lo[2], p.z);
+    hi[2] = std::max(hi[2], p.z);
+  }
+#endif
+  for (int d = 0; d < 3; ++d) {
+    nd.lo[d] = lo[d];
+    nd.hi[d] = hi[d];
+  }
+  nd.lo[3] = nd.hi[3] = 0.f;
+  nd.begin = b;
+  nd.scan_end = e;
+  nd.left = -1;
+  nd.right = 0;
+  const float ext[3] = {hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]};
+  const int dim = ext[0] >= ext[1] ? (ext[0] >= ext[2] ? 0 : 2) : (ext[1] >= ext[2] ? 1 : 2);
+  const bool same_point = !(ext[dim] > 0.f);
+  if (same_point || e - b <= leaf) {
+    // Leaf points go in index order; build() places them (one pass, no sort per leaf).
+    for (std::uint32_t i = b; i < e; ++i) leaf_of[pts[i].idx] = b;
+    cursor[b] = b;
+    cursor_end[b] = e;
+    if (same_point) {
+      nd.scan_end = std::min<std::uint32_t>(e, b + static_cast<std::uint32_t>(k));
+      nd.right = kSamePoint;
+    }
+    return;
+  }
+  const std::uint32_t m = b + (e - b) / 2;
+  // One comparator per axis: a fixed offset instead of an indexed load in the inner loop.
+  const auto first = pts.begin() + b, mid = pts.begin() + m, last = pts.begin() + e;
+  if (dim == 0) {
+    std::nth_element(first, mid, last, [](const Point& p, const Point& r) { return p.x < r.x; });
+  } else if (dim == 1) {
+    std::nth_element(first, mid, last, [](const Point& p, const Point& r) { return p.y < r.y; });
+  } else {
+    std::nth_element(first, mid, last, [](const Point& p, const Point& r) { return p.z < r.z; });
+  }
+  const std::uint32_t l = id + 1, r = id + 1 + subtreeNodes(m - b, leaf);
+  nd.left = static_cast<std::int32_t>(l);
+  nd.right = static_cast<std::int32_t>(r);
+  if (e - b >= kTaskPoints) {
+#pragma omp task default(shared) firstprivate(l, b, m)
+    buildNode(l, b, m);
+    buildNode(r, m, e);
+#pragma omp taskwait
+  } else {
+    buildNode(l, b, m);
+    buildNode(r, m, e);
+  }
+}
+
+void KdTree::build(const float* xyz, std::size_t n, int k_, int threads) {
+  k = k_;
+  xyz_in = xyz;
+  pts.resize(n);
+  px.resize(n);
+  py.resize(n);
+  pz.resize(n);
+  pidx.resize(n);
+  leaf_of.resize(n);
+  cursor.resize(n);
+  cursor_end.resize(n);
+  nodes.assign(subtreeNodes(static_cast<std::uint32_t>(n), leaf), Node());
+#pragma omp parallel num_threads(threads)
+  {
+#pragma omp for schedule(static)
+    for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
+      pts[i] = {xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2], static_cast<std::uint32_t>(i)};
+    }
+#pragma omp single
+    buildNode(0, 0, static_cast<std::uint32_t>(n));
+    // (implicit barrier: all tasks are done)
+    // Points into their leaves in index order, so that every leaf is sorted by index: the lower
+    // half of the indices ascending from each leaf's start, the upper half descending from its
+    // end (two threads; they meet where the halves meet).
+#pragma omp sections
+    {
+#pragma omp section
+      {
+        for (std::size_t i = 0; i < n / 2; ++i) place(xyz, i, cursor[leaf_of[i]]++);
+      }
+#pragma omp section
+      {
+        for (std::size_t i = n; i-- > n / 2;) place(xyz, i, --cursor_end[leaf_of[i]]);
+      }
+    }
+  }
+}
+
+}  // namespace kdtree
+}  // namespace ground_filter

@@ -1,0 +1,330 @@
+// KdTreeNeighborSearch: the AVX2 top-K set (4 keys per register, candidates packed by a permutation
+// table).
+
+#include <algorithm>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+
+#include "knn/kdtree_tree.h"
+#include "simd/avx2_common.h"
+#include "simd/avx512_common.h"
+#include "simd/simd.h"
+
+namespace ground_filter {
+namespace kdtree {
+
+#if GF_HAVE_AVX2_PATHS
+
+// AVX2 (no AVX-512): the same scheme as TopKAvx512, four 64-bit keys per register. AVX2 has no
+// unsigned 64-bit min/max: keys are compared as signed (a key's distance bits are those of a
+// non-negative float, so real keys are below 2^63) and an empty slot is INT64_MAX instead of
+// kNoKey.
+
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#pragma GCC diagnostic ignored "-Wuninitialized"
+
+namespace {  // the set and its helpers; only the entry point below is shared
+
+constexpr std::uint64_t kNoKeyAvx2 = 0x7fffffffffffffffULL;
+
+GF_TARGET_AVX2_PATHS inline void compareExchange4(__m256i* a, __m256i* b) {
+  const __m256i gt = _mm256_cmpgt_epi64(*a, *b);
+  const __m256i lo = _mm256_blendv_epi8(*a, *b, gt);
+  *b = _mm256_blendv_epi8(*b, *a, gt);
+  *a = lo;
+}
+
+GF_TARGET_AVX2_PATHS inline __m256i reverseLanes4(__m256i v) {
+  return _mm256_permute4x64_epi64(v, 0x1b);
+}
+
+/// Sorts a register's 4 lanes given that they form a bitonic sequence.
+GF_TARGET_AVX2_PATHS inline __m256i laneMerge4(__m256i v) {
+  __m256i p = _mm256_permute4x64_epi64(v, 0x4e);  // lanes 2 3 0 1
+  __m256i gt = _mm256_cmpgt_epi64(v, p);
+  v = _mm256_blend_epi32(_mm256_blendv_epi8(v, p, gt), _mm256_blendv_epi8(p, v, gt), 0xf0);
+  p = _mm256_shuffle_epi32(v, 0x4e);  // lanes 1 0 3 2
+  gt = _mm256_cmpgt_epi64(v, p);
+  return _mm256_blend_epi32(_mm256_blendv_epi8(v, p, gt), _mm256_blendv_epi8(p, v, gt), 0xcc);
+}
+
+/// Register-level half-cleaners over v[0..R) at distances s_max, ..., 1, then each register's
+/// lanes (see halfCleanAndMerge()).
+template <int R>
+GF_TARGET_AVX2_PATHS inline void halfCleanAndMerge4(__m256i* v, int s_max) {
+  for (int s = s_max; s >= 1; s /= 2) {
+    for (int i = 0; i < R; ++i) {
+      if (i & s) continue;
+      compareExchange4(&v[i], &v[i + s]);
+    }
+  }
+  for (int i = 0; i < R; ++i) v[i] = laneMerge4(v[i]);
+}
+
+/// Sorts each of 4 registers: a 4-input sorting network across them, then a 4 x 4 transpose.
+GF_TARGET_AVX2_PATHS inline void sortRegisters4(__m256i* v) {
+  compareExchange4(&v[0], &v[1]);
+  compareExchange4(&v[2], &v[3]);
+  compareExchange4(&v[0], &v[2]);
+  compareExchange4(&v[1], &v[3]);
+  compareExchange4(&v[1], &v[2]);
+  const __m256i t0 = _mm256_unpacklo_epi64(v[0], v[1]), t1 = _mm256_unpackhi_epi64(v[0], v[1]);
+  const __m256i t2 = _mm256_unpacklo_epi64(v[2], v[3]), t3 = _mm256_unpackhi_epi64(v[2], v[3]);
+  v[0] = _mm256_permute2x128_si256(t0, t2, 0x20);
+  v[1] = _mm256_permute2x128_si256(t1, t3, 0x20);
+  v[2] = _mm256_permute2x128_si256(t0, t2, 0x31);
+  v[3] = _mm256_permute2x128_si256(t1, t3, 0x31);
+}
+
+/// Sorts the 4R keys of v ascending (R a power of two, at least 4).
+template <int R>
+GF_TARGET_AVX2_PATHS inline void bitonicSort4(__m256i* v) {
+  for (int i = 0; i < R; i += 4) sortRegisters4(v + i);
+  for (int size = 2; size <= R; size *= 2) {  // merge sorted runs of size / 2 registers
+    for (int blk = 0; blk < R; blk += size) {
+      for (int j = 0; j < size / 2; ++j) {
+        __m256i a = v[blk + j], b = reverseLanes4(v[blk + size - 1 - j]);
+        compareExchange4(&a, &b);
+        v[blk + j] = a;
+        v[blk + size - 1 - j] = reverseLanes4(b);
+      }
+    }
+    halfCleanAndMerge4<R>(v, size / 4);
+  }
+}
+
+/// The 8 lanes of an 8-bit mask's set bits, packed to the front (4 bits per lane).
+struct CompressTable {
+  std::uint32_t lanes[256];
+  constexpr CompressTable() : lanes() {
+    for (int m = 0; m < 256; ++m) {
+      std::uint32_t v = 0;
+      int o = 0;
+      for (int b = 0; b < 8; ++b) {
+        if (m & (1 << b)) v |= static_cast<std::uint32_t>(b) << (4 * o++);
+      }
+      lanes[m] = v;
+    }
+  }
+};
+constexpr CompressTable kCompress{};
+
+/// The best K <= 4R keys, sorted, fed by a buffer of candidates within the threshold.
+template <int R>
+class TopKAvx2 {
+ public:
+  static constexpr int kSlots = 4 * R;
+
+  void init(int k, float bound) {
+    k_ = k;
+    pending_ = 0;
+    thr_ = bound;
+    empty_ = true;
+  }
+  float threshold() const { return thr_; }
+
+  GF_TARGET_AVX2_PATHS static float boxDist(const Node& nd, const float* q) {
+    const __m128 q4 = _mm_load_ps(q);  // q[3] = 0, like the boxes' padding
+    const __m128 lo = _mm_load_ps(nd.lo), hi = _mm_load_ps(nd.hi);
+    const __m128 t =
+        _mm_max_ps(_mm_max_ps(_mm_sub_ps(lo, q4), _mm_sub_ps(q4, hi)), _mm_setzero_ps());
+    const __m128 t2 = simd::avx2::opaque(_mm_mul_ps(t, t));
+    return (_mm_cvtss_f32(t2) + _mm_cvtss_f32(_mm_shuffle_ps(t2, t2, 1))) +
+           _mm_cvtss_f32(_mm_shuffle_ps(t2, t2, 2));
+  }
+
+  GF_TARGET_AVX2_PATHS void scan(const Tree& t, const Node& nd, const float* q) {
+    using simd::avx2::opaque;
+    const std::uint32_t b = nd.begin;
+    int m = static_cast<int>(nd.scan_end - b);
+    const float *x = t.px.data() + b, *y = t.py.data() + b, *z = t.pz.data() + b;
+    const std::uint32_t* ids = t.pidx.data() + b;
+    if (nd.right == kSamePoint && !empty_) {
+      const float dx = q[0] - x[0], dy = q[1] - y[0], dz = q[2] - z[0];
+      const __m128 d2 =
+          opaque(_mm_mul_ps(_mm_set_ps(0.f, dz, dy, dx), _mm_set_ps(0.f, dz, dy, dx)));
+      const float d = (_mm_cvtss_f32(d2) + _mm_cvtss_f32(_mm_shuffle_ps(d2, d2, 1))) +
+                      _mm_cvtss_f32(_mm_shuffle_ps(d2, d2, 2));
+      const std::uint64_t kth = top_[k_ - 1];
+      m = samePointPrefix(ids, m, d, kth == kNoKeyAvx2 ? kNoKey : kth);
+    }
+    const __m256 qx = _mm256_set1_ps(q[0]), qy = _mm256_set1_ps(q[1]), qz = _mm256_set1_ps(q[2]);
+    const __m256i shifts = _mm256_setr_epi32(0, 4, 8, 12, 16, 20, 24, 28);
+    const __m256i nibble = _mm256_set1_epi32(0xf);
+    int pending = pending_;  // in registers: see TopKAvx512::scan()
+    __m256 thr = _mm256_set1_ps(thr_);
+    for (int j = 0; j < m; j += 8) {
+      __m256 px, py, pz;
+      __m256i pi;
+      int in = 0xff;
+      if (m - j >= 8) {
+        px = _mm256_loadu_ps(x + j);
+        py = _mm256_loadu_ps(y + j);
+        pz = _mm256_loadu_ps(z + j);
+        pi = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(ids + j));
+      } else {  // the leaf's last block: masked loads (no read past the arrays)
+        const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+        const __m256i valid = _mm256_cmpgt_epi32(_mm256_set1_epi32(m - j), lane);
+        px = _mm256_maskload_ps(x + j, valid);
+        py = _mm256_maskload_ps(y + j, valid);
+        pz = _mm256_maskload_ps(z + j, valid);
+        pi = _mm256_maskload_epi32(reinterpret_cast<const int*>(ids + j), valid);
+        in = (1 << (m - j)) - 1;
+      }
+      const __m256 dx = _mm256_sub_ps(qx, px), dy = _mm256_sub_ps(qy, py),
+                   dz = _mm256_sub_ps(qz, pz);
+      const __m256 d =
+          _mm256_add_ps(_mm256_add_ps(opaque(_mm256_mul_ps(dx, dx)), opaque(_mm256_mul_ps(dy, dy))),
+                        opaque(_mm256_mul_ps(dz, dz)));
+      const int keep = _mm256_movemask_ps(_mm256_cmp_ps(d, thr, _CMP_LE_OQ)) & in;
+      // No branch on `keep` (see TopKAvx512::scan()): compress through a permutation table.
+      const __m256i perm = _mm256_and_si256(
+          _mm256_srlv_epi32(_mm256_set1_epi32(static_cast<int>(kCompress.lanes[keep])), shifts),
+          nibble);
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(cand_d_ + pending),
+                          _mm256_permutevar8x32_epi32(_mm256_castps_si256(d), perm));
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(cand_i_ + pending),
+                          _mm256_permutevar8x32_epi32(pi, perm));
+      pending += __builtin_popcount(static_cast<unsigned>(keep));
+      if (pending >= kSlots) {
+        const int extra = pending - kSlots;
+        pending_ = kSlots;
+        flush();
+        // Move the candidates past the flushed block to the front (extra < 8).
+        _mm256_store_si256(reinterpret_cast<__m256i*>(cand_d_),
+                           _mm256_load_si256(reinterpret_cast<const __m256i*>(cand_d_ + kSlots)));
+        _mm256_store_si256(reinterpret_cast<__m256i*>(cand_i_),
+                           _mm256_load_si256(reinterpret_cast<const __m256i*>(cand_i_ + kSlots)));
+        pending = extra;
+        thr = _mm256_set1_ps(thr_);
+      }
+    }
+    pending_ = pending;
+  }
+
+  GF_TARGET_AVX2_PATHS void finish() {
+    if (pending_ > 0 || empty_) flush();
+  }
+  bool complete() const { return top_[k_ - 1] != kNoKeyAvx2; }
+  std::uint64_t key(int j) const { return top_[j] == kNoKeyAvx2 ? kNoKey : top_[j]; }
+
+  GF_TARGET_AVX2_PATHS void write(std::int32_t* idx, float* dist) const {
+    int j = 0;
+    for (; j + 8 <= k_; j += 8) {
+      const __m256 a = _mm256_load_ps(reinterpret_cast<const float*>(top_ + j));
+      const __m256 b = _mm256_load_ps(reinterpret_cast<const float*>(top_ + j + 4));
+      // Low halves (indices) and high halves (distance bits) of the 8 keys, in key order.
+      const __m256i lo = _mm256_permute4x64_epi64(
+          _mm256_castps_si256(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0))), 0xd8);
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(idx + j), lo);
+      if (dist) {
+        const __m256i hi = _mm256_permute4x64_epi64(
+            _mm256_castps_si256(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(3, 1, 3, 1))), 0xd8);
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(dist + j), hi);
+      }
+    }
+    for (; j < k_; ++j) {
+      idx[j] = static_cast<std::int32_t>(static_cast<std::uint32_t>(top_[j]));
+      if (dist) dist[j] = keyDist(top_[j]);
+    }
+  }
+
+ private:
+  /// Sorts the pending candidates and merges them into the top list.
+  GF_TARGET_AVX2_PATHS void flush() {
+    __m256i c[R];
+    const __m256i none = _mm256_set1_epi64x(static_cast<long long>(kNoKeyAvx2));
+    const __m256i count = _mm256_set1_epi64x(pending_);
+    const int used = (pending_ + 3) / 4;
+    for (int r = 0; r < R; ++r) {
+      if (r >= used) {
+        c[r] = none;
+        continue;
+      }
+      const __m128i d = _mm_loadu_si128(reinterpret_cast<const __m128i*>(cand_d_ + 4 * r));
+      const __m128i i = _mm_loadu_si128(reinterpret_cast<const __m128i*>(cand_i_ + 4 * r));
+      const __m256i key = _mm256_or_si256(_mm256_slli_epi64(_mm256_cvtepu32_epi64(d), 32),
+                                          _mm256_cvtepu32_epi64(i));
+      const __m256i lane = _mm256_setr_epi64x(4 * r, 4 * r + 1, 4 * r + 2, 4 * r + 3);
+      c[r] = _mm256_blendv_epi8(none, key, _mm256_cmpgt_epi64(count, lane));
+    }
+    // Registers past the candidates hold only empty slots: sort just the used ones.
+    if (used <= 4) {
+      bitonicSort4<4>(c);
+    } else if (R >= 8 && used <= 8) {
+      bitonicSort4<(R >= 8 ? 8 : 4)>(c);
+    } else if (R >= 16 && used <= 16) {
+      bitonicSort4<(R >= 16 ? 16 : 4)>(c);
+    } else if (R >= 32 && used <= 32) {
+      bitonicSort4<(R >= 32 ? 32 : 4)>(c);
+    } else {
+      bitonicSort4<R>(c);
+    }
+    if (empty_) {
+      for (int r = 0; r < R; ++r) {
+        _mm256_store_si256(reinterpret_cast<__m256i*>(top_ + 4 * r), c[r]);
+      }
+      empty_ = false;
+    } else {
+      // Smallest 4R of two sorted lists: min(top[i], c[4R-1-i]) is bitonic; merge it.
+      __m256i t[R];
+      for (int r = 0; r < R; ++r) {
+        __m256i a = _mm256_load_si256(reinterpret_cast<const __m256i*>(top_ + 4 * r));
+        __m256i b = reverseLanes4(c[R - 1 - r]);
+        compareExchange4(&a, &b);
+        t[r] = a;
+      }
+      halfCleanAndMerge4<R>(t, R / 2);
+      for (int r = 0; r < R; ++r) {
+        _mm256_store_si256(reinterpret_cast<__m256i*>(top_ + 4 * r), t[r]);
+      }
+    }
+    pending_ = 0;
+    const std::uint64_t kth = top_[k_ - 1];
+    if (kth != kNoKeyAvx2) thr_ = std::min(thr_, keyDist(kth));
+  }
+
+  alignas(32) std::uint64_t top_[kSlots];
+  alignas(32) std::uint32_t cand_d_[kSlots + 8];  // squared distance bits
+  alignas(32) std::uint32_t cand_i_[kSlots + 8];  // point indices
+  int k_ = 0, pending_ = 0;
+  float thr_ = 0.f;
+  bool empty_ = true;
+};
+
+}  // namespace
+
+GF_TARGET_AVX2_PATHS void queryRangeAvx2(const Tree& t, std::size_t pb, std::size_t pe, int k,
+                                         std::int32_t* out_idx, float* out_dist) {
+  if (k <= 16) {
+    TopKAvx2<4> set;
+    queryRange(t, pb, pe, k, &set, out_idx, out_dist);
+  } else if (k <= 32) {
+    TopKAvx2<8> set;
+    queryRange(t, pb, pe, k, &set, out_idx, out_dist);
+  } else if (k <= 64) {
+    TopKAvx2<16> set;
+    queryRange(t, pb, pe, k, &set, out_idx, out_dist);
+  } else if (k <= 128) {
+    TopKAvx2<32> set;
+    queryRange(t, pb, pe, k, &set, out_idx, out_dist);
+  } else {
+    TopKAvx2<64> set;
+    queryRange(t, pb, pe, k, &set, out_idx, out_dist);
+  }
+}
+
+#pragma GCC diagnostic pop
+
+bool cpuHasAvx2() { return simd::avx2::cpuHasAvx2(); }
+
+#else
+
+bool cpuHasAvx2() { return false; }
+
+#endif  // GF_HAVE_AVX2_PATHS
+
+}  // namespace kdtree
+}  // namespace ground_filter
