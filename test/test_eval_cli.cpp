@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <regex>
+
 #include "io_test_util.h"
 
 namespace {
@@ -265,6 +267,16 @@ std::vector<std::string> cfgAddArguments(const std::string& cfg, const std::stri
   return args;
 }
 
+// The same for a parameter declared in include/ground_filter/params/*.def (`GF_PARAM(type, name,
+// default, min, max, ...)`, whose lines the .cfg files read): {name, type_t, level, "", default,
+// min, max}; empty when `defs` has no such line.
+std::vector<std::string> defAddArguments(const std::string& defs, const std::string& name) {
+  const std::regex line("GF_PARAM\\((\\w+),\\s*" + name + ",\\s*([^,]+),\\s*([^,]+),\\s*([^,]+),");
+  std::smatch m;
+  if (!std::regex_search(defs, m, line)) return {};
+  return {name, m[1].str() + "_t", "0", "", m[2].str(), m[3].str(), m[4].str()};
+}
+
 // Every preset: each key is a parameter of its method (the core refuses unknown names and bad
 // values) and of the nodelet's cfg (so params_file:= sets it), and the three scan types exist.
 TEST(Presets, EveryConfigLoadsIntoItsMethod) {
@@ -286,9 +298,13 @@ TEST(Presets, EveryConfigLoadsIntoItsMethod) {
     const std::string cfg =
         readAll(cfg_dir + (normal ? "/NormalGroundFilter.cfg" : "/VoxelGroundFilter.cfg")) +
         readAll(cfg_dir + "/ground_filter_common.py");
+    const std::string defs = readAll(dir + "/../include/ground_filter/params/morph_params.def") +
+                             readAll(dir + "/../include/ground_filter/params/" +
+                                     (normal ? "normal_params.def" : "voxel_params.def"));
     for (const auto& kv : settings) {
       // name, type, level, description, default[, min, max]: the nodelet clamps to [min, max].
-      const std::vector<std::string> args = cfgAddArguments(cfg, kv.first);
+      std::vector<std::string> args = cfgAddArguments(cfg, kv.first);
+      if (args.empty()) args = defAddArguments(defs, kv.first);
       ASSERT_GE(args.size(), 5u) << stem << ": " << kv.first << " is not a nodelet parameter";
       if ((args[1] == "double_t" || args[1] == "int_t") && args.size() >= 7) {
         const double v = std::stod(kv.second);

@@ -84,7 +84,8 @@ def is_stdlib(module):
 
 
 def py_imports(rel):
-    local = {os.path.splitext(n)[0] for n in os.listdir(os.path.join(ROOT, "scripts"))}
+    local = {os.path.splitext(n)[0] for d in ("scripts", "cfg")  # the package's own modules
+             for n in os.listdir(os.path.join(ROOT, d))}
     names = set(re.findall(r"^\s*(?:import|from)\s+([A-Za-z0-9_]+)", read(rel), re.M))
     return {n for n in names if n not in local and not is_stdlib(n)}
 

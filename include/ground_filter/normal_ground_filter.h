@@ -12,7 +12,7 @@
 
 namespace ground_filter {
 
-class KnnBackend;  // the core's neighbour backends (private: src/core/knn/knn_backend.h)
+class KnnBackend;            // the core's neighbour backends (private: src/core/knn/knn_backend.h)
 class NormalFilterExecutor;  // the whole filter elsewhere (private:
                              // src/core/normal/filter_executor.h)
 

@@ -58,7 +58,7 @@ struct SceneParams {
   bool uniform_beams = false;  ///< beams evenly spread (Ouster) instead of HDL-64's split (false)
 
   // Terrestrial scanner (kTls).
-  std::size_t tls_points = 2000000;      ///< point budget, never exceeded [points] (2 M; 1 k..100 M)
+  std::size_t tls_points = 2000000;  ///< point budget, never exceeded [points] (2 M; 1 k..100 M)
   double tls_min_elevation_deg = -60.0;  ///< lowest ray elevation [deg] (-60)
   double tls_max_elevation_deg = 60.0;   ///< highest ray elevation [deg] (60)
   double tls_max_range = 120.0;          ///< farther hits give no return [m] (120)

@@ -270,17 +270,7 @@ void GroundFilterNodelet::processCloud(const sensor_msgs::PointCloud2ConstPtr& m
     std::string build_error;
     try {
       updateFilter();
-      if (filter_) {
-        // The working volume is centred on the sensor: its pose in the filter's frame (the
-        // body box is given in the input frame).
-        const Eigen::Vector3d o = pose.translation();
-        const Eigen::Matrix3d r = pose.linear();
-        const float origin[3] = {static_cast<float>(o.x()), static_cast<float>(o.y()),
-                                 static_cast<float>(o.z())};
-        float rotation[9];
-        for (int i = 0; i < 9; ++i) rotation[i] = static_cast<float>(r(i / 3, i % 3));
-        filter_->setPose(origin, rotation);
-      }
+      if (filter_) setSensorPose(filter_.get(), pose);
     } catch (const std::exception& e) {
       filter_.reset();  // processPointCloud2 publishes the cloud as all non-ground
       build_error = e.what();
@@ -290,7 +280,13 @@ void GroundFilterNodelet::processCloud(const sensor_msgs::PointCloud2ConstPtr& m
     if (!build_error.empty()) out.filter_error = build_error;
     outputs_->hag().process(*msg, layout, to_gravity, buffers_,
                             to_gravity ? tf_wait_->frame() : msg->header.frame_id, &out, &hag);
-    if (!out.filter_error.empty()) filter_.reset();  // rebuilt from scratch for the next cloud
+    if (!out.filter_error.empty()) {
+      filter_.reset();  // rebuilt from scratch for the next cloud
+    } else if (release_.afterCloud(static_cast<std::size_t>(msg->width) * msg->height)) {
+      filter_.reset();  // a rare large cloud's buffers go; the next clouds size new ones
+      buffers_ = CloudProcessingBuffers();
+      ++monitor_.counters().buffer_releases;
+    }
   }
   outputs_->publish(
       out, hag,

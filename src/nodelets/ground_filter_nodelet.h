@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "buffer_release.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/working_volume.h"
 #include "input_reporter.h"
@@ -124,6 +125,7 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   std::shared_ptr<const FilterConfig> filter_config_;
   std::unique_ptr<WorkingVolumeFilter> filter_;
   CloudProcessingBuffers buffers_;
+  BufferReleasePolicy release_;  // drops filter_ and buffers_ after a rare large cloud
 
   // Last: destroyed first, so no cloud comes out of it into a half-destroyed nodelet.
   std::unique_ptr<TfWaitQueue> tf_wait_;  // null: classify in the input frame

@@ -253,6 +253,7 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
   status.add("near points (min_range, body_box)", static_cast<ull>(total.near_points));
   status.add("filter errors (published as non-ground)", static_cast<ull>(total.filter_errors));
   status.add("fallbacks", static_cast<ull>(total.fallbacks));
+  status.add("buffer releases (after a large cloud)", static_cast<ull>(total.buffer_releases));
   status.add("last fallback", note.empty() ? std::string("none") : note);
   for (const Item& s : stream) status.add(s.name, static_cast<ull>(s.total));
   status.add("refused parameter sets", static_cast<ull>(total.config_rejected));

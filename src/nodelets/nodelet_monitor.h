@@ -39,18 +39,20 @@ class NodeletMonitor {
     T frame_changes{0};        ///< clouds whose frame_id differs from the last
     T stamps_backwards{0};     ///< clouds stamped before the previous one
     T fallbacks{0};            ///< clouds with a FilterStats::note (fallback)
+    T buffer_releases{0};      ///< filter buffers dropped after a large cloud (BufferReleasePolicy)
     T clouds_lost{0};          ///< never received: lost before the callback (InputGapCounter)
 
     /// \brief Every counter above, in order (copies walk this list).
-    static const std::array<T CounterSet::*, 14>& all() {
-      static const std::array<T CounterSet::*, 14> members = {
+    static const std::array<T CounterSet::*, 15>& all() {
+      static const std::array<T CounterSet::*, 15> members = {
           &CounterSet::clouds_in,        &CounterSet::clouds_out,
           &CounterSet::clouds_rejected,  &CounterSet::clouds_no_transform,
           &CounterSet::not_cloud,        &CounterSet::filter_errors,
           &CounterSet::invalid_points,   &CounterSet::out_of_range_points,
           &CounterSet::config_rejected,  &CounterSet::frame_changes,
           &CounterSet::stamps_backwards, &CounterSet::fallbacks,
-          &CounterSet::near_points,      &CounterSet::clouds_lost};
+          &CounterSet::buffer_releases,  &CounterSet::near_points,
+          &CounterSet::clouds_lost};
       return members;
     }
     /// \brief Clouds received but not published, all reasons.

@@ -231,4 +231,14 @@ void processPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& l
   }
 }
 
+void setSensorPose(WorkingVolumeFilter* filter, const Eigen::Isometry3d& pose) {
+  const Eigen::Vector3d o = pose.translation();
+  const Eigen::Matrix3d r = pose.linear();
+  const float origin[3] = {static_cast<float>(o.x()), static_cast<float>(o.y()),
+                           static_cast<float>(o.z())};
+  float rotation[9];
+  for (int i = 0; i < 9; ++i) rotation[i] = static_cast<float>(r(i / 3, i % 3));
+  filter->setPose(origin, rotation);
+}
+
 }  // namespace ground_filter

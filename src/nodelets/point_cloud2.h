@@ -15,6 +15,7 @@
 
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/ground_filter.h"
+#include "ground_filter/working_volume.h"
 
 namespace ground_filter {
 
@@ -144,6 +145,10 @@ void processPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& l
                         CloudProcessingBuffers* buffers, ProcessedCloud* out);
 
 /// \brief Short name of a rejection reason for logs ("row_step", ...).
+/// \brief Sets the working volume's centre and axes on `filter`: the sensor's pose in the
+///        filter's frame (the body box is given in the input frame).
+void setSensorPose(WorkingVolumeFilter* filter, const Eigen::Isometry3d& pose);
+
 const char* reasonName(CloudRejectReason reason);
 
 }  // namespace ground_filter

@@ -27,7 +27,7 @@ namespace {
 
 const char kUsage[] =
     "usage: ground_filter_scale_benchmark [--sizes LIST] [--methods LIST] [--threads LIST]\n"
-    "                                     [--repeat N] [--seed N] [--set NAME=VALUE]...\n"
+    "                                     [--repeat N] [--seed N] [--gpu] [--set NAME=VALUE]...\n"
     "\n"
     "Generates a TLS-like station scan (builtin:tls, a street seen from a tripod scanner,\n"
     "density falling with range) of each size and times GroundFilter::filter() on it: median\n"
@@ -41,6 +41,9 @@ const char kUsage[] =
     "--threads LIST   values of the 'threads' parameter, a row each (default 1,2)\n"
     "--repeat N       timed runs per row (default 3)\n"
     "--seed N         scene seed (default 1)\n"
+    "--gpu            also a row 'normal/gpu' (knn_backend=gpu: the whole normal filter on a\n"
+    "                 CUDA GPU; where none is usable the filter falls back to the kd-tree and\n"
+    "                 the row says so)\n"
     "--set NAME=VALUE a filter parameter for every method (repeatable), e.g.\n"
     "                 --set knn_backend=gpu for the normal method on a CUDA GPU\n"
     "--help           this text\n";
@@ -53,6 +56,7 @@ struct Options {
   std::vector<int> threads = {1, 2};
   int repeat = 3;
   int seed = 1;
+  bool gpu = false;
   gf::ParamSettings settings;
 };
 
@@ -87,6 +91,8 @@ Options parseArgs(int argc, char** argv) {
           }
         } else if (args->option() == "--methods") {
           o.methods = splitList("--methods", args->value());
+        } else if (args->option() == "--gpu") {
+          o.gpu = true;
         } else if (args->option() == "--threads") {
           o.threads = cli::parseIntList("--threads", args->value(), 1, 1024);
         } else {
@@ -142,12 +148,13 @@ double f1Score(const std::vector<std::uint8_t>& labels, const std::vector<std::u
 
 /// One method at one thread count on one scan: a fresh filter (its buffers count in the peak).
 Row benchRow(const Options& opt, double size_m, const std::string& method, int threads,
-             const gf::CloudView& view, const std::vector<std::uint8_t>& truth) {
+             const gf::CloudView& view, const std::vector<std::uint8_t>& truth, bool gpu) {
   gf::ParamSettings settings = opt.settings;
   settings.emplace_back("threads", std::to_string(threads));
+  if (gpu) settings.emplace_back("knn_backend", "gpu");
   Row row;
   row.size_m = size_m;
-  row.method = method;
+  row.method = gpu ? method + "/gpu" : method;
   row.threads = threads;
   row.points = view.size();
   const bool peak_known = resetPeak();
@@ -161,7 +168,9 @@ Row benchRow(const Options& opt, double size_m, const std::string& method, int t
       throw UsageError(e.what());
     }
     std::vector<std::uint8_t> labels;
-    filter->filter(view, &labels, nullptr);  // warm-up: buffers sized, pages touched
+    gf::FilterStats stats;
+    filter->filter(view, &labels, &stats);  // warm-up: buffers sized, pages touched
+    if (gpu && stats.backend.find("gpu") == std::string::npos) row.method = method + "/gpu->cpu";
     for (int r = 0; r < opt.repeat; ++r) {
       const auto t0 = std::chrono::steady_clock::now();
       filter->filter(view, &labels, nullptr);
@@ -176,6 +185,19 @@ Row benchRow(const Options& opt, double size_m, const std::string& method, int t
   return row;
 }
 
+/// The CUDA context (~100 MB of host memory, once per process) is created before any row, so
+/// that it does not count in the first GPU row's peak.
+void warmGpu(const Options& opt) {
+  gf::SceneParams sp = gf::builtinSceneParams("tls");
+  sp.tls_points = 20000;
+  const gf::GeneratedScan g = gf::generateScene(sp);
+  gf::ParamSettings settings = opt.settings;
+  settings.emplace_back("knn_backend", "gpu");
+  std::vector<std::uint8_t> labels;
+  gf::makeGroundFilter("normal", settings)
+      ->filter(gf::CloudView::packedXyz(g.xyz.data(), g.size()), &labels, nullptr);
+}
+
 void printRow(const Row& r) {
   std::printf("%7.2f %-11s %7d %10zu %11.1f %8.1f %9.1f %9.1f %6.4f\n", r.size_m, r.method.c_str(),
               r.threads, r.points, r.median_ms, r.nsPerPoint(), r.peak_mib, r.bytesPerPoint(),
@@ -188,7 +210,9 @@ void printSpread(const Options& opt, const std::vector<Row>& rows) {
   std::printf("\nspread over the sizes (largest / smallest per-point figure; 1.00 = linear)\n");
   std::printf("%-11s %7s %12s %14s %16s\n", "method", "threads", "ns/pt spread", "bytes/pt spread",
               "bytes/pt median");
-  for (const auto& m : opt.methods) {
+  std::vector<std::string> names = opt.methods;
+  if (opt.gpu) names.push_back("normal/gpu");
+  for (const auto& m : names) {
     for (int t : opt.threads) {
       std::vector<double> ns, bytes;
       for (const auto& r : rows) {
@@ -221,6 +245,9 @@ int run(const Options& opt) {
       "top of the scan itself (12 bytes a point of x y z float32)\n\n");
   std::printf("%7s %-11s %7s %10s %11s %8s %9s %9s %6s\n", "size_M", "method", "threads", "points",
               "median_ms", "ns/pt", "peak_MiB", "bytes/pt", "F1");
+  bool gpu_asked = opt.gpu;
+  for (const auto& kv : opt.settings) gpu_asked |= kv.first == "knn_backend" && kv.second == "gpu";
+  if (gpu_asked) warmGpu(opt);
   std::vector<Row> rows;
   for (double size_m : opt.sizes_m) {
     std::vector<float> xyz;
@@ -236,8 +263,12 @@ int run(const Options& opt) {
     const gf::CloudView view = gf::CloudView::packedXyz(xyz.data(), truth.size());
     for (const auto& m : opt.methods) {
       for (int t : opt.threads) {
-        rows.push_back(benchRow(opt, size_m, m, t, view, truth));
+        rows.push_back(benchRow(opt, size_m, m, t, view, truth, false));
         printRow(rows.back());
+        if (opt.gpu && m == "normal") {
+          rows.push_back(benchRow(opt, size_m, m, t, view, truth, true));
+          printRow(rows.back());
+        }
       }
     }
   }
