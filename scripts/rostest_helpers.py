@@ -1,11 +1,12 @@
 """What the Python rostests (test/*_test.py) share: a TestCase with wait_for(), the /rosout
-collection and distinct, increasing stamps."""
+collection and distinct, increasing stamps; Outputs, the clouds of some topics by stamp."""
 import threading
 import time
 import unittest
 
 import rospy
 from rosgraph_msgs.msg import Log
+from sensor_msgs.msg import PointCloud2
 
 
 class RosTestCase(unittest.TestCase):
@@ -51,3 +52,29 @@ class RosTestCase(unittest.TestCase):
         cls.stamp_counter += 1
         return rospy.Time(cls.STAMP_BASE_S + cls.stamp_counter,
                           cls.STAMP_STEP_NS * cls.stamp_counter)
+
+
+class Outputs(object):
+    """Messages of some output topics, keyed by (topic, stamp in ns)."""
+
+    def __init__(self, topics, queue_size=50):
+        self.lock = threading.Lock()
+        self.got = {}
+        self.subs = [rospy.Subscriber(t, PointCloud2, self._cb, callback_args=t,
+                                      queue_size=queue_size) for t in topics]
+
+    def _cb(self, msg, topic):
+        with self.lock:
+            self.got[(topic, msg.header.stamp.to_nsec())] = msg
+
+    def get(self, topic, stamp):
+        with self.lock:
+            return self.got.get((topic, stamp.to_nsec()))
+
+    def count(self, topic):
+        with self.lock:
+            return sum(1 for t, _ in self.got if t == topic)
+
+    def close(self):
+        for s in self.subs:
+            s.unregister()

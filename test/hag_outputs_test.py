@@ -6,7 +6,6 @@ pavement, a pedestrian, a branch overhanging the road, a ditch point), the obsta
 reconfigured, and a cloud without any ground."""
 import os
 import sys
-import threading
 
 import numpy as np
 import rospkg
@@ -17,7 +16,7 @@ from sensor_msgs.msg import PointCloud2, PointField
 
 PKG = "ground_filter"
 sys.path.insert(0, os.path.join(rospkg.RosPack().get_path(PKG), "scripts"))
-from rostest_helpers import RosTestCase  # noqa: E402
+from rostest_helpers import Outputs, RosTestCase  # noqa: E402
 
 # What each generated point is (the `obj` field travels with the records).
 GROUND, KERB, PAVEMENT, PEDESTRIAN, BRANCH, DITCH = range(6)
@@ -87,28 +86,6 @@ def field_dtype(msg):
     return np.dtype({"names": [f.name for f in msg.fields],
                      "formats": [kinds[f.datatype] for f in msg.fields],
                      "offsets": [f.offset for f in msg.fields], "itemsize": msg.point_step})
-
-
-class Outputs(object):
-    """Messages of some output topics, keyed by (topic, stamp in ns)."""
-
-    def __init__(self, topics):
-        self.lock = threading.Lock()
-        self.got = {}
-        self.subs = [rospy.Subscriber(t, PointCloud2, self._cb, callback_args=t, queue_size=20)
-                     for t in topics]
-
-    def _cb(self, msg, topic):
-        with self.lock:
-            self.got[(topic, msg.header.stamp.to_nsec())] = msg
-
-    def get(self, topic, stamp):
-        with self.lock:
-            return self.got.get((topic, stamp.to_nsec()))
-
-    def close(self):
-        for s in self.subs:
-            s.unregister()
 
 
 class HagOutputsTest(RosTestCase):

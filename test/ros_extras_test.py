@@ -27,7 +27,7 @@ WAIT_S = 60.0
 TILT_DEG = 20.0
 
 sys.path.insert(0, os.path.join(rospkg.RosPack().get_path(PKG), "scripts"))
-from rostest_helpers import RosTestCase  # noqa: E402
+from rostest_helpers import Outputs, RosTestCase  # noqa: E402
 
 REC = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4"), ("idx", "<u4")])
 LABELED = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4"),
@@ -54,32 +54,6 @@ def make_cloud(rec, frame_id, stamp):
 def rot_y(deg):
     a = math.radians(deg)
     return np.array([[math.cos(a), 0, math.sin(a)], [0, 1, 0], [-math.sin(a), 0, math.cos(a)]])
-
-
-class Outputs(object):
-    """Messages of some output topics, keyed by (topic, stamp in ns)."""
-
-    def __init__(self, topics):
-        self.lock = threading.Lock()
-        self.got = {}
-        self.subs = [rospy.Subscriber(t, PointCloud2, self._cb, callback_args=t, queue_size=50)
-                     for t in topics]
-
-    def _cb(self, msg, topic):
-        with self.lock:
-            self.got[(topic, msg.header.stamp.to_nsec())] = msg
-
-    def get(self, topic, stamp):
-        with self.lock:
-            return self.got.get((topic, stamp.to_nsec()))
-
-    def count(self, topic):
-        with self.lock:
-            return sum(1 for t, _ in self.got if t == topic)
-
-    def close(self):
-        for s in self.subs:
-            s.unregister()
 
 
 class RosExtrasTest(RosTestCase):

@@ -11,19 +11,6 @@
 
 namespace ground_filter {
 
-namespace {
-
-sensor_msgs::PointField field(const char* name, std::uint32_t offset, std::uint8_t type) {
-  sensor_msgs::PointField f;
-  f.name = name;
-  f.offset = offset;
-  f.datatype = type;
-  f.count = 1;
-  return f;
-}
-
-}  // namespace
-
 void ObstacleBand::validate() const {
   if (!(std::isfinite(min_height) && std::isfinite(max_height) && min_height < max_height)) {
     std::ostringstream os;
@@ -36,32 +23,13 @@ void ObstacleBand::validate() const {
 bool withFloatField(const sensor_msgs::PointCloud2& in, const char* name,
                     const std::vector<float>& values, sensor_msgs::PointCloud2* out,
                     std::string* why) {
-  const sensor_msgs::PointField* existing = nullptr;
-  for (const auto& f : in.fields) {
-    if (f.name == name) existing = &f;
+  std::size_t offset = 0;
+  if (!layoutWithField(in, name, sensor_msgs::PointField::FLOAT32, sizeof(float), out, &offset,
+                       why)) {
+    return false;
   }
-  const std::size_t in_step = in.point_step, n = std::size_t{in.width} * in.height;
-  std::size_t offset = (in_step + 3) / 4 * 4, step = offset + sizeof(float);
-  out->fields = in.fields;
-  if (existing) {
-    if (existing->datatype != sensor_msgs::PointField::FLOAT32 || existing->count != 1) {
-      if (why) *why = std::string("the input has a field '") + name + "' that is not a float32";
-      return false;
-    }
-    offset = existing->offset;
-    step = in_step;
-  } else {
-    out->fields.push_back(
-        field(name, static_cast<std::uint32_t>(offset), sensor_msgs::PointField::FLOAT32));
-  }
-  out->header = in.header;
-  out->height = in.height;
-  out->width = in.width;
-  out->is_bigendian = in.is_bigendian;
-  out->is_dense = in.is_dense;
-  out->point_step = static_cast<std::uint32_t>(step);
-  out->row_step = static_cast<std::uint32_t>(step * in.width);
-  out->data.assign(step * n, 0);
+  const std::size_t in_step = in.point_step, step = out->point_step;
+  const std::size_t n = std::size_t{in.width} * in.height;
   const std::uint8_t* src = in.data.data();
   std::uint8_t* dst = out->data.data();
   for (std::size_t i = 0; i < n; ++i, src += in_step, dst += step) {
@@ -76,8 +44,9 @@ void makeSurfaceCloud(const GroundSurface& surface, const std_msgs::Header& head
   using PF = sensor_msgs::PointField;
   const std::vector<SurfaceCell>& cells = surface.cells();
   out->header = header;
-  out->fields = {field("x", 0, PF::FLOAT32), field("y", 4, PF::FLOAT32), field("z", 8, PF::FLOAT32),
-                 field("points", 12, PF::UINT32), field("confidence", 16, PF::FLOAT32)};
+  out->fields = {makePointField("x", 0, PF::FLOAT32), makePointField("y", 4, PF::FLOAT32),
+                 makePointField("z", 8, PF::FLOAT32), makePointField("points", 12, PF::UINT32),
+                 makePointField("confidence", 16, PF::FLOAT32)};
   out->is_bigendian = false;
   out->is_dense = true;
   out->point_step = 20;

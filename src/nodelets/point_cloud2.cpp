@@ -149,33 +149,39 @@ CloudView makeTransformedCloudView(const sensor_msgs::PointCloud2& cloud, const 
   return CloudView::packedXyz(scratch->data(), layout.points);
 }
 
-bool makeLabeledCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
-                      const std::vector<std::uint8_t>& labels, sensor_msgs::PointCloud2* out,
-                      std::string* why) {
+sensor_msgs::PointField makePointField(const char* name, std::uint32_t offset,
+                                       std::uint8_t datatype) {
+  sensor_msgs::PointField f;
+  f.name = name;
+  f.offset = offset;
+  f.datatype = datatype;
+  f.count = 1;
+  return f;
+}
+
+bool layoutWithField(const sensor_msgs::PointCloud2& in, const char* name, std::uint8_t datatype,
+                     std::size_t size, sensor_msgs::PointCloud2* out, std::size_t* offset,
+                     std::string* why) {
   const sensor_msgs::PointField* existing = nullptr;
   for (const auto& f : in.fields) {
-    if (f.name == kLabelFieldName) existing = &f;
+    if (f.name == name) existing = &f;
   }
-  std::size_t label_offset = layout.point_step;
-  std::size_t step = (layout.point_step + 1 + 3) / 4 * 4;  // keep records 4-byte aligned
+  const std::size_t in_step = in.point_step;
+  std::size_t step = in_step;
   out->fields = in.fields;
   if (existing) {
-    if (existing->datatype != sensor_msgs::PointField::UINT8 || existing->count != 1) {
+    if (existing->datatype != datatype || existing->count != 1) {
       if (why) {
-        *why = std::string("the input already has a field '") + kLabelFieldName +
-               "' that is not a single uint8";
+        *why = std::string("the input already has a field '") + name + "' that is not a single " +
+               (datatype == sensor_msgs::PointField::UINT8 ? "uint8" : "float32");
       }
       return false;
     }
-    label_offset = existing->offset;
-    step = layout.point_step;
+    *offset = existing->offset;
   } else {
-    sensor_msgs::PointField f;
-    f.name = kLabelFieldName;
-    f.offset = static_cast<std::uint32_t>(label_offset);
-    f.datatype = sensor_msgs::PointField::UINT8;
-    f.count = 1;
-    out->fields.push_back(f);
+    *offset = (in_step + size - 1) / size * size;  // the value aligned to its size
+    step = (*offset + size + 3) / 4 * 4;           // records stay 4-byte aligned
+    out->fields.push_back(makePointField(name, static_cast<std::uint32_t>(*offset), datatype));
   }
   out->header = in.header;
   out->height = in.height;
@@ -183,8 +189,20 @@ bool makeLabeledCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& lay
   out->is_bigendian = in.is_bigendian;
   out->is_dense = in.is_dense;
   out->point_step = static_cast<std::uint32_t>(step);
-  out->row_step = static_cast<std::uint32_t>(step * layout.width);
-  out->data.assign(step * layout.points, 0);
+  out->row_step = static_cast<std::uint32_t>(step * in.width);
+  out->data.assign(step * in.width * in.height, 0);
+  return true;
+}
+
+bool makeLabeledCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
+                      const std::vector<std::uint8_t>& labels, sensor_msgs::PointCloud2* out,
+                      std::string* why) {
+  std::size_t label_offset = 0;
+  if (!layoutWithField(in, kLabelFieldName, sensor_msgs::PointField::UINT8, 1, out, &label_offset,
+                       why)) {
+    return false;
+  }
+  const std::size_t step = out->point_step;
   std::uint8_t* dst = out->data.data();
   for (std::size_t r = 0, i = 0; r < layout.height; ++r) {
     const std::uint8_t* rec = in.data.data() + r * layout.row_step;

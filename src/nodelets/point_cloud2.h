@@ -145,6 +145,19 @@ void processPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& l
                         CloudProcessingBuffers* buffers, ProcessedCloud* out);
 
 /// \brief Short name of a rejection reason for logs ("row_step", ...).
+/// \brief A PointField of one value.
+sensor_msgs::PointField makePointField(const char* name, std::uint32_t offset,
+                                       std::uint8_t datatype);
+
+/// \brief `out` laid out as `in` (header, width, height; rows unpadded) with one more field `name`
+///        of one `datatype` value of `size` bytes: appended after the record at an offset aligned
+///        to `size` (records padded to 4 bytes), or an existing field of that type reused in
+///        place; `out->data` is sized and zeroed, `*offset` is the field's offset.
+/// \returns false (reason in `why`) when `in` has a field `name` of another type or count.
+bool layoutWithField(const sensor_msgs::PointCloud2& in, const char* name, std::uint8_t datatype,
+                     std::size_t size, sensor_msgs::PointCloud2* out, std::size_t* offset,
+                     std::string* why);
+
 /// \brief Sets the working volume's centre and axes on `filter`: the sensor's pose in the
 ///        filter's frame (the body box is given in the input frame).
 void setSensorPose(WorkingVolumeFilter* filter, const Eigen::Isometry3d& pose);
