@@ -20,6 +20,7 @@ PKG = "ground_filter"
 NAME = "load_filter"
 sys.path.insert(0, os.path.join(rospkg.RosPack().get_path(PKG), "scripts"))
 from rostest_helpers import RosTestCase  # noqa: E402
+from soak import header_and_size, rss_kb  # noqa: E402
 
 FIELDS = ("x", "y", "z", "intensity")
 
@@ -76,14 +77,9 @@ class LoadTest(RosTestCase):
 
     @classmethod
     def _on_out(cls, msg, part):
-        # Header: seq uint32, stamp sec/nsec; then frame_id; height and width after it.
-        buf = msg._buff
-        sec, nsec = np.frombuffer(buf[4:12], "<u4")
-        flen = int(np.frombuffer(buf[12:16], "<u4")[0])
-        height, width = np.frombuffer(buf[16 + flen:24 + flen], "<u4")
+        _, stamp_ns, points = header_and_size(msg._buff)
         with cls.lock:
-            cls.pairs.setdefault(int(sec) * 10**9 + int(nsec), [None, None])[part] = \
-                int(height) * int(width)
+            cls.pairs.setdefault(stamp_ns, [None, None])[part] = points
 
     def number(self, key):
         with self.lock:
@@ -107,9 +103,7 @@ class LoadTest(RosTestCase):
 
     def manager_rss_kb(self):
         uri = rosgraph.Master("/load_test").lookupNode("/gf_load_manager")
-        pid = xmlrpc.client.ServerProxy(uri).getPid("/load_test")[2]
-        with open("/proc/%d/status" % pid) as f:
-            return next(int(line.split()[1]) for line in f if line.startswith("VmRSS:"))
+        return rss_kb(xmlrpc.client.ServerProxy(uri).getPid("/load_test")[2])
 
     def settle(self, stamp_ns, n):
         """Waits for the output pair of `stamp_ns` (n points) and 2 s more (trim, diagnostics)."""

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "cli_args.h"
+#include "eval/metrics.h"
 #include "eval/scene_generator.h"
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/ground_filter.h"
@@ -135,20 +136,9 @@ struct Row {
   double bytesPerPoint() const { return peak_mib < 0 ? -1.0 : peak_mib * 1048576.0 / points; }
 };
 
-double f1Score(const std::vector<std::uint8_t>& labels, const std::vector<std::uint8_t>& truth) {
-  std::size_t tp = 0, fp = 0, fn = 0;
-  for (std::size_t i = 0; i < labels.size(); ++i) {
-    const bool l = labels[i] == 1, t = truth[i] == 1;
-    tp += l && t;
-    fp += l && !t;
-    fn += !l && t;
-  }
-  return tp ? 2.0 * tp / (2.0 * tp + fp + fn) : 0.0;
-}
-
 /// One method at one thread count on one scan: a fresh filter (its buffers count in the peak).
 Row benchRow(const Options& opt, double size_m, const std::string& method, int threads,
-             const gf::CloudView& view, const std::vector<std::uint8_t>& truth, bool gpu) {
+             const gf::CloudView& view, const std::vector<std::int8_t>& truth, bool gpu) {
   gf::ParamSettings settings = opt.settings;
   settings.emplace_back("threads", std::to_string(threads));
   if (gpu) settings.emplace_back("knn_backend", "gpu");
@@ -176,7 +166,7 @@ Row benchRow(const Options& opt, double size_m, const std::string& method, int t
       filter->filter(view, &labels, nullptr);
       times.push_back(cli::msSince(t0));
     }
-    row.f1 = f1Score(labels, truth);
+    row.f1 = gf::computeMetrics(gf::countConfusion(labels, truth)).f1;
   }
   const long peak_kib = statusKib("VmHWM");
   if (peak_known && base_kib >= 0 && peak_kib >= base_kib)
@@ -251,14 +241,14 @@ int run(const Options& opt) {
   std::vector<Row> rows;
   for (double size_m : opt.sizes_m) {
     std::vector<float> xyz;
-    std::vector<std::uint8_t> truth;
+    std::vector<std::int8_t> truth;  // the eval kit's truth type (1 ground, 0 not)
     {
       gf::SceneParams sp = gf::builtinSceneParams("tls");
       sp.seed = static_cast<unsigned>(opt.seed);
       sp.tls_points = static_cast<std::size_t>(size_m * 1e6);
       gf::GeneratedScan g = gf::generateScene(sp);
       xyz.swap(g.xyz);
-      truth.swap(g.truth);
+      truth.assign(g.truth.begin(), g.truth.end());
     }  // the generator's other arrays are freed before any filter runs
     const gf::CloudView view = gf::CloudView::packedXyz(xyz.data(), truth.size());
     for (const auto& m : opt.methods) {
