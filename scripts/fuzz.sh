@@ -27,7 +27,12 @@ SEEDS="${GF_ROOT}/test/fuzz_corpus"
 export ASAN_OPTIONS="detect_leaks=1:halt_on_error=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 # Inputs up to 64 KB: a few thousand points, enough for every code path, fast per run.
-OPTS=(-max_len=65536 -timeout=20 -rss_limit_mb=2048 -print_final_stats=1)
+# -timeout: the slowest valid inputs known are a few thousand points scattered over 2 km (the
+# airborne raster then holds 16 cells a point, filled 4 x 50 Laplace sweeps): 0.3 s in a release
+# build, 9-14 s under ASan + UBSan + coverage at -O1 on 2 cores (test/fuzz_corpus/
+# slow-sparse-scatter-2km, 2 000 points, 2.5 s). 60 s leaves room for slower CI machines; a hang
+# still fails.
+OPTS=(-max_len=65536 -timeout=60 -rss_limit_mb=2048 -print_final_stats=1)
 rc_all=0
 for method in ${METHODS}; do
   work="${GF_ROOT}/.ws_asan/fuzz_work/${method}"

@@ -26,6 +26,13 @@ def main():
                 if case.find("failure") is not None or case.find("error") is not None:
                     failed += 1
                     print("FAILED: %s %s.%s" % (name, case.get("classname"), case.get("name")))
+                    # The reason, short: CI logs keep only their tail, where this summary is.
+                    node = case.find("failure")
+                    if node is None:
+                        node = case.find("error")
+                    why = " ".join((node.get("message") or node.text or "").split())
+                    if why:
+                        print("  reason: %s" % why[:600])
                 elif case.find("skipped") is not None or case.get("result") == "skipped" \
                         or case.get("status") == "notrun":  # gtest 1.10 (focal) marks it so
                     skipped += 1

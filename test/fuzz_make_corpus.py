@@ -5,7 +5,8 @@ Each file is one serialised sensor_msgs/PointCloud2 (as it travels on a ROS conn
 ones and malformed ones. Small on purpose (a few KB). Regenerate with:
   python3 test/fuzz_make_corpus.py [--data DATA] [--out test/fuzz_corpus]
 (DATA: the data folder, default as scripts/gf_data.py: $GF_DATA_DIR, data/, ../shared/data)
-Crash reproducers found by scripts/fuzz.sh are added to the same folder as crash-*.
+Crash reproducers found by scripts/fuzz.sh are added to the same folder as crash-*, and inputs
+that were once too slow (a libFuzzer timeout) as slow-*.
 """
 import argparse
 import io

@@ -94,9 +94,14 @@ void MorphGround::fill(std::vector<float>* zp) {
     *v = static_cast<float>(s / c);
     return true;
   };
+  // Gap cells in index order (the sweeps' order); a cell on the raster's border is stored as
+  // ~index (negative), so the sweeps tell the two apart without a division per cell.
   gaps_.clear();
   for (std::size_t i = 0; i < n; ++i) {
-    if (!known_[i]) gaps_.push_back(static_cast<std::int32_t>(i));
+    if (known_[i]) continue;
+    const int x = static_cast<int>(i % nx_), y = static_cast<int>(i / nx_);
+    const bool inner = x > 0 && y > 0 && x + 1 < nx_ && y + 1 < ny_;
+    gaps_.push_back(inner ? static_cast<std::int32_t>(i) : ~static_cast<std::int32_t>(i));
   }
   for (std::size_t i = 0; i < n; ++i) {
     if (known_[i]) continue;
@@ -133,13 +138,13 @@ void MorphGround::fill(std::vector<float>* zp) {
   }
   float* zz = z.data();
   for (int sweep = 0; sweep < kFillSweeps; ++sweep) {
-    for (const std::int32_t i : gaps_) {
-      const int x = i % nx_, y = i / nx_;
-      if (x > 0 && y > 0 && x + 1 < nx_ && y + 1 < ny_) {
-        zz[i] = 0.25f * (zz[i - 1] + zz[i + 1] + zz[i - nx_] + zz[i + nx_]);
+    for (const std::int32_t g : gaps_) {
+      if (g >= 0) {
+        zz[g] = 0.25f * (zz[g - 1] + zz[g + 1] + zz[g - nx_] + zz[g + nx_]);
       } else {
+        const std::int32_t i = ~g;
         float v;
-        if (neighbourMean(x, y, false, &v)) zz[i] = v;
+        if (neighbourMean(i % nx_, i / nx_, false, &v)) zz[i] = v;
       }
     }
   }
