@@ -25,7 +25,7 @@ gf_core_room(voxel voxel_ground_filter voxel_ground_filter_params paper_voxel_fi
 gf_core_room(voxel voxelize voxelize_build avx2_passes segments ground_model classify vote vegetation worker_pool)
 # normal method: the filter and its parameter table (and the settings derived from it), one file
 # per stage
-gf_core_room(normal normal_ground_filter normal_ground_filter_params)
+gf_core_room(normal normal_ground_filter normal_ground_filter_params normal_settings)
 gf_core_room(normal order sample neighborhoods vote plane local_ground vegetation scatter_labels)
 # K nearest neighbours, a room below the normal method that uses it (knn/): the
 # kd-tree (build, portable / AVX-512 / AVX2 / NEON queries), the PCA of the lists, the backend

@@ -38,7 +38,7 @@ PUBLIC_HEADERS = {
     "cloud_view.h", "cuda_knn.h", "cuda_normal_pipeline.h", "ground_filter.h",
     "morph_ground_params.h", "neighbor_search.h", "normal_ground_filter.h",
     "normal_ground_filter_params.h",
-    "param_parse.h", "param_table.h", "voxel_ground_filter.h", "voxel_ground_filter_params.h",
+    "param_parse.h", "param_table.h", "point_field.h", "voxel_ground_filter.h", "voxel_ground_filter_params.h",
     "working_volume.h", "working_volume_params.h", "height_above_ground.h", "build_info.h",
     "params/param_def.h", "params/normal_filter_settings.h",
     "NormalGroundFilterConfig.h", "VoxelGroundFilterConfig.h",

@@ -5,11 +5,13 @@
 
 #include <boost/any.hpp>
 #include <set>
+#include <stdexcept>
 #include <string>
 
 #include "ground_filter/NormalGroundFilterConfig.h"
 #include "ground_filter/VoxelGroundFilterConfig.h"
 #include "ground_filter/normal_ground_filter_params.h"
+#include "ground_filter/param_parse.h"
 #include "ground_filter/voxel_ground_filter_params.h"
 
 namespace gf = ground_filter;
@@ -142,4 +144,47 @@ TEST(ParamTables, SetWritesTheFieldAndDescribeShowsIt) {
   EXPECT_THROW(n.set("k", "many"), std::invalid_argument);
   n.knn_backend = "cpu";
   EXPECT_THROW(n.validate(), std::invalid_argument);
+}
+
+TEST(ParamTables, StringChoicesNameParameterValueAndChoices) {
+  gf::NormalGroundFilterParams n;
+  n.scan_type = "nadir";
+  try {
+    n.validate();
+    ADD_FAILURE() << "scan_type 'nadir' accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(),
+                 "parameter 'scan_type' = 'nadir' is not one of: auto, ground, "
+                 "airborne, tls");
+  }
+  gf::VoxelGroundFilterParams v;
+  v.scan_type = "tls";
+  EXPECT_NO_THROW(v.validate());
+  v.scan_type = "";
+  EXPECT_THROW(v.validate(), std::invalid_argument);
+  EXPECT_THROW(gf::checkChoice("mode", "c", {"a", "b"}), std::invalid_argument);
+  EXPECT_NO_THROW(gf::checkChoice("mode", "b", {"a", "b"}));
+}
+
+TEST(ParamTables, RowsOfBaseMembersKeepTheirType) {
+  using Spec = gf::ParamSpec<gf::NormalGroundFilterParams>;
+  std::set<std::string> seen;
+  for (const auto& spec : gf::NormalGroundFilterParams::table()) {
+    const std::string name = spec.name;
+    // k and veg_filter come from the NormalFilterSettings base, morph_cell and scan_type from
+    // MorphGroundParams, knn_backend from the struct itself.
+    if (name == "k") EXPECT_EQ(spec.type, Spec::Type::kInt);
+    if (name == "veg_filter") EXPECT_EQ(spec.type, Spec::Type::kBool);
+    if (name == "morph_cell") EXPECT_EQ(spec.type, Spec::Type::kDouble);
+    if (name == "scan_type" || name == "knn_backend") EXPECT_EQ(spec.type, Spec::Type::kString);
+    seen.insert(name);
+  }
+  for (const char* name : {"k", "veg_filter", "morph_cell", "scan_type", "knn_backend"}) {
+    EXPECT_EQ(seen.count(name), 1u) << name;
+  }
+  gf::NormalGroundFilterParams n;
+  n.set("morph_cell", "2.5");
+  n.set("k", "12");
+  EXPECT_DOUBLE_EQ(n.morph_cell, 2.5);
+  EXPECT_EQ(n.k, 12);
 }

@@ -21,14 +21,8 @@ struct NormalGroundFilterParams : TableParams<NormalGroundFilterParams>,
 #include "ground_filter/params/normal_params.def"
 #undef GF_PARAM
 
-  /// \brief Checks every field's range (and the rules between fields).
-  /// \throws std::invalid_argument naming the first bad field, its value and its range.
-  void validate() const;
-  /// \brief The parameter table (name, member, range, unit) behind set(), validate() and
-  ///        describe(); cfg/NormalGroundFilter.cfg must agree with it.
-  static const ParamTable<NormalGroundFilterParams>& table();
-  /// \brief "normal": the method's name (messages, makeGroundFilter()).
-  static const char* method() { return "normal"; }
+  // validate(), table() (cfg/NormalGroundFilter.cfg must agree with it), method().
+  GF_TABLE_PARAMS_MEMBERS(NormalGroundFilterParams, "normal")
 };
 
 }  // namespace ground_filter

@@ -2,6 +2,7 @@
 #define GROUND_FILTER_PARAM_PARSE_H
 
 #include <string>
+#include <vector>
 
 namespace ground_filter {
 
@@ -20,6 +21,11 @@ bool parseBoolParam(const std::string& name, const std::string& value);
 /// \brief Throws std::invalid_argument("NAME = VALUE is out of range [lo, hi] UNIT") unless
 ///        lo <= value <= hi.
 void checkRange(const char* name, double value, double lo, double hi, const char* unit);
+
+/// \brief Throws std::invalid_argument("parameter 'NAME' = 'VALUE' is not one of: A, B") unless
+///        `value` is one of `choices` (a string parameter with fixed values).
+void checkChoice(const char* name, const std::string& value,
+                 const std::vector<std::string>& choices);
 
 }  // namespace ground_filter
 

@@ -19,50 +19,15 @@ struct ParamSpec {
   /// \brief Type of the struct member.
   enum class Type { kDouble, kInt, kBool, kString };
 
-  /// \brief A double member with its range.
-  ParamSpec(const char* n, double P::*m, double lo, double hi, const char* u, const char* d,
+  /// \brief A row for member `m` of P (or of a base of P): a double or int member with its range
+  ///        [lo, hi], a bool member (no range) or a string member (its values are checked by the
+  ///        struct's validate()); `u` unit, `d` description, `pp` the paper's value.
+  template <class M>
+  ParamSpec(const char* n, M m, double lo, double hi, const char* u, const char* d,
             const char* pp = "")
-      : name(n),
-        type(Type::kDouble),
-        as_double(m),
-        min(lo),
-        max(hi),
-        unit(u),
-        description(d),
-        paper(pp) {}
-  /// \brief An int member with its range.
-  ParamSpec(const char* n, int P::*m, double lo, double hi, const char* u, const char* d,
-            const char* pp = "")
-      : name(n),
-        type(Type::kInt),
-        as_int(m),
-        min(lo),
-        max(hi),
-        unit(u),
-        description(d),
-        paper(pp) {}
-  /// \brief A bool member (no range).
-  ParamSpec(const char* n, bool P::*m, double lo, double hi, const char* u, const char* d,
-            const char* pp = "")
-      : name(n),
-        type(Type::kBool),
-        as_bool(m),
-        min(lo),
-        max(hi),
-        unit(u),
-        description(d),
-        paper(pp) {}
-  /// \brief A string member (its values are checked by the struct's validate()).
-  ParamSpec(const char* n, std::string P::*m, double lo, double hi, const char* u, const char* d,
-            const char* pp = "")
-      : name(n),
-        type(Type::kString),
-        as_string(m),
-        min(lo),
-        max(hi),
-        unit(u),
-        description(d),
-        paper(pp) {}
+      : name(n), min(lo), max(hi), unit(u), description(d), paper(pp) {
+    bind(m);
+  }
 
   const char* name;                     ///< parameter name (CLI, YAML, dynamic_reconfigure)
   Type type;                            ///< which of the members below is set
@@ -81,6 +46,26 @@ struct ParamSpec {
   /// \brief The value of a number member of `p` as a double.
   double number(const P& p) const {
     return type == Type::kDouble ? p.*as_double : static_cast<double>(p.*as_int);
+  }
+
+ private:
+  // Stores the member and its type (a member of a base converts to one of P; a member of any
+  // other type matches no overload and does not compile).
+  void bind(double P::*m) {
+    type = Type::kDouble;
+    as_double = m;
+  }
+  void bind(int P::*m) {
+    type = Type::kInt;
+    as_int = m;
+  }
+  void bind(bool P::*m) {
+    type = Type::kBool;
+    as_bool = m;
+  }
+  void bind(std::string P::*m) {
+    type = Type::kString;
+    as_string = m;
   }
 };
 
@@ -160,7 +145,7 @@ std::string describeParams(const ParamTable<P>& table, const P& p) {
 /// \brief Base of a params struct `P` whose table drives set() and describe() (CRTP). `P`
 ///        provides `static const ParamTable<P>& table()`, `static const char* method()` (the
 ///        method's name in messages) and its own `validate()` (checkParamRanges() plus any
-///        cross-field rule).
+///        cross-field rule): GF_TABLE_PARAMS_MEMBERS declares the three.
 template <class P>
 struct TableParams {
   /// \brief Sets one field from text (CLI `--set NAME=VALUE`).
@@ -173,5 +158,16 @@ struct TableParams {
 };
 
 }  // namespace ground_filter
+
+/// \brief Declares the members a method's params struct `P` (a TableParams<P>) provides:
+///        `void validate() const` (every field's range and the rules between fields; throws
+///        std::invalid_argument naming the first bad field, its value and its range),
+///        `static const ParamTable<P>& table()` (the parameter table behind set(), validate() and
+///        describe(), which the method's .cfg must agree with) and `static const char* method()`,
+///        which returns `NAME`, the method's name (messages, makeGroundFilter()).
+#define GF_TABLE_PARAMS_MEMBERS(P, NAME)                \
+  void validate() const;                                \
+  static const ::ground_filter::ParamTable<P>& table(); \
+  static const char* method() { return NAME; }
 
 #endif  // GROUND_FILTER_PARAM_TABLE_H

@@ -21,14 +21,8 @@ struct VoxelGroundFilterParams : TableParams<VoxelGroundFilterParams>, MorphGrou
 #include "ground_filter/params/voxel_params.def"
 #undef GF_PARAM
 
-  /// \brief Checks every field's range (and the rules between fields).
-  /// \throws std::invalid_argument naming the first bad field, its value and its range.
-  void validate() const;
-  /// \brief The parameter table (name, member, range, unit) behind set(), validate() and
-  ///        describe(); cfg/VoxelGroundFilter.cfg must agree with it.
-  static const ParamTable<VoxelGroundFilterParams>& table();
-  /// \brief "voxel": the method's name (messages, makeGroundFilter()).
-  static const char* method() { return "voxel"; }
+  // validate(), table() (cfg/VoxelGroundFilter.cfg must agree with it), method().
+  GF_TABLE_PARAMS_MEMBERS(VoxelGroundFilterParams, "voxel")
 };
 
 }  // namespace ground_filter

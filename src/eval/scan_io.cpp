@@ -15,6 +15,7 @@
 #include <stdexcept>
 
 #include "eval/scene_generator.h"
+#include "ground_filter/point_field.h"
 
 namespace ground_filter {
 
@@ -58,12 +59,7 @@ void checkRegularFile(const std::string& path) {
 }
 
 pcl::PCLPointField makeField(const std::string& name, std::uint32_t offset, std::uint8_t type) {
-  pcl::PCLPointField f;
-  f.name = name;
-  f.offset = offset;
-  f.datatype = type;
-  f.count = 1;
-  return f;
+  return singleValueField<pcl::PCLPointField>(name, offset, type);
 }
 
 // x y z intensity as float32 at 0, 4, 8, 12: a KITTI record, the generator's first 16 bytes.

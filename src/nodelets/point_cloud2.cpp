@@ -9,6 +9,8 @@
 #include <exception>
 #include <stdexcept>
 
+#include "ground_filter/point_field.h"
+
 namespace ground_filter {
 
 namespace {
@@ -151,12 +153,7 @@ CloudView makeTransformedCloudView(const sensor_msgs::PointCloud2& cloud, const 
 
 sensor_msgs::PointField makePointField(const char* name, std::uint32_t offset,
                                        std::uint8_t datatype) {
-  sensor_msgs::PointField f;
-  f.name = name;
-  f.offset = offset;
-  f.datatype = datatype;
-  f.count = 1;
-  return f;
+  return singleValueField<sensor_msgs::PointField>(name, offset, datatype);
 }
 
 bool layoutWithField(const sensor_msgs::PointCloud2& in, const char* name, std::uint8_t datatype,

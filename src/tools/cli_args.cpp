@@ -119,6 +119,11 @@ void parseCommandLine(int argc, char** argv, const char* usage, const std::vecto
   }
 }
 
+void parseCommandLine(int argc, char** argv, const char* usage, const std::vector<IntOption>& ints,
+                      SetsAndPaths* out, const std::function<bool(ArgCursor*)>& other) {
+  parseCommandLine(argc, argv, usage, ints, &out->settings, &out->paths, other);
+}
+
 bool FilterArgs::consume(ArgCursor* args) {
   const std::string& opt = args->option();
   if (opt == "--method") {

@@ -93,6 +93,18 @@ void parseCommandLine(int argc, char** argv, const char* usage, const std::vecto
                       ParamSettings* sets, std::vector<std::string>* paths,
                       const std::function<bool(ArgCursor*)>& other = nullptr);
 
+/// \brief The part of a tool's options that parseCommandLine() fills besides the integers: the
+///        `--set NAME=VALUE` settings and the PATH operands (a tool's Options derives from it).
+struct SetsAndPaths {
+  ParamSettings settings;          ///< --set, in command-line order
+  std::vector<std::string> paths;  ///< the operands, in order
+};
+
+/// \brief parseCommandLine() with `--set` into out->settings and the PATHs into out->paths.
+/// \throws UsageError for an unknown option or a missing or bad value.
+void parseCommandLine(int argc, char** argv, const char* usage, const std::vector<IntOption>& ints,
+                      SetsAndPaths* out, const std::function<bool(ArgCursor*)>& other = nullptr);
+
 /// \brief The filter options every tool shares: `--method NAME`, `--params FILE` and
 ///        `--set NAME=VALUE` (a `--set` overrides the file whatever their order).
 struct FilterArgs {

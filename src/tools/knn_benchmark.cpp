@@ -179,13 +179,11 @@ int largeMode(const std::vector<std::string>& paths, std::size_t points, int rep
   return 0;
 }
 
-struct Options {
+struct Options : cli::SetsAndPaths {
   int k = 50;
   int repeat = 0;  // 0: the mode's default
   int large = 0;
   std::vector<int> threads;
-  gf::ParamSettings settings;
-  std::vector<std::string> paths;
 };
 
 Options parseArgs(int argc, char** argv) {
@@ -194,7 +192,7 @@ Options parseArgs(int argc, char** argv) {
                         {{"--k", &o.k, 1, 256},
                          {"--repeat", &o.repeat, 1, 100000},
                          {"--large", &o.large, 1, 1000000000}},
-                        &o.settings, &o.paths, [&](cli::ArgCursor* args) {
+                        &o, [&](cli::ArgCursor* args) {
                           if (args->option() != "--threads") return false;
                           o.threads = cli::parseIntList("--threads", args->value(), 1, 1024);
                           return true;

@@ -69,7 +69,7 @@ const char kUsage[] =
     "--set N=V       voxel filter parameter (repeatable)\n"
     "--help          this text\n";
 
-struct Options {
+struct Options : cli::SetsAndPaths {
   int repeat = 15;
   int warmup = 1;
   int threads = 1;
@@ -78,8 +78,6 @@ struct Options {
   int tls_points = 0;
   bool peer = true;
   bool stages = false;
-  gf::ParamSettings settings;
-  std::vector<std::string> paths;
 };
 
 Options parseArgs(int argc, char** argv) {
@@ -90,7 +88,7 @@ Options parseArgs(int argc, char** argv) {
                          {"--threads", &o.threads, 0, 256},
                          {"--replicate", &o.replicate, 1, 1000},
                          {"--tls-points", &o.tls_points, 1000, 5000000}},
-                        &o.settings, &o.paths, [&](cli::ArgCursor* args) {
+                        &o, [&](cli::ArgCursor* args) {
                           if (args->option() == "--no-peer") {
                             o.peer = false;
                           } else if (args->option() == "--stages") {

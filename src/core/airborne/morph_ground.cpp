@@ -249,8 +249,8 @@ void MorphGround::joinTerrain(const MorphGroundSettings& s, double c) {
 
 bool MorphGround::aloneAtItsHeight(const CloudView& cloud, double c, int x, int y,
                                    std::int32_t m) const {
-  const int ra = static_cast<int>(std::ceil(kLowOutlierAlone / c));
-  const double ra2 = kLowOutlierAlone * kLowOutlierAlone;
+  const int ra = static_cast<int>(std::ceil(kLowOutlier.alone / c));
+  const double ra2 = kLowOutlier.alone * kLowOutlier.alone;
   const double mx = cloud.x(m), my = cloud.y(m), mz = cloud.z(m);
   for (int yy = std::max(0, y - ra); yy <= std::min(ny_ - 1, y + ra); ++yy) {
     for (int xx = std::max(0, x - ra); xx <= std::min(nx_ - 1, x + ra); ++xx) {
@@ -258,7 +258,7 @@ bool MorphGround::aloneAtItsHeight(const CloudView& cloud, double c, int x, int 
       for (std::int32_t a = cell_start_[kk]; a < cell_start_[kk + 1]; ++a) {
         const std::int32_t o = cell_pts_[a];
         const double dx = cloud.x(o) - mx, dy = cloud.y(o) - my;
-        if (o != m && dx * dx + dy * dy <= ra2 && cloud.z(o) - mz < kLowOutlierDrop) return false;
+        if (o != m && dx * dx + dy * dy <= ra2 && cloud.z(o) - mz < kLowOutlier.drop) return false;
       }
     }
   }
@@ -266,8 +266,8 @@ bool MorphGround::aloneAtItsHeight(const CloudView& cloud, double c, int x, int 
 }
 
 void MorphGround::dropLowOutliers(const CloudView& cloud, double c) {
-  // A cell's lowest return with at least kLowOutlierMinNeighbours other returns within
-  // kLowOutlierRadius (horizontally) and none of them less than kLowOutlierDrop above it lies on
+  // A cell's lowest return with at least kLowOutlier.min_neighbours other returns within
+  // kLowOutlier.radius (horizontally) and none of them less than kLowOutlier.drop above it lies on
   // no surface: terrain, however steep, has returns near the lowest one. The cell's minimum
   // becomes its next-lowest return (a gap when it had none); the outlier itself, far below the
   // surface, is then labelled non-ground by the height test. Points are bucketed by cell first.
@@ -282,11 +282,11 @@ void MorphGround::dropLowOutliers(const CloudView& cloud, double c) {
   for (std::size_t i = 0; i < np; ++i) {
     if (cell_of_[i] >= 0) cell_pts_[next_[cell_of_[i]]++] = static_cast<std::int32_t>(i);
   }
-  const int rc = static_cast<int>(std::ceil(kLowOutlierRadius / c));
-  const double r2 = kLowOutlierRadius * kLowOutlierRadius;
+  const int rc = static_cast<int>(std::ceil(kLowOutlier.radius / c));
+  const double r2 = kLowOutlier.radius * kLowOutlier.radius;
   // Cells within +-rs lie wholly within the radius of any point of the centre cell.
   const int rs =
-      std::max(0, static_cast<int>(std::floor(kLowOutlierRadius / (c * std::sqrt(2.0)))) - 1);
+      std::max(0, static_cast<int>(std::floor(kLowOutlier.radius / (c * std::sqrt(2.0)))) - 1);
   gaps_.clear();  // the cells whose minimum is an outlier
   for (int y = 0; y < ny_; ++y) {
     for (int x = 0; x < nx_; ++x) {
@@ -304,7 +304,7 @@ void MorphGround::dropLowOutliers(const CloudView& cloud, double c) {
         for (int dx = -rs; dx <= rs && !near; ++dx) {
           const int xx = x + dx, yy = y + dy;
           if ((dx == 0 && dy == 0) || xx < 0 || yy < 0 || xx >= nx_ || yy >= ny_) continue;
-          near = zmin_[static_cast<std::size_t>(yy) * nx_ + xx] - mz < kLowOutlierDrop;  // NaN: no
+          near = zmin_[static_cast<std::size_t>(yy) * nx_ + xx] - mz < kLowOutlier.drop;  // NaN: no
         }
       }
       for (int yy = std::max(0, y - rc); yy <= std::min(ny_ - 1, y + rc) && !near; ++yy) {
@@ -315,14 +315,14 @@ void MorphGround::dropLowOutliers(const CloudView& cloud, double c) {
             const double dx = cloud.x(o) - mx, dy = cloud.y(o) - my;
             if (o == m || dx * dx + dy * dy > r2) continue;
             ++count;
-            if (cloud.z(o) - mz < kLowOutlierDrop) {
+            if (cloud.z(o) - mz < kLowOutlier.drop) {
               near = true;
               break;
             }
           }
         }
       }
-      if (near || count < kLowOutlierMinNeighbours) continue;
+      if (near || count < kLowOutlier.min_neighbours) continue;
       if (!aloneAtItsHeight(cloud, c, x, y, m)) continue;
       gaps_.push_back(static_cast<std::int32_t>(k));
     }

@@ -18,6 +18,21 @@ struct MorphGroundSettings {
   double scale = 1.25;     ///< added to threshold per unit of surface gradient [m]
 };
 
+/// \brief Low outliers: a cell's lowest return with at least `min_neighbours` others within
+///        `radius` [m] (horizontally), all more than `drop` [m] above it, and no other return
+///        within `alone` [m] (horizontally) less than `drop` above it, is left out of the minimum
+///        raster (ISPRS pooled F1 within 0.03 for radius 2-4 m, drop 1-3 m, 1-10 neighbours).
+///        Constants, not parameters (MorphGround::kLowOutlier).
+struct LowOutlierRule {
+  double radius = 3.0;     ///< [m] neighbourhood of the cell's lowest return
+  double drop = 2.0;       ///< [m] all those neighbours lie more than this above it
+  int min_neighbours = 6;  ///< at least this many of them
+  /// [m] and no return within this lies less than `drop` above it: ground is a surface, so
+  /// even the sparse ground returns under a dense canopy have others at their height within a
+  /// few metres; an outlier has none.
+  double alone = 10.0;
+};
+
 /// \brief Airborne ground model after SMRF (Pingel, Clarke and McBride 2013), written from its
 ///        description: a minimum-elevation raster (without low outliers) with its gaps filled,
 ///        opened with disks of growing radius (cells that drop by more than slope x radius at a
@@ -39,17 +54,8 @@ class MorphGround {
   ///        beyond it the cell grows, as for kMaxCells.
   static constexpr double kMaxCellsPerPoint = 16.0;
   static constexpr std::size_t kMinCells = 4096;
-  /// \brief Low outliers: a cell's lowest return with at least kLowOutlierMinNeighbours others
-  ///        within kLowOutlierRadius [m] (horizontally), all more than kLowOutlierDrop [m] above
-  ///        it, is left out of the minimum raster (ISPRS pooled F1 within 0.03 for radius 2-4 m,
-  ///        drop 1-3 m, 1-10 neighbours).
-  static constexpr double kLowOutlierRadius = 3.0;
-  static constexpr double kLowOutlierDrop = 2.0;
-  static constexpr int kLowOutlierMinNeighbours = 6;
-  /// \brief ... and no other return within kLowOutlierAlone [m] (horizontally) less than
-  ///        kLowOutlierDrop above it: ground is a surface, so even the sparse ground returns under
-  ///        a dense canopy have others at their height within a few metres; an outlier has none.
-  static constexpr double kLowOutlierAlone = 10.0;
+  /// \brief The low-outlier rule in force.
+  static constexpr LowOutlierRule kLowOutlier{};
   /// \brief Steep-terrain passes at most (the second measures the terrain slope again on the
   ///        first's surface, which keeps more of a crest; skipped when nothing changes).
   static constexpr int kSteepPasses = 2;
@@ -65,8 +71,8 @@ class MorphGround {
   void terrainSlope(double c, int w);  // tslope_ from dem_ across +-w cells
   void joinTerrain(const MorphGroundSettings& s, double c);  // second-pass cells joined to terrain
   void dropLowOutliers(const CloudView& cloud, double c);    // zmin_ without low outliers
-  // Whether point m (cell x, y) has no other return within kLowOutlierAlone that is less than
-  // kLowOutlierDrop above it.
+  // Whether point m (cell x, y) has no other return within kLowOutlier.alone that is less than
+  // kLowOutlier.drop above it.
   bool aloneAtItsHeight(const CloudView& cloud, double c, int x, int y, std::int32_t m) const;
 
   int nx_ = 0, ny_ = 0;

@@ -8,6 +8,8 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "ground_filter/param_parse.h"
+
 namespace ground_filter {
 
 namespace {
@@ -45,11 +47,7 @@ const std::vector<std::string>& scanTypeSettings() {
 }
 
 void validateScanTypeSetting(const std::string& value) {
-  const auto& v = scanTypeSettings();
-  if (std::find(v.begin(), v.end(), value) != v.end()) return;
-  std::string known;
-  for (const auto& s : v) known += (known.empty() ? "" : ", ") + s;
-  throw std::invalid_argument("parameter 'scan_type' = '" + value + "' is not one of " + known);
+  checkChoice("scan_type", value, scanTypeSettings());
 }
 
 ScanMeasures ScanTypeClassifier::measure(const CloudView& cloud, const float origin[3]) {

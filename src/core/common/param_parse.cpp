@@ -45,4 +45,13 @@ void checkRange(const char* name, double value, double lo, double hi, const char
   }
 }
 
+void checkChoice(const char* name, const std::string& value,
+                 const std::vector<std::string>& choices) {
+  if (std::find(choices.begin(), choices.end(), value) != choices.end()) return;
+  std::string known;
+  for (const auto& c : choices) known += (known.empty() ? "" : ", ") + c;
+  throw std::invalid_argument(std::string("parameter '") + name + "' = '" + value +
+                              "' is not one of: " + known);
+}
+
 }  // namespace ground_filter

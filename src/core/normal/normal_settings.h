@@ -1,9 +1,9 @@
 #ifndef GROUND_FILTER_SRC_CORE_NORMAL_NORMAL_SETTINGS_H
 #define GROUND_FILTER_SRC_CORE_NORMAL_NORMAL_SETTINGS_H
 
-// Settings derived from NormalGroundFilterParams, defined beside the parameter table
-// (normal_ground_filter_params.cpp). The GPU pipeline takes the params' NormalFilterSettings
-// base as they are (CudaNormalParams), so a new plain parameter reaches it without a copy.
+// Settings derived from NormalGroundFilterParams (normal_settings.cpp). The GPU pipeline takes
+// the params' NormalFilterSettings base as they are (CudaNormalParams), so a new plain parameter
+// reaches it without a copy.
 
 #include "ground_filter/normal_ground_filter_params.h"
 

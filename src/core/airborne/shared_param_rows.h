@@ -1,9 +1,11 @@
-// Private to the core: parameter-table rows that both methods' params structs share.
-#ifndef GROUND_FILTER_SRC_CORE_COMMON_SHARED_PARAM_ROWS_H
-#define GROUND_FILTER_SRC_CORE_COMMON_SHARED_PARAM_ROWS_H
+// Private to the core: the parameter-table rows that both methods' params structs share (the
+// airborne mode's, MorphGroundParams) and the checks that go with them.
+#ifndef GROUND_FILTER_SRC_CORE_AIRBORNE_SHARED_PARAM_ROWS_H
+#define GROUND_FILTER_SRC_CORE_AIRBORNE_SHARED_PARAM_ROWS_H
 
 #include <initializer_list>
 
+#include "airborne/scan_type.h"
 #include "ground_filter/param_table.h"
 #include "ground_filter/params/param_def.h"
 
@@ -24,6 +26,15 @@ ParamTable<P> withSharedParamRows(std::initializer_list<ParamSpec<P>> own) {
   return rows;
 }
 
+/// \brief The checks every method's validate() starts with: the range of each row of
+///        P::table() and the value of scan_type (a shared row).
+/// \throws std::invalid_argument naming the first bad parameter.
+template <typename P>
+void checkSharedParams(const P& p) {
+  checkParamRanges(P::table(), p);
+  validateScanTypeSetting(p.scan_type);
+}
+
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_COMMON_SHARED_PARAM_ROWS_H
+#endif  // GROUND_FILTER_SRC_CORE_AIRBORNE_SHARED_PARAM_ROWS_H

@@ -1,0 +1,26 @@
+#ifndef GROUND_FILTER_POINT_FIELD_H
+#define GROUND_FILTER_POINT_FIELD_H
+
+#include <cstdint>
+#include <string>
+
+namespace ground_filter {
+
+/// \brief A field of a point record that holds one value (count 1): `name` at byte `offset` of
+///        the record, of type `datatype` (the PointField type constants, e.g. 7 = FLOAT32).
+///        `Field` is a point-field type with the members name, offset, datatype and count:
+///        sensor_msgs::PointField (the nodelets' clouds) or pcl::PCLPointField (the scan files);
+///        the header depends on neither.
+template <class Field>
+Field singleValueField(const std::string& name, std::uint32_t offset, std::uint8_t datatype) {
+  Field f;
+  f.name = name;
+  f.offset = offset;
+  f.datatype = datatype;
+  f.count = 1;
+  return f;
+}
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_POINT_FIELD_H
