@@ -20,6 +20,7 @@
 using ground_filter::CudaError;
 using ground_filter::CudaKnn;
 using ground_filter::CudaKnnOptions;
+using ground_filter::CudaKnnQueryStats;
 using ground_filter::CudaKnnTuning;
 using ground_filter::CudaKnnTuningAccess;
 

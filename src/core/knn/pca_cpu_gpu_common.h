@@ -34,9 +34,10 @@ struct NeighborhoodSums {
 /// \brief The sums of list `row` (up to `k` indices into the packed `xyz`; the first -1 ends
 ///        it) around the query point (ox, oy, oz). The offsets are small (a neighbourhood, not
 ///        80 m ranges), so centring afterwards loses nothing measurable and each neighbour is
-///        read once.
-GF_HOST_DEVICE inline NeighborhoodSums neighborhoodSums(const float* xyz, const std::int32_t* row,
-                                                        int k, double ox, double oy, double oz) {
+///        read once. (__restrict__: the kernels read both through the read-only cache.)
+GF_HOST_DEVICE inline NeighborhoodSums neighborhoodSums(const float* __restrict__ xyz,
+                                                        const std::int32_t* __restrict__ row, int k,
+                                                        double ox, double oy, double oz) {
   NeighborhoodSums s;
   while (s.m < k && row[s.m] >= 0) {
     const float* p = xyz + 3 * static_cast<std::size_t>(row[s.m]);
