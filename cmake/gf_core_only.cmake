@@ -36,7 +36,7 @@ if(GF_SANITIZE)
 endif()
 
 # The same sources and code-generation flags as the catkin build's core, static here.
-gf_add_core(ground_filter_core STATIC EIGEN ${GF_EIGEN_DIR})
+gf_add_core(ground_filter_core STATIC EIGEN ${GF_EIGEN_DIR} EXTRA ${GF_CORE_NO_CUDA_SOURCES})
 gf_add_eval_kit(ground_filter_eval_kit ground_filter_core)
 
 set(INSTALL_GTEST OFF CACHE BOOL "" FORCE)

@@ -36,10 +36,10 @@ gf_core_room(knn neighborhood_pca neighbor_search_factory)
 # height above ground: the ground surface from a filter's labels
 gf_core_room(hag height_above_ground)
 
-# The CUDA adapters of the neighbour interface and of the whole-filter executor: added to the core
-# where CUDA is built.
-set(GF_CORE_CUDA_SOURCES src/core/knn/gpu_neighbor_search.cpp
-                         src/core/normal/gpu_normal_executor.cpp)
+# The CUDA library's entry points (makeGpuKnnBackend(), makeGpuNormalExecutor(), ...) where CUDA is
+# not built: added to the core instead of linking ground_filter_cuda (cuda/src/gpu_*.cpp define
+# them there).
+set(GF_CORE_NO_CUDA_SOURCES src/core/no_cuda.cpp)
 
 # The evaluation kit (src/eval/: ground_filter_eval_kit, a static library of the tools and tests,
 # never linked into the core or the nodelets): metrics and the generated scenes (Eigen only), and

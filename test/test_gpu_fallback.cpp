@@ -15,8 +15,8 @@
 #include "knn/kdtree_neighbor_search.h"
 #include "normal/filter_executor.h"
 #ifdef GROUND_FILTER_HAVE_CUDA
+#include "gpu_neighbor_search.h"
 #include "ground_filter/cuda_knn.h"
-#include "knn/gpu_neighbor_search.h"
 #endif
 
 namespace gf = ground_filter;
@@ -168,7 +168,7 @@ TEST(GpuFallback, CudaLibraryExplainsMissingDevice) {
   }
   EXPECT_EQ(why.rfind("cuda", 0), 0u) << why;  // a CUDA error name first
   try {
-    gf::GpuNeighborSearch search;
+    gf::GpuNeighborSearch search(std::make_unique<gf::KdTreeNeighborSearch>(1));
     FAIL() << "constructed without a device";
   } catch (const gf::CudaError& e) {
     EXPECT_EQ(e.errorName().rfind("cudaError", 0), 0u) << e.errorName();

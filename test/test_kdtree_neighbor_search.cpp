@@ -354,14 +354,14 @@ TEST(KdTreeNeighborSearchExact, KittiFrameMatchesNanoflann) {
 
 namespace {
 
-/// Kept lists (keepListsOnDevice(true), tree-order rows) against the reference search() lists of
+/// Kept lists (keepLists(true), tree-order rows) against the reference search() lists of
 /// a second object: same rows, PCA bit for bit, neighbour counts of random flags identical.
 void expectKeptListsSame(const Cloud& c, int k, Level level, int leaf) {
   const gf::simd::ScopedLevel scoped(level);
   ASSERT_TRUE(scoped.ok());
   const std::size_t n = c.size() / 3;
   gf::KdTreeNeighborSearch ref(2, leaf), kept(2, leaf);
-  EXPECT_TRUE(kept.keepListsOnDevice(true));
+  EXPECT_TRUE(kept.keepLists(true));
   gf::NeighborLists want, out, got;
   ref.search(c.data(), n, k, &want);
   std::vector<gf::PointPca> want_pca, got_pca;

@@ -74,6 +74,26 @@ class TestLayout(unittest.TestCase):
         self.assertNotIn("voxel_ground_filter.cpp", out)  # its own class and its stages
         self.assertIn("4 point the wrong way", out)
 
+    def test_include_checker_keeps_the_core_off_the_cuda_library(self):
+        rc, out = run_planted(INCLUDES, {
+            "cuda/include/ground_filter/cuda_knn.h": "\n",
+            "cuda/src/gpu_search.h": '#include "ground_filter/cuda_knn.h"\n',
+            "src/core/knn/knn_backend.h": "\n",
+            "src/core/knn/kdtree.h": "\n",
+            "src/core/normal/cpu_gpu_common.h": "\n",
+            "src/core/knn/factory.cpp": '#include "ground_filter/cuda_knn.h"\n',  # core -> cuda
+            "src/core/normal/stage.cpp": '#include "gpu_search.h"\n',             # core -> cuda
+            "cuda/src/gpu_search.cpp":  # the interface it implements, shared maths: allowed
+                '#include "knn/knn_backend.h"\n#include "normal/cpu_gpu_common.h"\n'
+                '#include "knn/kdtree.h"\n',  # another core header: not
+        })
+        self.assertEqual(rc, 1, out)
+        self.assertIn("src/core/knn/factory.cpp:1: knn includes "
+                      "cuda/include/ground_filter/cuda_knn.h (cuda_api)", out)
+        self.assertIn("src/core/normal/stage.cpp:1: normal includes cuda/src/gpu_search.h", out)
+        self.assertIn("cuda/src/gpu_search.cpp:3: cuda includes src/core/knn/kdtree.h", out)
+        self.assertIn("3 point the wrong way", out)
+
     def test_size_checker_finds_planted_long_function_and_file(self):
         body = "".join("  x += %d;\n" % i for i in range(121))
         rc, out = run_planted(SIZES, {

@@ -504,7 +504,7 @@ TEST(KdTreeNeighborSearch, SearchWithCandidatesMatchesSearchWithPca) {
                      (keep ? " kept lists" : ""));
         const Cloud c = gf_test::randomCloud(n, 32, true, 0.2f);
         gf::KdTreeNeighborSearch search(threads);
-        search.keepListsOnDevice(keep);
+        search.keepLists(keep);
         gf::NeighborLists a, b;
         std::vector<gf::PointPca> pca;
         ASSERT_TRUE(search.searchWithPca(c.data(), n, 50, &a, &pca));

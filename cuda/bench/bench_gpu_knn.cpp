@@ -29,9 +29,9 @@
 
 #include "brute_force_knn.h"  // readKittiBin (cuda/test/)
 #include "common/threads_timing.h"
+#include "gpu_neighbor_search.h"
 #include "ground_filter/cuda_knn.h"
 #include "ground_filter/normal_ground_filter.h"
-#include "knn/gpu_neighbor_search.h"
 #include "knn/kdtree_neighbor_search.h"
 #include "knn_tuning.h"  // cuda/src: the query kernel's experiment knobs and work counters
 #include "replicate_frames.h"

@@ -111,7 +111,6 @@ CudaNormalPipeline::~CudaNormalPipeline() {
 
 const CudaNormalTimings& CudaNormalPipeline::lastTimings() const { return impl_->timings; }
 CudaKnn& CudaNormalPipeline::knn() { return impl_->knn; }
-std::size_t CudaNormalPipeline::deviceBytes() const { return impl_->knn.deviceBytes(); }
 
 void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm,
                              std::uint8_t* labels) {

@@ -12,6 +12,8 @@
 #include <cmath>
 #include <cstdint>
 
+#include "knn/pca_cpu_gpu_common.h"
+
 namespace ground_filter {
 namespace cuda_impl {
 
@@ -144,31 +146,10 @@ __device__ inline bool neighborhoodPcaOf(const float* __restrict__ xyz,
                                          const std::int32_t* __restrict__ row, int k, float qx,
                                          float qy, float qz, float normal[3], float eigen[3]) {
   for (int r = 0; r < 3; ++r) normal[r] = eigen[r] = 0.f;
-  const double ox = qx, oy = qy, oz = qz;
-  double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
-  int m = 0;
-  for (; m < k; ++m) {
-    const int j = row[m];
-    if (j < 0) break;
-    const float* p = xyz + 3 * static_cast<std::size_t>(j);
-    const double dx = p[0] - ox, dy = p[1] - oy, dz = p[2] - oz;
-    sx += dx;
-    sy += dy;
-    sz += dz;
-    sxx += dx * dx;
-    sxy += dx * dy;
-    sxz += dx * dz;
-    syy += dy * dy;
-    syz += dy * dz;
-    szz += dz * dz;
-  }
-  if (m < 3) return false;
-  const double inv = 1.0 / m, mx = sx * inv, my = sy * inv, mz = sz * inv;
-  const double cxx = sxx * inv - mx * mx, cxy = sxy * inv - mx * my, cxz = sxz * inv - mx * mz,
-               cyy = syy * inv - my * my, cyz = syz * inv - my * mz, czz = szz * inv - mz * mz;
-  const double trace = cxx + cyy + czz;
-  if (!(trace > 1e-12)) return false;  // all neighbours (nearly) the same point
-  const double cov[3][3] = {{cxx, cxy, cxz}, {cxy, cyy, cyz}, {cxz, cyz, czz}};
+  // The CPU's sums and covariance (one source: knn/pca_cpu_gpu_common.h).
+  NeighborhoodCovariance c;
+  if (!covarianceOf(neighborhoodSums(xyz, row, k, qx, qy, qz), &c)) return false;
+  const double cov[3][3] = {{c.xx, c.xy, c.xz}, {c.xy, c.yy, c.yz}, {c.xz, c.yz, c.zz}};
   double ev[3], nv[3];
   eigenDirect3(cov, ev, nv);
   for (int r = 0; r < 3; ++r) ev[r] = ev[r] < 0.0 ? 0.0 : ev[r];  // cwiseMax(0)

@@ -20,6 +20,7 @@
 using ground_filter::CudaError;
 using ground_filter::CudaKnn;
 using ground_filter::CudaKnnOptions;
+using ground_filter::CudaKnnQueryStats;
 using ground_filter::CudaKnnTuning;
 using ground_filter::CudaKnnTuningAccess;
 
@@ -37,6 +38,18 @@ Lists run(CudaKnn& knn, const std::vector<float>& xyz, int k) {
   l.idx.assign(n * k, -7);
   l.d2.assign(n * k, -1.f);
   knn.search(xyz.data(), n, k, l.idx.data(), l.d2.data());
+  return l;
+}
+
+/// run() on a new CudaKnn with the experiment knobs `o`; with `stats`, the work counters are
+/// collected (CudaKnnTuning::collect_stats) into it.
+Lists runTuned(CudaKnnTuning o, const std::vector<float>& xyz, int k,
+               CudaKnnQueryStats* stats = nullptr) {
+  o.collect_stats = o.collect_stats || stats != nullptr;
+  CudaKnn knn;
+  CudaKnnTuningAccess::set(knn, o);
+  Lists l = run(knn, xyz, k);
+  if (stats) *stats = CudaKnnTuningAccess::stats(knn);
   return l;
 }
 
@@ -331,13 +344,10 @@ TEST_F(CudaKnnTest, OptionsChangeSpeedNeverLists) {
       CudaKnnTuning o;
       o.level_min_points = mp;
       o.sort_cells = sorted;
-      o.collect_stats = true;
-      CudaKnn tuned;
-      CudaKnnTuningAccess::set(tuned, o);
-      const Lists c = run(tuned, xyz, 40);
+      CudaKnnQueryStats t;  // collects them
+      const Lists c = runTuned(o, xyz, 40, &t);
       EXPECT_EQ(a.idx, c.idx) << "level_min_points = " << mp << ", sort_cells = " << sorted;
       EXPECT_EQ(a.d2, c.d2);
-      const auto& t = CudaKnnTuningAccess::stats(tuned);
       EXPECT_GE(t.candidates_per_query, 40.0);
       EXPECT_GE(t.insertions_per_query, 40.0);
       EXPECT_LE(t.insertions_per_query, t.candidates_per_query);
@@ -352,9 +362,7 @@ TEST_F(CudaKnnTest, OptionsChangeSpeedNeverLists) {
       CudaKnnTuning o;
       o.heavy_candidates = heavy;
       o.download_chunks = chunks;
-      CudaKnn split;
-      CudaKnnTuningAccess::set(split, o);
-      const Lists c = run(split, xyz, 40);
+      const Lists c = runTuned(o, xyz, 40);
       EXPECT_EQ(a.idx, c.idx) << "heavy_candidates = " << heavy << ", " << chunks << " chunks";
       EXPECT_EQ(a.d2, c.d2);
     }
@@ -363,9 +371,7 @@ TEST_F(CudaKnnTest, OptionsChangeSpeedNeverLists) {
   for (int chunks : {1, 3, 16}) {
     CudaKnnTuning o;
     o.download_chunks = chunks;
-    CudaKnn piped;
-    CudaKnnTuningAccess::set(piped, o);
-    const Lists c = run(piped, xyz, 40);
+    const Lists c = runTuned(o, xyz, 40);
     EXPECT_EQ(a.idx, c.idx) << chunks << " chunks";
     EXPECT_EQ(a.d2, c.d2);
   }
@@ -406,9 +412,7 @@ TEST_F(CudaKnnTest, ListMergingDuplicateSkipAndHeavySplitMatchBruteForce) {
             o.merge_min = merge_min;
             o.skip_duplicates = skip;
             o.heavy_candidates = heavy;
-            CudaKnn knn;
-            CudaKnnTuningAccess::set(knn, o);
-            const Lists l = run(knn, *xyz, k);
+            const Lists l = runTuned(o, *xyz, k);
             if (ref.idx.empty()) {
               expectExact(*xyz, k, l);
               ref = l;

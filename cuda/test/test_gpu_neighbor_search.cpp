@@ -7,21 +7,25 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "brute_force_knn.h"
+#include "gpu_neighbor_search.h"
 #include "gpu_test.h"
 #include "ground_filter/cuda_knn.h"
 #include "ground_filter/neighbor_search.h"
 #include "ground_filter/normal_ground_filter.h"
-#include "knn/gpu_neighbor_search.h"
 #include "knn/kdtree_neighbor_search.h"
 #include "knn/neighborhood_pca.h"
 
 namespace gf = ground_filter;
 
 namespace {
+
+/// The GPU search's fallback, as the factory gives it.
+std::unique_ptr<gf::KnnBackend> kdTree() { return std::make_unique<gf::KdTreeNeighborSearch>(0); }
 
 std::vector<float> kittiFrame() {
   auto xyz = gf_test::readKittiBin(std::string(GF_DATA_DIR) + "/000000.bin");
@@ -61,7 +65,7 @@ TEST_F(GpuNeighborSearchTest, FactoryGivesTheGpuBackend) {
 TEST_F(GpuNeighborSearchTest, KittiListsEqualTheKdTreesAndBruteForce) {
   const auto xyz = kittiFrame();
   const std::size_t n = xyz.size() / 3;
-  gf::GpuNeighborSearch gpu;
+  gf::GpuNeighborSearch gpu(kdTree());
   gf::KdTreeNeighborSearch cpu;
   gf::NeighborLists a, b;
   gpu.search(xyz.data(), n, 50, &a);
@@ -85,7 +89,7 @@ TEST_F(GpuNeighborSearchTest, CudaFailureFallsBackToKdTreeForThatScan) {
   const std::size_t n = xyz.size() / 3;
   gf::CudaKnnOptions opt;
   opt.memory_limit = 1 << 20;  // the GPU cannot take this scan
-  gf::GpuNeighborSearch gpu(0, opt);
+  gf::GpuNeighborSearch gpu(kdTree(), opt);
   gf::NeighborLists a, b;
   gpu.search(xyz.data(), n, 50, &a);
   EXPECT_EQ(gpu.name(), "gpu");
@@ -110,7 +114,7 @@ TEST_F(GpuNeighborSearchTest, CudaFailureFallsBackToKdTreeForThatScan) {
 TEST_F(GpuNeighborSearchTest, KAboveTheGpuLimitRunsOnTheKdTree) {
   const auto xyz = kittiFrame();
   std::vector<float> part(xyz.begin(), xyz.begin() + 3 * 20000);
-  gf::GpuNeighborSearch gpu;
+  gf::GpuNeighborSearch gpu(kdTree());
   gf::NeighborLists a;
   gpu.search(part.data(), 20000, 100, &a);
   EXPECT_EQ(gpu.lastBackend(), "kdtree");
@@ -124,7 +128,7 @@ TEST_F(GpuNeighborSearchTest, KAboveTheGpuLimitRunsOnTheKdTree) {
 }
 
 TEST_F(GpuNeighborSearchTest, EmptyAndTinyClouds) {
-  gf::GpuNeighborSearch gpu;
+  gf::GpuNeighborSearch gpu(kdTree());
   gf::NeighborLists a;
   gpu.search(nullptr, 0, 50, &a);
   EXPECT_EQ(a.points, 0u);
@@ -143,8 +147,8 @@ TEST_F(GpuNeighborSearchTest, EmptyAndTinyClouds) {
 TEST_F(GpuNeighborSearchTest, ListsOnDeviceGiveTheCpuPcaAndCounts) {
   const auto xyz = kittiFrame();
   const std::size_t n = xyz.size() / 3;
-  gf::GpuNeighborSearch gpu;
-  EXPECT_TRUE(gpu.keepListsOnDevice(true));
+  gf::GpuNeighborSearch gpu(kdTree());
+  EXPECT_TRUE(gpu.keepLists(true));
   gf::NeighborLists dev, host;
   gpu.search(xyz.data(), n, 50, &dev);
   EXPECT_EQ(gpu.lastBackend(), "gpu");
@@ -205,15 +209,15 @@ TEST_F(GpuNeighborSearchTest, ListsOnDeviceGiveTheCpuPcaAndCounts) {
 TEST_F(GpuNeighborSearchTest, CudaFailureAfterTheSearchRedoesTheScanOnTheKdTree) {
   const auto xyz = kittiFrame();
   const std::size_t n = xyz.size() / 3;
-  gf::GpuNeighborSearch probe;
-  probe.keepListsOnDevice(true);
+  gf::GpuNeighborSearch probe(kdTree());
+  probe.keepLists(true);
   gf::NeighborLists lists;
   probe.search(xyz.data(), n, 50, &lists);
   // Room for the search, none for the PCA results.
   gf::CudaKnnOptions opt;
   opt.memory_limit = probe.cudaKnn().deviceBytes() + 1024;
-  gf::GpuNeighborSearch gpu(0, opt);
-  gpu.keepListsOnDevice(true);
+  gf::GpuNeighborSearch gpu(kdTree(), opt);
+  gpu.keepLists(true);
   gpu.search(xyz.data(), n, 50, &lists);
   EXPECT_EQ(gpu.lastBackend(), "gpu") << gpu.lastNote();
   EXPECT_TRUE(lists.indices.empty());

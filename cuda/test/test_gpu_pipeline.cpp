@@ -11,16 +11,18 @@
 #include <limits>
 #include <memory>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include "brute_force_knn.h"
+#include "gpu_normal_executor.h"
 #include "gpu_test.h"
 #include "ground_filter/cuda_knn.h"
 #include "ground_filter/cuda_normal_pipeline.h"
 #include "ground_filter/normal_ground_filter.h"
 #include "knn/kdtree_neighbor_search.h"
-#include "normal/gpu_normal_executor.h"
+#include "normal/normal_settings.h"
 #include "replicate_frames.h"
 
 namespace gf = ground_filter;
@@ -103,33 +105,21 @@ TEST_F(GpuPipelineTest, FilterOptionsGiveTheKdTreeLabels) {
     const char* what;
     gf::NormalGroundFilterParams p;
   };
-  std::vector<Case> cases(9);
-  cases[0].what = "one plane";
-  cases[0].p.local_planes = false;
-  cases[1].what = "std band";
-  cases[1].p.std_filter = true;
-  cases[2].what = "no vote, voted points only";
-  cases[2].p.bayes_vote = false;
-  cases[2].p.plane_all_points = false;
-  cases[3].what = "k 20, planarity 0.3, tile 10 m";
-  cases[3].p.k = 20;
-  cases[3].p.min_planarity = 0.3;
-  cases[3].p.tile_size = 10.0;
-  cases[4].what = "k 64, 20 iterations";
-  cases[4].p.k = 64;
-  cases[4].p.ransac_iterations = 20;
-  cases[5].what = "ransac_seed 7";
-  cases[5].p.ransac_seed = 7;
-  cases[6].what = "one plane, ransac_seed 7";
-  cases[6].p.local_planes = false;
-  cases[6].p.ransac_seed = 7;
-  cases[7].what = "every point sampled, k 64";
-  cases[7].p.sample_stride = 1;
-  cases[7].p.k = 64;
-  cases[8].what = "sample_stride 3, k 24, voted points only";
-  cases[8].p.sample_stride = 3;
-  cases[8].p.k = 24;
-  cases[8].p.plane_all_points = false;
+  // Each case: the defaults with the parameters it names ("name=value ...", set()).
+  std::vector<Case> cases;
+  for (const char* what :
+       {"local_planes=false", "std_filter=true", "bayes_vote=false plane_all_points=false",
+        "k=20 min_planarity=0.3 tile_size=10", "k=64 ransac_iterations=20", "ransac_seed=7",
+        "local_planes=false ransac_seed=7", "sample_stride=1 k=64",
+        "sample_stride=3 k=24 plane_all_points=false"}) {
+    Case cs{what, {}};
+    std::istringstream items(what);
+    for (std::string item; items >> item;) {
+      const std::size_t eq = item.find('=');
+      cs.p.set(item.substr(0, eq), item.substr(eq + 1));
+    }
+    cases.push_back(cs);
+  }
   for (const auto& cs : cases) {
     const Compared c = compare(xyz, cs.p);
     EXPECT_EQ(c.sg.backend, "gpu") << cs.what << ": " << c.sg.note;
@@ -250,7 +240,8 @@ TEST_F(GpuPipelineTest, OutOfMemoryFallsBackToTheKdTreeForThatScan) {
   gf::NormalGroundFilterParams p;
   p.knn_backend = "gpu";
   gf::NormalGroundFilter fg(p, std::make_unique<gf::KdTreeNeighborSearch>(0),
-                            std::make_unique<gf::GpuNormalExecutor>(p, opt));
+                            std::make_unique<gf::GpuNormalExecutor>(
+                                gf::CudaNormalParams(p, gf::normal::minAbsNormalZ(p)), opt));
   p.knn_backend = "kdtree";
   gf::NormalGroundFilter fc(p);
   std::vector<std::uint8_t> lg, lc;

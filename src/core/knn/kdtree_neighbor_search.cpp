@@ -116,7 +116,7 @@ void KdTreeNeighborSearch::run(const float* xyz, std::size_t n, int k, NeighborL
   const std::size_t kk = static_cast<std::size_t>(std::max(k, 0));
   out->k = static_cast<int>(kk);
   out->points = n;
-  // Kept lists (searchWithPca() or searchWithCandidates() after keepListsOnDevice(true)): rows in
+  // Kept lists (searchWithPca() or searchWithCandidates() after keepLists(true)): rows in
   // tree order, written one after the other and without distances; writing rows in input order
   // scatters them over 2 * n * K * 4 bytes, a cache miss per row.
   const bool cand = test != nullptr;  // candidate flags instead of the PCA
@@ -249,7 +249,7 @@ void KdTreeNeighborSearch::queryChunks(const float* xyz, std::size_t kk, bool ke
   query_ms_ = wall - pca_ms_;
 }
 
-bool KdTreeNeighborSearch::keepListsOnDevice(bool keep) {
+bool KdTreeNeighborSearch::keepLists(bool keep) {
   keep_lists_ = keep;
   return keep;
 }

@@ -21,7 +21,7 @@ namespace ground_filter {
 /// distance keep the lower point index, so the lists are unique and the same for any thread
 /// count and on every SIMD level (portable, AVX2, AVX-512). Squared distances are float `(dx*dx +
 /// dy*dy) + dz*dz` without fused multiply-adds. The tree and scratch memory are kept between calls.
-class KdTreeNeighborSearch : public KnnBackend {
+class KdTreeNeighborSearch : public KnnBackend, public NeighborListStore {
  public:
   /// \brief `threads` build and query threads (0 = all cores); `leaf_size` most points per
   ///        kd-tree leaf.
@@ -46,14 +46,16 @@ class KdTreeNeighborSearch : public KnnBackend {
   ///        "pca": the query wall time split by the threads' time in each part.
   const std::vector<std::pair<std::string, double>>& lastStageMs() const override;
 
+  /// \brief Itself: it keeps the lists of searchWithPca() and searchWithCandidates().
+  NeighborListStore* listStore() override { return this; }
   /// \brief With `keep` true, searchWithPca() and searchWithCandidates() keep the lists
   ///        themselves (rows in tree order, indices only: no scattered writes) and leave
   ///        `out->indices`/`sq_dists` empty; countFlaggedNeighbors() then counts on them.
   ///        search() always fills `out`.
   /// \return `keep`.
-  bool keepListsOnDevice(bool keep) override;
+  bool keepLists(bool keep) override;
   bool keptRows(const std::int32_t** rows, const std::uint32_t** points) const override;
-  /// \brief See NeighborSearch::countFlaggedNeighbors(); false unless the last call was a
+  /// \brief See NeighborListStore::countFlaggedNeighbors(); false unless the last call was a
   ///        searchWithPca() or searchWithCandidates() with kept lists (of at least K points).
   bool countFlaggedNeighbors(const std::uint8_t* flags, std::uint16_t* flagged,
                              std::uint16_t* neighbors) override;
@@ -91,7 +93,7 @@ class KdTreeNeighborSearch : public KnnBackend {
   double pca_ms_ = 0.0;
   bool with_pca_ = false;
   CandidateCounts counts_;   // of the last searchWithCandidates()
-  bool keep_lists_ = false;  // keepListsOnDevice()
+  bool keep_lists_ = false;  // keepLists()
   bool lists_kept_ = false;  // the last call's lists are in impl_->rows
   // lastStageMs(): refilled in place (short names, no allocation after the first call)
   mutable std::vector<std::pair<std::string, double>> stage_ms_;

@@ -2,11 +2,11 @@
 #define GROUND_FILTER_SRC_CORE_KNN_KNN_BACKEND_H
 
 // The neighbour backends' private interface: what the normal filter uses beyond the public
-// NeighborSearch (include/ground_filter/neighbor_search.h): searches and work on their lists.
-// The whole filter on another device is an executor beside the CPU stages instead
-// (normal/filter_executor.h). Every backend of the core derives from
-// KnnBackend; a part a backend does not have keeps its default (false = not done, nothing
-// touched), and the filter then takes the plain path.
+// NeighborSearch (include/ground_filter/neighbor_search.h). It only searches: the work on lists
+// a backend keeps is a NeighborListStore it hands out (knn/neighbor_list_store.h), and the whole
+// filter on another device is an executor beside the CPU stages (normal/filter_executor.h).
+// Every backend of the core derives from KnnBackend; a part a backend does not have keeps its
+// default (false = not done, nothing touched), and the filter then takes the plain path.
 
 #include <cstddef>
 #include <cstdint>
@@ -17,6 +17,7 @@
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/neighbor_search.h"
+#include "knn/neighbor_list_store.h"
 #include "knn/neighborhood_pca.h"
 
 namespace ground_filter {
@@ -44,37 +45,27 @@ class KnnBackend : public NeighborSearch {
     return false;
   }
 
-  // Optional work on the lists where they were computed (GPU memory), so they need not come back
-  // to the host. A backend without it keeps the defaults (lists always on the host).
-
-  /// \brief Asks the backend to keep the lists of later search() calls on its device when it can;
-  ///        search() then fills `k` and `points` but may leave `indices`/`sq_dists` empty, and
-  ///        neighborhoodPca()/countFlaggedNeighbors() work on the kept lists. Whenever one of
-  ///        those returns false, the last search()'s lists are in its `out` on the host instead.
-  /// \return whether the backend keeps lists on a device.
-  virtual bool keepListsOnDevice(bool /*keep*/) { return false; }
-  /// \brief PCA of every neighbourhood of the last search(), as computeNeighborhoodPca()
-  ///        computes it; false when the lists are on the host.
-  virtual bool neighborhoodPca(std::vector<PointPca>* /*out*/) { return false; }
-  /// \brief For every point i of the last search(): `flagged[i]` = its neighbours j with
-  ///        `flags[j] != 0`, `neighbors[i]` = its valid neighbours; false when the lists are on
-  ///        the host.
-  virtual bool countFlaggedNeighbors(const std::uint8_t* /*flags*/, std::uint16_t* /*flagged*/,
-                                     std::uint16_t* /*neighbors*/) {
-    return false;
-  }
-
-  /// \brief The last search()'s lists where the backend kept them on the host in its own row
-  ///        order: row r (`k` entries, all valid, at `rows + r * k`) is the list of point
-  ///        `points[r]`; false when they are in search()'s `out` (or on a device).
-  virtual bool keptRows(const std::int32_t** /*rows*/, const std::uint32_t** /*points*/) const {
-    return false;
-  }
+  /// \brief Where the backend keeps its lists (and works on them there), or null when it always
+  ///        returns them in search()'s `out`.
+  virtual NeighborListStore* listStore() { return nullptr; }
 };
 
 /// \brief makeNeighborSearch() with the private interface: the backend the normal filter holds.
 std::unique_ptr<KnnBackend> makeKnnBackend(const std::string& backend, int threads,
                                            std::string* note);
+
+// The CUDA neighbour search: defined by the CUDA library (cuda/src/gpu_neighbor_search.cpp)
+// where the package is built with CUDA, otherwise by src/core/no_cuda.cpp. The core reaches the
+// GPU only through these and makeGpuNormalExecutor() (normal/filter_executor.h).
+
+/// \brief True when the GPU search runs here; otherwise false and `*note` (if not null) is the
+///        filter's note saying why ("GPU backend unavailable: <CUDA error>; using kdtree", or
+///        "GPU backend not available: built without CUDA").
+bool gpuKnnAvailable(std::string* note);
+/// \brief The CUDA search, scans it cannot do (a CUDA error, k above its limit) on `fallback`;
+///        null, with `*note` as gpuKnnAvailable()'s, when there is no usable device.
+std::unique_ptr<KnnBackend> makeGpuKnnBackend(std::unique_ptr<KnnBackend> fallback,
+                                              std::string* note);
 
 }  // namespace ground_filter
 

@@ -1,16 +1,12 @@
 // The neighbour backends by name: the public makeNeighborSearch() and the normal filter's
-// makeKnnBackend() (knn_backend.h) make the same objects.
+// makeKnnBackend() (knn_backend.h) make the same objects. The GPU search comes from the CUDA
+// library's makeGpuKnnBackend() (or src/core/no_cuda.cpp's, which says it is not built).
 
 #include <stdexcept>
 
 #include "ground_filter/neighbor_search.h"
 #include "knn/kdtree_neighbor_search.h"
 #include "knn/knn_backend.h"
-
-#ifdef GROUND_FILTER_HAVE_CUDA
-#include "ground_filter/cuda_knn.h"
-#include "knn/gpu_neighbor_search.h"
-#endif
 
 namespace ground_filter {
 
@@ -19,19 +15,7 @@ std::vector<std::string> neighborSearchBackends() { return {"kdtree", "gpu"}; }
 bool neighborSearchAvailable(const std::string& backend, std::string* why) {
   if (why) why->clear();
   if (backend == "kdtree") return true;
-#ifdef GROUND_FILTER_HAVE_CUDA
-  if (backend == "gpu") {
-    std::string error;
-    if (CudaKnn::deviceAvailable(&error)) return true;
-    if (why) *why = "GPU backend unavailable: " + error + "; using kdtree";
-    return false;
-  }
-#else
-  if (backend == "gpu") {
-    if (why) *why = "GPU backend not available: built without CUDA";
-    return false;
-  }
-#endif
+  if (backend == "gpu") return gpuKnnAvailable(why);
   if (why) *why = "unknown knn_backend '" + backend + "'";
   return false;
 }
@@ -41,19 +25,9 @@ std::unique_ptr<KnnBackend> makeKnnBackend(const std::string& backend, int threa
   if (note) note->clear();
   if (backend == "kdtree") return std::make_unique<KdTreeNeighborSearch>(threads);
   if (backend == "gpu") {
-#ifdef GROUND_FILTER_HAVE_CUDA
-    std::string why;
-    if (CudaKnn::deviceAvailable(&why)) {
-      try {
-        return std::make_unique<GpuNeighborSearch>(threads);
-      } catch (const std::exception& e) {
-        why = e.what();
-      }
-    }
-    if (note) *note = "GPU backend unavailable: " + why + "; using kdtree";
-#else
-    if (note) *note = "GPU backend not available: built without CUDA";
-#endif
+    // The kd-tree serves the scans the GPU cannot do, or every scan where there is no GPU.
+    auto gpu = makeGpuKnnBackend(std::make_unique<KdTreeNeighborSearch>(threads), note);
+    if (gpu) return gpu;
     return std::make_unique<KdTreeNeighborSearch>(threads);
   }
   std::string known;

@@ -16,6 +16,7 @@
 #include <cstdint>
 
 #include "common/threads_timing.h"
+#include "knn/pca_cpu_gpu_common.h"
 #include "simd/avx2_common.h"
 #include "simd/avx512_common.h"
 #include "simd/neon_common.h"
@@ -25,33 +26,14 @@ namespace ground_filter {
 
 namespace {
 
-/// Sums of a neighbourhood's offsets from its query point and of their products.
-struct Moments {
-  double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
-  int m = 0;  // neighbours summed
-};
+/// Sums of a neighbourhood's offsets from its query point and of their products
+/// (pca_cpu_gpu_common.h: the GPU's PCA sums the same way).
+using Moments = NeighborhoodSums;
 
-/// One pass over the neighbours, in double. The offsets are small (a neighbourhood, not 80 m
-/// ranges), so centring afterwards loses nothing measurable and the neighbours are read once.
+/// One pass over the neighbours, in double (the reference bits of every SIMD path below).
 inline void sumsScalar(const float* xyz, const std::int32_t* row, int k, std::size_t query,
                        Moments* s) {
-  const double ox = xyz[3 * query], oy = xyz[3 * query + 1], oz = xyz[3 * query + 2];
-  double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
-  int m = 0;
-  for (; m < k && row[m] >= 0; ++m) {
-    const float* p = xyz + 3 * static_cast<std::size_t>(row[m]);
-    const double dx = p[0] - ox, dy = p[1] - oy, dz = p[2] - oz;
-    sx += dx;
-    sy += dy;
-    sz += dz;
-    sxx += dx * dx;
-    sxy += dx * dy;
-    sxz += dx * dz;
-    syy += dy * dy;
-    syz += dy * dz;
-    szz += dz * dz;
-  }
-  *s = Moments{sx, sy, sz, sxx, sxy, sxz, syy, syz, szz, m};
+  *s = neighborhoodSums(xyz, row, k, xyz[3 * query], xyz[3 * query + 1], xyz[3 * query + 2]);
 }
 
 #if GF_HAVE_AVX512
@@ -290,24 +272,8 @@ SumsPath sumsPath() {
   return SumsPath::kScalar;
 }
 
-/// Centred covariance of a neighbourhood (upper triangle) and its trace.
-struct Covariance {
-  double xx, xy, xz, yy, yz, zz, trace;
-};
-
-/// Covariance from the sums; false when the PCA is invalid (fewer than 3 neighbours or all of
-/// them (nearly) the same point).
-inline bool covarianceOf(const Moments& s, Covariance* c) {
-  if (s.m < 3) return false;
-  const double inv = 1.0 / s.m, mx = s.sx * inv, my = s.sy * inv, mz = s.sz * inv;
-  const double cxx = s.sxx * inv - mx * mx, cxy = s.sxy * inv - mx * my,
-               cxz = s.sxz * inv - mx * mz, cyy = s.syy * inv - my * my,
-               cyz = s.syz * inv - my * mz, czz = s.szz * inv - mz * mz;
-  const double trace = cxx + cyy + czz;
-  if (!(trace > 1e-12)) return false;  // all neighbours (nearly) the same point
-  *c = Covariance{cxx, cxy, cxz, cyy, cyz, czz, trace};
-  return true;
-}
+/// Centred covariance of a neighbourhood and its trace: covarianceOf() (pca_cpu_gpu_common.h).
+using Covariance = NeighborhoodCovariance;
 
 /// Eigen's closed-form solver on a valid covariance.
 inline void eigenPca(const Covariance& c, PointPca* out) {

@@ -9,11 +9,8 @@
 #include <cstddef>
 #include <cstdint>
 
-#ifdef __CUDACC__
-#define GF_HOST_DEVICE __host__ __device__
-#else
-#define GF_HOST_DEVICE
-#endif
+#include "common/host_device.h"
+#include "knn/pca_cpu_gpu_common.h"
 
 namespace ground_filter {
 namespace normal {
@@ -70,22 +67,10 @@ constexpr unsigned int kRansacEvalPoints = 2048;  // hypotheses are scored on at
 constexpr unsigned int kMinTilePoints = 3;
 
 /// \brief Least-squares plane z = a x + b y + c through the ground neighbours of one point, in
-///        coordinates relative to that point (the local-ground stage, local_ground.h). add() in
-///        the neighbour list's order on the CPU and the GPU, so both round alike.
-struct LocalGroundFit {
-  int count = 0;
-  double sx = 0.0, sy = 0.0, sz = 0.0, sxx = 0.0, sxy = 0.0, syy = 0.0, sxz = 0.0, syz = 0.0;
-  GF_HOST_DEVICE void add(double x, double y, double z) {
-    ++count;
-    sx += x;
-    sy += y;
-    sz += z;
-    sxx += x * x;
-    sxy += x * y;
-    syy += y * y;
-    sxz += x * z;
-    syz += y * z;
-  }
+///        coordinates relative to that point (the local-ground stage, local_ground.h): the
+///        neighbourhood sums of the PCA (szz unused). add() in the neighbour list's order on the
+///        CPU and the GPU, so both round alike.
+struct LocalGroundFit : NeighborhoodSums {
   /// \brief True when at least `min_count` points were added, they span an area (not one scan
   ///        line: the smaller spread of their x/y is at least kLocalGroundMinSpread of the larger),
   ///        the plane's normal is within the tilt `min_abs_nz` allows, and the point (the
@@ -102,8 +87,8 @@ constexpr double kLocalGroundMinSpread = 0.01;
 
 GF_HOST_DEVICE inline bool LocalGroundFit::accepts(int min_count, double below, double above,
                                                    double min_abs_nz) const {
-  if (count < min_count || count < 3) return false;
-  const double inv = 1.0 / static_cast<double>(count);
+  if (m < min_count || m < 3) return false;
+  const double inv = 1.0 / static_cast<double>(m);
   const double mx = sx * inv, my = sy * inv, mz = sz * inv;
   const double cxx = sxx - sx * mx, cxy = sxy - sx * my, cyy = syy - sy * my;
   const double cxz = sxz - sx * mz, cyz = syz - sy * mz;

@@ -35,10 +35,13 @@ class NormalFilterExecutor {
   virtual std::string lastNote() const = 0;
 };
 
-/// \brief The CUDA executor (CudaNormalPipeline) for `params`, or null when there is no usable
-///        device or k is above what it searches (CudaKnn::kMaxK). Call only where the package is
-///        built with CUDA (GROUND_FILTER_HAVE_CUDA) and normal::gpuSupports(params).
-std::unique_ptr<NormalFilterExecutor> makeGpuNormalExecutor(const NormalGroundFilterParams& params);
+/// \brief The CUDA executor (CudaNormalPipeline) for `params` and their |n_z| bound
+///        `min_abs_nz` (normal::minAbsNormalZ(params)), or null when there is no usable device,
+///        k is above what it searches (CudaKnn::kMaxK) or the package is built without CUDA.
+///        Call only where normal::gpuSupports(params). Defined by the CUDA library
+///        (cuda/src/gpu_normal_executor.cpp), or by src/core/no_cuda.cpp without CUDA.
+std::unique_ptr<NormalFilterExecutor> makeGpuNormalExecutor(const NormalGroundFilterParams& params,
+                                                            double min_abs_nz);
 
 }  // namespace ground_filter
 

@@ -37,7 +37,8 @@ std::size_t NeighborhoodStage::run(KnnBackend* search, const float* xyz, std::si
   if (parts.empty()) times->add("knn", search_ms);
 
   t0 = Clock::now();
-  if (!have_pca && !search->neighborhoodPca(&pca_)) {
+  NeighborListStore* kept = search->listStore();
+  if (!have_pca && !(kept && kept->neighborhoodPca(&pca_))) {
     computeNeighborhoodPca(xyz, *lists, threads, &pca_);
   }
   std::size_t candidates = 0;

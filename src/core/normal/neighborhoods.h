@@ -20,7 +20,7 @@ class NeighborhoodStage {
  public:
   /// \brief Runs on the `len` packed points `xyz` with `search`: the lists go to `lists` (whose
   ///        indices may stay empty when the backend keeps them on its device, see
-  ///        KnnBackend::keepListsOnDevice()), candidate[i] = 1 for the candidates (`len` entries
+  ///        NeighborListStore::keepLists()), candidate[i] = 1 for the candidates (`len` entries
   ///        written). Stage times are added to `times`.
   /// \return the number of candidates.
   std::size_t run(KnnBackend* search, const float* xyz, std::size_t len, int k, int threads,

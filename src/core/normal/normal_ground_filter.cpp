@@ -63,7 +63,7 @@ struct NormalGroundFilter::Impl {
     // local-ground stage needs them on the host. (A GPU search serves the CPU stages only where
     // the whole filter has no GPU executor: with one, the stages search on the kd-tree.)
     const bool host_lists = p.local_ground_min > 0 && search->name() == "gpu";
-    search->keepListsOnDevice(!host_lists);
+    if (NeighborListStore* kept = search->listStore()) kept->keepLists(!host_lists);
   }
 };
 
@@ -94,11 +94,9 @@ NormalGroundFilter::NormalGroundFilter(const NormalGroundFilterParams& params) :
   // knn_backend gpu with settings the GPU honours: the whole filter on the GPU, its CPU stages
   // (for a scan it declines) on the kd-tree; otherwise the stages with the requested search.
   std::unique_ptr<NormalFilterExecutor> executor;
-#ifdef GROUND_FILTER_HAVE_CUDA
   if (params_.knn_backend == "gpu" && normal::gpuSupports(params_)) {
-    executor = makeGpuNormalExecutor(params_);
+    executor = makeGpuNormalExecutor(params_, normal::minAbsNormalZ(params_));
   }
-#endif
   impl_ = std::make_unique<Impl>(
       params_,
       makeKnnBackend(executor ? "kdtree" : params_.knn_backend, params_.threads, &backend_note_),
@@ -210,7 +208,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
         im.neighborhoods.run(im.search.get(), pts, m, p.k, threads, p.min_planarity, min_abs_nz,
                              &im.lists, cand, &times);
     t0 = Clock::now();
-    im.vote.run(im.search.get(), im.lists, cand, m, candidates, p.bayes_vote, threads, vote);
+    im.vote.run(im.search->listStore(), im.lists, cand, m, candidates, p.bayes_vote, threads, vote);
     if (stride > 1) im.sample.spread(len, stride, im.voted.data() + b);
     vote_ms += msSince(t0);
   }
@@ -232,7 +230,8 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     t0 = Clock::now();
     const std::int32_t* rows = nullptr;
     const std::uint32_t* row_points = nullptr;
-    if (!im.search->keptRows(&rows, &row_points) && !im.lists.indices.empty()) {
+    const NeighborListStore* kept = im.search->listStore();
+    if (!(kept && kept->keptRows(&rows, &row_points)) && !im.lists.indices.empty()) {
       rows = im.lists.indices.data();
     }
     im.local_ground.run(ordered.xyz, rows, row_points, im.lists.points, im.lists.k, stride,

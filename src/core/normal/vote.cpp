@@ -7,9 +7,9 @@
 namespace ground_filter {
 namespace normal {
 
-void VoteStage::run(KnnBackend* search, const NeighborLists& lists, const std::uint8_t* candidate,
-                    std::size_t len, std::size_t candidates, bool bayes, int threads,
-                    std::uint8_t* voted) {
+void VoteStage::run(NeighborListStore* kept, const NeighborLists& lists,
+                    const std::uint8_t* candidate, std::size_t len, std::size_t candidates,
+                    bool bayes, int threads, std::uint8_t* voted) {
   if (!bayes) {
     std::copy_n(candidate, len, voted);
     return;
@@ -23,8 +23,8 @@ void VoteStage::run(KnnBackend* search, const NeighborLists& lists, const std::u
   const int nt = static_cast<int>(std::min<std::size_t>(threads, len / 4096 + 1));
   flagged_.resize(len);
   size_.resize(len);
-  if (search->countFlaggedNeighbors(candidate, flagged_.data(), size_.data())) {
-    // u and m counted where the lists are (GPU); same rule as below.
+  if (kept && kept->countFlaggedNeighbors(candidate, flagged_.data(), size_.data())) {
+    // u and m counted where the lists are (GPU, kd-tree rows); same rule as below.
 #pragma omp parallel for num_threads(nt) schedule(static, 4096)
     for (std::int64_t i = 0; i < static_cast<std::int64_t>(len); ++i) {
       const int u = flagged_[i], m = size_[i];

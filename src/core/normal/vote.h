@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "ground_filter/neighbor_search.h"
-#include "knn/knn_backend.h"
+#include "knn/neighbor_list_store.h"
 
 namespace ground_filter {
 namespace normal {
@@ -15,14 +15,14 @@ namespace normal {
 ///        Holds only scratch memory, reused between scans.
 class VoteStage {
  public:
-  /// \brief voted[i] for the `len` points of a segment from their lists (`lists`, or the lists
-  ///        `search` keeps on its device) and the `candidates` flagged in `candidate`; without
-  ///        `bayes` the candidates are copied.
-  void run(KnnBackend* search, const NeighborLists& lists, const std::uint8_t* candidate,
+  /// \brief voted[i] for the `len` points of a segment from their lists (`lists`, or those in
+  ///        `kept`, the search's NeighborListStore, when it has them; may be null) and the
+  ///        `candidates` flagged in `candidate`; without `bayes` the candidates are copied.
+  void run(NeighborListStore* kept, const NeighborLists& lists, const std::uint8_t* candidate,
            std::size_t len, std::size_t candidates, bool bayes, int threads, std::uint8_t* voted);
 
  private:
-  std::vector<std::uint16_t> flagged_, size_;  // per-point counts from a GPU backend
+  std::vector<std::uint16_t> flagged_, size_;  // per-point counts from the kept lists
 };
 
 }  // namespace normal

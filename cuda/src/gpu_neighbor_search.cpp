@@ -1,11 +1,12 @@
-#include "knn/gpu_neighbor_search.h"
+#include "gpu_neighbor_search.h"
 
 #include <algorithm>
 #include <exception>
+#include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "ground_filter/ground_filter.h"
-#include "knn/kdtree_neighbor_search.h"
 #include "knn/neighborhood_pca.h"
 
 namespace ground_filter {
@@ -26,12 +27,16 @@ std::string describeCurrent() {
 
 }  // namespace
 
-GpuNeighborSearch::GpuNeighborSearch(int threads, const CudaKnnOptions& options)
-    : knn_(std::make_unique<CudaKnn>(options)), threads_(threads) {}
+GpuNeighborSearch::GpuNeighborSearch(std::unique_ptr<KnnBackend> fallback,
+                                     const CudaKnnOptions& options)
+    : fallback_(std::move(fallback)) {
+  if (!fallback_) throw std::invalid_argument("GpuNeighborSearch: null fallback");
+  knn_ = std::make_unique<CudaKnn>(options);
+}
 
 GpuNeighborSearch::~GpuNeighborSearch() = default;
 
-bool GpuNeighborSearch::keepListsOnDevice(bool keep) {
+bool GpuNeighborSearch::keepLists(bool keep) {
   keep_on_device_ = keep;
   return keep;
 }
@@ -72,8 +77,12 @@ void GpuNeighborSearch::search(const float* xyz, std::size_t n, int k, NeighborL
       last_note_ = "GPU search failed (" + describeCurrent() + "); using kdtree";
     }
   }
+  searchOnFallback(xyz, n, k, out);
+}
+
+void GpuNeighborSearch::searchOnFallback(const float* xyz, std::size_t n, int k,
+                                         NeighborLists* out) {
   // This scan on the CPU; the lists are complete either way.
-  if (!fallback_) fallback_ = std::make_unique<KdTreeNeighborSearch>(threads_);
   fallback_->search(xyz, n, k, out);
   last_backend_ = fallback_->name();
 }
@@ -81,9 +90,7 @@ void GpuNeighborSearch::search(const float* xyz, std::size_t n, int k, NeighborL
 void GpuNeighborSearch::recoverOnHost(const std::string& what, const std::string& error) {
   lists_on_device_ = false;
   last_note_ = "GPU " + what + " failed (" + error + "); using kdtree";
-  if (!fallback_) fallback_ = std::make_unique<KdTreeNeighborSearch>(threads_);
-  fallback_->search(last_xyz_, last_n_, last_k_, last_out_);
-  last_backend_ = fallback_->name();
+  searchOnFallback(last_xyz_, last_n_, last_k_, last_out_);
 }
 
 bool GpuNeighborSearch::neighborhoodPca(std::vector<PointPca>* out) {
@@ -125,6 +132,29 @@ bool GpuNeighborSearch::countFlaggedNeighbors(const std::uint8_t* flags, std::ui
     return false;
   }
   return true;
+}
+
+// ------------------------------------------------ the core's entry points (knn/knn_backend.h)
+
+bool gpuKnnAvailable(std::string* note) {
+  std::string why;
+  if (CudaKnn::deviceAvailable(&why)) return true;
+  if (note) *note = "GPU backend unavailable: " + why + "; using kdtree";
+  return false;
+}
+
+std::unique_ptr<KnnBackend> makeGpuKnnBackend(std::unique_ptr<KnnBackend> fallback,
+                                              std::string* note) {
+  std::string why;
+  if (CudaKnn::deviceAvailable(&why)) {
+    try {
+      return std::make_unique<GpuNeighborSearch>(std::move(fallback));
+    } catch (const std::exception& e) {
+      why = e.what();
+    }
+  }
+  if (note) *note = "GPU backend unavailable: " + why + "; using kdtree";
+  return nullptr;
 }
 
 }  // namespace ground_filter

@@ -1,8 +1,9 @@
-#ifndef GROUND_FILTER_SRC_CORE_NORMAL_GPU_NORMAL_EXECUTOR_H
-#define GROUND_FILTER_SRC_CORE_NORMAL_GPU_NORMAL_EXECUTOR_H
+#ifndef GROUND_FILTER_CUDA_SRC_GPU_NORMAL_EXECUTOR_H
+#define GROUND_FILTER_CUDA_SRC_GPU_NORMAL_EXECUTOR_H
 
-// Only usable when the package is built with CUDA (GROUND_FILTER_HAVE_CUDA); the filter gets it
-// through makeGpuNormalExecutor() (filter_executor.h).
+// The core's whole-filter executor (normal/filter_executor.h) on the CUDA pipeline: part of the
+// CUDA library, which includes the core's headers (never the other way). The filter gets it
+// through makeGpuNormalExecutor().
 
 #include <cstdint>
 #include <memory>
@@ -20,9 +21,10 @@ namespace ground_filter {
 ///        runs its CPU stages; lastNote() names the error); the next scan tries the GPU again.
 class GpuNormalExecutor : public NormalFilterExecutor {
  public:
-  /// \brief For `params` (normal::gpuSupports(params) must hold).
+  /// \brief For the settings of one parameter set (built once: CudaNormalParams(params,
+  ///        normal::minAbsNormalZ(params)); normal::gpuSupports(params) must hold).
   /// \throws CudaError when no usable CUDA device is there.
-  explicit GpuNormalExecutor(const NormalGroundFilterParams& params,
+  explicit GpuNormalExecutor(const CudaNormalParams& settings,
                              const CudaKnnOptions& options = CudaKnnOptions());
   ~GpuNormalExecutor() override;
 
@@ -41,4 +43,4 @@ class GpuNormalExecutor : public NormalFilterExecutor {
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_NORMAL_GPU_NORMAL_EXECUTOR_H
+#endif  // GROUND_FILTER_CUDA_SRC_GPU_NORMAL_EXECUTOR_H

@@ -69,10 +69,9 @@ class CudaNormalPipeline {
 
   /// \brief Stage times and counts of the last run().
   const CudaNormalTimings& lastTimings() const;
-  /// \brief The KNN search it uses (its own calls work as a standalone CudaKnn).
+  /// \brief The KNN search it uses (its own calls work as a standalone CudaKnn); its
+  ///        deviceBytes() counts the pipeline's buffers too (one memory limit for all).
   CudaKnn& knn();
-  /// \brief Device bytes held now by the pipeline and its KNN (persistent buffers).
-  std::size_t deviceBytes() const;
 
  private:
   struct Impl;

@@ -1,16 +1,13 @@
-#include "normal/gpu_normal_executor.h"
+#include "gpu_normal_executor.h"
 
 #include <exception>
 #include <string>
 
-#include "normal/normal_settings.h"
-
 namespace ground_filter {
 
-GpuNormalExecutor::GpuNormalExecutor(const NormalGroundFilterParams& params,
+GpuNormalExecutor::GpuNormalExecutor(const CudaNormalParams& settings,
                                      const CudaKnnOptions& options)
-    : settings_(params, normal::minAbsNormalZ(params)),
-      pipeline_(std::make_unique<CudaNormalPipeline>(options)) {}
+    : settings_(settings), pipeline_(std::make_unique<CudaNormalPipeline>(options)) {}
 
 GpuNormalExecutor::~GpuNormalExecutor() = default;
 
@@ -37,12 +34,13 @@ bool GpuNormalExecutor::run(const CloudView& cloud, std::vector<std::uint8_t>* l
   return true;
 }
 
-std::unique_ptr<NormalFilterExecutor> makeGpuNormalExecutor(
-    const NormalGroundFilterParams& params) {
+// The core's entry point (normal/filter_executor.h).
+std::unique_ptr<NormalFilterExecutor> makeGpuNormalExecutor(const NormalGroundFilterParams& params,
+                                                            double min_abs_nz) {
   std::string why;
   if (params.k > CudaKnn::kMaxK || !CudaKnn::deviceAvailable(&why)) return nullptr;
   try {
-    return std::make_unique<GpuNormalExecutor>(params);
+    return std::make_unique<GpuNormalExecutor>(CudaNormalParams(params, min_abs_nz));
   } catch (const std::exception&) {
     return nullptr;  // the neighbour backend's factory reports the same failure
   }

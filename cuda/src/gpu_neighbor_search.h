@@ -1,9 +1,10 @@
-#ifndef GROUND_FILTER_SRC_CORE_KNN_GPU_NEIGHBOR_SEARCH_H
-#define GROUND_FILTER_SRC_CORE_KNN_GPU_NEIGHBOR_SEARCH_H
+#ifndef GROUND_FILTER_CUDA_SRC_GPU_NEIGHBOR_SEARCH_H
+#define GROUND_FILTER_CUDA_SRC_GPU_NEIGHBOR_SEARCH_H
 
-// Only usable when the package is built with CUDA (GROUND_FILTER_HAVE_CUDA); use
-// makeNeighborSearch("gpu", ...) or makeKnnBackend("gpu", ...) to get it with the kd-tree fallback
-// handled.
+// The core's neighbour interfaces (knn/knn_backend.h, knn/neighbor_list_store.h) on the CUDA
+// search: part of the CUDA library, which includes the core's headers (never the other way).
+// The core makes it through makeGpuKnnBackend() (makeNeighborSearch("gpu", ...),
+// makeKnnBackend("gpu", ...)), with the kd-tree as its fallback.
 
 #include <cstddef>
 #include <memory>
@@ -13,22 +14,23 @@
 #include "ground_filter/cuda_knn.h"
 #include "ground_filter/neighbor_search.h"
 #include "knn/knn_backend.h"
+#include "knn/neighbor_list_store.h"
 
 namespace ground_filter {
 
-class KdTreeNeighborSearch;
-
-/// \brief NeighborSearch on a CUDA GPU (CudaKnn); a scan the GPU cannot do runs on a kd-tree.
+/// \brief NeighborSearch on a CUDA GPU (CudaKnn); a scan the GPU cannot do runs on the fallback
+///        (the kd-tree).
 ///        (The whole normal filter on the GPU is an executor of its own: GpuNormalExecutor.)
 ///
-/// Any CUDA error during a search (or k above CudaKnn::kMaxK) makes that one scan run on the CPU
-/// kd-tree instead; lastBackend() and lastNote() then say so and name the
-/// error. The next scan tries the GPU again.
-class GpuNeighborSearch : public KnnBackend {
+/// Any CUDA error during a search (or k above CudaKnn::kMaxK) makes that one scan run on the
+/// fallback instead; lastBackend() and lastNote() then say so and name the error. The next scan
+/// tries the GPU again.
+class GpuNeighborSearch : public KnnBackend, public NeighborListStore {
  public:
-  /// \brief `threads` CPU threads for the kd-tree fallback (0 = all cores).
+  /// \brief `fallback` (not null) searches the scans the GPU cannot do.
   /// \throws CudaError when no usable CUDA device is there.
-  explicit GpuNeighborSearch(int threads = 0, const CudaKnnOptions& options = CudaKnnOptions());
+  explicit GpuNeighborSearch(std::unique_ptr<KnnBackend> fallback,
+                             const CudaKnnOptions& options = CudaKnnOptions());
   ~GpuNeighborSearch() override;
 
   void search(const float* xyz, std::size_t n, int k, NeighborLists* out) override;
@@ -36,10 +38,12 @@ class GpuNeighborSearch : public KnnBackend {
   std::string lastBackend() const override { return last_backend_; }
   std::string lastNote() const override { return last_note_; }
 
+  /// \brief Itself: it keeps the lists of search() in GPU memory.
+  NeighborListStore* listStore() override { return this; }
   /// \brief With `keep`, search() leaves the lists in GPU memory (`out` gets k and points only)
   ///        for the two calls below. `xyz` and `out` of the last search() must stay alive until
-  ///        those are done: on a CUDA error there, the scan is redone on the kd-tree into `out`.
-  bool keepListsOnDevice(bool keep) override;
+  ///        those are done: on a CUDA error there, the scan is redone on the fallback into `out`.
+  bool keepLists(bool keep) override;
   bool neighborhoodPca(std::vector<PointPca>* out) override;
   bool countFlaggedNeighbors(const std::uint8_t* flags, std::uint16_t* flagged,
                              std::uint16_t* neighbors) override;
@@ -48,12 +52,13 @@ class GpuNeighborSearch : public KnnBackend {
   const CudaKnn& cudaKnn() const { return *knn_; }
 
  private:
-  /// Runs the last search again on the kd-tree into its `out` after a CUDA error in `what`.
+  /// Runs the last search again on the fallback into its `out` after a CUDA error in `what`.
   void recoverOnHost(const std::string& what, const std::string& error);
+  /// search() on the fallback: this scan on the CPU.
+  void searchOnFallback(const float* xyz, std::size_t n, int k, NeighborLists* out);
 
   std::unique_ptr<CudaKnn> knn_;
-  std::unique_ptr<KdTreeNeighborSearch> fallback_;  // created on the first fallback
-  int threads_;
+  std::unique_ptr<KnnBackend> fallback_;
   std::string last_backend_ = "gpu";
   std::string last_note_;
   bool keep_on_device_ = false;
@@ -68,4 +73,4 @@ class GpuNeighborSearch : public KnnBackend {
 
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_KNN_GPU_NEIGHBOR_SEARCH_H
+#endif  // GROUND_FILTER_CUDA_SRC_GPU_NEIGHBOR_SEARCH_H
