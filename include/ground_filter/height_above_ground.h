@@ -95,35 +95,31 @@ class GroundSurface {
   struct Fit {
     double z, gx, gy, rms;  // z relative to z_ref_ at the cell centre; slope [m/m]; residual
   };
-  /// Per grid cell: elevation at the centre and `has`: 1 defined, 0 undefined (no ground
-  /// within the radius), -1 not computed yet (see slowElevation()).
-  struct Centre {
-    float z, has;
-  };
   void chooseGrid(double min_x, double min_y, double max_x, double max_y, double radius,
                   double cell);
-  void accumulate(const CloudView& cloud, const std::vector<std::uint8_t>& labels, bool refit);
+  bool gatherGround(const CloudView& cloud, const std::vector<std::uint8_t>& labels, float* bounds);
+  void accumulate(bool refit);
   Fit fitCell(const Accum& a) const;
   void dropSpikes();
   void fill();
-  bool idw(int i, int j, Centre* out) const;
-  float slowElevation(float x, float y) const;
 
   double cell_ = 1.0, radius_ = 5.0;
   double z_ref_ = 0.0;         // z the sums are taken from
   float x0_ = 0.f, y0_ = 0.f;  // lower-left corner of the grid
   int nx_ = 0, ny_ = 0;
-  std::vector<Centre> centre_;            // per grid cell, row by row
-  std::vector<float> occ_, z_, gx_, gy_;  // per grid cell: 1 occupied else 0; plane (fill)
-  std::vector<std::uint8_t> flags_;       // per grid cell: occupied, point, refit bits
-  std::vector<std::int32_t> slot_;        // per grid cell: its occupied-cell index, or -1
-  std::vector<std::int32_t> point_cell_;  // per point: its grid cell, or -1 (for the refit)
-  std::vector<std::uint32_t> occupied_;   // grid cell of each occupied cell, first seen first
-  std::vector<std::uint32_t> order_;      // occupied-cell indices by grid cell, ascending
-  std::vector<Accum> acc_;                // per occupied cell
-  std::vector<Fit> fit_;                  // per occupied cell
-  std::vector<std::uint32_t> count_;      // per occupied cell: its ground points
-  std::vector<float> kernel_;             // 1 / d^2 of the fill window, 0 beyond the radius
+  std::size_t ground_ = 0;               // finite ground points of the last build
+  std::vector<float> px_, py_, pz_;      // per finite ground point (cloud order): x, y, z
+  std::vector<std::uint32_t> pcell_;     // per finite ground point: its grid cell
+  std::vector<std::int32_t> slot_;       // per grid cell: its occupied-cell index, or -1
+  std::vector<float> centre_;            // per grid cell: elevation at the centre, NaN: none
+  std::vector<float> wsum_;              // per grid cell: fill weights (fill())
+  std::vector<std::uint32_t> occupied_;  // grid cell of each occupied cell, first seen first
+  std::vector<Accum> acc_;               // per occupied cell
+  std::vector<Fit> fit_;                 // per occupied cell
+  std::vector<float> z_, gx_, gy_;       // per occupied cell: plane (absolute z at the centre)
+  std::vector<std::uint8_t> flags_;      // per occupied cell: refit, spike bits
+  std::vector<std::uint32_t> count_;     // per occupied cell: its ground points
+  std::vector<float> kernel_;            // 1 / d^2 of the fill window, 0 beyond the radius
   std::vector<SurfaceCell> cells_;
 };
 
