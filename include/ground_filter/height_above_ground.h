@@ -99,6 +99,7 @@ class GroundSurface {
                   double cell);
   bool gatherGround(const CloudView& cloud, const std::vector<std::uint8_t>& labels, float* bounds);
   void accumulate(bool refit);
+  static void addTo(Accum* a, const Accum& b);
   Fit fitCell(const Accum& a) const;
   void dropSpikes();
   void fill();
@@ -109,7 +110,7 @@ class GroundSurface {
   int nx_ = 0, ny_ = 0;
   std::size_t ground_ = 0;               // finite ground points of the last build
   std::vector<float> px_, py_, pz_;      // per finite ground point (cloud order): x, y, z
-  std::vector<std::uint32_t> pcell_;     // per finite ground point: its grid cell
+  std::vector<std::int32_t> pslot_;      // per finite ground point: its occupied cell
   std::vector<std::int32_t> slot_;       // per grid cell: its occupied-cell index, or -1
   std::vector<float> centre_;            // per grid cell: elevation at the centre, NaN: none
   std::vector<float> wsum_;              // per grid cell: fill weights (fill())

@@ -11,6 +11,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "simd/avx2_common.h"
+#include "simd/simd.h"
+
 namespace ground_filter {
 
 constexpr std::size_t GroundSurfaceParams::kMaxCells;
@@ -73,6 +76,101 @@ inline float bilinear(float a, float b, float c, float d, float tx, float ty) {
   return z == z ? z : bilinearPartial(a, b, c, d, tx, ty);  // NaN: a centre without elevation
 }
 
+// What heights() needs of the surface, in locals.
+struct Lookup {
+  const float* centre;  // per grid cell: elevation at the centre, NaN none
+  std::size_t nx;
+  float x0, y0, inv, hi_u, hi_v;  // lower-left corner, 1 / cell, last u and v inside
+};
+
+// Heights of points [begin, end) of `in` into h.
+void heightsScalar(const XyzReader& in, const Lookup& at, std::size_t begin, std::size_t end,
+                   float* h) {
+  const Lookup a = at;  // locals: the stores to h would make the compiler reload them
+  for (std::size_t i = begin; i < end; ++i) {
+    float x, y, z;
+    const bool ok = in.get(i, &x, &y, &z);
+    const float u = (x - a.x0) * a.inv - 0.5f, v = (y - a.y0) * a.inv - 0.5f;
+    // Outside the grid: beyond the radius of every occupied cell (the grid's margin).
+    if (!ok || !(u >= 0.f && v >= 0.f && u < a.hi_u && v < a.hi_v)) {
+      h[i] = kNaN;
+      continue;
+    }
+    const int i0 = static_cast<int>(u), j0 = static_cast<int>(v);
+    const float* p = a.centre + static_cast<std::size_t>(j0) * a.nx + static_cast<std::size_t>(i0);
+    h[i] = z - bilinear(p[0], p[1], p[a.nx], p[a.nx + 1], u - static_cast<float>(i0),
+                        v - static_cast<float>(j0));
+  }
+}
+
+#ifdef GF_HAVE_AVX2_PATHS
+// heightsScalar() eight points at a time, from point 0; returns where it stopped (the scalar
+// code does the rest). The same operations in the same order (no fused products): the same
+// heights bit for bit.
+GF_TARGET_AVX2_PATHS std::size_t heightsAvx2(const XyzReader& in, const Lookup& at, std::size_t n,
+                                             float* h) {
+  if (in.stride > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max() / 8) ||
+      at.nx * 2 > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
+    return 0;
+  }
+  const int st = static_cast<int>(in.stride);
+  const __m256i lane = _mm256_setr_epi32(0, st, 2 * st, 3 * st, 4 * st, 5 * st, 6 * st, 7 * st);
+  const __m256 x0 = _mm256_set1_ps(at.x0), y0 = _mm256_set1_ps(at.y0);
+  const __m256 inv = _mm256_set1_ps(at.inv), half = _mm256_set1_ps(0.5f);
+  const __m256 hi_u = _mm256_set1_ps(at.hi_u), hi_v = _mm256_set1_ps(at.hi_v);
+  const __m256 zero = _mm256_setzero_ps(), nan = _mm256_set1_ps(kNaN);
+  const __m256i nx = _mm256_set1_epi32(static_cast<int>(at.nx));
+  const float* c = at.centre;
+  const int row = static_cast<int>(at.nx);
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8) {
+    const std::uint8_t* base = in.data + i * in.stride;
+    const __m256 x = _mm256_i32gather_ps(reinterpret_cast<const float*>(base + in.ox), lane, 1);
+    const __m256 y = _mm256_i32gather_ps(reinterpret_cast<const float*>(base + in.oy), lane, 1);
+    const __m256 z = _mm256_i32gather_ps(reinterpret_cast<const float*>(base + in.oz), lane, 1);
+    // Finite x, y, z: 0 * v is 0, NaN for NaN and Inf.
+    const __m256 fin = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(x, zero), _mm256_mul_ps(y, zero)),
+                                     _mm256_mul_ps(z, zero));
+    __m256 u = _mm256_sub_ps(_mm256_mul_ps(_mm256_sub_ps(x, x0), inv), half);
+    __m256 v = _mm256_sub_ps(_mm256_mul_ps(_mm256_sub_ps(y, y0), inv), half);
+    const __m256 in_grid = _mm256_and_ps(
+        _mm256_and_ps(_mm256_cmp_ps(fin, zero, _CMP_EQ_OQ), _mm256_cmp_ps(u, zero, _CMP_GE_OQ)),
+        _mm256_and_ps(
+            _mm256_and_ps(_mm256_cmp_ps(v, zero, _CMP_GE_OQ), _mm256_cmp_ps(u, hi_u, _CMP_LT_OQ)),
+            _mm256_cmp_ps(v, hi_v, _CMP_LT_OQ)));
+    u = _mm256_and_ps(u, in_grid);  // lanes outside: cell 0 (a valid address), NaN below
+    v = _mm256_and_ps(v, in_grid);
+    const __m256i i0 = _mm256_cvttps_epi32(u), j0 = _mm256_cvttps_epi32(v);
+    const __m256 tx = _mm256_sub_ps(u, _mm256_cvtepi32_ps(i0));
+    const __m256 ty = _mm256_sub_ps(v, _mm256_cvtepi32_ps(j0));
+    const __m256i g = _mm256_add_epi32(_mm256_mullo_epi32(j0, nx), i0);
+    const __m256 a = _mm256_i32gather_ps(c, g, 4), b = _mm256_i32gather_ps(c + 1, g, 4);
+    const __m256 cc = _mm256_i32gather_ps(c + row, g, 4);
+    const __m256 d = _mm256_i32gather_ps(c + row + 1, g, 4);
+    const __m256 lo = _mm256_add_ps(a, _mm256_mul_ps(tx, _mm256_sub_ps(b, a)));
+    const __m256 hi = _mm256_add_ps(cc, _mm256_mul_ps(tx, _mm256_sub_ps(d, cc)));
+    const __m256 e = _mm256_add_ps(lo, _mm256_mul_ps(ty, _mm256_sub_ps(hi, lo)));
+    _mm256_storeu_ps(h + i, _mm256_blendv_ps(nan, _mm256_sub_ps(z, e), in_grid));
+    // A centre without elevation in a lane inside the grid: the renormalised blend.
+    int partial = _mm256_movemask_ps(_mm256_and_ps(in_grid, _mm256_cmp_ps(e, e, _CMP_UNORD_Q)));
+    while (partial != 0) {
+      const int k = __builtin_ctz(static_cast<unsigned>(partial));
+      partial &= partial - 1;
+      alignas(32) float va[8], vb[8], vc[8], vd[8], vtx[8], vty[8], vz[8];
+      _mm256_store_ps(va, a);
+      _mm256_store_ps(vb, b);
+      _mm256_store_ps(vc, cc);
+      _mm256_store_ps(vd, d);
+      _mm256_store_ps(vtx, tx);
+      _mm256_store_ps(vty, ty);
+      _mm256_store_ps(vz, z);
+      h[i + k] = vz[k] - bilinearPartial(va[k], vb[k], vc[k], vd[k], vtx[k], vty[k]);
+    }
+  }
+  return i;
+}
+#endif
+
 void checkRange(const char* name, double v, double lo, double hi) {
   if (!(v >= lo && v <= hi)) {
     std::ostringstream os;
@@ -120,7 +218,7 @@ bool GroundSurface::gatherGround(const CloudView& cloud, const std::vector<std::
     px_.resize(n);
     py_.resize(n);
     pz_.resize(n);
-    pcell_.resize(n);
+    pslot_.resize(n);
   }
   const XyzReader in(cloud);
   const std::uint8_t* label = labels.data();
@@ -148,6 +246,19 @@ bool GroundSurface::gatherGround(const CloudView& cloud, const std::vector<std::
   return k > 0;
 }
 
+void GroundSurface::addTo(Accum* a, const Accum& b) {
+  a->n += b.n;
+  a->sx += b.sx;
+  a->sy += b.sy;
+  a->sz += b.sz;
+  a->sxx += b.sxx;
+  a->sxy += b.sxy;
+  a->syy += b.syy;
+  a->sxz += b.sxz;
+  a->syz += b.syz;
+  a->szz += b.szz;
+}
+
 // Sums of the ground points of each occupied cell (x, y relative to the cell centre, z to
 // z_ref_) and the occupied cells in the order their first point comes.
 // refit: of the cells marked kRefit only, the points within kOutlierSigmas rms of fit_.
@@ -158,15 +269,19 @@ void GroundSurface::accumulate(bool refit) {
   const double z_ref = z_ref_;
   const std::size_t nx = static_cast<std::size_t>(nx_), n = ground_;
   const float *px = px_.data(), *py = py_.data(), *pz = pz_.data();
-  std::uint32_t* pcell = pcell_.data();
+  std::int32_t* pslot = pslot_.data();
   std::int32_t* slot = slot_.data();
   const std::uint8_t* flags = flags_.data();
   const Fit* fit = fit_.data();
   Accum* acc = acc_.data();
+  // Consecutive points mostly share a cell: their sums run in registers (`run`) and go to the
+  // cell's Accum when the cell changes, instead of a load and store of it for every point.
+  Accum run{0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+  std::int32_t cur = -1;
   for (std::size_t i = 0; i < n; ++i) {
     std::int32_t s;
     if (refit) {
-      s = slot[pcell[i]];
+      s = pslot[i];
       if (!(flags[s] & kRefit)) continue;
     }
     // Every ground point lies inside the grid (it spans their bounds plus a margin), and
@@ -181,7 +296,6 @@ void GroundSurface::accumulate(bool refit) {
       if (std::fabs(dz - f.z - f.gx * dx - f.gy * dy) > kOutlierSigmas * f.rms) continue;
     } else {
       const std::size_t g = static_cast<std::size_t>(iy) * nx + static_cast<std::size_t>(ix);
-      pcell[i] = static_cast<std::uint32_t>(g);
       s = slot[g];
       if (s < 0) {
         s = slot[g] = static_cast<std::int32_t>(occupied_.size());
@@ -189,19 +303,25 @@ void GroundSurface::accumulate(bool refit) {
         acc_.push_back(Accum{0, 0, 0, 0, 0, 0, 0, 0, 0, 0});
         acc = acc_.data();
       }
+      pslot[i] = s;
     }
-    Accum& a = acc[s];
-    a.n += 1.0;
-    a.sx += dx;
-    a.sy += dy;
-    a.sz += dz;
-    a.sxx += dx * dx;
-    a.sxy += dx * dy;
-    a.syy += dy * dy;
-    a.sxz += dx * dz;
-    a.syz += dy * dz;
-    a.szz += dz * dz;
+    if (s != cur) {
+      if (cur >= 0) addTo(&acc[cur], run);
+      cur = s;
+      run = Accum{0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+    }
+    run.n += 1.0;
+    run.sx += dx;
+    run.sy += dy;
+    run.sz += dz;
+    run.sxx += dx * dx;
+    run.sxy += dx * dy;
+    run.syy += dy * dy;
+    run.sxz += dx * dz;
+    run.syz += dy * dz;
+    run.szz += dz * dz;
   }
+  if (cur >= 0) addTo(&acc[cur], run);
 }
 
 // Least squares z = z0 + g . d on the directions the points spread along (a pseudo-inverse of
@@ -255,7 +375,7 @@ void GroundSurface::dropSpikes() {
                     gy_[t] * static_cast<float>(j - jj) * cell;
       }
     }
-    if (k < 3) continue;
+    if (k < 3 || z_[s] - *std::min_element(pred, pred + k) <= kSpikeHeight) continue;
     std::nth_element(pred, pred + k / 2, pred + k);
     if (z_[s] - pred[k / 2] > kSpikeHeight) flags_[s] |= kSpike;
   }
@@ -403,24 +523,18 @@ void GroundSurface::heights(const CloudView& cloud, std::vector<float>* out) con
     return;
   }
   const XyzReader in(cloud);
-  const float inv = static_cast<float>(1.0 / cell_);
-  const float hi_u = static_cast<float>(nx_ - 1), hi_v = static_cast<float>(ny_ - 1);
-  const float x0 = x0_, y0 = y0_;
-  const std::size_t nx = static_cast<std::size_t>(nx_);
-  const float* centre = centre_.data();
-  for (std::size_t i = 0; i < n; ++i) {
-    float x, y, z;
-    const bool ok = in.get(i, &x, &y, &z);
-    const float u = (x - x0) * inv - 0.5f, v = (y - y0) * inv - 0.5f;
-    if (!ok || !(u >= 0.f && v >= 0.f && u < hi_u && v < hi_v)) {
-      h[i] = kNaN;
-      continue;
-    }
-    const int i0 = static_cast<int>(u), j0 = static_cast<int>(v);
-    const float* p = centre + static_cast<std::size_t>(j0) * nx + static_cast<std::size_t>(i0);
-    h[i] = z - bilinear(p[0], p[1], p[nx], p[nx + 1], u - static_cast<float>(i0),
-                        v - static_cast<float>(j0));
-  }
+  const Lookup at{centre_.data(),
+                  static_cast<std::size_t>(nx_),
+                  x0_,
+                  y0_,
+                  static_cast<float>(1.0 / cell_),
+                  static_cast<float>(nx_ - 1),
+                  static_cast<float>(ny_ - 1)};
+  std::size_t i = 0;
+#ifdef GF_HAVE_AVX2_PATHS
+  if (simd::allows(simd::Level::kAvx2) && simd::avx2::cpuHasAvx2()) i = heightsAvx2(in, at, n, h);
+#endif
+  heightsScalar(in, at, i, n, h);
 }
 
 }  // namespace ground_filter
