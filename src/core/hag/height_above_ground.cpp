@@ -122,12 +122,27 @@ GF_TARGET_AVX2_PATHS std::size_t heightsAvx2(const XyzReader& in, const Lookup& 
   const __m256i nx = _mm256_set1_epi32(static_cast<int>(at.nx));
   const float* c = at.centre;
   const int row = static_cast<int>(at.nx);
+  // y and z follow x, and the record holds 4 bytes more after z.
+  const bool packed = in.oy == in.ox + 4 && in.oz == in.ox + 8 && in.ox + 16 <= in.stride;
   std::size_t i = 0;
   for (; i + 8 <= n; i += 8) {
     const std::uint8_t* base = in.data + i * in.stride;
-    const __m256 x = _mm256_i32gather_ps(reinterpret_cast<const float*>(base + in.ox), lane, 1);
-    const __m256 y = _mm256_i32gather_ps(reinterpret_cast<const float*>(base + in.oy), lane, 1);
-    const __m256 z = _mm256_i32gather_ps(reinterpret_cast<const float*>(base + in.oz), lane, 1);
+    __m256 x, y, z;
+    if (packed) {  // x y z ? in 16 bytes of each record: 8 loads and a transpose
+      __m128 r[8];
+      for (int k = 0; k < 8; ++k) {
+        r[k] = _mm_loadu_ps(reinterpret_cast<const float*>(base + k * in.stride + in.ox));
+      }
+      _MM_TRANSPOSE4_PS(r[0], r[1], r[2], r[3]);
+      _MM_TRANSPOSE4_PS(r[4], r[5], r[6], r[7]);
+      x = _mm256_insertf128_ps(_mm256_castps128_ps256(r[0]), r[4], 1);
+      y = _mm256_insertf128_ps(_mm256_castps128_ps256(r[1]), r[5], 1);
+      z = _mm256_insertf128_ps(_mm256_castps128_ps256(r[2]), r[6], 1);
+    } else {
+      x = _mm256_i32gather_ps(reinterpret_cast<const float*>(base + in.ox), lane, 1);
+      y = _mm256_i32gather_ps(reinterpret_cast<const float*>(base + in.oy), lane, 1);
+      z = _mm256_i32gather_ps(reinterpret_cast<const float*>(base + in.oz), lane, 1);
+    }
     // Finite x, y, z: 0 * v is 0, NaN for NaN and Inf.
     const __m256 fin = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(x, zero), _mm256_mul_ps(y, zero)),
                                      _mm256_mul_ps(z, zero));
