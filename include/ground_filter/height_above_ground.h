@@ -99,6 +99,7 @@ class GroundSurface {
   void chooseGrid(double min_x, double min_y, double max_x, double max_y, double radius,
                   double cell);
   bool gatherGround(const CloudView& cloud, const std::vector<std::uint8_t>& labels, float* bounds);
+  void cellOffsets();
   void accumulate(bool refit);
   static void addTo(Accum* a, const Accum& b);
   Fit fitCell(const Accum& a) const;
@@ -109,9 +110,11 @@ class GroundSurface {
   double z_ref_ = 0.0;         // z the sums are taken from
   float x0_ = 0.f, y0_ = 0.f;  // lower-left corner of the grid
   int nx_ = 0, ny_ = 0;
-  std::size_t ground_ = 0;               // finite ground points of the last build
-  std::vector<float> px_, py_, pz_;      // per finite ground point (cloud order): x, y, z
-  std::vector<std::int32_t> pslot_;      // per finite ground point: its occupied cell
+  std::size_t ground_ = 0;  // finite ground points of the last build
+  // Per finite ground point (cloud order): x, y, z; x, y relative to the cell centre after
+  // cellOffsets().
+  std::vector<float> px_, py_, pz_;
+  std::vector<std::int32_t> pslot_;      // per ground point: its grid cell, then its occupied cell
   std::vector<std::int32_t> slot_;       // per grid cell: its occupied-cell index, or -1
   std::vector<float> centre_;            // per grid cell: elevation at the centre, NaN: none
   std::vector<float> wsum_;              // per grid cell: fill weights (fill())

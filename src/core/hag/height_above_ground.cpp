@@ -274,15 +274,36 @@ void GroundSurface::addTo(Accum* a, const Accum& b) {
   a->szz += b.szz;
 }
 
+// Each ground point's grid cell (into pslot_, for accumulate()) and its x, y relative to the
+// cell centre (over px_, py_): a loop without branches or table lookups, which the compiler
+// vectorises.
+void GroundSurface::cellOffsets() {
+  const float inv = static_cast<float>(1.0 / cell_), cell = static_cast<float>(cell_);
+  const float x0 = x0_, y0 = y0_, nxf = static_cast<float>(nx_);
+  const std::size_t n = ground_;
+  float* __restrict px = px_.data();
+  float* __restrict py = py_.data();
+  std::int32_t* __restrict g = pslot_.data();
+  for (std::size_t i = 0; i < n; ++i) {
+    // Every ground point lies inside the grid (it spans their bounds plus a margin), and
+    // fx, fy >= 0: truncation is floor. iy * nx + ix < kMaxCells < 2^24: exact in a float.
+    const float fx = (px[i] - x0) * inv, fy = (py[i] - y0) * inv;
+    const float ix = static_cast<float>(static_cast<int>(fx));
+    const float iy = static_cast<float>(static_cast<int>(fy));
+    px[i] = (fx - ix - 0.5f) * cell;
+    py[i] = (fy - iy - 0.5f) * cell;
+    g[i] = static_cast<std::int32_t>(iy * nxf + ix);
+  }
+}
+
 // Sums of the ground points of each occupied cell (x, y relative to the cell centre, z to
-// z_ref_) and the occupied cells in the order their first point comes.
-// refit: of the cells marked kRefit only, the points within kOutlierSigmas rms of fit_.
+// z_ref_) and the occupied cells in the order their first point comes; pslot_ from grid cell
+// to occupied cell. refit: of the cells marked kRefit only, the points within kOutlierSigmas
+// rms of fit_.
 void GroundSurface::accumulate(bool refit) {
   // Locals only in the loop: the stores would make the compiler reload members.
-  const float inv = static_cast<float>(1.0 / cell_), cell = static_cast<float>(cell_);
-  const float x0 = x0_, y0 = y0_;
   const double z_ref = z_ref_;
-  const std::size_t nx = static_cast<std::size_t>(nx_), n = ground_;
+  const std::size_t n = ground_;
   const float *px = px_.data(), *py = py_.data(), *pz = pz_.data();
   std::int32_t* pslot = pslot_.data();
   std::int32_t* slot = slot_.data();
@@ -299,18 +320,12 @@ void GroundSurface::accumulate(bool refit) {
       s = pslot[i];
       if (!(flags[s] & kRefit)) continue;
     }
-    // Every ground point lies inside the grid (it spans their bounds plus a margin), and
-    // fx, fy >= 0: truncation is floor, and cheaper.
-    const float fx = (px[i] - x0) * inv, fy = (py[i] - y0) * inv;
-    const int ix = static_cast<int>(fx), iy = static_cast<int>(fy);
-    const double dx = (fx - static_cast<float>(ix) - 0.5f) * cell;
-    const double dy = (fy - static_cast<float>(iy) - 0.5f) * cell;
-    const double dz = pz[i] - z_ref;
+    const double dx = px[i], dy = py[i], dz = pz[i] - z_ref;
     if (refit) {
       const Fit& f = fit[s];
       if (std::fabs(dz - f.z - f.gx * dx - f.gy * dy) > kOutlierSigmas * f.rms) continue;
     } else {
-      const std::size_t g = static_cast<std::size_t>(iy) * nx + static_cast<std::size_t>(ix);
+      const std::int32_t g = pslot[i];
       s = slot[g];
       if (s < 0) {
         s = slot[g] = static_cast<std::int32_t>(occupied_.size());
@@ -476,6 +491,7 @@ void GroundSurface::build(const CloudView& cloud, const std::vector<std::uint8_t
   const std::size_t cells = static_cast<std::size_t>(nx_) * static_cast<std::size_t>(ny_);
   slot_.assign(cells, -1);
   // Fit, refit the noisy cells without their outliers.
+  cellOffsets();
   accumulate(false);
   const std::size_t occ = occupied_.size();
   fit_.resize(occ);
