@@ -113,6 +113,36 @@ TEST(HeightAboveGround, SpikeCellLabelledGroundIsDropped) {
   EXPECT_NEAR(s.heightAbove(0.5f, 0.5f, 1.f), 1.f, 1e-3);
 }
 
+// Flat ground on 20 x 20 cells with a 3 x 3-cell patch (x, y in 2..5) at `patch` m labelled
+// ground: a bush's base or undergrowth seen as ground, or a low platform.
+gf::GroundSurface withPatch(float patch) {
+  TruthCloud c;
+  for (float x = -10.f; x < 10.f; x += 0.25f) {
+    for (float y = -10.f; y < 10.f; y += 0.25f) {
+      const bool in = x >= 2.f && x < 5.f && y >= 2.f && y < 5.f;
+      c.add(x, y, in ? patch : 0.f, true);
+    }
+  }
+  return built(c);
+}
+
+TEST(HeightAboveGround, PatchLabelledGroundIsDroppedAStepIsKept) {
+  // 0.5 m: the middle cell's 8 neighbours are the patch (it passes the 8-neighbour test), but
+  // two cells out the flat ground is the majority: the whole patch is dropped and filled.
+  const gf::GroundSurface s = withPatch(0.5f);
+  EXPECT_EQ(s.cells().size(), 400u - 9u);
+  for (const gf::SurfaceCell& cell : s.cells()) {
+    EXPECT_LT(cell.z, 0.01f) << "cell " << cell.x << ", " << cell.y;
+  }
+  EXPECT_NEAR(s.heightAbove(3.5f, 3.5f, 0.5f), 0.5f, 1e-3);
+  // 0.35 m: a step (under 0.40 m above the wider window, the corners excepted: they stand
+  // above 5 of their 8 neighbours by more than 0.25 m).
+  const gf::GroundSurface step = withPatch(0.35f);
+  EXPECT_EQ(step.cells().size(), 400u - 4u);
+  EXPECT_NEAR(step.heightAbove(3.5f, 3.5f, 0.35f), 0.f, 1e-3);
+  EXPECT_NEAR(step.elevation(3.5f, 2.5f), 0.35f, 1e-3);  // an edge cell of the step
+}
+
 TEST(HeightAboveGround, SingleGroundPointCellAndNegativeHeights) {
   TruthCloud c;
   c.xyz.reserve(16);             // (GCC 12 warns of a false overflow in a tiny insert otherwise)

@@ -103,7 +103,9 @@ class GroundSurface {
   void accumulate(bool refit);
   static void addTo(Accum* a, const Accum& b);
   Fit fitCell(const Accum& a) const;
+  float aboveNeighbours(std::size_t s, int reach, float height) const;
   void dropSpikes();
+  static constexpr int kPatchReach = 2;  // cells: the wider spike window (see dropSpikes())
   void fill();
 
   double cell_ = 1.0, radius_ = 5.0;

@@ -31,6 +31,11 @@ constexpr double kOutlierSigmas = 2.5;  // ... without the points this many rms 
 // planes (extrapolated to its centre; 3 or more of the 8) is a spike: low vegetation or an
 // object labelled ground. It is dropped and filled like an empty cell [m].
 constexpr float kSpikeHeight = 0.25f;
+// An occupied cell is a spike too where it stands more than this above the median of the
+// occupied cells within kPatchReach cells (extrapolated likewise): a patch of vegetation or of
+// an object labelled ground, a few cells wide. Larger than kSpikeHeight: planes extrapolated
+// over two cells carry more of the terrain's curvature, and a step up to this stays [m].
+constexpr float kPatchHeight = 0.40f;
 constexpr double kConfidencePoints = 3.0;  // confidence n / (n + this) ...
 constexpr double kConfidenceRms = 0.05;    // ... / (1 + (rms / this)^2) [m]
 
@@ -386,28 +391,43 @@ GroundSurface::Fit GroundSurface::fitCell(const Accum& a) const {
   return Fit{mz - gx * mx - gy * my, gx, gy, std::sqrt(std::max(0.0, res))};
 }
 
-// Marks the occupied cells that stand more than kSpikeHeight above the median of their occupied
-// neighbours' planes (extrapolated to their centre): fill() treats them as empty cells.
-void GroundSurface::dropSpikes() {
+// How far the cell `s` stands above the median of the planes of the occupied cells within
+// `reach` cells (each extrapolated to its centre), when that exceeds `height` and 3 or more
+// such cells exist; else 0.
+float GroundSurface::aboveNeighbours(std::size_t s, int reach, float height) const {
   const float cell = static_cast<float>(cell_);
+  const std::uint32_t g = occupied_[s];
+  const int i = static_cast<int>(g % nx_), j = static_cast<int>(g / nx_);
+  float pred[(2 * kPatchReach + 1) * (2 * kPatchReach + 1)];
+  int k = 0;
+  for (int jj = std::max(0, j - reach); jj <= std::min(ny_ - 1, j + reach); ++jj) {
+    for (int ii = std::max(0, i - reach); ii <= std::min(nx_ - 1, i + reach); ++ii) {
+      const std::size_t h = static_cast<std::size_t>(jj) * nx_ + ii;
+      const std::int32_t t = slot_[h];
+      if (h == g || t < 0) continue;
+      pred[k++] = z_[t] + gx_[t] * static_cast<float>(i - ii) * cell +
+                  gy_[t] * static_cast<float>(j - jj) * cell;
+    }
+  }
+  // Most cells stand no higher than `height` above their lowest neighbour: no median needed.
+  if (k < 3 || z_[s] - *std::min_element(pred, pred + k) <= height) return 0.f;
+  std::nth_element(pred, pred + k / 2, pred + k);
+  const float above = z_[s] - pred[k / 2];
+  return above > height ? above : 0.f;
+}
+
+// Marks the spikes: occupied cells more than kSpikeHeight above the median of their 8
+// neighbours, or more than kPatchHeight above the median of the 24 within kPatchReach cells (a
+// patch of low vegetation or an object labelled ground spans several cells, so its nearest
+// neighbours stand as high as it does; two cells out the terrain around it is the majority).
+// fill() treats them as empty cells.
+void GroundSurface::dropSpikes() {
   const std::size_t occ = occupied_.size();
   for (std::size_t s = 0; s < occ; ++s) {
-    const std::uint32_t g = occupied_[s];
-    const int i = static_cast<int>(g % nx_), j = static_cast<int>(g / nx_);
-    float pred[8];
-    int k = 0;
-    for (int jj = std::max(0, j - 1); jj <= std::min(ny_ - 1, j + 1); ++jj) {
-      for (int ii = std::max(0, i - 1); ii <= std::min(nx_ - 1, i + 1); ++ii) {
-        const std::size_t h = static_cast<std::size_t>(jj) * nx_ + ii;
-        const std::int32_t t = slot_[h];
-        if (h == g || t < 0) continue;
-        pred[k++] = z_[t] + gx_[t] * static_cast<float>(i - ii) * cell +
-                    gy_[t] * static_cast<float>(j - jj) * cell;
-      }
+    if (aboveNeighbours(s, 1, kSpikeHeight) > 0.f ||
+        aboveNeighbours(s, kPatchReach, kPatchHeight) > 0.f) {
+      flags_[s] |= kSpike;
     }
-    if (k < 3 || z_[s] - *std::min_element(pred, pred + k) <= kSpikeHeight) continue;
-    std::nth_element(pred, pred + k / 2, pred + k);
-    if (z_[s] - pred[k / 2] > kSpikeHeight) flags_[s] |= kSpike;
   }
 }
 
