@@ -57,9 +57,10 @@ struct SurfaceCell {
 /// without ground points takes the inverse-distance-weighted (1/d^2) average of the planes of
 /// the occupied cells within `radius`, each extrapolated to its centre (so a fill follows
 /// slopes); none within `radius`: no elevation. An occupied cell more than 0.25 m above the
-/// median of its occupied neighbours' planes (3 or more of the 8, extrapolated to its centre) is
-/// taken for low vegetation or an object labelled ground: it is left out of cells() and filled
-/// like an empty cell (steps up to 0.25 m, kerbs, stay). The elevation below (x, y) is the
+/// median of its occupied neighbours' planes (3 or more of the 8, extrapolated to its centre),
+/// or more than 0.40 m above the median of those within 2 cells (12 or more of the 24), is taken
+/// for low vegetation or an object labelled ground: it is left out of cells() and filled like
+/// an empty cell (steps up to 0.25 m, kerbs, stay). The elevation below (x, y) is the
 /// bilinear interpolation of the elevations at the four cell centres around (x, y): continuous,
 /// exact on a plane. Cells without elevation drop out of it (the weights of the others are
 /// renormalised); all four without: NaN. Negative heights (ditches, reflections below the
@@ -103,7 +104,7 @@ class GroundSurface {
   void accumulate(bool refit);
   static void addTo(Accum* a, const Accum& b);
   Fit fitCell(const Accum& a) const;
-  float aboveNeighbours(std::size_t s, int reach, float height) const;
+  float aboveNeighbours(std::size_t s, int reach, float height, int least) const;
   void dropSpikes();
   static constexpr int kPatchReach = 2;  // cells: the wider spike window (see dropSpikes())
   void fill();

@@ -36,6 +36,7 @@ constexpr float kSpikeHeight = 0.25f;
 // an object labelled ground, a few cells wide. Larger than kSpikeHeight: planes extrapolated
 // over two cells carry more of the terrain's curvature, and a step up to this stays [m].
 constexpr float kPatchHeight = 0.40f;
+constexpr int kPatchLeast = 12;            // occupied cells of the 24 the wider test needs
 constexpr double kConfidencePoints = 3.0;  // confidence n / (n + this) ...
 constexpr double kConfidenceRms = 0.05;    // ... / (1 + (rms / this)^2) [m]
 
@@ -392,9 +393,9 @@ GroundSurface::Fit GroundSurface::fitCell(const Accum& a) const {
 }
 
 // How far the cell `s` stands above the median of the planes of the occupied cells within
-// `reach` cells (each extrapolated to its centre), when that exceeds `height` and 3 or more
-// such cells exist; else 0.
-float GroundSurface::aboveNeighbours(std::size_t s, int reach, float height) const {
+// `reach` cells (each extrapolated to its centre), when that exceeds `height` and `least` or
+// more such cells exist; else 0.
+float GroundSurface::aboveNeighbours(std::size_t s, int reach, float height, int least) const {
   const float cell = static_cast<float>(cell_);
   const std::uint32_t g = occupied_[s];
   const int i = static_cast<int>(g % nx_), j = static_cast<int>(g / nx_);
@@ -410,22 +411,24 @@ float GroundSurface::aboveNeighbours(std::size_t s, int reach, float height) con
     }
   }
   // Most cells stand no higher than `height` above their lowest neighbour: no median needed.
-  if (k < 3 || z_[s] - *std::min_element(pred, pred + k) <= height) return 0.f;
+  if (k < least || z_[s] - *std::min_element(pred, pred + k) <= height) return 0.f;
   std::nth_element(pred, pred + k / 2, pred + k);
   const float above = z_[s] - pred[k / 2];
   return above > height ? above : 0.f;
 }
 
 // Marks the spikes: occupied cells more than kSpikeHeight above the median of their 8
-// neighbours, or more than kPatchHeight above the median of the 24 within kPatchReach cells (a
-// patch of low vegetation or an object labelled ground spans several cells, so its nearest
-// neighbours stand as high as it does; two cells out the terrain around it is the majority).
+// neighbours (3 or more occupied), or more than kPatchHeight above the median of the 24 within
+// kPatchReach cells (half of them or more occupied: a sparse window, as an airborne scan's on a
+// steep slope, extrapolates cells without a fitted slope too far). A patch of low vegetation or
+// an object labelled ground spans several cells, so its nearest neighbours stand as high as it
+// does; two cells out the terrain around it is the majority.
 // fill() treats them as empty cells.
 void GroundSurface::dropSpikes() {
   const std::size_t occ = occupied_.size();
   for (std::size_t s = 0; s < occ; ++s) {
-    if (aboveNeighbours(s, 1, kSpikeHeight) > 0.f ||
-        aboveNeighbours(s, kPatchReach, kPatchHeight) > 0.f) {
+    if (aboveNeighbours(s, 1, kSpikeHeight, 3) > 0.f ||
+        aboveNeighbours(s, kPatchReach, kPatchHeight, kPatchLeast) > 0.f) {
       flags_[s] |= kSpike;
     }
   }
