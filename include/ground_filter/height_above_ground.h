@@ -104,9 +104,7 @@ class GroundSurface {
   void accumulate(bool refit);
   static void addTo(Accum* a, const Accum& b);
   Fit fitCell(const Accum& a) const;
-  float aboveNeighbours(std::size_t s, int reach, float height, int least) const;
   void dropSpikes();
-  static constexpr int kPatchReach = 2;  // cells: the wider spike window (see dropSpikes())
   void fill();
 
   double cell_ = 1.0, radius_ = 5.0;

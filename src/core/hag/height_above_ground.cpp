@@ -36,7 +36,8 @@ constexpr float kSpikeHeight = 0.25f;
 // an object labelled ground, a few cells wide. Larger than kSpikeHeight: planes extrapolated
 // over two cells carry more of the terrain's curvature, and a step up to this stays [m].
 constexpr float kPatchHeight = 0.40f;
-constexpr int kPatchLeast = 12;            // occupied cells of the 24 the wider test needs
+constexpr int kPatchReach = 2;             // cells: the wider window is 5 x 5
+constexpr int kPatchLeast = 12;            // occupied cells of its 24 that the wider test needs
 constexpr double kConfidencePoints = 3.0;  // confidence n / (n + this) ...
 constexpr double kConfidenceRms = 0.05;    // ... / (1 + (rms / this)^2) [m]
 
@@ -191,6 +192,14 @@ GF_TARGET_AVX2_PATHS std::size_t heightsAvx2(const XyzReader& in, const Lookup& 
   return i;
 }
 #endif
+
+// Whether z stands more than `height` above the median of pred[0, k), with k >= least.
+bool aboveMedian(float z, float* pred, int k, int least, float height) {
+  // Most cells stand no higher than `height` above their lowest neighbour: no median needed.
+  if (k < least || z - *std::min_element(pred, pred + k) <= height) return false;
+  std::nth_element(pred, pred + k / 2, pred + k);
+  return z - pred[k / 2] > height;
+}
 
 void checkRange(const char* name, double v, double lo, double hi) {
   if (!(v >= lo && v <= hi)) {
@@ -392,31 +401,6 @@ GroundSurface::Fit GroundSurface::fitCell(const Accum& a) const {
   return Fit{mz - gx * mx - gy * my, gx, gy, std::sqrt(std::max(0.0, res))};
 }
 
-// How far the cell `s` stands above the median of the planes of the occupied cells within
-// `reach` cells (each extrapolated to its centre), when that exceeds `height` and `least` or
-// more such cells exist; else 0.
-float GroundSurface::aboveNeighbours(std::size_t s, int reach, float height, int least) const {
-  const float cell = static_cast<float>(cell_);
-  const std::uint32_t g = occupied_[s];
-  const int i = static_cast<int>(g % nx_), j = static_cast<int>(g / nx_);
-  float pred[(2 * kPatchReach + 1) * (2 * kPatchReach + 1)];
-  int k = 0;
-  for (int jj = std::max(0, j - reach); jj <= std::min(ny_ - 1, j + reach); ++jj) {
-    for (int ii = std::max(0, i - reach); ii <= std::min(nx_ - 1, i + reach); ++ii) {
-      const std::size_t h = static_cast<std::size_t>(jj) * nx_ + ii;
-      const std::int32_t t = slot_[h];
-      if (h == g || t < 0) continue;
-      pred[k++] = z_[t] + gx_[t] * static_cast<float>(i - ii) * cell +
-                  gy_[t] * static_cast<float>(j - jj) * cell;
-    }
-  }
-  // Most cells stand no higher than `height` above their lowest neighbour: no median needed.
-  if (k < least || z_[s] - *std::min_element(pred, pred + k) <= height) return 0.f;
-  std::nth_element(pred, pred + k / 2, pred + k);
-  const float above = z_[s] - pred[k / 2];
-  return above > height ? above : 0.f;
-}
-
 // Marks the spikes: occupied cells more than kSpikeHeight above the median of their 8
 // neighbours (3 or more occupied), or more than kPatchHeight above the median of the 24 within
 // kPatchReach cells (half of them or more occupied: a sparse window, as an airborne scan's on a
@@ -425,10 +409,27 @@ float GroundSurface::aboveNeighbours(std::size_t s, int reach, float height, int
 // does; two cells out the terrain around it is the majority.
 // fill() treats them as empty cells.
 void GroundSurface::dropSpikes() {
+  const float cell = static_cast<float>(cell_);
   const std::size_t occ = occupied_.size();
   for (std::size_t s = 0; s < occ; ++s) {
-    if (aboveNeighbours(s, 1, kSpikeHeight, 3) > 0.f ||
-        aboveNeighbours(s, kPatchReach, kPatchHeight, kPatchLeast) > 0.f) {
+    const std::uint32_t g = occupied_[s];
+    const int j = static_cast<int>(g / nx_), i = static_cast<int>(g) - j * nx_;
+    // The neighbours' planes at this centre: all within kPatchReach, and the 8 nearest.
+    float all[(2 * kPatchReach + 1) * (2 * kPatchReach + 1)], near[8];
+    int ka = 0, kn = 0;
+    for (int dj = std::max(-kPatchReach, -j); dj <= std::min(kPatchReach, ny_ - 1 - j); ++dj) {
+      const std::int32_t* row = slot_.data() + static_cast<std::size_t>(j + dj) * nx_ + i;
+      for (int di = std::max(-kPatchReach, -i); di <= std::min(kPatchReach, nx_ - 1 - i); ++di) {
+        const std::int32_t t = row[di];
+        if (t < 0 || (di == 0 && dj == 0)) continue;
+        const float p = z_[t] + gx_[t] * static_cast<float>(-di) * cell +
+                        gy_[t] * static_cast<float>(-dj) * cell;
+        all[ka++] = p;
+        if (di >= -1 && di <= 1 && dj >= -1 && dj <= 1) near[kn++] = p;
+      }
+    }
+    if (aboveMedian(z_[s], near, kn, 3, kSpikeHeight) ||
+        aboveMedian(z_[s], all, ka, kPatchLeast, kPatchHeight)) {
       flags_[s] |= kSpike;
     }
   }
