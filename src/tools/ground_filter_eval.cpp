@@ -79,12 +79,14 @@ const char kUsage[] =
     "                    --score-labels where given) and compute every point's height above\n"
     "                    ground (include/ground_filter/height_above_ground.h, default\n"
     "                    GroundSurfaceParams) and print, per file and pooled: ms of\n"
-    "                    build + heights (min and median of --repeat runs), the share of finite\n"
+    "                    build + heights (min and median of --repeat runs) and their shares of\n"
+    "                    the filter's min and median ms on the same scan, the share of finite\n"
     "                    points with a NaN height; for builtin: scenes the median and p95 of\n"
     "                    |height - (z - true terrain)|; for labelled scans the median, p5, p95 of\n"
     "                    the heights of truly-ground points and their share within +-0.1 m, and\n"
     "                    the median, p5, p95 of truly-non-ground points' heights [m]. JSON: key\n"
     "                    \"hag\" in each file and at the top (pooled): ms_min, ms_median,\n"
+    "                    share_min, share_median (of the filter's ms; null with --score-labels),\n"
     "                    nan_share, error_median, error_p95, ground_median, ground_p5,\n"
     "                    ground_p95, ground_within_0_1, nonground_median, nonground_p5,\n"
     "                    nonground_p95 (null where undefined)\n"
@@ -159,12 +161,15 @@ DropResult dropOne(gf::GroundFilter* filter, const gf::CloudView& view,
 
 // --hag: heights above ground of one file (or pooled).
 struct HagResult {
-  std::vector<float> error;         // builtin: |height - (z - terrain)| of the finite heights
-  std::vector<float> ground;        // heights of truly-ground points (finite)
-  std::vector<float> nonground;     // heights of truly-non-ground points (finite)
-  std::vector<double> ms;           // build + heights, one per run
-  std::size_t finite = 0, nan = 0;  // finite points; of them NaN heights
+  std::vector<float> error;      // builtin: |height - (z - terrain)| of the finite heights
+  std::vector<float> ground;     // heights of truly-ground points (finite)
+  std::vector<float> nonground;  // heights of truly-non-ground points (finite)
+  std::vector<double> ms;        // build + heights, one per run
+  double filter_min = 0.0, filter_med = 0.0;  // the filter's ms on the same scan (min, median)
+  std::size_t finite = 0, nan = 0;            // finite points; of them NaN heights
   void add(const HagResult& o) {
+    filter_min += o.filter_min;
+    filter_med += o.filter_med;
     error.insert(error.end(), o.error.begin(), o.error.end());
     ground.insert(ground.end(), o.ground.begin(), o.ground.end());
     nonground.insert(nonground.end(), o.nonground.begin(), o.nonground.end());
@@ -187,6 +192,8 @@ std::vector<std::pair<std::string, double>> hagNumbers(HagResult h, double ms_mi
       std::count_if(h.ground.begin(), h.ground.end(), [](float v) { return std::fabs(v) <= 0.1f; });
   return {{"ms_min", ms_min},
           {"ms_median", ms_med},
+          {"share_min", h.filter_min > 0.0 ? ms_min / h.filter_min : NAN},
+          {"share_median", h.filter_med > 0.0 ? ms_med / h.filter_med : NAN},
           {"nan_share", h.finite ? static_cast<double>(h.nan) / h.finite : NAN},
           {"error_median", quantile(&h.error, 0.5)},
           {"error_p95", quantile(&h.error, 0.95)},
@@ -444,7 +451,13 @@ FileResult evalFile(gf::GroundFilter* filter, const std::string& file, const Opt
   if (opt.classes && res.labelled && !scan.semantic.empty()) {
     gf::addClassCounts(labels, scan.truth, scan.semantic, classes);
   }
-  if (opt.hag) res.hag = hagOf(scan, view, labels, opt.repeat);
+  if (opt.hag) {
+    res.hag = hagOf(scan, view, labels, opt.repeat);
+    if (filter) {  // shares of the filter's time (none with --score-labels)
+      res.hag.filter_min = *std::min_element(times.begin(), times.end());
+      res.hag.filter_med = res.ms;
+    }
+  }
   if (opt.drop_one > 0) res.drop = dropOne(filter, view, labels, opt.drop_one);
   if (opt.scan_measures) {
     const float origin[3] = {0.f, 0.f, 0.f};
@@ -569,24 +582,27 @@ void printExtras(const Options& opt, std::size_t name_w, const std::vector<FileR
   if (opt.hag) {
     std::printf(
         "\nheight above ground (--hag), m; ms = surface build + heights (min, median of %d "
-        "run(s));\nnan = finite points without a height; err = |height - (z - true terrain)| "
+        "run(s));\n%%fmin, %%fmed = ms_min / the filter's min, ms_med / the filter's median;\nnan "
+        "= finite points without a height; err = |height - (z - true terrain)| "
         "(builtin: scenes);\ngnd / ngnd = heights of truly-ground / non-ground points, "
         "gnd_0.1 = %% of gnd within +-0.1 m\n",
         opt.repeat);
-    std::printf("%-*s %7s %7s %6s %7s %7s %7s %7s %7s %7s %8s %8s %8s\n", static_cast<int>(name_w),
-                "file", "ms_min", "ms_med", "nan%", "err_med", "err_p95", "gnd_med", "gnd_p5",
-                "gnd_p95", "gnd_0.1", "ngnd_med", "ngnd_p5", "ngnd_p95");
+    std::printf("%-*s %7s %7s %6s %6s %6s %7s %7s %7s %7s %7s %7s %8s %8s %8s\n",
+                static_cast<int>(name_w), "file", "ms_min", "ms_med", "%fmin", "%fmed", "nan%",
+                "err_med", "err_p95", "gnd_med", "gnd_p5", "gnd_p95", "gnd_0.1", "ngnd_med",
+                "ngnd_p5", "ngnd_p95");
     const auto rows = hagTable(results);
     for (std::size_t i = 0; i < rows.size(); ++i) {
       std::printf("%-*s", static_cast<int>(name_w),
                   i < results.size() ? results[i].file.c_str() : "pooled");
       for (const auto& kv : rows[i]) {
-        const bool share = kv.first == "nan_share" || kv.first == "ground_within_0_1";
+        const bool share = kv.first == "nan_share" || kv.first == "ground_within_0_1" ||
+                           kv.first.compare(0, 6, "share_") == 0;
         char buf[32];
         std::snprintf(buf, sizeof(buf), "%.3f", kv.second);
-        const int w = kv.first.compare(0, 9, "nonground") == 0 ? 8
-                      : kv.first == "nan_share"                ? 6
-                                                               : 7;
+        const int w = kv.first.compare(0, 9, "nonground") == 0                           ? 8
+                      : kv.first == "nan_share" || kv.first.compare(0, 6, "share_") == 0 ? 6
+                                                                                         : 7;
         std::printf(" %*s", w,
                     share                      ? pct(kv.second).c_str()
                     : std::isfinite(kv.second) ? buf

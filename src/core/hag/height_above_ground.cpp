@@ -11,6 +11,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "simd/avx2_common.h"
+#include "simd/simd.h"
+
 namespace ground_filter {
 
 constexpr std::size_t GroundSurfaceParams::kMaxCells;
@@ -28,16 +31,21 @@ constexpr double kOutlierSigmas = 2.5;  // ... without the points this many rms 
 // planes (extrapolated to its centre; 3 or more of the 8) is a spike: low vegetation or an
 // object labelled ground. It is dropped and filled like an empty cell [m].
 constexpr float kSpikeHeight = 0.25f;
+// An occupied cell is a spike too where it stands more than this above the median of the
+// occupied cells within kPatchReach cells (extrapolated likewise): a patch of vegetation or of
+// an object labelled ground, a few cells wide. Larger than kSpikeHeight: planes extrapolated
+// over two cells carry more of the terrain's curvature, and a step up to this stays [m].
+constexpr float kPatchHeight = 0.40f;
+constexpr int kPatchReach = 2;             // cells: the wider window is 5 x 5
+constexpr int kPatchLeast = 12;            // occupied cells of its 24 that the wider test needs
 constexpr double kConfidencePoints = 3.0;  // confidence n / (n + this) ...
 constexpr double kConfidenceRms = 0.05;    // ... / (1 + (rms / this)^2) [m]
 
-// flags_ bits.
-constexpr std::uint8_t kOccupied = 1;  // holds ground points: z from its own points
-constexpr std::uint8_t kPoint = 2;     // some point of the build cloud lies in the cell
-constexpr std::uint8_t kRefit = 4;     // refitted without its outliers
-constexpr std::uint8_t kSpike = 8;     // dropped: too high above its neighbours
+// flags_ bits (per occupied cell).
+constexpr std::uint8_t kRefit = 1;  // refitted without its outliers
+constexpr std::uint8_t kSpike = 2;  // dropped: too high above its neighbours
 
-// x, y, z of a CloudView held in locals (see accumulate()).
+// x, y, z of a CloudView held in locals (see gatherGround()).
 struct XyzReader {
   explicit XyzReader(const CloudView& c)
       : data(c.data()), stride(c.stride()), ox(c.xOffset()), oy(c.yOffset()), oz(c.zOffset()) {}
@@ -51,6 +59,147 @@ struct XyzReader {
   const std::uint8_t* data;
   std::size_t stride, ox, oy, oz;
 };
+
+// bilinear() where some of the four centres have no elevation (NaN): those drop out and the
+// weights of the others are renormalised; none left: NaN. Out of line: the rare case.
+__attribute__((noinline)) float bilinearPartial(float a, float b, float c, float d, float tx,
+                                                float ty) {
+  const float v[4] = {a, b, c, d};
+  const float w[4] = {(1.f - tx) * (1.f - ty), tx * (1.f - ty), (1.f - tx) * ty, tx * ty};
+  float sw = 0.f, s = 0.f;
+  for (int k = 0; k < 4; ++k) {
+    if (!(w[k] > 0.f) || std::isnan(v[k])) continue;
+    sw += w[k];
+    s += w[k] * v[k];
+  }
+  return sw > 1e-6f ? s / sw : kNaN;
+}
+
+// Elevation at (tx, ty) in 0..1 between the centres a (lower left), b (right), c (above), d:
+// bilinear, exact on a plane.
+inline float bilinear(float a, float b, float c, float d, float tx, float ty) {
+  const float lo = a + tx * (b - a), hi = c + tx * (d - c);
+  const float z = lo + ty * (hi - lo);
+  return z == z ? z : bilinearPartial(a, b, c, d, tx, ty);  // NaN: a centre without elevation
+}
+
+// What heights() needs of the surface, in locals.
+struct Lookup {
+  const float* centre;  // per grid cell: elevation at the centre, NaN none
+  std::size_t nx;
+  float x0, y0, inv, hi_u, hi_v;  // lower-left corner, 1 / cell, last u and v inside
+};
+
+// Heights of points [begin, end) of `in` into h.
+void heightsScalar(const XyzReader& in, const Lookup& at, std::size_t begin, std::size_t end,
+                   float* h) {
+  const Lookup a = at;  // locals: the stores to h would make the compiler reload them
+  for (std::size_t i = begin; i < end; ++i) {
+    float x, y, z;
+    const bool ok = in.get(i, &x, &y, &z);
+    const float u = (x - a.x0) * a.inv - 0.5f, v = (y - a.y0) * a.inv - 0.5f;
+    // Outside the grid: beyond the radius of every occupied cell (the grid's margin).
+    if (!ok || !(u >= 0.f && v >= 0.f && u < a.hi_u && v < a.hi_v)) {
+      h[i] = kNaN;
+      continue;
+    }
+    const int i0 = static_cast<int>(u), j0 = static_cast<int>(v);
+    const float* p = a.centre + static_cast<std::size_t>(j0) * a.nx + static_cast<std::size_t>(i0);
+    h[i] = z - bilinear(p[0], p[1], p[a.nx], p[a.nx + 1], u - static_cast<float>(i0),
+                        v - static_cast<float>(j0));
+  }
+}
+
+#ifdef GF_HAVE_AVX2_PATHS
+// heightsScalar() eight points at a time, from point 0; returns where it stopped (the scalar
+// code does the rest). The same operations in the same order (no fused products): the same
+// heights bit for bit.
+GF_TARGET_AVX2_PATHS std::size_t heightsAvx2(const XyzReader& in, const Lookup& at, std::size_t n,
+                                             float* h) {
+  if (in.stride > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max() / 8) ||
+      at.nx * 2 > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
+    return 0;
+  }
+  const int st = static_cast<int>(in.stride);
+  const __m256i lane = _mm256_setr_epi32(0, st, 2 * st, 3 * st, 4 * st, 5 * st, 6 * st, 7 * st);
+  const __m256 x0 = _mm256_set1_ps(at.x0), y0 = _mm256_set1_ps(at.y0);
+  const __m256 inv = _mm256_set1_ps(at.inv), half = _mm256_set1_ps(0.5f);
+  const __m256 hi_u = _mm256_set1_ps(at.hi_u), hi_v = _mm256_set1_ps(at.hi_v);
+  const __m256 zero = _mm256_setzero_ps(), nan = _mm256_set1_ps(kNaN);
+  const __m256i nx = _mm256_set1_epi32(static_cast<int>(at.nx));
+  const float* c = at.centre;
+  const int row = static_cast<int>(at.nx);
+  // y and z follow x, and the record holds 4 bytes more after z.
+  const bool packed = in.oy == in.ox + 4 && in.oz == in.ox + 8 && in.ox + 16 <= in.stride;
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8) {
+    const std::uint8_t* base = in.data + i * in.stride;
+    __m256 x, y, z;
+    if (packed) {  // x y z ? in 16 bytes of each record: 8 loads and a transpose
+      __m128 r[8];
+      for (int k = 0; k < 8; ++k) {
+        r[k] = _mm_loadu_ps(reinterpret_cast<const float*>(base + k * in.stride + in.ox));
+      }
+      _MM_TRANSPOSE4_PS(r[0], r[1], r[2], r[3]);
+      _MM_TRANSPOSE4_PS(r[4], r[5], r[6], r[7]);
+      x = _mm256_insertf128_ps(_mm256_castps128_ps256(r[0]), r[4], 1);
+      y = _mm256_insertf128_ps(_mm256_castps128_ps256(r[1]), r[5], 1);
+      z = _mm256_insertf128_ps(_mm256_castps128_ps256(r[2]), r[6], 1);
+    } else {
+      x = _mm256_i32gather_ps(reinterpret_cast<const float*>(base + in.ox), lane, 1);
+      y = _mm256_i32gather_ps(reinterpret_cast<const float*>(base + in.oy), lane, 1);
+      z = _mm256_i32gather_ps(reinterpret_cast<const float*>(base + in.oz), lane, 1);
+    }
+    // Finite x, y, z: 0 * v is 0, NaN for NaN and Inf.
+    const __m256 fin = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(x, zero), _mm256_mul_ps(y, zero)),
+                                     _mm256_mul_ps(z, zero));
+    __m256 u = _mm256_sub_ps(_mm256_mul_ps(_mm256_sub_ps(x, x0), inv), half);
+    __m256 v = _mm256_sub_ps(_mm256_mul_ps(_mm256_sub_ps(y, y0), inv), half);
+    const __m256 in_grid = _mm256_and_ps(
+        _mm256_and_ps(_mm256_cmp_ps(fin, zero, _CMP_EQ_OQ), _mm256_cmp_ps(u, zero, _CMP_GE_OQ)),
+        _mm256_and_ps(
+            _mm256_and_ps(_mm256_cmp_ps(v, zero, _CMP_GE_OQ), _mm256_cmp_ps(u, hi_u, _CMP_LT_OQ)),
+            _mm256_cmp_ps(v, hi_v, _CMP_LT_OQ)));
+    u = _mm256_and_ps(u, in_grid);  // lanes outside: cell 0 (a valid address), NaN below
+    v = _mm256_and_ps(v, in_grid);
+    const __m256i i0 = _mm256_cvttps_epi32(u), j0 = _mm256_cvttps_epi32(v);
+    const __m256 tx = _mm256_sub_ps(u, _mm256_cvtepi32_ps(i0));
+    const __m256 ty = _mm256_sub_ps(v, _mm256_cvtepi32_ps(j0));
+    const __m256i g = _mm256_add_epi32(_mm256_mullo_epi32(j0, nx), i0);
+    const __m256 a = _mm256_i32gather_ps(c, g, 4), b = _mm256_i32gather_ps(c + 1, g, 4);
+    const __m256 cc = _mm256_i32gather_ps(c + row, g, 4);
+    const __m256 d = _mm256_i32gather_ps(c + row + 1, g, 4);
+    const __m256 lo = _mm256_add_ps(a, _mm256_mul_ps(tx, _mm256_sub_ps(b, a)));
+    const __m256 hi = _mm256_add_ps(cc, _mm256_mul_ps(tx, _mm256_sub_ps(d, cc)));
+    const __m256 e = _mm256_add_ps(lo, _mm256_mul_ps(ty, _mm256_sub_ps(hi, lo)));
+    _mm256_storeu_ps(h + i, _mm256_blendv_ps(nan, _mm256_sub_ps(z, e), in_grid));
+    // A centre without elevation in a lane inside the grid: the renormalised blend.
+    int partial = _mm256_movemask_ps(_mm256_and_ps(in_grid, _mm256_cmp_ps(e, e, _CMP_UNORD_Q)));
+    while (partial != 0) {
+      const int k = __builtin_ctz(static_cast<unsigned>(partial));
+      partial &= partial - 1;
+      alignas(32) float va[8], vb[8], vc[8], vd[8], vtx[8], vty[8], vz[8];
+      _mm256_store_ps(va, a);
+      _mm256_store_ps(vb, b);
+      _mm256_store_ps(vc, cc);
+      _mm256_store_ps(vd, d);
+      _mm256_store_ps(vtx, tx);
+      _mm256_store_ps(vty, ty);
+      _mm256_store_ps(vz, z);
+      h[i + k] = vz[k] - bilinearPartial(va[k], vb[k], vc[k], vd[k], vtx[k], vty[k]);
+    }
+  }
+  return i;
+}
+#endif
+
+// Whether z stands more than `height` above the median of pred[0, k), with k >= least.
+bool aboveMedian(float z, float* pred, int k, int least, float height) {
+  // Most cells stand no higher than `height` above their lowest neighbour: no median needed.
+  if (k < least || z - *std::min_element(pred, pred + k) <= height) return false;
+  std::nth_element(pred, pred + k / 2, pred + k);
+  return z - pred[k / 2] > height;
+}
 
 void checkRange(const char* name, double v, double lo, double hi) {
   if (!(v >= lo && v <= hi)) {
@@ -90,71 +239,134 @@ void GroundSurface::chooseGrid(double min_x, double min_y, double max_x, double 
   }
 }
 
-// Sums of the ground points of each occupied cell (x, y relative to the cell centre, z to
-// z_ref_), the occupied cells in the order their first point comes, and the kPoint marks.
-// refit: of the cells marked kRefit only, the points within kOutlierSigmas rms of fit_.
-void GroundSurface::accumulate(const CloudView& cloud, const std::vector<std::uint8_t>& labels,
-                               bool refit) {
-  // Locals only in the loop: the byte stores to flags would make the compiler reload members.
+// The finite ground points into px_, py_, pz_ (in cloud order) and their x/y bounds: the one
+// pass over the whole cloud; everything after it reads these dense arrays.
+bool GroundSurface::gatherGround(const CloudView& cloud, const std::vector<std::uint8_t>& labels,
+                                 float* bounds) {
+  const std::size_t n = labels.size();
+  if (px_.size() < n) {
+    px_.resize(n);
+    py_.resize(n);
+    pz_.resize(n);
+    pslot_.resize(n);
+  }
   const XyzReader in(cloud);
-  const float inv = static_cast<float>(1.0 / cell_), cell = static_cast<float>(cell_);
-  const float hi_u = static_cast<float>(nx_), hi_v = static_cast<float>(ny_);
-  const float x0 = x0_, y0 = y0_;
-  const double z_ref = z_ref_;
-  const std::size_t nx = static_cast<std::size_t>(nx_), n = labels.size();
   const std::uint8_t* label = labels.data();
-  std::uint8_t* flags = flags_.data();
+  float *px = px_.data(), *py = py_.data(), *pz = pz_.data();
+  float min_x = std::numeric_limits<float>::infinity(), min_y = min_x;
+  float max_x = -min_x, max_y = -min_x;
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    float x, y, z;
+    if (label[i] != 1 || !in.get(i, &x, &y, &z)) continue;
+    px[k] = x;
+    py[k] = y;
+    pz[k] = z;
+    ++k;
+    min_x = std::min(min_x, x);
+    max_x = std::max(max_x, x);
+    min_y = std::min(min_y, y);
+    max_y = std::max(max_y, y);
+  }
+  ground_ = k;
+  bounds[0] = min_x;
+  bounds[1] = min_y;
+  bounds[2] = max_x;
+  bounds[3] = max_y;
+  return k > 0;
+}
+
+void GroundSurface::addTo(Accum* a, const Accum& b) {
+  a->n += b.n;
+  a->sx += b.sx;
+  a->sy += b.sy;
+  a->sz += b.sz;
+  a->sxx += b.sxx;
+  a->sxy += b.sxy;
+  a->syy += b.syy;
+  a->sxz += b.sxz;
+  a->syz += b.syz;
+  a->szz += b.szz;
+}
+
+// Each ground point's grid cell (into pslot_, for accumulate()) and its x, y relative to the
+// cell centre (over px_, py_): a loop without branches or table lookups, which the compiler
+// vectorises.
+void GroundSurface::cellOffsets() {
+  const float inv = static_cast<float>(1.0 / cell_), cell = static_cast<float>(cell_);
+  const float x0 = x0_, y0 = y0_, nxf = static_cast<float>(nx_);
+  const std::size_t n = ground_;
+  float* __restrict px = px_.data();
+  float* __restrict py = py_.data();
+  std::int32_t* __restrict g = pslot_.data();
+  for (std::size_t i = 0; i < n; ++i) {
+    // Every ground point lies inside the grid (it spans their bounds plus a margin), and
+    // fx, fy >= 0: truncation is floor. iy * nx + ix < kMaxCells < 2^24: exact in a float.
+    const float fx = (px[i] - x0) * inv, fy = (py[i] - y0) * inv;
+    const float ix = static_cast<float>(static_cast<int>(fx));
+    const float iy = static_cast<float>(static_cast<int>(fy));
+    px[i] = (fx - ix - 0.5f) * cell;
+    py[i] = (fy - iy - 0.5f) * cell;
+    g[i] = static_cast<std::int32_t>(iy * nxf + ix);
+  }
+}
+
+// Sums of the ground points of each occupied cell (x, y relative to the cell centre, z to
+// z_ref_) and the occupied cells in the order their first point comes; pslot_ from grid cell
+// to occupied cell. refit: of the cells marked kRefit only, the points within kOutlierSigmas
+// rms of fit_.
+void GroundSurface::accumulate(bool refit) {
+  // Locals only in the loop: the stores would make the compiler reload members.
+  const double z_ref = z_ref_;
+  const std::size_t n = ground_;
+  const float *px = px_.data(), *py = py_.data(), *pz = pz_.data();
+  std::int32_t* pslot = pslot_.data();
   std::int32_t* slot = slot_.data();
+  const std::uint8_t* flags = flags_.data();
   const Fit* fit = fit_.data();
   Accum* acc = acc_.data();
-  std::int32_t* point_cell = point_cell_.data();
+  // Consecutive points mostly share a cell: their sums run in registers (`run`) and go to the
+  // cell's Accum when the cell changes, instead of a load and store of it for every point.
+  Accum run{0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+  std::int32_t cur = -1;
   for (std::size_t i = 0; i < n; ++i) {
-    const bool ground = label[i] == 1;
+    std::int32_t s;
     if (refit) {
-      const std::int32_t c = point_cell[i];
-      if (!ground || c < 0 || !(flags[c] & kRefit)) continue;
-    } else {
-      point_cell[i] = -1;
+      s = pslot[i];
+      if (!(flags[s] & kRefit)) continue;
     }
-    float x, y, z;
-    if (!in.get(i, &x, &y, &z)) continue;
-    const float fx = (x - x0) * inv, fy = (y - y0) * inv;
-    if (!(fx >= 0.f && fy >= 0.f && fx < hi_u && fy < hi_v)) continue;
-    // fx, fy >= 0: truncation is floor, and cheaper.
-    const int ix = static_cast<int>(fx), iy = static_cast<int>(fy);
-    const std::size_t g = static_cast<std::size_t>(iy) * nx + static_cast<std::size_t>(ix);
-    point_cell[i] = static_cast<std::int32_t>(g);
-    if (!ground) {
-      flags[g] |= kPoint;
-      continue;
-    }
-    std::int32_t s = slot[g];
-    if (s < 0) {
-      s = slot[g] = static_cast<std::int32_t>(occupied_.size());
-      occupied_.push_back(static_cast<std::uint32_t>(g));
-      acc_.push_back(Accum{0, 0, 0, 0, 0, 0, 0, 0, 0, 0});
-      acc = acc_.data();
-      flags[g] |= kOccupied | kPoint;
-    }
-    const double dx = (fx - static_cast<float>(ix) - 0.5f) * cell;
-    const double dy = (fy - static_cast<float>(iy) - 0.5f) * cell;
-    const double dz = z - z_ref;
+    const double dx = px[i], dy = py[i], dz = pz[i] - z_ref;
     if (refit) {
       const Fit& f = fit[s];
       if (std::fabs(dz - f.z - f.gx * dx - f.gy * dy) > kOutlierSigmas * f.rms) continue;
+    } else {
+      const std::int32_t g = pslot[i];
+      s = slot[g];
+      if (s < 0) {
+        s = slot[g] = static_cast<std::int32_t>(occupied_.size());
+        occupied_.push_back(static_cast<std::uint32_t>(g));
+        acc_.push_back(Accum{0, 0, 0, 0, 0, 0, 0, 0, 0, 0});
+        acc = acc_.data();
+      }
+      pslot[i] = s;
     }
-    Accum& a = acc[s];
-    a.n += 1.0;
-    a.sx += dx;
-    a.sy += dy;
-    a.sz += dz;
-    a.sxx += dx * dx;
-    a.sxy += dx * dy;
-    a.syy += dy * dy;
-    a.sxz += dx * dz;
-    a.syz += dy * dz;
-    a.szz += dz * dz;
+    if (s != cur) {
+      if (cur >= 0) addTo(&acc[cur], run);
+      cur = s;
+      run = Accum{0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+    }
+    run.n += 1.0;
+    run.sx += dx;
+    run.sy += dy;
+    run.sz += dz;
+    run.sxx += dx * dx;
+    run.sxy += dx * dy;
+    run.syy += dy * dy;
+    run.sxz += dx * dz;
+    run.syz += dy * dz;
+    run.szz += dz * dz;
   }
+  if (cur >= 0) addTo(&acc[cur], run);
 }
 
 // Least squares z = z0 + g . d on the directions the points spread along (a pseudo-inverse of
@@ -189,82 +401,49 @@ GroundSurface::Fit GroundSurface::fitCell(const Accum& a) const {
   return Fit{mz - gx * mx - gy * my, gx, gy, std::sqrt(std::max(0.0, res))};
 }
 
-// Marks the occupied cells that stand more than kSpikeHeight above the median of their occupied
-// neighbours' planes, then turns them into empty cells (fill() fills them).
+// Marks the spikes: occupied cells more than kSpikeHeight above the median of their 8
+// neighbours (3 or more occupied), or more than kPatchHeight above the median of the 24 within
+// kPatchReach cells (half of them or more occupied: a sparse window, as an airborne scan's on a
+// steep slope, extrapolates cells without a fitted slope too far). A patch of low vegetation or
+// an object labelled ground spans several cells, so its nearest neighbours stand as high as it
+// does; two cells out the terrain around it is the majority.
+// fill() treats them as empty cells.
 void GroundSurface::dropSpikes() {
   const float cell = static_cast<float>(cell_);
-  std::size_t spikes = 0;
-  for (const std::uint32_t g : occupied_) {
-    const int i = static_cast<int>(g % nx_), j = static_cast<int>(g / nx_);
-    float pred[8];
-    int k = 0;
-    for (int jj = std::max(0, j - 1); jj <= std::min(ny_ - 1, j + 1); ++jj) {
-      for (int ii = std::max(0, i - 1); ii <= std::min(nx_ - 1, i + 1); ++ii) {
-        const std::size_t h = static_cast<std::size_t>(jj) * nx_ + ii;
-        if (h == g || occ_[h] == 0.f) continue;
-        pred[k++] = z_[h] + gx_[h] * static_cast<float>(i - ii) * cell +
-                    gy_[h] * static_cast<float>(j - jj) * cell;
+  const std::size_t occ = occupied_.size();
+  for (std::size_t s = 0; s < occ; ++s) {
+    const std::uint32_t g = occupied_[s];
+    const int j = static_cast<int>(g / nx_), i = static_cast<int>(g) - j * nx_;
+    // The neighbours' planes at this centre: all within kPatchReach, and the 8 nearest.
+    float all[(2 * kPatchReach + 1) * (2 * kPatchReach + 1)], near[8];
+    int ka = 0, kn = 0;
+    for (int dj = std::max(-kPatchReach, -j); dj <= std::min(kPatchReach, ny_ - 1 - j); ++dj) {
+      const std::int32_t* row = slot_.data() + static_cast<std::size_t>(j + dj) * nx_ + i;
+      for (int di = std::max(-kPatchReach, -i); di <= std::min(kPatchReach, nx_ - 1 - i); ++di) {
+        const std::int32_t t = row[di];
+        if (t < 0 || (di == 0 && dj == 0)) continue;
+        const float p = z_[t] + gx_[t] * static_cast<float>(-di) * cell +
+                        gy_[t] * static_cast<float>(-dj) * cell;
+        all[ka++] = p;
+        if (di >= -1 && di <= 1 && dj >= -1 && dj <= 1) near[kn++] = p;
       }
     }
-    if (k < 3) continue;
-    std::nth_element(pred, pred + k / 2, pred + k);
-    if (z_[g] - pred[k / 2] > kSpikeHeight) {
-      flags_[g] |= kSpike;
-      ++spikes;
+    if (aboveMedian(z_[s], near, kn, 3, kSpikeHeight) ||
+        aboveMedian(z_[s], all, ka, kPatchLeast, kPatchHeight)) {
+      flags_[s] |= kSpike;
     }
-  }
-  if (spikes == 0) return;
-  for (const std::uint32_t g : occupied_) {
-    if (!(flags_[g] & kSpike)) continue;
-    flags_[g] &= static_cast<std::uint8_t>(~kOccupied);
-    occ_[g] = 0.f;
-    centre_[g].has = -1.f;
   }
 }
 
-// Inverse-distance-weighted elevation at the centre of cell (i, j) from the planes of the
-// occupied cells within the radius, each extrapolated to that centre.
-bool GroundSurface::idw(int i, int j, Centre* out) const {
-  const int reach = static_cast<int>(std::floor(radius_ / cell_));
-  const int side = 2 * reach + 1;
-  const float cell = static_cast<float>(cell_);
-  // Two partial sums (even / odd ii): two add chains instead of one; dx kept as a float that
-  // steps by the cell (an int-to-float conversion a term was the slow part).
-  float sw0 = 0.f, sw1 = 0.f, sz0 = 0.f, sz1 = 0.f;
-  const int i_lo = std::max(0, i - reach), i_hi = std::min(nx_ - 1, i + reach);
-  const float* kernel = kernel_.data();
-  const float *occ = occ_.data(), *zs = z_.data(), *gxs = gx_.data(), *gys = gy_.data();
-  const float dx_lo = static_cast<float>(i - i_lo) * cell;
-  for (int jj = std::max(0, j - reach); jj <= std::min(ny_ - 1, j + reach); ++jj) {
-    // kernel entry of (ii, jj): k[ii]; grid cell: row + ii.
-    const float* k = kernel + (static_cast<std::ptrdiff_t>(jj - j + reach) * side + reach - i);
-    const std::size_t row = static_cast<std::size_t>(jj) * nx_;
-    const float *o = occ + row, *zr = zs + row, *gxr = gxs + row, *gyr = gys + row;
-    const float dy = static_cast<float>(j - jj) * cell;
-    float dx = dx_lo;
-    int ii = i_lo;
-    for (; ii + 1 <= i_hi; ii += 2, dx -= 2.f * cell) {
-      const float w0 = k[ii] * o[ii], w1 = k[ii + 1] * o[ii + 1];
-      sw0 += w0;
-      sw1 += w1;
-      sz0 += w0 * (zr[ii] + gxr[ii] * dx + gyr[ii] * dy);
-      sz1 += w1 * (zr[ii + 1] + gxr[ii + 1] * (dx - cell) + gyr[ii + 1] * dy);
-    }
-    if (ii <= i_hi) {
-      const float w = k[ii] * o[ii];
-      sw0 += w;
-      sz0 += w * (zr[ii] + gxr[ii] * dx + gyr[ii] * dy);
-    }
-  }
-  const float w = sw0 + sw1, z = sz0 + sz1;
-  *out = w > 0.f ? Centre{z / w, 1.f} : Centre{0.f, 0.f};
-  return w > 0.f;
-}
-
-// Fills the empty cells that a point of the build cloud may blend (its cell and the 8 around).
+// Every cell's elevation at its centre: an occupied cell's own plane; any other cell the
+// inverse-distance-weighted average of the planes of the occupied cells within the radius, each
+// extrapolated to its centre, NaN where there are none. Each occupied cell adds its plane to the
+// cells within the radius (a few dense row spans instead of a search around each empty cell);
+// the cells_ list comes out in grid order on the way.
 void GroundSurface::fill() {
   const int reach = static_cast<int>(std::floor(radius_ / cell_));
   const int side = 2 * reach + 1;
+  const float cell = static_cast<float>(cell_);
   kernel_.assign(static_cast<std::size_t>(side) * side, 0.f);
   for (int dj = -reach; dj <= reach; ++dj) {
     for (int di = -reach; di <= reach; ++di) {
@@ -275,19 +454,44 @@ void GroundSurface::fill() {
       }
     }
   }
-  for (int j = 0; j < ny_; ++j) {
-    for (int i = 0; i < nx_; ++i) {
-      const std::size_t g = static_cast<std::size_t>(j) * nx_ + i;
-      if (flags_[g] & kOccupied) continue;
-      bool wanted = false;
-      for (int jj = std::max(0, j - 1); jj <= std::min(ny_ - 1, j + 1); ++jj) {
-        for (int ii = std::max(0, i - 1); ii <= std::min(nx_ - 1, i + 1); ++ii) {
-          wanted |= (flags_[static_cast<std::size_t>(jj) * nx_ + ii] & kPoint) != 0;
-        }
+  const std::size_t cells = static_cast<std::size_t>(nx_) * static_cast<std::size_t>(ny_);
+  wsum_.assign(cells, 0.f);
+  centre_.assign(cells, 0.f);  // first the weighted sums of z - z_ref_
+  float* __restrict ws = wsum_.data();
+  float* __restrict zs = centre_.data();
+  const std::size_t occ = occupied_.size();
+  for (std::size_t s = 0; reach > 0 && s < occ; ++s) {
+    if (flags_[s] & kSpike) continue;
+    const std::uint32_t g = occupied_[s];
+    const int i = static_cast<int>(g % nx_), j = static_cast<int>(g / nx_);
+    const float z = static_cast<float>(fit_[s].z), gxc = gx_[s] * cell, gyc = gy_[s] * cell;
+    const int di_lo = std::max(-reach, -i), di_hi = std::min(reach, nx_ - 1 - i);
+    for (int dj = std::max(-reach, -j); dj <= std::min(reach, ny_ - 1 - j); ++dj) {
+      const float* __restrict k =
+          kernel_.data() + static_cast<std::size_t>(dj + reach) * side + reach;
+      const std::size_t row = static_cast<std::size_t>(j + dj) * nx_ + i;
+      float* __restrict w = ws + row;
+      float* __restrict zr = zs + row;
+      const float base = z + gyc * static_cast<float>(dj);
+      for (int di = di_lo; di <= di_hi; ++di) {
+        w[di] += k[di];
+        zr[di] += k[di] * (base + gxc * static_cast<float>(di));
       }
-      if (!wanted) continue;
-      idw(i, j, &centre_[g]);
     }
+  }
+  const float z_ref = static_cast<float>(z_ref_);
+  for (std::size_t g = 0; g < cells; ++g) {
+    const std::int32_t s = slot_[g];
+    if (s >= 0 && !(flags_[s] & kSpike)) {
+      zs[g] = z_[s];
+      const double pts = count_[s], q = fit_[s].rms / kConfidenceRms;
+      cells_.push_back(
+          SurfaceCell{static_cast<float>(x0_ + ((g % nx_) + 0.5) * cell_),
+                      static_cast<float>(y0_ + ((g / nx_) + 0.5) * cell_), z_[s], count_[s],
+                      static_cast<float>(pts / (pts + kConfidencePoints) / (1.0 + q * q))});
+      continue;
+    }
+    zs[g] = ws[g] > 0.f ? z_ref + zs[g] / ws[g] : kNaN;
   }
 }
 
@@ -304,102 +508,61 @@ void GroundSurface::build(const CloudView& cloud, const std::vector<std::uint8_t
   occupied_.clear();
   acc_.clear();
   nx_ = ny_ = 0;
-  float min_x = std::numeric_limits<float>::infinity(), min_y = min_x;
-  float max_x = -min_x, max_y = -min_x;
-  bool any = false;
-  for (std::size_t i = 0; i < n; ++i) {
-    float x, y, z;
-    if (labels[i] != 1 || !cloud.get(i, &x, &y, &z)) continue;
-    if (!any) z_ref_ = z;
-    any = true;
-    min_x = std::min(min_x, x);
-    max_x = std::max(max_x, x);
-    min_y = std::min(min_y, y);
-    max_y = std::max(max_y, y);
-  }
-  if (!any) return;
-  chooseGrid(min_x, min_y, max_x, max_y, params.radius, params.cell);
+  float b[4];
+  if (!gatherGround(cloud, labels, b)) return;
+  z_ref_ = pz_[0];
+  chooseGrid(b[0], b[1], b[2], b[3], params.radius, params.cell);
   const std::size_t cells = static_cast<std::size_t>(nx_) * static_cast<std::size_t>(ny_);
-  flags_.assign(cells, 0);
   slot_.assign(cells, -1);
-  point_cell_.resize(n);
   // Fit, refit the noisy cells without their outliers.
-  accumulate(cloud, labels, false);
+  cellOffsets();
+  accumulate(false);
   const std::size_t occ = occupied_.size();
   fit_.resize(occ);
   count_.resize(occ);
+  flags_.assign(occ, 0);
   bool refit = false;
   for (std::size_t s = 0; s < occ; ++s) {
     count_[s] = static_cast<std::uint32_t>(acc_[s].n);
     fit_[s] = fitCell(acc_[s]);
     if (fit_[s].rms > kRefitRms) {
-      flags_[occupied_[s]] |= kRefit;
+      flags_[s] = kRefit;
       acc_[s] = Accum{0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
       refit = true;
     }
   }
   if (refit) {
-    accumulate(cloud, labels, true);
+    accumulate(true);
     for (std::size_t s = 0; s < occ; ++s) {
-      if ((flags_[occupied_[s]] & kRefit) && acc_[s].n > 0.0) fit_[s] = fitCell(acc_[s]);
+      if ((flags_[s] & kRefit) && acc_[s].n > 0.0) fit_[s] = fitCell(acc_[s]);
     }
   }
-  occ_.assign(cells, 0.f);
-  z_.assign(cells, 0.f);
-  gx_.assign(cells, 0.f);
-  gy_.assign(cells, 0.f);
-  centre_.assign(cells, Centre{0.f, -1.f});
+  z_.resize(occ);
+  gx_.resize(occ);
+  gy_.resize(occ);
   for (std::size_t s = 0; s < occ; ++s) {
-    const std::uint32_t g = occupied_[s];
-    occ_[g] = 1.f;
-    z_[g] = static_cast<float>(fit_[s].z + z_ref_);
-    gx_[g] = static_cast<float>(fit_[s].gx);
-    gy_[g] = static_cast<float>(fit_[s].gy);
-    centre_[g] = Centre{z_[g], 1.f};
+    z_[s] = static_cast<float>(fit_[s].z + z_ref_);
+    gx_[s] = static_cast<float>(fit_[s].gx);
+    gy_[s] = static_cast<float>(fit_[s].gy);
   }
   dropSpikes();
-  // The cells in grid order (occupied_ is in the order of the points).
-  order_.resize(occ);
-  for (std::size_t s = 0; s < occ; ++s) order_[s] = static_cast<std::uint32_t>(s);
-  std::sort(order_.begin(), order_.end(),
-            [&](std::uint32_t a, std::uint32_t b) { return occupied_[a] < occupied_[b]; });
-  for (std::size_t k = 0; k < occ; ++k) {
-    const std::uint32_t s = order_[k], g = occupied_[s];
-    if (flags_[g] & kSpike) continue;
-    const double pts = count_[s], q = fit_[s].rms / kConfidenceRms;
-    cells_.push_back(
-        SurfaceCell{static_cast<float>(x0_ + ((g % nx_) + 0.5) * cell_),
-                    static_cast<float>(y0_ + ((g / nx_) + 0.5) * cell_), z_[g], count_[s],
-                    static_cast<float>(pts / (pts + kConfidencePoints) / (1.0 + q * q))});
-  }
   fill();
 }
 
-// elevation() anywhere: cells the build cloud did not need are filled here, on the fly.
-float GroundSurface::slowElevation(float x, float y) const {
-  if (nx_ == 0 || !std::isfinite(x) || !std::isfinite(y)) return kNaN;
+float GroundSurface::elevation(float x, float y) const {
+  if (nx_ == 0) return kNaN;
   const float inv = static_cast<float>(1.0 / cell_);
   const float u = (x - x0_) * inv - 0.5f, v = (y - y0_) * inv - 0.5f;
-  if (!(u >= -1.f && v >= -1.f && u < nx_ && v < ny_)) return kNaN;
-  const int i0 = static_cast<int>(std::floor(u)), j0 = static_cast<int>(std::floor(v));
-  const float tx = u - i0, ty = v - j0;
-  float sw = 0.f, sz = 0.f;
-  for (int dj = 0; dj < 2; ++dj) {
-    for (int di = 0; di < 2; ++di) {
-      const int i = i0 + di, j = j0 + dj;
-      const float w = (di ? tx : 1.f - tx) * (dj ? ty : 1.f - ty);
-      if (i < 0 || i >= nx_ || j < 0 || j >= ny_ || !(w > 0.f)) continue;
-      Centre p = centre_[static_cast<std::size_t>(j) * nx_ + i];
-      if (p.has < 0.f) idw(i, j, &p);
-      if (p.has == 0.f) continue;
-      sw += w;
-      sz += w * p.z;
-    }
+  // Outside: beyond the radius of every occupied cell (the grid's margin); NaN x, y fail too.
+  if (!(u >= 0.f && v >= 0.f && u < static_cast<float>(nx_ - 1) &&
+        v < static_cast<float>(ny_ - 1))) {
+    return kNaN;
   }
-  return sw > 1e-6f ? sz / sw : kNaN;
+  const int i0 = static_cast<int>(u), j0 = static_cast<int>(v);
+  const float* p = centre_.data() + static_cast<std::size_t>(j0) * nx_ + i0;
+  return bilinear(p[0], p[1], p[nx_], p[nx_ + 1], u - static_cast<float>(i0),
+                  v - static_cast<float>(j0));
 }
-
-float GroundSurface::elevation(float x, float y) const { return slowElevation(x, y); }
 
 float GroundSurface::heightAbove(float x, float y, float z) const {
   if (!std::isfinite(z)) return kNaN;
@@ -410,43 +573,23 @@ void GroundSurface::heights(const CloudView& cloud, std::vector<float>* out) con
   const std::size_t n = cloud.size();
   out->resize(n);
   float* h = out->data();
-  const XyzReader in(cloud);
-  const float inv = static_cast<float>(1.0 / cell_);
-  const float hi_u = static_cast<float>(nx_ - 1), hi_v = static_cast<float>(ny_ - 1);
-  const float x0 = x0_, y0 = y0_;
-  const std::size_t nx = static_cast<std::size_t>(nx_);
-  const Centre* centre = centre_.data();
-  for (std::size_t i = 0; i < n; ++i) {
-    float x, y, z;
-    if (!in.get(i, &x, &y, &z)) {
-      h[i] = kNaN;
-      continue;
-    }
-    const float u = (x - x0) * inv - 0.5f, v = (y - y0) * inv - 0.5f;
-    if (!(u >= 0.f && v >= 0.f && u < hi_u && v < hi_v)) {
-      h[i] = z - slowElevation(x, y);
-      continue;
-    }
-    // Inside the grid: the four cells around (x, y), each computed by build().
-    const int i0 = static_cast<int>(u), j0 = static_cast<int>(v);
-    const float tx = u - static_cast<float>(i0), ty = v - static_cast<float>(j0);
-    const Centre* p0 = centre + static_cast<std::size_t>(j0) * nx + static_cast<std::size_t>(i0);
-    const Centre a = p0[0], b = p0[1], c = p0[nx], d = p0[nx + 1];
-    if (std::min(std::min(a.has, b.has), std::min(c.has, d.has)) < 0.f) {
-      h[i] = z - slowElevation(x, y);
-      continue;
-    }
-    const float wa = (1.f - tx) * (1.f - ty), wb = tx * (1.f - ty);
-    const float wc = (1.f - tx) * ty, wd = tx * ty;
-    // An undefined cell holds z = 0 and weight 0.
-    const float sz = wa * a.z + wb * b.z + wc * c.z + wd * d.z;
-    if (a.has + b.has + c.has + d.has == 4.f) {
-      h[i] = z - sz;  // the common case: no renormalisation (no division)
-      continue;
-    }
-    const float sw = wa * a.has + wb * b.has + wc * c.has + wd * d.has;
-    h[i] = sw > 1e-6f ? z - sz / sw : kNaN;
+  if (nx_ == 0) {
+    std::fill(h, h + n, kNaN);
+    return;
   }
+  const XyzReader in(cloud);
+  const Lookup at{centre_.data(),
+                  static_cast<std::size_t>(nx_),
+                  x0_,
+                  y0_,
+                  static_cast<float>(1.0 / cell_),
+                  static_cast<float>(nx_ - 1),
+                  static_cast<float>(ny_ - 1)};
+  std::size_t i = 0;
+#ifdef GF_HAVE_AVX2_PATHS
+  if (simd::allows(simd::Level::kAvx2) && simd::avx2::cpuHasAvx2()) i = heightsAvx2(in, at, n, h);
+#endif
+  heightsScalar(in, at, i, n, h);
 }
 
 }  // namespace ground_filter
