@@ -9,6 +9,11 @@
 # scripts/sanitize.sh): everything under -fsanitize=address,undefined, the gtests as asan_<name>,
 # and the libFuzzer target fuzz_point_cloud2 (scripts/fuzz.sh; needs roscpp_serialization).
 #
+# With -DGF_CUDA=ON (CMake >= 3.18 and nvcc; cuda/run_gpu_checks.sh on the GPU machine, which has
+# no ROS, PCL or Eigen package: it passes the carry folder's Eigen, googletest and data): the
+# CUDA library inside the core, as the catkin build has it, plus its GPU tests and benchmarks
+# (cmake/gf_cuda_checks.cmake).
+#
 # GF_EIGEN_DIR: Eigen's headers (header-only: the host's serve any target), default
 # /usr/include/eigen3; GF_GTEST_DIR: googletest sources (Debian's package googletest), default
 # /usr/src/googletest; GF_DATA_DIR: the data folder (default: $GF_DATA_DIR, else data/, else
@@ -35,12 +40,36 @@ if(GF_SANITIZE)
   set(GF_TEST_PREFIX asan_)
 endif()
 
+if(GF_CUDA)
+  if(CMAKE_VERSION VERSION_LESS 3.18)
+    message(FATAL_ERROR "GF_CUDA needs CMake 3.18 (language CUDA), this is ${CMAKE_VERSION}")
+  endif()
+  set(gf_archs_given OFF)
+  if(DEFINED CMAKE_CUDA_ARCHITECTURES)  # -DCMAKE_CUDA_ARCHITECTURES=... wins
+    set(gf_archs_given ON)
+  endif()
+  enable_language(CUDA)
+  if(NOT gf_archs_given)  # the catkin build's default (cmake/gf_cuda.cmake)
+    include(${GF_SOURCE_ROOT}/cmake/gf_cuda.cmake)
+    gf_cuda_default_architectures("${CMAKE_CUDA_COMPILER}" CMAKE_CUDA_ARCHITECTURES)
+  endif()
+  add_subdirectory(${GF_SOURCE_ROOT}/cuda ${CMAKE_BINARY_DIR}/cuda)
+  find_package(CUDAToolkit REQUIRED)  # CUDA::cudart_static for the GPU tests, at this level too
+endif()
+
 # The same sources and code-generation flags as the catkin build's core, static here.
-gf_add_core(ground_filter_core STATIC EIGEN ${GF_EIGEN_DIR} EXTRA ${GF_CORE_NO_CUDA_SOURCES})
+if(GF_CUDA)
+  gf_add_core(ground_filter_core STATIC EIGEN ${GF_EIGEN_DIR})
+  target_compile_definitions(ground_filter_core PUBLIC GROUND_FILTER_HAVE_CUDA)
+  target_link_libraries(ground_filter_core PUBLIC ground_filter_cuda)
+else()
+  gf_add_core(ground_filter_core STATIC EIGEN ${GF_EIGEN_DIR} EXTRA ${GF_CORE_NO_CUDA_SOURCES})
+endif()
 gf_add_eval_kit(ground_filter_eval_kit ground_filter_core)
 
 set(INSTALL_GTEST OFF CACHE BOOL "" FORCE)
 set(BUILD_GMOCK OFF CACHE BOOL "" FORCE)
+set(CMAKE_POLICY_VERSION_MINIMUM 3.5)  # googletest 1.12 asks for 3.5; CMake 4 needs >= 3.5
 add_subdirectory(${GF_GTEST_DIR} ${CMAKE_BINARY_DIR}/googletest EXCLUDE_FROM_ALL)
 
 set(GF_TEST_LINK "")
@@ -68,6 +97,10 @@ gf_core_test(test_core test_voxel_ground_filter.cpp gtest_main)
 gf_core_test(test_voxel_scale test_voxel_scale.cpp gtest_main)
 gf_core_test(test_working_volume test_working_volume.cpp gtest_main)
 gf_core_test(test_gpu_fallback test_gpu_fallback.cpp gtest_main)
+if(GF_CUDA)  # there it checks the GPU
+  target_link_libraries(${GF_TEST_PREFIX}test_gpu_fallback ground_filter_cuda_headers)
+  include(${GF_SOURCE_ROOT}/cmake/gf_cuda_checks.cmake)
+endif()
 gf_core_test(test_scene_generator test_scene_generator.cpp)
 gf_core_test(test_height_above_ground test_height_above_ground.cpp gtest_main)
 if(NOT GF_SANITIZE)  # long under the sanitizers; the SIMD levels and exact lists run natively

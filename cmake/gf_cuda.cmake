@@ -1,4 +1,5 @@
-# Helpers shared by the top-level CMakeLists.txt and cuda/CMakeLists.txt (standalone GPU build).
+# Helpers of the CUDA builds: the catkin package (CMakeLists.txt) and -DGF_CUDA=ON
+# (cmake/gf_core_only.cmake).
 # CMake 3.16 syntax: the top level includes this before it knows whether CUDA can be built.
 
 # gf_nvcc_version(<nvcc> <out_var>): "X.Y" from `nvcc --version`, empty when it cannot be read.

@@ -1,6 +1,6 @@
 # The core library and the evaluation kit, defined once for every build of them: the catkin
 # package (CMakeLists.txt), its -DGF_CORE_ONLY=ON build without ROS/PCL (cmake/gf_core_only.cmake:
-# cross builds, GCC 9, sanitizers) and the standalone GPU build (cuda/CMakeLists.txt).
+# cross builds, GCC 9, sanitizers, and with -DGF_CUDA=ON the GPU machine's build).
 include(${CMAKE_CURRENT_LIST_DIR}/ground_filter_core_sources.cmake)  # GF_CORE_SOURCES, ...
 get_filename_component(GF_SOURCE_ROOT "${CMAKE_CURRENT_LIST_DIR}/.." ABSOLUTE)
 include(CheckCXXCompilerFlag)

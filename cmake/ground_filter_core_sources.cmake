@@ -1,6 +1,6 @@
 # Sources of the ROS/PCL-free core library (ground_filter_core), relative to the package root, one
-# line per room of src/core/ (docs/architecture.md). Included by the top-level CMakeLists.txt and
-# by cuda/CMakeLists.txt (standalone GPU build), so the list exists once.
+# line per room of src/core/ (docs/architecture.md). Included by cmake/ground_filter_core.cmake
+# for every build of the core, so the list exists once.
 #
 # gf_core_room(<folder under src/core, or . for its top> <file name without .cpp> ...)
 macro(gf_core_room dir)

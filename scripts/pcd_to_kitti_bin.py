@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Converts a PCD (ascii, binary or binary_compressed) to KITTI-style .bin records (x y z 0, float32).
 
-The GPU machine's standalone build (cuda/run_gpu_checks.sh) has no PCL; its benchmark and tests
+The GPU machine's build (cuda/run_gpu_checks.sh) has no PCL; its benchmark and tests
 read the Ouster OS-128 scan from .carry/data/os128_000000.bin, made with:
     python3 scripts/pcd_to_kitti_bin.py data/unlabelled/os128_000000.pcd \\
         .carry/data/os128_000000.bin
