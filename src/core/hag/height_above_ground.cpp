@@ -110,7 +110,7 @@ void heightsScalar(const XyzReader& in, const Lookup& at, std::size_t begin, std
   }
 }
 
-#ifdef GF_HAVE_AVX2_PATHS
+#if GF_HAVE_AVX2_PATHS
 // heightsScalar() eight points at a time, from point 0; returns where it stopped (the scalar
 // code does the rest). The same operations in the same order (no fused products): the same
 // heights bit for bit.
@@ -586,7 +586,7 @@ void GroundSurface::heights(const CloudView& cloud, std::vector<float>* out) con
                   static_cast<float>(nx_ - 1),
                   static_cast<float>(ny_ - 1)};
   std::size_t i = 0;
-#ifdef GF_HAVE_AVX2_PATHS
+#if GF_HAVE_AVX2_PATHS
   if (simd::allows(simd::Level::kAvx2) && simd::avx2::cpuHasAvx2()) i = heightsAvx2(in, at, n, h);
 #endif
   heightsScalar(in, at, i, n, h);
