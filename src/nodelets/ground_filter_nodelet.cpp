@@ -207,6 +207,11 @@ void GroundFilterNodelet::subscribe() {
   ops.helper = boost::make_shared<CloudSubscriptionHelper>(
       [this](const sensor_msgs::PointCloud2ConstPtr& msg) { cloudCallback(msg); },
       [this](const std::string& what, const std::string& from) { input_->notCloud(what, from); });
+  // The single-threaded queue, not NodeletLazy's multi-threaded one: there a cloud arriving
+  // while the previous one is filtered makes roscpp answer TryAgain, and the manager's threads
+  // re-queue it in a busy loop for the whole filter run (perf: a quarter of the manager's CPU,
+  // taken from the filter's own threads; docs/ros_integration.md, "A robot's load").
+  ops.callback_queue = getNodeHandle().getCallbackQueue();
   sub_input_ = pnh_->subscribe(ops);
 }
 
