@@ -135,12 +135,14 @@ TEST(HeightAboveGround, PatchLabelledGroundIsDroppedAStepIsKept) {
     EXPECT_LT(cell.z, 0.01f) << "cell " << cell.x << ", " << cell.y;
   }
   EXPECT_NEAR(s.heightAbove(3.5f, 3.5f, 0.5f), 0.5f, 1e-3);
-  // 0.35 m: a step (under 0.40 m above the wider window, the corners excepted: they stand
+  // 0.30 m: a step (under 0.35 m above the wider window, the corners excepted: they stand
   // above 5 of their 8 neighbours by more than 0.25 m).
-  const gf::GroundSurface step = withPatch(0.35f);
+  const gf::GroundSurface step = withPatch(0.30f);
   EXPECT_EQ(step.cells().size(), 400u - 4u);
-  EXPECT_NEAR(step.heightAbove(3.5f, 3.5f, 0.35f), 0.f, 1e-3);
-  EXPECT_NEAR(step.elevation(3.5f, 2.5f), 0.35f, 1e-3);  // an edge cell of the step
+  EXPECT_NEAR(step.heightAbove(3.5f, 3.5f, 0.30f), 0.f, 1e-3);
+  EXPECT_NEAR(step.elevation(3.5f, 2.5f), 0.30f, 1e-3);  // an edge cell of the step
+  // 0.40 m: above the wider test's 0.35 m, the whole patch is dropped as at 0.5 m.
+  EXPECT_EQ(withPatch(0.40f).cells().size(), 400u - 9u);
 }
 
 TEST(HeightAboveGround, SingleGroundPointCellAndNegativeHeights) {
