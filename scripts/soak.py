@@ -232,8 +232,10 @@ def run(args):
         # As launch/ground_filter.launch starts its manager: a fixed glibc mmap threshold, so
         # freed ~10 MB cloud buffers go back to the OS instead of fragmenting heap arenas
         # (without it RSS grew ~20 MB/min at 20 Hz of this 240 k-point scan; 2026-11-23).
-        manager = start("manager", ["env", "MALLOC_MMAP_THRESHOLD_=1048576", "rosrun", "nodelet",
-                                    "nodelet", "manager", "__name:=soak_manager"])
+        # And its OpenMP wait policy (passive unless OMP_WAIT_POLICY is set for the run).
+        omp = "OMP_WAIT_POLICY=" + os.environ.get("OMP_WAIT_POLICY", "passive")
+        manager = start("manager", ["env", "MALLOC_MMAP_THRESHOLD_=1048576", omp, "rosrun",
+                                    "nodelet", "nodelet", "manager", "__name:=soak_manager"])
         trim = ([] if args.malloc_trim_period is None
                 else ["_malloc_trim_period:=%g" % args.malloc_trim_period])
         for name, plugin in nodelets.items():

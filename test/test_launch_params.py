@@ -198,6 +198,20 @@ class LaunchParamsTest(unittest.TestCase):
         crop = load_config("crop_and_filter.launch", ["name:=cf"])
         self.assertIn("/cf_body_crop/", crop.clear_params)
 
+    def test_manager_threads_sleep(self):
+        # OMP_WAIT_POLICY=passive for every manager a launch file starts (docs/ros_integration.md,
+        # "A robot's load"); the argument overrides it.
+        for launch, argv in (("ground_filter.launch", []), ("crop_and_filter.launch", []),
+                             ("play_bag.launch", ["bag:=/tmp/none.bag"]), ("demo.launch", [])):
+            managers = [n for n in load(launch, argv) if n.args.strip() == "manager"]
+            self.assertEqual(len(managers), 1, launch)
+            self.assertIn(("OMP_WAIT_POLICY", "passive"),
+                          [tuple(e) for e in managers[0].env_args], launch)
+        for launch in ("ground_filter.launch", "crop_and_filter.launch"):
+            manager = [n for n in load(launch, ["omp_wait_policy:=active"])
+                       if n.args.strip() == "manager"][0]
+            self.assertIn(("OMP_WAIT_POLICY", "active"), [tuple(e) for e in manager.env_args])
+
     def test_demo_gui_streams_until_closed(self):
         self.assertEqual(dump("demo.launch")["/demo_monitor/max_scans"], 30)
         self.assertEqual(dump("demo.launch", "gui:=true")["/demo_monitor/max_scans"], 0)
