@@ -17,9 +17,9 @@ namespace voxel {
 ///        without voxels keep what an earlier scan left (never read).
 struct GroundModelResult {
   /// \brief Final plane per cell.
-  std::vector<HeightPlane> planes;
+  UntouchedArray<HeightPlane> planes;
   /// \brief Per cell: cosine of the slope of its plane (vertical to normal distance).
-  std::vector<float> cos;
+  UntouchedArray<float> cos;
   /// \brief Final plane of cell c (cells holding voxels; any cell in global mode).
   const HeightPlane& plane(std::size_t c) const { return planes[c]; }
   /// \brief Cosine of the slope of plane(c).
@@ -74,17 +74,18 @@ class GroundModel {
 
   Geometry geo_;
 
-  std::vector<std::uint32_t> start_;      // seed candidates per cell (CSR)
-  std::vector<std::uint32_t> seg_count_;  // voxels of segment `best` per cell (bucketSeeds())
+  std::vector<std::uint32_t> start_;         // seed candidates per cell (CSR)
+  UntouchedArray<std::uint32_t> seg_count_;  // voxels of segment `best` per cell (bucketSeeds())
   std::vector<Seed> seeds_;
-  std::vector<Moments> nbsum_;         // accepted seeds of the seeded cells of the 3 x 3 around
-  std::vector<std::uint8_t> nb_ok_;    // nbsum_ of the cell holds this scan's sums
-  std::vector<HeightPlane> plane_;     // grown plane
-  std::vector<std::uint32_t> parent_;  // cell that queued it
+  // Per cell, written before read (UntouchedArray: RAM only for the cells a scan reaches).
+  UntouchedArray<Moments> nbsum_;         // accepted seeds of the seeded cells of the 3 x 3 around
+  std::vector<std::uint8_t> nb_ok_;       // nbsum_ of the cell holds this scan's sums
+  UntouchedArray<HeightPlane> plane_;     // grown plane
+  UntouchedArray<std::uint32_t> parent_;  // cell that queued it
   std::vector<CellState> state_;
-  std::vector<std::uint32_t> queue_, queue_far_;  // cells to grow: next to seeds, others
-  std::size_t near_end_ = 0, far_end_ = 0;        // entries in queue_, queue_far_
-  std::vector<std::uint8_t> near_q_;              // cell waits in queue_
+  UntouchedArray<std::uint32_t> queue_, queue_far_;  // cells to grow: next to seeds, others
+  std::size_t near_end_ = 0, far_end_ = 0;           // entries in queue_, queue_far_
+  std::vector<std::uint8_t> near_q_;                 // cell waits in queue_
   std::vector<std::uint8_t> near_y_;  // markReach(): a cell with voxels within reach along y
   std::vector<std::uint8_t> reach_;   // ... along x and y
 };

@@ -3,11 +3,14 @@
 #ifndef GROUND_FILTER_SRC_CORE_VOXEL_VOXEL_GRID_H
 #define GROUND_FILTER_SRC_CORE_VOXEL_VOXEL_GRID_H
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <cstdlib>
 #include <limits>
 #include <memory>
 #include <new>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -64,6 +67,47 @@ struct UninitAllocator : std::allocator<T> {
 /// \brief A vector that does not zero what it grows by.
 template <typename T>
 using Buffer = std::vector<T, UninitAllocator<T>>;
+
+/// \brief An array whose growth leaves the new memory untouched: not zeroed, nor copied. A large
+///        one comes from fresh pages, which take no RAM until written. For the per-cell data of
+///        the ground model, whose grid spans a scan's whole x/y extent (up to 4 Mi cells) while
+///        a scan writes, before it reads, only the cells near its points: a few clusters 1.4 km
+///        apart then keep RAM for those cells only (docs/ros_integration.md).
+template <typename T>
+class UntouchedArray {
+  static_assert(std::is_trivially_copyable<T>::value, "raw memory holds only plain values");
+
+ public:
+  /// \brief n elements; when that needs more room, the old contents are dropped.
+  void resize(std::size_t n) {
+    if (n > capacity_) {
+      data_.reset(static_cast<T*>(std::malloc(std::max<std::size_t>(n, 1) * sizeof(T))));
+      if (!data_) {
+        capacity_ = size_ = 0;
+        throw std::bad_alloc();
+      }
+      capacity_ = n;
+    }
+    size_ = n;
+  }
+  /// \brief n elements, each `value` (all written).
+  void assign(std::size_t n, const T& value) {
+    resize(n);
+    std::fill(data(), data() + n, value);
+  }
+  T& operator[](std::size_t i) { return data_.get()[i]; }
+  const T& operator[](std::size_t i) const { return data_.get()[i]; }
+  T* data() { return data_.get(); }
+  const T* data() const { return data_.get(); }
+  std::size_t size() const { return size_; }
+
+ private:
+  struct Free {
+    void operator()(T* p) const { std::free(p); }
+  };
+  std::unique_ptr<T, Free> data_;
+  std::size_t size_ = 0, capacity_ = 0;
+};
 
 /// \brief Weighted first and second moments of (x, y, z) for height-field plane fits.
 struct Moments {
