@@ -293,9 +293,10 @@ void GroundModel::grow(const VoxelGroundFilterParams& p, const VoxelGrid& g, con
   queue_[near_end_++] = static_cast<std::uint32_t>(start);
   std::size_t qn = 0, qf = 0, next_island = 0;
   // The cells are taken in queue order, scattered over a grid of moments larger than L2:
-  // prefetch the moments of the cell 4 entries on.
+  // prefetch the moments of the cell 4 entries on, where it has some (the others' pages may
+  // never have been written: a prefetch there costs a page walk and brings nothing).
   auto prefetchCell = [&](const std::uint32_t* q, std::size_t i, std::size_t end) {
-    if (i + 4 < end) {
+    if (i + 4 < end && nb_ok_[q[i + 4]]) {
       const char* m = reinterpret_cast<const char*>(&nbsum_[q[i + 4]]);
       __builtin_prefetch(m);
       __builtin_prefetch(m + sizeof(Moments) - 1);
