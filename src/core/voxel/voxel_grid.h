@@ -72,7 +72,9 @@ using Buffer = std::vector<T, UninitAllocator<T>>;
 ///        one comes from fresh pages, which take no RAM until written. For the per-cell data of
 ///        the ground model, whose grid spans a scan's whole x/y extent (up to 4 Mi cells) while
 ///        a scan writes, before it reads, only the cells near its points: a few clusters 1.4 km
-///        apart then keep RAM for those cells only (docs/ros_integration.md).
+///        apart then keep RAM for those cells only (docs/ros_integration.md). Not Buffer: its
+///        growth copies the old elements, and its construct() still runs the default member
+///        initialisers of Moments and HeightPlane, which writes every new cell.
 template <typename T>
 class UntouchedArray {
   static_assert(std::is_trivially_copyable<T>::value, "raw memory holds only plain values");
