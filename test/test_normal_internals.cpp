@@ -30,6 +30,7 @@
 #include "ground_filter/normal_ground_filter.h"
 #include "knn/kdtree_neighbor_search.h"
 #include "knn/neighborhood_pca.h"
+#include "normal/cpu_gpu_common.h"
 #include "normal/local_ground.h"
 #include "normal/plane.h"
 #include "normal/sample.h"
@@ -112,24 +113,92 @@ TEST(NormalSampleStage, GathersEveryStrideThPointAndSpreadsTheVotes) {
   gf::normal::SampleStage st;
   std::vector<float> xyz;
   for (int i = 0; i < 7; ++i) xyz.insert(xyz.end(), {float(i), float(10 * i), float(-i)});
+  const gf::normal::ColumnGrid grid{0.0, 0.0, 10.0};  // every point in a column of its own
   for (int stride : {1, 2, 3, 7, 16}) {
-    const std::size_t m = st.gather(xyz.data(), 7, stride);
+    const std::size_t m = st.gather(xyz.data(), 7, stride, 40, grid);
     ASSERT_EQ(m, static_cast<std::size_t>((7 + stride - 1) / stride)) << stride;
     for (std::size_t j = 0; j < m; ++j) {
+      EXPECT_EQ(st.sampledIndex()[j], j * stride) << stride;
       EXPECT_EQ(st.sampledXyz()[3 * j], float(j * stride)) << stride;
       EXPECT_EQ(st.sampledXyz()[3 * j + 1], float(10 * j * stride)) << stride;
       st.votes()[j] = static_cast<std::uint8_t>(j % 2);
       EXPECT_EQ(st.candidates()[j], 0) << stride;
     }
+    EXPECT_EQ(st.sampledIndex()[m], 7u);
     std::vector<std::uint8_t> voted(7, 9);
-    st.spread(7, stride, voted.data());
+    st.spread(voted.data());
     for (std::size_t i = 0; i < 7; ++i) {
       const std::size_t j = i / stride, next = std::min(j + 1, m - 1);
       const int expect = i % stride == 0 ? j % 2 : (j % 2) | (next % 2);
       EXPECT_EQ(voted[i], expect) << stride << " " << i;
     }
   }
-  EXPECT_EQ(st.gather(xyz.data(), 0, 2), 0u);
+  EXPECT_EQ(st.gather(xyz.data(), 0, 2, 40, grid), 0u);
+}
+
+TEST(NormalSampleStage, ADenseColumnGivesAtMostTheCapEvenlySpaced) {
+  // Columns in order: 3 points, 25 and 9 points (over stride 2 * cap 4: capped), 8 points (not
+  // over it), 1 point.
+  const std::vector<int> counts = {3, 25, 9, 8, 1};
+  std::vector<float> xyz;
+  std::vector<std::size_t> begin;
+  for (std::size_t c = 0; c < counts.size(); ++c) {
+    begin.push_back(xyz.size() / 3);
+    for (int i = 0; i < counts[c]; ++i) {
+      xyz.insert(xyz.end(), {0.05f + float(c), 0.05f + 0.001f * float(i), float(i)});
+    }
+  }
+  const std::size_t len = xyz.size() / 3;
+  const gf::normal::ColumnGrid grid{0.0, 0.0, 10.0};  // 0.1 m columns
+  gf::normal::SampleStage st;
+  const std::size_t m = st.gather(xyz.data(), len, 2, 4, grid);
+  const std::uint32_t* idx = st.sampledIndex();
+  // Uncapped columns keep every 2nd point of the segment; capped ones start at their first point
+  // and step ceil(count / 4): 25 -> 7 (0 7 14 21), 9 -> 3 (0 3 6).
+  const std::vector<std::uint32_t> want = {0, 2, 3, 10, 17, 24, 28, 31, 34, 38, 40, 42, 44};
+  ASSERT_EQ(m, want.size());
+  for (std::size_t j = 0; j < m; ++j) EXPECT_EQ(idx[j], want[j]) << j;
+  EXPECT_EQ(idx[m], len);
+  for (std::size_t j = 0; j < m; ++j) st.votes()[j] = j == 3;
+  std::vector<std::uint8_t> voted(len, 9);
+  st.spread(voted.data());
+  // Sampled point 3 (point 10) voted: itself and the points after sampled point 2 up to it.
+  for (std::size_t i = 0; i < len; ++i) {
+    EXPECT_EQ(voted[i], i >= 4 && i <= 16 ? 1 : 0) << i;
+  }
+  // Without a cap the old rule: every 2nd point.
+  EXPECT_EQ(st.gather(xyz.data(), len, 2, 0, grid), (len + 1) / 2);
+}
+
+TEST(NormalSampleStage, CappedColumnsAreFoundAtAnyOffset) {
+  // Random runs of column lengths around the threshold stride * cap: gather() (which probes every
+  // h-th point for long columns) against the rule applied to every column.
+  std::mt19937 rng(11);
+  const gf::normal::ColumnGrid grid{0.0, 0.0, 10.0};
+  gf::normal::SampleStage st;
+  for (int round = 0; round < 200; ++round) {
+    const int stride = 1 + static_cast<int>(rng() % 4), cap = 1 + static_cast<int>(rng() % 6);
+    const int big = stride * cap;
+    std::vector<float> xyz;
+    std::vector<std::uint32_t> want;
+    const int columns = 1 + static_cast<int>(rng() % 12);
+    for (int c = 0; c < columns; ++c) {
+      const int count = 1 + static_cast<int>(rng() % (3 * big + 2));
+      const std::size_t a = xyz.size() / 3;
+      for (int i = 0; i < count; ++i) xyz.insert(xyz.end(), {0.05f + float(c), 0.05f, 0.f});
+      const std::size_t step = gf::normal::columnSampleStep(count, stride, cap);
+      for (std::size_t i = a; i < a + count; ++i) {
+        if (step == 0 ? i % stride == 0 : (i - a) % step == 0) {
+          want.push_back(static_cast<std::uint32_t>(i));
+        }
+      }
+    }
+    const std::size_t len = xyz.size() / 3;
+    const std::size_t m = st.gather(xyz.data(), len, stride, cap, grid);
+    ASSERT_EQ(m, want.size()) << "round " << round;
+    for (std::size_t j = 0; j < m; ++j) ASSERT_EQ(st.sampledIndex()[j], want[j]) << round;
+    ASSERT_EQ(st.sampledIndex()[m], len);
+  }
 }
 
 TEST(RadixSort, SortByKeyIsStableAndMatchesStdStableSort) {
@@ -406,7 +475,7 @@ TEST(NormalLocalGround, VergeSlopingAwayFromTheTilePlaneIsGroundABushOnItIsNot) 
   std::vector<std::uint8_t> out = ground;
   gf::normal::LocalGroundStage stage;
   const std::size_t added =
-      stage.run(c, rows.data(), nullptr, c.size() / 3, k, 1, p.local_ground_min,
+      stage.run(c, rows.data(), nullptr, c.size() / 3, k, nullptr, p.local_ground_min,
                 p.local_ground_below, p.local_ground_above, min_abs_nz, 2, &out);
   std::size_t strip_ground = 0, bush_ground = 0;
   for (std::size_t i : strip) strip_ground += out[i];
@@ -421,14 +490,14 @@ TEST(NormalLocalGround, VergeSlopingAwayFromTheTilePlaneIsGroundABushOnItIsNot) 
     if (ground[i]) ASSERT_EQ(out[i], 1) << i;
   }
   std::vector<std::uint8_t> none = ground;
-  EXPECT_EQ(stage.run(c, rows.data(), nullptr, c.size() / 3, k, 1, k + 1, p.local_ground_below,
-                      p.local_ground_above, min_abs_nz, 2, &none),
+  EXPECT_EQ(stage.run(c, rows.data(), nullptr, c.size() / 3, k, nullptr, k + 1,
+                      p.local_ground_below, p.local_ground_above, min_abs_nz, 2, &none),
             0u);
   EXPECT_EQ(none, ground);
   // A wider band above takes the point over the verge.
   std::vector<std::uint8_t> wide = ground;
-  stage.run(c, rows.data(), nullptr, c.size() / 3, k, 1, p.local_ground_min, 0.10, 0.10, min_abs_nz,
-            2, &wide);
+  stage.run(c, rows.data(), nullptr, c.size() / 3, k, nullptr, p.local_ground_min, 0.10, 0.10,
+            min_abs_nz, 2, &wide);
   EXPECT_EQ(wide[over], 1);
 }
 

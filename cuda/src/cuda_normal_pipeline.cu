@@ -2,7 +2,8 @@
 //
 // run(): pack xyz (host, pinned) -> upload -> finite flags, scan, compaction + x/y bounds ->
 // [sync: count, bounds] -> column keys (CPU's cellIndex/spreadBits in double) -> stable radix
-// sort -> gather -> [sample_stride > 1: every stride-th point] -> KNN on the device copy
+// sort -> gather -> [sample_stride > 1: every stride-th point, a dense column capped; sync: m]
+// -> KNN on the device copy
 // (CudaKnn's grid; it syncs once for its level choice)
 // -> PCA + candidates -> vote -> tile keys -> stable sort -> tile heads / voted lists (scans) ->
 // RANSAC planes (one block per plane, work queue) -> distance test -> labels download.
@@ -63,8 +64,9 @@ struct CudaNormalPipeline::Impl {
   CudaNormalTimings timings;
   DeviceBuffer in, flags, pos, raw_xyz, raw_src, keys_a, keys_b, vals_a, vals_b, xyz, src, cand,
       voted, sampled_xyz, sampled_voted, vflags, vpos, gflags, gpos, tile_begin, vlist, glist,
-      planes, refine, labels, counters, temp;
+      planes, refine, labels, counters, temp, sidx;
   PinnedBuffer h_in, h_small, h_labels;
+  const unsigned long long* col_keys = nullptr;  // sorted column keys (orderColumns), n entries
 
   // The sections of run(), in their order; all on the KNN's stream `im.stream`.
   // `counters` (device, 64 B): [0..3] x/y bounds (ordered ints), then the counters below.
@@ -82,6 +84,9 @@ struct CudaNormalPipeline::Impl {
   unsigned int compactFinite(CudaKnn::Impl& im, std::size_t n_in, XyBounds* bounds);
   /// Grid-column order of the n compacted points: xyz, src (event 2).
   void orderColumns(CudaKnn::Impl& im, int n, const XyBounds& bb, double cell_size);
+  /// The sampled points (CPU: SampleStage::gather): sidx (m + 1 entries), sampled_xyz, and the
+  /// per-point flags and their scan in vflags / vpos (free until the tiles); downloads m.
+  int sample(CudaKnn::Impl& im, int n, int stride, int cap);
   /// PCA + candidates, vote of the m searched points `q` into `out` (events 4, 5).
   void candidatesAndVote(CudaKnn::Impl& im, const float* q, int m, const GroundParamsDev& gp,
                          std::uint8_t* out);
@@ -89,7 +94,8 @@ struct CudaNormalPipeline::Impl {
   void planesAndLabels(CudaKnn::Impl& im, int n, std::size_t n_in, const XyBounds& bb,
                        const CudaNormalParams& prm, const GroundParamsDev& gp);
   /// Local ground plane on the labels (local_ground_min > 0; before event 6).
-  void localGround(CudaKnn::Impl& im, int n, int m, int stride, const GroundParamsDev& gp);
+  void localGround(CudaKnn::Impl& im, int n, int m, const unsigned int* d_sidx,
+                   const GroundParamsDev& gp);
   /// Labels and counts down into `out` (event 7), stage times from the events.
   void downloadLabels(CudaKnn::Impl& im, std::size_t n_in, std::uint8_t* out);
 };
@@ -150,11 +156,13 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   // ---- the sampled points (CPU: SampleStage), their K nearest neighbours (lists stay on the
   //      device), PCA + candidates and vote; the others: OR of the samples before and after
   const int stride = prm.sample_stride;
-  const int m = (n + stride - 1) / stride;
+  int m = n;
   const float* q = pl.xyz.as<float>();
+  const unsigned int* d_sidx = nullptr;  // null: every point sampled
   if (stride > 1) {
-    launchSampleGather(q, m, stride, pl.sampled_xyz.as<float>(), im.stream);
+    m = pl.sample(im, n, stride, normal::columnSampleCap(prm.k));
     q = pl.sampled_xyz.as<float>();
+    d_sidx = pl.sidx.as<unsigned int>();
   }
   im.timings = CudaKnnTimings();
   im.stats = CudaKnnQueryStats();
@@ -165,10 +173,11 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   std::uint8_t* d_voted = pl.voted.as<std::uint8_t>();
   pl.candidatesAndVote(im, q, m, gp, stride > 1 ? pl.sampled_voted.as<std::uint8_t>() : d_voted);
   if (stride > 1) {
-    launchSpreadVotes(pl.sampled_voted.as<std::uint8_t>(), m, n, stride, d_voted, im.stream);
+    launchSpreadVotes(pl.sampled_voted.as<std::uint8_t>(), pl.vflags.as<unsigned int>(),
+                      pl.vpos.as<unsigned int>(), m, n, d_voted, im.stream);
   }
   pl.planesAndLabels(im, n, n_in, bb, prm, gp);
-  if (gp.local_ground_min > 0) pl.localGround(im, n, m, stride, gp);
+  if (gp.local_ground_min > 0) pl.localGround(im, n, m, d_sidx, gp);
   GF_CUDA_CHECK(cudaEventRecord(pl.ev[6], im.stream));
   pl.downloadLabels(im, n_in, labels);
   tm.total_ms = msSince(t_start);
@@ -205,6 +214,7 @@ void CudaNormalPipeline::Impl::growBuffers(CudaKnn::Impl& im, std::size_t n_in) 
   im.grow(voted, n_in, "the votes");
   im.grow(sampled_xyz, 3 * n_in * sizeof(float), "the sampled points");
   im.grow(sampled_voted, n_in, "the votes");
+  im.grow(sidx, (n_in + 1) * u32, "the sampled points");
   im.grow(vflags, (n_in + 1) * u32, "the tile lists");
   im.grow(vpos, (n_in + 1) * u32, "the tile lists");
   im.grow(gflags, (n_in + 1) * u32, "the tile lists");
@@ -295,7 +305,28 @@ void CudaNormalPipeline::Impl::orderColumns(CudaKnn::Impl& im, int n, const XyBo
       cub::DeviceRadixSort::SortPairs(temp.ptr, tb, kb, vb, n, 0, std::max(1, 2 * col_bits), st));
   launchGatherColumns(raw_xyz.as<float>(), raw_src.as<unsigned int>(), vb.Current(), n,
                       xyz.as<float>(), src.as<unsigned int>(), st);
+  col_keys = kb.Current();
   GF_CUDA_CHECK(cudaEventRecord(ev[2], st));
+}
+
+// ---- the sampled points; the one sync before the KNN: m sizes its launch
+int CudaNormalPipeline::Impl::sample(CudaKnn::Impl& im, int n, int stride, int cap) {
+  cudaStream_t st = im.stream;
+  unsigned int* d_flags = vflags.as<unsigned int>();
+  unsigned int* d_pos = vpos.as<unsigned int>();
+  unsigned int* d_sidx = sidx.as<unsigned int>();
+  launchSampleFlags(col_keys, n, stride, cap, d_flags, st);
+  std::size_t tb = temp.bytes;
+  GF_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(temp.ptr, tb, d_flags, d_pos, n + 1, st));
+  launchSampleIndex(d_flags, d_pos, n, d_sidx, st);
+  char* hs = h_small.as<char>();
+  GF_CUDA_CHECK(
+      cudaMemcpyAsync(hs + 40, d_pos + n, sizeof(unsigned int), cudaMemcpyDeviceToHost, st));
+  GF_CUDA_CHECK(cudaStreamSynchronize(st));
+  unsigned int m = 0;
+  std::memcpy(&m, hs + 40, sizeof m);
+  launchSampleGather(xyz.as<float>(), d_sidx, static_cast<int>(m), sampled_xyz.as<float>(), st);
+  return static_cast<int>(m);
 }
 
 // ---- PCA + candidates, vote
@@ -371,11 +402,11 @@ void CudaNormalPipeline::Impl::planesAndLabels(CudaKnn::Impl& im, int n, std::si
 }
 
 // ---- local ground plane (CPU: LocalGroundStage), on the KNN's lists of the sampled points
-void CudaNormalPipeline::Impl::localGround(CudaKnn::Impl& im, int n, int m, int stride,
-                                           const GroundParamsDev& gp) {
+void CudaNormalPipeline::Impl::localGround(CudaKnn::Impl& im, int n, int m,
+                                           const unsigned int* d_sidx, const GroundParamsDev& gp) {
   // cand (the candidates, n bytes) is free after the vote: the sampled points' labels.
   launchLocalGround(xyz.as<float>(), src.as<unsigned int>(), im.sorted.as<float4>(),
-                    im.out_idx.as<std::int32_t>(), n, m, stride, gp, cand.as<std::uint8_t>(),
+                    im.out_idx.as<std::int32_t>(), n, m, d_sidx, gp, cand.as<std::uint8_t>(),
                     labels.as<std::uint8_t>(), groundCount(), im.stream);
 }
 

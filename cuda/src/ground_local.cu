@@ -10,13 +10,19 @@ namespace {
 
 constexpr int kThreads = kGroundThreads;
 
+/// Ordered index of sampled point j (CPU: LocalGroundStage::run's at()).
+__device__ inline int sampledAt(const unsigned int* sidx, int j) {
+  return sidx ? static_cast<int>(sidx[j]) : j;
+}
+
 /// CPU: the copy of the sampled points' labels that every decision reads.
 __global__ void sampledGroundKernel(const unsigned int* __restrict__ src,
                                     const std::uint8_t* __restrict__ labels, int n, int m,
-                                    int stride, std::uint8_t* __restrict__ sampled_ground) {
+                                    const unsigned int* __restrict__ sidx,
+                                    std::uint8_t* __restrict__ sampled_ground) {
   const int j = blockIdx.x * blockDim.x + threadIdx.x;
   if (j >= m) return;
-  sampled_ground[j] = labels[src[min(j * stride, n - 1)]];
+  sampled_ground[j] = labels[src[min(sampledAt(sidx, j), n - 1)]];
 }
 
 /// One thread per list (CPU: one iteration of LocalGroundStage::run's row loop, same sums in the
@@ -24,8 +30,8 @@ __global__ void sampledGroundKernel(const unsigned int* __restrict__ src,
 __global__ void localGroundKernel(const float* __restrict__ xyz,
                                   const unsigned int* __restrict__ src,
                                   const float4* __restrict__ pts,
-                                  const std::int32_t* __restrict__ rows, int n, int m, int stride,
-                                  const GroundParamsDev p,
+                                  const std::int32_t* __restrict__ rows, int n, int m,
+                                  const unsigned int* __restrict__ sidx, const GroundParamsDev p,
                                   const std::uint8_t* __restrict__ sampled_ground,
                                   std::uint8_t* labels, unsigned int* ground_count) {
   const int s = blockIdx.x * blockDim.x + threadIdx.x;
@@ -33,8 +39,8 @@ __global__ void localGroundKernel(const float* __restrict__ xyz,
   if (s < m) {
     const int o = __float_as_int(pts[s].w);
     const std::int32_t* row = rows + static_cast<std::size_t>(s) * p.k;
-    const int end = min(o * stride + stride, n);
-    for (int i = o * stride; i < end; ++i) {
+    const int end = min(sampledAt(sidx, o + 1), n);
+    for (int i = sampledAt(sidx, o); i < end; ++i) {
       const unsigned int out = src[i];
       if (labels[out]) continue;
       const float* q = xyz + 3 * static_cast<std::size_t>(i);
@@ -42,7 +48,7 @@ __global__ void localGroundKernel(const float* __restrict__ xyz,
       for (int e = 0; e < p.k && row[e] >= 0; ++e) {
         const int j = row[e];
         if (!sampled_ground[j]) continue;
-        const float* g = xyz + 3 * static_cast<std::size_t>(j) * stride;
+        const float* g = xyz + 3 * static_cast<std::size_t>(sampledAt(sidx, j));
         fit.add(static_cast<double>(g[0]) - static_cast<double>(q[0]),
                 static_cast<double>(g[1]) - static_cast<double>(q[1]),
                 static_cast<double>(g[2]) - static_cast<double>(q[2]));
@@ -61,15 +67,15 @@ __global__ void localGroundKernel(const float* __restrict__ xyz,
 }  // namespace
 
 void launchLocalGround(const float* xyz, const unsigned int* src, const float4* pts,
-                       const std::int32_t* rows, int n, int m, int stride, const GroundParamsDev& p,
-                       std::uint8_t* sampled_ground, std::uint8_t* labels,
+                       const std::int32_t* rows, int n, int m, const unsigned int* sidx,
+                       const GroundParamsDev& p, std::uint8_t* sampled_ground, std::uint8_t* labels,
                        unsigned int* ground_count, cudaStream_t st) {
   if (m <= 0) return;
-  sampledGroundKernel<<<blocksFor(m, kThreads), kThreads, 0, st>>>(src, labels, n, m, stride,
+  sampledGroundKernel<<<blocksFor(m, kThreads), kThreads, 0, st>>>(src, labels, n, m, sidx,
                                                                    sampled_ground);
   GF_CUDA_CHECK_LAUNCH();
   localGroundKernel<<<blocksFor(m, kThreads), kThreads, 0, st>>>(
-      xyz, src, pts, rows, n, m, stride, p, sampled_ground, labels, ground_count);
+      xyz, src, pts, rows, n, m, sidx, p, sampled_ground, labels, ground_count);
   GF_CUDA_CHECK_LAUNCH();
 }
 

@@ -4,6 +4,7 @@
 #include "cuda_util.cuh"
 #include "ground_vote.cuh"
 #include "knn_pca.cuh"
+#include "normal/cpu_gpu_common.h"
 
 namespace ground_filter {
 namespace cuda_impl {
@@ -63,35 +64,98 @@ __global__ void voteKernel(const float4* __restrict__ pts, const std::int32_t* _
   voted[o] = U * u > V * (m - u);
 }
 
-__global__ void sampleGatherKernel(const float* __restrict__ xyz, int m, int stride,
+__global__ void sampleFlagsKernel(const unsigned long long* __restrict__ keys, int n, int stride,
+                                  int cap, unsigned int* __restrict__ flags) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i > n) return;
+  if (i == n) {
+    flags[n] = 0;
+    return;
+  }
+  // The column [a, e) of point i: the run of its key among the sorted keys.
+  const unsigned long long key = keys[i];
+  int lo = 0, hi = i;
+  while (lo < hi) {
+    const int mid = (lo + hi) >> 1;
+    if (keys[mid] < key) {
+      lo = mid + 1;
+    } else {
+      hi = mid;
+    }
+  }
+  const int a = lo;
+  lo = i + 1;
+  hi = n;
+  while (lo < hi) {
+    const int mid = (lo + hi) >> 1;
+    if (keys[mid] <= key) {
+      lo = mid + 1;
+    } else {
+      hi = mid;
+    }
+  }
+  const std::size_t step =
+      normal::columnSampleStep(static_cast<std::size_t>(lo - a), static_cast<std::size_t>(stride),
+                               static_cast<std::size_t>(cap));
+  flags[i] = step == 0 ? (i % stride == 0) : (static_cast<std::size_t>(i - a) % step == 0);
+}
+
+__global__ void sampleIndexKernel(const unsigned int* __restrict__ flags,
+                                  const unsigned int* __restrict__ pos, int n,
+                                  unsigned int* __restrict__ sidx) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i > n) return;
+  if (i == n || flags[i]) sidx[pos[i]] = static_cast<unsigned int>(i);
+}
+
+__global__ void sampleGatherKernel(const float* __restrict__ xyz,
+                                   const unsigned int* __restrict__ sidx, int m,
                                    float* __restrict__ sampled) {
   const int j = blockIdx.x * blockDim.x + threadIdx.x;
   if (j >= m) return;
-  const std::size_t o = 3 * static_cast<std::size_t>(j) * stride;
+  const std::size_t o = 3 * static_cast<std::size_t>(sidx[j]);
   sampled[3 * j] = xyz[o];
   sampled[3 * j + 1] = xyz[o + 1];
   sampled[3 * j + 2] = xyz[o + 2];
 }
 
-__global__ void spreadVotesKernel(const std::uint8_t* __restrict__ sampled_voted, int m, int n,
-                                  int stride, std::uint8_t* __restrict__ voted) {
+__global__ void spreadVotesKernel(const std::uint8_t* __restrict__ sampled_voted,
+                                  const unsigned int* __restrict__ flags,
+                                  const unsigned int* __restrict__ pos, int m, int n,
+                                  std::uint8_t* __restrict__ voted) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i >= n) return;
-  const int j = i / stride;
-  voted[i] =
-      i % stride == 0 ? sampled_voted[j] : (sampled_voted[j] | sampled_voted[min(j + 1, m - 1)]);
+  // The sampled point at or before i (point 0 is always sampled).
+  const int j = static_cast<int>(pos[i] + flags[i]) - 1;
+  voted[i] = flags[i] ? sampled_voted[j] : (sampled_voted[j] | sampled_voted[min(j + 1, m - 1)]);
 }
 
 }  // namespace
 
-void launchSampleGather(const float* xyz, int m, int stride, float* sampled, cudaStream_t st) {
-  sampleGatherKernel<<<blocksFor(m, kThreads), kThreads, 0, st>>>(xyz, m, stride, sampled);
+void launchSampleFlags(const unsigned long long* keys, int n, int stride, int cap,
+                       unsigned int* flags, cudaStream_t st) {
+  sampleFlagsKernel<<<blocksFor(n + 1, kThreads), kThreads, 0, st>>>(keys, n, stride, cap, flags);
   GF_CUDA_CHECK_LAUNCH();
 }
 
-void launchSpreadVotes(const std::uint8_t* sampled_voted, int m, int n, int stride,
-                       std::uint8_t* voted, cudaStream_t st) {
-  spreadVotesKernel<<<blocksFor(n, kThreads), kThreads, 0, st>>>(sampled_voted, m, n, stride,
+void launchSampleIndex(const unsigned int* flags, const unsigned int* pos, int n,
+                       unsigned int* sidx, cudaStream_t st) {
+  sampleIndexKernel<<<blocksFor(n + 1, kThreads), kThreads, 0, st>>>(flags, pos, n, sidx);
+  GF_CUDA_CHECK_LAUNCH();
+}
+
+void launchSampleGather(const float* xyz, const unsigned int* sidx, int m, float* sampled,
+                        cudaStream_t st) {
+  if (m <= 0) return;
+  sampleGatherKernel<<<blocksFor(m, kThreads), kThreads, 0, st>>>(xyz, sidx, m, sampled);
+  GF_CUDA_CHECK_LAUNCH();
+}
+
+void launchSpreadVotes(const std::uint8_t* sampled_voted, const unsigned int* flags,
+                       const unsigned int* pos, int m, int n, std::uint8_t* voted,
+                       cudaStream_t st) {
+  if (n <= 0 || m <= 0) return;
+  spreadVotesKernel<<<blocksFor(n, kThreads), kThreads, 0, st>>>(sampled_voted, flags, pos, m, n,
                                                                  voted);
   GF_CUDA_CHECK_LAUNCH();
 }

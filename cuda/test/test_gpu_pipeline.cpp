@@ -1,6 +1,6 @@
 // GPU tests of the whole normal-vector filter on the device (CudaNormalPipeline behind
-// knn_backend gpu): labels against the kd-tree backend on KITTI / Ouster frames, 1 M and 5 M
-// points, bad input, device memory across 1,000 scans, out-of-memory fallback.
+// knn_backend gpu): labels against the kd-tree backend on KITTI / Ouster frames, dense columns,
+// 1 M and 5 M points, bad input, device memory across 1,000 scans, out-of-memory fallback.
 
 #include <cuda_runtime.h>
 #include <gtest/gtest.h>
@@ -126,6 +126,38 @@ TEST_F(GpuPipelineTest, FilterOptionsGiveTheKdTreeLabels) {
     EXPECT_LE(c.differ * 10000, xyz.size() / 3) << cs.what << ": " << c.differ << " differ";
     std::printf("[ FILTER   ] %s: %zu labels differ; ground GPU %zu, CPU %zu\n", cs.what, c.differ,
                 c.ground_gpu, c.ground_cpu);
+  }
+}
+
+TEST_F(GpuPipelineTest, DenseColumnsGiveTheKdTreeLabels) {
+  // A TLS station's ground near its tripod: 200,000 points on a 1 m disc in a KITTI frame, about
+  // 640 a 0.1 m column, far over sample_stride x columnSampleCap(k): every such column takes the
+  // capped sample (normal/sample.h), which the GPU computes from its sorted column keys.
+  auto xyz = frame("000000.bin");
+  ASSERT_FALSE(xyz.empty());
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  std::normal_distribution<float> noise(0.f, 0.01f);
+  for (int added = 0; added < 200000;) {
+    const float x = u(rng), y = u(rng);
+    if (x * x + y * y > 1.f) continue;
+    xyz.insert(xyz.end(), {x + 5.f, y, -1.73f + noise(rng)});
+    ++added;
+  }
+  for (const char* what : {"", "local_planes=false", "sample_stride=3 k=24", "k=64"}) {
+    gf::NormalGroundFilterParams p;
+    p.scan_type = "ground";  // the GPU pipeline, whatever scan_type auto makes of the disc
+    std::istringstream items(what);
+    for (std::string item; items >> item;) {
+      const std::size_t eq = item.find('=');
+      p.set(item.substr(0, eq), item.substr(eq + 1));
+    }
+    const Compared c = compare(xyz, p);
+    EXPECT_EQ(c.sg.backend, "gpu") << what << ": " << c.sg.note;
+    EXPECT_LE(c.differ * 10000, xyz.size() / 3) << what << ": " << c.differ << " differ";
+    EXPECT_GT(c.ground_cpu, 200000u) << what;  // the disc is ground
+    std::printf("[ FILTER   ] dense disc, '%s': %zu labels differ; ground GPU %zu, CPU %zu\n", what,
+                c.differ, c.ground_gpu, c.ground_cpu);
   }
 }
 

@@ -10,17 +10,17 @@ namespace ground_filter {
 namespace normal {
 
 std::size_t LocalGroundStage::run(const std::vector<float>& xyz, const std::int32_t* rows,
-                                  const std::uint32_t* points, std::size_t m, int k, int stride,
-                                  int min_ground, double max_below, double max_above,
-                                  double min_abs_nz, int threads,
+                                  const std::uint32_t* points, std::size_t m, int k,
+                                  const std::uint32_t* sampled, int min_ground, double max_below,
+                                  double max_above, double min_abs_nz, int threads,
                                   std::vector<std::uint8_t>* ground_io) {
   std::vector<std::uint8_t>& ground = *ground_io;
   const std::size_t n = ground.size();
-  const std::size_t s = static_cast<std::size_t>(std::max(1, stride));
   if (n == 0 || m == 0 || k <= 0 || rows == nullptr) return 0;
   // The sampled points' labels before this stage: every decision reads these only.
   sampled_ground_.resize(m);
-  for (std::size_t j = 0; j < m; ++j) sampled_ground_[j] = ground[std::min(j * s, n - 1)];
+  auto at = [sampled](std::size_t j) -> std::size_t { return sampled ? sampled[j] : j; };
+  for (std::size_t j = 0; j < m; ++j) sampled_ground_[j] = ground[std::min(at(j), n - 1)];
   std::size_t added = 0;
   const int nt = static_cast<int>(std::min<std::size_t>(threads, m / 2048 + 1));
 #pragma omp parallel for num_threads(nt) schedule(static, 2048) reduction(+ : added)
@@ -34,14 +34,14 @@ std::size_t LocalGroundStage::run(const std::vector<float>& xyz, const std::int3
     for (int e = 0; e < k && row[e] >= 0; ++e) count += sampled_ground_[row[e]];
     if (count < min_ground) continue;
     // The points that use this list: the sampled one and those after it up to the next.
-    for (std::size_t i = o * s; i < std::min(o * s + s, n); ++i) {
+    for (std::size_t i = at(o); i < std::min(at(o + 1), n); ++i) {
       if (ground[i]) continue;
       const float* q = &xyz[3 * i];
       LocalGroundFit fit;
       for (int e = 0; e < k && row[e] >= 0; ++e) {
         const std::size_t j = static_cast<std::size_t>(row[e]);
         if (!sampled_ground_[j]) continue;
-        const float* g = &xyz[3 * (j * s)];
+        const float* g = &xyz[3 * at(j)];
         fit.add(static_cast<double>(g[0]) - static_cast<double>(q[0]),
                 static_cast<double>(g[1]) - static_cast<double>(q[1]),
                 static_cast<double>(g[2]) - static_cast<double>(q[2]));

@@ -19,15 +19,16 @@ namespace normal {
 ///        on it, one over it can be an object's base: hence the narrower band above).
 class LocalGroundStage {
  public:
-  /// \brief `xyz`: the n = ground->size() ordered points, point j * stride being sampled point
-  ///        j; `rows`: `m` neighbour lists of `k` sampled-point indices (-1 = none), row r
-  ///        belonging to sampled point `points[r]` (r when `points` is null); `ground`: the
-  ///        plane stage's labels, updated.
+  /// \brief `xyz`: the n = ground->size() ordered points, point `sampled[j]` being sampled
+  ///        point j (`sampled`: m + 1 positions, the last n, SampleStage::sampledIndex(); null:
+  ///        every point sampled); `rows`: `m` neighbour lists of `k` sampled-point indices (-1 =
+  ///        none), row r belonging to sampled point `points[r]` (r when `points` is null);
+  ///        `ground`: the plane stage's labels, updated.
   /// \return the points relabelled ground.
   std::size_t run(const std::vector<float>& xyz, const std::int32_t* rows,
-                  const std::uint32_t* points, std::size_t m, int k, int stride, int min_ground,
-                  double max_below, double max_above, double min_abs_nz, int threads,
-                  std::vector<std::uint8_t>* ground);
+                  const std::uint32_t* points, std::size_t m, int k, const std::uint32_t* sampled,
+                  int min_ground, double max_below, double max_above, double min_abs_nz,
+                  int threads, std::vector<std::uint8_t>* ground);
 
  private:
   std::vector<std::uint8_t> sampled_ground_;

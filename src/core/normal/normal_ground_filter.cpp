@@ -10,6 +10,7 @@
 #include "airborne/scan_type.h"
 #include "common/threads_timing.h"
 #include "knn/knn_backend.h"
+#include "normal/cpu_gpu_common.h"
 #include "normal/filter_executor.h"
 #include "normal/local_ground.h"
 #include "normal/neighborhoods.h"
@@ -184,6 +185,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   // With sampling, the candidate flags and votes of the sampled points live in im.sample.
   if (stride <= 1) im.candidate.assign(n, 0);
   im.voted.assign(n, 0);
+  const normal::ColumnGrid grid = normal::columnGrid(ordered);  // a dense column is capped
   normal::StageTimes& times = im.times;
   times.clear();
   double vote_ms = 0.0;
@@ -195,7 +197,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     std::size_t m = len;
     if (stride > 1) {
       t0 = Clock::now();
-      m = im.sample.gather(pts, len, stride);
+      m = im.sample.gather(pts, len, stride, normal::columnSampleCap(p.k), grid);
       pts = im.sample.sampledXyz();
       cand = im.sample.candidates();
       vote = im.sample.votes();
@@ -209,7 +211,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
                              &im.lists, cand, &times);
     t0 = Clock::now();
     im.vote.run(im.search->listStore(), im.lists, cand, m, candidates, p.bayes_vote, threads, vote);
-    if (stride > 1) im.sample.spread(len, stride, im.voted.data() + b);
+    if (stride > 1) im.sample.spread(im.voted.data() + b);
     vote_ms += msSince(t0);
   }
   // The backend that really ran (a GPU search may fall back to the kd-tree for one scan).
@@ -234,9 +236,10 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     if (!(kept && kept->keptRows(&rows, &row_points)) && !im.lists.indices.empty()) {
       rows = im.lists.indices.data();
     }
-    im.local_ground.run(ordered.xyz, rows, row_points, im.lists.points, im.lists.k, stride,
-                        p.local_ground_min, p.local_ground_below, p.local_ground_above, min_abs_nz,
-                        threads, &im.ground);
+    im.local_ground.run(ordered.xyz, rows, row_points, im.lists.points, im.lists.k,
+                        stride > 1 ? im.sample.sampledIndex() : nullptr, p.local_ground_min,
+                        p.local_ground_below, p.local_ground_above, min_abs_nz, threads,
+                        &im.ground);
     st.stage_ms.emplace_back("local_ground", msSince(t0));
   }
 

@@ -71,6 +71,7 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
   if (n == 0) return 0;
   // Coarsen the ordering grid for very wide clouds so cell indices fit in 32 bits.
   const double cell = std::max(cell_size, out->extent.size() / 4.0e9);
+  out->cell = cell;
   keys_.resize(n);
   const int nt = static_cast<int>(std::min<std::size_t>(threads, n / 16384 + 1));
 #pragma omp parallel for num_threads(nt) schedule(static)

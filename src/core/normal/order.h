@@ -26,7 +26,19 @@ struct OrderedPoints {
   std::vector<std::uint32_t> source;                          ///< input index of each point
   std::vector<std::pair<std::size_t, std::size_t>> segments;  ///< [begin, end) in column order
   Extent extent;                                              ///< bounding box of the points
+  double cell = 0.0;  ///< the grid's cell [m]: cell_size, coarser for very wide clouds
 };
+
+/// \brief The x/y grid of the column order: a point's column is
+///        (cellIndex(x, min_x, inv_cell), cellIndex(y, min_y, inv_cell)).
+struct ColumnGrid {
+  double min_x = 0.0, min_y = 0.0, inv_cell = 1.0;
+};
+
+/// \brief The grid of `points`' column order (SampleStage caps a dense column's sample).
+inline ColumnGrid columnGrid(const OrderedPoints& points) {
+  return ColumnGrid{points.extent.min_x, points.extent.min_y, 1.0 / points.cell};
+}
 
 /// \brief Stage 1 ("sort"): the finite points compacted and ordered by x/y grid column (Morton
 ///        order of the cells), so neighbouring points are close in memory, then cut into
