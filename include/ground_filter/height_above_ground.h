@@ -58,7 +58,7 @@ struct SurfaceCell {
 /// the occupied cells within `radius`, each extrapolated to its centre (so a fill follows
 /// slopes); none within `radius`: no elevation. An occupied cell more than 0.25 m above the
 /// median of its occupied neighbours' planes (3 or more of the 8, extrapolated to its centre),
-/// or more than 0.40 m above the median of those within 2 cells (12 or more of the 24), is taken
+/// or more than 0.35 m above the median of those within 2 cells (12 or more of the 24), is taken
 /// for low vegetation or an object labelled ground: it is left out of cells() and filled like
 /// an empty cell (steps up to 0.25 m, kerbs, stay). The elevation below (x, y) is the
 /// bilinear interpolation of the elevations at the four cell centres around (x, y): continuous,
