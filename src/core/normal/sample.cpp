@@ -3,6 +3,7 @@
 #include "normal/sample.h"
 
 #include <algorithm>
+#include <utility>
 
 #include "normal/cpu_gpu_common.h"
 
@@ -19,11 +20,9 @@ std::size_t SampleStage::gather(const float* xyz, std::size_t len, int stride, i
       index_.push_back(static_cast<std::uint32_t>(i));
     }
   };
-  auto sameColumn = [&](std::size_t i, std::size_t j) {
-    return cellIndex(xyz[3 * i], grid.min_x, grid.inv_cell) ==
-               cellIndex(xyz[3 * j], grid.min_x, grid.inv_cell) &&
-           cellIndex(xyz[3 * i + 1], grid.min_y, grid.inv_cell) ==
-               cellIndex(xyz[3 * j + 1], grid.min_y, grid.inv_cell);
+  auto column = [&](std::size_t i) {
+    return std::make_pair(cellIndex(xyz[3 * i], grid.min_x, grid.inv_cell),
+                          cellIndex(xyz[3 * i + 1], grid.min_y, grid.inv_cell));
   };
   // A column of more than L = s * cap points holds two points h <= L / 2 apart at a multiple of
   // h: probing those finds every such column at a cost of 2 / h cell indices a point (vehicle
@@ -32,10 +31,12 @@ std::size_t SampleStage::gather(const float* xyz, std::size_t len, int stride, i
   const std::size_t big = s * cap, h = std::max<std::size_t>(1, big / 2);
   std::size_t done = 0;  // points before `done` are decided
   for (std::size_t t = 0; cap > 0 && t + h < len; t += h) {
-    if (t < done || !sameColumn(t, t + h)) continue;
+    if (t < done) continue;
+    const auto col = column(t);
+    if (column(t + h) != col) continue;
     std::size_t a = t, e = t + h + 1;
-    while (a > done && sameColumn(a - 1, t)) --a;
-    while (e < len && sameColumn(e, t)) ++e;
+    while (a > done && column(a - 1) == col) --a;
+    while (e < len && column(e) == col) ++e;
     const std::size_t step = columnSampleStep(e - a, s, cap);
     if (step == 0) continue;  // a column, but not over the cap
     strided(done, a);
