@@ -11,6 +11,7 @@
 #include <cstdint>
 
 #include "ground_filter/cuda_normal_pipeline.h"
+#include "normal/cpu_gpu_common.h"
 
 namespace ground_filter {
 namespace cuda_impl {
@@ -27,10 +28,9 @@ struct PlaneDev {
   int valid;
 };
 
-/// Planes of at most this many voted points have their least-squares sums added in the CPU's
-/// order (one thread, bit-identical); larger ones (big tiles, the cloud-wide plane) use
-/// fixed-order parallel sums (deterministic; may differ from the CPU's sums in the last bits).
-constexpr unsigned int kSerialRefineMax = 4096;
+/// A cloud-wide plane of more voted points is refined by grid-wide kernels; tile planes and
+/// smaller cloud-wide planes by their block. Both sum in the CPU's order (fitPlaneRansac).
+constexpr unsigned int kBlockRefineMax = static_cast<unsigned int>(normal::kPlaneLaneSumMax);
 
 /// Threads per block of the filter's kernels (the RANSAC planes use their own count).
 constexpr int kGroundThreads = 256;

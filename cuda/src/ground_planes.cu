@@ -12,10 +12,10 @@ namespace cuda_impl {
 namespace {
 
 constexpr int kThreads = kGroundThreads;
-constexpr int kPlaneThreads = 128;
-constexpr int kChunk = 256;               // points staged per step of a serial least-squares sum
+constexpr int kPlaneThreads = normal::kPlaneSumLanes;  // one thread per lane of the plane sums
 constexpr int kPlaneNeedsRefinement = 2;  // PlaneDev::valid of a hypothesis awaiting refinement
-constexpr int kRefineBlocks = 264;        // blocks of the grid-wide refinement
+constexpr int kRefineBlocks = normal::kGridSumBlocks;  // blocks of the grid-wide refinement
+static_assert(kThreads == normal::kGridSumThreads, "the grid-wide sums' order (cpu_gpu_common.h)");
 
 using normal::kMinTilePoints;
 using normal::SplitMix64;
@@ -31,36 +31,16 @@ __device__ inline void offsetOf(const float* __restrict__ xyz, unsigned int i, c
 }
 
 /// Sums W values per point over the points i in [0, m) for which term(i, v) (it writes the W
-/// values to v) returns true; the sums reach thread 0 (acc) and the count is returned there.
-/// serial: the CPU's order, kChunk points staged at a time and thread 0 adding in index order;
-/// else a fixed-order parallel sum (each thread ascending, then thread 0 over the threads).
-/// `stage` holds (W + 1) * max(kChunk, blockDim.x) doubles.
+/// values to v) returns true; the sums reach thread 0 (acc) and the count is returned there. The
+/// CPU's order (fitPlaneRansac): thread t adds the points t, t + kPlaneSumLanes, ... ascending,
+/// then thread 0 adds the threads' sums in thread order. `stage` holds (W + 1) * blockDim.x
+/// doubles; blockDim.x == kPlaneSumLanes.
 template <int W, typename Term>
-__device__ inline unsigned long long blockInlierSum(unsigned int m, bool serial, double* stage,
-                                                    double acc[W], Term term) {
+__device__ inline unsigned long long blockInlierSum(unsigned int m, double* stage, double acc[W],
+                                                    Term term) {
   const unsigned int tid = threadIdx.x, bd = blockDim.x;
   for (int w = 0; w < W; ++w) acc[w] = 0.0;
   unsigned long long count = 0;
-  if (serial) {
-    for (unsigned int base = 0; base < m; base += kChunk) {
-      const unsigned int cnt = min(static_cast<unsigned int>(kChunk), m - base);
-      __syncthreads();
-      for (unsigned int t = tid; t < cnt; t += bd) {
-        double* s = stage + (W + 1) * t;
-        s[W] = term(base + t, s) ? 1.0 : 0.0;
-      }
-      __syncthreads();
-      if (tid == 0) {
-        for (unsigned int t = 0; t < cnt; ++t) {
-          const double* s = stage + (W + 1) * t;
-          if (s[W] == 0.0) continue;
-          for (int w = 0; w < W; ++w) acc[w] += s[w];
-          ++count;
-        }
-      }
-    }
-    return count;
-  }
   for (unsigned int t = tid; t < m; t += bd) {
     double v[W];
     if (!term(t, v)) continue;
@@ -109,57 +89,87 @@ __device__ inline unsigned int stageEvalPoints(const float* __restrict__ xyz,
   return ne;
 }
 
-/// The RANSAC draws (uniform over the block): planes through 3 of the m points, relative to the
-/// origin `o`, scored on the ne staged eval points (CPU: the loop of fitPlaneRansac).
+/// Warps of a plane block: each scores one RANSAC draw at a time.
+constexpr int kPlaneWarps = kPlaneThreads / 32;
+
+/// The RANSAC draws (CPU: the loop of fitPlaneRansac): planes through 3 of the m points,
+/// relative to the origin `o`, scored on the ne staged eval points. Warp w scores draw it0 + w;
+/// the block then takes the scores in draw order with the CPU's adaptive stop, so the result is
+/// the CPU's (the draws of a batch past the stop are discarded). `batch` holds kPlaneWarps.
 __device__ inline Hypothesis ransacHypotheses(const float* __restrict__ xyz,
                                               const unsigned int* __restrict__ idx, unsigned int m,
                                               unsigned int ne, const GroundParamsDev& p,
                                               std::uint64_t seed, const double o[3],
-                                              const float* evp, unsigned int* red) {
-  const int tid = threadIdx.x, bd = blockDim.x;
+                                              const float* evp, Hypothesis* batch) {
+  const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
   const double thr = p.plane_distance, tilt = p.min_abs_nz;
-  SplitMix64 rng(seed);
+  const int iterations = p.ransac_iterations;
   Hypothesis best;
   best.count = 0;
   best.n[0] = 0.0;
   best.n[1] = 0.0;
   best.n[2] = 1.0;
   best.d = 0.0;
-  double needed = p.ransac_iterations;
-  for (int it = 0; it < p.ransac_iterations && it < needed; ++it) {  // uniform over the block
-    const std::uint64_t a = rng.next() % m, b = rng.next() % m, c = rng.next() % m;
-    if (a == b || a == c || b == c) continue;
-    double pa[3], pb[3], pc[3];
-    offsetOf(xyz, idx[a], o, pa);
-    offsetOf(xyz, idx[b], o, pb);
-    offsetOf(xyz, idx[c], o, pc);
-    const double u[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};
-    const double v[3] = {pc[0] - pa[0], pc[1] - pa[1], pc[2] - pa[2]};
-    double nrm[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
-                     u[0] * v[1] - u[1] * v[0]};
-    const double len = sqrt((nrm[0] * nrm[0] + nrm[1] * nrm[1]) + nrm[2] * nrm[2]);
-    if (!(len > 1e-9)) continue;  // collinear or duplicate sample
-    nrm[0] /= len;
-    nrm[1] /= len;
-    nrm[2] /= len;
-    if (fabs(nrm[2]) < tilt) continue;
-    const double d = -dot3(nrm, pa);
-    unsigned int local = 0;
-    for (unsigned int e = tid; e < ne; e += bd) {
-      const double q[3] = {evp[3 * e] - o[0], evp[3 * e + 1] - o[1], evp[3 * e + 2] - o[2]};
-      local += fabs(dot3(nrm, q) + d) <= thr;
+  double needed = iterations;
+  for (int it0 = 0; it0 < iterations && it0 < needed; it0 += kPlaneWarps) {
+    const int it = it0 + warp;
+    Hypothesis h;
+    h.count = 0;  // a draw that gives no plane scores 0: the CPU skips it
+    if (it < iterations) {
+      // The draws of iteration `it` are the generator's 3 it-th to (3 it + 2)-th.
+      SplitMix64 rng(seed);
+      rng.skip(3ull * static_cast<std::uint64_t>(it));
+      const std::uint64_t a = rng.next() % m, b = rng.next() % m, c = rng.next() % m;
+      if (a != b && a != c && b != c) {
+        double pa[3], pb[3], pc[3];
+        offsetOf(xyz, idx[a], o, pa);
+        offsetOf(xyz, idx[b], o, pb);
+        offsetOf(xyz, idx[c], o, pc);
+        const double u[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};
+        const double v[3] = {pc[0] - pa[0], pc[1] - pa[1], pc[2] - pa[2]};
+        double nrm[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                         u[0] * v[1] - u[1] * v[0]};
+        const double len = sqrt((nrm[0] * nrm[0] + nrm[1] * nrm[1]) + nrm[2] * nrm[2]);
+        if (len > 1e-9) {  // else collinear or duplicate sample
+          nrm[0] /= len;
+          nrm[1] /= len;
+          nrm[2] /= len;
+          if (fabs(nrm[2]) >= tilt) {
+            const double d = -dot3(nrm, pa);
+            unsigned int local = 0;
+            for (unsigned int e = lane; e < ne; e += 32) {
+              const double q[3] = {evp[3 * e] - o[0], evp[3 * e + 1] - o[1], evp[3 * e + 2] - o[2]};
+              local += fabs(dot3(nrm, q) + d) <= thr;
+            }
+            for (int off = 16; off > 0; off >>= 1)
+              local += __shfl_xor_sync(0xffffffffu, local, off);
+            h.count = local;
+            h.n[0] = nrm[0];
+            h.n[1] = nrm[1];
+            h.n[2] = nrm[2];
+            h.d = d;
+          }
+        }
+      }
     }
-    const unsigned int count = blockSum(local, red);
-    if (count > best.count) {
-      best.count = count;
-      best.n[0] = nrm[0];
-      best.n[1] = nrm[1];
-      best.n[2] = nrm[2];
-      best.d = d;
-      const double w = static_cast<double>(count) / static_cast<double>(ne);
-      const double fail = 1.0 - w * w * w;
-      needed = fail <= 0.0 ? 0.0 : ceil(log(0.01) / log(fail));
+    __syncthreads();  // the previous batch is read
+    if (lane == 0) batch[warp] = h;
+    __syncthreads();
+    bool stop = false;
+    for (int w = 0; w < kPlaneWarps; ++w) {  // in draw order, as the CPU's loop
+      if (!(it0 + w < iterations && it0 + w < needed)) {
+        stop = true;
+        break;
+      }
+      const Hypothesis& c = batch[w];
+      if (c.count > best.count) {
+        best = c;
+        const double wr = static_cast<double>(c.count) / static_cast<double>(ne);
+        const double fail = 1.0 - wr * wr * wr;
+        needed = fail <= 0.0 ? 0.0 : ceil(log(0.01) / log(fail));
+      }
     }
+    if (stop) break;
   }
   return best;
 }
@@ -175,14 +185,13 @@ __device__ inline void refinePlane(const float* __restrict__ xyz,
   const double thr = p.plane_distance, tilt = p.min_abs_nz;
   const double* best_n = h.n;
   const double best_d = h.d;
-  const bool serial = m <= kSerialRefineMax;
   const auto inlier = [&](unsigned int i, double q[3]) {
     offsetOf(xyz, idx[i], best.o, q);
     return fabs(dot3(best_n, q) + best_d) <= thr;
   };
   double mean[3];
-  const unsigned long long inliers = blockInlierSum<3>(
-      m, serial, stage, mean, [&](unsigned int i, double* v) { return inlier(i, v); });
+  const unsigned long long inliers =
+      blockInlierSum<3>(m, stage, mean, [&](unsigned int i, double* v) { return inlier(i, v); });
   best.n[0] = best_n[0];
   best.n[1] = best_n[1];
   best.n[2] = best_n[2];
@@ -205,7 +214,7 @@ __device__ inline void refinePlane(const float* __restrict__ xyz,
   }
   const double mu[3] = {shd[1], shd[2], shd[3]};
   double cov[6];  // xx xy xz yy yz zz
-  blockInlierSum<6>(m, serial, stage, cov, [&](unsigned int i, double* v) {
+  blockInlierSum<6>(m, stage, cov, [&](unsigned int i, double* v) {
     double q[3];
     const bool in = inlier(i, q);
     const double r[3] = {q[0] - mu[0], q[1] - mu[1], q[2] - mu[2]};
@@ -240,7 +249,7 @@ __device__ inline void refinePlane(const float* __restrict__ xyz,
 /// CPU: fitPlaneRansac, one block per plane; the result is valid in thread 0.
 __device__ void fitPlaneBlock(const float* __restrict__ xyz, const unsigned int* __restrict__ idx,
                               unsigned int m, const GroundParamsDev& p, std::uint64_t seed,
-                              bool hypotheses_only, float* evp, double* stage, unsigned int* red,
+                              bool hypotheses_only, float* evp, double* stage, Hypothesis* batch,
                               double* shd, PlaneDev* out) {
   const int tid = threadIdx.x;
   PlaneDev best;
@@ -259,7 +268,7 @@ __device__ void fitPlaneBlock(const float* __restrict__ xyz, const unsigned int*
   }
   // Score on an evenly strided subset (CPU: eval).
   const unsigned int ne = stageEvalPoints(xyz, idx, m, evp);
-  const Hypothesis h = ransacHypotheses(xyz, idx, m, ne, p, seed, best.o, evp, red);
+  const Hypothesis h = ransacHypotheses(xyz, idx, m, ne, p, seed, best.o, evp, batch);
   if (h.count < 3) {
     if (tid == 0) *out = best;
     return;
@@ -284,8 +293,8 @@ __global__ void __launch_bounds__(kPlaneThreads)
                  const unsigned int* need_global_dev, const GroundParamsDev p, PlaneDev* planes,
                  unsigned int* work) {
   __shared__ float evp[3 * kEvalMax];
-  __shared__ double stage[7 * kChunk];
-  __shared__ unsigned int red[32];
+  __shared__ double stage[7 * kPlaneThreads];
+  __shared__ Hypothesis batch[kPlaneWarps];
   __shared__ double shd[4];
   __shared__ unsigned int item_s;
   const unsigned int ntiles = *ntiles_dev;
@@ -301,7 +310,7 @@ __global__ void __launch_bounds__(kPlaneThreads)
     if (item == 0) {
       if (need_global) {
         const unsigned int m = *gcount;
-        fitPlaneBlock(xyz, glist, m, p, base_seed, m > kSerialRefineMax, evp, stage, red, shd,
+        fitPlaneBlock(xyz, glist, m, p, base_seed, m > kBlockRefineMax, evp, stage, batch, shd,
                       &plane);
       } else {
         plane.valid = 0;
@@ -311,7 +320,7 @@ __global__ void __launch_bounds__(kPlaneThreads)
       const unsigned int m = vpos[e] - vpos[b];
       if (p.local_planes && m >= kMinTilePoints) {
         const std::uint64_t seed = base_seed ^ (keys[b] * 0x9e3779b97f4a7c15ULL);
-        fitPlaneBlock(xyz, vlist + vpos[b], m, p, seed, false, evp, stage, red, shd, &plane);
+        fitPlaneBlock(xyz, vlist + vpos[b], m, p, seed, false, evp, stage, batch, shd, &plane);
       } else {
         plane.valid = 0;
       }
@@ -355,6 +364,7 @@ __global__ void __launch_bounds__(kThreads)
                        const unsigned int* __restrict__ glist, const unsigned int* gcount,
                        const GroundParamsDev p, PlaneDev* planes, double* partial) {
   __shared__ double sh[kThreads * 6];
+  __shared__ double part[10 * kRefineBlocks];  // the partials, staged: the serial sums read them
   const PlaneDev pl = planes[0];
   if (pl.valid != kPlaneNeedsRefinement) return;
   const unsigned int m = *gcount;
@@ -363,11 +373,14 @@ __global__ void __launch_bounds__(kThreads)
   double mu[3] = {0.0, 0.0, 0.0};
   double inliers = 0.0;
   if (pass >= 1) {  // the mean, from the pass-0 partials in block order
+    const int staged = (pass == 2 ? 10 : 4) * kRefineBlocks;
+    for (int i = threadIdx.x; i < staged; i += blockDim.x) part[i] = partial[i];
+    __syncthreads();
     for (int b = 0; b < kRefineBlocks; ++b) {
-      mu[0] += partial[4 * b];
-      mu[1] += partial[4 * b + 1];
-      mu[2] += partial[4 * b + 2];
-      inliers += partial[4 * b + 3];
+      mu[0] += part[4 * b];
+      mu[1] += part[4 * b + 1];
+      mu[2] += part[4 * b + 2];
+      inliers += part[4 * b + 3];
     }
     if (inliers >= 3.0) {
       mu[0] /= inliers;
@@ -381,9 +394,9 @@ __global__ void __launch_bounds__(kThreads)
     out.valid = 1;
     if (inliers >= 3.0) {
       double cov[6] = {0, 0, 0, 0, 0, 0};
-      const double* part = partial + 4 * kRefineBlocks;
+      const double* cov_part = part + 4 * kRefineBlocks;
       for (int b = 0; b < kRefineBlocks; ++b) {
-        for (int c = 0; c < 6; ++c) cov[c] += part[6 * b + c];
+        for (int c = 0; c < 6; ++c) cov[c] += cov_part[6 * b + c];
       }
       const double a[3][3] = {
           {cov[0], cov[1], cov[2]}, {cov[1], cov[3], cov[4]}, {cov[2], cov[4], cov[5]}};

@@ -62,15 +62,19 @@ GF_HOST_DEVICE inline std::size_t columnSampleStep(std::size_t count, std::size_
 /// \brief Small deterministic generator (splitmix64): the same sequence on every platform,
 ///        library and device, so RANSAC draws the same samples on the CPU and the GPU.
 struct SplitMix64 {
+  static constexpr std::uint64_t kStep = 0x9e3779b97f4a7c15ULL;
   std::uint64_t state;
   GF_HOST_DEVICE explicit SplitMix64(std::uint64_t seed) : state(seed) {}
   GF_HOST_DEVICE std::uint64_t next() {
-    std::uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
+    std::uint64_t z = (state += kStep);
     z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
     z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
     return z ^ (z >> 31);
   }
   GF_HOST_DEVICE std::size_t below(std::size_t n) { return static_cast<std::size_t>(next() % n); }
+  /// \brief Skips `draws` values (as many next() calls): the GPU scores several RANSAC draws at
+  ///        once, each from its own place in the sequence.
+  GF_HOST_DEVICE void skip(std::uint64_t draws) { state += draws * kStep; }
 };
 
 constexpr std::uint64_t kRansacSeed = 0x67f1a3c5d2b9e481ULL;  // fixed: reproducible output
@@ -80,6 +84,16 @@ constexpr std::uint64_t kRansacSeed = 0x67f1a3c5d2b9e481ULL;  // fixed: reproduc
 GF_HOST_DEVICE inline std::uint64_t ransacBaseSeed(std::uint32_t user_seed) {
   return kRansacSeed ^ (static_cast<std::uint64_t>(user_seed) * 0xd1b54a32d192ed03ULL);
 }
+/// Lanes of a RANSAC plane's least-squares sums: point j of the plane's list adds into lane
+/// j mod kPlaneSumLanes, the lanes are added in order at the end. The GPU sums with one thread
+/// per lane (its plane blocks have this many threads), so the CPU and the GPU round alike.
+constexpr int kPlaneSumLanes = 128;
+/// A cloud-wide plane of more points than this sums in the grid order instead, which the GPU
+/// spreads over the whole device: kGridSumBlocks contiguous blocks of the list, in each
+/// kGridSumThreads interleaved lanes added by a halving tree, then the blocks in order.
+constexpr std::size_t kPlaneLaneSumMax = 4096;
+constexpr int kGridSumBlocks = 264;
+constexpr int kGridSumThreads = 256;
 constexpr unsigned int kRansacEvalPoints = 2048;  // hypotheses are scored on at most this many
 // Fewer voted points: the tile uses the cloud-wide plane. 3 (the fewest a plane needs): even a
 // few voted points of a far tile follow its ground better than the cloud-wide plane, which the
