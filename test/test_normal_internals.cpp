@@ -119,16 +119,16 @@ TEST(NormalPlaneFit, SkippedDrawsAreTheSequencesLaterDraws) {
   }
 }
 
-TEST(NormalPlaneFit, LaneAndGridSumsGiveTheLeastSquaresPlane) {
-  // Points on z = 0.05 x - 0.02 y + 1 (1 cm noise) and 20 % above it: the refined plane must be
-  // the true one whichever order sums it (lanes below kPlaneLaneSumMax points, else the grid
-  // order for a cloud-wide plane), at list sizes around both thresholds.
+TEST(NormalPlaneFit, LaneSumsGiveTheLeastSquaresPlane) {
+  // Points on z = 0.05 x - 0.02 y + 1 (1 cm noise) and 20 % above it: the refit, summed in
+  // kPlaneSumLanes lanes, must give the true plane with fewer points than lanes, a few more, and
+  // many per lane.
   std::mt19937 rng(3);
   std::uniform_real_distribution<float> u(-20.f, 20.f), up(0.5f, 2.f);
   std::normal_distribution<float> noise(0.f, 0.01f);
   const Eigen::Vector3d truth = Eigen::Vector3d(-0.05, 0.02, 1.0).normalized();
-  for (std::size_t m : {std::size_t(60), std::size_t(128), std::size_t(129), std::size_t(4096),
-                        std::size_t(4097), std::size_t(100000)}) {
+  for (std::size_t m : {std::size_t(60), std::size_t(128), std::size_t(129), std::size_t(4097),
+                        std::size_t(100000)}) {
     std::vector<float> xyz;
     std::vector<std::uint32_t> idx;
     for (std::size_t i = 0; i < m; ++i) {
@@ -138,26 +138,17 @@ TEST(NormalPlaneFit, LaneAndGridSumsGiveTheLeastSquaresPlane) {
       idx.push_back(static_cast<std::uint32_t>(i));
     }
     std::vector<std::uint32_t> scratch;
-    gf::Plane lanes, cloud_wide;
-    ASSERT_TRUE(
-        gf::normal::fitPlaneRansac(xyz.data(), idx, 100, 0.05, 0.7, 11, false, &scratch, &lanes));
-    ASSERT_TRUE(gf::normal::fitPlaneRansac(xyz.data(), idx, 100, 0.05, 0.7, 11, true, &scratch,
-                                           &cloud_wide));
-    for (const gf::Plane* pl : {&lanes, &cloud_wide}) {
-      EXPECT_GT(std::abs(pl->normal.dot(truth)), 1.0 - 1e-4) << m;
-      double worst = 0.0;  // the inliers' distances: centred on the plane, within the noise
-      for (std::size_t i = 0; i < m; i += 5) {
-        worst = std::max(worst, std::abs(pl->distance(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2])));
-      }
-      EXPECT_LT(worst, 0.05) << m;
+    gf::Plane pl;
+    ASSERT_TRUE(gf::normal::fitPlaneRansac(xyz.data(), idx, 100, 0.05, 0.7, 11, &scratch, &pl));
+    EXPECT_GT(std::abs(pl.normal.dot(truth)), 1.0 - 1e-4) << m;
+    double worst = 0.0, mean = 0.0;  // the inliers' distances: centred on the plane, small
+    for (std::size_t i = 0; i < m; i += 5) {
+      const double d = pl.distance(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+      worst = std::max(worst, std::abs(d));
+      mean += d;
     }
-    if (m <= gf::normal::kPlaneLaneSumMax) {  // the same order: the same bits
-      EXPECT_EQ(lanes.normal, cloud_wide.normal) << m;
-      EXPECT_EQ(lanes.d, cloud_wide.d) << m;
-    } else {  // another order: the last bits only
-      EXPECT_LT((lanes.normal - cloud_wide.normal).norm(), 1e-9) << m;
-      EXPECT_NEAR(lanes.d, cloud_wide.d, 1e-9) << m;
-    }
+    EXPECT_LT(worst, 0.05) << m;
+    EXPECT_LT(std::abs(mean / static_cast<double>((m + 4) / 5)), 0.005) << m;
   }
 }
 

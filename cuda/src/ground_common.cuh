@@ -28,9 +28,10 @@ struct PlaneDev {
   int valid;
 };
 
-/// A cloud-wide plane of more voted points is refined by grid-wide kernels; tile planes and
-/// smaller cloud-wide planes by their block. Both sum in the CPU's order (fitPlaneRansac).
-constexpr unsigned int kBlockRefineMax = static_cast<unsigned int>(normal::kPlaneLaneSumMax);
+/// A cloud-wide plane of more voted points is refined by grid-wide kernels (fixed-order sums:
+/// deterministic, may differ from the CPU's lane sums in the last bits); tile planes and smaller
+/// cloud-wide planes by their block, in the CPU's order (normal::kPlaneSumLanes).
+constexpr unsigned int kBlockRefineMax = 4096;
 
 /// Threads per block of the filter's kernels (the RANSAC planes use their own count).
 constexpr int kGroundThreads = 256;

@@ -14,8 +14,7 @@ namespace {
 constexpr int kThreads = kGroundThreads;
 constexpr int kPlaneThreads = normal::kPlaneSumLanes;  // one thread per lane of the plane sums
 constexpr int kPlaneNeedsRefinement = 2;  // PlaneDev::valid of a hypothesis awaiting refinement
-constexpr int kRefineBlocks = normal::kGridSumBlocks;  // blocks of the grid-wide refinement
-static_assert(kThreads == normal::kGridSumThreads, "the grid-wide sums' order (cpu_gpu_common.h)");
+constexpr int kRefineBlocks = 264;        // blocks of the grid-wide refinement
 
 using normal::kMinTilePoints;
 using normal::SplitMix64;

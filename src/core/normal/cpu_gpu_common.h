@@ -88,12 +88,6 @@ GF_HOST_DEVICE inline std::uint64_t ransacBaseSeed(std::uint32_t user_seed) {
 /// j mod kPlaneSumLanes, the lanes are added in order at the end. The GPU sums with one thread
 /// per lane (its plane blocks have this many threads), so the CPU and the GPU round alike.
 constexpr int kPlaneSumLanes = 128;
-/// A cloud-wide plane of more points than this sums in the grid order instead, which the GPU
-/// spreads over the whole device: kGridSumBlocks contiguous blocks of the list, in each
-/// kGridSumThreads interleaved lanes added by a halving tree, then the blocks in order.
-constexpr std::size_t kPlaneLaneSumMax = 4096;
-constexpr int kGridSumBlocks = 264;
-constexpr int kGridSumThreads = 256;
 constexpr unsigned int kRansacEvalPoints = 2048;  // hypotheses are scored on at most this many
 // Fewer voted points: the tile uses the cloud-wide plane. 3 (the fewest a plane needs): even a
 // few voted points of a far tile follow its ground better than the cloud-wide plane, which the

@@ -20,46 +20,24 @@ namespace {
 double distanceOf(const Plane& plane, const float* p) { return plane.distance(p[0], p[1], p[2]); }
 
 /// Sums the W values term(j, v) writes for the list positions j in [0, m) where it returns true,
-/// in the GPU's order (ground_planes.cu): kPlaneSumLanes lanes, or with `grid` the grid order
-/// (kPlaneLaneSumMax); returns how many were added. Sums start at +0.0 and so never become
-/// -0.0: the lanes and tree slots that hold no point add nothing.
+/// in the GPU's order (ground_planes.cu): kPlaneSumLanes interleaved lanes, then the lanes in
+/// order; returns how many were added. A lane starts at +0.0 and so never becomes -0.0: the
+/// GPU's lanes that hold no point add nothing.
 template <int W, class Term>
-std::size_t sumInliers(std::size_t m, bool grid, Term term, double out[W]) {
+std::size_t sumInliers(std::size_t m, Term term, double out[W]) {
   std::fill_n(out, W, 0.0);
   std::size_t count = 0;
-  if (!grid) {
-    const std::size_t lanes = std::min<std::size_t>(m, kPlaneSumLanes);
-    double lane[kPlaneSumLanes][W];
-    for (std::size_t l = 0; l < lanes; ++l) std::fill_n(lane[l], W, 0.0);
-    for (std::size_t j = 0; j < m; ++j) {
-      double v[W];
-      if (!term(j, v)) continue;
-      for (int w = 0; w < W; ++w) lane[j % kPlaneSumLanes][w] += v[w];
-      ++count;
-    }
-    for (std::size_t l = 0; l < lanes; ++l) {
-      for (int w = 0; w < W; ++w) out[w] += lane[l][w];
-    }
-    return count;
+  const std::size_t lanes = std::min<std::size_t>(m, kPlaneSumLanes);
+  double lane[kPlaneSumLanes][W];
+  for (std::size_t l = 0; l < lanes; ++l) std::fill_n(lane[l], W, 0.0);
+  for (std::size_t j = 0; j < m; ++j) {
+    double v[W];
+    if (!term(j, v)) continue;
+    for (int w = 0; w < W; ++w) lane[j % kPlaneSumLanes][w] += v[w];
+    ++count;
   }
-  const std::size_t per = (m + kGridSumBlocks - 1) / kGridSumBlocks;
-  double slot[kGridSumThreads * W];
-  for (std::size_t b0 = 0; b0 < m; b0 += per) {  // blocks past the list add nothing
-    std::fill_n(slot, kGridSumThreads * W, 0.0);
-    const std::size_t b1 = std::min(m, b0 + per);
-    for (std::size_t j = b0; j < b1; ++j) {
-      double v[W];
-      if (!term(j, v)) continue;
-      double* s = &slot[((j - b0) % kGridSumThreads) * W];
-      for (int w = 0; w < W; ++w) s[w] += v[w];
-      ++count;
-    }
-    for (int half = kGridSumThreads / 2; half > 0; half >>= 1) {
-      for (int t = 0; t < half; ++t) {
-        for (int w = 0; w < W; ++w) slot[t * W + w] += slot[(t + half) * W + w];
-      }
-    }
-    for (int w = 0; w < W; ++w) out[w] += slot[w];
+  for (std::size_t l = 0; l < lanes; ++l) {
+    for (int w = 0; w < W; ++w) out[w] += lane[l][w];
   }
   return count;
 }
@@ -67,7 +45,7 @@ std::size_t sumInliers(std::size_t m, bool grid, Term term, double out[W]) {
 }  // namespace
 
 bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int iterations,
-                    double threshold, double max_tilt_cos, std::uint64_t seed, bool cloud_wide,
+                    double threshold, double max_tilt_cos, std::uint64_t seed,
                     std::vector<std::uint32_t>* eval_scratch, Plane* plane) {
   Plane best;
   const std::size_t m = idx.size();
@@ -117,10 +95,9 @@ bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int
 
   // Least-squares refinement on all inliers (centred covariance, smallest eigenvector), summed in
   // the GPU's order (sumInliers()), so both round alike.
-  const bool grid = cloud_wide && m > kPlaneLaneSumMax;
   double mean_sum[3];
   const std::size_t inliers = sumInliers<3>(
-      m, grid,
+      m,
       [&](std::size_t j, double* v) {
         const Eigen::Vector3d p = point(idx[j]);
         v[0] = p.x();
@@ -137,7 +114,7 @@ bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int
       Eigen::Vector3d(mean_sum[0], mean_sum[1], mean_sum[2]) / static_cast<double>(inliers);
   double c[6];  // xx xy xz yy yz zz
   sumInliers<6>(
-      m, grid,
+      m,
       [&](std::size_t j, double* v) {
         const Eigen::Vector3d p = point(idx[j]);
         const Eigen::Vector3d q = p - mean;
@@ -221,7 +198,7 @@ bool PlaneStage::fitGlobalPlane(const std::vector<float>& xyz,
     if (voted[i]) all_voted.push_back(static_cast<std::uint32_t>(i));
   }
   return fitPlaneRansac(xyz.data(), all_voted, p.ransac_iterations, p.plane_distance, min_abs_nz,
-                        base_seed, true, &thread_eval_[0], global);
+                        base_seed, &thread_eval_[0], global);
 }
 
 void PlaneStage::lowerToFloor(const std::vector<float>& xyz, std::size_t tb, std::size_t te,
@@ -303,7 +280,7 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
       const std::uint64_t seed = base_seed ^ (sorted[tb] * 0x9e3779b97f4a7c15ULL);
       Plane fit;
       if (fitPlaneRansac(xyz.data(), tv, p.ransac_iterations, p.plane_distance, min_abs_nz, seed,
-                         false, &thread_eval_[tid], &fit)) {
+                         &thread_eval_[tid], &fit)) {
         plane = fit;
         valid = true;
       }

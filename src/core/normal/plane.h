@@ -15,12 +15,11 @@ namespace normal {
 
 /// \brief RANSAC plane through the points `idx` of packed `xyz`, its normal within
 ///        `max_tilt_cos` of vertical (|n_z| >= max_tilt_cos), refined by least squares on its
-///        inliers; scored on at most 2048 evenly strided points; `seed` fixes the samples.
-///        `cloud_wide`: the cloud-wide plane, whose sums take the grid order when it is large
-///        (cpu_gpu_common.h, kPlaneLaneSumMax), as on the GPU.
+///        inliers (summed in kPlaneSumLanes lanes, as the GPU sums them); scored on at most 2048
+///        evenly strided points; `seed` fixes the samples.
 /// \return false when no plane was found (fewer than 3 points or no hypothesis).
 bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int iterations,
-                    double threshold, double max_tilt_cos, std::uint64_t seed, bool cloud_wide,
+                    double threshold, double max_tilt_cos, std::uint64_t seed,
                     std::vector<std::uint32_t>* eval_scratch, Plane* plane);
 
 /// \brief Stage 5 ("plane"): RANSAC plane per x/y tile (or one for the cloud) through the voted
