@@ -112,8 +112,8 @@ __device__ inline Hypothesis ransacHypotheses(const float* __restrict__ xyz,
   double needed = iterations;
   for (int it0 = 0; it0 < iterations && it0 < needed; it0 += kPlaneWarps) {
     const int it = it0 + warp;
-    Hypothesis h;
-    h.count = 0;  // a draw that gives no plane scores 0: the CPU skips it
+    Hypothesis h = best;  // a draw that gives no plane scores 0: the CPU skips it
+    h.count = 0;
     if (it < iterations) {
       // The draws of iteration `it` are the generator's 3 it-th to (3 it + 2)-th.
       SplitMix64 rng(seed);
