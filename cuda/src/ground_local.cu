@@ -10,9 +10,9 @@ namespace {
 
 constexpr int kThreads = kGroundThreads;
 
-/// Ordered index of sampled point j (CPU: LocalGroundStage::run's at()).
+/// Ordered index of sampled point j as an int (the CPU uses the same normal::sampledPosition()).
 __device__ inline int sampledAt(const unsigned int* sidx, int j) {
-  return sidx ? static_cast<int>(sidx[j]) : j;
+  return static_cast<int>(normal::sampledPosition(sidx, static_cast<std::size_t>(j)));
 }
 
 /// CPU: the copy of the sampled points' labels that every decision reads.

@@ -59,6 +59,13 @@ GF_HOST_DEVICE inline std::size_t columnSampleStep(std::size_t count, std::size_
   return (count + cap - 1) / cap;
 }
 
+/// \brief Position in the ordered cloud of the j-th sampled point: sampled[j], or j when every
+///        point is sampled (`sampled` null). The sample's list ends with the cloud's size, so
+///        j = m gives the end of the last sampled point's run.
+GF_HOST_DEVICE inline std::size_t sampledPosition(const std::uint32_t* sampled, std::size_t j) {
+  return sampled ? sampled[j] : j;
+}
+
 /// \brief Small deterministic generator (splitmix64): the same sequence on every platform,
 ///        library and device, so RANSAC draws the same samples on the CPU and the GPU.
 struct SplitMix64 {

@@ -19,7 +19,7 @@ std::size_t LocalGroundStage::run(const std::vector<float>& xyz, const std::int3
   if (n == 0 || m == 0 || k <= 0 || rows == nullptr) return 0;
   // The sampled points' labels before this stage: every decision reads these only.
   sampled_ground_.resize(m);
-  auto at = [sampled](std::size_t j) -> std::size_t { return sampled ? sampled[j] : j; };
+  auto at = [sampled](std::size_t j) { return sampledPosition(sampled, j); };
   for (std::size_t j = 0; j < m; ++j) sampled_ground_[j] = ground[std::min(at(j), n - 1)];
   std::size_t added = 0;
   const int nt = static_cast<int>(std::min<std::size_t>(threads, m / 2048 + 1));
