@@ -95,6 +95,9 @@ bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int
 
   // Least-squares refinement on all inliers (centred covariance, smallest eigenvector), summed in
   // the GPU's order (sumInliers()), so both round alike.
+  auto inlier = [&](const Eigen::Vector3d& p) {
+    return std::abs(best_n.dot(p) + best_d) <= threshold;
+  };
   double mean_sum[3];
   const std::size_t inliers = sumInliers<3>(
       m,
@@ -103,7 +106,7 @@ bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int
         v[0] = p.x();
         v[1] = p.y();
         v[2] = p.z();
-        return std::abs(best_n.dot(p) + best_d) <= threshold;
+        return inlier(p);
       },
       mean_sum);
   best.normal = best_n;
@@ -124,7 +127,7 @@ bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int
         v[3] = q.y() * q.y();
         v[4] = q.y() * q.z();
         v[5] = q.z() * q.z();
-        return std::abs(best_n.dot(p) + best_d) <= threshold;
+        return inlier(p);
       },
       c);
   Eigen::Matrix3d cov;
