@@ -39,6 +39,7 @@ isprs 8 tiles, preset airborne|preset:airborne|${DATA}/isprs
 airborne 2 tiles||${DATA}/airborne
 airborne 2 tiles, preset airborne|preset:airborne|${DATA}/airborne
 gen street (lidar:1,2)||builtin:lidar:1 builtin:lidar:2
+gen 16-beam street (lidar16:1,2)||builtin:lidar16:1 builtin:lidar16:2
 gen verge (verge:1,2)||builtin:verge:1 builtin:verge:2
 gen offroad (offroad:1,2)||builtin:offroad:1 builtin:offroad:2
 gen trail (trail:1,2)||builtin:trail:1 builtin:trail:2

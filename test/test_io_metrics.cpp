@@ -491,7 +491,7 @@ TEST(Builtin, FailureModeScenesHaveClassesAndTruth) {
     EXPECT_GT(terrain, 5000u) << path;
   }
   const std::vector<std::string> kinds = gf::builtinSceneKinds();
-  EXPECT_EQ(kinds.size(), 13u);
+  EXPECT_EQ(kinds.size(), 14u);
   try {
     gf::loadScan("builtin:moon");
     ADD_FAILURE() << "no exception";

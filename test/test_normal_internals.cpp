@@ -565,3 +565,50 @@ TEST(NormalLocalGround, OnlyAddsGroundAndZeroTurnsItOff) {
   }
   EXPECT_GT(added, 0u);
 }
+
+// A small robot's 16-beam sensor (builtin lidar16: rings 2 deg apart, 0.2 deg a firing): with
+// the default stride each K neighbourhood lies on one scan line, almost no point is a candidate
+// and the ground is lost; min_candidate_share widens the stride until the neighbourhoods reach
+// the next line (normal::sparseLinesStride()).
+TEST(NormalGroundFilter, SparseScanLinesWidenTheStride) {
+  for (std::uint32_t seed : {1u, 2u}) {
+    gf::SceneParams sp = gf::builtinSceneParams("lidar16");
+    sp.seed = seed;
+    const gf::GeneratedScan scan = gf::generateScene(sp);
+    const gf::CloudView view = gf::CloudView::packedXyz(scan.xyz.data(), scan.size());
+    const std::vector<std::int8_t> truth(scan.truth.begin(), scan.truth.end());
+    for (int stride : {1, 2}) {  // (3 already reaches the next line here)
+      double f1[2];
+      std::string note[2];
+      for (double share : {0.0, 0.05}) {
+        gf::NormalGroundFilterParams p;  // the defaults (scan_type auto), as a user runs it
+        p.sample_stride = stride;
+        p.min_candidate_share = share;
+        gf::NormalGroundFilter f(p);
+        std::vector<std::uint8_t> labels;
+        gf::FilterStats st;
+        f.filter(view, &labels, &st);
+        f1[share > 0] = gf::computeMetrics(gf::countConfusion(labels, truth)).f1;
+        note[share > 0] = st.note;
+      }
+      std::printf("[ SPARSE   ] seed %u stride %d: F1 %.4f without the rule, %.4f with it (%s)\n",
+                  seed, stride, f1[0], f1[1], note[1].c_str());
+      EXPECT_LT(f1[0], 0.6) << "seed " << seed << " stride " << stride;
+      EXPECT_GE(f1[1], 0.9) << "seed " << seed << " stride " << stride;
+      EXPECT_EQ(note[0].find("sample_stride"), std::string::npos) << note[0];
+      EXPECT_NE(note[1].find("sample_stride " + std::to_string(stride) + " -> "), std::string::npos)
+          << note[1];
+    }
+  }
+}
+
+TEST(NormalGroundFilter, SparseLinesStrideDoublesUpToTheLargest) {
+  using gf::normal::sparseLinesStride;
+  EXPECT_EQ(sparseLinesStride(4, 100, 0.05, 2), 4);  // 4 % candidates: twice the stride
+  EXPECT_EQ(sparseLinesStride(5, 100, 0.05, 2), 0);  // 5 %: kept
+  EXPECT_EQ(sparseLinesStride(0, 100, 0.0, 2), 0);   // rule off
+  EXPECT_EQ(sparseLinesStride(0, 0, 0.05, 2), 0);    // nothing sampled
+  EXPECT_EQ(sparseLinesStride(0, 100, 0.05, 1), 2);
+  EXPECT_EQ(sparseLinesStride(0, 100, 0.05, 12), 16);  // capped at sample_stride's largest
+  EXPECT_EQ(sparseLinesStride(0, 100, 0.05, 16), 0);
+}

@@ -342,7 +342,7 @@ TEST(SceneGenerator, RegisteredCloudsAreInTheWorldFrameWithExactTruth) {
 }
 
 TEST(SceneGenerator, BuiltinKindsNameTheirSceneAndScanner) {
-  EXPECT_EQ(builtinSceneKinds().size(), 13u);
+  EXPECT_EQ(builtinSceneKinds().size(), 14u);
   for (const std::string& kind : builtinSceneKinds()) {
     EXPECT_NO_THROW(builtinSceneParams(kind).validate()) << kind;
   }

@@ -97,7 +97,8 @@ struct CudaNormalPipeline::Impl {
   void localGround(CudaKnn::Impl& im, int n, int m, const unsigned int* d_sidx,
                    const GroundParamsDev& gp);
   /// Labels and counts down into `out` (event 7), stage times from the events.
-  void downloadLabels(CudaKnn::Impl& im, std::size_t n_in, std::uint8_t* out);
+  /// Returns the candidates among the sampled points (candCount()).
+  unsigned int downloadLabels(CudaKnn::Impl& im, std::size_t n_in, std::uint8_t* out);
 };
 
 CudaNormalPipeline::CudaNormalPipeline(const CudaKnnOptions& options)
@@ -155,31 +156,43 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
 
   // ---- the sampled points (CPU: SampleStage), their K nearest neighbours (lists stay on the
   //      device), PCA + candidates and vote; the others: OR of the samples before and after
-  const int stride = prm.sample_stride;
-  int m = n;
-  const float* q = pl.xyz.as<float>();
-  const unsigned int* d_sidx = nullptr;  // null: every point sampled
-  if (stride > 1) {
-    m = pl.sample(im, n, stride, normal::columnSampleCap(prm.k));
-    q = pl.sampled_xyz.as<float>();
-    d_sidx = pl.sidx.as<unsigned int>();
-  }
-  im.timings = CudaKnnTimings();
-  im.stats = CudaKnnQueryStats();
-  im.searchOnDevice(q, m, prm.k, nullptr, nullptr);
-  GF_CUDA_CHECK(cudaEventRecord(pl.ev[3], im.stream));
+  //      The whole scan again with a wider stride when too few sampled points were candidates
+  //      (the CPU filter's rule, normal::sparseLinesStride(); its count comes down with the
+  //      labels, so a scan that keeps its stride pays no extra sync).
+  int stride = prm.sample_stride;
+  for (;;) {
+    int m = n;
+    const float* q = pl.xyz.as<float>();
+    const unsigned int* d_sidx = nullptr;  // null: every point sampled
+    if (stride > 1) {
+      m = pl.sample(im, n, stride, normal::columnSampleCap(prm.k));
+      q = pl.sampled_xyz.as<float>();
+      d_sidx = pl.sidx.as<unsigned int>();
+    }
+    im.timings = CudaKnnTimings();
+    im.stats = CudaKnnQueryStats();
+    im.searchOnDevice(q, m, prm.k, nullptr, nullptr);
+    GF_CUDA_CHECK(cudaEventRecord(pl.ev[3], im.stream));
 
-  const GroundParamsDev& gp = prm;
-  std::uint8_t* d_voted = pl.voted.as<std::uint8_t>();
-  pl.candidatesAndVote(im, q, m, gp, stride > 1 ? pl.sampled_voted.as<std::uint8_t>() : d_voted);
-  if (stride > 1) {
-    launchSpreadVotes(pl.sampled_voted.as<std::uint8_t>(), pl.vflags.as<unsigned int>(),
-                      pl.vpos.as<unsigned int>(), m, n, d_voted, im.stream);
+    const GroundParamsDev& gp = prm;
+    std::uint8_t* d_voted = pl.voted.as<std::uint8_t>();
+    pl.candidatesAndVote(im, q, m, gp, stride > 1 ? pl.sampled_voted.as<std::uint8_t>() : d_voted);
+    if (stride > 1) {
+      launchSpreadVotes(pl.sampled_voted.as<std::uint8_t>(), pl.vflags.as<unsigned int>(),
+                        pl.vpos.as<unsigned int>(), m, n, d_voted, im.stream);
+    }
+    pl.planesAndLabels(im, n, n_in, bb, prm, gp);
+    if (gp.local_ground_min > 0) pl.localGround(im, n, m, d_sidx, gp);
+    GF_CUDA_CHECK(cudaEventRecord(pl.ev[6], im.stream));
+    const unsigned int candidates = pl.downloadLabels(im, n_in, labels);
+    const int wider = normal::sparseLinesStride(candidates, static_cast<std::size_t>(m),
+                                                prm.min_candidate_share, stride);
+    if (wider == 0) break;
+    stride = wider;
+    // The counters of the passes after the compaction start again from zero.
+    GF_CUDA_CHECK(cudaMemsetAsync(pl.counters.as<unsigned int>() + 4, 0, 32, im.stream));
   }
-  pl.planesAndLabels(im, n, n_in, bb, prm, gp);
-  if (gp.local_ground_min > 0) pl.localGround(im, n, m, d_sidx, gp);
-  GF_CUDA_CHECK(cudaEventRecord(pl.ev[6], im.stream));
-  pl.downloadLabels(im, n_in, labels);
+  tm.sample_stride = stride;
   tm.total_ms = msSince(t_start);
 }
 
@@ -411,8 +424,8 @@ void CudaNormalPipeline::Impl::localGround(CudaKnn::Impl& im, int n, int m,
 }
 
 // ---- labels (and counts) down
-void CudaNormalPipeline::Impl::downloadLabels(CudaKnn::Impl& im, std::size_t n_in,
-                                              std::uint8_t* out) {
+unsigned int CudaNormalPipeline::Impl::downloadLabels(CudaKnn::Impl& im, std::size_t n_in,
+                                                      std::uint8_t* out) {
   cudaStream_t st = im.stream;
   const std::size_t u32 = sizeof(unsigned int);
   char* hs = h_small.as<char>();
@@ -420,6 +433,7 @@ void CudaNormalPipeline::Impl::downloadLabels(CudaKnn::Impl& im, std::size_t n_i
   GF_CUDA_CHECK(cudaMemcpyAsync(h_labels.ptr, labels.ptr, n_in, cudaMemcpyDeviceToHost, st));
   GF_CUDA_CHECK(cudaMemcpyAsync(hs + 32, groundCount(), u32, cudaMemcpyDeviceToHost, st));
   GF_CUDA_CHECK(cudaMemcpyAsync(hs + 36, d_ntiles, u32, cudaMemcpyDeviceToHost, st));
+  GF_CUDA_CHECK(cudaMemcpyAsync(hs + 44, candCount(), u32, cudaMemcpyDeviceToHost, st));
   GF_CUDA_CHECK(cudaEventRecord(ev[7], st));
   GF_CUDA_CHECK(cudaStreamSynchronize(st));
   parallelCopy(out, h_labels.ptr, n_in);
@@ -441,6 +455,9 @@ void CudaNormalPipeline::Impl::downloadLabels(CudaKnn::Impl& im, std::size_t n_i
   tm.vote_ms = span(4, 5);
   tm.plane_ms = span(5, 6);
   tm.download_ms = span(6, 7);
+  unsigned int candidates = 0;
+  std::memcpy(&candidates, hs + 44, u32);
+  return candidates;
 }
 
 }  // namespace ground_filter

@@ -3,6 +3,8 @@
 #include <exception>
 #include <string>
 
+#include "normal/cpu_gpu_common.h"
+
 namespace ground_filter {
 
 GpuNormalExecutor::GpuNormalExecutor(const CudaNormalParams& settings,
@@ -28,6 +30,10 @@ bool GpuNormalExecutor::run(const CloudView& cloud, std::vector<std::uint8_t>* l
   stats->invalid_points = cloud.size() - t.valid_points;
   stats->ground_points = t.ground_points;
   stats->backend = name();
+  if (t.sample_stride != settings_.sample_stride) {
+    const std::string note = normal::sparseLinesNote(settings_.sample_stride, t.sample_stride);
+    stats->note += (stats->note.empty() ? "" : "; ") + note;
+  }
   stats->stage_ms = {{"pack", t.pack_ms},   {"upload", t.upload_ms},    {"sort", t.sort_ms},
                      {"knn", t.knn_ms},     {"pca", t.pca_ms},          {"vote", t.vote_ms},
                      {"plane", t.plane_ms}, {"download", t.download_ms}};

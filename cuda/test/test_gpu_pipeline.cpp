@@ -1,6 +1,7 @@
 // GPU tests of the whole normal-vector filter on the device (CudaNormalPipeline behind
 // knn_backend gpu): labels against the kd-tree backend on KITTI / Ouster frames, dense columns,
-// 1 M and 5 M points, bad input, device memory across 1,000 scans, out-of-memory fallback.
+// sparse scan lines, 1 M and 5 M points, bad input, device memory across 1,000 scans, out-of-memory
+// fallback.
 
 #include <cuda_runtime.h>
 #include <gtest/gtest.h>
@@ -159,6 +160,51 @@ TEST_F(GpuPipelineTest, DenseColumnsGiveTheKdTreeLabels) {
     std::printf("[ FILTER   ] dense disc, '%s': %zu labels differ; ground GPU %zu, CPU %zu\n", what,
                 c.differ, c.ground_gpu, c.ground_cpu);
   }
+}
+
+TEST_F(GpuPipelineTest, SparseScanLinesWidenTheStrideAsOnTheCpu) {
+  // A VLP-16's scan: rings 2 deg apart, 0.2 deg a firing, 1.8 m above flat ground inside a round
+  // wall 25 m away (6 rings on the ground, 10,800 points). The default stride leaves each K
+  // neighbourhood on one ring: no candidates, until min_candidate_share has doubled the stride
+  // (normal::sparseLinesStride()); the GPU decides on its own count, as the CPU does. (At 0.1 deg
+  // a firing, stride 4 leaves the neighbourhoods nearly degenerate, and the CPU's and the GPU's
+  // candidate counts there fell on either side of the share: 2 -> 8 against 2 -> 4.)
+  std::vector<float> xyz;
+  std::size_t ground_truth = 0;
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0.0, 0.02);  // range noise (exact lines are degenerate)
+  for (int b = 0; b < 16; ++b) {
+    const double el = (-15.0 + 2.0 * b) * M_PI / 180.0;
+    for (int a = 0; a < 1800; ++a) {
+      const double az = a * 0.2 * M_PI / 180.0;
+      const double dz = std::sin(el);
+      double t = 25.0 / std::cos(el);
+      if (dz < 0.0 && 1.8 / -dz < t) {
+        t = 1.8 / -dz;
+        ++ground_truth;
+      }
+      t += noise(rng);
+      xyz.insert(xyz.end(),
+                 {static_cast<float>(t * std::cos(el) * std::cos(az)),
+                  static_cast<float>(t * std::cos(el) * std::sin(az)), static_cast<float>(t * dz)});
+    }
+  }
+  ASSERT_EQ(ground_truth, 10800u);
+  gf::NormalGroundFilterParams p;
+  p.scan_type = "ground";
+  const Compared c = compare(xyz, p);
+  EXPECT_EQ(c.sg.backend, "gpu") << c.sg.note;
+  EXPECT_LE(c.differ * 10000, xyz.size() / 3) << c.differ << " differ";
+  EXPECT_NE(c.sc.note.find("sample_stride 2 -> 4"), std::string::npos) << c.sc.note;
+  auto strides = [](const std::string& note) {  // "sample_stride A -> B"
+    const std::size_t at = note.find("sample_stride");
+    return at == std::string::npos ? std::string() : note.substr(at, note.find(':', at) - at);
+  };
+  EXPECT_EQ(strides(c.sg.note), strides(c.sc.note)) << c.sg.note;
+  EXPECT_GE(c.ground_cpu, ground_truth * 9 / 10);  // without the rule: none
+  EXPECT_LT(c.ground_cpu, ground_truth + 1000);    // the wall's foot at most
+  std::printf("[ FILTER   ] sparse rings: %zu labels differ; ground GPU %zu, CPU %zu; %s\n",
+              c.differ, c.ground_gpu, c.ground_cpu, c.sg.note.c_str());
 }
 
 TEST_F(GpuPipelineTest, LargeCloudsGiveTheKdTreeLabels) {

@@ -486,8 +486,22 @@ void SceneParams::validate() const {
 
 std::vector<std::string> builtinSceneKinds() {
   return {"lidar",    "tls",  "verge",   "offroad", "trail", "airborne", "mls",
-          "stations", "slam", "tls_far", "mls_air", "uav",   "corridor"};
+          "stations", "slam", "tls_far", "mls_air", "uav",   "corridor", "lidar16"};
 }
+
+namespace {
+
+// A spinning LiDAR with `beams` evenly over +-half_fov_deg, `steps` firings a turn, `height` m up.
+void evenBeams(SceneParams* p, int beams, double half_fov_deg, int steps, double height) {
+  p->beams = beams;
+  p->uniform_beams = true;
+  p->vertical_min_deg = -half_fov_deg;
+  p->vertical_max_deg = half_fov_deg;
+  p->azimuth_steps = steps;
+  p->sensor_height = height;
+}
+
+}  // namespace
 
 SceneParams builtinSceneParams(const std::string& kind) {
   SceneParams params;
@@ -500,11 +514,12 @@ SceneParams builtinSceneParams(const std::string& kind) {
   } else if (kind == "offroad" || kind == "trail") {
     // Ouster OS1-64 on a small off-road vehicle, as in RELLIS-3D.
     params.layout = kind == "offroad" ? SceneParams::Layout::kOffroad : SceneParams::Layout::kTrail;
-    params.uniform_beams = true;
-    params.vertical_min_deg = -16.6;
-    params.vertical_max_deg = 16.6;
-    params.azimuth_steps = 2048;
-    params.sensor_height = 1.3;
+    evenBeams(&params, 64, 16.6, 2048, 1.3);
+  } else if (kind == "lidar16") {
+    // A small robot's 16-beam sensor (VLP-16: +-15 deg, 2 deg between beams, 0.2 deg a firing),
+    // 0.7 m above the street: rings ten firings apart.
+    evenBeams(&params, 16, 15.0, 1800, 0.7);
+    params.lidar_max_range = 100.0;
   } else if (kind == "airborne" || kind == "corridor") {
     params.mode = SceneParams::Mode::kAirborne;
     params.range_noise_sigma = 0.05;
@@ -533,11 +548,7 @@ SceneParams builtinSceneParams(const std::string& kind) {
     }
   } else if (kind == "slam") {  // an off-road robot's map tile: OS1-64 sweeps along the trail
     params.layout = SceneParams::Layout::kTrail;
-    params.uniform_beams = true;
-    params.vertical_min_deg = -16.6;
-    params.vertical_max_deg = 16.6;
-    params.azimuth_steps = 2048;
-    params.sensor_height = 1.3;
+    evenBeams(&params, 64, 16.6, 2048, 1.3);
     params.positions = 31;
     params.position_step = 2.0;
     params.position_keep = 0.2;

@@ -144,7 +144,8 @@ struct GeneratedScan {
 ///        along the trail, a 60 m map tile), `tls_far` (one TLS station 2.4 km from the origin),
 ///        `mls_air` (`mls` plus 3 % returns of a nadir UAV pass); nadir clouds of the same kind of
 ///        world: `uav` (a line scanner 40 m up flying along the street, +-35 deg),
-///        `corridor` (the airborne tile cut to a 30 m wide strip).
+///        `corridor` (the airborne tile cut to a 30 m wide strip); `lidar16` (the street seen by a
+///        small robot's 16-beam sensor, VLP-16-like, 0.7 m up: scan lines far apart).
 /// \throws std::invalid_argument naming the known kinds for any other name.
 SceneParams builtinSceneParams(const std::string& kind);
 

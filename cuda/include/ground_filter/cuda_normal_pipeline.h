@@ -41,6 +41,9 @@ struct CudaNormalTimings {
   std::size_t valid_points = 0;   ///< finite points
   std::size_t ground_points = 0;  ///< points labelled ground
   std::size_t tiles = 0;          ///< plane tiles
+  /// The stride the labels come from: sample_stride, or wider where too few sampled points
+  /// were ground candidates (min_candidate_share; the CPU filter's rule).
+  int sample_stride = 0;
 };
 
 /// \brief The whole normal-vector filter (NormalGroundFilter::filter) on a CUDA GPU.

@@ -66,7 +66,50 @@ struct NormalGroundFilter::Impl {
     const bool host_lists = p.local_ground_min > 0 && search->name() == "gpu";
     if (NeighborListStore* kept = search->listStore()) kept->keepLists(!host_lists);
   }
+  // Steps 1b-4 on every segment of the `n` ordered points with `stride`; returns the
+  // candidates among the sampled points, their number in *sampled, adds the vote's time to
+  // *vote_ms.
+  std::size_t normalsAndVotes(const NormalGroundFilterParams& p, std::size_t n, int stride,
+                              int threads, std::size_t* sampled, double* vote_ms);
 };
+
+std::size_t NormalGroundFilter::Impl::normalsAndVotes(const NormalGroundFilterParams& p,
+                                                      std::size_t n, int stride, int threads,
+                                                      std::size_t* sampled, double* vote_ms) {
+  // With sampling, the candidate flags and votes of the sampled points live in `sample`.
+  if (stride <= 1) candidate.assign(n, 0);
+  voted.assign(n, 0);
+  const normal::ColumnGrid grid = normal::columnGrid(ordered);  // a dense column is capped
+  std::size_t candidates_all = 0;
+  *sampled = 0;
+  for (const auto& sg : ordered.segments) {
+    const std::size_t b = sg.first, len = sg.second - sg.first;
+    const float* pts = ordered.xyz.data() + 3 * b;
+    std::uint8_t* cand;
+    std::uint8_t* vote_out;
+    std::size_t m = len;
+    if (stride > 1) {
+      auto t0 = Clock::now();
+      m = sample.gather(pts, len, stride, normal::columnSampleCap(p.k), grid);
+      pts = sample.sampledXyz();
+      cand = sample.candidates();
+      vote_out = sample.votes();
+      times.add("sample", msSince(t0));
+    } else {
+      cand = candidate.data() + b;
+      vote_out = voted.data() + b;
+    }
+    const std::size_t candidates = neighborhoods.run(
+        search.get(), pts, m, p.k, threads, p.min_planarity, min_abs_nz, &lists, cand, &times);
+    auto t0 = Clock::now();
+    vote.run(search->listStore(), lists, cand, m, candidates, p.bayes_vote, threads, vote_out);
+    if (stride > 1) sample.spread(voted.data() + b);
+    *vote_ms += msSince(t0);
+    *sampled += m;
+    candidates_all += candidates;
+  }
+  return candidates_all;
+}
 
 namespace {
 
@@ -180,39 +223,19 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   // 2-4. Per segment: the sampled points (1b, every sample_stride-th), their neighbours
   //      (computed once), PCA + candidates, naive-Bayes vote; each other point is voted when
   //      the sampled point before or after it is.
-  const double min_abs_nz = im.min_abs_nz;
-  const int stride = p.sample_stride;
-  // With sampling, the candidate flags and votes of the sampled points live in im.sample.
-  if (stride <= 1) im.candidate.assign(n, 0);
-  im.voted.assign(n, 0);
-  const normal::ColumnGrid grid = normal::columnGrid(ordered);  // a dense column is capped
   normal::StageTimes& times = im.times;
   times.clear();
   double vote_ms = 0.0;
-  for (const auto& sg : ordered.segments) {
-    const std::size_t b = sg.first, len = sg.second - sg.first;
-    const float* pts = ordered.xyz.data() + 3 * b;
-    std::uint8_t* cand;
-    std::uint8_t* vote;
-    std::size_t m = len;
-    if (stride > 1) {
-      t0 = Clock::now();
-      m = im.sample.gather(pts, len, stride, normal::columnSampleCap(p.k), grid);
-      pts = im.sample.sampledXyz();
-      cand = im.sample.candidates();
-      vote = im.sample.votes();
-      times.add("sample", msSince(t0));
-    } else {
-      cand = im.candidate.data() + b;
-      vote = im.voted.data() + b;
-    }
-    const std::size_t candidates =
-        im.neighborhoods.run(im.search.get(), pts, m, p.k, threads, p.min_planarity, min_abs_nz,
-                             &im.lists, cand, &times);
-    t0 = Clock::now();
-    im.vote.run(im.search->listStore(), im.lists, cand, m, candidates, p.bayes_vote, threads, vote);
-    if (stride > 1) im.sample.spread(im.voted.data() + b);
-    vote_ms += msSince(t0);
+  int stride = p.sample_stride;
+  for (;;) {  // again with a wider stride while the normals come out along scan lines
+    std::size_t sampled = 0;
+    const std::size_t candidates = im.normalsAndVotes(p, n, stride, threads, &sampled, &vote_ms);
+    const int wider = normal::sparseLinesStride(candidates, sampled, p.min_candidate_share, stride);
+    if (wider == 0) break;
+    stride = wider;
+  }
+  if (stride != p.sample_stride) {
+    st.note += (st.note.empty() ? "" : "; ") + normal::sparseLinesNote(p.sample_stride, stride);
   }
   // The backend that really ran (a GPU search may fall back to the kd-tree for one scan).
   st.backend = im.search->lastBackend();
@@ -223,7 +246,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
 
   // 5. Plane(s) through the voted points and the distance test.
   t0 = Clock::now();
-  im.plane.run(ordered.xyz, im.voted, ordered.extent, p, min_abs_nz, threads, &im.ground,
+  im.plane.run(ordered.xyz, im.voted, ordered.extent, p, im.min_abs_nz, threads, &im.ground,
                p.veg_filter ? &im.heights : nullptr);
   st.stage_ms.emplace_back("plane", msSince(t0));
 
@@ -238,7 +261,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     }
     im.local_ground.run(ordered.xyz, rows, row_points, im.lists.points, im.lists.k,
                         stride > 1 ? im.sample.sampledIndex() : nullptr, p.local_ground_min,
-                        p.local_ground_below, p.local_ground_above, min_abs_nz, threads,
+                        p.local_ground_below, p.local_ground_above, im.min_abs_nz, threads,
                         &im.ground);
     st.stage_ms.emplace_back("local_ground", msSince(t0));
   }
