@@ -110,7 +110,7 @@ class FakeExecutor : public gf::NormalFilterExecutor {
  public:
   FakeExecutor(bool accept, int* calls) : accept_(accept), calls_(calls) {}
   std::string name() const override { return "fake"; }
-  bool run(const gf::CloudView& cloud, std::vector<std::uint8_t>* labels,
+  bool run(const gf::CloudView& cloud, int /*sample_stride*/, std::vector<std::uint8_t>* labels,
            gf::FilterStats* stats) override {
     ++*calls_;
     if (!accept_) return false;

@@ -568,9 +568,17 @@ TEST(NormalLocalGround, OnlyAddsGroundAndZeroTurnsItOff) {
 
 // A small robot's 16-beam sensor (builtin lidar16: rings 2 deg apart, 0.2 deg a firing): with
 // the default stride each K neighbourhood lies on one scan line, almost no point is a candidate
-// and the ground is lost; min_candidate_share widens the stride until the neighbourhoods reach
-// the next line (normal::sparseLinesStride()).
+// and the ground is lost. Either rule widens the stride until the neighbourhoods reach the next
+// line: max_line_ratio from the measured lines before the normals (normal/scan_lines.h),
+// min_candidate_share after them (normal::sparseLinesStride()).
 TEST(NormalGroundFilter, SparseScanLinesWidenTheStride) {
+  struct Rules {
+    double line_ratio, share;
+    const char* note;  // what FilterStats::note says ("" = nothing about the stride)
+  };
+  const Rules rules[] = {{0.0, 0.0, ""},
+                         {3.0, 0.0, "scan lines 2.00 deg apart, 0.200 deg between"},
+                         {0.0, 0.05, "under min_candidate_share"}};
   for (std::uint32_t seed : {1u, 2u}) {
     gf::SceneParams sp = gf::builtinSceneParams("lidar16");
     sp.seed = seed;
@@ -578,26 +586,31 @@ TEST(NormalGroundFilter, SparseScanLinesWidenTheStride) {
     const gf::CloudView view = gf::CloudView::packedXyz(scan.xyz.data(), scan.size());
     const std::vector<std::int8_t> truth(scan.truth.begin(), scan.truth.end());
     for (int stride : {1, 2}) {  // (3 already reaches the next line here)
-      double f1[2];
-      std::string note[2];
-      for (double share : {0.0, 0.05}) {
+      for (const Rules& r : rules) {
         gf::NormalGroundFilterParams p;  // the defaults (scan_type auto), as a user runs it
         p.sample_stride = stride;
-        p.min_candidate_share = share;
+        p.max_line_ratio = r.line_ratio;
+        p.min_candidate_share = r.share;
         gf::NormalGroundFilter f(p);
         std::vector<std::uint8_t> labels;
         gf::FilterStats st;
         f.filter(view, &labels, &st);
-        f1[share > 0] = gf::computeMetrics(gf::countConfusion(labels, truth)).f1;
-        note[share > 0] = st.note;
+        const double f1 = gf::computeMetrics(gf::countConfusion(labels, truth)).f1;
+        std::printf(
+            "[ SPARSE   ] seed %u stride %d, max_line_ratio %g, min_candidate_share %g: "
+            "F1 %.4f (%s)\n",
+            seed, stride, r.line_ratio, r.share, f1, st.note.c_str());
+        if (*r.note == 0) {
+          EXPECT_LT(f1, 0.6) << "seed " << seed << " stride " << stride;
+          EXPECT_EQ(st.note.find("sample_stride"), std::string::npos) << st.note;
+        } else {
+          EXPECT_GE(f1, 0.9) << "seed " << seed << " stride " << stride << " " << r.note;
+          EXPECT_NE(st.note.find("sample_stride " + std::to_string(stride) + " -> 4"),
+                    std::string::npos)
+              << st.note;
+          EXPECT_NE(st.note.find(r.note), std::string::npos) << st.note;
+        }
       }
-      std::printf("[ SPARSE   ] seed %u stride %d: F1 %.4f without the rule, %.4f with it (%s)\n",
-                  seed, stride, f1[0], f1[1], note[1].c_str());
-      EXPECT_LT(f1[0], 0.6) << "seed " << seed << " stride " << stride;
-      EXPECT_GE(f1[1], 0.9) << "seed " << seed << " stride " << stride;
-      EXPECT_EQ(note[0].find("sample_stride"), std::string::npos) << note[0];
-      EXPECT_NE(note[1].find("sample_stride " + std::to_string(stride) + " -> "), std::string::npos)
-          << note[1];
     }
   }
 }

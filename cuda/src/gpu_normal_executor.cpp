@@ -13,11 +13,13 @@ GpuNormalExecutor::GpuNormalExecutor(const CudaNormalParams& settings,
 
 GpuNormalExecutor::~GpuNormalExecutor() = default;
 
-bool GpuNormalExecutor::run(const CloudView& cloud, std::vector<std::uint8_t>* labels,
-                            FilterStats* stats) {
+bool GpuNormalExecutor::run(const CloudView& cloud, int sample_stride,
+                            std::vector<std::uint8_t>* labels, FilterStats* stats) {
   try {
     labels->resize(cloud.size());
-    pipeline_->run(cloud, settings_, labels->data());
+    CudaNormalParams settings = settings_;
+    settings.sample_stride = sample_stride;
+    pipeline_->run(cloud, settings, labels->data());
   } catch (const CudaError& e) {
     last_note_ = "GPU filter failed (" + e.errorName() + ": " + e.what() + "); using kdtree";
     return false;
@@ -30,8 +32,8 @@ bool GpuNormalExecutor::run(const CloudView& cloud, std::vector<std::uint8_t>* l
   stats->invalid_points = cloud.size() - t.valid_points;
   stats->ground_points = t.ground_points;
   stats->backend = name();
-  if (t.sample_stride != settings_.sample_stride) {
-    const std::string note = normal::sparseLinesNote(settings_.sample_stride, t.sample_stride);
+  if (t.sample_stride != sample_stride) {
+    const std::string note = normal::sparseLinesNote(sample_stride, t.sample_stride);
     stats->note += (stats->note.empty() ? "" : "; ") + note;
   }
   stats->stage_ms = {{"pack", t.pack_ms},   {"upload", t.upload_ms},    {"sort", t.sort_ms},

@@ -165,10 +165,11 @@ TEST_F(GpuPipelineTest, DenseColumnsGiveTheKdTreeLabels) {
 TEST_F(GpuPipelineTest, SparseScanLinesWidenTheStrideAsOnTheCpu) {
   // A VLP-16's scan: rings 2 deg apart, 0.2 deg a firing, 1.8 m above flat ground inside a round
   // wall 25 m away (6 rings on the ground, 10,800 points). The default stride leaves each K
-  // neighbourhood on one ring: no candidates, until min_candidate_share has doubled the stride
-  // (normal::sparseLinesStride()); the GPU decides on its own count, as the CPU does. (At 0.1 deg
-  // a firing, stride 4 leaves the neighbourhoods nearly degenerate, and the CPU's and the GPU's
-  // candidate counts there fell on either side of the share: 2 -> 8 against 2 -> 4.)
+  // neighbourhood on one ring: no candidates, until max_line_ratio (normal/scan_lines.h) or
+  // min_candidate_share (normal::sparseLinesStride()) has doubled the stride; for the latter the
+  // GPU decides on its own count, as the CPU does. (At 0.1 deg a firing, stride 4 leaves the
+  // neighbourhoods nearly degenerate, and the CPU's and the GPU's candidate counts there fell on
+  // either side of the share: 2 -> 8 against 2 -> 4.)
   std::vector<float> xyz;
   std::size_t ground_truth = 0;
   std::mt19937 rng(7);
@@ -190,21 +191,28 @@ TEST_F(GpuPipelineTest, SparseScanLinesWidenTheStrideAsOnTheCpu) {
     }
   }
   ASSERT_EQ(ground_truth, 10800u);
-  gf::NormalGroundFilterParams p;
-  p.scan_type = "ground";
-  const Compared c = compare(xyz, p);
-  EXPECT_EQ(c.sg.backend, "gpu") << c.sg.note;
-  EXPECT_LE(c.differ * 10000, xyz.size() / 3) << c.differ << " differ";
-  EXPECT_NE(c.sc.note.find("sample_stride 2 -> 4"), std::string::npos) << c.sc.note;
   auto strides = [](const std::string& note) {  // "sample_stride A -> B"
     const std::size_t at = note.find("sample_stride");
     return at == std::string::npos ? std::string() : note.substr(at, note.find(':', at) - at);
   };
-  EXPECT_EQ(strides(c.sg.note), strides(c.sc.note)) << c.sg.note;
-  EXPECT_GE(c.ground_cpu, ground_truth * 9 / 10);  // without the rule: none
-  EXPECT_LT(c.ground_cpu, ground_truth + 1000);    // the wall's foot at most
-  std::printf("[ FILTER   ] sparse rings: %zu labels differ; ground GPU %zu, CPU %zu; %s\n",
-              c.differ, c.ground_gpu, c.ground_cpu, c.sg.note.c_str());
+  // The defaults: the measured lines widen the stride before the normals (on the host, for
+  // both); max_line_ratio 0: the candidates' share widens it after them, each on its own count.
+  for (const char* rule : {"scan lines", "min_candidate_share"}) {
+    gf::NormalGroundFilterParams p;
+    p.scan_type = "ground";
+    if (rule[0] == 'm') p.max_line_ratio = 0.0;
+    const Compared c = compare(xyz, p);
+    EXPECT_EQ(c.sg.backend, "gpu") << c.sg.note;
+    EXPECT_LE(c.differ * 10000, xyz.size() / 3) << rule << ": " << c.differ << " differ";
+    EXPECT_NE(c.sc.note.find("sample_stride 2 -> 4"), std::string::npos) << c.sc.note;
+    EXPECT_NE(c.sc.note.find(rule), std::string::npos) << c.sc.note;
+    EXPECT_NE(c.sg.note.find(rule), std::string::npos) << c.sg.note;
+    EXPECT_EQ(strides(c.sg.note), strides(c.sc.note)) << c.sg.note;
+    EXPECT_GE(c.ground_cpu, ground_truth * 9 / 10);  // without either rule: none
+    EXPECT_LT(c.ground_cpu, ground_truth + 1000);    // the wall's foot at most
+    std::printf("[ FILTER   ] sparse rings (%s): %zu labels differ; ground GPU %zu, CPU %zu; %s\n",
+                rule, c.differ, c.ground_gpu, c.ground_cpu, c.sg.note.c_str());
+  }
 }
 
 TEST_F(GpuPipelineTest, LargeCloudsGiveTheKdTreeLabels) {

@@ -136,6 +136,8 @@ class ScanTypeSwitch {
   ScanTypeSwitch(const std::string& setting, bool morph_ground);
   /// \brief The sensor origin in the views' frame (default 0, 0, 0).
   void setOrigin(float x, float y, float z);
+  /// \brief The sensor origin set last (x, y, z).
+  const float* origin() const { return origin_; }
   /// \brief Decides for `cloud` and keeps the decision for the next decide() (whatever view it
   ///        gets: the working volume may hand on only the points inside it); a decision kept
   ///        already is returned as it is (the same scan, asked twice before it runs).

@@ -24,12 +24,13 @@ class NormalFilterExecutor {
   virtual ~NormalFilterExecutor() = default;
   /// \brief Its name in FilterStats::backend ("gpu").
   virtual std::string name() const = 0;
-  /// \brief Labels `cloud` as NormalGroundFilter::filter()'s stages would: fills `labels`
+  /// \brief Labels `cloud` as NormalGroundFilter::filter()'s stages would with `sample_stride`
+  ///        (the parameter's, or wider for a sparse sensor's scan lines): fills `labels`
   ///        (cloud.size() entries) and, in `stats`, invalid_points, ground_points, backend and
   ///        stage_ms.
   /// \return false, touching neither, when it cannot run this scan (lastNote() says why, e.g. a
   ///         device fault); the filter then runs its stages. The next scan tries again.
-  virtual bool run(const CloudView& cloud, std::vector<std::uint8_t>* labels,
+  virtual bool run(const CloudView& cloud, int sample_stride, std::vector<std::uint8_t>* labels,
                    FilterStats* stats) = 0;
   /// \brief Why the last run() declined; empty after one that ran.
   virtual std::string lastNote() const = 0;

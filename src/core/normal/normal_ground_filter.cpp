@@ -1,6 +1,8 @@
 #include "ground_filter/normal_ground_filter.h"
 
+#include <algorithm>
 #include <cstdint>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -18,6 +20,7 @@
 #include "normal/order.h"
 #include "normal/plane.h"
 #include "normal/sample.h"
+#include "normal/scan_lines.h"
 #include "normal/scatter_labels.h"
 #include "normal/stage_times.h"
 #include "normal/vegetation.h"
@@ -53,6 +56,11 @@ struct NormalGroundFilter::Impl {
   std::vector<float> heights;  // 5: above the tile plane, veg_filter only
   normal::StageTimes times;    // per scan, memory kept
   FilterStats own_stats;       // filled when the caller passes none
+  // 1a: the last measured scan lines, kept for the next scans of the same sensor (see lines()).
+  normal::ScanLines lines_kept;
+  std::size_t lines_points = 0;  // points of the scan they were measured on
+  float lines_origin[3] = {0.f, 0.f, 0.f};
+  int lines_age = -1;  // scans since; -1: none measured
   Impl(const NormalGroundFilterParams& p, std::unique_ptr<KnnBackend> backend,
        std::unique_ptr<NormalFilterExecutor> exec)
       : search(std::move(backend)),
@@ -66,12 +74,35 @@ struct NormalGroundFilter::Impl {
     const bool host_lists = p.local_ground_min > 0 && search->name() == "gpu";
     if (NeighborListStore* kept = search->listStore()) kept->keepLists(!host_lists);
   }
+  // The scan lines of `cloud` (scan_lines.h): measured again on the first scan, every
+  // kLinesEvery-th, and when the point count moves by more than a tenth or the origin moves
+  // (another sensor); kept otherwise, as a sensor's lines do not change (the measurement reads
+  // the whole cloud: about 1 ms a KITTI frame, two thirds of the GPU pipeline's time).
+  const normal::ScanLines& linesOf(const CloudView& cloud);
   // Steps 1b-4 on every segment of the `n` ordered points with `stride`; returns the
   // candidates among the sampled points, their number in *sampled, adds the vote's time to
   // *vote_ms.
   std::size_t normalsAndVotes(const NormalGroundFilterParams& p, std::size_t n, int stride,
                               int threads, std::size_t* sampled, double* vote_ms);
 };
+
+const normal::ScanLines& NormalGroundFilter::Impl::linesOf(const CloudView& cloud) {
+  constexpr int kLinesEvery = 16;
+  const float* o = scan.origin();
+  const std::size_t n = cloud.size();
+  const std::size_t diff = n > lines_points ? n - lines_points : lines_points - n;
+  const bool same = lines_age >= 0 && lines_age + 1 < kLinesEvery && 10 * diff <= lines_points &&
+                    o[0] == lines_origin[0] && o[1] == lines_origin[1] && o[2] == lines_origin[2];
+  if (same) {
+    ++lines_age;
+  } else {
+    lines_kept = normal::measureScanLines(cloud, o);
+    lines_points = n;
+    std::copy(o, o + 3, lines_origin);
+    lines_age = 0;
+  }
+  return lines_kept;
+}
 
 std::size_t NormalGroundFilter::Impl::normalsAndVotes(const NormalGroundFilterParams& p,
                                                       std::size_t n, int stride, int threads,
@@ -198,10 +229,27 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     return;
   }
 
+  // ---- 1a. a sparse spinning sensor's scan lines: the stride its normals need (scan_lines.h)
+  int stride = p.sample_stride;
+  if (p.max_line_ratio > 0.0 && !scan.registered) {
+    const auto t_lines = Clock::now();
+    const normal::ScanLines& lines = im.linesOf(cloud);
+    stride = normal::strideForScanLines(lines, p.max_line_ratio, stride);
+    st.stage_ms.emplace_back("lines", msSince(t_lines));
+    if (stride != p.sample_stride) {
+      char text[200];
+      std::snprintf(text, sizeof text,
+                    "sample_stride %d -> %d: scan lines %.2f deg apart, %.3f deg between the "
+                    "points of a line (max_line_ratio %g)",
+                    p.sample_stride, stride, lines.line_deg, lines.firing_deg, p.max_line_ratio);
+      st.note += (st.note.empty() ? "" : "; ") + std::string(text);
+    }
+  }
+
   // ---- the whole filter on the executor (GPU) when the filter has one; when it declines the scan
   //      (a device fault) the stages below run it on the CPU.
   if (im.executor) {
-    if (im.executor->run(cloud, labels, &st)) {
+    if (im.executor->run(cloud, stride, labels, &st)) {
       st.total_ms = msSince(t_start);
       return;
     }
@@ -226,7 +274,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   normal::StageTimes& times = im.times;
   times.clear();
   double vote_ms = 0.0;
-  int stride = p.sample_stride;
+  const int lines_stride = stride;
   for (;;) {  // again with a wider stride while the normals come out along scan lines
     std::size_t sampled = 0;
     const std::size_t candidates = im.normalsAndVotes(p, n, stride, threads, &sampled, &vote_ms);
@@ -234,8 +282,8 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     if (wider == 0) break;
     stride = wider;
   }
-  if (stride != p.sample_stride) {
-    st.note += (st.note.empty() ? "" : "; ") + normal::sparseLinesNote(p.sample_stride, stride);
+  if (stride != lines_stride) {
+    st.note += (st.note.empty() ? "" : "; ") + normal::sparseLinesNote(lines_stride, stride);
   }
   // The backend that really ran (a GPU search may fall back to the kd-tree for one scan).
   st.backend = im.search->lastBackend();
