@@ -617,11 +617,11 @@ TEST(NormalGroundFilter, SparseScanLinesWidenTheStride) {
 
 TEST(NormalGroundFilter, SparseLinesStrideDoublesUpToTheLargest) {
   using gf::normal::sparseLinesStride;
-  EXPECT_EQ(sparseLinesStride(4, 100, 0.05, 2), 4);  // 4 % candidates: twice the stride
-  EXPECT_EQ(sparseLinesStride(5, 100, 0.05, 2), 0);  // 5 %: kept
-  EXPECT_EQ(sparseLinesStride(0, 100, 0.0, 2), 0);   // rule off
-  EXPECT_EQ(sparseLinesStride(0, 0, 0.05, 2), 0);    // nothing sampled
-  EXPECT_EQ(sparseLinesStride(0, 100, 0.05, 1), 2);
-  EXPECT_EQ(sparseLinesStride(0, 100, 0.05, 12), 16);  // capped at sample_stride's largest
-  EXPECT_EQ(sparseLinesStride(0, 100, 0.05, 16), 0);
+  EXPECT_EQ(sparseLinesStride(40, 1000, 0.05, 2), 4);  // 4 % candidates: twice the stride
+  EXPECT_EQ(sparseLinesStride(50, 1000, 0.05, 2), 0);  // 5 %: kept
+  EXPECT_EQ(sparseLinesStride(0, 1000, 0.0, 2), 0);    // rule off
+  EXPECT_EQ(sparseLinesStride(0, 999, 0.05, 2), 0);    // too few sampled points to judge
+  EXPECT_EQ(sparseLinesStride(0, 1000, 0.05, 1), 2);
+  EXPECT_EQ(sparseLinesStride(0, 1000, 0.05, 12), 16);  // capped at sample_stride's largest
+  EXPECT_EQ(sparseLinesStride(0, 1000, 0.05, 16), 0);
 }

@@ -33,8 +33,7 @@ bool GpuNormalExecutor::run(const CloudView& cloud, int sample_stride,
   stats->ground_points = t.ground_points;
   stats->backend = name();
   if (t.sample_stride != sample_stride) {
-    const std::string note = normal::sparseLinesNote(sample_stride, t.sample_stride);
-    stats->note += (stats->note.empty() ? "" : "; ") + note;
+    normal::appendSparseLinesNote(sample_stride, t.sample_stride, &stats->note);
   }
   stats->stage_ms = {{"pack", t.pack_ms},   {"upload", t.upload_ms},    {"sort", t.sort_ms},
                      {"knn", t.knn_ms},     {"pca", t.pca_ms},          {"vote", t.vote_ms},

@@ -8,6 +8,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
 #include <string>
 
 #include "common/host_device.h"
@@ -63,17 +64,25 @@ constexpr int kMaxSampleStride = 16;
 ///        filter and the GPU pipeline decide alike, on the same count.
 inline int sparseLinesStride(std::size_t candidates, std::size_t sampled, double min_share,
                              int stride) {
-  if (!(min_share > 0.0) || sampled == 0 || stride >= kMaxSampleStride) return 0;
+  // A share of fewer sampled points says little (a tiny or degenerate cloud: every point in one
+  // place); the smallest sparse sensor's scan samples over 10,000.
+  constexpr std::size_t kMinSampled = 1000;
+  if (!(min_share > 0.0) || sampled < kMinSampled || stride >= kMaxSampleStride) return 0;
   if (static_cast<double>(candidates) >= min_share * static_cast<double>(sampled)) return 0;
   return 2 * stride < kMaxSampleStride ? 2 * stride : kMaxSampleStride;
 }
 
-/// \brief The FilterStats note of a scan redone with a wider stride (CPU and GPU alike).
-inline std::string sparseLinesNote(int from, int to) {
-  return "sample_stride " + std::to_string(from) + " -> " + std::to_string(to) +
-         ": under min_candidate_share of the sampled points had a ground-candidate normal "
-         "(scan lines far apart; sample_stride " +
-         std::to_string(to) + " saves the first pass)";
+/// \brief Appends the FilterStats note of a scan redone with a wider stride (CPU and GPU
+///        alike) to `note` ("; " first when it is not empty), in place: no allocation once the
+///        string has room.
+inline void appendSparseLinesNote(int from, int to, std::string* note) {
+  char text[200];
+  std::snprintf(text, sizeof text,
+                "%ssample_stride %d -> %d: under min_candidate_share of the sampled points had a "
+                "ground-candidate normal (scan lines far apart; sample_stride %d saves the first "
+                "pass)",
+                note->empty() ? "" : "; ", from, to, to);
+  note->append(text);
 }
 
 /// \brief The sample of one grid column of `count` points (SampleStage; the GPU's sample

@@ -57,6 +57,7 @@ struct NormalGroundFilter::Impl {
   normal::StageTimes times;    // per scan, memory kept
   FilterStats own_stats;       // filled when the caller passes none
   // 1a: the last measured scan lines, kept for the next scans of the same sensor (see lines()).
+  normal::ScanLineMeter line_meter;
   normal::ScanLines lines_kept;
   std::size_t lines_points = 0;  // points of the scan they were measured on
   float lines_origin[3] = {0.f, 0.f, 0.f};
@@ -96,7 +97,7 @@ const normal::ScanLines& NormalGroundFilter::Impl::linesOf(const CloudView& clou
   if (same) {
     ++lines_age;
   } else {
-    lines_kept = normal::measureScanLines(cloud, o);
+    lines_kept = line_meter.measure(cloud, o);
     lines_points = n;
     std::copy(o, o + 3, lines_origin);
     lines_age = 0;
@@ -236,13 +237,14 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     const normal::ScanLines& lines = im.linesOf(cloud);
     stride = normal::strideForScanLines(lines, p.max_line_ratio, stride);
     st.stage_ms.emplace_back("lines", msSince(t_lines));
-    if (stride != p.sample_stride) {
+    if (stride != p.sample_stride) {  // appended in place: a reused FilterStats allocates nothing
       char text[200];
       std::snprintf(text, sizeof text,
-                    "sample_stride %d -> %d: scan lines %.2f deg apart, %.3f deg between the "
+                    "%ssample_stride %d -> %d: scan lines %.2f deg apart, %.3f deg between the "
                     "points of a line (max_line_ratio %g)",
-                    p.sample_stride, stride, lines.line_deg, lines.firing_deg, p.max_line_ratio);
-      st.note += (st.note.empty() ? "" : "; ") + std::string(text);
+                    st.note.empty() ? "" : "; ", p.sample_stride, stride, lines.line_deg,
+                    lines.firing_deg, p.max_line_ratio);
+      st.note.append(text);
     }
   }
 
@@ -282,9 +284,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     if (wider == 0) break;
     stride = wider;
   }
-  if (stride != lines_stride) {
-    st.note += (st.note.empty() ? "" : "; ") + normal::sparseLinesNote(lines_stride, stride);
-  }
+  if (stride != lines_stride) normal::appendSparseLinesNote(lines_stride, stride, &st.note);
   // The backend that really ran (a GPU search may fall back to the kd-tree for one scan).
   st.backend = im.search->lastBackend();
   const std::string last_note = im.search->lastNote();

@@ -26,10 +26,6 @@ constexpr std::size_t kMinLinePoints = 4;   // points of a cluster that counts a
 constexpr std::size_t kMinLines = 6;        // clusters with a neighbour needed to measure
 constexpr std::size_t kMaxWedgePoints = 20000;
 
-struct Angles {
-  float el, az;  // elevation, azimuth within the wedge [deg]
-};
-
 double median(std::vector<double>* v) {
   const std::size_t k = v->size() / 2;
   std::nth_element(v->begin(), v->begin() + static_cast<std::ptrdiff_t>(k), v->end());
@@ -38,8 +34,9 @@ double median(std::vector<double>* v) {
 
 }  // namespace
 
-ScanLines measureScanLines(const CloudView& cloud, const float origin[3]) {
-  std::vector<Angles> wedge[4];
+ScanLines ScanLineMeter::measure(const CloudView& cloud, const float origin[3]) {
+  std::vector<Angles>* wedge = wedge_;
+  for (int w = 0; w < 4; ++w) wedge[w].clear();
   // One cheap test a point in float (NaN fails it); the angles only for the ~3 % in a wedge.
   const float t = static_cast<float>(std::tan(kHalfWedge / kDeg));
   const float ox = origin[0], oy = origin[1], oz = origin[2];
@@ -62,19 +59,12 @@ ScanLines measureScanLines(const CloudView& cloud, const float origin[3]) {
   }
   // Clusters of nearby elevations, one a line where it is thin; a thick one is a band of lines
   // closer than kSplit (the middle of a VLS-128, any dense sensor).
-  struct Cluster {
-    double centre, thick, step;
-    std::size_t points;
-  };
-  std::vector<Cluster> clusters;
-  std::vector<double> az, d;
-  struct Weighted {
-    double spacing;  // gap to the nearer neighbouring cluster; 0: not a clean line
-    double step;
-    std::size_t points;
-  };
-  std::vector<Weighted> measured;
-  for (std::vector<Angles>& pts : wedge) {
+  std::vector<Cluster>& clusters = clusters_;
+  std::vector<double>&az = az_, &d = d_;
+  std::vector<Weighted>& measured = measured_;
+  measured.clear();
+  for (int w = 0; w < 4; ++w) {
+    std::vector<Angles>& pts = wedge[w];
     std::sort(pts.begin(), pts.end(), [](const Angles& a, const Angles& b) { return a.el < b.el; });
     clusters.clear();
     for (std::size_t a = 0; a < pts.size();) {
@@ -118,7 +108,8 @@ ScanLines measureScanLines(const CloudView& cloud, const float origin[3]) {
     }
   }
   if (line < kMinLine) return lines;
-  std::vector<double> steps;
+  std::vector<double>& steps = steps_;
+  steps.clear();
   for (const Weighted& m : measured) {
     if (m.spacing > 0.0) steps.push_back(m.step);
   }
