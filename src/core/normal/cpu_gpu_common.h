@@ -58,9 +58,11 @@ constexpr int kMaxSampleStride = 16;
 ///        `stride` can still double. On a sparse spinning sensor (a VLP-16 at 0.2 deg a firing:
 ///        rings 2 deg apart) the K nearest sampled neighbours of a point lie on its own scan
 ///        line, a line has no plane, and almost no point becomes a candidate (0.3-3.4 % of them
-///        on such generated scenes, where every scan with 6.6 % or more kept an F1 of 89 or
-///        better); sampling every 2nd point more spaces the samples along a line and their
-///        neighbourhoods reach the next line (docs/normal_method.md#sparse-scan-lines). The CPU
+///        on generated street scans); sampling every 2nd point more spaces the samples along a
+///        line and their neighbourhoods reach the next line. Grass and slopes can keep the share
+///        above 5 % on such a sensor, so this is the safety net behind the measured lines
+///        (scan_lines.h, max_line_ratio), not the main rule
+///        (docs/normal_method.md#sparse-scan-lines-max_line_ratio-min_candidate_share). The CPU
 ///        filter and the GPU pipeline decide alike, on the same count.
 inline int sparseLinesStride(std::size_t candidates, std::size_t sampled, double min_share,
                              int stride) {

@@ -56,7 +56,7 @@ struct NormalGroundFilter::Impl {
   std::vector<float> heights;  // 5: above the tile plane, veg_filter only
   normal::StageTimes times;    // per scan, memory kept
   FilterStats own_stats;       // filled when the caller passes none
-  // 1a: the last measured scan lines, kept for the next scans of the same sensor (see lines()).
+  // 1a: the last measured scan lines, kept for the next scans of the same sensor (linesOf()).
   normal::ScanLineMeter line_meter;
   normal::ScanLines lines_kept;
   std::size_t lines_points = 0;  // points of the scan they were measured on
