@@ -2,6 +2,7 @@
 
 #include <exception>
 #include <string>
+#include <utility>
 
 #include "normal/cpu_gpu_common.h"
 
@@ -35,9 +36,12 @@ bool GpuNormalExecutor::run(const CloudView& cloud, int sample_stride,
   if (t.sample_stride != sample_stride) {
     normal::appendSparseLinesNote(sample_stride, t.sample_stride, &stats->note);
   }
-  stats->stage_ms = {{"pack", t.pack_ms},   {"upload", t.upload_ms},    {"sort", t.sort_ms},
-                     {"knn", t.knn_ms},     {"pca", t.pca_ms},          {"vote", t.vote_ms},
-                     {"plane", t.plane_ms}, {"download", t.download_ms}};
+  // Appended: the filter's own stages before the executor ("lines") stay.
+  const std::pair<const char*, double> stages[] = {
+      {"pack", t.pack_ms},   {"upload", t.upload_ms},    {"sort", t.sort_ms},
+      {"knn", t.knn_ms},     {"pca", t.pca_ms},          {"vote", t.vote_ms},
+      {"plane", t.plane_ms}, {"download", t.download_ms}};
+  for (const auto& s : stages) stats->stage_ms.emplace_back(s.first, s.second);
   return true;
 }
 

@@ -53,6 +53,12 @@ GF_HOST_DEVICE inline int columnSampleCap(int k) { return 4 * k; }
 /// \brief Largest sample_stride (its range in normal_params.def).
 constexpr int kMaxSampleStride = 16;
 
+/// \brief The next sample_stride of both sparse-lines rules: twice `stride`, at most
+///        kMaxSampleStride.
+inline int doubledStride(int stride) {
+  return 2 * stride < kMaxSampleStride ? 2 * stride : kMaxSampleStride;
+}
+
 /// \brief The stride to redo a scan's normals with, or 0 to keep them: fewer than `min_share`
 ///        of its `sampled` points got a ground-candidate neighbourhood (`candidates`), and
 ///        `stride` can still double. On a sparse spinning sensor (a VLP-16 at 0.2 deg a firing:
@@ -71,7 +77,7 @@ inline int sparseLinesStride(std::size_t candidates, std::size_t sampled, double
   constexpr std::size_t kMinSampled = 1000;
   if (!(min_share > 0.0) || sampled < kMinSampled || stride >= kMaxSampleStride) return 0;
   if (static_cast<double>(candidates) >= min_share * static_cast<double>(sampled)) return 0;
-  return 2 * stride < kMaxSampleStride ? 2 * stride : kMaxSampleStride;
+  return doubledStride(stride);
 }
 
 /// \brief Appends the FilterStats note of a scan redone with a wider stride (CPU and GPU

@@ -26,8 +26,8 @@ class NormalFilterExecutor {
   virtual std::string name() const = 0;
   /// \brief Labels `cloud` as NormalGroundFilter::filter()'s stages would with `sample_stride`
   ///        (the parameter's, or wider for a sparse sensor's scan lines): fills `labels`
-  ///        (cloud.size() entries) and, in `stats`, invalid_points, ground_points, backend and
-  ///        stage_ms.
+  ///        (cloud.size() entries) and, in `stats`, invalid_points, ground_points and backend,
+  ///        and appends its stages to stage_ms (after the filter's own, e.g. "lines").
   /// \return false, touching neither, when it cannot run this scan (lastNote() says why, e.g. a
   ///         device fault); the filter then runs its stages. The next scan tries again.
   virtual bool run(const CloudView& cloud, int sample_stride, std::vector<std::uint8_t>* labels,

@@ -122,7 +122,7 @@ int strideForScanLines(const ScanLines& lines, double max_ratio, int stride) {
   const double r = lines.ratio();
   if (!(max_ratio > 0.0) || !(r > 0.0)) return stride;
   while (stride < kMaxSampleStride && r / stride > max_ratio) {
-    stride = std::min(2 * stride, kMaxSampleStride);
+    stride = doubledStride(stride);
   }
   return stride;
 }
