@@ -46,5 +46,5 @@ set(GF_CORE_NO_CUDA_SOURCES src/core/no_cuda.cpp)
 # never linked into the core or the nodelets): metrics and the generated scenes (Eigen only), and
 # the scan files (KITTI .bin, PCD, PLY, labels) where PCL is built.
 set(GF_EVAL_KIT_SOURCES src/eval/kitti_bin.cpp src/eval/metrics.cpp src/eval/scene_generator.cpp
-    src/eval/scene_terrain.cpp)
+    src/eval/scene_spec.cpp src/eval/scene_terrain.cpp)
 set(GF_EVAL_KIT_PCL_SOURCES src/eval/scan_io.cpp)

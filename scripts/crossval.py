@@ -56,6 +56,11 @@ def groups(data, quick):
         ("gen offroad", gen("offroad")),
         ("gen trail", gen("trail")),
         ("gen mls", ["builtin:mls:1"]),
+        # Sparse spinning sensors (scripts/sensor_sweep.py): a VLP-16 0.7 m up, 32 beams at
+        # 3,600 firings 1.8 m up.
+        ("gen 16-beam", gen("lidar16")),
+        ("gen 32-beam", ["builtin:lidar16:%d:beams=32,azimuth_steps=3600,sensor_height=1.8" % s
+                         for s in seeds]),
     ]
     airborne = [
         ("isprs", [os.path.join(data, "isprs")]),
@@ -82,6 +87,8 @@ PARAMS = [
     ("normal", "local_ground_min", 8, [0, 4, 8, 12, 16], "ground"),
     ("normal", "local_ground_below", 0.10, [0.05, 0.10, 0.15, 0.20], "ground"),
     ("normal", "local_ground_above", 0.05, [0.0, 0.025, 0.05, 0.10], "ground"),
+    ("normal", "max_line_ratio", 3.0, [0.0, 1.5, 2.0, 3.0, 4.0, 6.0], "ground"),
+    ("normal", "min_candidate_share", 0.05, [0.0, 0.02, 0.05, 0.10, 0.20], "ground"),
     ("normal", "morph_slope", 0.1, [0.05, 0.075, 0.1, 0.15, 0.2], "airborne"),
 ]
 # scan_type auto's cuts (ScanTypeClassifier in src/core/airborne/scan_type.h): rule 3's share

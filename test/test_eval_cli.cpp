@@ -211,12 +211,34 @@ TEST(EvalCli, ErrorsExitNonZeroWithMessage) {
   EXPECT_NE(r.out.find("label count mismatch"), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find("\"files\""), std::string::npos) << "no partial JSON on error";
 
+  r = runEval("builtin:lidar16:1:beam=8", true);  // a scene field is refused by name
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.out.find("unknown scene field 'beam'"), std::string::npos) << r.out;
+
   r = runEval("", true);  // no PATH
   EXPECT_NE(r.status, 0);
 
   r = runEval("--help", true);
   EXPECT_EQ(r.status, 0);
   EXPECT_NE(r.out.find("--write-labels"), std::string::npos);
+}
+
+// --write-scans: a generated sensor's scene as KITTI files, scored alike when read back; the
+// JSON names the wider stride of a sparse sensor in "note".
+TEST(EvalCli, WriteScansGivesAGeneratedSceneToOtherTools) {
+  TempDir tmp;
+  const std::string scene = "builtin:lidar16:3:layout=verge,sensor_height=1.2";
+  CommandResult a = runEval("--method normal --json --write-scans '" + (tmp / "k") + "' " + scene);
+  ASSERT_EQ(a.status, 0) << a.out;
+  const std::string bin = tmp / "k/builtin_lidar16_3_layout-verge_sensor_height-1.2.bin";
+  CommandResult b = runEval("--method normal --json '" + bin + "'");
+  ASSERT_EQ(b.status, 0) << b.out;
+  const Json ja = JsonParser(a.out).parseDocument(), jb = JsonParser(b.out).parseDocument();
+  for (const char* k : {"points", "tp", "fp", "tn", "fn"}) {
+    EXPECT_EQ(ja.at("files").arr[0].at(k).num, jb.at("files").arr[0].at(k).num) << k;
+  }
+  EXPECT_EQ(ja.at("files").arr[0].at("note").str.rfind("sample_stride 2 -> 4", 0), 0u)
+      << ja.at("files").arr[0].at("note").str;
 }
 
 // ------------------------------------------------------------------ parameter files, presets

@@ -290,6 +290,8 @@ TEST(Writers, StemAndLabels) {
   EXPECT_EQ(gf::scanStem("/a/b/000001.bin"), "000001");
   EXPECT_EQ(gf::scanStem("samp11.pcd"), "samp11");
   EXPECT_EQ(gf::scanStem("builtin:lidar:7"), "builtin_lidar_7");
+  EXPECT_EQ(gf::scanStem("builtin:lidar:7:beams=32,sensor_height=1"),
+            "builtin_lidar_7_beams-32_sensor_height-1");
   TempDir tmp;
   const std::vector<std::uint8_t> labels = {1, 0, 0, 1, 1};
   const std::string out = gf::writeLabels(tmp / "out/labels", "/x/000003.bin", labels);
@@ -429,6 +431,37 @@ TEST(Builtin, LidarSceneHasTruthAndFields) {
   EXPECT_THROW(gf::loadScan("builtin:lidar:abc"), std::runtime_error);
 }
 
+// --write-scans: a generated scene (with NaN points and low vegetation, whose class alone would
+// read as ground under SemanticKITTI's rule) written as KITTI files reads back as the same scan.
+TEST(Writers, KittiScanReadsBackAsTheSameTruth) {
+  const std::string spec = "builtin:lidar16:2:layout=offroad,sensor_height=1.8,nan_points=50";
+  const gf::Scan a = gf::loadScan(spec);
+  TempDir tmp;
+  const std::string bin = gf::writeKittiScan(tmp / "k", a);
+  EXPECT_EQ(bin, tmp / "k/builtin_lidar16_2_layout-offroad_sensor_height-1.8_nan_points-50.bin");
+  const gf::Scan b = gf::loadScan(bin);
+  ASSERT_EQ(b.size(), a.size());
+  EXPECT_EQ(b.truth, a.truth);
+  const gf::CloudView va = gf::viewOf(a.cloud), vb = gf::viewOf(b.cloud);
+  std::size_t finite = 0, kept_class = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    float x, y, z, u, v, w;
+    const bool fa = va.get(i, &x, &y, &z), fb = vb.get(i, &u, &v, &w);
+    ASSERT_EQ(fa, fb) << i;
+    if (!fa) continue;
+    ++finite;
+    EXPECT_TRUE(x == u && y == v && z == w) << i;
+    // A class is renamed only where it would read as another truth (low vegetation: 99).
+    const bool reads_same = gf::semanticKittiTruth(a.semantic[i], z) == a.truth[i];
+    EXPECT_EQ(b.semantic[i], reads_same ? a.semantic[i] : a.truth[i] ? 49 : 99) << i;
+    kept_class += a.semantic[i] == b.semantic[i];
+  }
+  EXPECT_EQ(a.size() - finite, 50u);
+  EXPECT_GT(kept_class, finite / 2);
+  EXPECT_LT(kept_class, finite);  // low vegetation is in this scene
+  EXPECT_THROW(gf::writeKittiScan(tmp / "k", b), std::runtime_error);  // the scan itself
+}
+
 // ------------------------------------------------------------------ per-class counts
 
 TEST(Metrics, ClassCountsByHand) {
@@ -491,7 +524,7 @@ TEST(Builtin, FailureModeScenesHaveClassesAndTruth) {
     EXPECT_GT(terrain, 5000u) << path;
   }
   const std::vector<std::string> kinds = gf::builtinSceneKinds();
-  EXPECT_EQ(kinds.size(), 14u);
+  EXPECT_EQ(kinds.size(), 15u);
   try {
     gf::loadScan("builtin:moon");
     ADD_FAILURE() << "no exception";

@@ -342,7 +342,7 @@ TEST(SceneGenerator, RegisteredCloudsAreInTheWorldFrameWithExactTruth) {
 }
 
 TEST(SceneGenerator, BuiltinKindsNameTheirSceneAndScanner) {
-  EXPECT_EQ(builtinSceneKinds().size(), 14u);
+  EXPECT_EQ(builtinSceneKinds().size(), 15u);
   for (const std::string& kind : builtinSceneKinds()) {
     EXPECT_NO_THROW(builtinSceneParams(kind).validate()) << kind;
   }
@@ -414,6 +414,72 @@ TEST(SceneGenerator, InvalidParametersAreRefused) {
   SceneParams g;
   g.grass_roughness = -0.01;
   EXPECT_THROW(generateScene(g), std::invalid_argument);
+}
+
+// A solid-state sensor's frame: every return inside its forward disc, exact ground heights, no
+// two rays alike (the pattern does not repeat within a frame).
+TEST(SceneGenerator, RosetteIsAForwardDiscOfNonRepeatingRays) {
+  SceneParams p = builtinSceneParams("rosette");
+  p.range_noise_sigma = 0.0;
+  const GeneratedScan s = generateScene(p);
+  ASSERT_GT(s.size(), p.rosette_rays / 2);  // most rays hit the street
+  ASSERT_LE(s.size(), p.rosette_rays);
+  const double half = 0.5 * p.rosette_fov_deg * M_PI / 180.0;
+  std::size_t ground = 0, off_surface = 0;
+  std::map<std::pair<int, int>, int> directions;  // 0.01 deg bins
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const double x = s.xyz[3 * i], y = s.xyz[3 * i + 1], z = s.xyz[3 * i + 2];
+    const double az = std::atan2(y, x), el = std::atan2(z, std::hypot(x, y));
+    EXPECT_LE(std::hypot(az, el), half + 1e-6) << i;  // the deflection (azimuth, elevation)
+    ++directions[{static_cast<int>(std::lround(az * 18000.0 / M_PI)),
+                  static_cast<int>(std::lround(el * 18000.0 / M_PI))}];
+    if (s.truth[i] != 1) continue;
+    ++ground;
+    off_surface += std::fabs(z - sceneGroundHeight(p, x, y)) > 0.01;  // only the curb's face
+  }
+  EXPECT_GT(ground, s.size() / 4);
+  EXPECT_LT(off_surface, ground / 50);
+  EXPECT_GT(directions.size(), s.size() * 9 / 10);
+}
+
+// builtin:KIND[:SEED][:NAME=VALUE,...] of the tools (scripts/sensor_sweep.py's sensors).
+TEST(SceneGenerator, SceneSpecSetsTheSeedAndNamedFields) {
+  const SceneParams p = parseSceneSpec("lidar16:7:layout=trail,beams=32,sensor_height=1.2");
+  EXPECT_EQ(p.seed, 7u);
+  EXPECT_EQ(p.layout, SceneParams::Layout::kTrail);
+  EXPECT_EQ(p.beams, 32);
+  EXPECT_DOUBLE_EQ(p.sensor_height, 1.2);
+  EXPECT_EQ(p.azimuth_steps, builtinSceneParams("lidar16").azimuth_steps);       // the kind's own
+  const SceneParams q = parseSceneSpec("tls:uniform_beams=on,tls_points=5000");  // no seed
+  EXPECT_EQ(q.seed, 1u);
+  EXPECT_TRUE(q.uniform_beams);
+  EXPECT_EQ(q.tls_points, 5000u);
+  EXPECT_EQ(parseSceneSpec("offroad").beams, builtinSceneParams("offroad").beams);
+  // Every listed field is settable.
+  for (const std::string& name : sceneOverrideNames()) {
+    const std::string value = name == "layout" ? "verge" : name == "uniform_beams" ? "1" : "3";
+    EXPECT_NO_THROW(parseSceneSpec("lidar:1:" + name + "=" + value)) << name;
+  }
+}
+
+TEST(SceneGenerator, SceneSpecRefusesUnknownFieldsAndBadValuesByName) {
+  auto message = [](const std::string& spec) {
+    try {
+      parseSceneSpec(spec);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message("lidar16:1:beam=3").find("unknown scene field 'beam'"), std::string::npos);
+  EXPECT_NE(message("lidar16:1:beams=x").find("'beams'"), std::string::npos);
+  EXPECT_NE(message("lidar16:1:layout=moon").find("layout"), std::string::npos);
+  EXPECT_NE(message("lidar16:1:tls_points=2.5").find("whole number"), std::string::npos);
+  EXPECT_NE(message("lidar16:1:beams").find("NAME=VALUE"), std::string::npos);
+  EXPECT_NE(message("lidar16:x1").find("seed"), std::string::npos);
+  EXPECT_NE(message("lidar17").find("unknown built-in scene"), std::string::npos);
+  // Ranges are checked where the scene is made.
+  EXPECT_THROW(generateScene(parseSceneSpec("lidar16:1:beams=2000")), std::invalid_argument);
 }
 
 }  // namespace

@@ -40,7 +40,9 @@ class VoxelGroundFilter : public GroundFilter {
   bool filterInside(const CloudView& cloud, const WorkingVolume& volume,
                     std::vector<std::uint8_t>* labels, FilterStats* stats = nullptr) override;
   std::string name() const override { return "voxel"; }
-  /// \brief The origin scan_type auto looks from.
+  /// \brief The sensor's position: scan_type auto looks from there, and the ground model starts
+  ///        from a segment that passes below it (docs/voxel_method.md). NaN: no sensor (only
+  ///        with a forced scan_type; the paper mode's normalised segments).
   void setSensorOrigin(float x, float y, float z) override;
   /// \brief True when scan_type (or morph_ground) makes `cloud` an airborne scan.
   bool noSensorAtOrigin(const CloudView& cloud) override;

@@ -282,26 +282,13 @@ void makeDir(const std::string& dir) {
   if (ec || !fs::is_directory(dir)) fail(dir, "cannot create output directory: " + ec.message());
 }
 
-// builtin:lidar[:SEED] / builtin:tls[:SEED]: a generated scene with fields x y z intensity ring.
+// builtin:KIND[:SEED][:NAME=VALUE,...]: a generated scene with fields x y z intensity ring.
 Scan loadBuiltinScan(const std::string& path) {
-  const std::string spec = path.substr(sizeof(kBuiltinPrefix) - 1);
-  const std::size_t colon = spec.find(':');
-  const std::string mode = spec.substr(0, colon);
   SceneParams params;
   try {
-    params = builtinSceneParams(mode);
+    params = parseSceneSpec(path.substr(sizeof(kBuiltinPrefix) - 1));
   } catch (const std::invalid_argument& e) {
-    fail(path, std::string(e.what()) + "; expected builtin:KIND[:SEED]");
-  }
-  if (colon != std::string::npos) {
-    const std::string seed = spec.substr(colon + 1);
-    char* end = nullptr;
-    const unsigned long long v = std::strtoull(seed.c_str(), &end, 10);
-    if (seed.empty() || !std::isdigit(static_cast<unsigned char>(seed[0])) || *end != '\0' ||
-        v > 0xFFFFFFFFull) {
-      fail(path, "seed '" + seed + "' is not an unsigned 32-bit integer");
-    }
-    params.seed = static_cast<std::uint32_t>(v);
+    fail(path, std::string(e.what()) + "; expected builtin:KIND[:SEED][:NAME=VALUE,...]");
   }
   GeneratedScan gen;
   try {
@@ -428,8 +415,10 @@ std::int8_t isprsTruth(double label_value) {
 
 std::string scanStem(const std::string& path) {
   if (isBuiltin(path)) {
-    std::string s = path;
+    std::string s = path;  // builtin:lidar16:2:beams=32 -> builtin_lidar16_2_beams-32
     std::replace(s.begin(), s.end(), ':', '_');
+    std::replace(s.begin(), s.end(), ',', '_');
+    std::replace(s.begin(), s.end(), '=', '-');
     return s;
   }
   return fs::path(path).stem().string();
@@ -594,6 +583,57 @@ std::string writeKittiLabels(const std::string& dir, const std::string& scan_pat
   f.close();
   if (!f) fail(out, "write error");
   return out;
+}
+
+namespace {
+
+// The class writeKittiScan() gives point i: one semanticKittiTruth() reads back as its truth.
+std::uint32_t kittiClassOf(const Scan& scan, std::size_t i, float z) {
+  const std::int8_t truth = scan.truth[i];
+  if (!scan.semantic.empty() && semanticKittiTruth(scan.semantic[i], z) == truth) {
+    return scan.semantic[i];
+  }
+  return truth == 1 ? 49u : truth == 0 ? 99u : 0u;  // other-ground, other-object, unlabeled
+}
+
+void writeFile(const std::string& path, const std::vector<unsigned char>& bytes) {
+  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  if (!f) fail(path, "cannot open for writing");
+  f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  f.close();
+  if (!f) fail(path, "write error");
+}
+
+}  // namespace
+
+std::string writeKittiScan(const std::string& dir, const Scan& scan) {
+  makeDir(dir);
+  const fs::path bin = fs::path(dir) / (scanStem(scan.path) + ".bin");
+  std::error_code ec;
+  if (fs::exists(bin, ec) && fs::exists(scan.path, ec) && fs::equivalent(bin, scan.path, ec)) {
+    fail(bin.string(), "is the scan itself: write it to another directory");
+  }
+  const pcl::PCLPointCloud2& c = scan.cloud;
+  const char* names[4] = {"x", "y", "z", "intensity"};
+  const pcl::PCLPointField* fields[4];
+  for (int k = 0; k < 4; ++k) fields[k] = findField(c, names[k]);
+  const std::size_t n = scan.size();
+  std::vector<unsigned char> points(n * 16), labels(scan.labelled() ? n * 4 : 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint8_t* rec = c.data.data() + i * c.point_step;
+    float v[4] = {0.f, 0.f, 0.f, 0.f};
+    for (int k = 0; k < 4; ++k) {
+      if (fields[k])
+        v[k] = static_cast<float>(readNumber(rec + fields[k]->offset, fields[k]->datatype));
+    }
+    std::memcpy(&points[16 * i], v, sizeof(v));  // KITTI .bin: little-endian float32 records
+    if (labels.empty()) continue;
+    const std::uint32_t cls = kittiClassOf(scan, i, v[2]);
+    for (int b = 0; b < 4; ++b) labels[4 * i + b] = static_cast<unsigned char>(cls >> (8 * b));
+  }
+  writeFile(bin.string(), points);
+  if (!labels.empty()) writeFile(fs::path(bin).replace_extension(".label").string(), labels);
+  return bin.string();
 }
 
 std::pair<std::string, std::string> writeSplitClouds(const std::string& dir,

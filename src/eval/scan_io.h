@@ -40,11 +40,10 @@ struct Scan {
 ///   truth with semanticKittiTruth().
 /// - `*.pcd`, `*.ply`: read through PCL with all fields. A PCD field named `label` is ground truth
 ///   under the ISPRS protocol (isprsTruth()); PLY labels are not interpreted.
-/// - `builtin:KIND[:SEED]`: a generated scene with exact truth and classes (fields x y z
-///   intensity ring); KIND is one of builtinSceneKinds() (scene_generator.h): `lidar` (street,
-///   HDL-64), `tls` (street, tripod scanner), `verge` (grass verge and sloped lawns beside a road,
-///   HDL-64), `offroad` (grassland with bushes and undergrowth, Ouster OS1-64), `trail` (hilly dirt
-///   trail, Ouster OS1-64).
+/// - `builtin:KIND[:SEED][:NAME=VALUE,...]` (parseSceneSpec()): a generated scene with exact
+///   truth and classes (fields x y z intensity ring); KIND is one of builtinSceneKinds()
+///   (scene_generator.h), e.g. `lidar` (street, HDL-64), `tls` (street, tripod scanner),
+///   `verge`, `offroad`, `trail`; the fields set the sensor or world.
 /// \throws std::runtime_error naming the file for a missing/unreadable/malformed file, an unknown
 ///         extension or a label count that does not match the points.
 Scan loadScan(const std::string& path);
@@ -109,6 +108,16 @@ struct KittiLabelIds {
 std::string writeKittiLabels(const std::string& dir, const std::string& scan_path,
                              const std::vector<std::uint8_t>& labels,
                              const KittiLabelIds& ids = KittiLabelIds());
+
+/// \brief Writes `scan` as a KITTI scan: `dir/<stem>.bin` (float32 x y z intensity a point, in
+///        input order, non-finite points kept; intensity 0 without such a field) and, when the
+///        scan is labelled, `dir/<stem>.label` that loadScan() reads back as the same truth: each
+///        point's SemanticKITTI class where semanticKittiTruth() gives its truth, else 49
+///        "other-ground" (ground), 99 "other-object" (non-ground) or 0 "unlabeled" (ignored).
+///        For other tools (the peers' drivers) on generated scenes. Creates `dir` when missing;
+///        refuses to overwrite the scan's own files. Returns the .bin path.
+/// \throws std::runtime_error when a file cannot (or must not) be written.
+std::string writeKittiScan(const std::string& dir, const Scan& scan);
 
 /// \brief Writes `dir/<stem>_ground.pcd` and `dir/<stem>_nonground.pcd` (binary PCD, every input
 ///        field). Creates `dir` when missing. Returns the two written paths.

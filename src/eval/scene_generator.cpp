@@ -19,6 +19,8 @@ namespace {
 struct Pattern {
   std::vector<double> azimuth;    // per column [rad]
   std::vector<double> elevation;  // per row [rad]
+  // Non-empty: one ray per column at this elevation [rad] instead of the rows (kRosette).
+  std::vector<double> column_elevation;
   double max_range = 0.0;
 };
 
@@ -50,6 +52,27 @@ Pattern lidarPattern(const SceneParams& p) {
 }
 
 // Uniform angular grid of about `rays` rays over 360 deg x the TLS elevation span.
+// Two prisms turning against each other at incommensurate rates (as Livox's Risley prisms): the
+// deflection is the sum of two circles of a quarter of the field each, so the rays fill a disc
+// of the field's radius in petals that never repeat; densest at the centre and the rim.
+Pattern rosettePattern(const SceneParams& p) {
+  Pattern pat;
+  pat.max_range = p.lidar_max_range;
+  const std::size_t n = p.rosette_rays;
+  const double a = 0.25 * p.rosette_fov_deg * kDegToRad, pitch = p.rosette_pitch_deg * kDegToRad;
+  const double turns = 40.0, ratio = -0.6180339887;  // prism 2 turns -1/phi as fast
+  pat.azimuth.resize(n);
+  pat.column_elevation.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double t = 2.0 * kPi * turns * static_cast<double>(i) / static_cast<double>(n);
+    const double dx = a * (std::cos(t) + std::cos(ratio * t));
+    const double dy = a * (std::sin(t) + std::sin(ratio * t));
+    pat.azimuth[i] = dx < 0.0 ? dx + 2.0 * kPi : dx;  // castPattern wants [0, 2 pi)
+    pat.column_elevation[i] = dy + pitch;
+  }
+  return pat;
+}
+
 Pattern tlsPattern(const SceneParams& p, double rays) {
   Pattern pat;
   pat.max_range = p.tls_max_range;
@@ -78,11 +101,12 @@ constexpr std::size_t kBlocks = 256;
 
 GeneratedScan castPattern(const SceneParams& p, const Scene& scene, const Pattern& pat,
                           bool with_noise) {
-  const std::size_t cols = pat.azimuth.size(), rows = pat.elevation.size();
+  const bool own = !pat.column_elevation.empty();  // one ray per column
+  const std::size_t cols = pat.azimuth.size(), rows = own ? 1 : pat.elevation.size();
   const std::size_t blocks = std::min(kBlocks, cols);
   std::vector<Block> out(blocks);
   std::vector<double> cos_el(rows), sin_el(rows);
-  for (std::size_t r = 0; r < rows; ++r) {
+  for (std::size_t r = 0; r < rows && !own; ++r) {
     cos_el[r] = std::cos(pat.elevation[r]);
     sin_el[r] = std::sin(pat.elevation[r]);
   }
@@ -111,7 +135,9 @@ GeneratedScan castPattern(const SceneParams& p, const Scene& scene, const Patter
       const double az_wrapped = az > kPi ? az - 2.0 * kPi : az;
       scene.candidates(az_wrapped, &objects);
       for (std::size_t r = 0; r < rows; ++r) {
-        const Vec3 d{cos_el[r] * ca, cos_el[r] * sa, sin_el[r]};
+        const double ce = own ? std::cos(pat.column_elevation[c]) : cos_el[r];
+        const double se = own ? std::sin(pat.column_elevation[c]) : sin_el[r];
+        const Vec3 d{ce * ca, ce * sa, se};
         const Hit hit = scene.cast(d, objects, p.min_range, pat.max_range);
         if (hit.t == kNoHit) continue;
         if (!with_noise) {
@@ -420,6 +446,8 @@ GeneratedScan singleScan(const SceneParams& params) {
     scan = airborneScan(params);
   } else if (params.mode == SceneParams::Mode::kLidar64) {
     scan = castPattern(params, scene, lidarPattern(params), true);
+  } else if (params.mode == SceneParams::Mode::kRosette) {
+    scan = castPattern(params, scene, rosettePattern(params), true);
   } else {
     // Size the ray grid from the hit ratio of a coarse pre-pass so that the returns come close
     // to the budget without exceeding it (any excess is thinned evenly).
@@ -472,6 +500,9 @@ void SceneParams::validate() const {
   checkRange("uav_half_angle_deg", uav_half_angle_deg, 1.0, 80.0, "deg");
   checkRange("uav_line_step", uav_line_step, 0.02, 100.0, "m");
   checkRange("uav_angle_step_deg", uav_angle_step_deg, 0.01, 10.0, "deg");
+  checkRange("rosette_fov_deg", rosette_fov_deg, 1.0, 120.0, "deg");
+  checkRange("rosette_rays", static_cast<double>(rosette_rays), 100.0, 1e7, "rays");
+  checkRange("rosette_pitch_deg", rosette_pitch_deg, -60.0, 60.0, "deg");
   checkRange("positions", positions, 1, 1000, "");
   checkRange("position_step", position_step, 0.1, 1000.0, "m");
   checkRange("position_keep", position_keep, 0.001, 1.0, "");
@@ -485,8 +516,8 @@ void SceneParams::validate() const {
 }
 
 std::vector<std::string> builtinSceneKinds() {
-  return {"lidar",    "tls",  "verge",   "offroad", "trail", "airborne", "mls",
-          "stations", "slam", "tls_far", "mls_air", "uav",   "corridor", "lidar16"};
+  return {"lidar", "tls",     "verge",   "offroad", "trail",    "airborne", "mls",    "stations",
+          "slam",  "tls_far", "mls_air", "uav",     "corridor", "lidar16",  "rosette"};
 }
 
 namespace {
@@ -556,6 +587,12 @@ SceneParams builtinSceneParams(const std::string& kind) {
     params.world_frame = true;
     params.crop_half_width = 30.0;
     params.crop_half_length = 30.0;
+  } else if (kind == "rosette") {
+    // A small robot's solid-state sensor (Livox Avia / Mid-70 class: a 70 deg disc, 240 k
+    // returns a second, 0.1 s frames) 0.7 m above the street, looking along it.
+    params.mode = SceneParams::Mode::kRosette;
+    params.sensor_height = 0.7;
+    params.lidar_max_range = 100.0;
   } else if (kind == "uav") {
     params.mode = SceneParams::Mode::kUav;
     params.world_frame = true;

@@ -26,6 +26,8 @@ struct SceneParams {
     kTls,       ///< terrestrial laser scanner on a tripod: dense spherical sweep, 1-100 M returns
     kAirborne,  ///< nadir airborne scan of its own hilly world with buildings, trees, bushes and
                 ///< cars (layout ignored): airborne_density points per m2, world frame
+    kRosette,   ///< solid-state sensor looking along +x, sensor_height up, non-repetitive
+                ///< rosette pattern (two counter-rotating prisms, Livox-like)
     kUav,       ///< low UAV line scanner flying along world x over the layout, uav_height up,
                 ///< rays across the track within +-uav_half_angle_deg of nadir, world frame
   };
@@ -74,6 +76,10 @@ struct SceneParams {
   double uav_half_angle_deg = 35.0;  ///< kUav: half the across-track field of view [deg] (35)
   double uav_line_step = 0.25;       ///< kUav: flight distance between scan lines [m] (0.25)
   double uav_angle_step_deg = 0.25;  ///< kUav: angle between rays of a line [deg] (0.25)
+  double rosette_fov_deg = 70.4;     ///< kRosette: circular field of view, full angle [deg] (70.4)
+  std::size_t rosette_rays =
+      24000;                       ///< kRosette: rays of one frame (240 k/s x 0.1 s) [rays] (24 k)
+  double rosette_pitch_deg = 0.0;  ///< kRosette: optical axis pitch, < 0 down [deg] (0)
 
   // Registered clouds: several scanner positions merged in one world frame, as a mobile-mapping
   // run, several TLS stations or a SLAM map tile give them (no sensor at the origin).
@@ -145,12 +151,27 @@ struct GeneratedScan {
 ///        `mls_air` (`mls` plus 3 % returns of a nadir UAV pass); nadir clouds of the same kind of
 ///        world: `uav` (a line scanner 40 m up flying along the street, +-35 deg),
 ///        `corridor` (the airborne tile cut to a 30 m wide strip); `lidar16` (the street seen by a
-///        small robot's 16-beam sensor, VLP-16-like, 0.7 m up: scan lines far apart).
+///        small robot's 16-beam sensor, VLP-16-like, 0.7 m up: scan lines far apart);
+///        `rosette` (the street seen by a solid-state sensor 0.7 m up, Livox-like: a 70.4 deg
+///        forward disc of 24 k non-repeating rays).
 /// \throws std::invalid_argument naming the known kinds for any other name.
 SceneParams builtinSceneParams(const std::string& kind);
 
 /// \brief The kinds builtinSceneParams() knows, in the order above.
 std::vector<std::string> builtinSceneKinds();
+
+/// \brief The scene of a `builtin:` spec without its prefix, `KIND[:SEED][:NAME=VALUE,...]`:
+///        builtinSceneParams(KIND) with the layout seed and then the named fields set, e.g.
+///        `lidar16:2:layout=trail,sensor_height=1.2,beams=32` (a 32-beam sensor 1.2 m above the
+///        trail). NAME is one of sceneOverrideNames(); `layout` takes street, verge, offroad or
+///        trail, `uniform_beams` a boolean, the others numbers. Ranges are checked by
+///        generateScene() (SceneParams::validate()).
+/// \throws std::invalid_argument naming the unknown kind, the bad seed, the unknown field (with
+///         the known ones) or the bad value.
+SceneParams parseSceneSpec(const std::string& spec);
+
+/// \brief The fields parseSceneSpec() can set, in a fixed order.
+std::vector<std::string> sceneOverrideNames();
 
 /// \brief Ray-casts the procedural scene with the scanner of `params.mode`.
 ///

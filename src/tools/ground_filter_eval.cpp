@@ -32,6 +32,7 @@ const char kUsage[] =
     "usage: ground_filter_eval [--method NAME] [--params FILE] [--set NAME=VALUE]... [--json]\n"
     "                          [--classes] [--write-labels DIR] [--label-format F]\n"
     "                          [--kitti-ids GROUND,NONGROUND] [--write-clouds DIR]\n"
+    "                          [--write-scans DIR]\n"
     "                          [--repeat N] [--drop-one N] [--score-labels DIR]\n"
     "                          [--scan-measures] [--hag] PATH...\n"
     "\n"
@@ -41,10 +42,13 @@ const char kUsage[] =
     "\n"
     "PATH                a .bin (KITTI, sibling .label = SemanticKITTI truth), .pcd (a 'label'\n"
     "                    field = ISPRS truth: 1 ground, 0 not, other = ignored) or .ply file; a\n"
-    "                    directory (all such files in it, sorted); or builtin:KIND[:SEED], KIND\n"
-    "                    one of lidar, lidar16, tls, verge, offroad, trail, airborne, or the\n"
-    "                    registered mls, mls_air, stations, slam, tls_far, or uav, corridor\n"
-    "                    (generated scene, exact truth; src/eval/scene_generator.h)\n"
+    "                    directory (all such files in it, sorted); or a generated scene\n"
+    "                    builtin:KIND[:SEED][:NAME=VALUE,...], KIND one of lidar, lidar16,\n"
+    "                    rosette, tls, verge, offroad, trail, airborne, the registered mls,\n"
+    "                    mls_air, stations, slam, tls_far, or uav, corridor (exact truth;\n"
+    "                    src/eval/scene_generator.h); NAME=VALUE\n"
+    "                    sets a scene field, e.g. builtin:lidar16:2:layout=trail,beams=32,\n"
+    "                    sensor_height=1.2 (fields: parseSceneSpec() there)\n"
     "--method NAME       filter method: voxel (default), normal, voxel_paper\n"
     "--params FILE       parameters from a flat YAML file (config/*.yaml, 'name: value')\n"
     "--set NAME=VALUE    override a filter parameter (repeatable; after --params)\n"
@@ -54,7 +58,7 @@ const char kUsage[] =
     "--json              print exactly one JSON object instead of the table:\n"
     "                    {\"files\":[{\"file\",\"points\",\"ground\",\"ms\",\n"
     "                    \"tp\",\"fp\",\"tn\",\"fn\",\"accuracy\",\"precision\",\n"
-    "                    \"recall\",\"f1\",\"iou\",\"scan_type\",\"scan_reason\"}...],\n"
+    "                    \"recall\",\"f1\",\"iou\",\"scan_type\",\"scan_reason\",\"note\"}...],\n"
     "                    \"pooled\":{...}}\n"
     "                    metrics are fractions in [0,1]; null where a file has no labels or a\n"
     "                    ratio is 0/0\n"
@@ -67,6 +71,9 @@ const char kUsage[] =
     "                    \"other-object\")\n"
     "--write-clouds DIR  write DIR/<stem>_ground.pcd and DIR/<stem>_nonground.pcd (binary, all\n"
     "                    input fields)\n"
+    "--write-scans DIR   write every input scan as DIR/<stem>.bin (KITTI float32 x y z\n"
+    "                    intensity) and, when labelled, DIR/<stem>.label (SemanticKITTI classes\n"
+    "                    that read back as the same truth): generated scenes for other tools\n"
     "--repeat N          run the filter N times per file and report the median ms (default 1)\n"
     "--drop-one N        stability check (table only): per file, N times, filter the scan without\n"
     "                    one finite point (evenly spread over the file) and count the labels of\n"
@@ -111,6 +118,7 @@ struct Options {
   bool kitti_labels = false;  // --label-format kitti
   gf::KittiLabelIds kitti_ids;
   std::string clouds_dir;
+  std::string scans_dir;  // --write-scans
   std::string score_dir;  // --score-labels: labels read from DIR/<stem>.gnd, no filter run
   int repeat = 1;
   int drop_one = 0;
@@ -218,18 +226,11 @@ HagResult hagOf(const gf::Scan& scan, const gf::CloudView& view,
     surface.heights(view, &heights);
     h.ms.push_back(cli::msSince(t0));
   }
-  // builtin:KIND[:SEED] (loadScan() has checked the path): the exact terrain is known.
+  // builtin:... (loadScan() has checked the spec): the exact terrain is known.
   const std::string prefix = "builtin:";
   const bool terrain = scan.path.compare(0, prefix.size(), prefix) == 0;
-  gf::SceneParams scene;
-  if (terrain) {
-    const std::string spec = scan.path.substr(prefix.size());
-    const std::size_t colon = spec.find(':');
-    scene = gf::builtinSceneParams(spec.substr(0, colon));
-    if (colon != std::string::npos) {
-      scene.seed = static_cast<std::uint32_t>(std::stoul(spec.substr(colon + 1)));
-    }
-  }
+  const gf::SceneParams scene =
+      terrain ? gf::parseSceneSpec(scan.path.substr(prefix.size())) : gf::SceneParams();
   for (std::size_t i = 0; i < view.size(); ++i) {
     float x, y, z;
     if (!view.get(i, &x, &y, &z)) continue;
@@ -255,6 +256,7 @@ struct FileResult {
   gf::Confusion confusion;
   DropResult drop;
   std::string scan_type, scan_reason;  // FilterStats of the last run (parameter scan_type)
+  std::string note;                    // FilterStats::note of the last run (e.g. a wider stride)
   gf::ScanMeasures measures;           // --scan-measures
   HagResult hag;                       // --hag
 };
@@ -305,6 +307,8 @@ Options parseArgs(int argc, char** argv) {
           o.kitti_ids.nonground = static_cast<std::uint16_t>(ids[1]);
         } else if (arg == "--write-clouds") {
           o.clouds_dir = args->value();
+        } else if (arg == "--write-scans") {
+          o.scans_dir = args->value();
         } else if (arg == "--score-labels") {
           o.score_dir = args->value();
         } else {
@@ -423,6 +427,7 @@ FileResult evalFile(gf::GroundFilter* filter, const std::string& file, const Opt
                     std::vector<std::uint8_t>* labels_out, std::vector<gf::ClassCount>* classes) {
   std::vector<std::uint8_t>& labels = *labels_out;
   const gf::Scan scan = gf::loadScan(file);
+  if (!opt.scans_dir.empty()) gf::writeKittiScan(opt.scans_dir, scan);
   const gf::CloudView view = gf::viewOf(scan.cloud);
   std::vector<double> times;
   gf::FilterStats stats;
@@ -447,6 +452,7 @@ FileResult evalFile(gf::GroundFilter* filter, const std::string& file, const Opt
   res.labelled = scan.labelled();
   res.scan_type = stats.scan_type;
   res.scan_reason = stats.scan_reason;
+  res.note = stats.note;
   if (res.labelled) res.confusion = gf::countConfusion(labels, scan.truth);
   if (opt.classes && res.labelled && !scan.semantic.empty()) {
     gf::addClassCounts(labels, scan.truth, scan.semantic, classes);
@@ -532,7 +538,7 @@ void printJson(const Options& opt, const std::vector<FileResult>& results, const
     os << (i ? "," : "") << jsonRecord(r.file, r.points, r.ground, r.ms, r.labelled, r.confusion)
        << ",\"labelled\":" << (r.labelled ? "true" : "false")
        << ",\"scan_type\":" << jsonString(r.scan_type)
-       << ",\"scan_reason\":" << jsonString(r.scan_reason);
+       << ",\"scan_reason\":" << jsonString(r.scan_reason) << ",\"note\":" << jsonString(r.note);
     if (opt.hag) os << ",\"hag\":" << hagJson(hag[i]);
     if (opt.scan_measures) {
       const gf::ScanMeasures& m = r.measures;

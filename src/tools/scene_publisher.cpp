@@ -2,7 +2,7 @@
 //
 // Source: the built-in procedural street scene (default; the sensor drives forward along the
 // road, so consecutive scans differ) or real scan files (`~input`: a file, a directory of
-// .bin/.pcd/.ply, or builtin:lidar[:SEED] / builtin:tls[:SEED]).
+// .bin/.pcd/.ply, or builtin:KIND[:SEED][:NAME=VALUE,...], e.g. a sensor of your own).
 // Every cloud carries a uint8 field `gt_ground` (1 ground, 0 non-ground, 255 ignored) when ground
 // truth is known, so that demo_monitor can score the filter's outputs (the filter copies every
 // field to its outputs).

@@ -101,7 +101,10 @@ std::string PaperVoxelParams::describe() const {
 PaperNormalisedVoxelFilter::PaperNormalisedVoxelFilter(const PaperVoxelParams& params)
     : voxel_(validated(params)),
       segment_points_(static_cast<std::size_t>(params.segment_points)),
-      normalise_(params.paper_normalisation) {}
+      normalise_(params.paper_normalisation) {
+  // The paper's steps only: segments of a scan, normalised, have no sensor to lie below.
+  voxel_.setSensorOrigin(NAN, NAN, NAN);
+}
 
 void PaperNormalisedVoxelFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
                                         FilterStats* stats) {

@@ -146,7 +146,7 @@ void Segmenter::run(const VoxelGroundFilterParams& p, VoxelGrid* g, SegmentResul
 }
 
 void Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g,
-                            SegmentResult* seg) {
+                            const float* sensor, SegmentResult* seg) {
   seg->have_plane = seg->best >= 0;
   if (!seg->have_plane) return;
   const std::uint32_t* uf = seg->segment.data();
@@ -186,15 +186,33 @@ void Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
     }
   }
   const double min_nz = std::cos(p.max_slope_deg * M_PI / 180.0);
-  Plane plane;
+  // A sensor's own scan: the largest segment whose plane passes below the sensor, else (none
+  // does, or no sensor at the origin) the largest. A sparse sensor's rings fall apart into one
+  // segment each, and the underside of a tree crown, a ceiling or a roof can outgrow them all.
+  int chosen = -1;
+  HeightPlane chosen_plane;
   for (int q = 0; q < ncand; ++q) {
-    if (acc[q].fit(&plane) && plane.normal.z() >= min_nz) {
-      seg->best = cand[q];
-      gp->a = -plane.normal.x() / plane.normal.z();
-      gp->b = -plane.normal.y() / plane.normal.z();
-      gp->c = -plane.d / plane.normal.z();
-      return;
+    Plane plane;
+    if (!acc[q].fit(&plane) || plane.normal.z() < min_nz) continue;
+    HeightPlane hp;
+    hp.a = -plane.normal.x() / plane.normal.z();
+    hp.b = -plane.normal.y() / plane.normal.z();
+    hp.c = -plane.d / plane.normal.z();
+    if (chosen < 0) {
+      chosen = q;
+      chosen_plane = hp;
+      if (!sensor) break;
     }
+    if (sensor && hp.at(sensor[0] - g.min[0], sensor[1] - g.min[1]) < sensor[2] - g.min[2]) {
+      chosen = q;
+      chosen_plane = hp;
+      break;
+    }
+  }
+  if (chosen >= 0) {
+    seg->best = cand[chosen];
+    *gp = chosen_plane;
+    return;
   }
   *gp = HeightPlane();
   gp->c = zsum[0] / cnt[0];  // no sub-horizontal plane (one scan line): level, through the largest

@@ -36,8 +36,12 @@ class Segmenter {
   void run(const VoxelGroundFilterParams& p, VoxelGrid* g, SegmentResult* out);
   /// \brief Step 5: plane of the largest segment of `seg` (run()'s result of this scan) not
   ///        steeper than max_slope_deg; sets `seg->best`, `seg->plane` and `seg->have_plane`
-  ///        (false when there is no flat segment).
-  void globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g, SegmentResult* seg);
+  ///        (false when there is no flat segment). With `sensor` (x y z in the input frame: a
+  ///        sensor at the origin, not a registered cloud) the largest such segment whose plane
+  ///        passes below the sensor is taken where one of the largest does: the ground under a
+  ///        ground-level sensor lies below it.
+  void globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g, const float* sensor,
+                   SegmentResult* seg);
 
  private:
   // Scratch; seg_voxels_ and seg_points_ carry run()'s segment sizes to globalPlane().

@@ -154,6 +154,7 @@ HeightPlane fitHeightPlane(const Moments& m, double a0, double b0, double lambda
 /// column's key is the voxel key >> shift_y.
 struct VoxelGrid {
   std::uint64_t nx = 0, ny = 0, nz = 0;  // voxels per axis
+  float min[3] = {0.f, 0.f, 0.f};        // min corner of the valid points (input frame)
   int shift_x = 0, shift_y = 0;
   std::uint64_t mask_y = 0, mask_z = 0;
 

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <stdexcept>
 
 #include "airborne/airborne_mode.h"
@@ -130,7 +131,10 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
 
   // ---- 6. plane of the largest segment (paper), local ground model
   t0 = Clock::now();
-  m.segmenter.globalPlane(p, g, &seg);
+  const float* sensor = m.scan.origin();  // NaN: none (the paper mode's normalised segments)
+  const bool below_sensor = !scan.registered && std::isfinite(sensor[0]) &&
+                            std::isfinite(sensor[1]) && std::isfinite(sensor[2]);
+  m.segmenter.globalPlane(p, g, below_sensor ? sensor : nullptr, &seg);
   const bool have_plane = seg.have_plane;
   if (have_plane) {
     if (p.local_planes) {

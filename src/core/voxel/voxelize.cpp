@@ -224,6 +224,7 @@ int Voxelizer::layoutKeys(const float lo[3], const float hi[3], double vs, std::
                           VoxelGrid* g) {
   const float minx = lo[0], miny = lo[1], minz = lo[2];
   std::copy(lo, lo + 3, min_);
+  std::copy(lo, lo + 3, g->min);
   const float maxx = hi[0], maxy = hi[1], maxz = hi[2];
   const std::uint64_t nx = static_cast<std::uint64_t>((static_cast<double>(maxx) - minx) / vs) + 1;
   const std::uint64_t ny = static_cast<std::uint64_t>((static_cast<double>(maxy) - miny) / vs) + 1;

@@ -1,0 +1,75 @@
+// Sensors the dev data does not have (generated scenes with exact truth, the scenes of
+// scripts/sensor_sweep.py): each failure mode seen on one of them, kept from coming back.
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "eval/metrics.h"
+#include "eval/scene_generator.h"
+#include "ground_filter/cloud_view.h"
+#include "ground_filter/ground_filter.h"
+
+namespace ground_filter {
+namespace {
+
+struct Score {
+  double f1 = 0.0;
+  double road_recall = 0.0;  // share of the road's points labelled ground
+};
+
+Score run(const std::string& method, const std::string& spec) {
+  const GeneratedScan scan = generateScene(parseSceneSpec(spec));
+  const CloudView view = CloudView::packedXyz(scan.xyz.data(), scan.size());
+  std::vector<std::uint8_t> labels;
+  makeGroundFilter(method)->filter(view, &labels);
+  const std::vector<std::int8_t> truth(scan.truth.begin(), scan.truth.end());
+  Score s;
+  s.f1 = computeMetrics(countConfusion(labels, truth)).f1;
+  std::size_t road = 0, road_ground = 0;
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    if (scan.semantic[i] != kClassRoad) continue;
+    ++road;
+    road_ground += labels[i] == 1;
+  }
+  s.road_recall = road ? static_cast<double>(road_ground) / road : 0.0;
+  return s;
+}
+
+// 32 rings 0.97 deg apart, 3,600 firings, 1.8 m above the street: each ring of the road falls
+// into a segment of its own, and the underside of a tree crown (upward beams) became the
+// largest flat segment; the voxel method grew its ground model from there (F1 15 %, 12 % of
+// the road). The start segment must pass below the sensor.
+TEST(UnseenSensors, VoxelGroundGrowsFromBelowTheSensorWhenRingsFallApart) {
+  const Score s = run("voxel", "lidar16:1:beams=32,azimuth_steps=3600,sensor_height=1.8");
+  EXPECT_GT(s.f1, 0.85);
+  EXPECT_GT(s.road_recall, 0.85);
+}
+
+// Every sensor of the sweep 1.8 m above the street (the solid-state one with 10 k rays a
+// frame), both methods: a method that loses the
+// ground on one of them (the normal method on a VLP-16 before the sparse-lines rules: F1 0.5;
+// the voxel method above: 0.15) falls far below this.
+TEST(UnseenSensors, BothMethodsKeepTheGroundOfEverySensorOfTheSweep) {
+  const char* sensors[] = {
+      "lidar16:1:beams=16,vertical_min_deg=-15,vertical_max_deg=15,azimuth_steps=1800",
+      "lidar16:1:beams=32,vertical_min_deg=-15,vertical_max_deg=15,azimuth_steps=3600",
+      "lidar16:1:beams=32,vertical_min_deg=-30.67,vertical_max_deg=10.67,azimuth_steps=2170",
+      "lidar16:1:beams=16,vertical_min_deg=-15,vertical_max_deg=15,azimuth_steps=900",
+      "lidar16:1:beams=64,vertical_min_deg=-16.6,vertical_max_deg=16.6,azimuth_steps=2048",
+      "lidar16:1:beams=128,vertical_min_deg=-22.5,vertical_max_deg=22.5,azimuth_steps=2048",
+      "rosette:1:rosette_rays=10000",  // solid-state, a sparse frame
+  };
+  for (const char* sensor : sensors) {
+    const std::string spec = std::string(sensor) + ",sensor_height=1.8";
+    for (const char* method : {"voxel", "normal"}) {
+      const Score s = run(method, spec);
+      EXPECT_GT(s.f1, 0.85) << method << " " << spec;
+      EXPECT_GT(s.road_recall, 0.85) << method << " " << spec;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace ground_filter
