@@ -19,10 +19,10 @@ mean and the lowest over all placements, for:
     python3 scripts/sensor_sweep.py --set max_line_ratio=2.6   # the plateau's edges
     PEER_BIN=DIR python3 scripts/sensor_sweep.py --peers patchworkpp,csf
 
---peers NAME,... also runs DIR/<name>_driver (scripts/peers/README.md: the drivers are built
-from the peers' own code, outside this package) on the same scans, written as KITTI .bin files
-by `ground_filter_eval --write-scans`, and scores their labels with `--score-labels`, each with
-its own defaults. --height-peers NAME,... runs those again with the true sensor height of each
+--peers NAME,... also runs DIR/<name>_driver (scripts/peers/README.md: each driver is built
+out of the peer's own code, outside this package) on the same scans, written as KITTI .bin
+files by `ground_filter_eval --write-scans`, and scores their labels with `--score-labels`,
+each with its own defaults. --height-peers NAME,... runs those again with the true sensor height of each
 placement, `--set sensor_height=H` (for drivers that take it: Patchwork++'s and linefit's assume
 a fixed height).
 """
