@@ -282,6 +282,15 @@ void makeDir(const std::string& dir) {
   if (ec || !fs::is_directory(dir)) fail(dir, "cannot create output directory: " + ec.message());
 }
 
+// Writes `bytes` to `path` (truncating), or fails naming it.
+void writeFile(const std::string& path, const std::vector<unsigned char>& bytes) {
+  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  if (!f) fail(path, "cannot open for writing");
+  f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  f.close();
+  if (!f) fail(path, "write error");
+}
+
 // builtin:KIND[:SEED][:NAME=VALUE,...]: a generated scene with fields x y z intensity ring.
 Scan loadBuiltinScan(const std::string& path) {
   SceneParams params;
@@ -551,12 +560,7 @@ std::string writeLabels(const std::string& dir, const std::string& scan_path,
                         const std::vector<std::uint8_t>& labels) {
   makeDir(dir);
   const std::string out = (fs::path(dir) / (scanStem(scan_path) + ".gnd")).string();
-  std::ofstream f(out, std::ios::binary | std::ios::trunc);
-  if (!f) fail(out, "cannot open for writing");
-  f.write(reinterpret_cast<const char*>(labels.data()),
-          static_cast<std::streamsize>(labels.size()));
-  f.close();
-  if (!f) fail(out, "write error");
+  writeFile(out, labels);
   return out;
 }
 
@@ -577,11 +581,7 @@ std::string writeKittiLabels(const std::string& dir, const std::string& scan_pat
     const std::uint32_t v = labels[i] == 1 ? ids.ground : ids.nonground;
     for (int b = 0; b < 4; ++b) bytes[4 * i + b] = static_cast<unsigned char>(v >> (8 * b));
   }
-  std::ofstream f(out, std::ios::binary | std::ios::trunc);
-  if (!f) fail(out, "cannot open for writing");
-  f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-  f.close();
-  if (!f) fail(out, "write error");
+  writeFile(out, bytes);
   return out;
 }
 
@@ -594,14 +594,6 @@ std::uint32_t kittiClassOf(const Scan& scan, std::size_t i, float z) {
     return scan.semantic[i];
   }
   return truth == 1 ? 49u : truth == 0 ? 99u : 0u;  // other-ground, other-object, unlabeled
-}
-
-void writeFile(const std::string& path, const std::vector<unsigned char>& bytes) {
-  std::ofstream f(path, std::ios::binary | std::ios::trunc);
-  if (!f) fail(path, "cannot open for writing");
-  f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-  f.close();
-  if (!f) fail(path, "write error");
 }
 
 }  // namespace
