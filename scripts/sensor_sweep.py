@@ -132,9 +132,8 @@ def main():
             if i == 0 and peers:
                 cmd[1:1] = ["--write-scans", tmp.name]
             per[name] = run_json(cmd)
-        # the stems of --write-scans (scanStem() of a builtin: path)
-        stems = [path.replace(":", "_").replace(",", "_").replace("=", "-") for path in paths]
-        bins = [os.path.join(tmp.name, s + ".bin") for s in stems]
+        # the files --write-scans wrote, as the eval names them
+        bins = [r["scan_file"] for r in per[configs[0][0]]] if peers else []
         heights_of = [h for _, h in cells for _ in seeds]
         for name, p, true_height in runs:
             out = os.path.join(tmp.name, name.replace(", ", "_").replace(" ", "_"))

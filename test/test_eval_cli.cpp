@@ -234,6 +234,7 @@ TEST(EvalCli, WriteScansGivesAGeneratedSceneToOtherTools) {
   CommandResult b = runEval("--method normal --json '" + bin + "'");
   ASSERT_EQ(b.status, 0) << b.out;
   const Json ja = JsonParser(a.out).parseDocument(), jb = JsonParser(b.out).parseDocument();
+  EXPECT_EQ(ja.at("files").arr[0].at("scan_file").str, bin);  // the sweep reads the path here
   for (const char* k : {"points", "tp", "fp", "tn", "fn"}) {
     EXPECT_EQ(ja.at("files").arr[0].at(k).num, jb.at("files").arr[0].at(k).num) << k;
   }

@@ -417,10 +417,11 @@ void CudaNormalPipeline::Impl::planesAndLabels(CudaKnn::Impl& im, int n, std::si
 // ---- local ground plane (CPU: LocalGroundStage), on the KNN's lists of the sampled points
 void CudaNormalPipeline::Impl::localGround(CudaKnn::Impl& im, int n, int m,
                                            const unsigned int* d_sidx, const GroundParamsDev& gp) {
-  // cand (the candidates, n bytes) is free after the vote: the sampled points' labels.
+  // cand (the candidates, n bytes) is free after the vote: the sampled points' labels; gflags
+  // (n + 1 entries) after the tile lists' scan: each sampled point's KNN row.
   launchLocalGround(xyz.as<float>(), src.as<unsigned int>(), im.sorted.as<float4>(),
                     im.out_idx.as<std::int32_t>(), n, m, d_sidx, gp, cand.as<std::uint8_t>(),
-                    labels.as<std::uint8_t>(), groundCount(), im.stream);
+                    gflags.as<unsigned int>(), labels.as<std::uint8_t>(), groundCount(), im.stream);
 }
 
 // ---- labels (and counts) down

@@ -17,11 +17,12 @@ namespace cuda_impl {
 /// After the distance test: `xyz`/`src` the n ordered points, `pts`/`rows` the KNN's m sampled
 /// points (pts[s].w = sampled index) and their lists of k entries, sampled point j being ordered
 /// point sidx[j] (m + 1 entries, the last n; null: every point sampled); labels[src[i]] set to 1
-/// for the points it adds, ground_count += them. `sampled_ground`: m bytes of scratch.
+/// for the points it adds, ground_count += them. Scratch: `sampled_ground` m bytes, `row_of` m
+/// entries.
 void launchLocalGround(const float* xyz, const unsigned int* src, const float4* pts,
                        const std::int32_t* rows, int n, int m, const unsigned int* sidx,
-                       const GroundParamsDev& p, std::uint8_t* sampled_ground, std::uint8_t* labels,
-                       unsigned int* ground_count, cudaStream_t st);
+                       const GroundParamsDev& p, std::uint8_t* sampled_ground, unsigned int* row_of,
+                       std::uint8_t* labels, unsigned int* ground_count, cudaStream_t st);
 
 }  // namespace cuda_impl
 }  // namespace ground_filter

@@ -73,7 +73,8 @@ const char kUsage[] =
     "                    input fields)\n"
     "--write-scans DIR   write every input scan as DIR/<stem>.bin (KITTI float32 x y z\n"
     "                    intensity) and, when labelled, DIR/<stem>.label (SemanticKITTI classes\n"
-    "                    that read back as the same truth): generated scenes for other tools\n"
+    "                    that read back as the same truth): generated scenes for other tools;\n"
+    "                    with --json each file's \"scan_file\" names its .bin\n"
     "--repeat N          run the filter N times per file and report the median ms (default 1)\n"
     "--drop-one N        stability check (table only): per file, N times, filter the scan without\n"
     "                    one finite point (evenly spread over the file) and count the labels of\n"
@@ -257,6 +258,7 @@ struct FileResult {
   DropResult drop;
   std::string scan_type, scan_reason;  // FilterStats of the last run (parameter scan_type)
   std::string note;                    // FilterStats::note of the last run (e.g. a wider stride)
+  std::string scan_file;               // --write-scans: the .bin written
   gf::ScanMeasures measures;           // --scan-measures
   HagResult hag;                       // --hag
 };
@@ -427,7 +429,8 @@ FileResult evalFile(gf::GroundFilter* filter, const std::string& file, const Opt
                     std::vector<std::uint8_t>* labels_out, std::vector<gf::ClassCount>* classes) {
   std::vector<std::uint8_t>& labels = *labels_out;
   const gf::Scan scan = gf::loadScan(file);
-  if (!opt.scans_dir.empty()) gf::writeKittiScan(opt.scans_dir, scan);
+  const std::string scan_file =
+      opt.scans_dir.empty() ? std::string() : gf::writeKittiScan(opt.scans_dir, scan);
   const gf::CloudView view = gf::viewOf(scan.cloud);
   std::vector<double> times;
   gf::FilterStats stats;
@@ -453,6 +456,7 @@ FileResult evalFile(gf::GroundFilter* filter, const std::string& file, const Opt
   res.scan_type = stats.scan_type;
   res.scan_reason = stats.scan_reason;
   res.note = stats.note;
+  res.scan_file = scan_file;
   if (res.labelled) res.confusion = gf::countConfusion(labels, scan.truth);
   if (opt.classes && res.labelled && !scan.semantic.empty()) {
     gf::addClassCounts(labels, scan.truth, scan.semantic, classes);
@@ -539,6 +543,7 @@ void printJson(const Options& opt, const std::vector<FileResult>& results, const
        << ",\"labelled\":" << (r.labelled ? "true" : "false")
        << ",\"scan_type\":" << jsonString(r.scan_type)
        << ",\"scan_reason\":" << jsonString(r.scan_reason) << ",\"note\":" << jsonString(r.note);
+    if (!opt.scans_dir.empty()) os << ",\"scan_file\":" << jsonString(r.scan_file);
     if (opt.hag) os << ",\"hag\":" << hagJson(hag[i]);
     if (opt.scan_measures) {
       const gf::ScanMeasures& m = r.measures;
