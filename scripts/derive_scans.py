@@ -1,0 +1,138 @@
+#!/usr/bin/env python3
+"""Write changed copies of labelled KITTI .bin scans (and their sibling .label files), to check a
+filter on clouds that another node has already processed (docs/tuning.md, "Clouds other nodes
+made"):
+
+  --voxel LEAF        keep the first point (input order) of each LEAF-metre cube, as a VoxelGrid
+                      downsampling does (one point a cube; the first keeps its own label)
+  --keep FRAC         keep a random FRAC of the points (--seed S, default 1)
+  --shift DX DY DZ    move every point by (DX, DY, DZ) m: another frame origin, e.g. DZ 1.73 for
+                      a base_link on the road under a KITTI sensor, or map coordinates
+  --tilt ROLL PITCH   rotate about x by ROLL, then about y by PITCH (degrees, about the origin): a
+                      sensor mounted tilted, without a gravity frame
+
+SemanticKITTI's protocol counts vegetation (class 70) as ground only below -0.75 x the sensor
+height (z < -1.2975 m), which --shift and --tilt would move: vegetation is written as 72
+"terrain" where the input point satisfied that rule and as 99 "other-object" where it did not,
+so the truth reads back unchanged (instance bits kept). Output: OUTDIR/<stem>.bin (+ .label), the
+kept points in input order; the options apply in the order above.
+
+usage: scripts/derive_scans.py [--voxel LEAF] [--keep FRAC [--seed S]] [--shift DX DY DZ]
+                               [--tilt ROLL PITCH] OUTDIR FILE.bin...
+"""
+import array
+import math
+import os
+import random
+import sys
+
+VEGETATION, TERRAIN, OTHER_OBJECT = 70, 72, 99
+VEGETATION_GROUND_Z = -0.75 * 1.73  # SemanticKITTI protocol: KITTI's sensor height [m]
+
+
+def parse(argv):
+    """Options and files from argv, or None (usage)."""
+    opt = {"voxel": None, "keep": None, "seed": 1, "shift": None, "tilt": None}
+    args = list(argv[1:])
+    arity = {"--voxel": 1, "--keep": 1, "--seed": 1, "--shift": 3, "--tilt": 2}
+    while args and args[0] in arity:
+        name, k = args[0], arity[args[0]]
+        if len(args) < k + 1:
+            return None
+        try:
+            vals = [float(v) for v in args[1:k + 1]]
+        except ValueError:
+            return None
+        if not all(math.isfinite(v) for v in vals):
+            return None
+        opt[name[2:]] = vals if k > 1 else vals[0]
+        del args[:k + 1]
+    if opt["voxel"] is not None and not opt["voxel"] > 0:
+        return None
+    if opt["keep"] is not None and not 0 < opt["keep"] <= 1:
+        return None
+    if len(args) < 2:
+        return None
+    return opt, args[0], args[1:]
+
+
+def derive(path, opt, out):
+    """Writes the changed copy of one scan; False (with a message) for a malformed file."""
+    with open(path, "rb") as f:
+        data = f.read()
+    if len(data) % 16:
+        sys.stderr.write("%s: not KITTI float32 x y z intensity records\n" % path)
+        return False
+    pts = array.array("f")
+    pts.frombytes(data)
+    n = len(pts) // 4
+    labs = array.array("I")
+    lab_path = os.path.splitext(path)[0] + ".label"
+    if os.path.exists(lab_path):
+        with open(lab_path, "rb") as f:
+            labs.frombytes(f.read())
+        if len(labs) != n:
+            sys.stderr.write("%s: %d labels for %d points\n" % (lab_path, len(labs), n))
+            return False
+    keep = range(n)
+    if opt["voxel"] is not None:
+        leaf, seen, kept = opt["voxel"], set(), []
+        for i in keep:
+            cell = tuple(math.floor(pts[4 * i + a] / leaf) if math.isfinite(pts[4 * i + a])
+                         else None for a in range(3))
+            if cell not in seen:
+                seen.add(cell)
+                kept.append(i)
+        keep = kept
+    if opt["keep"] is not None:
+        rng = random.Random(opt["seed"])
+        keep = sorted(rng.sample(list(keep), int(round(len(keep) * opt["keep"]))))
+    rot = rotation(opt["tilt"])
+    shift = opt["shift"] or [0.0, 0.0, 0.0]
+    out_p, out_l = array.array("f"), array.array("I")
+    for i in keep:
+        x, y, z, w = pts[4 * i:4 * i + 4]
+        if rot:
+            x, y, z = (sum(rot[r][c] * v for c, v in enumerate((x, y, z))) for r in range(3))
+        out_p.extend((x + shift[0], y + shift[1], z + shift[2], w))
+        if labs:
+            lab = labs[i]
+            if lab & 0xFFFF == VEGETATION and (opt["shift"] or rot):
+                cls = TERRAIN if pts[4 * i + 2] < VEGETATION_GROUND_Z else OTHER_OBJECT
+                lab = (lab & 0xFFFF0000) | cls
+            out_l.append(lab)
+    stem = os.path.splitext(os.path.basename(path))[0]
+    with open(os.path.join(out, stem + ".bin"), "wb") as f:
+        out_p.tofile(f)
+    if labs:
+        with open(os.path.join(out, stem + ".label"), "wb") as f:
+            out_l.tofile(f)
+    print("%s: %d of %d points -> %s" % (path, len(keep), n, os.path.join(out, stem + ".bin")))
+    return True
+
+
+def rotation(tilt):
+    """R = Ry(pitch) Rx(roll) as rows, or None."""
+    if not tilt:
+        return None
+    r, p = math.radians(tilt[0]), math.radians(tilt[1])
+    rx = [[1, 0, 0], [0, math.cos(r), -math.sin(r)], [0, math.sin(r), math.cos(r)]]
+    ry = [[math.cos(p), 0, math.sin(p)], [0, 1, 0], [-math.sin(p), 0, math.cos(p)]]
+    return [[sum(ry[i][k] * rx[k][j] for k in range(3)) for j in range(3)] for i in range(3)]
+
+
+def main(argv):
+    parsed = parse(argv)
+    if parsed is None:
+        sys.stderr.write(__doc__)
+        return 2
+    opt, out, files = parsed
+    os.makedirs(out, exist_ok=True)
+    for path in files:
+        if not derive(path, opt, out):
+            return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
