@@ -10,15 +10,19 @@ made"):
                       a base_link on the road under a KITTI sensor, or map coordinates
   --tilt ROLL PITCH   rotate about x by ROLL, then about y by PITCH (degrees, about the origin): a
                       sensor mounted tilted, without a gravity frame
+  --mirror FRAC       add FRAC x the scan's points as reflections under the road: random points
+                      more than 0.5 m above KITTI's road (z > -1.23 m) mirrored in its plane
+                      z = -1.73 m (wet asphalt, glass), labelled 1 "outlier" (left out of every
+                      count: they show what the extra points do to the others)
 
 SemanticKITTI's protocol counts vegetation (class 70) as ground only below -0.75 x the sensor
 height (z < -1.2975 m), which --shift and --tilt would move: vegetation is written as 72
 "terrain" where the input point satisfied that rule and as 99 "other-object" where it did not,
 so the truth reads back unchanged (instance bits kept). Output: OUTDIR/<stem>.bin (+ .label), the
-kept points in input order; the options apply in the order above.
+kept points in input order (reflections after them); the options apply in the order above.
 
 usage: scripts/derive_scans.py [--voxel LEAF] [--keep FRAC [--seed S]] [--shift DX DY DZ]
-                               [--tilt ROLL PITCH] OUTDIR FILE.bin...
+                               [--tilt ROLL PITCH] [--mirror FRAC] OUTDIR FILE.bin...
 """
 import array
 import math
@@ -26,15 +30,16 @@ import os
 import random
 import sys
 
-VEGETATION, TERRAIN, OTHER_OBJECT = 70, 72, 99
-VEGETATION_GROUND_Z = -0.75 * 1.73  # SemanticKITTI protocol: KITTI's sensor height [m]
+VEGETATION, TERRAIN, OTHER_OBJECT, OUTLIER = 70, 72, 99, 1
+KITTI_ROAD_Z = -1.73  # KITTI's sensor height above the road [m]
+VEGETATION_GROUND_Z = 0.75 * KITTI_ROAD_Z  # SemanticKITTI protocol
 
 
 def parse(argv):
     """Options and files from argv, or None (usage)."""
-    opt = {"voxel": None, "keep": None, "seed": 1, "shift": None, "tilt": None}
+    opt = {"voxel": None, "keep": None, "seed": 1, "shift": None, "tilt": None, "mirror": None}
     args = list(argv[1:])
-    arity = {"--voxel": 1, "--keep": 1, "--seed": 1, "--shift": 3, "--tilt": 2}
+    arity = {"--voxel": 1, "--keep": 1, "--seed": 1, "--shift": 3, "--tilt": 2, "--mirror": 1}
     while args and args[0] in arity:
         name, k = args[0], arity[args[0]]
         if len(args) < k + 1:
@@ -50,6 +55,8 @@ def parse(argv):
     if opt["voxel"] is not None and not opt["voxel"] > 0:
         return None
     if opt["keep"] is not None and not 0 < opt["keep"] <= 1:
+        return None
+    if opt["mirror"] is not None and not 0 <= opt["mirror"] <= 0.5:
         return None
     if len(args) < 2:
         return None
@@ -84,20 +91,28 @@ def derive(path, opt, out):
                 seen.add(cell)
                 kept.append(i)
         keep = kept
+    rng = random.Random(opt["seed"])
     if opt["keep"] is not None:
-        rng = random.Random(opt["seed"])
         keep = sorted(rng.sample(list(keep), int(round(len(keep) * opt["keep"]))))
+    mirrored = []
+    if opt["mirror"]:
+        above = [i for i in keep if pts[4 * i + 2] > KITTI_ROAD_Z + 0.5]
+        mirrored = rng.sample(above, min(len(above), int(round(len(keep) * opt["mirror"]))))
     rot = rotation(opt["tilt"])
     shift = opt["shift"] or [0.0, 0.0, 0.0]
     out_p, out_l = array.array("f"), array.array("I")
-    for i in keep:
+    for i, reflection in [(i, False) for i in keep] + [(i, True) for i in mirrored]:
         x, y, z, w = pts[4 * i:4 * i + 4]
+        if reflection:
+            z = 2 * KITTI_ROAD_Z - z
         if rot:
             x, y, z = (sum(rot[r][c] * v for c, v in enumerate((x, y, z))) for r in range(3))
         out_p.extend((x + shift[0], y + shift[1], z + shift[2], w))
         if labs:
             lab = labs[i]
-            if lab & 0xFFFF == VEGETATION and (opt["shift"] or rot):
+            if reflection:
+                lab = OUTLIER
+            elif lab & 0xFFFF == VEGETATION and (opt["shift"] or rot):
                 cls = TERRAIN if pts[4 * i + 2] < VEGETATION_GROUND_Z else OTHER_OBJECT
                 lab = (lab & 0xFFFF0000) | cls
             out_l.append(lab)
@@ -107,7 +122,9 @@ def derive(path, opt, out):
     if labs:
         with open(os.path.join(out, stem + ".label"), "wb") as f:
             out_l.tofile(f)
-    print("%s: %d of %d points -> %s" % (path, len(keep), n, os.path.join(out, stem + ".bin")))
+    print("%s: %d of %d points%s -> %s" % (path, len(keep), n,
+                                          " + %d reflections" % len(mirrored) if mirrored else "",
+                                          os.path.join(out, stem + ".bin")))
     return True
 
 

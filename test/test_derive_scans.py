@@ -93,10 +93,25 @@ class DeriveScansTest(unittest.TestCase):
         _, labs = self.derived("--voxel", "0.1")  # z unchanged: the classes stay
         self.assertEqual(list(labs), [(7 << 16) | 70, 70, 40])
 
+    def test_mirror_adds_reflections_under_the_road_as_outliers(self):
+        # the grid lies at z -1.75 / -1.74: raise half of it to 1 m above the road
+        pts = read(self.src + ".bin", "f")
+        for i in range(100):
+            pts[4 * i + 2] = -0.73
+        with open(self.src + ".bin", "wb") as f:
+            f.write(pts.tobytes())
+        out, labs = self.derived("--mirror", "0.1")
+        self.assertEqual(len(labs), 220)
+        self.assertEqual(list(out[:800]), list(pts))  # the scan itself unchanged, first
+        self.assertEqual(set(labs[200:]), {1})
+        for r in range(200, 220):
+            self.assertAlmostEqual(out[4 * r + 2], -2.73, places=4)  # -0.73 mirrored in -1.73
+            self.assertLess(int(out[4 * r + 3]), 100)  # a copy of a raised point
+
     def test_bad_input_is_refused(self):
         out = os.path.join(self.dir, "bad")
         for args in (["--voxel", "0"], ["--keep", "1.5"], ["--shift", "1", "2"],
-                     ["--tilt", "nan", "0"], ["--voxel"]):
+                     ["--tilt", "nan", "0"], ["--voxel"], ["--mirror", "0.9"]):
             self.assertEqual(self.run_script(*(args + [out, self.src + ".bin"])).returncode, 2,
                              args)
         with open(os.path.join(self.dir, "odd.bin"), "wb") as f:
