@@ -30,6 +30,9 @@ import os
 import random
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from subsample_rings import read_scan, write_scan  # noqa: E402 (one KITTI scan reader)
+
 VEGETATION, TERRAIN, OTHER_OBJECT, OUTLIER = 70, 72, 99, 1
 KITTI_ROAD_Z = -1.73  # KITTI's sensor height above the road [m]
 VEGETATION_GROUND_Z = 0.75 * KITTI_ROAD_Z  # SemanticKITTI protocol
@@ -65,22 +68,11 @@ def parse(argv):
 
 def derive(path, opt, out):
     """Writes the changed copy of one scan; False (with a message) for a malformed file."""
-    with open(path, "rb") as f:
-        data = f.read()
-    if len(data) % 16:
-        sys.stderr.write("%s: not KITTI float32 x y z intensity records\n" % path)
+    scan = read_scan(path)
+    if scan is None:
         return False
-    pts = array.array("f")
-    pts.frombytes(data)
+    pts, labs = scan
     n = len(pts) // 4
-    labs = array.array("I")
-    lab_path = os.path.splitext(path)[0] + ".label"
-    if os.path.exists(lab_path):
-        with open(lab_path, "rb") as f:
-            labs.frombytes(f.read())
-        if len(labs) != n:
-            sys.stderr.write("%s: %d labels for %d points\n" % (lab_path, len(labs), n))
-            return False
     keep = range(n)
     if opt["voxel"] is not None:
         leaf, seen, kept = opt["voxel"], set(), []
@@ -116,15 +108,10 @@ def derive(path, opt, out):
                 cls = TERRAIN if pts[4 * i + 2] < VEGETATION_GROUND_Z else OTHER_OBJECT
                 lab = (lab & 0xFFFF0000) | cls
             out_l.append(lab)
-    stem = os.path.splitext(os.path.basename(path))[0]
-    with open(os.path.join(out, stem + ".bin"), "wb") as f:
-        out_p.tofile(f)
-    if labs:
-        with open(os.path.join(out, stem + ".label"), "wb") as f:
-            out_l.tofile(f)
+    bin_path = write_scan(out, path, out_p, out_l)
     print("%s: %d of %d points%s -> %s" % (path, len(keep), n,
                                           " + %d reflections" % len(mirrored) if mirrored else "",
-                                          os.path.join(out, stem + ".bin")))
+                                          bin_path))
     return True
 
 

@@ -38,14 +38,15 @@ def main(argv):
     return 0
 
 
-def subsample(path, every, out, half_fov=math.pi):
-    """Writes the kept rings of one scan; False (with a message) for a malformed file."""
+def read_scan(path):
+    """(points, labels) of a KITTI .bin (float32 x y z intensity records) and its sibling .label
+    (uint32 per point; empty when there is none), or None with a message for a malformed pair."""
     pts = array.array("f")
     with open(path, "rb") as f:
         data = f.read()
     if len(data) % 16:
         sys.stderr.write("%s: not KITTI float32 x y z intensity records\n" % path)
-        return False
+        return None
     pts.frombytes(data)
     n = len(pts) // 4
     labs = array.array("I")
@@ -55,7 +56,29 @@ def subsample(path, every, out, half_fov=math.pi):
             labs.frombytes(f.read())
         if len(labs) != n:
             sys.stderr.write("%s: %d labels for %d points\n" % (lab_path, len(labs), n))
-            return False
+            return None
+    return pts, labs
+
+
+def write_scan(out, path, pts, labs):
+    """Writes OUTDIR/<stem of path>.bin and, when labs is not empty, its .label; returns the .bin
+    path."""
+    stem = os.path.join(out, os.path.splitext(os.path.basename(path))[0])
+    with open(stem + ".bin", "wb") as f:
+        f.write(pts.tobytes())
+    if labs:
+        with open(stem + ".label", "wb") as f:
+            f.write(labs.tobytes())
+    return stem + ".bin"
+
+
+def subsample(path, every, out, half_fov=math.pi):
+    """Writes the kept rings of one scan; False (with a message) for a malformed file."""
+    scan = read_scan(path)
+    if scan is None:
+        return False
+    pts, labs = scan
+    n = len(pts) // 4
     keep_p, keep_l = array.array("f"), array.array("I")
     ring, run, prev = 0, 0, None
     for i in range(n):
@@ -67,12 +90,7 @@ def subsample(path, every, out, half_fov=math.pi):
             keep_p.extend(pts[4 * i:4 * i + 4])
             if labs:
                 keep_l.append(labs[i])
-    stem = os.path.join(out, os.path.splitext(os.path.basename(path))[0])
-    with open(stem + ".bin", "wb") as f:
-        f.write(keep_p.tobytes())
-    if labs:
-        with open(stem + ".label", "wb") as f:
-            f.write(keep_l.tobytes())
+    write_scan(out, path, keep_p, keep_l)
     print("%s: %d rings, kept %d of %d points" % (os.path.basename(path), ring + 1,
                                                   len(keep_p) // 4, n))
     return True
