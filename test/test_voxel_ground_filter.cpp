@@ -349,6 +349,28 @@ TEST(VoxelGroundFilter, ReusedFilterGivesTheSameLabelsToACellNeverGrown) {
   EXPECT_LT(pole_ground, (pole.size() - pole_from) / 10);
 }
 
+// A cloud thinned to an even 0.5 m grid (a map exported at a coarse resolution): no 0.1 m voxel
+// holds two points, so no ground model can grow; before, every point came out non-ground. The
+// morphological surface labels it instead, and says so.
+TEST(VoxelGroundFilter, CloudCoarserThanTheVoxelsGetsTheMorphologicalSurface) {
+  std::mt19937 rng(5);
+  Cloud c;
+  addSurface(
+      &c, -10, 10, -10, 10, 0.5f, [](float x, float) { return 0.05f * x; }, 0.01f, &rng);
+  addBox(&c, 3.f, 2.f, 4.f, 4.f, 0.15f, 3.f, 0.5f);  // a small building, 3 m tall
+  gf::FilterStats st;
+  const auto labels = run(c, groundLevel(), &st);
+  EXPECT_NE(st.note.find("morphological surface"), std::string::npos) << st.note;
+  std::size_t ground = 0, ground_found = 0;
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    if (!c.truth[i]) continue;
+    ++ground;
+    ground_found += labels[i] == 1;
+  }
+  EXPECT_GT(ground_found, ground * 9 / 10) << ground_found << " of " << ground;
+  expectNoGroundAbove(c, labels, 1.2f, 100u);  // the building's walls and roof
+}
+
 TEST(VoxelGroundFilter, EmptyCloud) {
   Cloud c;
   gf::FilterStats st;

@@ -23,6 +23,37 @@
 
 namespace ground_filter {
 
+namespace {
+
+/// Writes the labels `gr` (by sorted position) in input order: sorted position -> slot (low bits
+/// of a packed key, or `order`) -> input index (identity when every point is valid); returns the
+/// ground count.
+std::size_t labelsToInputOrder(const voxel::VoxelGrid& g, const std::uint8_t* gr, std::size_t n,
+                               std::vector<std::uint8_t>* labels) {
+  std::size_t ground_count = 0;
+  const std::uint64_t* keys = g.keys.data();
+  const std::uint64_t slot_mask = (std::uint64_t{1} << g.slot_bits) - 1;
+  const std::uint32_t* ord = g.order.data();
+  const std::uint32_t* idx = g.point_index.data();
+  std::uint8_t* out = labels->data();
+  if (g.packed && g.all_valid) {  // the common case, without the layout tests per point
+    for (std::size_t i = 0; i < n; ++i) {
+      out[keys[i] & slot_mask] = gr[i];
+      ground_count += gr[i];
+    }
+  } else {
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint32_t slot =
+          g.packed ? static_cast<std::uint32_t>(keys[i] & slot_mask) : ord[i];
+      out[g.all_valid ? slot : idx[slot]] = gr[i];
+      ground_count += gr[i];
+    }
+  }
+  return ground_count;
+}
+
+}  // namespace
+
 // ------------------------------------------------------------------------------------ filter
 
 // The stages (src/core/voxel/), each holding only its own scratch buffers, and the results they
@@ -122,6 +153,14 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
   t0 = Clock::now();
   m.voxelizer.build(p, threads, &m.pool, &g, &m.cells);
   stage("voxelize", t0);
+  if (g.flat.size() == 0 && n >= ScanTypeClassifier::kMinPoints) {
+    // Not one voxel holds min_points_per_voxel points: the cloud is sampled more coarsely than
+    // voxel_size (a map thinned to an even grid), so no ground model can grow. The
+    // morphological surface needs no density: it labels the scan instead of nothing.
+    runAirborneMode(cloud, airborneSettings(p), &m.morph, t_start, stats != nullptr, labels, &st);
+    if (stats) st.note = "no voxel holds min_points_per_voxel points: the morphological surface";
+    return true;
+  }
 
   // ---- 4. height filter, 5. region growing, largest segment
   t0 = Clock::now();
@@ -167,28 +206,7 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
     stage("vegetation", t0);
   }
 
-  // Labels back to input order: sorted position -> slot (low bits of a packed key, or `order`)
-  // -> input index (identity when every point is valid).
-  std::size_t ground_count = 0;
-  const std::uint64_t* keys = g.keys.data();
-  const std::uint64_t slot_mask = (std::uint64_t{1} << g.slot_bits) - 1;
-  const std::uint32_t* ord = g.order.data();
-  const std::uint32_t* idx = g.point_index.data();
-  const std::uint8_t* gr = cls.ground.data();
-  std::uint8_t* out = labels->data();
-  if (g.packed && g.all_valid) {  // the common case, without the layout tests per point
-    for (std::size_t i = 0; i < n; ++i) {
-      out[keys[i] & slot_mask] = gr[i];
-      ground_count += gr[i];
-    }
-  } else {
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::uint32_t slot =
-          g.packed ? static_cast<std::uint32_t>(keys[i] & slot_mask) : ord[i];
-      out[g.all_valid ? slot : idx[slot]] = gr[i];
-      ground_count += gr[i];
-    }
-  }
+  const std::size_t ground_count = labelsToInputOrder(g, m.classified.ground.data(), n, labels);
   st.ground_points = ground_count;
   st.total_ms = msSince(t_start);
   return true;
