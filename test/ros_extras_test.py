@@ -366,7 +366,13 @@ class RosExtrasTest(RosTestCase):
                           timeout=10.0)
             lost = self.number(name, key)
             self.assertGreater(lost, 0, "a 30-cloud burst into a queue of 1 lost nothing?")
-            self.assertEqual(out.count("/%s/ground" % name), sent - lost)
+            # Every cloud that reached the filter was published (the nodelet's own count; the
+            # test's Python subscriber may miss some of a burst when the machine is loaded: the
+            # publisher keeps a short queue per subscriber).
+            self.wait_for(lambda: self.number(name, "clouds out") == sent - lost,
+                          "clouds out != %d in: %s" % (sent - lost, self.number(name, "clouds out")),
+                          timeout=10.0)
+            self.assertLessEqual(out.count("/%s/ground" % name), sent - lost)
             self.wait_for(lambda: self.logged(Log.WARN, "lost before the filter (seq "),
                           "no WARN naming the lost clouds", timeout=10.0)
             self.wait_for(lambda: any(st.level == DiagnosticStatus.WARN and
