@@ -206,7 +206,7 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
     stage("vegetation", t0);
   }
 
-  const std::size_t ground_count = labelsToInputOrder(g, m.classified.ground.data(), n, labels);
+  const std::size_t ground_count = labelsToInputOrder(g, cls.ground.data(), n, labels);
   st.ground_points = ground_count;
   st.total_ms = msSince(t_start);
   return true;
