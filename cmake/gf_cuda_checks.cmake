@@ -21,7 +21,7 @@ endfunction()
 gf_gpu_check(test_gpu_neighbor_search ${GF_CUDA_DIR}/test/test_gpu_neighbor_search.cpp gtest_main)
 add_test(NAME gpu_neighbor_search COMMAND test_gpu_neighbor_search)
 gf_gpu_check(test_gpu_pipeline ${GF_CUDA_DIR}/test/test_gpu_pipeline.cpp gtest_main
-  CUDA::cudart_static)
+  ground_filter_eval_kit CUDA::cudart_static)
 add_test(NAME gpu_pipeline COMMAND test_gpu_pipeline)
 gf_gpu_check(bench_gpu_knn ${GF_CUDA_DIR}/bench/bench_gpu_knn.cpp OpenMP::OpenMP_CXX)
 

@@ -110,8 +110,8 @@ class FakeExecutor : public gf::NormalFilterExecutor {
  public:
   FakeExecutor(bool accept, int* calls) : accept_(accept), calls_(calls) {}
   std::string name() const override { return "fake"; }
-  bool run(const gf::CloudView& cloud, int /*sample_stride*/, std::vector<std::uint8_t>* labels,
-           gf::FilterStats* stats) override {
+  bool run(const gf::CloudView& cloud, int /*sample_stride*/, const double* /*sensor*/,
+           std::vector<std::uint8_t>* labels, gf::FilterStats* stats) override {
     ++*calls_;
     if (!accept_) return false;
     labels->assign(cloud.size(), gf::kGround);

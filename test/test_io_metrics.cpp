@@ -524,7 +524,7 @@ TEST(Builtin, FailureModeScenesHaveClassesAndTruth) {
     EXPECT_GT(terrain, 5000u) << path;
   }
   const std::vector<std::string> kinds = gf::builtinSceneKinds();
-  EXPECT_EQ(kinds.size(), 15u);
+  EXPECT_EQ(kinds.size(), 16u);
   try {
     gf::loadScan("builtin:moon");
     ADD_FAILURE() << "no exception";

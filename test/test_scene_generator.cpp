@@ -342,7 +342,7 @@ TEST(SceneGenerator, RegisteredCloudsAreInTheWorldFrameWithExactTruth) {
 }
 
 TEST(SceneGenerator, BuiltinKindsNameTheirSceneAndScanner) {
-  EXPECT_EQ(builtinSceneKinds().size(), 15u);
+  EXPECT_EQ(builtinSceneKinds().size(), 16u);
   for (const std::string& kind : builtinSceneKinds()) {
     EXPECT_NO_THROW(builtinSceneParams(kind).validate()) << kind;
   }
@@ -358,6 +358,38 @@ TEST(SceneGenerator, BuiltinKindsNameTheirSceneAndScanner) {
     ADD_FAILURE() << "no exception";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("trail"), std::string::npos) << e.what();
+  }
+}
+
+// kGarage: the floor is the ground (on sceneGroundHeight, the scanner 1.8 m over it), a
+// ceiling ceiling_height over the floor covers the level and is seen from below (a large share
+// of the returns, all non-ground), and a ceiling lower than 1.5 m is refused by name.
+TEST(SceneGenerator, GarageHasAFloorAndACeilingOverIt) {
+  SceneParams p = builtinSceneParams("garage");
+  EXPECT_EQ(p.layout, SceneParams::Layout::kGarage);
+  const GeneratedScan g = generateScene(p);
+  std::size_t floor = 0, ceiling = 0;
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    const float* q = &g.xyz[3 * i];
+    if (!std::isfinite(q[2])) continue;
+    if (g.truth[i] == 1) {
+      ++floor;
+      ASSERT_NEAR(q[2], sceneGroundHeight(p, q[0], q[1]), 0.15) << i;
+      ASSERT_NEAR(q[2], -p.sensor_height, 0.15) << i;
+      ASSERT_EQ(g.semantic[i], kClassRoad);
+    } else if (std::fabs(q[2] - (p.ceiling_height - p.sensor_height)) < 0.1) {
+      ++ceiling;
+      ASSERT_EQ(g.semantic[i], kClassBuilding);
+    }
+  }
+  EXPECT_GT(floor, g.size() / 5);
+  EXPECT_GT(ceiling, g.size() / 5);
+  p.ceiling_height = 1.0;
+  try {
+    p.validate();
+    ADD_FAILURE() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("ceiling_height"), std::string::npos) << e.what();
   }
 }
 

@@ -75,6 +75,7 @@ struct CudaNormalPipeline::Impl {
   unsigned int* workPlanes() { return counters.as<unsigned int>() + 6; }
   unsigned int* workClassify() { return counters.as<unsigned int>() + 7; }
   unsigned int* needGlobal() { return counters.as<unsigned int>() + 8; }
+  unsigned int* sensorCounts() { return counters.as<unsigned int>() + 9; }  // 9, 10
 
   /// Grows every buffer but the planes (grow only; the memory limit covers them with the KNN's).
   void growBuffers(CudaKnn::Impl& im, std::size_t n_in);
@@ -405,7 +406,8 @@ void CudaNormalPipeline::Impl::planesAndLabels(CudaKnn::Impl& im, int n, std::si
   const int plane_blocks = static_cast<int>(std::min<std::uint64_t>(tiles_max + 1, 8ull * sms));
   launchPlanes(d_xyz, d_tkeys, tile_begin.as<unsigned int>(), d_ntiles, vpos.as<unsigned int>(),
                vlist.as<unsigned int>(), glist.as<unsigned int>(), d_gcount, gp, d_planes,
-               workPlanes(), needGlobal(), refine.as<double>(), tiles_max, plane_blocks, st);
+               workPlanes(), needGlobal(), sensorCounts(), refine.as<double>(), tiles_max,
+               plane_blocks, st);
   std::uint8_t* d_labels = labels.as<std::uint8_t>();
   GF_CUDA_CHECK(cudaMemsetAsync(d_labels, 0, n_in, st));
   const int classify_blocks = static_cast<int>(std::min<std::uint64_t>(tiles_max, 8ull * sms));

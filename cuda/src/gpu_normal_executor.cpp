@@ -14,12 +14,14 @@ GpuNormalExecutor::GpuNormalExecutor(const CudaNormalParams& settings,
 
 GpuNormalExecutor::~GpuNormalExecutor() = default;
 
-bool GpuNormalExecutor::run(const CloudView& cloud, int sample_stride,
+bool GpuNormalExecutor::run(const CloudView& cloud, int sample_stride, const double* sensor,
                             std::vector<std::uint8_t>* labels, FilterStats* stats) {
   try {
     labels->resize(cloud.size());
     CudaNormalParams settings = settings_;
     settings.sample_stride = sample_stride;
+    settings.sensor_check = sensor ? 1 : 0;
+    for (int a = 0; a < 3; ++a) settings.sensor[a] = sensor ? sensor[a] : 0.0;
     pipeline_->run(cloud, settings, labels->data());
   } catch (const CudaError& e) {
     last_note_ = "GPU filter failed (" + e.errorName() + ": " + e.what() + "); using kdtree";

@@ -29,8 +29,8 @@ class GpuNormalExecutor : public NormalFilterExecutor {
   ~GpuNormalExecutor() override;
 
   std::string name() const override { return "gpu"; }
-  bool run(const CloudView& cloud, int sample_stride, std::vector<std::uint8_t>* labels,
-           FilterStats* stats) override;
+  bool run(const CloudView& cloud, int sample_stride, const double* sensor,
+           std::vector<std::uint8_t>* labels, FilterStats* stats) override;
   std::string lastNote() const override { return last_note_; }
 
   /// \brief The pipeline (timings of the last run).

@@ -62,6 +62,20 @@ __device__ inline unsigned long long blockInlierSum(unsigned int m, double* stag
   return count;
 }
 
+/// normal::planeAboveSensor() for the plane n.q + d = 0 relative to the origin `o`.
+/// Horizontal distance from the sensor to `at` (relative to the plane's origin `o`).
+__device__ inline double reach(const GroundParamsDev& p, const double o[3], const double at[3]) {
+  return normal::horizontalDistance(p.sensor[0] - o[0], p.sensor[1] - o[1], at[0], at[1]);
+}
+
+/// normal::planeAboveSensor() for the plane n.q + d = 0 relative to the origin `o`, its nearest
+/// support `r` from the sensor.
+__device__ inline bool aboveSensor(const GroundParamsDev& p, const double o[3], const double n[3],
+                                   double d, double r, bool draw) {
+  return normal::planeAboveSensor(n[0], n[1], n[2], d, p.sensor[0] - o[0], p.sensor[1] - o[1],
+                                  p.sensor[2] - o[2], r, draw);
+}
+
 /// The best RANSAC hypothesis: its inlier count on the eval subset, normal and offset.
 struct Hypothesis {
   unsigned int count;
@@ -98,7 +112,7 @@ constexpr int kPlaneWarps = kPlaneThreads / 32;
 __device__ inline Hypothesis ransacHypotheses(const float* __restrict__ xyz,
                                               const unsigned int* __restrict__ idx, unsigned int m,
                                               unsigned int ne, const GroundParamsDev& p,
-                                              std::uint64_t seed, const double o[3],
+                                              std::uint64_t seed, const double o[3], bool check,
                                               const float* evp, Hypothesis* batch) {
   const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
   const double thr = p.plane_distance, tilt = p.min_abs_nz;
@@ -133,8 +147,11 @@ __device__ inline Hypothesis ransacHypotheses(const float* __restrict__ xyz,
           nrm[0] /= len;
           nrm[1] /= len;
           nrm[2] /= len;
-          if (fabs(nrm[2]) >= tilt) {
-            const double d = -dot3(nrm, pa);
+          const double d = -dot3(nrm, pa);
+          if (fabs(nrm[2]) >= tilt &&
+              !(check &&
+                aboveSensor(p, o, nrm, d,
+                            fmin(fmin(reach(p, o, pa), reach(p, o, pb)), reach(p, o, pc)), true))) {
             unsigned int local = 0;
             for (unsigned int e = lane; e < ne; e += 32) {
               const double q[3] = {evp[3 * e] - o[0], evp[3 * e + 1] - o[1], evp[3 * e + 2] - o[2]};
@@ -173,15 +190,42 @@ __device__ inline Hypothesis ransacHypotheses(const float* __restrict__ xyz,
   return best;
 }
 
+/// The least-squares plane of the inliers' covariance `cov` (xx xy xz yy yz zz, about their
+/// mean `mu`) replaces *plane's normal and offset (turned to its normal's side) when it lies in
+/// the tilt window; one that passes above the sensor (`check`) leaves no plane (CPU: the end of
+/// fitPlaneRansac).
+__device__ inline void finishRefit(const GroundParamsDev& p, bool check, const double cov[6],
+                                   const double mu[3], PlaneDev* plane) {
+  const double a[3][3] = {
+      {cov[0], cov[1], cov[2]}, {cov[1], cov[3], cov[4]}, {cov[2], cov[4], cov[5]}};
+  double ev[3], nv[3];
+  eigenDirect3(a, ev, nv);
+  if (dot3(nv, plane->n) < 0.0) {
+    nv[0] = -nv[0];
+    nv[1] = -nv[1];
+    nv[2] = -nv[2];
+  }
+  if (!(isfinite(nv[0]) && fabs(nv[2]) >= p.min_abs_nz)) return;
+  if (check && normal::refitJudged(ev[1], ev[2]) &&
+      aboveSensor(p, plane->o, nv, -dot3(nv, mu), reach(p, plane->o, mu), false)) {
+    plane->valid = 0;  // the refit passes above the sensor: no plane (CPU: false)
+    return;
+  }
+  plane->n[0] = nv[0];
+  plane->n[1] = nv[1];
+  plane->n[2] = nv[2];
+  plane->d = -dot3(nv, mu);
+}
+
 /// Least-squares refinement of the hypothesis `h` on all its inliers among the m points: mean,
 /// then centred covariance, then the smallest eigenvector (CPU: the end of fitPlaneRansac).
 /// `best` holds the origin; the plane is written to *out in thread 0.
 __device__ inline void refinePlane(const float* __restrict__ xyz,
                                    const unsigned int* __restrict__ idx, unsigned int m,
                                    const GroundParamsDev& p, const Hypothesis& h, PlaneDev best,
-                                   double* stage, double* shd, PlaneDev* out) {
+                                   bool check, double* stage, double* shd, PlaneDev* out) {
   const int tid = threadIdx.x;
-  const double thr = p.plane_distance, tilt = p.min_abs_nz;
+  const double thr = p.plane_distance;
   const double* best_n = h.n;
   const double best_d = h.d;
   const auto inlier = [&](unsigned int i, double q[3]) {
@@ -226,21 +270,7 @@ __device__ inline void refinePlane(const float* __restrict__ xyz,
     return in;
   });
   if (tid == 0) {
-    const double a[3][3] = {
-        {cov[0], cov[1], cov[2]}, {cov[1], cov[3], cov[4]}, {cov[2], cov[4], cov[5]}};
-    double ev[3], nv[3];
-    eigenDirect3(a, ev, nv);
-    if (dot3(nv, best_n) < 0.0) {
-      nv[0] = -nv[0];
-      nv[1] = -nv[1];
-      nv[2] = -nv[2];
-    }
-    if (isfinite(nv[0]) && fabs(nv[2]) >= tilt) {
-      best.n[0] = nv[0];
-      best.n[1] = nv[1];
-      best.n[2] = nv[2];
-      best.d = -dot3(nv, mu);
-    }
+    finishRefit(p, check, cov, mu, &best);
     *out = best;
   }
 }
@@ -248,8 +278,8 @@ __device__ inline void refinePlane(const float* __restrict__ xyz,
 /// CPU: fitPlaneRansac, one block per plane; the result is valid in thread 0.
 __device__ void fitPlaneBlock(const float* __restrict__ xyz, const unsigned int* __restrict__ idx,
                               unsigned int m, const GroundParamsDev& p, std::uint64_t seed,
-                              bool hypotheses_only, float* evp, double* stage, Hypothesis* batch,
-                              double* shd, PlaneDev* out) {
+                              bool hypotheses_only, bool check, float* evp, double* stage,
+                              Hypothesis* batch, double* shd, PlaneDev* out) {
   const int tid = threadIdx.x;
   PlaneDev best;
   best.n[0] = best.n[1] = 0.0;
@@ -267,7 +297,7 @@ __device__ void fitPlaneBlock(const float* __restrict__ xyz, const unsigned int*
   }
   // Score on an evenly strided subset (CPU: eval).
   const unsigned int ne = stageEvalPoints(xyz, idx, m, evp);
-  const Hypothesis h = ransacHypotheses(xyz, idx, m, ne, p, seed, best.o, evp, batch);
+  const Hypothesis h = ransacHypotheses(xyz, idx, m, ne, p, seed, best.o, check, evp, batch);
   if (h.count < 3) {
     if (tid == 0) *out = best;
     return;
@@ -281,7 +311,36 @@ __device__ void fitPlaneBlock(const float* __restrict__ xyz, const unsigned int*
     if (tid == 0) *out = best;
     return;
   }
-  refinePlane(xyz, idx, m, p, h, best, stage, shd, out);
+  refinePlane(xyz, idx, m, p, h, best, check, stage, shd, out);
+}
+
+/// Whether no plane may pass above the sensor in this scan (CPU: PlaneStage::run()).
+/// `sensor_counts`: the near voted points under the sensor, the near voted points.
+__device__ inline bool sensorCheck(const GroundParamsDev& p, const unsigned int* sensor_counts) {
+  return p.sensor_check && normal::sensorAboveGround(sensor_counts[0], sensor_counts[1]);
+}
+
+/// Counts the voted points near the sensor and those of them under it
+/// (normal::sensorAboveGround()), one atomic per warp.
+__global__ void __launch_bounds__(kThreads)
+    sensorBelowKernel(const float* __restrict__ xyz, const unsigned int* __restrict__ glist,
+                      const unsigned int* gcount, const GroundParamsDev p, unsigned int* counts) {
+  const unsigned int m = *gcount;
+  unsigned int below = 0, near = 0;
+  for (unsigned int t = blockIdx.x * blockDim.x + threadIdx.x; t < m; t += gridDim.x * blockDim.x) {
+    const float* q = xyz + 3 * static_cast<std::size_t>(glist[t]);
+    if (!normal::nearSensor(q[0] - p.sensor[0], q[1] - p.sensor[1])) continue;
+    ++near;
+    below += normal::belowSensor(q[2], p.sensor[2]);
+  }
+  for (int off = 16; off > 0; off >>= 1) {
+    below += __shfl_xor_sync(0xffffffffu, below, off);
+    near += __shfl_xor_sync(0xffffffffu, near, off);
+  }
+  if ((threadIdx.x & 31) == 0 && near) {
+    atomicAdd(counts, below);
+    atomicAdd(counts + 1, near);
+  }
 }
 
 __global__ void __launch_bounds__(kPlaneThreads)
@@ -289,15 +348,16 @@ __global__ void __launch_bounds__(kPlaneThreads)
                  const unsigned int* __restrict__ tile_begin, const unsigned int* ntiles_dev,
                  const unsigned int* __restrict__ vpos, const unsigned int* __restrict__ vlist,
                  const unsigned int* __restrict__ glist, const unsigned int* gcount,
-                 const unsigned int* need_global_dev, const GroundParamsDev p, PlaneDev* planes,
-                 unsigned int* work) {
+                 const unsigned int* need_global_dev, const unsigned int* sensor_counts,
+                 const GroundParamsDev p, PlaneDev* planes, unsigned int* work) {
   __shared__ float evp[3 * kEvalMax];
   __shared__ double stage[7 * kPlaneThreads];
   __shared__ Hypothesis batch[kPlaneWarps];
   __shared__ double shd[4];
   __shared__ unsigned int item_s;
   const unsigned int ntiles = *ntiles_dev;
-  const bool need_global = !p.local_planes || *need_global_dev;
+  const bool check = sensorCheck(p, sensor_counts);
+  const bool need_global = !p.local_planes || *need_global_dev || check;
   const std::uint64_t base_seed = normal::ransacBaseSeed(static_cast<std::uint32_t>(p.ransac_seed));
   for (;;) {
     if (threadIdx.x == 0) item_s = atomicAdd(work, 1u);
@@ -309,8 +369,8 @@ __global__ void __launch_bounds__(kPlaneThreads)
     if (item == 0) {
       if (need_global) {
         const unsigned int m = *gcount;
-        fitPlaneBlock(xyz, glist, m, p, base_seed, m > kBlockRefineMax, evp, stage, batch, shd,
-                      &plane);
+        fitPlaneBlock(xyz, glist, m, p, base_seed, m > kBlockRefineMax, check, evp, stage, batch,
+                      shd, &plane);
       } else {
         plane.valid = 0;
       }
@@ -319,7 +379,8 @@ __global__ void __launch_bounds__(kPlaneThreads)
       const unsigned int m = vpos[e] - vpos[b];
       if (p.local_planes && m >= kMinTilePoints) {
         const std::uint64_t seed = base_seed ^ (keys[b] * 0x9e3779b97f4a7c15ULL);
-        fitPlaneBlock(xyz, vlist + vpos[b], m, p, seed, false, evp, stage, batch, shd, &plane);
+        fitPlaneBlock(xyz, vlist + vpos[b], m, p, seed, false, check, evp, stage, batch, shd,
+                      &plane);
       } else {
         plane.valid = 0;
       }
@@ -361,7 +422,8 @@ __device__ inline void blockSumFixed(double (&v)[C], double* sh) {
 __global__ void __launch_bounds__(kThreads)
     globalRefineKernel(int pass, const float* __restrict__ xyz,
                        const unsigned int* __restrict__ glist, const unsigned int* gcount,
-                       const GroundParamsDev p, PlaneDev* planes, double* partial) {
+                       const unsigned int* sensor_counts, const GroundParamsDev p, PlaneDev* planes,
+                       double* partial) {
   __shared__ double sh[kThreads * 6];
   __shared__ double part[10 * kRefineBlocks];  // the partials, staged: the serial sums read them
   const PlaneDev pl = planes[0];
@@ -397,21 +459,7 @@ __global__ void __launch_bounds__(kThreads)
       for (int b = 0; b < kRefineBlocks; ++b) {
         for (int c = 0; c < 6; ++c) cov[c] += cov_part[6 * b + c];
       }
-      const double a[3][3] = {
-          {cov[0], cov[1], cov[2]}, {cov[1], cov[3], cov[4]}, {cov[2], cov[4], cov[5]}};
-      double ev[3], nv[3];
-      eigenDirect3(a, ev, nv);
-      if (dot3(nv, pl.n) < 0.0) {
-        nv[0] = -nv[0];
-        nv[1] = -nv[1];
-        nv[2] = -nv[2];
-      }
-      if (isfinite(nv[0]) && fabs(nv[2]) >= p.min_abs_nz) {
-        out.n[0] = nv[0];
-        out.n[1] = nv[1];
-        out.n[2] = nv[2];
-        out.d = -dot3(nv, mu);
-      }
+      finishRefit(p, sensorCheck(p, sensor_counts), cov, mu, &out);
     }
     planes[0] = out;
     return;
@@ -463,19 +511,24 @@ void launchPlanes(const float* xyz, const unsigned long long* sorted_keys,
                   const unsigned int* tile_begin, const unsigned int* ntiles,
                   const unsigned int* vpos, const unsigned int* vlist, const unsigned int* glist,
                   const unsigned int* gcount, const GroundParamsDev& p, PlaneDev* planes,
-                  unsigned int* work, unsigned int* need_global, double* partial,
-                  std::size_t tiles_max, int blocks, cudaStream_t st) {
+                  unsigned int* work, unsigned int* need_global, unsigned int* sensor_counts,
+                  double* partial, std::size_t tiles_max, int blocks, cudaStream_t st) {
+  if (p.sensor_check) {
+    sensorBelowKernel<<<blocks, kThreads, 0, st>>>(xyz, glist, gcount, p, sensor_counts);
+    GF_CUDA_CHECK_LAUNCH();
+  }
   if (p.local_planes) {
     needGlobalKernel<<<blocksFor(tiles_max, kThreads), kThreads, 0, st>>>(tile_begin, ntiles, vpos,
                                                                           need_global);
     GF_CUDA_CHECK_LAUNCH();
   }
   planesKernel<<<blocks, kPlaneThreads, 0, st>>>(xyz, sorted_keys, tile_begin, ntiles, vpos, vlist,
-                                                 glist, gcount, need_global, p, planes, work);
+                                                 glist, gcount, need_global, sensor_counts, p,
+                                                 planes, work);
   GF_CUDA_CHECK_LAUNCH();
   for (int pass = 0; pass < 3; ++pass) {
-    globalRefineKernel<<<pass == 2 ? 1 : kRefineBlocks, kThreads, 0, st>>>(pass, xyz, glist, gcount,
-                                                                           p, planes, partial);
+    globalRefineKernel<<<pass == 2 ? 1 : kRefineBlocks, kThreads, 0, st>>>(
+        pass, xyz, glist, gcount, sensor_counts, p, planes, partial);
     GF_CUDA_CHECK_LAUNCH();
   }
 }

@@ -16,12 +16,14 @@ namespace cuda_impl {
 /// RANSAC planes: item 0 the cloud-wide plane (when a tile has < 3 voted points or without
 /// local planes; refined grid-wide when large), item 1 + t tile t. `work` and `need_global` are
 /// zeroed counters, `partial` holds refinePartialBytes(); `tiles_max` bounds the tile count.
+/// With p.sensor_check, `sensor_counts` (two zeroed counters) count the voted points near the
+/// sensor and under it (normal::sensorAboveGround()), and no plane passes above the sensor.
 void launchPlanes(const float* xyz, const unsigned long long* sorted_keys,
                   const unsigned int* tile_begin, const unsigned int* ntiles,
                   const unsigned int* vpos, const unsigned int* vlist, const unsigned int* glist,
                   const unsigned int* gcount, const GroundParamsDev& p, PlaneDev* planes,
-                  unsigned int* work, unsigned int* need_global, double* partial,
-                  std::size_t tiles_max, int blocks, cudaStream_t st);
+                  unsigned int* work, unsigned int* need_global, unsigned int* sensor_counts,
+                  double* partial, std::size_t tiles_max, int blocks, cudaStream_t st);
 /// Bytes of the per-block partial sums of the grid-wide plane refinement.
 std::size_t refinePartialBytes();
 

@@ -1,7 +1,7 @@
 // GPU tests of the whole normal-vector filter on the device (CudaNormalPipeline behind
 // knn_backend gpu): labels against the kd-tree backend on KITTI / Ouster frames, dense columns,
-// sparse scan lines, 1 M and 5 M points, bad input, device memory across 1,000 scans, out-of-memory
-// fallback.
+// sparse scan lines, parking levels (a ceiling above the sensor), 1 M and 5 M points, bad input,
+// device memory across 1,000 scans, out-of-memory fallback.
 
 #include <cuda_runtime.h>
 #include <gtest/gtest.h>
@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "brute_force_knn.h"
+#include "eval/scene_generator.h"
 #include "gpu_normal_executor.h"
 #include "gpu_test.h"
 #include "ground_filter/cuda_knn.h"
@@ -97,6 +98,28 @@ TEST_F(GpuPipelineTest, DevFramesGiveTheKdTreeLabels) {
     differ += c.differ;
   }
   EXPECT_LE(differ * 10000, total) << differ << " of " << total << " labels differ";
+}
+
+// Parking levels (builtin:garage and other sensors there): no ground plane passes above the
+// sensor, on the GPU as on the CPU; the ceiling stays non-ground (test_unseen_sensors: the CPU).
+TEST_F(GpuPipelineTest, CeilingScenesGiveTheKdTreeLabels) {
+  for (const char* spec : {"garage:1", "garage:2", "garage:1:sensor_height=0.5",
+                           "tls:1:layout=garage,tls_points=300000", "rosette:1:layout=garage"}) {
+    const gf::GeneratedScan scan = gf::generateScene(gf::parseSceneSpec(spec));
+    std::vector<std::uint8_t> lg;
+    const Compared c = compare(scan.xyz, gf::NormalGroundFilterParams(), &lg);
+    EXPECT_EQ(c.sg.backend, "gpu") << c.sg.note;
+    std::size_t ceiling = 0, ceiling_ground = 0;
+    for (std::size_t i = 0; i < scan.size(); ++i) {
+      if (scan.semantic[i] != gf::kClassBuilding || !(scan.xyz[3 * i + 2] > 0.5f)) continue;
+      ++ceiling;
+      ceiling_ground += lg[i] == gf::kGround;
+    }
+    std::printf("[ FILTER   ] %s: %zu points, %zu labels differ; ceiling %zu of %zu ground\n", spec,
+                scan.size(), c.differ, ceiling_ground, ceiling);
+    EXPECT_LE(c.differ * 10000, scan.size()) << spec;
+    EXPECT_LT(ceiling_ground, ceiling / 33) << spec;
+  }
 }
 
 TEST_F(GpuPipelineTest, FilterOptionsGiveTheKdTreeLabels) {

@@ -513,11 +513,12 @@ void SceneParams::validate() const {
   checkRange("crop_half_width", crop_half_width, 0.0, 1e4, "m");
   checkRange("crop_half_length", crop_half_length, 0.0, 1e4, "m");
   checkRange("airborne_extra", airborne_extra, 0.0, 0.5, "");
+  checkRange("ceiling_height", ceiling_height, 1.5, 30.0, "m");
 }
 
 std::vector<std::string> builtinSceneKinds() {
-  return {"lidar", "tls",     "verge",   "offroad", "trail",    "airborne", "mls",    "stations",
-          "slam",  "tls_far", "mls_air", "uav",     "corridor", "lidar16",  "rosette"};
+  return {"lidar", "tls",     "verge",   "offroad", "trail",    "airborne", "mls",     "stations",
+          "slam",  "tls_far", "mls_air", "uav",     "corridor", "lidar16",  "rosette", "garage"};
 }
 
 namespace {
@@ -593,6 +594,11 @@ SceneParams builtinSceneParams(const std::string& kind) {
     params.mode = SceneParams::Mode::kRosette;
     params.sensor_height = 0.7;
     params.lidar_max_range = 100.0;
+  } else if (kind == "garage") {
+    // A car's 128-beam sensor (OS1-128: +-22.5 deg) 1.8 m up on a parking level: the ceiling,
+    // 0.8 m above the sensor, is a larger and denser flat surface than the floor it sees.
+    params.layout = SceneParams::Layout::kGarage;
+    evenBeams(&params, 128, 22.5, 2048, 1.8);
   } else if (kind == "uav") {
     params.mode = SceneParams::Mode::kUav;
     params.world_frame = true;

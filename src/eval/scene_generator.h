@@ -38,6 +38,8 @@ struct SceneParams {
                ///< lawn rising away on the other; bushes, trees, cars, poles
     kOffroad,  ///< rolling grassland with a dirt track, bushes 0.3-1 m, undergrowth, trees
     kTrail,    ///< hilly terrain (slopes up to ~25 %) with a winding dirt trail, grass, bushes
+    kGarage,   ///< a parking level: flat concrete floor, a ceiling ceiling_height above it over
+               ///< the whole 60 m x 40 m level, walls, pillars on an 8 m grid, parked cars
   };
   Mode mode = Mode::kLidar64;       ///< scanner model (kLidar64)
   Layout layout = Layout::kStreet;  ///< world layout (kStreet)
@@ -99,14 +101,15 @@ struct SceneParams {
   double airborne_extra = 0.0;
 
   // Terrain (world frame; road level z = slope_x * x + slope_y * y + ramp).
-  double slope_x = 0.02;       ///< road slope along x (gentle) [m/m] (0.02)
-  double slope_y = 0.01;       ///< cross slope along y [m/m] (0.01)
-  double curb_y = 6.0;         ///< curb line; sidewalk for y >= curb_y [m] (6.0)
-  double curb_height = 0.15;   ///< curb step up to the sidewalk [m] (0.15)
-  double ramp_start_x = 18.0;  ///< ramp foot (lower level ends) [m] (18)
-  double ramp_end_x = 33.0;    ///< ramp top (upper level starts) [m] (33)
-  double ramp_height = 2.0;    ///< upper level minus lower level [m] (2.0)
-  double scene_extent = 90.0;  ///< objects are placed for |world x| <= this [m] (90)
+  double slope_x = 0.02;        ///< road slope along x (gentle) [m/m] (0.02)
+  double slope_y = 0.01;        ///< cross slope along y [m/m] (0.01)
+  double curb_y = 6.0;          ///< curb line; sidewalk for y >= curb_y [m] (6.0)
+  double curb_height = 0.15;    ///< curb step up to the sidewalk [m] (0.15)
+  double ramp_start_x = 18.0;   ///< ramp foot (lower level ends) [m] (18)
+  double ramp_end_x = 33.0;     ///< ramp top (upper level starts) [m] (33)
+  double ramp_height = 2.0;     ///< upper level minus lower level [m] (2.0)
+  double scene_extent = 90.0;   ///< objects are placed for |world x| <= this [m] (90)
+  double ceiling_height = 2.6;  ///< kGarage: the ceiling's underside above the floor [m] (2.6)
 
   /// \brief Checks every field's range.
   /// \throws std::invalid_argument naming the first bad field, its value and its range.

@@ -48,17 +48,19 @@ void setUniformBeams(SceneParams* p, const std::string& name, const std::string&
 }
 
 void setLayout(SceneParams* p, const std::string& name, const std::string& value) {
-  checkChoice(name.c_str(), value, {"street", "verge", "offroad", "trail"});
+  checkChoice(name.c_str(), value, {"street", "verge", "offroad", "trail", "garage"});
   using L = SceneParams::Layout;
   p->layout = value == "street"    ? L::kStreet
               : value == "verge"   ? L::kVerge
               : value == "offroad" ? L::kOffroad
-                                   : L::kTrail;
+              : value == "trail"   ? L::kTrail
+                                   : L::kGarage;
 }
 
 using P = SceneParams;
 const SceneOverride kSceneOverrides[] = {
     {"layout", setLayout},
+    {"ceiling_height", setDouble<&P::ceiling_height>},
     {"sensor_height", setDouble<&P::sensor_height>},
     {"tripod_height", setDouble<&P::tripod_height>},
     {"sensor_x", setDouble<&P::sensor_x>},

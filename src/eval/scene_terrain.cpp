@@ -85,6 +85,8 @@ double worldGroundHeight(const SceneParams& p, double x, double y) {
       return offroadHeight(p, x, y);
     case SceneParams::Layout::kTrail:
       return trailHeight(p, x, y);
+    case SceneParams::Layout::kGarage:
+      return 0.0;  // a flat concrete floor
     case SceneParams::Layout::kStreet:
       break;
   }

@@ -21,6 +21,8 @@ class Scene {
     if (p.layout == SceneParams::Layout::kStreet) {
       buildTerrain();
       buildLayout();
+    } else if (p.layout == SceneParams::Layout::kGarage) {
+      buildGarage();
     } else {
       buildNaturalLayout();
     }
@@ -99,7 +101,7 @@ class Scene {
         any = true;
       }
     }
-    if (p_.layout != SceneParams::Layout::kStreet) {
+    if (p_.layout != SceneParams::Layout::kStreet && p_.layout != SceneParams::Layout::kGarage) {
       // Height-field terrain: nearer than the nearest object?
       const double t = marchTerrain(d, t_min, best.t);
       if (t != kNoHit) {
@@ -232,6 +234,36 @@ class Scene {
     for (double x = 9.0 + tree_gap(rng); x < e; x += tree_gap(rng)) addTree(rng, x, cy + 2.0);
     for (double x = 9.0 - tree_gap(rng); x > -e; x -= tree_gap(rng)) addTree(rng, x, cy + 2.0);
     for (double x = -e + tree_gap(rng); x < e; x += tree_gap(rng)) addTree(rng, x, -9.0);
+  }
+
+  // A parking level: the floor (one flat patch), a ceiling slab over the whole level, outer walls,
+  // pillars on an 8 m grid and rows of parked cars, none within 3 m of the scanner.
+  void buildGarage() {
+    const double inf = std::numeric_limits<double>::infinity();
+    terrain_.push_back({0.0, 0.0, 0.0, -inf, inf, -inf, inf, kRoadReflectivity, kClassRoad});
+    const double hx = 30.0, hy = 20.0, top = p_.ceiling_height, wall = 0.3;
+    addBox(-hx, hx, -hy, hy, top, top + 0.3, kWallReflectivity, kClassBuilding);
+    addBox(-hx - wall, -hx, -hy, hy, -0.5, top, kWallReflectivity, kClassBuilding);
+    addBox(hx, hx + wall, -hy, hy, -0.5, top, kWallReflectivity, kClassBuilding);
+    addBox(-hx, hx, -hy - wall, -hy, -0.5, top, kWallReflectivity, kClassBuilding);
+    addBox(-hx, hx, hy, hy + wall, -0.5, top, kWallReflectivity, kClassBuilding);
+    auto clear = [&](double x, double y, double r) {
+      return std::hypot(x - p_.sensor_x, y - p_.sensor_y) >= r;
+    };
+    for (double x = -hx + 4.0; x < hx; x += 8.0) {
+      for (double y = -hy + 4.0; y < hy; y += 8.0) {
+        if (clear(x, y, 1.5))
+          addBox(x - 0.25, x + 0.25, y - 0.25, y + 0.25, -0.5, top, kWallReflectivity,
+                 kClassBuilding);
+      }
+    }
+    std::mt19937 rng(p_.seed);
+    std::uniform_real_distribution<double> u01(0.0, 1.0);
+    for (double y : {-16.0, -8.5, 8.5, 16.0}) {  // two aisles, cars parked on both sides of each
+      for (double x = -hx + 3.0; x < hx - 3.0; x += 5.2) {
+        if (u01(rng) < 0.65 && clear(x, y, 3.0)) addCar(rng, x, y);
+      }
+    }
   }
 
   // A bush (or undergrowth clump) of height h above the ground at its centre and radius r: an

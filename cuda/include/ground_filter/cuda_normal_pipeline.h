@@ -25,6 +25,10 @@ struct CudaNormalParams : NormalFilterSettings {
   CudaNormalParams(const NormalFilterSettings& s, double min_abs_nz_of_s)
       : NormalFilterSettings(s), min_abs_nz(min_abs_nz_of_s) {}
   double min_abs_nz = 0.0;  ///< |n_z| of a candidate's and of a plane's normal, at least [1]
+  /// 1: the scan has its sensor at `sensor` and no ground plane may pass above it (the core's
+  /// normal::planeAboveSensor(), where normal::sensorAboveGround() holds); 0: no sensor.
+  int sensor_check = 0;
+  double sensor[3] = {0.0, 0.0, 0.0};  ///< the sensor's x, y, z in the cloud's frame [m]
 };
 
 /// \brief Device times of the stages of the last run() (CUDA events) and its counts.

@@ -146,6 +146,63 @@ constexpr unsigned int kRansacEvalPoints = 2048;  // hypotheses are scored on at
 // near road dominates (docs/normal_method.md, "Sparse tiles").
 constexpr unsigned int kMinTilePoints = 3;
 
+/// \brief Horizontal distance from (sx, sy) to (px, py) [m].
+GF_HOST_DEVICE inline double horizontalDistance(double sx, double sy, double px, double py) {
+  const double rx = sx - px, ry = sy - py;
+  return sqrt(rx * rx + ry * ry);
+}
+
+/// \brief Ground is seen from above: true when the plane n.q + d = 0 (unit normal n, offsets q
+///        from the plane's origin) passes above the sensor, whose offset from that origin is
+///        (sx, sy, sz), by more than 0.2 m + tan(1 deg) x `r` (tan(2 deg) for a `draw` of
+///        three points, whose tilt is less certain), `r` the horizontal distance from the
+///        sensor to the plane's support (of a draw, the nearest of its three points; of a
+///        refit, its inliers' mean). A sensor sees a surface only from its free
+///        side, and the free side of the ground is up: a horizontal plane the sensor lies under
+///        is a ceiling, a table top or the underside of a deck, however large. The margin takes
+///        a plane's tilt error times the distance it is carried to the sensor; the sensor's own
+///        height above the ground adds to it (docs/normal_method.md, "Ceilings"). RANSAC skips
+///        such a draw, and a refit that passes above the sensor fails the fit (CPU and GPU
+///        alike, the same expressions in double).
+GF_HOST_DEVICE inline bool planeAboveSensor(double nx, double ny, double nz, double d, double sx,
+                                            double sy, double sz, double r, bool draw) {
+  constexpr double kMargin = 0.2;                  // [m]
+  constexpr double kFitSlope = 0.0175;             // tan(1 deg): a least-squares refit [m/m]
+  constexpr double kDrawSlope = 0.035;             // tan(2 deg): a draw of three points [m/m]
+  double h = (nx * sx + ny * sy) + (nz * sz + d);  // the sensor's signed distance along n
+  if (nz < 0.0) h = -h;
+  return h < -(kMargin + (draw ? kDrawSlope : kFitSlope) * r);
+}
+
+/// \brief Whether a refit is judged by planeAboveSensor(): its inliers span the plane both ways
+///        (`ev1`, `ev2` the middle and largest eigenvalues of their covariance: the narrower
+///        spread at least a seventh of the wider, ev1 >= 0.02 ev2). The inliers of a far tile
+///        of a sparse sensor lie along one or two scan lines, and the fit does not measure the
+///        tilt about their direction: such a plane is not judged (failing it sent the tile to
+///        the cloud-wide plane: F1 -1 point on hills). 0.01-0.04 label alike
+///        (docs/normal_method.md, "Ceilings").
+GF_HOST_DEVICE inline bool refitJudged(double ev1, double ev2) { return ev1 >= 0.02 * ev2; }
+
+/// \brief Whether planeAboveSensor() applies to a scan: at least a tenth of its voted points
+///        within 10 m of the sensor (horizontally: `near` of them, nearSensor()) lie 0.3 m or
+///        more below it (`below`, belowSensor()): the ground around a sensor lies under it. A
+///        cloud in a frame whose origin is on the ground (base_footprint; the world frame of
+///        merged stations or a map) has its sensor elsewhere, and there no plane is judged: the
+///        KITTI frames moved to their road level hold 1-3 % of their near ground 0.3 m or more
+///        below the origin, a parking level seen from 0.3 m over its floor passes
+///        (docs/normal_method.md, "Ceilings").
+GF_HOST_DEVICE inline bool sensorAboveGround(unsigned long long below, unsigned long long near) {
+  return near > 0 && 10ULL * below >= near;
+}
+
+/// \brief A voted point (dx, dy) from the sensor horizontally counts for sensorAboveGround().
+GF_HOST_DEVICE inline bool nearSensor(double dx, double dy) { return dx * dx + dy * dy <= 100.0; }
+
+/// \brief A near voted point at height `z` lies under the sensor (height `sz`).
+GF_HOST_DEVICE inline bool belowSensor(float z, double sz) {
+  return static_cast<double>(z) <= sz - 0.3;
+}
+
 /// \brief Least-squares plane z = a x + b y + c through the ground neighbours of one point, in
 ///        coordinates relative to that point (the local-ground stage, local_ground.h): the
 ///        neighbourhood sums of the PCA (szz unused). add() in the neighbour list's order on the

@@ -28,10 +28,11 @@ class NormalFilterExecutor {
   ///        (the parameter's, or wider for a sparse sensor's scan lines): fills `labels`
   ///        (cloud.size() entries) and, in `stats`, invalid_points, ground_points and backend,
   ///        and appends its stages to stage_ms (after the filter's own, e.g. "lines").
+  ///        `sensor`: x, y, z of the scan's sensor, or null (PlaneStage::run()).
   /// \return false, touching neither, when it cannot run this scan (lastNote() says why, e.g. a
   ///         device fault); the filter then runs its stages. The next scan tries again.
-  virtual bool run(const CloudView& cloud, int sample_stride, std::vector<std::uint8_t>* labels,
-                   FilterStats* stats) = 0;
+  virtual bool run(const CloudView& cloud, int sample_stride, const double* sensor,
+                   std::vector<std::uint8_t>* labels, FilterStats* stats) = 0;
   /// \brief Why the last run() declined; empty after one that ran.
   virtual std::string lastNote() const = 0;
 };

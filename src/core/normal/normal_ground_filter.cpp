@@ -1,6 +1,7 @@
 #include "ground_filter/normal_ground_filter.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <stdexcept>
@@ -80,6 +81,10 @@ struct NormalGroundFilter::Impl {
   // (another sensor); kept otherwise, as a sensor's lines do not change (the measurement reads
   // the whole cloud: about 1 ms a KITTI frame, two thirds of the GPU pipeline's time).
   const normal::ScanLines& linesOf(const CloudView& cloud);
+  // The sensor's x, y, z where the scan has one at its origin (none in a registered cloud),
+  // else null: no ground plane may pass above it (normal/plane.h).
+  const double* sensorOf(const ScanDecision& decision);
+  double sensor_xyz[3] = {0.0, 0.0, 0.0};
   // Steps 1b-4 on every segment of the `n` ordered points with `stride`; returns the
   // candidates among the sampled points, their number in *sampled, adds the vote's time to
   // *vote_ms.
@@ -103,6 +108,13 @@ const normal::ScanLines& NormalGroundFilter::Impl::linesOf(const CloudView& clou
     lines_age = 0;
   }
   return lines_kept;
+}
+
+const double* NormalGroundFilter::Impl::sensorOf(const ScanDecision& decision) {
+  const float* o = scan.origin();
+  for (int a = 0; a < 3; ++a) sensor_xyz[a] = o[a];
+  const bool finite = std::isfinite(o[0]) && std::isfinite(o[1]) && std::isfinite(o[2]);
+  return decision.registered || !finite ? nullptr : sensor_xyz;
 }
 
 std::size_t NormalGroundFilter::Impl::normalsAndVotes(const NormalGroundFilterParams& p,
@@ -230,6 +242,8 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     return;
   }
 
+  const double* sensor = im.sensorOf(scan);  // null: no sensor at the origin
+
   // ---- 1a. a sparse spinning sensor's scan lines: the stride its normals need (scan_lines.h)
   int stride = p.sample_stride;
   if (p.max_line_ratio > 0.0 && !scan.registered) {
@@ -251,7 +265,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   // ---- the whole filter on the executor (GPU) when the filter has one; when it declines the scan
   //      (a device fault) the stages below run it on the CPU.
   if (im.executor) {
-    if (im.executor->run(cloud, stride, labels, &st)) {
+    if (im.executor->run(cloud, stride, sensor, labels, &st)) {
       st.total_ms = msSince(t_start);
       return;
     }
@@ -292,10 +306,10 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   for (const auto& e : times.stages()) st.stage_ms.push_back(e);
   st.stage_ms.emplace_back("vote", vote_ms);
 
-  // 5. Plane(s) through the voted points and the distance test.
+  // 5. Plane(s) through the voted points and the distance test; none above the sensor.
   t0 = Clock::now();
   im.plane.run(ordered.xyz, im.voted, ordered.extent, p, im.min_abs_nz, threads, &im.ground,
-               p.veg_filter ? &im.heights : nullptr);
+               p.veg_filter ? &im.heights : nullptr, sensor);
   st.stage_ms.emplace_back("plane", msSince(t0));
 
   // 5a. Local ground plane (one neighbourhood set only: the lists of the last segment are kept).

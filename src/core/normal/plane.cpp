@@ -42,11 +42,27 @@ std::size_t sumInliers(std::size_t m, Term term, double out[W]) {
   return count;
 }
 
+// planeAboveSensor() of the plane n.q + d = 0 (offsets q from `o`) drawn through the points
+// pa, pb, pc (offsets from `o`), or refitted (`draw` false) with its inliers' mean at pa (pb, pc
+// unused). Out of line: the RANSAC loop around it stays as compact as without a sensor.
+[[gnu::noinline]] bool aboveSensor(const double* sensor, const Eigen::Vector3d& o,
+                                   const Eigen::Vector3d& n, double d, const Eigen::Vector3d& pa,
+                                   const Eigen::Vector3d& pb, const Eigen::Vector3d& pc,
+                                   bool draw) {
+  const double sx = sensor[0] - o.x(), sy = sensor[1] - o.y(), sz = sensor[2] - o.z();
+  double r = horizontalDistance(sx, sy, pa.x(), pa.y());
+  if (draw) {
+    r = std::min(std::min(r, horizontalDistance(sx, sy, pb.x(), pb.y())),
+                 horizontalDistance(sx, sy, pc.x(), pc.y()));
+  }
+  return planeAboveSensor(n.x(), n.y(), n.z(), d, sx, sy, sz, r, draw);
+}
+
 }  // namespace
 
 bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int iterations,
                     double threshold, double max_tilt_cos, std::uint64_t seed,
-                    std::vector<std::uint32_t>* eval_scratch, Plane* plane) {
+                    std::vector<std::uint32_t>* eval_scratch, Plane* plane, const double* sensor) {
   Plane best;
   const std::size_t m = idx.size();
   if (m < 3) return false;
@@ -77,6 +93,10 @@ bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int
     nrm /= len;
     if (std::abs(nrm.z()) < max_tilt_cos) continue;
     const double d = -nrm.dot(pa);
+    if (sensor &&
+        aboveSensor(sensor, best.origin, nrm, d, pa, point(idx[b]), point(idx[c]), true)) {
+      continue;  // a plane over the sensor: a ceiling, not the ground
+    }
     std::size_t count = 0;
     for (std::uint32_t i : eval) {
       if (std::abs(nrm.dot(point(i)) + d) <= threshold) ++count;
@@ -137,6 +157,10 @@ bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int
   Eigen::Vector3d n = es.eigenvectors().col(0);
   if (n.dot(best_n) < 0.0) n = -n;
   if (std::isfinite(n.x()) && std::abs(n.z()) >= max_tilt_cos) {
+    if (sensor && refitJudged(es.eigenvalues()(1), es.eigenvalues()(2)) &&
+        aboveSensor(sensor, best.origin, n, -n.dot(mean), mean, mean, mean, false)) {
+      return false;  // the refit passes over the sensor
+    }
     plane->normal = n;
     plane->d = -n.dot(mean);
   }
@@ -169,39 +193,31 @@ void PlaneStage::sortIntoTiles(const std::vector<float>& xyz, std::size_t n, con
   }
 }
 
-bool PlaneStage::fitGlobalPlane(const std::vector<float>& xyz,
-                                const std::vector<std::uint8_t>& voted,
-                                const NormalGroundFilterParams& p, double min_abs_nz,
-                                std::uint64_t base_seed, int threads, Plane* global) {
-  // Each thread's lists hold any tile (dynamic schedule: which thread gets which tile varies),
-  // so a scan with the same tiles allocates nothing.
-  const std::size_t n = voted.size();
-  std::size_t longest_tile = 0;
-  for (const auto& tl : tiles_) longest_tile = std::max(longest_tile, tl.second - tl.first);
-  thread_idx_.resize(threads);
-  thread_eval_.resize(threads);
-  for (int t = 0; t < threads; ++t) {
-    thread_idx_[t].reserve(longest_tile);
-    thread_eval_[t].reserve(kRansacEvalPoints);
-  }
-  bool need_global = !p.local_planes;
+bool PlaneStage::needGlobalPlane(const std::vector<std::uint8_t>& voted,
+                                 const NormalGroundFilterParams& p) const {
+  if (!p.local_planes) return true;
   for (const auto& tl : tiles_) {
-    if (need_global) break;
     std::size_t count = 0;
     for (std::size_t j = tl.first; j < tl.second && count < kMinTilePoints; ++j) {
       count += voted[tile_order_[j]];
     }
-    need_global = count < kMinTilePoints;
+    if (count < kMinTilePoints) return true;
   }
-  if (!need_global) return false;
-  std::vector<std::uint32_t>& all_voted = thread_idx_[0];
+  return false;
+}
+
+bool PlaneStage::fitGlobalPlane(const std::vector<float>& xyz,
+                                const std::vector<std::uint8_t>& voted,
+                                const NormalGroundFilterParams& p, double min_abs_nz,
+                                std::uint64_t base_seed, const double* sensor, Plane* global) {
+  std::vector<std::uint32_t>& all_voted = thread_idx_[0];  // free outside the tile loops
   all_voted.clear();
-  all_voted.reserve(n);
-  for (std::size_t i = 0; i < n; ++i) {
+  all_voted.reserve(voted.size());
+  for (std::size_t i = 0; i < voted.size(); ++i) {
     if (voted[i]) all_voted.push_back(static_cast<std::uint32_t>(i));
   }
   return fitPlaneRansac(xyz.data(), all_voted, p.ransac_iterations, p.plane_distance, min_abs_nz,
-                        base_seed, &thread_eval_[0], global);
+                        base_seed, &thread_eval_[0], global, sensor);
 }
 
 void PlaneStage::lowerToFloor(const std::vector<float>& xyz, std::size_t tb, std::size_t te,
@@ -254,59 +270,107 @@ void PlaneStage::distanceBand(const std::vector<float>& xyz, const std::vector<s
 void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
                      const Extent& extent, const NormalGroundFilterParams& p, double min_abs_nz,
                      int threads, std::vector<std::uint8_t>* ground_out,
-                     std::vector<float>* heights) {
+                     std::vector<float>* heights, const double* sensor) {
   const std::size_t n = voted.size();
   std::vector<std::uint8_t>& ground = *ground_out;
   ground.assign(n, 0);
   if (heights) heights->assign(n, std::numeric_limits<float>::quiet_NaN());
   sortIntoTiles(xyz, n, extent, p, threads);
-  const std::vector<std::uint64_t>& sorted = sort_scratch_.keys;  // keys_ in tile_order_
+  if (sensor) {  // the check applies only where the origin lies above the voted points
+    std::uint64_t below = 0, near = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!voted[i] || !nearSensor(xyz[3 * i] - sensor[0], xyz[3 * i + 1] - sensor[1])) continue;
+      ++near;
+      below += belowSensor(xyz[3 * i + 2], sensor[2]);
+    }
+    if (!sensorAboveGround(below, near)) sensor = nullptr;
+  }
+  // Each thread's lists hold any tile (dynamic schedule: which thread gets which tile varies),
+  // so a scan with the same tiles allocates nothing.
+  std::size_t longest_tile = 0;
+  for (const auto& tl : tiles_) longest_tile = std::max(longest_tile, tl.second - tl.first);
+  thread_idx_.resize(threads);
+  thread_eval_.resize(threads);
+  for (int t = 0; t < threads; ++t) {
+    thread_idx_[t].reserve(longest_tile);
+    thread_eval_[t].reserve(kRansacEvalPoints);
+  }
 
-  // Cloud-wide plane: the only one without local planes, the fallback for sparse tiles.
+  // Cloud-wide plane: the only one without local planes, the fallback for sparse tiles and,
+  // with a sensor, for the tiles whose own fit finds no plane below it (then fitted after the
+  // tiles, only where one needs it: the same plane as fitted before them).
   const std::uint64_t base_seed = ransacBaseSeed(static_cast<std::uint32_t>(p.ransac_seed));
   Plane global;
-  const bool global_valid = fitGlobalPlane(xyz, voted, p, min_abs_nz, base_seed, threads, &global);
+  bool global_valid = false, global_fitted = false;
+  if (needGlobalPlane(voted, p)) {
+    global_valid = fitGlobalPlane(xyz, voted, p, min_abs_nz, base_seed, sensor, &global);
+    global_fitted = true;
+  }
+  deferred_.assign(tiles_.size(), 0);
 
   const int nt = static_cast<int>(std::min<std::size_t>(threads, tiles_.size()));
 #pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(tiles_.size()); ++t) {
-    const int tid = omp_get_thread_num();
-    std::vector<std::uint32_t>& tv = thread_idx_[tid];
-    const std::size_t tb = tiles_[t].first, te = tiles_[t].second;
-    tv.clear();
-    for (std::size_t j = tb; j < te; ++j) {
-      if (voted[tile_order_[j]]) tv.push_back(tile_order_[j]);
-    }
+    std::vector<std::uint32_t>& tv = thread_idx_[omp_get_thread_num()];
+    votedOfTile(voted, t, &tv);
     Plane plane = global;
     bool valid = global_valid;
     if (p.local_planes && tv.size() >= kMinTilePoints) {
-      const std::uint64_t seed = base_seed ^ (sorted[tb] * 0x9e3779b97f4a7c15ULL);
+      const std::uint64_t seed =
+          base_seed ^ (sort_scratch_.keys[tiles_[t].first] * 0x9e3779b97f4a7c15ULL);
       Plane fit;
       if (fitPlaneRansac(xyz.data(), tv, p.ransac_iterations, p.plane_distance, min_abs_nz, seed,
-                         &thread_eval_[tid], &fit)) {
+                         &thread_eval_[omp_get_thread_num()], &fit, sensor)) {
         plane = fit;
         valid = true;
+      } else if (sensor && !global_fitted) {
+        deferred_[t] = 1;  // labelled with the cloud-wide plane below
+        continue;
       }
     }
-    if (!valid) continue;
-    if (p.local_planes && tv.size() < kMinTilePoints && p.floor_share > 0.0) {
-      lowerToFloor(xyz, tb, te, p, &plane);
-    }
-    double lo, hi;
-    distanceBand(xyz, tv, plane, p, &lo, &hi);
-    if (heights) {  // for the vegetation stage: up = the side the plane's normal z points to
-      const double up = plane.normal.z() < 0.0 ? -1.0 : 1.0;
-      for (std::size_t j = tb; j < te; ++j) {
-        const std::uint32_t i = tile_order_[j];
-        (*heights)[i] = static_cast<float>(up * distanceOf(plane, &xyz[3 * std::size_t{i}]));
-      }
-    }
+    if (valid) labelTile(xyz, voted, t, tv, plane, p, ground_out, heights);
+  }
+
+  if (std::find(deferred_.begin(), deferred_.end(), 1) == deferred_.end()) return;
+  global_valid = fitGlobalPlane(xyz, voted, p, min_abs_nz, base_seed, sensor, &global);
+  if (!global_valid) return;
+  for (std::size_t t = 0; t < tiles_.size(); ++t) {
+    if (!deferred_[t]) continue;
+    votedOfTile(voted, t, &thread_idx_[0]);
+    labelTile(xyz, voted, t, thread_idx_[0], global, p, ground_out, heights);
+  }
+}
+
+void PlaneStage::votedOfTile(const std::vector<std::uint8_t>& voted, std::size_t t,
+                             std::vector<std::uint32_t>* tv) const {
+  tv->clear();
+  for (std::size_t j = tiles_[t].first; j < tiles_[t].second; ++j) {
+    if (voted[tile_order_[j]]) tv->push_back(tile_order_[j]);
+  }
+}
+
+void PlaneStage::labelTile(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
+                           std::size_t t, const std::vector<std::uint32_t>& tv, Plane plane,
+                           const NormalGroundFilterParams& p, std::vector<std::uint8_t>* ground,
+                           std::vector<float>* heights) const {
+  const std::size_t tb = tiles_[t].first, te = tiles_[t].second;
+  if (p.local_planes && tv.size() < kMinTilePoints && p.floor_share > 0.0) {
+    lowerToFloor(xyz, tb, te, p, &plane);
+  }
+  double lo, hi;
+  distanceBand(xyz, tv, plane, p, &lo, &hi);
+  if (heights) {  // for the vegetation stage: up = the side the plane's normal z points to
+    const double up = plane.normal.z() < 0.0 ? -1.0 : 1.0;
     for (std::size_t j = tb; j < te; ++j) {
       const std::uint32_t i = tile_order_[j];
-      if (!voted[i] && !p.plane_all_points) continue;
-      const double d = distanceOf(plane, &xyz[3 * static_cast<std::size_t>(i)]);
-      ground[i] = d >= lo && d <= hi;
+      (*heights)[i] = static_cast<float>(up * distanceOf(plane, &xyz[3 * std::size_t{i}]));
     }
+  }
+  for (std::size_t j = tb; j < te; ++j) {
+    const std::uint32_t i = tile_order_[j];
+    if (!voted[i] && !p.plane_all_points) continue;
+    const double d = distanceOf(plane, &xyz[3 * static_cast<std::size_t>(i)]);
+    (*ground)[i] = d >= lo && d <= hi;
   }
 }
 

@@ -16,11 +16,14 @@ namespace normal {
 /// \brief RANSAC plane through the points `idx` of packed `xyz`, its normal within
 ///        `max_tilt_cos` of vertical (|n_z| >= max_tilt_cos), refined by least squares on its
 ///        inliers (summed in kPlaneSumLanes lanes, as the GPU sums them); scored on at most 2048
-///        evenly strided points; `seed` fixes the samples.
+///        evenly strided points; `seed` fixes the samples. With `sensor` (x, y, z of a sensor at
+///        a scan's origin; null: none), hypotheses that pass above it are skipped and a refit
+///        that would is not taken (planeAboveSensor()).
 /// \return false when no plane was found (fewer than 3 points or no hypothesis).
 bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int iterations,
                     double threshold, double max_tilt_cos, std::uint64_t seed,
-                    std::vector<std::uint32_t>* eval_scratch, Plane* plane);
+                    std::vector<std::uint32_t>* eval_scratch, Plane* plane,
+                    const double* sensor = nullptr);
 
 /// \brief Stage 5 ("plane"): RANSAC plane per x/y tile (or one for the cloud) through the voted
 ///        points, then the distance test (and the mean +- std band) that decides ground.
@@ -28,19 +31,34 @@ class PlaneStage {
  public:
   /// \brief ground[i] for the `voted.size()` packed points `xyz` inside `extent`; with
   ///        `heights`, also each point's signed height above its plane (normal pointing up;
-  ///        NaN where no plane was found).
+  ///        NaN where no plane was found). `sensor`: the sensor's x, y, z when the scan has
+  ///        one at its origin (no plane may pass above it; the cloud-wide plane is then always
+  ///        fitted, for the tiles whose voted points hold none below it), else null.
   void run(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
            const Extent& extent, const NormalGroundFilterParams& p, double min_abs_nz, int threads,
-           std::vector<std::uint8_t>* ground, std::vector<float>* heights = nullptr);
+           std::vector<std::uint8_t>* ground, std::vector<float>* heights = nullptr,
+           const double* sensor = nullptr);
 
  private:
   // The steps of run(), in order.
   void sortIntoTiles(const std::vector<float>& xyz, std::size_t n, const Extent& extent,
                      const NormalGroundFilterParams& p, int threads);
-  // The cloud-wide plane when some tile is sparse (or local planes are off); false = none.
+  // Whether the cloud-wide plane is needed before the tiles: some tile is sparse (or local
+  // planes are off).
+  bool needGlobalPlane(const std::vector<std::uint8_t>& voted,
+                       const NormalGroundFilterParams& p) const;
+  // The cloud-wide plane through every voted point; false = none.
   bool fitGlobalPlane(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
                       const NormalGroundFilterParams& p, double min_abs_nz, std::uint64_t base_seed,
-                      int threads, Plane* global);
+                      const double* sensor, Plane* global);
+  // The voted points of tile t into *tv.
+  void votedOfTile(const std::vector<std::uint8_t>& voted, std::size_t t,
+                   std::vector<std::uint32_t>* tv) const;
+  // The distance test of tile t (its voted points tv) against `plane`.
+  void labelTile(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
+                 std::size_t t, const std::vector<std::uint32_t>& tv, Plane plane,
+                 const NormalGroundFilterParams& p, std::vector<std::uint8_t>* ground,
+                 std::vector<float>* heights) const;
   void lowerToFloor(const std::vector<float>& xyz, std::size_t tb, std::size_t te,
                     const NormalGroundFilterParams& p, Plane* plane) const;
   static void distanceBand(const std::vector<float>& xyz, const std::vector<std::uint32_t>& tv,
@@ -52,6 +70,7 @@ class PlaneStage {
   RadixSortScratch sort_scratch_;
   std::vector<std::pair<std::size_t, std::size_t>> tiles_;  // [begin, end) in tile_order_
   std::vector<std::vector<std::uint32_t>> thread_idx_, thread_eval_;
+  std::vector<std::uint8_t> deferred_;  // per tile: labelled with the late cloud-wide plane
 };
 
 }  // namespace normal
