@@ -179,8 +179,9 @@ GF_HOST_DEVICE inline bool planeAboveSensor(double nx, double ny, double nz, dou
 ///        spread at least a seventh of the wider, ev1 >= 0.02 ev2). The inliers of a far tile
 ///        of a sparse sensor lie along one or two scan lines, and the fit does not measure the
 ///        tilt about their direction: such a plane is not judged (failing it sent the tile to
-///        the cloud-wide plane: F1 -1 point on hills). 0.01-0.04 label alike
-///        (docs/normal_method.md, "Ceilings").
+///        the cloud-wide plane: F1 -1 point on hills). 0.01-0.04 score alike within 0.1 on
+///        the dev groups and the sensor sweep, 0.1 loses the garages (docs/normal_method.md,
+///        "Ceilings").
 GF_HOST_DEVICE inline bool refitJudged(double ev1, double ev2) { return ev1 >= 0.02 * ev2; }
 
 /// \brief Whether planeAboveSensor() applies to a scan: at least a tenth of its voted points
