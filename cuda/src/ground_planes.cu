@@ -62,7 +62,6 @@ __device__ inline unsigned long long blockInlierSum(unsigned int m, double* stag
   return count;
 }
 
-/// normal::planeAboveSensor() for the plane n.q + d = 0 relative to the origin `o`.
 /// Horizontal distance from the sensor to `at` (relative to the plane's origin `o`).
 __device__ inline double reach(const GroundParamsDev& p, const double o[3], const double at[3]) {
   return normal::horizontalDistance(p.sensor[0] - o[0], p.sensor[1] - o[1], at[0], at[1]);
