@@ -4,8 +4,9 @@
 #   scripts/label_snapshot.sh OUT_DIR [EVAL_BINARY]      # write OUT_DIR/<case>/<stem>.gnd
 #   scripts/label_snapshot.sh --compare DIR_A DIR_B       # count differing labels per case
 # Cases: voxel, normal and voxel_paper with defaults; every config/*.yaml with its method;
-# generated scenes (2 seeds each). Data: $GF_DATA_DIR, else data/ (scripts/get_data.sh), else
-# ../shared/data; cases whose data is missing are skipped with a line saying so.
+# generated scenes (2 seeds each; garage, lidar16 and rosette reach the ceiling and sparse-line
+# rules). Data: $GF_DATA_DIR, else data/ (scripts/get_data.sh), else ../shared/data; cases
+# whose data is missing are skipped with a line saying so.
 set -euo pipefail
 # shellcheck source=scripts/common.sh
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"  # GF_ROOT, PATH with /usr/bin first
@@ -47,7 +48,7 @@ for d in semantickitti/seq00 offroad isprs airborne unlabelled; do
   if [ -d "${DATA}/${d}" ]; then inputs+=("${DATA}/${d}"); else echo "skip: no ${DATA}/${d}"; fi
 done
 scenes=()
-for kind in lidar tls verge offroad trail airborne; do
+for kind in lidar tls verge offroad trail airborne garage lidar16 rosette; do
   for seed in 1 2; do scenes+=("builtin:${kind}:${seed}"); done
 done
 

@@ -148,9 +148,10 @@ __device__ inline Hypothesis ransacHypotheses(const float* __restrict__ xyz,
           nrm[2] /= len;
           const double d = -dot3(nrm, pa);
           if (fabs(nrm[2]) >= tilt &&
-              !(check &&
-                aboveSensor(p, o, nrm, d,
-                            fmin(fmin(reach(p, o, pa), reach(p, o, pb)), reach(p, o, pc)), true))) {
+              !(check && aboveSensor(p, o, nrm, d,
+                                     normal::drawReach(p.sensor[0] - o[0], p.sensor[1] - o[1],
+                                                       pa[0], pa[1], pb[0], pb[1], pc[0], pc[1]),
+                                     true))) {
             unsigned int local = 0;
             for (unsigned int e = lane; e < ne; e += 32) {
               const double q[3] = {evp[3 * e] - o[0], evp[3 * e + 1] - o[1], evp[3 * e + 2] - o[2]};

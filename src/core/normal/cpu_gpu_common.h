@@ -152,6 +152,14 @@ GF_HOST_DEVICE inline double horizontalDistance(double sx, double sy, double px,
   return sqrt(rx * rx + ry * ry);
 }
 
+/// \brief The support distance of a RANSAC draw for planeAboveSensor(): the horizontal distance
+///        from the sensor (sx, sy) to the nearest of the draw's three points a, b, c.
+GF_HOST_DEVICE inline double drawReach(double sx, double sy, double ax, double ay, double bx,
+                                       double by, double cx, double cy) {
+  return fmin(fmin(horizontalDistance(sx, sy, ax, ay), horizontalDistance(sx, sy, bx, by)),
+              horizontalDistance(sx, sy, cx, cy));
+}
+
 /// \brief Ground is seen from above: true when the plane n.q + d = 0 (unit normal n, offsets q
 ///        from the plane's origin) passes above the sensor, whose offset from that origin is
 ///        (sx, sy, sz), by more than 0.2 m + tan(1 deg) x `r` (tan(2 deg) for a `draw` of

@@ -43,19 +43,24 @@ std::size_t sumInliers(std::size_t m, Term term, double out[W]) {
 }
 
 // planeAboveSensor() of the plane n.q + d = 0 (offsets q from `o`) drawn through the points
-// pa, pb, pc (offsets from `o`), or refitted (`draw` false) with its inliers' mean at pa (pb, pc
-// unused). Out of line: the RANSAC loop around it stays as compact as without a sensor.
-[[gnu::noinline]] bool aboveSensor(const double* sensor, const Eigen::Vector3d& o,
-                                   const Eigen::Vector3d& n, double d, const Eigen::Vector3d& pa,
-                                   const Eigen::Vector3d& pb, const Eigen::Vector3d& pc,
-                                   bool draw) {
+// a, b, c (offsets from `o`). Out of line, as refitAboveSensor(): the RANSAC loop around it stays
+// as compact as without a sensor.
+[[gnu::noinline]] bool drawAboveSensor(const double* sensor, const Eigen::Vector3d& o,
+                                       const Eigen::Vector3d& n, double d, const Eigen::Vector3d& a,
+                                       const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
   const double sx = sensor[0] - o.x(), sy = sensor[1] - o.y(), sz = sensor[2] - o.z();
-  double r = horizontalDistance(sx, sy, pa.x(), pa.y());
-  if (draw) {
-    r = std::min(std::min(r, horizontalDistance(sx, sy, pb.x(), pb.y())),
-                 horizontalDistance(sx, sy, pc.x(), pc.y()));
-  }
-  return planeAboveSensor(n.x(), n.y(), n.z(), d, sx, sy, sz, r, draw);
+  const double r = drawReach(sx, sy, a.x(), a.y(), b.x(), b.y(), c.x(), c.y());
+  return planeAboveSensor(n.x(), n.y(), n.z(), d, sx, sy, sz, r, true);
+}
+
+// planeAboveSensor() of a refitted plane n.q + d = 0 whose inliers' mean is `mean` (offsets
+// from `o`).
+[[gnu::noinline]] bool refitAboveSensor(const double* sensor, const Eigen::Vector3d& o,
+                                        const Eigen::Vector3d& n, double d,
+                                        const Eigen::Vector3d& mean) {
+  const double sx = sensor[0] - o.x(), sy = sensor[1] - o.y(), sz = sensor[2] - o.z();
+  const double r = horizontalDistance(sx, sy, mean.x(), mean.y());
+  return planeAboveSensor(n.x(), n.y(), n.z(), d, sx, sy, sz, r, false);
 }
 
 }  // namespace
@@ -93,8 +98,7 @@ bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int
     nrm /= len;
     if (std::abs(nrm.z()) < max_tilt_cos) continue;
     const double d = -nrm.dot(pa);
-    if (sensor &&
-        aboveSensor(sensor, best.origin, nrm, d, pa, point(idx[b]), point(idx[c]), true)) {
+    if (sensor && drawAboveSensor(sensor, best.origin, nrm, d, pa, point(idx[b]), point(idx[c]))) {
       continue;  // a plane over the sensor: a ceiling, not the ground
     }
     std::size_t count = 0;
@@ -158,7 +162,7 @@ bool fitPlaneRansac(const float* xyz, const std::vector<std::uint32_t>& idx, int
   if (n.dot(best_n) < 0.0) n = -n;
   if (std::isfinite(n.x()) && std::abs(n.z()) >= max_tilt_cos) {
     if (sensor && refitJudged(es.eigenvalues()(1), es.eigenvalues()(2)) &&
-        aboveSensor(sensor, best.origin, n, -n.dot(mean), mean, mean, mean, false)) {
+        refitAboveSensor(sensor, best.origin, n, -n.dot(mean), mean)) {
       return false;  // the refit passes over the sensor
     }
     plane->normal = n;
