@@ -73,6 +73,33 @@ TEST(UnseenSensors, BothMethodsKeepTheGroundOfEverySensorOfTheSweep) {
   }
 }
 
+// Both methods on a generated indoor scene: F1 above `min_f1`, and fewer than 1 / `share` of
+// the building points above `ceiling_z` (the ceiling, tops of walls and pillars) ground.
+void expectCeilingOffTheGround(const char* spec, float ceiling_z, double min_f1,
+                               std::size_t share) {
+  const GeneratedScan scan = generateScene(parseSceneSpec(spec));
+  const CloudView view = CloudView::packedXyz(scan.xyz.data(), scan.size());
+  const std::vector<std::int8_t> truth(scan.truth.begin(), scan.truth.end());
+  for (const char* method : {"voxel", "normal"}) {
+    std::vector<std::uint8_t> labels;
+    FilterStats stats;
+    makeGroundFilter(method)->filter(view, &labels, &stats);
+    std::size_t ceiling = 0, ceiling_ground = 0;
+    for (std::size_t i = 0; i < scan.size(); ++i) {
+      if (scan.semantic[i] != kClassBuilding || !(scan.xyz[3 * i + 2] > ceiling_z)) continue;
+      ++ceiling;
+      ceiling_ground += labels[i] == 1;
+    }
+    const double f1 = computeMetrics(countConfusion(labels, truth)).f1;
+    std::printf("%s %s (%s): F1 %.4f, ceiling %zu of %zu ground\n", method, spec,
+                stats.scan_type.c_str(), f1, ceiling_ground, ceiling);
+    EXPECT_GT(f1, min_f1) << method << " " << spec;
+    ASSERT_GT(ceiling, 1000u) << spec;
+    EXPECT_LT(ceiling_ground, ceiling / share)
+        << method << " " << spec << ": " << ceiling_ground << " of " << ceiling << " ground";
+  }
+}
+
 // A parking level (builtin:garage: OS1-128 1.8 m up, the ceiling 0.8 m above it; a tripod
 // scanner; a solid-state sensor): the ceiling is a larger, denser flat surface than the floor
 // the sensor sees, and the normal method's tile planes took it for the ground (F1 0.51, 0.64,
@@ -82,26 +109,20 @@ TEST(UnseenSensors, BothMethodsKeepTheGroundOfEverySensorOfTheSweep) {
 TEST(UnseenSensors, ACeilingAboveTheSensorIsNotTheGround) {
   for (const char* spec : {"garage:1", "garage:2", "tls:1:layout=garage,tls_points=300000",
                            "rosette:1:layout=garage"}) {
-    const GeneratedScan scan = generateScene(parseSceneSpec(spec));
-    const CloudView view = CloudView::packedXyz(scan.xyz.data(), scan.size());
-    const std::vector<std::int8_t> truth(scan.truth.begin(), scan.truth.end());
-    for (const char* method : {"voxel", "normal"}) {
-      std::vector<std::uint8_t> labels;
-      makeGroundFilter(method)->filter(view, &labels);
-      std::size_t ceiling = 0, ceiling_ground = 0;
-      for (std::size_t i = 0; i < scan.size(); ++i) {
-        if (scan.semantic[i] != kClassBuilding || !(scan.xyz[3 * i + 2] > 0.5f)) continue;
-        ++ceiling;  // the ceiling, and walls and pillars above the sensor's height
-        ceiling_ground += labels[i] == 1;
-      }
-      const double f1 = computeMetrics(countConfusion(labels, truth)).f1;
-      std::printf("%s %s: F1 %.4f, ceiling %zu of %zu ground\n", method, spec, f1, ceiling_ground,
-                  ceiling);
-      EXPECT_GT(f1, 0.9) << method << " " << spec;
-      ASSERT_GT(ceiling, 1000u) << spec;
-      EXPECT_LT(ceiling_ground, ceiling / 33) << method << " " << spec << ": " << ceiling_ground
-                                              << " of " << ceiling << " labelled ground";
-    }
+    expectCeilingOffTheGround(spec, 0.5f, 0.9, 33);  // sensor frame: above the sensor's height
+  }
+}
+
+// A registered indoor cloud (tripod stations merged in a world frame) has no sensor at its
+// origin to judge planes by, and its ceiling is as flat as its floor: the normal method took it
+// (F1 0.84 and 0.61 here, the second under a 4 m ceiling). A voted point 1 m or more over another
+// voted point of its 0.5 m column is left out of the planes (normal::overheadPoint()); the ceiling
+// stays non-ground but where no floor is seen under it (3-7 % of it here, at most a tenth). Outdoor
+// registered clouds keep their labels within 0.1 F1 (docs/normal_method.md, "Ceilings").
+TEST(UnseenSensors, ARegisteredIndoorCloudKeepsItsCeilingOffTheGround) {
+  for (const char* spec : {"stations:1:layout=garage,tls_points=300000",
+                           "stations:2:layout=garage,tls_points=300000,ceiling_height=4"}) {
+    expectCeilingOffTheGround(spec, 2.0f, 0.95, 10);  // world frame: the floor at 0
   }
 }
 

@@ -64,7 +64,7 @@ struct CudaNormalPipeline::Impl {
   CudaNormalTimings timings;
   DeviceBuffer in, flags, pos, raw_xyz, raw_src, keys_a, keys_b, vals_a, vals_b, xyz, src, cand,
       voted, sampled_xyz, sampled_voted, vflags, vpos, gflags, gpos, tile_begin, vlist, glist,
-      planes, refine, labels, counters, temp, sidx;
+      planes, refine, labels, counters, temp, sidx, column_low;
   PinnedBuffer h_in, h_small, h_labels;
   const unsigned long long* col_keys = nullptr;  // sorted column keys (orderColumns), n entries
 
@@ -376,6 +376,10 @@ void CudaNormalPipeline::Impl::planesAndLabels(CudaKnn::Impl& im, int n, std::si
   im.grow(planes, (tiles_max + 1) * sizeof(PlaneDev), "the planes");
   const float* d_xyz = xyz.as<float>();
   std::uint8_t* d_voted = voted.as<std::uint8_t>();
+  // Without a sensor to judge the planes by, no voted point over another (CPU: PlaneStage::run).
+  const normal::OverheadGrid og = normal::overheadGrid(bb.min_x, bb.min_y, bb.max_x, bb.max_y);
+  im.grow(column_low, static_cast<std::size_t>(og.nx) * og.ny * sizeof(int), "the overhead test");
+  launchUnvoteOverhead(d_xyz, d_voted, n, og, gp, sensorCounts(), column_low.as<int>(), st);
   launchTileKeys(d_xyz, n, prm.local_planes, bb.min_x, bb.min_y, inv_tile,
                  keys_a.as<unsigned long long>(), vals_a.as<unsigned int>(), st);
   cub::DoubleBuffer<unsigned long long> kb(keys_a.as<unsigned long long>(),

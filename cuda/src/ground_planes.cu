@@ -3,6 +3,7 @@
 
 #include "cuda_util.cuh"
 #include "ground_planes.cuh"
+#include "knn_grid.cuh"
 #include "knn_pca.cuh"
 #include "normal/cpu_gpu_common.h"
 
@@ -323,12 +324,12 @@ __device__ inline bool sensorCheck(const GroundParamsDev& p, const unsigned int*
 /// Counts the voted points near the sensor and those of them under it
 /// (normal::sensorAboveGround()), one atomic per warp.
 __global__ void __launch_bounds__(kThreads)
-    sensorBelowKernel(const float* __restrict__ xyz, const unsigned int* __restrict__ glist,
-                      const unsigned int* gcount, const GroundParamsDev p, unsigned int* counts) {
-  const unsigned int m = *gcount;
+    sensorBelowKernel(const float* __restrict__ xyz, const std::uint8_t* __restrict__ voted, int n,
+                      const GroundParamsDev p, unsigned int* counts) {
   unsigned int below = 0, near = 0;
-  for (unsigned int t = blockIdx.x * blockDim.x + threadIdx.x; t < m; t += gridDim.x * blockDim.x) {
-    const float* q = xyz + 3 * static_cast<std::size_t>(glist[t]);
+  for (int t = blockIdx.x * blockDim.x + threadIdx.x; t < n; t += gridDim.x * blockDim.x) {
+    if (!voted[t]) continue;
+    const float* q = xyz + 3 * static_cast<std::size_t>(t);
     if (!normal::nearSensor(q[0] - p.sensor[0], q[1] - p.sensor[1])) continue;
     ++near;
     below += normal::belowSensor(q[2], p.sensor[2]);
@@ -340,6 +341,33 @@ __global__ void __launch_bounds__(kThreads)
   if ((threadIdx.x & 31) == 0 && near) {
     atomicAdd(counts, below);
     atomicAdd(counts + 1, near);
+  }
+}
+
+/// The lowest voted z of each overhead column (ordered ints), where no sensor judges planes.
+__global__ void __launch_bounds__(kThreads)
+    columnLowKernel(const float* __restrict__ xyz, const std::uint8_t* __restrict__ voted, int n,
+                    const normal::OverheadGrid og, const GroundParamsDev p,
+                    const unsigned int* sensor_counts, int* column_low) {
+  if (sensorCheck(p, sensor_counts)) return;
+  for (int t = blockIdx.x * blockDim.x + threadIdx.x; t < n; t += gridDim.x * blockDim.x) {
+    if (!voted[t]) continue;
+    const float* q = xyz + 3 * static_cast<std::size_t>(t);
+    atomicMin(column_low + normal::overheadColumn(og, q[0], q[1]), floatToOrdered(q[2]));
+  }
+}
+
+/// Clears the voted flag of the points over other voted ones (normal::overheadPoint()).
+__global__ void __launch_bounds__(kThreads)
+    unvoteOverheadKernel(const float* __restrict__ xyz, std::uint8_t* voted, int n,
+                         const normal::OverheadGrid og, const GroundParamsDev p,
+                         const unsigned int* sensor_counts, const int* __restrict__ column_low) {
+  if (sensorCheck(p, sensor_counts)) return;
+  for (int t = blockIdx.x * blockDim.x + threadIdx.x; t < n; t += gridDim.x * blockDim.x) {
+    if (!voted[t]) continue;
+    const float* q = xyz + 3 * static_cast<std::size_t>(t);
+    const float low = orderedToFloat(column_low[normal::overheadColumn(og, q[0], q[1])]);
+    if (normal::overheadPoint(q[2], low)) voted[t] = 0;
   }
 }
 
@@ -513,10 +541,6 @@ void launchPlanes(const float* xyz, const unsigned long long* sorted_keys,
                   const unsigned int* gcount, const GroundParamsDev& p, PlaneDev* planes,
                   unsigned int* work, unsigned int* need_global, unsigned int* sensor_counts,
                   double* partial, std::size_t tiles_max, int blocks, cudaStream_t st) {
-  if (p.sensor_check) {
-    sensorBelowKernel<<<blocks, kThreads, 0, st>>>(xyz, glist, gcount, p, sensor_counts);
-    GF_CUDA_CHECK_LAUNCH();
-  }
   if (p.local_planes) {
     needGlobalKernel<<<blocksFor(tiles_max, kThreads), kThreads, 0, st>>>(tile_begin, ntiles, vpos,
                                                                           need_global);
@@ -531,6 +555,25 @@ void launchPlanes(const float* xyz, const unsigned long long* sorted_keys,
         pass, xyz, glist, gcount, sensor_counts, p, planes, partial);
     GF_CUDA_CHECK_LAUNCH();
   }
+}
+
+void launchUnvoteOverhead(const float* xyz, std::uint8_t* voted, int n,
+                          const normal::OverheadGrid& og, const GroundParamsDev& p,
+                          unsigned int* sensor_counts, int* column_low, cudaStream_t st) {
+  if (n <= 0) return;
+  const unsigned int blocks = blocksFor(static_cast<std::size_t>(n), kThreads);
+  if (p.sensor_check) {
+    sensorBelowKernel<<<blocks, kThreads, 0, st>>>(xyz, voted, n, p, sensor_counts);
+    GF_CUDA_CHECK_LAUNCH();
+  }
+  // 0x7f7f7f7f: an ordered int above every finite z.
+  GF_CUDA_CHECK(
+      cudaMemsetAsync(column_low, 0x7f, static_cast<std::size_t>(og.nx) * og.ny * sizeof(int), st));
+  columnLowKernel<<<blocks, kThreads, 0, st>>>(xyz, voted, n, og, p, sensor_counts, column_low);
+  GF_CUDA_CHECK_LAUNCH();
+  unvoteOverheadKernel<<<blocks, kThreads, 0, st>>>(xyz, voted, n, og, p, sensor_counts,
+                                                    column_low);
+  GF_CUDA_CHECK_LAUNCH();
 }
 
 std::size_t refinePartialBytes() { return sizeof(double) * 10 * kRefineBlocks; }

@@ -16,14 +16,21 @@ namespace cuda_impl {
 /// RANSAC planes: item 0 the cloud-wide plane (when a tile has < 3 voted points or without
 /// local planes; refined grid-wide when large), item 1 + t tile t. `work` and `need_global` are
 /// zeroed counters, `partial` holds refinePartialBytes(); `tiles_max` bounds the tile count.
-/// With p.sensor_check, `sensor_counts` (two zeroed counters) count the voted points near the
-/// sensor and under it (normal::sensorAboveGround()), and no plane passes above the sensor.
+/// With p.sensor_check and `sensor_counts` as launchUnvoteOverhead() left them, no plane passes
+/// above the sensor.
 void launchPlanes(const float* xyz, const unsigned long long* sorted_keys,
                   const unsigned int* tile_begin, const unsigned int* ntiles,
                   const unsigned int* vpos, const unsigned int* vlist, const unsigned int* glist,
                   const unsigned int* gcount, const GroundParamsDev& p, PlaneDev* planes,
                   unsigned int* work, unsigned int* need_global, unsigned int* sensor_counts,
                   double* partial, std::size_t tiles_max, int blocks, cudaStream_t st);
+/// Before the tile lists: with p.sensor_check, counts the voted points near the sensor and
+/// under it into `sensor_counts` (two zeroed counters, normal::sensorAboveGround()); where no
+/// sensor judges the planes, clears the voted flags of the points over other voted ones
+/// (normal::overheadPoint(); `column_low` holds og.nx * og.ny ints).
+void launchUnvoteOverhead(const float* xyz, std::uint8_t* voted, int n,
+                          const normal::OverheadGrid& og, const GroundParamsDev& p,
+                          unsigned int* sensor_counts, int* column_low, cudaStream_t st);
 /// Bytes of the per-block partial sums of the grid-wide plane refinement.
 std::size_t refinePartialBytes();
 

@@ -289,6 +289,37 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
     }
     if (!sensorAboveGround(below, near)) sensor = nullptr;
   }
+  if (!sensor) {  // no sensor to judge planes by: no voted point over another (overheadPoint())
+    unroofed_.assign(voted.begin(), voted.end());
+    unvoteOverhead(xyz, extent, &unroofed_);
+    runTiles(xyz, unroofed_, p, min_abs_nz, threads, ground_out, heights, nullptr);
+    return;
+  }
+  runTiles(xyz, voted, p, min_abs_nz, threads, ground_out, heights, sensor);
+}
+
+void PlaneStage::unvoteOverhead(const std::vector<float>& xyz, const Extent& extent,
+                                std::vector<std::uint8_t>* voted) {
+  const OverheadGrid g = overheadGrid(extent.min_x, extent.min_y, extent.max_x, extent.max_y);
+  column_low_.assign(static_cast<std::size_t>(g.nx) * g.ny, std::numeric_limits<float>::max());
+  std::vector<std::uint8_t>& v = *voted;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    if (!v[i]) continue;
+    float& low = column_low_[overheadColumn(g, xyz[3 * i], xyz[3 * i + 1])];
+    low = std::min(low, xyz[3 * i + 2]);
+  }
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    if (v[i] &&
+        overheadPoint(xyz[3 * i + 2], column_low_[overheadColumn(g, xyz[3 * i], xyz[3 * i + 1])])) {
+      v[i] = 0;
+    }
+  }
+}
+
+void PlaneStage::runTiles(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
+                          const NormalGroundFilterParams& p, double min_abs_nz, int threads,
+                          std::vector<std::uint8_t>* ground_out, std::vector<float>* heights,
+                          const double* sensor) {
   // Each thread's lists hold any tile (dynamic schedule: which thread gets which tile varies),
   // so a scan with the same tiles allocates nothing.
   std::size_t longest_tile = 0;

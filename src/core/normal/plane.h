@@ -40,6 +40,14 @@ class PlaneStage {
            const double* sensor = nullptr);
 
  private:
+  // Clears the voted flags of the points over other voted ones (overheadPoint()).
+  void unvoteOverhead(const std::vector<float>& xyz, const Extent& extent,
+                      std::vector<std::uint8_t>* voted);
+  // The tile planes and the distance test of run(), after its sensor decision.
+  void runTiles(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
+                const NormalGroundFilterParams& p, double min_abs_nz, int threads,
+                std::vector<std::uint8_t>* ground, std::vector<float>* heights,
+                const double* sensor);
   // The steps of run(), in order.
   void sortIntoTiles(const std::vector<float>& xyz, std::size_t n, const Extent& extent,
                      const NormalGroundFilterParams& p, int threads);
@@ -71,6 +79,8 @@ class PlaneStage {
   std::vector<std::pair<std::size_t, std::size_t>> tiles_;  // [begin, end) in tile_order_
   std::vector<std::vector<std::uint32_t>> thread_idx_, thread_eval_;
   std::vector<std::uint8_t> deferred_;  // per tile: labelled with the late cloud-wide plane
+  std::vector<std::uint8_t> unroofed_;  // voted less the overhead points (no sensor only)
+  std::vector<float> column_low_;       // lowest voted z per overhead-test column
 };
 
 }  // namespace normal
