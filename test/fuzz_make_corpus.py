@@ -107,6 +107,11 @@ def main():
     seeds["valid_all_same_point"] = cloud(same, base_fields, 16, xyzi)
     shared = [field("x", 0, F32), field("y", 0, F32), field("z", 0, F32)]
     seeds["valid_xyz_same_offset"] = cloud(pts[:50], shared, 4, lambda p: struct.pack("<f", p[0]))
+    f64_fields = [field("x", 0, F64), field("y", 8, F64), field("z", 16, F64),
+                  field("intensity", 24, F32)]
+    with_far = list(pts) + [(1e300, 0.0, 0.0, 0.0), (nan, 1.0, 2.0, 0.0)]
+    seeds["valid_float64_xyz"] = cloud(with_far, f64_fields, 28,
+                                       lambda p: struct.pack("<3df", p[0], p[1], p[2], p[3]))
 
     bad = cloud(pts[:40], base_fields, 16, xyzi)
     bad.data = bad.data[:-10]

@@ -56,6 +56,22 @@ FIELDS = [
     PointField(name="time", offset=0, datatype=PointField.FLOAT64, count=1),
 ]
 
+# The same with float64 x/y/z (survey and map clouds): 40-byte records.
+RECORD64 = np.dtype({
+    "names": ["time", "x", "y", "z", "intensity", "ring", "pad"],
+    "formats": ["<f8", "<f8", "<f8", "<f8", "<f4", "<u2", ("u1", (2,))],
+    "offsets": [0, 8, 16, 24, 32, 36, 38],
+    "itemsize": 40,
+})
+FIELDS64 = [
+    PointField(name="x", offset=8, datatype=PointField.FLOAT64, count=1),
+    PointField(name="y", offset=16, datatype=PointField.FLOAT64, count=1),
+    PointField(name="z", offset=24, datatype=PointField.FLOAT64, count=1),
+    PointField(name="intensity", offset=32, datatype=PointField.FLOAT32, count=1),
+    PointField(name="ring", offset=36, datatype=PointField.UINT16, count=1),
+    PointField(name="time", offset=0, datatype=PointField.FLOAT64, count=1),
+]
+
 
 def make_records(xyzi):
     """Structured records for an (n, 4) float32 array x y z intensity."""
@@ -68,7 +84,7 @@ def make_records(xyzi):
     return rec
 
 
-def make_cloud(records, stamp, frame_id="velodyne", height=1, row_pad=0):
+def make_cloud(records, stamp, frame_id="velodyne", height=1, row_pad=0, fields=None):
     """PointCloud2 over structured records; `row_pad` bytes of junk after each row."""
     msg = PointCloud2()
     msg.header.stamp = stamp
@@ -76,13 +92,13 @@ def make_cloud(records, stamp, frame_id="velodyne", height=1, row_pad=0):
     n = records.shape[0]
     msg.height = height
     msg.width = n // height if height else 0
-    msg.fields = list(FIELDS)
+    msg.fields = list(fields or FIELDS)
     msg.is_bigendian = False
-    msg.point_step = RECORD.itemsize
+    msg.point_step = records.dtype.itemsize
     msg.row_step = msg.width * msg.point_step + row_pad
-    raw = records.view(np.uint8).reshape(n, RECORD.itemsize)
+    raw = records.view(np.uint8).reshape(n, msg.point_step)
     if row_pad:
-        rows = raw.reshape(height, msg.width * RECORD.itemsize)
+        rows = raw.reshape(height, msg.width * msg.point_step)
         junk = np.full((height, row_pad), 0xAB, dtype=np.uint8)
         raw = np.hstack([rows, junk])
     msg.data = raw.tobytes()
@@ -192,8 +208,9 @@ class NodeletSplitTest(RosTestCase):
                       "the nodelet never subscribed to " + cls.input_topic)
         return cls.collector
 
-    def assert_split(self, cloud, ground, nonground):
-        """The zero-loss contract for one input cloud and its two outputs."""
+    def assert_split(self, cloud, ground, nonground, xyz=(8, 20, "<f4")):
+        """The zero-loss contract for one input cloud and its two outputs (x/y/z at bytes
+        xyz[0]:xyz[1] of a record, of type xyz[2])."""
         self.assertIsNotNone(ground, "no ~ground output")
         self.assertIsNotNone(nonground, "no ~nonground output")
         n_in = cloud.width * cloud.height
@@ -223,8 +240,8 @@ class NodeletSplitTest(RosTestCase):
         # Ground holds finite points only.
         g = rows_of(ground)
         if g.shape[0]:
-            xyz = np.ascontiguousarray(g[:, 8:20]).view("<f4")
-            self.assertTrue(np.isfinite(xyz).all(), "NaN/Inf point in ~ground")
+            coords = np.ascontiguousarray(g[:, xyz[0]:xyz[1]]).view(xyz[2])
+            self.assertTrue(np.isfinite(coords).all(), "NaN/Inf point in ~ground")
             self.assertTrue(ground.is_dense)
 
     # ------------------------------------------------------------------------------------ tests
@@ -337,6 +354,26 @@ class NodeletSplitTest(RosTestCase):
         ng_times = set(rows_of(nonground)[:, 0:8].copy().view("<f8").ravel().tolist())
         for t in rec["time"][[5, 500]].tolist():
             self.assertIn(t, ng_times, "a far outlier is not in ~nonground")
+
+    def test_float64_xyz_cloud_split(self):
+        """x/y/z as float64 (survey and map clouds): the float32 cloud's split, records whole."""
+        col = self.subscribe_outputs()
+        rec32 = self.kitti_records[:30000]
+        rec64 = np.zeros(rec32.shape[0], dtype=RECORD64)
+        for name in ("time", "x", "y", "z", "intensity", "ring"):
+            rec64[name] = rec32[name]
+        s32, s64 = self.next_stamp(), self.next_stamp()
+        c32, c64 = make_cloud(rec32, s32), make_cloud(rec64, s64, fields=FIELDS64)
+        self.pub.publish(c32)
+        g32, _ = col.wait_pairs([s32])[s32.to_nsec()]
+        self.pub.publish(c64)
+        g64, ng64 = col.wait_pairs([s64])[s64.to_nsec()]
+        self.assert_split(c64, g64, ng64, xyz=(8, 32, "<f8"))
+        # The same points are ground (the coordinates are floats widened to doubles).
+        t32 = rows_of(g32)[:, 0:8].copy().view("<f8").ravel()
+        t64 = rows_of(g64)[:, 0:8].copy().view("<f8").ravel()
+        np.testing.assert_array_equal(t64, t32, "float64 cloud split differently")
+        self.assertGreater(g64.width, 100)
 
     def test_organised_cloud_with_row_padding(self):
         """height > 1 with row_step > width * point_step: padding skipped, records kept."""

@@ -242,7 +242,18 @@ TEST(LoadScan, PcdWithoutLabelAndBadXyz) {
   writeText(tmp / "dbl.pcd",
             "VERSION 0.7\nFIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\n"
             "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 1\nDATA ascii\n1 2 3\n");
-  EXPECT_THROW(gf::viewOf(gf::loadScan(tmp / "dbl.pcd").cloud), std::runtime_error);
+  {  // float64 x/y/z (survey exports) are read as float32, the other fields kept
+    const gf::Scan d = gf::loadScan(tmp / "dbl.pcd");
+    const gf::CloudView v = gf::viewOf(d.cloud);
+    ASSERT_EQ(v.size(), 1u);
+    EXPECT_EQ(v.x(0), 1.0f);
+    EXPECT_EQ(v.y(0), 2.0f);
+    EXPECT_EQ(v.z(0), 3.0f);
+  }
+  writeText(tmp / "mixed.pcd",
+            "VERSION 0.7\nFIELDS x y z\nSIZE 8 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\n"
+            "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 1\nDATA ascii\n1 2 3\n");
+  EXPECT_THROW(gf::viewOf(gf::loadScan(tmp / "mixed.pcd").cloud), std::runtime_error);
 
   writeText(tmp / "garbage.pcd", "this is not a point cloud\n");
   EXPECT_THROW(gf::loadScan(tmp / "garbage.pcd"), std::runtime_error);  // PCL alone crashes here

@@ -1,6 +1,6 @@
 // Unit tests of the nodelet base's ROS extras without a ROS graph: the check of serialized
 // PointCloud2 bytes (bad messages on the input), the `~labeled` cloud and the view of a cloud
-// transformed into a gravity frame.
+// transformed into a gravity frame, and clouds with float64 x/y/z.
 #include <gtest/gtest.h>
 #include <ros/serialization.h>
 #include <std_msgs/String.h>
@@ -46,6 +46,10 @@ bool checkBytes(const std::vector<std::uint8_t>& b, std::string* why = nullptr) 
       gf::checkSerializedPointCloud2(b.data(), static_cast<std::uint32_t>(b.size()), &w);
   if (why) *why = w;
   return ok;
+}
+
+const std::uint8_t* recordOf(const PointCloud2& c, std::size_t i) {
+  return c.data.data() + (i / c.width) * c.row_step + (i % c.width) * c.point_step;
 }
 
 void putU32(std::vector<std::uint8_t>* b, std::size_t pos, std::uint32_t v) {
@@ -214,4 +218,55 @@ TEST(MakeTransformedCloudView, RotatesAndTranslatesKeepsNaN) {
   float x1;
   std::memcpy(&x1, in.data.data() + 24 + 8, 4);
   EXPECT_EQ(x1, 1.0f);
+}
+
+// Survey and map clouds with float64 x/y/z: accepted (all three, not mixed), filtered as
+// float32, every record copied whole with its doubles; a NaN double counts as invalid.
+TEST(MakeCloudView, Float64XyzIsPackedAndSplitWhole) {
+  const double kBig = 1234.5678901234;  // more digits than a float holds
+  for (std::uint32_t pad : {0u, 8u}) {
+    PointCloud2 c =
+        buildCloud({field("z", 0, PointField::FLOAT64), field("x", 8, PointField::FLOAT64),
+                    field("y", 16, PointField::FLOAT64), field("ring", 24, PointField::UINT16)},
+                   32, 4, 2, pad, 0xEE, 42, [&](std::uint8_t* rec, std::uint32_t i) {
+                     const double v[3] = {3.0 * i, kBig + i, 2.0 * i};  // z, x, y
+                     std::memcpy(rec, v, sizeof(v));
+                     const std::uint16_t ring = static_cast<std::uint16_t>(i);
+                     std::memcpy(rec + 24, &ring, 2);
+                   });
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    std::memcpy(const_cast<std::uint8_t*>(recordOf(c, 5)) + 16, &nan, sizeof nan);  // y of 5
+    gf::CloudLayout layout;
+    ASSERT_EQ(gf::checkPointCloud2(c, &layout, nullptr), gf::CloudRejectReason::kNone);
+    EXPECT_TRUE(layout.float64);
+    EXPECT_TRUE(layout.packed());
+    std::vector<float> scratch;
+    const gf::CloudView v = gf::makeCloudView(c, layout, &scratch);
+    ASSERT_EQ(v.size(), 8u);
+    EXPECT_EQ(scratch.size(), 24u);
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      EXPECT_EQ(v.x(i), static_cast<float>(kBig + i));
+      EXPECT_EQ(v.z(i), 3.0f * i);
+    }
+    double m[3];
+    ASSERT_TRUE(gf::sampledCentre(c, layout, 4096, m));
+    EXPECT_DOUBLE_EQ(m[0], kBig + 3.5);  // in double, not rounded to float
+    std::vector<std::uint8_t> labels(8, gf::kGround);
+    PointCloud2 g, ng;
+    const gf::SplitCounts n = gf::splitPointCloud2(c, layout, &labels, &g, &ng);
+    EXPECT_EQ(n.invalid, 1u);
+    EXPECT_EQ(n.ground, 7u);
+    ASSERT_EQ(ng.width, 1u);
+    EXPECT_EQ(std::memcmp(ng.data.data(), recordOf(c, 5), 32), 0);
+    for (std::size_t k = 0; k < 7; ++k) {
+      EXPECT_EQ(std::memcmp(g.data.data() + k * 32, recordOf(c, k < 5 ? k : k + 1), 32), 0) << k;
+    }
+  }
+  // x float64 with y and z float32: refused, naming both types.
+  PointCloud2 mixed = makeCloud(4);
+  mixed.fields[2].datatype = PointField::FLOAT64;  // x at 8..16 overlaps y: only the type counts
+  std::string why;
+  gf::CloudLayout layout;
+  EXPECT_EQ(gf::checkPointCloud2(mixed, &layout, &why), gf::CloudRejectReason::kFieldType);
+  EXPECT_NE(why.find("FLOAT32 (7) or all FLOAT64 (8)"), std::string::npos) << why;
 }

@@ -12,6 +12,7 @@
 #include <exception>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <stdexcept>
 
 #include "eval/scene_generator.h"
@@ -192,6 +193,37 @@ void checkBuffer(const std::string& path, const pcl::PCLPointCloud2& cloud) {
   }
 }
 
+// A cloud whose x, y and z are all float64 (survey exports): each becomes a float32 in the
+// first half of its 8 bytes, the precision the filters compute in (the rest of the record,
+// and so every other field, is kept).
+void narrowDoubleXyz(pcl::PCLPointCloud2* cloud) {
+  pcl::PCLPointField* f[3] = {nullptr, nullptr, nullptr};
+  const char* names[3] = {"x", "y", "z"};
+  for (int k = 0; k < 3; ++k) {
+    for (auto& field : cloud->fields) {
+      if (field.name == names[k]) f[k] = &field;
+    }
+    if (!f[k] || f[k]->datatype != pcl::PCLPointField::FLOAT64 || f[k]->count != 1 ||
+        f[k]->offset + sizeof(double) > cloud->point_step) {
+      return;  // not all three float64: viewOf() names what is wrong
+    }
+  }
+  const std::size_t n = static_cast<std::size_t>(cloud->width) * cloud->height;
+  for (std::size_t i = 0; i < n; ++i) {
+    std::uint8_t* rec = cloud->data.data() + recordOffset(*cloud, i);
+    for (int k = 0; k < 3; ++k) {
+      double v;
+      std::memcpy(&v, rec + f[k]->offset, sizeof v);
+      constexpr double kMax = std::numeric_limits<float>::max();  // beyond it: +-Inf, defined
+      const float narrow = v > kMax    ? std::numeric_limits<float>::infinity()
+                           : v < -kMax ? -std::numeric_limits<float>::infinity()
+                                       : static_cast<float>(v);
+      std::memcpy(rec + f[k]->offset, &narrow, sizeof narrow);
+    }
+  }
+  for (int k = 0; k < 3; ++k) f[k]->datatype = pcl::PCLPointField::FLOAT32;
+}
+
 Scan loadPclFile(const std::string& path, bool pcd) {
   Scan scan;
   scan.path = path;
@@ -231,6 +263,7 @@ Scan loadPclFile(const std::string& path, bool pcd) {
   if (rc < 0) fail(path, std::string("cannot read ") + (pcd ? "PCD" : "PLY") + " file");
   if (scan.cloud.is_bigendian) fail(path, "big-endian point data is not supported");
   checkBuffer(path, scan.cloud);
+  narrowDoubleXyz(&scan.cloud);
 
   const pcl::PCLPointField* label = pcd ? findField(scan.cloud, "label") : nullptr;
   if (label) {

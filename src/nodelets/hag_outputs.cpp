@@ -142,7 +142,7 @@ void HagOutputs::process(const sensor_msgs::PointCloud2& in, const CloudLayout& 
   const std::vector<std::uint8_t>& labels = buffers.labels;
   // The view the filter saw: the transformed or packed x/y/z when there was one.
   CloudView view;
-  if (layout.points && (to_gravity || !layout.contiguous)) {
+  if (layout.points && (to_gravity || layout.packed())) {
     view = CloudView::packedXyz(buffers.xyz.data(), layout.points);
   } else if (layout.points) {
     view = CloudView(in.data.data(), layout.points, layout.point_step, layout.x_offset,
@@ -152,7 +152,7 @@ void HagOutputs::process(const sensor_msgs::PointCloud2& in, const CloudLayout& 
   // ground, no surface, every height NaN.
   const bool failed =
       !out->filter_error.empty() || view.size() != labels.size() ||
-      (view.size() && (to_gravity || !layout.contiguous) && buffers.xyz.size() < 3 * layout.points);
+      (view.size() && (to_gravity || layout.packed()) && buffers.xyz.size() < 3 * layout.points);
   if (failed) view = CloudView();
   surface_.build(view, failed ? std::vector<std::uint8_t>() : labels, params_);
   if (want_surface) {

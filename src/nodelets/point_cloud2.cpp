@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <exception>
+#include <limits>
 #include <stdexcept>
 
 #include "ground_filter/point_field.h"
@@ -15,10 +16,31 @@ namespace ground_filter {
 
 namespace {
 
-float loadFloat(const std::uint8_t* p) {
+// One coordinate of a record: float32, or float64 where the layout says so.
+double loadCoord(const std::uint8_t* p, bool float64) {
+  if (float64) {
+    double v;
+    std::memcpy(&v, p, sizeof(double));
+    return v;
+  }
   float v;
   std::memcpy(&v, p, sizeof(float));
   return v;
+}
+
+// A double as float32; beyond the float range +-Inf (a far point, then left out as non-finite),
+// never an undefined conversion.
+float narrow(double v) {
+  constexpr double kMax = std::numeric_limits<float>::max();
+  if (v > kMax) return std::numeric_limits<float>::infinity();
+  if (v < -kMax) return -std::numeric_limits<float>::infinity();
+  return static_cast<float>(v);
+}
+
+void loadXyz(const std::uint8_t* rec, const CloudLayout& layout, double p[3]) {
+  p[0] = loadCoord(rec + layout.x_offset, layout.float64);
+  p[1] = loadCoord(rec + layout.y_offset, layout.float64);
+  p[2] = loadCoord(rec + layout.z_offset, layout.float64);
 }
 
 // Output cloud with the input's header and record layout, room for `n` records.
@@ -39,19 +61,21 @@ void prepareOutput(const sensor_msgs::PointCloud2& in, std::size_t n,
 CloudView makeCloudView(const sensor_msgs::PointCloud2& cloud, const CloudLayout& layout,
                         std::vector<float>* scratch) {
   if (layout.points == 0) return CloudView();
-  if (layout.contiguous) {
+  if (!layout.packed()) {
     return CloudView(cloud.data.data(), layout.points, layout.point_step, layout.x_offset,
                      layout.y_offset, layout.z_offset);
   }
-  // Rows are padded: one stride cannot describe them, so pack x/y/z once.
+  // Rows are padded (one stride cannot describe them) or x/y/z are doubles: pack them once.
   scratch->resize(3 * layout.points);
   float* out = scratch->data();
   for (std::size_t r = 0; r < layout.height; ++r) {
     const std::uint8_t* rec = cloud.data.data() + r * layout.row_step;
     for (std::size_t c = 0; c < layout.width; ++c, rec += layout.point_step) {
-      *out++ = loadFloat(rec + layout.x_offset);
-      *out++ = loadFloat(rec + layout.y_offset);
-      *out++ = loadFloat(rec + layout.z_offset);
+      double p[3];
+      loadXyz(rec, layout, p);
+      *out++ = narrow(p[0]);
+      *out++ = narrow(p[1]);
+      *out++ = narrow(p[2]);
     }
   }
   return CloudView::packedXyz(scratch->data(), layout.points);
@@ -66,8 +90,8 @@ bool sampledCentre(const sensor_msgs::PointCloud2& cloud, const CloudLayout& lay
   for (std::size_t i = 0; i < layout.points; i += step) {
     const std::uint8_t* rec = cloud.data.data() + (i / layout.width) * layout.row_step +
                               (i % layout.width) * layout.point_step;
-    const double p[3] = {loadFloat(rec + layout.x_offset), loadFloat(rec + layout.y_offset),
-                         loadFloat(rec + layout.z_offset)};
+    double p[3];
+    loadXyz(rec, layout, p);
     if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) continue;
     for (int a = 0; a < 3; ++a) {
       lo[a] = any ? std::min(lo[a], p[a]) : p[a];
@@ -90,9 +114,9 @@ SplitCounts splitPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayo
   for (std::size_t r = 0, i = 0; r < layout.height; ++r) {
     const std::uint8_t* rec = in.data.data() + r * layout.row_step;
     for (std::size_t c = 0; c < layout.width; ++c, ++i, rec += step) {
-      const bool finite = std::isfinite(loadFloat(rec + layout.x_offset)) &&
-                          std::isfinite(loadFloat(rec + layout.y_offset)) &&
-                          std::isfinite(loadFloat(rec + layout.z_offset));
+      double p[3];
+      loadXyz(rec, layout, p);
+      const bool finite = std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]);
       if (!finite) {
         ++counts.invalid;
         final_labels[i] = kNonGround;
@@ -140,8 +164,8 @@ CloudView makeTransformedCloudView(const sensor_msgs::PointCloud2& cloud, const 
   for (std::size_t row = 0; row < layout.height; ++row) {
     const std::uint8_t* rec = cloud.data.data() + row * layout.row_step;
     for (std::size_t c = 0; c < layout.width; ++c, rec += layout.point_step) {
-      const Eigen::Vector3d p(loadFloat(rec + layout.x_offset), loadFloat(rec + layout.y_offset),
-                              loadFloat(rec + layout.z_offset));
+      Eigen::Vector3d p;
+      loadXyz(rec, layout, p.data());
       const Eigen::Vector3d q = r * p + t;  // NaN/Inf stay non-finite
       *out++ = static_cast<float>(q.x());
       *out++ = static_cast<float>(q.y());

@@ -34,20 +34,25 @@ enum class CloudRejectReason : int {
 
 /// \brief Where x/y/z sit in a validated PointCloud2 and how its rows are laid out.
 struct CloudLayout {
-  std::size_t x_offset = 0;    ///< byte offset of float32 x inside a record
-  std::size_t y_offset = 4;    ///< byte offset of float32 y
-  std::size_t z_offset = 8;    ///< byte offset of float32 z
+  std::size_t x_offset = 0;    ///< byte offset of x inside a record
+  std::size_t y_offset = 4;    ///< byte offset of y
+  std::size_t z_offset = 8;    ///< byte offset of z
   std::size_t width = 0;       ///< records per row
   std::size_t height = 0;      ///< rows to walk (0 when width is 0, whatever the header says)
   std::size_t point_step = 0;  ///< bytes per record
   std::size_t row_step = 0;    ///< bytes per row (>= width * point_step)
   std::size_t points = 0;      ///< width * height
   bool contiguous = true;      ///< every record at i * point_step (no padding between rows)
+  bool float64 = false;        ///< x/y/z are float64 (then the offsets are of doubles)
+  /// \brief Whether the filter's view is packed into scratch (padded rows, float64 x/y/z)
+  ///        rather than the message's own bytes.
+  bool packed() const { return !contiguous || float64; }
 };
 
 /// \brief Checks a PointCloud2 before any byte of it is read.
 ///
-/// Accepts float32 x/y/z (count 1, any offset and order) in records whose fields all fit inside
+/// Accepts float32 (or all three float64) x/y/z (count 1, any offset and order) in records whose
+/// fields all fit inside
 /// point_step, row_step >= width * point_step and data.size() == row_step * height; little-endian.
 /// \param layout filled when the cloud is valid.
 /// \param message filled with a human-readable reason when it is not.
@@ -55,8 +60,9 @@ struct CloudLayout {
 CloudRejectReason checkPointCloud2(const sensor_msgs::PointCloud2& cloud, CloudLayout* layout,
                                    std::string* message);
 
-/// \brief A CloudView over a validated cloud: zero-copy when rows are contiguous; otherwise x/y/z
-///        are packed once into `scratch` (organised clouds with row padding).
+/// \brief A CloudView over a validated cloud: zero-copy when rows are contiguous and x/y/z
+///        float32; otherwise x/y/z are packed once into `scratch` as float32 (organised clouds
+///        with row padding, float64 x/y/z).
 CloudView makeCloudView(const sensor_msgs::PointCloud2& cloud, const CloudLayout& layout,
                         std::vector<float>* scratch);
 

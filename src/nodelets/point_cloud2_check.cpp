@@ -59,6 +59,7 @@ CloudRejectReason checkPointCloud2(const sensor_msgs::PointCloud2& cloud, CloudL
   // x, y and z: float32, one element each, anywhere inside the record.
   const char* axes[3] = {"x", "y", "z"};
   std::size_t offsets[3] = {0, 0, 0};
+  std::uint8_t types[3] = {0, 0, 0};
   for (int a = 0; a < 3; ++a) {
     const sensor_msgs::PointField* found = nullptr;
     for (const auto& f : cloud.fields) {
@@ -73,11 +74,19 @@ CloudRejectReason checkPointCloud2(const sensor_msgs::PointCloud2& cloud, CloudL
       why << ")";
       return reject(CloudRejectReason::kMissingField);
     }
-    if (found->datatype != sensor_msgs::PointField::FLOAT32) {
-      why << "field '" << axes[a] << "' has datatype " << static_cast<int>(found->datatype)
-          << ", expected FLOAT32 (" << static_cast<int>(sensor_msgs::PointField::FLOAT32) << ")";
+    // float32, or float64 for all three (survey and map clouds; read as double, filtered as
+    // float32 like any other cloud, the records copied unchanged).
+    const std::uint8_t t = found->datatype, t0 = a == 0 ? t : types[0];
+    if ((t != sensor_msgs::PointField::FLOAT32 && t != sensor_msgs::PointField::FLOAT64) ||
+        t != t0) {
+      why << "field 'x' has datatype " << static_cast<int>(t0);
+      if (a > 0) why << " but '" << axes[a] << "' " << static_cast<int>(t);
+      why << ": x, y and z must all be FLOAT32 ("
+          << static_cast<int>(sensor_msgs::PointField::FLOAT32) << ") or all FLOAT64 ("
+          << static_cast<int>(sensor_msgs::PointField::FLOAT64) << ")";
       return reject(CloudRejectReason::kFieldType);
     }
+    types[a] = t;
     if (found->count != 1) {
       why << "field '" << axes[a] << "' has count " << found->count << ", expected 1";
       return reject(CloudRejectReason::kFieldCount);
@@ -115,6 +124,7 @@ CloudRejectReason checkPointCloud2(const sensor_msgs::PointCloud2& cloud, CloudL
     layout->x_offset = offsets[0];
     layout->y_offset = offsets[1];
     layout->z_offset = offsets[2];
+    layout->float64 = types[0] == sensor_msgs::PointField::FLOAT64;
     layout->width = cloud.width;
     // No rows to walk when there is no point: a cloud of width 0 and height 4e9 must not cost
     // 4e9 empty row iterations in every pass (found by fuzzing: seconds per message).
