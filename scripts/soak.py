@@ -232,10 +232,14 @@ def run(args):
         # As launch/ground_filter.launch starts its manager: a fixed glibc mmap threshold, so
         # freed ~10 MB cloud buffers go back to the OS instead of fragmenting heap arenas
         # (without it RSS grew ~20 MB/min at 20 Hz of this 240 k-point scan; 2026-11-23).
+        # --malloc-mmap-threshold and --malloc-trim-threshold set others, for the manager only
+        # (the launch file's arguments of those names: docs/ros_integration.md, "A robot's load").
         # And its OpenMP wait policy (passive unless OMP_WAIT_POLICY is set for the run).
         omp = "OMP_WAIT_POLICY=" + os.environ.get("OMP_WAIT_POLICY", "passive")
-        manager = start("manager", ["env", "MALLOC_MMAP_THRESHOLD_=1048576", omp, "rosrun",
-                                    "nodelet", "nodelet", "manager", "__name:=soak_manager"])
+        mmap = "MALLOC_MMAP_THRESHOLD_=%d" % args.malloc_mmap_threshold
+        trim_top = "MALLOC_TRIM_THRESHOLD_=%d" % args.malloc_trim_threshold
+        manager = start("manager", ["env", mmap, trim_top, omp, "rosrun", "nodelet", "nodelet",
+                                    "manager", "__name:=soak_manager"])
         trim = ([] if args.malloc_trim_period is None
                 else ["_malloc_trim_period:=%g" % args.malloc_trim_period])
         for name, plugin in nodelets.items():
@@ -505,6 +509,12 @@ def main():
                    "latency p99 below the scan period")
     r.add_argument("--malloc-trim-period", type=float, default=None,
                    help="the nodelets' ~malloc_trim_period [s] (default: theirs, 1 s; 0 = off)")
+    r.add_argument("--malloc-mmap-threshold", type=int, default=1048576,
+                   help="the manager's MALLOC_MMAP_THRESHOLD_ [bytes] (default 1048576, as "
+                   "ground_filter.launch's malloc_mmap_threshold)")
+    r.add_argument("--malloc-trim-threshold", type=int, default=131072,
+                   help="the manager's MALLOC_TRIM_THRESHOLD_ [bytes] (default 131072, glibc's "
+                   "and ground_filter.launch's malloc_trim_threshold)")
     p = sub.add_parser("publish")
     p.add_argument("--scan", required=True)
     p.add_argument("--rate", type=float, default=20.0)

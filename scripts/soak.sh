@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Soak test of the nodelets (scripts/soak.py says what it does and what passes).
 #   scripts/soak.sh [MINUTES] [--results DIR] [--rate HZ] [--scan PATH] [--malloc-trim-period S]
+#                   [--malloc-mmap-threshold BYTES] [--malloc-trim-threshold BYTES]
 #                   [--nodelets voxel,normal] [--simd LEVEL] [--robot-load]
 # A robot's load, e.g. 30 minutes at 10 Hz, both nodelets, the AVX2 path, parameters fixed:
 #   scripts/soak.sh 30 --rate 10 --simd avx2 --robot-load
@@ -14,11 +15,15 @@ MINUTES=10
 EXTRA=()
 while [ $# -gt 0 ]; do
   case "$1" in
-    --results|--rate|--scan|--malloc-trim-period|--nodelets|--simd) EXTRA+=("$1" "$2"); shift 2 ;;
+    --results|--rate|--scan|--malloc-trim-period|--malloc-mmap-threshold|--malloc-trim-threshold|\
+    --nodelets|--simd)
+      EXTRA+=("$1" "$2"); shift 2 ;;
     --robot-load) EXTRA+=("$1"); shift ;;
     [0-9]*) MINUTES="$1"; shift ;;
     *) echo "usage: $0 [MINUTES] [--results DIR] [--rate HZ] [--scan PATH] [--malloc-trim-period S]" \
-         "[--nodelets voxel,normal] [--simd LEVEL] [--robot-load]" >&2; exit 2 ;;
+         "[--malloc-mmap-threshold BYTES] [--malloc-trim-threshold BYTES] [--nodelets voxel,normal]" \
+         "[--simd LEVEL] [--robot-load]" \
+         >&2; exit 2 ;;
   esac
 done
 set +u

@@ -33,7 +33,9 @@ class PlaneStage {
   ///        `heights`, also each point's signed height above its plane (normal pointing up;
   ///        NaN where no plane was found). `sensor`: the sensor's x, y, z when the scan has
   ///        one at its origin (no plane may pass above it; the cloud-wide plane is then always
-  ///        fitted, for the tiles whose voted points hold none below it), else null.
+  ///        fitted, for the tiles whose voted points hold none below it), else null: then
+  ///        the voted points 1 m or more over the lowest voted point of their column
+  ///        (overheadPoint()) are left out of the planes first.
   void run(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
            const Extent& extent, const NormalGroundFilterParams& p, double min_abs_nz, int threads,
            std::vector<std::uint8_t>* ground, std::vector<float>* heights = nullptr,
