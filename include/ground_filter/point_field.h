@@ -2,6 +2,7 @@
 #define GROUND_FILTER_POINT_FIELD_H
 
 #include <cstdint>
+#include <limits>
 #include <string>
 
 namespace ground_filter {
@@ -19,6 +20,15 @@ Field singleValueField(const std::string& name, std::uint32_t offset, std::uint8
   f.datatype = datatype;
   f.count = 1;
   return f;
+}
+
+/// \brief A float64 coordinate as the float32 the filters compute in; beyond the float range
+///        +-Inf (a far point, then left out as non-finite), never an undefined conversion.
+inline float narrowCoordinate(double v) {
+  constexpr double kMax = std::numeric_limits<float>::max();
+  if (v > kMax) return std::numeric_limits<float>::infinity();
+  if (v < -kMax) return -std::numeric_limits<float>::infinity();
+  return static_cast<float>(v);
 }
 
 }  // namespace ground_filter

@@ -12,7 +12,6 @@
 #include <exception>
 #include <filesystem>
 #include <fstream>
-#include <limits>
 #include <stdexcept>
 
 #include "eval/scene_generator.h"
@@ -214,10 +213,7 @@ void narrowDoubleXyz(pcl::PCLPointCloud2* cloud) {
     for (int k = 0; k < 3; ++k) {
       double v;
       std::memcpy(&v, rec + f[k]->offset, sizeof v);
-      constexpr double kMax = std::numeric_limits<float>::max();  // beyond it: +-Inf, defined
-      const float narrow = v > kMax    ? std::numeric_limits<float>::infinity()
-                           : v < -kMax ? -std::numeric_limits<float>::infinity()
-                                       : static_cast<float>(v);
+      const float narrow = narrowCoordinate(v);
       std::memcpy(rec + f[k]->offset, &narrow, sizeof narrow);
     }
   }

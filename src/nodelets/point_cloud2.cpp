@@ -7,7 +7,6 @@
 #include <cmath>
 #include <cstring>
 #include <exception>
-#include <limits>
 #include <stdexcept>
 
 #include "ground_filter/point_field.h"
@@ -26,15 +25,6 @@ double loadCoord(const std::uint8_t* p, bool float64) {
   float v;
   std::memcpy(&v, p, sizeof(float));
   return v;
-}
-
-// A double as float32; beyond the float range +-Inf (a far point, then left out as non-finite),
-// never an undefined conversion.
-float narrow(double v) {
-  constexpr double kMax = std::numeric_limits<float>::max();
-  if (v > kMax) return std::numeric_limits<float>::infinity();
-  if (v < -kMax) return -std::numeric_limits<float>::infinity();
-  return static_cast<float>(v);
 }
 
 void loadXyz(const std::uint8_t* rec, const CloudLayout& layout, double p[3]) {
@@ -73,9 +63,9 @@ CloudView makeCloudView(const sensor_msgs::PointCloud2& cloud, const CloudLayout
     for (std::size_t c = 0; c < layout.width; ++c, rec += layout.point_step) {
       double p[3];
       loadXyz(rec, layout, p);
-      *out++ = narrow(p[0]);
-      *out++ = narrow(p[1]);
-      *out++ = narrow(p[2]);
+      *out++ = narrowCoordinate(p[0]);
+      *out++ = narrowCoordinate(p[1]);
+      *out++ = narrowCoordinate(p[2]);
     }
   }
   return CloudView::packedXyz(scratch->data(), layout.points);
