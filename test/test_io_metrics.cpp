@@ -249,6 +249,23 @@ TEST(LoadScan, PcdWithoutLabelAndBadXyz) {
     EXPECT_EQ(v.x(0), 1.0f);
     EXPECT_EQ(v.y(0), 2.0f);
     EXPECT_EQ(v.z(0), 3.0f);
+    EXPECT_EQ(d.shift[0], 0.0);  // near the origin: read as they are
+  }
+  writeText(tmp / "utm.pcd",
+            "VERSION 0.7\nFIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\n"
+            "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA ascii\n627000.123 4842000.456 100.789\n"
+            "627010.5 4842020.25 101.5\n");
+  {  // float64 in projected coordinates: moved onto the middle in double, millimetres kept
+    const gf::Scan d = gf::loadScan(tmp / "utm.pcd");
+    EXPECT_EQ(d.shift[0], 627005.0);
+    EXPECT_EQ(d.shift[1], 4842010.0);
+    EXPECT_EQ(d.shift[2], 101.0);
+    const gf::CloudView v = gf::viewOf(d.cloud);
+    ASSERT_EQ(v.size(), 2u);
+    EXPECT_NEAR(v.x(0), -4.877, 1e-5);
+    EXPECT_NEAR(v.y(0), -9.544, 1e-5);
+    EXPECT_NEAR(v.z(0), -0.211, 1e-5);
+    EXPECT_NEAR(v.y(1), 10.25, 1e-5);
   }
   writeText(tmp / "mixed.pcd",
             "VERSION 0.7\nFIELDS x y z\nSIZE 8 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\n"

@@ -247,6 +247,49 @@ TEST(WorkingVolume, OriginMovesTheVolume) {
   EXPECT_EQ(filter.name(), "voxel");
 }
 
+// A survey tile or map in projected coordinates (UTM, a national grid) lies kilometres beyond the
+// hard box of its origin: the box moves onto the cloud's middle and every point is filtered
+// (before, all of them were out of range: no ground at all).
+TEST(WorkingVolume, CloudInProjectedCoordinatesIsFilteredOnItsMiddle) {
+  const gf::GeneratedScan scan = gf::generateScene(gf::builtinSceneParams("airborne"));
+  const std::size_t n = scan.size();
+  for (const char* method : {"voxel", "normal"}) {
+    SCOPED_TRACE(method);
+    auto filter = gf::makeGroundFilter(method);
+    std::vector<std::uint8_t> at_origin, labels;
+    gf::FilterStats stats;
+    filter->filter(gf::CloudView::packedXyz(scan.xyz.data(), n), &at_origin, &stats);
+    const std::size_t ground = stats.ground_points;
+    ASSERT_GT(ground, n / 4);
+    // 6 and 7 km off (float32 ulp 0.5 mm), and where ISPRS' Vaihingen lies in UTM 32N (0.5 m).
+    for (const auto& shift : {std::vector<double>{6000.0, -7000.0, 300.0},
+                              std::vector<double>{497000.0, 5419000.0, 0.0}}) {
+      std::vector<float> moved(scan.xyz);
+      for (std::size_t i = 0; i < moved.size(); ++i) {
+        moved[i] = static_cast<float>(moved[i] + shift[i % 3]);
+      }
+      filter->filter(gf::CloudView::packedXyz(moved.data(), n), &labels, &stats);
+      EXPECT_EQ(stats.out_of_range_points, 0u) << stats.scan_reason;
+      EXPECT_NE(stats.scan_reason.find("box moved onto the cloud's middle"), std::string::npos)
+          << stats.scan_reason;
+      std::size_t same = 0;
+      for (std::size_t i = 0; i < n; ++i) same += labels[i] == at_origin[i];
+      // Only the float32 rounding of the moved coordinates differs.
+      EXPECT_GT(static_cast<double>(same), (shift[1] > 1e6 ? 0.99 : 0.999) * n)
+          << same << " of " << n;
+    }
+  }
+  // One stray echo beyond the box of a cloud near its origin: the box stays, the echo is cut.
+  std::vector<float> stray(scan.xyz);
+  stray.insert(stray.end(), {9.0e6f, 0.f, 0.f});
+  auto filter = gf::makeGroundFilter("voxel");
+  std::vector<std::uint8_t> labels;
+  gf::FilterStats stats;
+  filter->filter(gf::CloudView::packedXyz(stray.data(), n + 1), &labels, &stats);
+  EXPECT_EQ(stats.out_of_range_points, 1u);
+  EXPECT_EQ(stats.scan_reason.find("box moved"), std::string::npos) << stats.scan_reason;
+}
+
 // The voxel filter tests the volume on the bounds it takes anyway (filterInside()); when the
 // box of the points reaches outside the ball although every point is inside (a KITTI frame with
 // max_range just above its farthest point: the box corners are farther), the wrapper checks the

@@ -1,9 +1,13 @@
 #ifndef GROUND_FILTER_POINT_FIELD_H
 #define GROUND_FILTER_POINT_FIELD_H
 
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <vector>
 
 namespace ground_filter {
 
@@ -29,6 +33,19 @@ inline float narrowCoordinate(double v) {
   if (v > kMax) return std::numeric_limits<float>::infinity();
   if (v < -kMax) return -std::numeric_limits<float>::infinity();
   return static_cast<float>(v);
+}
+
+/// \brief The middle of one axis of a cloud in whole metres: halfway between the sampled values
+///        `axis` (finite, not empty; reordered) without their outer percent on each side, so a
+///        stray echo or a no-return placeholder does not move it. Where a cloud far from its
+///        origin (projected coordinates) is moved to before it is filtered.
+template <class T>
+double trimmedMiddle(std::vector<T>* axis) {
+  const std::size_t lo = axis->size() / 100, hi = axis->size() - 1 - lo;
+  std::nth_element(axis->begin(), axis->begin() + lo, axis->end());
+  const double a = (*axis)[lo];
+  std::nth_element(axis->begin(), axis->begin() + hi, axis->end());
+  return std::round(0.5 * (a + static_cast<double>((*axis)[hi])));
 }
 
 }  // namespace ground_filter

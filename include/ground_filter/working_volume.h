@@ -24,7 +24,10 @@ namespace ground_filter {
 /// points are inside (the usual case) the view goes to the inner filter as it is, without a
 /// copy. Otherwise the finite in-range points are
 /// packed, in input order, into a scratch xyz buffer, filtered, and their labels scattered
-/// back, so every other point gets the label it would get without the far points.
+/// back, so every other point gets the label it would get without the far points. A cloud with
+/// no sensor at its origin (scan_type airborne or registered) whose points lie beyond the hard
+/// box, as a survey tile or map in projected coordinates, has the box moved onto its middle
+/// (recentre()) and is filtered relative to it.
 class WorkingVolumeFilter : public GroundFilter {
  public:
   /// \brief Wraps `inner` (not null).
@@ -38,8 +41,11 @@ class WorkingVolumeFilter : public GroundFilter {
 
   /// \brief Moves the volume's centre (e.g. to the sensor origin in a gravity frame).
   void setOrigin(float x, float y, float z);
+  /// \brief setOrigin(): the sensor origin is the volume's centre.
+  void setSensorOrigin(float x, float y, float z) override { setOrigin(x, y, z); }
   /// \brief Sets the sensor pose in the view's frame: origin and row-major rotation (sensor to
-  ///        view), e.g. the transform into a gravity frame.
+  ///        view), e.g. the transform into a gravity frame; the inner filter's sensor origin
+  ///        too (its sensor rules: scan_type, planes above the sensor).
   void setPose(const float origin[3], const float rotation[9]);
   /// \brief The volume in use.
   const WorkingVolume& volume() const { return volume_; }
@@ -47,12 +53,27 @@ class WorkingVolumeFilter : public GroundFilter {
   GroundFilter& inner() { return *inner_; }
 
  private:
+  /// Points sampled per axis to find the middle of a far cloud (recentre()).
+  static constexpr std::size_t kRecentreSamples = 8192;
+
+  // A cloud with no sensor at its origin whose points lie beyond the hard box (a map or survey
+  // tile in projected coordinates): moves the box onto the middle of the cloud (whole metres,
+  // into `shift`; min_range and body_box off) when it then holds more of the cloud than
+  // `out_of_range` leaves out. False, shift 0: the volume as it was.
+  bool recentre(const CloudView& cloud, std::size_t out_of_range, WorkingVolume* volume,
+                float shift[3]);
+
+  // The inner filter on the packed points (xyz_) into inner_labels_; with `shift` (the points
+  // moved by it: recentre()) its sensor origin moves alike for the call.
+  void filterPacked(const float* shift, FilterStats* inner_stats);
+
   std::unique_ptr<GroundFilter> inner_;
   WorkingVolume volume_;
   std::vector<float> xyz_;         // packed in-range points
   std::vector<std::size_t> kept_;  // their input indices
   std::vector<std::uint8_t> inner_labels_;
-  bool ask_inner_ = true;  // try GroundFilter::filterInside() first (see filter())
+  std::vector<float> axis_;  // recentre()'s sample of one axis
+  bool ask_inner_ = true;    // try GroundFilter::filterInside() first (see filter())
 };
 
 }  // namespace ground_filter

@@ -1,7 +1,9 @@
 #include "ground_filter/working_volume.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -9,6 +11,7 @@
 
 #include "common/threads_timing.h"
 #include "ground_filter/param_parse.h"
+#include "ground_filter/point_field.h"
 
 namespace ground_filter {
 
@@ -93,6 +96,62 @@ void WorkingVolumeFilter::setPose(const float origin[3], const float rotation[9]
   for (int i = 0; i < 9; ++i) v.rotation[i] = rotation[i];
   v.validate();
   volume_ = v;
+  inner_->setSensorOrigin(origin[0], origin[1], origin[2]);  // as setOrigin(): one sensor origin
+}
+
+bool WorkingVolumeFilter::recentre(const CloudView& cloud, std::size_t out_of_range,
+                                   WorkingVolume* volume, float shift[3]) {
+  // trimmedMiddle() of an even sample.
+  const std::size_t n = cloud.size();
+  const std::size_t step = std::max<std::size_t>(1, n / kRecentreSamples);
+  for (int d = 0; d < 3; ++d) {
+    axis_.clear();
+    for (std::size_t i = 0; i < n; i += step) {
+      float p[3];
+      if (cloud.get(i, &p[0], &p[1], &p[2])) axis_.push_back(p[d]);
+    }
+    if (axis_.empty()) return false;
+    shift[d] = static_cast<float>(trimmedMiddle(&axis_));
+  }
+  WorkingVolume moved = *volume;
+  for (int d = 0; d < 3; ++d) moved.origin[d] = shift[d];
+  // The sensor's surroundings lie kilometres from such a cloud: nothing of it is excluded.
+  moved.min_range = 0.0;
+  moved.body_box.clear();
+  std::size_t outside = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    float x, y, z;
+    if (cloud.get(i, &x, &y, &z) && !moved.contains(x, y, z)) ++outside;
+  }
+  if (outside >= out_of_range) {  // the box holds no more of the cloud there: keep it as it was
+    std::fill_n(shift, 3, 0.f);
+    return false;
+  }
+  *volume = moved;
+  return true;
+}
+
+void WorkingVolumeFilter::filterPacked(const float* shift, FilterStats* inner_stats) {
+  const CloudView packed = CloudView::packedXyz(xyz_.data(), kept_.size());
+  if (!shift) {
+    inner_->filter(packed, &inner_labels_, inner_stats);
+    return;
+  }
+  const float* o = volume_.origin;
+  inner_->setSensorOrigin(o[0] - shift[0], o[1] - shift[1], o[2] - shift[2]);
+  try {
+    inner_->filter(packed, &inner_labels_, inner_stats);
+  } catch (...) {
+    inner_->setSensorOrigin(o[0], o[1], o[2]);
+    throw;
+  }
+  inner_->setSensorOrigin(o[0], o[1], o[2]);
+  char text[160];
+  std::snprintf(text, sizeof(text),
+                "; the working volume's +-%.0f m box moved onto the cloud's middle (%.0f %.0f "
+                "%.0f): no point lies near the origin",
+                kWorkingVolumeHardLimit, shift[0] + 0.0, shift[1] + 0.0, shift[2] + 0.0);
+  inner_stats->scan_reason += text;
 }
 
 void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
@@ -134,13 +193,20 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
   countOutside();
   // A cloud with no sensor at its origin (scan_type: airborne, or registered) is not cut by
   // max_range: a survey tile or a map need not lie near the origin. Only the hard limit holds.
-  if (out_of_range > 0 && volume.max_range > 0.0 && inner_->noSensorAtOrigin(cloud)) {
+  const bool no_sensor = out_of_range > 0 && inner_->noSensorAtOrigin(cloud);
+  if (no_sensor && volume.max_range > 0.0) {
     volume.max_range = 0.0;
     countOutside();
   }
   // With exclusions: asked again once they are off.
   ask_inner_ = exclusions || (!asked && out_of_range == 0);
-  if (out_of_range == 0 && near == 0) {
+  // A map or survey tile in projected coordinates (UTM, a national grid) lies kilometres from
+  // its origin: the hard box moves onto the cloud (recentre()) instead of cutting all of it.
+  float shift[3] = {0.f, 0.f, 0.f};
+  const bool shifted =
+      no_sensor && out_of_range > 0 && recentre(cloud, out_of_range, &volume, shift);
+  if (shifted) countOutside();
+  if (out_of_range == 0 && near == 0 && !shifted) {
     inner_->filter(cloud, labels, stats);
     if (stats) {
       stats->out_of_range_points = 0;
@@ -160,9 +226,9 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
     if (!cloud.get(i, &x, &y, &z)) {
       ++invalid;
     } else if (volume.contains(x, y, z) && !(exclusions && volume.excluded(x, y, z))) {
-      xyz_.push_back(x);
-      xyz_.push_back(y);
-      xyz_.push_back(z);
+      xyz_.push_back(x - shift[0]);
+      xyz_.push_back(y - shift[1]);
+      xyz_.push_back(z - shift[2]);
       kept_.push_back(i);
     }
   }
@@ -172,7 +238,7 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
   inner_labels_.clear();
   // Also with no point left: the inner filter still reports its scan type (and takes the
   // decision noSensorAtOrigin() kept).
-  inner_->filter(CloudView::packedXyz(xyz_.data(), kept_.size()), &inner_labels_, &inner_stats);
+  filterPacked(shifted ? shift : nullptr, &inner_stats);
   if (inner_labels_.size() != kept_.size()) {
     throw std::runtime_error(inner_->name() + " filter returned " +
                              std::to_string(inner_labels_.size()) + " labels for " +

@@ -16,6 +16,7 @@
 
 #include "eval/scene_generator.h"
 #include "ground_filter/point_field.h"
+#include "ground_filter/working_volume_params.h"
 
 namespace ground_filter {
 
@@ -194,8 +195,11 @@ void checkBuffer(const std::string& path, const pcl::PCLPointCloud2& cloud) {
 
 // A cloud whose x, y and z are all float64 (survey exports): each becomes a float32 in the
 // first half of its 8 bytes, the precision the filters compute in (the rest of the record,
-// and so every other field, is kept).
-void narrowDoubleXyz(pcl::PCLPointCloud2* cloud) {
+// and so every other field, is kept). A cloud whose middle lies beyond the working volume's hard
+// box (projected coordinates: UTM, a national grid) is first moved by whole metres onto its
+// middle, in double, so the float32 keeps millimetres: `shift` says by how much (else 0).
+void narrowDoubleXyz(pcl::PCLPointCloud2* cloud, double shift[3]) {
+  std::fill_n(shift, 3, 0.0);
   pcl::PCLPointField* f[3] = {nullptr, nullptr, nullptr};
   const char* names[3] = {"x", "y", "z"};
   for (int k = 0; k < 3; ++k) {
@@ -208,12 +212,32 @@ void narrowDoubleXyz(pcl::PCLPointCloud2* cloud) {
     }
   }
   const std::size_t n = static_cast<std::size_t>(cloud->width) * cloud->height;
+  auto coordinate = [&](std::size_t i, int k) {
+    double v;
+    std::memcpy(&v, cloud->data.data() + recordOffset(*cloud, i) + f[k]->offset, sizeof v);
+    return v;
+  };
+  const std::size_t step = std::max<std::size_t>(1, n / 8192);
+  std::vector<double> axis;
+  double middle[3] = {0.0, 0.0, 0.0};
+  bool far = false;
+  for (int k = 0; k < 3 && n > 0; ++k) {
+    axis.clear();
+    for (std::size_t i = 0; i < n; i += step) {
+      const double v = coordinate(i, k);
+      if (std::isfinite(v)) axis.push_back(v);
+    }
+    if (axis.empty()) break;
+    middle[k] = trimmedMiddle(&axis);
+    far = far || std::fabs(middle[k]) > kWorkingVolumeHardLimit;
+  }
+  if (far) std::copy_n(middle, 3, shift);
   for (std::size_t i = 0; i < n; ++i) {
     std::uint8_t* rec = cloud->data.data() + recordOffset(*cloud, i);
     for (int k = 0; k < 3; ++k) {
       double v;
       std::memcpy(&v, rec + f[k]->offset, sizeof v);
-      const float narrow = narrowCoordinate(v);
+      const float narrow = narrowCoordinate(v - shift[k]);
       std::memcpy(rec + f[k]->offset, &narrow, sizeof narrow);
     }
   }
@@ -259,7 +283,7 @@ Scan loadPclFile(const std::string& path, bool pcd) {
   if (rc < 0) fail(path, std::string("cannot read ") + (pcd ? "PCD" : "PLY") + " file");
   if (scan.cloud.is_bigendian) fail(path, "big-endian point data is not supported");
   checkBuffer(path, scan.cloud);
-  narrowDoubleXyz(&scan.cloud);
+  narrowDoubleXyz(&scan.cloud, scan.shift);
 
   const pcl::PCLPointField* label = pcd ? findField(scan.cloud, "label") : nullptr;
   if (label) {

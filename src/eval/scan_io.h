@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
 #include <string>
 #include <utility>
 #include <vector>
@@ -26,12 +27,26 @@ struct Scan {
   /// builtin: scenes); empty when the source has no classes.
   std::vector<std::uint16_t> semantic;
   std::string path;  ///< where it came from (file path or builtin:...)
+  /// Subtracted from float64 x/y/z before they became float32 (a cloud in projected
+  /// coordinates, beyond the working volume's hard box; 0 otherwise) [m]: the origin of the
+  /// file lies at -shift in the cloud as loaded.
+  double shift[3] = {0.0, 0.0, 0.0};
 
   /// \brief Number of point records (width x height).
   std::size_t size() const { return static_cast<std::size_t>(cloud.width) * cloud.height; }
   /// \brief True when ground truth was found for this scan.
   bool labelled() const { return !truth.empty(); }
 };
+
+/// \brief "" for a scan read as it is, else "; float64 x/y/z read as offsets from X Y Z"
+///        (Scan::shift), for the reason line of the tools.
+inline std::string shiftNote(const Scan& scan) {
+  if (scan.shift[0] == 0.0 && scan.shift[1] == 0.0 && scan.shift[2] == 0.0) return "";
+  char text[128];
+  std::snprintf(text, sizeof(text), "; float64 x/y/z read as offsets from %.0f %.0f %.0f",
+                scan.shift[0], scan.shift[1], scan.shift[2]);
+  return text;
+}
 
 /// \brief Loads a scan.
 ///

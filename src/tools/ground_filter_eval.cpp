@@ -432,6 +432,7 @@ FileResult evalFile(gf::GroundFilter* filter, const std::string& file, const Opt
   const std::string scan_file =
       opt.scans_dir.empty() ? std::string() : gf::writeKittiScan(opt.scans_dir, scan);
   const gf::CloudView view = gf::viewOf(scan.cloud);
+  if (filter) filter->setSensorOrigin(-scan.shift[0], -scan.shift[1], -scan.shift[2]);  // moved
   std::vector<double> times;
   gf::FilterStats stats;
   if (!opt.score_dir.empty()) {
@@ -454,7 +455,7 @@ FileResult evalFile(gf::GroundFilter* filter, const std::string& file, const Opt
   res.ms = cli::median(times);
   res.labelled = scan.labelled();
   res.scan_type = stats.scan_type;
-  res.scan_reason = stats.scan_reason;
+  res.scan_reason = stats.scan_reason + gf::shiftNote(scan);
   res.note = stats.note;
   res.scan_file = scan_file;
   if (res.labelled) res.confusion = gf::countConfusion(labels, scan.truth);
