@@ -101,6 +101,8 @@ def scan_type_enum(gen):
         gen.const("ground", str_t, "ground", "ground-level sensor (vehicle, robot)"),
         gen.const("airborne", str_t, "airborne", "airborne / nadir: morphological ground surface"),
         gen.const("tls", str_t, "tls", "terrestrial scanner on a tripod (ground-level steps)"),
+        gen.const("registered", str_t, "registered",
+                  "merged stations or sweeps, no sensor at the origin (ground-level steps)"),
     ], "scan kind")
 
 

@@ -42,7 +42,8 @@ const char* scanTypeName(ScanType type) {
 }
 
 const std::vector<std::string>& scanTypeSettings() {
-  static const std::vector<std::string> values = {"auto", "ground", "airborne", "tls"};
+  static const std::vector<std::string> values = {"auto", "ground", "airborne", "tls",
+                                                  "registered"};
   return values;
 }
 
@@ -252,6 +253,8 @@ ScanTypeSwitch::ScanTypeSwitch(const std::string& setting, bool morph_ground) {
     fixed_ = {ScanType::kAirborne, false, "scan_type: airborne"};
   } else if (setting == "tls") {
     fixed_ = {ScanType::kTls, false, "scan_type: tls"};
+  } else if (setting == "registered") {  // merged stations or sweeps: no sensor at the origin
+    fixed_ = {ScanType::kGround, true, "scan_type: registered"};
   } else {
     fixed_ = {ScanType::kGround, false, "scan_type: ground"};
   }

@@ -24,7 +24,7 @@ enum class ScanType {
 const char* scanTypeName(ScanType type);
 
 /// \brief Values of the `scan_type` parameter: "auto" (decide per scan), "ground", "airborne",
-///        "tls" (force one).
+///        "tls", "registered" (a ground-level cloud with no sensor at its origin) (force one).
 const std::vector<std::string>& scanTypeSettings();
 
 /// \brief Checks a `scan_type` value.
