@@ -155,10 +155,12 @@ TEST(ParamTables, StringChoicesNameParameterValueAndChoices) {
   } catch (const std::invalid_argument& e) {
     EXPECT_STREQ(e.what(),
                  "parameter 'scan_type' = 'nadir' is not one of: auto, ground, "
-                 "airborne, tls");
+                 "airborne, tls, registered");
   }
   gf::VoxelGroundFilterParams v;
   v.scan_type = "tls";
+  EXPECT_NO_THROW(v.validate());
+  v.scan_type = "registered";
   EXPECT_NO_THROW(v.validate());
   v.scan_type = "";
   EXPECT_THROW(v.validate(), std::invalid_argument);
