@@ -59,8 +59,9 @@ class WorkingVolumeFilter : public GroundFilter {
   // A cloud with no sensor at its origin whose points lie beyond the hard box (a map or survey
   // tile in projected coordinates): moves the box onto the middle of the cloud (whole metres,
   // into `shift`; min_range and body_box off) when it then holds more of the cloud than
-  // `out_of_range` leaves out. False, shift 0: the volume as it was.
-  bool recentre(const CloudView& cloud, std::size_t out_of_range, WorkingVolume* volume,
+  // `*out_of_range` leaves out, which then counts the finite points outside the moved box.
+  // False, shift 0: the volume and the count as they were.
+  bool recentre(const CloudView& cloud, std::size_t* out_of_range, WorkingVolume* volume,
                 float shift[3]);
 
   // The inner filter on the packed points (xyz_) into inner_labels_; with `shift` (the points

@@ -99,7 +99,7 @@ void WorkingVolumeFilter::setPose(const float origin[3], const float rotation[9]
   inner_->setSensorOrigin(origin[0], origin[1], origin[2]);  // as setOrigin(): one sensor origin
 }
 
-bool WorkingVolumeFilter::recentre(const CloudView& cloud, std::size_t out_of_range,
+bool WorkingVolumeFilter::recentre(const CloudView& cloud, std::size_t* out_of_range,
                                    WorkingVolume* volume, float shift[3]) {
   // trimmedMiddle() of an even sample.
   const std::size_t n = cloud.size();
@@ -123,11 +123,12 @@ bool WorkingVolumeFilter::recentre(const CloudView& cloud, std::size_t out_of_ra
     float x, y, z;
     if (cloud.get(i, &x, &y, &z) && !moved.contains(x, y, z)) ++outside;
   }
-  if (outside >= out_of_range) {  // the box holds no more of the cloud there: keep it as it was
+  if (outside >= *out_of_range) {  // the box holds no more of the cloud there: keep it as it was
     std::fill_n(shift, 3, 0.f);
     return false;
   }
   *volume = moved;
+  *out_of_range = outside;
   return true;
 }
 
@@ -203,9 +204,10 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
   // A map or survey tile in projected coordinates (UTM, a national grid) lies kilometres from
   // its origin: the hard box moves onto the cloud (recentre()) instead of cutting all of it.
   float shift[3] = {0.f, 0.f, 0.f};
+  // recentre() counts the points outside the moved box (which excludes none).
   const bool shifted =
-      no_sensor && out_of_range > 0 && recentre(cloud, out_of_range, &volume, shift);
-  if (shifted) countOutside();
+      no_sensor && out_of_range > 0 && recentre(cloud, &out_of_range, &volume, shift);
+  if (shifted) near = 0;
   if (out_of_range == 0 && near == 0 && !shifted) {
     inner_->filter(cloud, labels, stats);
     if (stats) {
