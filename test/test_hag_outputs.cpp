@@ -179,6 +179,43 @@ TEST(HagOutputs, SurfaceCloudOnePointPerCell) {
   }
 }
 
+// A surface built on points moved near the origin (a map in projected coordinates,
+// CloudProcessingBuffers::shift) goes out where the points are: float64 x/y/z for a float64
+// input, the shift added back in double.
+TEST(HagOutputs, SurfaceCloudOfMovedPointsIsMovedBack) {
+  const Scene s = postScene();
+  gf::GroundSurface surface;
+  surface.build(gf::CloudView::packedXyz(s.xyz.data(), s.size()), s.labels,
+                gf::GroundSurfaceParams());
+  const double shift[3] = {627031.0, 4842017.0, 213.0};
+  PointCloud2 wide, narrow;
+  gf::makeSurfaceCloud(surface, std_msgs::Header(), &wide, shift, true);
+  gf::makeSurfaceCloud(surface, std_msgs::Header(), &narrow, shift, false);
+  ASSERT_EQ(wide.width, surface.cells().size());
+  ASSERT_EQ(narrow.width, surface.cells().size());
+  EXPECT_EQ(wide.point_step, 32u);
+  EXPECT_EQ(narrow.point_step, 20u);
+  for (int f = 0; f < 3; ++f) {
+    EXPECT_EQ(wide.fields[f].datatype, PointField::FLOAT64);
+    EXPECT_EQ(wide.fields[f].offset, 8u * f);
+    EXPECT_EQ(narrow.fields[f].datatype, PointField::FLOAT32);
+  }
+  EXPECT_EQ(wide.fields[3].offset, 24u);
+  EXPECT_EQ(wide.fields[4].offset, 28u);
+  for (std::size_t k = 0; k < wide.width; ++k) {
+    const gf::SurfaceCell& c = surface.cells()[k];
+    double xyz[3];
+    std::memcpy(xyz, &wide.data[k * 32], sizeof(xyz));
+    EXPECT_EQ(xyz[0], c.x + shift[0]);  // in double: the cell centre to the bit
+    EXPECT_EQ(xyz[1], c.y + shift[1]);
+    EXPECT_EQ(xyz[2], c.z + shift[2]);
+    std::uint32_t n;
+    std::memcpy(&n, &wide.data[k * 32 + 24], 4);
+    EXPECT_EQ(n, c.points);
+    EXPECT_EQ(floatAt(narrow, k, 4), static_cast<float>(c.y + shift[1]));
+  }
+}
+
 TEST(HagOutputs, GatherByLabelAndBandValidation) {
   std::vector<float> out;
   gf::gatherByLabel({1.f, 2.f, 3.f, 4.f}, {1, 0, 1, 0}, 0, &out);

@@ -5,16 +5,19 @@
 #include <ros/serialization.h>
 #include <std_msgs/String.h>
 
+#include <algorithm>
 #include <boost/make_shared.hpp>
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <string>
 #include <typeinfo>
 #include <vector>
 
 #include "cloud_subscription_helper.h"
 #include "gf_test_clouds.h"
+#include "ground_filter/ground_filter.h"
 #include "point_cloud2.h"
 
 namespace gf = ground_filter;
@@ -269,4 +272,110 @@ TEST(MakeCloudView, Float64XyzIsPackedAndSplitWhole) {
   gf::CloudLayout layout;
   EXPECT_EQ(gf::checkPointCloud2(mixed, &layout, &why), gf::CloudRejectReason::kFieldType);
   EXPECT_NE(why.find("FLOAT32 (7) or all FLOAT64 (8)"), std::string::npos) << why;
+}
+
+// A map in projected coordinates published with float64 x/y/z (UTM 17N here): the view moves it
+// onto its middle in double before narrowing, so float32 keep millimetres where they would step
+// by 0.5 m at this northing, and the filter labels it with its sensor origin moved alike.
+TEST(MakeCloudView, FarFloat64IsMovedInDoubleBeforeNarrowing) {
+  const double e0 = 627000.123, n0 = 4842000.456, h0 = 101.5;  // where the tile lies
+  std::vector<double> local;                                   // x y z per point, metres
+  std::vector<bool> is_ground;
+  for (int j = 0; j < 240; ++j) {  // 60 x 60 m of ground at 0.25 m, gently sloped, rough
+    for (int i = 0; i < 240; ++i) {
+      const double x = 0.25 * i + 0.003 * (j % 7), y = 0.25 * j + 0.002 * (i % 5);
+      local.insert(local.end(), {x, y, 0.02 * x + 0.004 * ((i * 7 + j * 3) % 5)});
+      is_ground.push_back(true);
+    }
+  }
+  for (int b = 0; b < 6; ++b) {  // six boxes 2 x 4 m, 1.6 m high: their tops and sides
+    const double bx = 6.0 + 9.0 * b, by = 10.0 + 7.0 * (b % 3);
+    for (int j = 0; j <= 16; ++j) {
+      for (int i = 0; i <= 8; ++i) {
+        const double x = bx + 0.25 * i, y = by + 0.25 * j;
+        local.insert(local.end(), {x, y, 0.02 * x + 1.6});
+        is_ground.push_back(false);
+        if (i == 0 || i == 8) {
+          for (int k = 2; k < 6; ++k) {  // from 0.6 m: above the airborne threshold
+            local.insert(local.end(), {x, y, 0.02 * x + 0.3 * k});
+            is_ground.push_back(false);
+          }
+        }
+      }
+    }
+  }
+  const std::size_t n = is_ground.size();
+  const PointCloud2 c = buildCloud(
+      {field("x", 0, PointField::FLOAT64), field("y", 8, PointField::FLOAT64),
+       field("z", 16, PointField::FLOAT64), field("intensity", 24, PointField::FLOAT32)},
+      28, static_cast<std::uint32_t>(n), 1, 0, 0, 7, [&](std::uint8_t* rec, std::uint32_t i) {
+        const double v[3] = {e0 + local[3 * i], n0 + local[3 * i + 1], h0 + local[3 * i + 2]};
+        std::memcpy(rec, v, sizeof(v));
+      });
+  const gf::CloudLayout layout = layoutOf(c);
+  std::vector<float> scratch;
+  double shift[3];
+  const gf::CloudView view = gf::makeCloudView(c, layout, &scratch, shift);
+  ASSERT_EQ(view.size(), n);
+  // The middle in whole metres (the tile spans about 60 m).
+  EXPECT_NEAR(shift[0], e0 + 30.0, 2.0);
+  EXPECT_NEAR(shift[1], n0 + 30.0, 2.0);
+  EXPECT_NEAR(shift[2], h0 + 0.6, 2.0);
+  for (int a = 0; a < 3; ++a) EXPECT_EQ(shift[a], std::round(shift[a]));
+  double worst = 0.0, worst_unmoved = 0.0;
+  std::vector<float> plain;
+  const gf::CloudView unmoved = gf::makeCloudView(c, layout, &plain);  // no shift asked
+  for (std::size_t i = 0; i < n; ++i) {
+    worst = std::max(worst, std::fabs(view.y(i) - (n0 + local[3 * i + 1] - shift[1])));
+    worst = std::max(worst, std::fabs(view.x(i) - (e0 + local[3 * i] - shift[0])));
+    worst_unmoved = std::max(worst_unmoved, std::fabs(unmoved.y(i) - (n0 + local[3 * i + 1])));
+  }
+  EXPECT_LT(worst, 1e-4);         // float32 of values within 30 m
+  EXPECT_GT(worst_unmoved, 0.1);  // float32 steps by 0.5 m at 4.8 million m
+  // Through the nodelets' path: ground and boxes told apart; the note names the move; the
+  // filter's sensor origin is back at the frame origin for the next cloud (same labels again).
+  for (const char* method : {"voxel", "normal"}) {
+    SCOPED_TRACE(method);
+    std::unique_ptr<gf::GroundFilter> filter = gf::makeGroundFilter(method);
+    gf::CloudProcessingBuffers buffers;
+    gf::ProcessedCloud out;
+    gf::processPointCloud2(c, layout, filter.get(), nullptr, false, &buffers, &out);
+    ASSERT_TRUE(out.filter_error.empty()) << out.filter_error;
+    for (int a = 0; a < 3; ++a) EXPECT_EQ(buffers.shift[a], shift[a]);
+    EXPECT_NE(out.stats.scan_reason.find("moved by"), std::string::npos) << out.stats.scan_reason;
+    EXPECT_EQ(out.stats.out_of_range_points, 0u) << out.stats.scan_reason;
+    std::size_t ground_hit = 0, ground_all = 0, other_hit = 0, other_all = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const bool g = buffers.labels[i] == gf::kGround;
+      (is_ground[i] ? ground_all : other_all) += 1;
+      (is_ground[i] ? ground_hit : other_hit) += is_ground[i] ? g : !g;
+    }
+    EXPECT_GT(ground_hit, 0.99 * ground_all) << ground_hit << " of " << ground_all;
+    EXPECT_GT(other_hit, 0.95 * other_all) << other_hit << " of " << other_all;
+    const std::vector<std::uint8_t> first = buffers.labels;
+    gf::processPointCloud2(c, layout, filter.get(), nullptr, false, &buffers, &out);
+    EXPECT_EQ(buffers.labels, first);
+  }
+  // A gravity frame far from the sensor (a map frame in projected coordinates): moved likewise.
+  const PointCloud2 sensor = makeCloud(50);  // float32, x = i, y = 2i, z = 3i
+  Eigen::Isometry3d to_map = Eigen::Isometry3d::Identity();
+  to_map.translation() = Eigen::Vector3d(e0, n0, h0);
+  const gf::CloudView mapped =
+      gf::makeTransformedCloudView(sensor, layoutOf(sensor), to_map, &scratch, shift);
+  EXPECT_EQ(shift[1], std::round(n0 + 49.0));  // the middle of y = 0 .. 98
+  for (std::size_t i = 0; i < mapped.size(); ++i) {
+    EXPECT_NEAR(mapped.y(i), n0 + 2.0 * i - shift[1], 1e-4) << i;
+  }
+  // Near its origin a float64 cloud is packed as it is.
+  const PointCloud2 near =
+      buildCloud({field("x", 0, PointField::FLOAT64), field("y", 8, PointField::FLOAT64),
+                  field("z", 16, PointField::FLOAT64)},
+                 24, 100, 1, 0, 0, 7, [&](std::uint8_t* rec, std::uint32_t i) {
+                   const double v[3] = {local[3 * i] + 4000.0, local[3 * i + 1], local[3 * i + 2]};
+                   std::memcpy(rec, v, sizeof(v));
+                 });
+  gf::makeCloudView(near, layoutOf(near), &scratch, shift);
+  EXPECT_EQ(shift[0], 0.0);
+  EXPECT_EQ(shift[1], 0.0);
+  EXPECT_EQ(scratch[0], static_cast<float>(local[0] + 4000.0));
 }

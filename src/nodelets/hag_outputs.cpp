@@ -9,6 +9,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "ground_filter/point_field.h"
+
 namespace ground_filter {
 
 void ObstacleBand::validate() const {
@@ -40,28 +42,37 @@ bool withFloatField(const sensor_msgs::PointCloud2& in, const char* name,
 }
 
 void makeSurfaceCloud(const GroundSurface& surface, const std_msgs::Header& header,
-                      sensor_msgs::PointCloud2* out) {
+                      sensor_msgs::PointCloud2* out, const double* shift, bool wide) {
   using PF = sensor_msgs::PointField;
   const std::vector<SurfaceCell>& cells = surface.cells();
+  const double zero[3] = {0.0, 0.0, 0.0};
+  if (!shift) shift = zero;
+  const std::uint32_t w = wide ? 8 : 4, step = 3 * w + 8;
+  const std::uint8_t type = wide ? PF::FLOAT64 : PF::FLOAT32;
   out->header = header;
-  out->fields = {makePointField("x", 0, PF::FLOAT32), makePointField("y", 4, PF::FLOAT32),
-                 makePointField("z", 8, PF::FLOAT32), makePointField("points", 12, PF::UINT32),
-                 makePointField("confidence", 16, PF::FLOAT32)};
+  out->fields = {makePointField("x", 0, type), makePointField("y", w, type),
+                 makePointField("z", 2 * w, type), makePointField("points", 3 * w, PF::UINT32),
+                 makePointField("confidence", 3 * w + 4, PF::FLOAT32)};
   out->is_bigendian = false;
   out->is_dense = true;
-  out->point_step = 20;
+  out->point_step = step;
   out->height = 1;
   out->width = static_cast<std::uint32_t>(cells.size());
   out->row_step = out->point_step * out->width;
   out->data.resize(std::size_t{out->row_step});
   std::uint8_t* dst = out->data.data();
   for (const SurfaceCell& c : cells) {
-    std::memcpy(dst, &c.x, 4);
-    std::memcpy(dst + 4, &c.y, 4);
-    std::memcpy(dst + 8, &c.z, 4);
-    std::memcpy(dst + 12, &c.points, 4);
-    std::memcpy(dst + 16, &c.confidence, 4);
-    dst += 20;
+    if (wide) {
+      const double xyz[3] = {c.x + shift[0], c.y + shift[1], c.z + shift[2]};
+      std::memcpy(dst, xyz, sizeof(xyz));
+    } else {
+      const float xyz[3] = {narrowCoordinate(c.x + shift[0]), narrowCoordinate(c.y + shift[1]),
+                            narrowCoordinate(c.z + shift[2])};
+      std::memcpy(dst, xyz, sizeof(xyz));
+    }
+    std::memcpy(dst + 3 * w, &c.points, 4);
+    std::memcpy(dst + 3 * w + 4, &c.confidence, 4);
+    dst += step;
   }
 }
 
@@ -159,7 +170,8 @@ void HagOutputs::process(const sensor_msgs::PointCloud2& in, const CloudLayout& 
     clouds->surface = boost::make_shared<sensor_msgs::PointCloud2>();
     std_msgs::Header header = in.header;
     header.frame_id = frame;
-    makeSurfaceCloud(surface_, header, clouds->surface.get());
+    // In the input's frame (or the gravity frame), float64 where the input's x/y/z are.
+    makeSurfaceCloud(surface_, header, clouds->surface.get(), buffers.shift, layout.float64);
   }
   if (!want_heights) return;
   if (failed) {

@@ -45,8 +45,13 @@ bool withFloatField(const sensor_msgs::PointCloud2& in, const char* name,
 /// \brief One record per occupied cell of `surface`: x, y, z (float32, cell centre at the
 ///        ground elevation), points (uint32, ground points in the cell), confidence (float32,
 ///        0..1), in `header` (its frame is the frame the surface was built in).
+/// \param shift when not null, added to x, y, z: what the points were moved by before the
+///        surface was built (CloudProcessingBuffers::shift).
+/// \param wide x, y, z as float64 (the input's were: a map in projected coordinates keeps its
+///        precision).
 void makeSurfaceCloud(const GroundSurface& surface, const std_msgs::Header& header,
-                      sensor_msgs::PointCloud2* out);
+                      sensor_msgs::PointCloud2* out, const double* shift = nullptr,
+                      bool wide = false);
 
 /// \brief The whole records of `in` labelled non-ground whose height (one per record, input
 ///        order) lies in [band.min_height, band.max_height]; NaN heights never do. The output

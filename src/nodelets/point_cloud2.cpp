@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <boost/make_shared.hpp>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <exception>
 #include <stdexcept>
@@ -46,16 +47,55 @@ void prepareOutput(const sensor_msgs::PointCloud2& in, std::size_t n,
   out->data.resize(n * in.point_step);
 }
 
+// Records sampled for packShift().
+constexpr std::size_t kShiftSamples = 8192;
+
+// What a packed view is moved by (subtracted, whole metres) so that its float32 keep the
+// precision of far float64 coordinates (a map or survey tile in projected coordinates, or a
+// gravity frame far from the sensor): the trimmed middle (trimmedMiddle()) of at most
+// kShiftSamples records through `transform`, where it lies beyond the working volume's hard box
+// on some axis; else 0 (a cloud near its frame's origin is packed as it is).
+void packShift(const sensor_msgs::PointCloud2& cloud, const CloudLayout& layout,
+               const Eigen::Isometry3d* transform, double shift[3]) {
+  std::fill_n(shift, 3, 0.0);
+  const std::size_t step = std::max<std::size_t>(1, layout.points / kShiftSamples);
+  std::vector<double> axis[3];
+  for (std::size_t i = 0; i < layout.points; i += step) {
+    const std::uint8_t* rec = cloud.data.data() + (i / layout.width) * layout.row_step +
+                              (i % layout.width) * layout.point_step;
+    Eigen::Vector3d p;
+    loadXyz(rec, layout, p.data());
+    if (transform) p = *transform * p;
+    if (!p.allFinite()) continue;
+    for (int a = 0; a < 3; ++a) axis[a].push_back(p[a]);
+  }
+  if (axis[0].empty()) return;
+  double middle[3];
+  bool far = false;
+  for (int a = 0; a < 3; ++a) {
+    middle[a] = trimmedMiddle(&axis[a]);
+    far = far || std::fabs(middle[a]) > kWorkingVolumeHardLimit;
+  }
+  if (far) std::copy_n(middle, 3, shift);
+}
+
 }  // namespace
 
 CloudView makeCloudView(const sensor_msgs::PointCloud2& cloud, const CloudLayout& layout,
-                        std::vector<float>* scratch) {
+                        std::vector<float>* scratch, double* shift) {
+  if (shift) std::fill_n(shift, 3, 0.0);
   if (layout.points == 0) return CloudView();
   if (!layout.packed()) {
     return CloudView(cloud.data.data(), layout.points, layout.point_step, layout.x_offset,
                      layout.y_offset, layout.z_offset);
   }
-  // Rows are padded (one stride cannot describe them) or x/y/z are doubles: pack them once.
+  // Rows are padded (one stride cannot describe them) or x/y/z are doubles: pack them once,
+  // doubles far from the origin moved first (in double) where the caller takes the shift.
+  double move[3] = {0.0, 0.0, 0.0};
+  if (shift && layout.float64) {
+    packShift(cloud, layout, nullptr, move);
+    std::copy_n(move, 3, shift);
+  }
   scratch->resize(3 * layout.points);
   float* out = scratch->data();
   for (std::size_t r = 0; r < layout.height; ++r) {
@@ -63,9 +103,9 @@ CloudView makeCloudView(const sensor_msgs::PointCloud2& cloud, const CloudLayout
     for (std::size_t c = 0; c < layout.width; ++c, rec += layout.point_step) {
       double p[3];
       loadXyz(rec, layout, p);
-      *out++ = narrowCoordinate(p[0]);
-      *out++ = narrowCoordinate(p[1]);
-      *out++ = narrowCoordinate(p[2]);
+      *out++ = narrowCoordinate(p[0] - move[0]);
+      *out++ = narrowCoordinate(p[1] - move[1]);
+      *out++ = narrowCoordinate(p[2] - move[2]);
     }
   }
   return CloudView::packedXyz(scratch->data(), layout.points);
@@ -142,13 +182,19 @@ SplitCounts splitPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayo
 }
 
 CloudView makeTransformedCloudView(const sensor_msgs::PointCloud2& cloud, const CloudLayout& layout,
-                                   const Eigen::Isometry3d& transform,
-                                   std::vector<float>* scratch) {
+                                   const Eigen::Isometry3d& transform, std::vector<float>* scratch,
+                                   double* shift) {
+  if (shift) std::fill_n(shift, 3, 0.0);
   if (layout.points == 0) return CloudView();
   // Double precision for the products: KITTI ranges reach 80 m and the labels must not depend
-  // on float rounding of the rotation.
+  // on float rounding of the rotation. A frame far from the points is moved out in double too.
+  double move[3] = {0.0, 0.0, 0.0};
+  if (shift) {
+    packShift(cloud, layout, &transform, move);
+    std::copy_n(move, 3, shift);
+  }
   const Eigen::Matrix3d r = transform.linear();
-  const Eigen::Vector3d t = transform.translation();
+  const Eigen::Vector3d t = transform.translation() - Eigen::Vector3d(move[0], move[1], move[2]);
   scratch->resize(3 * layout.points);
   float* out = scratch->data();
   for (std::size_t row = 0; row < layout.height; ++row) {
@@ -232,12 +278,32 @@ void processPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& l
   out->stats = FilterStats();
   out->filter_error.clear();
   out->labeled_error.clear();
+  std::fill_n(buffers->shift, 3, 0.0);
   try {
     if (!filter) throw std::runtime_error("no filter");
-    const CloudView view = transform
-                               ? makeTransformedCloudView(in, layout, *transform, &buffers->xyz)
-                               : makeCloudView(in, layout, &buffers->xyz);
-    filter->filter(view, &labels, &out->stats);
+    double* shift = buffers->shift;
+    const CloudView view =
+        transform ? makeTransformedCloudView(in, layout, *transform, &buffers->xyz, shift)
+                  : makeCloudView(in, layout, &buffers->xyz, shift);
+    const bool moved = shift[0] != 0.0 || shift[1] != 0.0 || shift[2] != 0.0;
+    if (moved) {
+      // The sensor stays where it is: at the frame's origin (or the gravity frame's sensor
+      // position), now -shift from the moved points; set again for the next cloud below.
+      const Eigen::Vector3d o =
+          transform ? transform->translation() : Eigen::Vector3d(0.0, 0.0, 0.0);
+      filter->setSensorOrigin(static_cast<float>(o.x() - shift[0]),
+                              static_cast<float>(o.y() - shift[1]),
+                              static_cast<float>(o.z() - shift[2]));
+      filter->filter(view, &labels, &out->stats);
+      filter->setSensorOrigin(static_cast<float>(o.x()), static_cast<float>(o.y()),
+                              static_cast<float>(o.z()));
+      char note[128];
+      std::snprintf(note, sizeof(note), "; x/y/z moved by -(%.0f %.0f %.0f) in double first",
+                    shift[0], shift[1], shift[2]);
+      out->stats.scan_reason += note;
+    } else {
+      filter->filter(view, &labels, &out->stats);
+    }
     if (labels.size() != layout.points) {
       throw std::runtime_error("the filter returned " + std::to_string(labels.size()) +
                                " labels for " + std::to_string(layout.points) + " points");

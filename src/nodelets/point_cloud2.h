@@ -63,8 +63,12 @@ CloudRejectReason checkPointCloud2(const sensor_msgs::PointCloud2& cloud, CloudL
 /// \brief A CloudView over a validated cloud: zero-copy when rows are contiguous and x/y/z
 ///        float32; otherwise x/y/z are packed once into `scratch` as float32 (organised clouds
 ///        with row padding, float64 x/y/z).
+/// \param shift when not null: float64 x/y/z whose middle lies beyond the working volume's
+///        hard box (projected coordinates) are moved by -shift in double before they are
+///        narrowed, so float32 keep their millimetres; `shift` (3 values, whole metres) says by
+///        what, 0 when not moved.
 CloudView makeCloudView(const sensor_msgs::PointCloud2& cloud, const CloudLayout& layout,
-                        std::vector<float>* scratch);
+                        std::vector<float>* scratch, double* shift = nullptr);
 
 /// \brief Point counts of one split.
 struct SplitCounts {
@@ -95,8 +99,11 @@ bool sampledCentre(const sensor_msgs::PointCloud2& cloud, const CloudLayout& lay
 /// \brief A CloudView of the cloud's x/y/z mapped through `transform` (e.g. sensor -> gravity
 ///        frame), packed into `scratch`; NaN/Inf points stay non-finite. Only the view moves: the
 ///        cloud itself (and so every output record) is left as it is.
+/// \param shift when not null: transformed points whose middle lies beyond the working
+///        volume's hard box are moved by -shift (whole metres) in double, as makeCloudView().
 CloudView makeTransformedCloudView(const sensor_msgs::PointCloud2& cloud, const CloudLayout& layout,
-                                   const Eigen::Isometry3d& transform, std::vector<float>* scratch);
+                                   const Eigen::Isometry3d& transform, std::vector<float>* scratch,
+                                   double* shift = nullptr);
 
 /// \brief Checks that `len` bytes are one serialized sensor_msgs/PointCloud2: every length field
 ///        fits in the buffer and the message ends exactly at its end (so deserialising it can
@@ -127,6 +134,9 @@ bool deserializePointCloud2(const std::uint8_t* buf, std::uint32_t len,
 struct CloudProcessingBuffers {
   std::vector<std::uint8_t> labels;  ///< one label per point
   std::vector<float> xyz;            ///< packed x/y/z (padded rows, transformed views)
+  /// What the packed x/y/z were moved by (subtracted) to keep far float64 coordinates'
+  /// precision (makeCloudView()); 0 when not moved.
+  double shift[3] = {0.0, 0.0, 0.0};
 };
 
 /// \brief Outputs of one cloud: ground / non-ground (always), ~labeled (when asked for).
@@ -143,7 +153,9 @@ struct ProcessedCloud {
 /// \brief Filters one validated cloud and splits it: the shared path of the nodelets and of
 ///        the fuzz target.
 ///
-/// The filter sees the cloud's x/y/z (mapped through `transform` when not null). A filter that
+/// The filter sees the cloud's x/y/z (mapped through `transform` when not null; far float64
+/// coordinates moved near the origin in double, `buffers->shift`, with the filter's sensor
+/// origin moved alike for the call and the scan reason naming the move). A filter that
 /// throws or returns a wrong number of labels loses nothing: every record goes to non-ground
 /// and `out->filter_error` says why. Every record lands in exactly one of the two outputs.
 void processPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
