@@ -25,8 +25,9 @@ namespace ground_filter {
 /// copy. Otherwise the finite in-range points are
 /// packed, in input order, into a scratch xyz buffer, filtered, and their labels scattered
 /// back, so every other point gets the label it would get without the far points. A cloud with
-/// no sensor at its origin (scan_type airborne or registered) whose points lie beyond the hard
-/// box, as a survey tile or map in projected coordinates, has the box moved onto its middle
+/// no sensor at its origin (scan_type airborne or registered, or more than half of its finite
+/// points beyond the hard box whatever scan_type says) whose points lie beyond the hard box, as
+/// a survey tile or map in projected coordinates, has the box moved onto its middle
 /// (recentre()) and is filtered relative to it.
 class WorkingVolumeFilter : public GroundFilter {
  public:

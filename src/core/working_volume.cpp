@@ -15,6 +15,23 @@
 
 namespace ground_filter {
 
+namespace {
+
+// Whether more than half of the `finite` points of `cloud` lie beyond the hard box around
+// `volume`'s origin (its ball left out).
+bool mostBeyondBox(const CloudView& cloud, const WorkingVolume& volume, std::size_t finite) {
+  WorkingVolume box = volume;
+  box.max_range = 0.0;
+  std::size_t outside = 0;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    float x, y, z;
+    if (cloud.get(i, &x, &y, &z) && !box.contains(x, y, z)) ++outside;
+  }
+  return outside * 2 > finite;
+}
+
+}  // namespace
+
 void WorkingVolume::validate() const {
   if (!(max_range == 0.0 || (max_range > 0.0 && max_range <= kWorkingVolumeHardLimit))) {
     throw std::invalid_argument("max_range = " + std::to_string(max_range) +
@@ -179,11 +196,13 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
   WorkingVolume volume = volume_;
   std::size_t out_of_range = 0;
   std::size_t near = 0;
+  std::size_t finite = 0;
   auto countOutside = [&]() {
-    out_of_range = near = 0;
+    out_of_range = near = finite = 0;
     for (std::size_t i = 0; i < n; ++i) {
       const float x = cloud.x(i), y = cloud.y(i), z = cloud.z(i);
       if (!(std::isfinite(x) && std::isfinite(y) && std::isfinite(z))) continue;
+      ++finite;
       if (!volume.contains(x, y, z)) {
         ++out_of_range;
       } else if (exclusions && volume.excluded(x, y, z)) {
@@ -194,7 +213,12 @@ void WorkingVolumeFilter::filter(const CloudView& cloud, std::vector<std::uint8_
   countOutside();
   // A cloud with no sensor at its origin (scan_type: airborne, or registered) is not cut by
   // max_range: a survey tile or a map need not lie near the origin. Only the hard limit holds.
-  const bool no_sensor = out_of_range > 0 && inner_->noSensorAtOrigin(cloud);
+  // Most of the cloud beyond the hard box says the same whatever scan_type says (no
+  // ground-level scanner has most of its returns 5 km away): a map in projected coordinates
+  // with scan_type ground or tls.
+  const bool no_sensor =
+      out_of_range > 0 && (inner_->noSensorAtOrigin(cloud) ||
+                           (out_of_range * 2 > finite && mostBeyondBox(cloud, volume, finite)));
   if (no_sensor && volume.max_range > 0.0) {
     volume.max_range = 0.0;
     countOutside();
