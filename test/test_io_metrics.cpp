@@ -267,6 +267,15 @@ TEST(LoadScan, PcdWithoutLabelAndBadXyz) {
     EXPECT_NEAR(v.z(0), -0.211, 1e-5);
     EXPECT_NEAR(v.y(1), 10.25, 1e-5);
   }
+  {  // keep_float64 (scene_publisher): the doubles stay as they are, the nodelets move them
+    const gf::Scan d = gf::loadScan(tmp / "utm.pcd", /*keep_float64=*/true);
+    EXPECT_EQ(d.shift[0], 0.0);
+    ASSERT_EQ(d.cloud.fields[1].datatype, pcl::PCLPointField::FLOAT64);
+    double y;
+    std::memcpy(&y, d.cloud.data.data() + d.cloud.fields[1].offset, sizeof y);
+    EXPECT_EQ(y, 4842000.456);
+    EXPECT_THROW(gf::viewOf(d.cloud), std::runtime_error);
+  }
   writeText(tmp / "mixed.pcd",
             "VERSION 0.7\nFIELDS x y z\nSIZE 8 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\n"
             "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 1\nDATA ascii\n1 2 3\n");

@@ -244,7 +244,7 @@ void narrowDoubleXyz(pcl::PCLPointCloud2* cloud, double shift[3]) {
   for (int k = 0; k < 3; ++k) f[k]->datatype = pcl::PCLPointField::FLOAT32;
 }
 
-Scan loadPclFile(const std::string& path, bool pcd) {
+Scan loadPclFile(const std::string& path, bool pcd, bool narrow) {
   Scan scan;
   scan.path = path;
   int rc = -1;
@@ -283,7 +283,7 @@ Scan loadPclFile(const std::string& path, bool pcd) {
   if (rc < 0) fail(path, std::string("cannot read ") + (pcd ? "PCD" : "PLY") + " file");
   if (scan.cloud.is_bigendian) fail(path, "big-endian point data is not supported");
   checkBuffer(path, scan.cloud);
-  narrowDoubleXyz(&scan.cloud, scan.shift);
+  if (narrow) narrowDoubleXyz(&scan.cloud, scan.shift);
 
   const pcl::PCLPointField* label = pcd ? findField(scan.cloud, "label") : nullptr;
   if (label) {
@@ -545,13 +545,13 @@ std::vector<std::string> listScanFiles(const std::vector<std::string>& paths) {
   return files;
 }
 
-Scan loadScan(const std::string& path) {
+Scan loadScan(const std::string& path, bool keep_float64) {
   if (isBuiltin(path)) return loadBuiltinScan(path);
   checkRegularFile(path);
   const std::string ext = lowerExtension(path);
   if (ext == ".bin") return loadKittiBin(path);
-  if (ext == ".pcd") return loadPclFile(path, true);
-  if (ext == ".ply") return loadPclFile(path, false);
+  if (ext == ".pcd") return loadPclFile(path, true, !keep_float64);
+  if (ext == ".ply") return loadPclFile(path, false, !keep_float64);
   fail(path, "unknown scan file type '" + ext + "' (expected .bin, .pcd or .ply)");
 }
 

@@ -59,9 +59,13 @@ inline std::string shiftNote(const Scan& scan) {
 ///   truth and classes (fields x y z intensity ring); KIND is one of builtinSceneKinds()
 ///   (scene_generator.h), e.g. `lidar` (street, HDL-64), `tls` (street, tripod scanner),
 ///   `verge`, `offroad`, `trail`; the fields set the sensor or world.
+/// - float64 x/y/z (all three) become float32, moved first where they lie far from the origin
+///   (Scan::shift), unless `keep_float64`: then they stay as they are (shift 0) and viewOf()
+///   refuses the cloud; for a tool that passes the records on (scene_publisher: the nodelets
+///   move such a cloud themselves, keeping its precision).
 /// \throws std::runtime_error naming the file for a missing/unreadable/malformed file, an unknown
 ///         extension or a label count that does not match the points.
-Scan loadScan(const std::string& path);
+Scan loadScan(const std::string& path, bool keep_float64 = false);
 
 /// \brief A generated scene as a Scan, as `builtin:` paths load it: packed fields x y z intensity
 ///        (float32) and ring (uint16), truth and classes; `path` is "builtin".

@@ -10,6 +10,7 @@
 // Topic: ~output (sensor_msgs/PointCloud2).
 // Parameters:
 //   ~input (string, "")          scan file/directory/builtin:...; empty = generated LiDAR scene
+//                                (a file's fields go out as they are: float64 x/y/z stay float64)
 //   ~frame_id (string, velodyne) header frame_id
 //   ~rate (double, 10)           scans per second [Hz]
 //   ~loop (bool, true)           start over after the last file
@@ -210,7 +211,8 @@ class FileSource {
     }
     const std::string& path = files_[index_++];
     try {
-      ground_filter::Scan scan = ground_filter::loadScan(path);
+      // float64 x/y/z (a map in UTM) go out as they are: the filter keeps their precision.
+      ground_filter::Scan scan = ground_filter::loadScan(path, /*keep_float64=*/true);
       toMessage(&scan, msg);
       *what = path + (scan.labelled() ? "" : " (no labels)");
       failures_in_a_row_ = 0;
