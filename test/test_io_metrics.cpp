@@ -267,6 +267,11 @@ TEST(LoadScan, PcdWithoutLabelAndBadXyz) {
     EXPECT_NEAR(v.z(0), -0.211, 1e-5);
     EXPECT_NEAR(v.y(1), 10.25, 1e-5);
   }
+  writeText(
+      tmp / "garbage64.pcd",
+      "VERSION 0.7\nFIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\n"
+      "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA ascii\n1e300 2e300 3e300\n1e300 2e300 3e300\n");
+  EXPECT_EQ(gf::loadScan(tmp / "garbage64.pcd").shift[0], 0.0);  // no map: not moved
   {  // keep_float64 (scene_publisher): the doubles stay as they are, the nodelets move them
     const gf::Scan d = gf::loadScan(tmp / "utm.pcd", /*keep_float64=*/true);
     EXPECT_EQ(d.shift[0], 0.0);

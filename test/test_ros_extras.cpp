@@ -366,6 +366,25 @@ TEST(MakeCloudView, FarFloat64IsMovedInDoubleBeforeNarrowing) {
   for (std::size_t i = 0; i < mapped.size(); ++i) {
     EXPECT_NEAR(mapped.y(i), n0 + 2.0 * i - shift[1], 1e-4) << i;
   }
+  // Garbage doubles (1e300 m) are no map: not moved (the offset must stay a float), every record
+  // still goes out, as non-ground.
+  const PointCloud2 garbage =
+      buildCloud({field("x", 0, PointField::FLOAT64), field("y", 8, PointField::FLOAT64),
+                  field("z", 16, PointField::FLOAT64)},
+                 24, 200, 1, 0, 0, 7, [&](std::uint8_t* rec, std::uint32_t i) {
+                   const double v[3] = {1e300 + i * 1e290, -1e300, 1e300};
+                   std::memcpy(rec, v, sizeof(v));
+                 });
+  const gf::CloudLayout garbage_layout = layoutOf(garbage);
+  gf::makeCloudView(garbage, garbage_layout, &scratch, shift);
+  EXPECT_EQ(shift[0], 0.0);
+  {
+    std::unique_ptr<gf::GroundFilter> filter = gf::makeGroundFilter("voxel");
+    gf::CloudProcessingBuffers buffers;
+    gf::ProcessedCloud out;
+    gf::processPointCloud2(garbage, garbage_layout, filter.get(), nullptr, false, &buffers, &out);
+    EXPECT_EQ(out.counts.nonground, 200u);
+  }
   // Near its origin a float64 cloud is packed as it is.
   const PointCloud2 near =
       buildCloud({field("x", 0, PointField::FLOAT64), field("y", 8, PointField::FLOAT64),

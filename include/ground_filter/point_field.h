@@ -48,6 +48,19 @@ double trimmedMiddle(std::vector<T>* axis) {
   return std::round(0.5 * (a + static_cast<double>((*axis)[hi])));
 }
 
+/// \brief Whether a cloud whose middle (trimmedMiddle() per axis) is `middle` is moved onto it
+///        before its coordinates become float32: beyond `limit` on some axis (projected
+///        coordinates), and within 1e30 on every axis (farther is no map but garbage, and the
+///        offset must stay a float: the sensor origin moves by it).
+inline bool moveOntoMiddle(const double middle[3], double limit) {
+  bool far = false;
+  for (int a = 0; a < 3; ++a) {
+    if (!(std::fabs(middle[a]) <= 1e30)) return false;
+    far = far || std::fabs(middle[a]) > limit;
+  }
+  return far;
+}
+
 }  // namespace ground_filter
 
 #endif  // GROUND_FILTER_POINT_FIELD_H

@@ -220,7 +220,6 @@ void narrowDoubleXyz(pcl::PCLPointCloud2* cloud, double shift[3]) {
   const std::size_t step = std::max<std::size_t>(1, n / 8192);
   std::vector<double> axis;
   double middle[3] = {0.0, 0.0, 0.0};
-  bool far = false;
   for (int k = 0; k < 3 && n > 0; ++k) {
     axis.clear();
     for (std::size_t i = 0; i < n; i += step) {
@@ -229,9 +228,8 @@ void narrowDoubleXyz(pcl::PCLPointCloud2* cloud, double shift[3]) {
     }
     if (axis.empty()) break;
     middle[k] = trimmedMiddle(&axis);
-    far = far || std::fabs(middle[k]) > kWorkingVolumeHardLimit;
   }
-  if (far) std::copy_n(middle, 3, shift);
+  if (moveOntoMiddle(middle, kWorkingVolumeHardLimit)) std::copy_n(middle, 3, shift);
   for (std::size_t i = 0; i < n; ++i) {
     std::uint8_t* rec = cloud->data.data() + recordOffset(*cloud, i);
     for (int k = 0; k < 3; ++k) {

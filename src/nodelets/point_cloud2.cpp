@@ -71,12 +71,8 @@ void packShift(const sensor_msgs::PointCloud2& cloud, const CloudLayout& layout,
   }
   if (axis[0].empty()) return;
   double middle[3];
-  bool far = false;
-  for (int a = 0; a < 3; ++a) {
-    middle[a] = trimmedMiddle(&axis[a]);
-    far = far || std::fabs(middle[a]) > kWorkingVolumeHardLimit;
-  }
-  if (far) std::copy_n(middle, 3, shift);
+  for (int a = 0; a < 3; ++a) middle[a] = trimmedMiddle(&axis[a]);
+  if (moveOntoMiddle(middle, kWorkingVolumeHardLimit)) std::copy_n(middle, 3, shift);
 }
 
 }  // namespace
@@ -291,12 +287,12 @@ void processPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& l
       // position), now -shift from the moved points; set again for the next cloud below.
       const Eigen::Vector3d o =
           transform ? transform->translation() : Eigen::Vector3d(0.0, 0.0, 0.0);
-      filter->setSensorOrigin(static_cast<float>(o.x() - shift[0]),
-                              static_cast<float>(o.y() - shift[1]),
-                              static_cast<float>(o.z() - shift[2]));
+      filter->setSensorOrigin(narrowCoordinate(o.x() - shift[0]),
+                              narrowCoordinate(o.y() - shift[1]),
+                              narrowCoordinate(o.z() - shift[2]));
       filter->filter(view, &labels, &out->stats);
-      filter->setSensorOrigin(static_cast<float>(o.x()), static_cast<float>(o.y()),
-                              static_cast<float>(o.z()));
+      filter->setSensorOrigin(narrowCoordinate(o.x()), narrowCoordinate(o.y()),
+                              narrowCoordinate(o.z()));
       char note[128];
       std::snprintf(note, sizeof(note), "; x/y/z moved by -(%.0f %.0f %.0f) in double first",
                     shift[0], shift[1], shift[2]);
