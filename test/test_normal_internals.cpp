@@ -31,6 +31,7 @@
 #include "knn/kdtree_neighbor_search.h"
 #include "knn/neighborhood_pca.h"
 #include "normal/cpu_gpu_common.h"
+#include "normal/lattice.h"
 #include "normal/local_ground.h"
 #include "normal/plane.h"
 #include "normal/sample.h"
@@ -624,4 +625,66 @@ TEST(NormalGroundFilter, SparseLinesStrideDoublesUpToTheLargest) {
   EXPECT_EQ(sparseLinesStride(0, 1000, 0.05, 1), 2);
   EXPECT_EQ(sparseLinesStride(0, 1000, 0.05, 12), 16);  // capped at sample_stride's largest
   EXPECT_EQ(sparseLinesStride(0, 1000, 0.05, 16), 0);
+}
+
+namespace {
+
+// F1 of `labels` against `truth` (ground positive).
+double f1Of(const std::vector<std::uint8_t>& labels, const std::vector<std::uint8_t>& truth) {
+  std::size_t tp = 0, fp = 0, fn = 0;
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    tp += labels[i] == 1 && truth[i] == 1;
+    fp += labels[i] == 1 && truth[i] == 0;
+    fn += labels[i] != 1 && truth[i] == 1;
+  }
+  return 2.0 * tp / (2.0 * tp + fp + fn);
+}
+
+// x, y of packed `xyz` rounded to steps of qx, qy (coordinates stored coarsely).
+std::vector<float> onLattice(std::vector<float> xyz, double qx, double qy) {
+  for (std::size_t i = 0; i < xyz.size(); i += 3) {
+    xyz[i] = static_cast<float>(std::round(xyz[i] / qx) * qx);
+    xyz[i + 1] = static_cast<float>(std::round(xyz[i + 1] / qy) * qy);
+  }
+  return xyz;
+}
+
+}  // namespace
+
+// The lattice of each axis: float32 steps of a UTM easting / northing (1/16 m, 0.5 m) found
+// exactly; natural coordinates, steps below 1 cm and clouds too small to judge give none.
+TEST(NormalLattice, StepsOfQuantisedAxesNoneForNaturalOnes) {
+  const gf::GeneratedScan scan = gf::generateScene(gf::builtinSceneParams("lidar"));
+  gf::normal::LatticeMeter meter;
+  double step[3];
+  EXPECT_FALSE(meter.measure(gf::CloudView::packedXyz(scan.xyz.data(), scan.size()), step));
+  EXPECT_EQ(step[0], 0.0);
+  const std::vector<float> utm = onLattice(scan.xyz, 0.0625, 0.5);
+  EXPECT_TRUE(meter.measure(gf::CloudView::packedXyz(utm.data(), scan.size()), step));
+  EXPECT_EQ(step[0], 0.0625);
+  EXPECT_EQ(step[1], 0.5);
+  EXPECT_EQ(step[2], 0.0);
+  const std::vector<float> fine = onLattice(scan.xyz, 0.005, 0.005);
+  EXPECT_FALSE(meter.measure(gf::CloudView::packedXyz(fine.data(), scan.size()), step));
+  EXPECT_FALSE(meter.measure(gf::CloudView::packedXyz(utm.data(), 40), step));  // 40 points
+}
+
+// A registered street stored as float32 at a UTM northing (y in 0.5 m steps): the dense
+// cloud's neighbours share one y and, without the lattice's variance, flat ground had its
+// smallest eigenvector along y (F1 89.85 against 97.76 at the origin, the street as PCD).
+TEST(NormalGroundFilter, CoarseLatticeKeepsTheGround) {
+  const gf::GeneratedScan scan = gf::generateScene(gf::builtinSceneParams("mls"));
+  gf::NormalGroundFilterParams p;
+  p.threads = 2;
+  p.scan_type = "registered";
+  gf::NormalGroundFilter filter(p);
+  std::vector<std::uint8_t> labels;
+  filter.filter(gf::CloudView::packedXyz(scan.xyz.data(), scan.size()), &labels);
+  const double natural = f1Of(labels, scan.truth);
+  ASSERT_GT(natural, 0.95);
+  const std::vector<float> utm = onLattice(scan.xyz, 0.0625, 0.5);
+  gf::FilterStats stats;
+  filter.filter(gf::CloudView::packedXyz(utm.data(), scan.size()), &labels, &stats);
+  EXPECT_GT(f1Of(labels, scan.truth), natural - 0.005) << natural;
+  EXPECT_NE(stats.note.find("0.0625 / 0.5 / 0 m lattice"), std::string::npos) << stats.note;
 }

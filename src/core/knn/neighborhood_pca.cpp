@@ -457,6 +457,16 @@ inline int fastCandidate(const Covariance& c, const CandidateTest& t, CandidateC
   return -1;
 }
 
+/// The variance coordinates on a lattice hide (CandidateTest::lattice_var) back in `c`.
+inline void addLattice(const CandidateTest& t, Covariance* c) {
+  const double* v = t.lattice_var;
+  if (v[0] == 0.0 && v[1] == 0.0 && v[2] == 0.0) return;  // the usual case: bits unchanged
+  c->xx += v[0];
+  c->yy += v[1];
+  c->zz += v[2];
+  c->trace += v[0] + v[1] + v[2];
+}
+
 /// Candidate flag of one neighbourhood: fastCandidate() where certain, else the reference
 /// (sums in list order, Eigen's solver, isCandidatePca()).
 inline std::uint8_t candidateOne(const float* xyz, const std::int32_t* row, int k,
@@ -484,6 +494,7 @@ inline std::uint8_t candidateOne(const float* xyz, const std::int32_t* row, int 
       return 0;
     }
     if (covarianceOf(s, &c) && c.trace > 1e-11 && s.sxx + s.syy + s.szz <= 1e4 * s.m * c.trace) {
+      addLattice(t, &c);
       const int d = fastCandidate(c, t, counts);
       if (d >= 0) return static_cast<std::uint8_t>(d);
       fast_tried = true;
@@ -496,6 +507,7 @@ inline std::uint8_t candidateOne(const float* xyz, const std::int32_t* row, int 
     ++counts->invalid;
     return 0;
   }
+  addLattice(t, &c);
   if (!t.exact_only && !fast_tried) {
     const int d = fastCandidate(c, t, counts);
     if (d >= 0) return static_cast<std::uint8_t>(d);

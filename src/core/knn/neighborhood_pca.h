@@ -47,6 +47,9 @@ struct CandidateTest {
   double min_abs_nz = 0.0;     ///< least |normal z| of a candidate [1] (0)
   double eigen_tol = 1e-6;     ///< margin of the fast decision, in units of the trace [1] (1e-6)
   bool exact_only = false;     ///< always take the Eigen path (reference) [bool] (false)
+  /// Added to the covariance's x, y, z variances: coordinates stored on a lattice hide the
+  /// neighbourhood's spread inside a step (step^2 / 12, normal/lattice.h) [m^2] (0).
+  double lattice_var[3] = {0.0, 0.0, 0.0};
 };
 
 /// \brief How the candidate-only PCA decided its points.

@@ -11,14 +11,15 @@ namespace normal {
 
 std::size_t NeighborhoodStage::run(KnnBackend* search, const float* xyz, std::size_t len, int k,
                                    int threads, double min_planarity, double min_abs_nz,
-                                   NeighborLists* lists, std::uint8_t* candidate,
-                                   StageTimes* times) {
+                                   const double* lattice_var, NeighborLists* lists,
+                                   std::uint8_t* candidate, StageTimes* times) {
   auto t0 = Clock::now();
   // The kd-tree decides each list's candidate flag right after the list (cache), with the eigen
   // solver only where the cheap decision is not certain (neighborhood_pca.h).
   CandidateTest test;
   test.min_planarity = min_planarity;
   test.min_abs_nz = min_abs_nz;
+  if (lattice_var) std::copy(lattice_var, lattice_var + 3, test.lattice_var);
   if (search->searchWithCandidates(xyz, len, k, test, lists, candidate)) {
     const double search_ms = msSince(t0);
     const auto& parts = search->lastStageMs();

@@ -21,11 +21,13 @@ class NeighborhoodStage {
   /// \brief Runs on the `len` packed points `xyz` with `search`: the lists go to `lists` (whose
   ///        indices may stay empty when the backend keeps them on its device, see
   ///        NeighborListStore::keepLists()), candidate[i] = 1 for the candidates (`len` entries
-  ///        written). Stage times are added to `times`.
+  ///        written). Stage times are added to `times`. `lattice_var` (null: none) is added to
+  ///        each covariance where the backend decides the candidates with the lists
+  ///        (the kd-tree; CandidateTest::lattice_var); the GPU's per-stage PCA has none.
   /// \return the number of candidates.
   std::size_t run(KnnBackend* search, const float* xyz, std::size_t len, int k, int threads,
-                  double min_planarity, double min_abs_nz, NeighborLists* lists,
-                  std::uint8_t* candidate, StageTimes* times);
+                  double min_planarity, double min_abs_nz, const double* lattice_var,
+                  NeighborLists* lists, std::uint8_t* candidate, StageTimes* times);
 
  private:
   std::vector<PointPca> pca_;

@@ -15,6 +15,7 @@
 #include "knn/knn_backend.h"
 #include "normal/cpu_gpu_common.h"
 #include "normal/filter_executor.h"
+#include "normal/lattice.h"
 #include "normal/local_ground.h"
 #include "normal/neighborhoods.h"
 #include "normal/normal_settings.h"
@@ -45,10 +46,13 @@ struct NormalGroundFilter::Impl {
   normal::NeighborhoodStage neighborhoods;
   normal::VoteStage vote;
   normal::PlaneStage plane;
-  normal::LocalGroundStage local_ground;  // local_ground_min > 0 only
-  normal::VegetationStage vegetation;     // veg_filter only
-  MorphGround morph;                      // airborne scans only
-  ScanTypeSwitch scan;                    // scan_type: this scan's mode
+  normal::LocalGroundStage local_ground;    // local_ground_min > 0 only
+  normal::VegetationStage vegetation;       // veg_filter only
+  MorphGround morph;                        // airborne scans only
+  ScanTypeSwitch scan;                      // scan_type: this scan's mode
+  normal::LatticeMeter lattice;             // coordinates on a coarse lattice (0.)
+  double lattice_var[3] = {0.0, 0.0, 0.0};  // this scan's: step^2 / 12 per axis [m^2]
+  bool on_lattice = false;
   // Per-scan results, in stage order.
   normal::OrderedPoints ordered;  // 1: valid points in column order
   NeighborLists lists;            // 2: neighbour lists of one segment
@@ -90,7 +94,23 @@ struct NormalGroundFilter::Impl {
   // *vote_ms.
   std::size_t normalsAndVotes(const NormalGroundFilterParams& p, std::size_t n, int stride,
                               int threads, std::size_t* sampled, double* vote_ms);
+  // on_lattice (returned) and lattice_var of `cloud`; a note names the steps.
+  bool measureLattice(const CloudView& cloud, std::string* note);
 };
+
+bool NormalGroundFilter::Impl::measureLattice(const CloudView& cloud, std::string* note) {
+  double step[3];
+  on_lattice = lattice.measure(cloud, step);
+  if (!on_lattice) return false;
+  for (int a = 0; a < 3; ++a) lattice_var[a] = step[a] * step[a] / 12.0;
+  char text[200];
+  std::snprintf(text, sizeof text,
+                "%sx/y/z on a %g / %g / %g m lattice (float32 far from the origin?): the "
+                "neighbourhoods' covariance takes its variance back; the CPU's stages",
+                note->empty() ? "" : "; ", step[0], step[1], step[2]);
+  note->append(text);
+  return true;
+}
 
 const normal::ScanLines& NormalGroundFilter::Impl::linesOf(const CloudView& cloud) {
   constexpr int kLinesEvery = 16;
@@ -143,8 +163,9 @@ std::size_t NormalGroundFilter::Impl::normalsAndVotes(const NormalGroundFilterPa
       cand = candidate.data() + b;
       vote_out = voted.data() + b;
     }
-    const std::size_t candidates = neighborhoods.run(
-        search.get(), pts, m, p.k, threads, p.min_planarity, min_abs_nz, &lists, cand, &times);
+    const std::size_t candidates =
+        neighborhoods.run(search.get(), pts, m, p.k, threads, p.min_planarity, min_abs_nz,
+                          on_lattice ? lattice_var : nullptr, &lists, cand, &times);
     auto t0 = Clock::now();
     vote.run(search->listStore(), lists, cand, m, candidates, p.bayes_vote, threads, vote_out);
     if (stride > 1) sample.spread(voted.data() + b);
@@ -262,9 +283,11 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     }
   }
 
-  // ---- the whole filter on the executor (GPU) when the filter has one; when it declines the scan
+  // ---- 0. coordinates on a coarse lattice (float32 far from the origin): the PCA adds back the
+  //      spread its steps hide (normal/lattice.h; 0.03 ms a KITTI frame), on the CPU. Then the
+  //      whole filter on the executor (GPU) when the filter has one; when it declines the scan
   //      (a device fault) the stages below run it on the CPU.
-  if (im.executor) {
+  if (!im.measureLattice(cloud, &st.note) && im.executor) {
     if (im.executor->run(cloud, stride, sensor, labels, &st)) {
       st.total_ms = msSince(t_start);
       return;
