@@ -183,9 +183,12 @@ CloudView makeTransformedCloudView(const sensor_msgs::PointCloud2& cloud, const 
   if (shift) std::fill_n(shift, 3, 0.0);
   if (layout.points == 0) return CloudView();
   // Double precision for the products: KITTI ranges reach 80 m and the labels must not depend
-  // on float rounding of the rotation. A frame far from the points is moved out in double too.
+  // on float rounding of the rotation. A frame far from the points is moved out in double too
+  // (float32 points can only get there through the translation: the usual frame, near the
+  // sensor, takes no sample pass).
   double move[3] = {0.0, 0.0, 0.0};
-  if (shift) {
+  if (shift &&
+      (layout.float64 || transform.translation().cwiseAbs().maxCoeff() > kWorkingVolumeHardLimit)) {
     packShift(cloud, layout, &transform, move);
     std::copy_n(move, 3, shift);
   }
