@@ -17,17 +17,22 @@ namespace ground_filter {
 
 namespace {
 
+// The finite points of `cloud` outside `volume` (its ball and box; exclusions not counted).
+std::size_t finiteOutside(const CloudView& cloud, const WorkingVolume& volume) {
+  std::size_t outside = 0;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    float x, y, z;
+    if (cloud.get(i, &x, &y, &z) && !volume.contains(x, y, z)) ++outside;
+  }
+  return outside;
+}
+
 // Whether more than half of the `finite` points of `cloud` lie beyond the hard box around
 // `volume`'s origin (its ball left out).
 bool mostBeyondBox(const CloudView& cloud, const WorkingVolume& volume, std::size_t finite) {
   WorkingVolume box = volume;
   box.max_range = 0.0;
-  std::size_t outside = 0;
-  for (std::size_t i = 0; i < cloud.size(); ++i) {
-    float x, y, z;
-    if (cloud.get(i, &x, &y, &z) && !box.contains(x, y, z)) ++outside;
-  }
-  return outside * 2 > finite;
+  return finiteOutside(cloud, box) * 2 > finite;
 }
 
 }  // namespace
@@ -135,11 +140,7 @@ bool WorkingVolumeFilter::recentre(const CloudView& cloud, std::size_t* out_of_r
   // The sensor's surroundings lie kilometres from such a cloud: nothing of it is excluded.
   moved.min_range = 0.0;
   moved.body_box.clear();
-  std::size_t outside = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    float x, y, z;
-    if (cloud.get(i, &x, &y, &z) && !moved.contains(x, y, z)) ++outside;
-  }
+  const std::size_t outside = finiteOutside(cloud, moved);
   if (outside >= *out_of_range) {  // the box holds no more of the cloud there: keep it as it was
     std::fill_n(shift, 3, 0.f);
     return false;
