@@ -144,6 +144,10 @@ TEST(ScanType, VehicleScansAreGroundLevel) {
       EXPECT_EQ(d.type, gf::ScanType::kGround) << d.reason;
       // Margin to the rule's 40 %: far from the cut on either side (plateau).
       EXPECT_GE(topShare(c), 0.5);
+      // One viewpoint: next to nothing lies behind nearer points (the normal method's cut for
+      // a merged cloud is 0.06, OriginView).
+      const float o[3] = {0.f, 0.f, 0.f};
+      EXPECT_LT(gf::ScanTypeClassifier().measure(c.view(), o).hidden_share, 0.03);
     }
   }
 }
@@ -233,6 +237,9 @@ TEST(ScanType, RegisteredCloudsAreGroundLevel) {
     if (std::string(c.kind) != "stations") EXPECT_TRUE(d.registered) << d.reason;
     const gf::ScanMeasures m = k.measure(cloud.view(), o);
     EXPECT_LE(m.read, gf::ScanTypeClassifier::kMaxRead);
+    // Read as one scan, but seen from its first station much lies behind nearer points: no
+    // sensor rule for its planes in the normal method (docs/normal_method.md, "Ceilings").
+    if (std::string(c.kind) == "stations") EXPECT_GT(m.hidden_share, 0.12);
   }
 }
 
@@ -313,19 +320,23 @@ TEST(ScanType, AutoGivesTheForcedModesLabels) {
 }
 
 // Three tripod stations merged in rough terrain: their density peaks near one station, so auto
-// reads a single scan with its sensor at the origin, and the normal method refuses the ground
-// planes of the other stations' terrain that lies above it (docs/scan_types.md, "Failure
-// modes"). scan_type: registered runs the ground-level steps with no sensor at the origin.
+// reads a single scan with its sensor at the origin (scan type ground, not registered). The
+// normal method refused the ground planes of the other stations' terrain that lies above that
+// "sensor" (F1 0.91 against 0.98) until it looked from the origin: much lies behind nearer
+// points, so no sensor judges the planes, as with scan_type: registered (docs/scan_types.md,
+// "Failure modes").
 TEST(ScanType, RegisteredSettingTakesTheSensorAway) {
   const Cloud merged = generated(gf::parseSceneSpec("stations:1:layout=offroad,tls_points=60000"));
   std::vector<std::uint8_t> a, b;
   gf::FilterStats st = runChecked("normal", merged, &a);
   EXPECT_EQ(st.scan_type, "ground");
   EXPECT_EQ(st.scan_reason.find("registered"), std::string::npos) << st.scan_reason;
+  EXPECT_NE(st.note.find("behind nearer ones seen from the origin"), std::string::npos) << st.note;
   st = runChecked("normal", merged, &b, {{"scan_type", "registered"}});
   EXPECT_EQ(st.scan_type, "ground");
   EXPECT_EQ(st.scan_reason, "scan_type: registered");
-  EXPECT_GT(f1(b, merged), f1(a, merged) + 0.03);
+  EXPECT_GT(f1(b, merged), 0.95);
+  EXPECT_GT(f1(a, merged), f1(b, merged) - 0.005);
   // The same steps as auto takes for a cloud it finds registered (2.4 km from the origin), and
   // max_range does not cut it.
   const Cloud far = builtin("tls_far", 1);
@@ -519,6 +530,8 @@ TEST(ScanType, HugeCloudIsJudgedFromABoundedRead) {
 TEST(ScanType, EmptyAndInvalidClouds) {
   Cloud nan;
   for (int i = 0; i < 100; ++i) nan.add(NAN, 0.f, 0.f, false);
+  const float o[3] = {0.f, 0.f, 0.f};
+  EXPECT_EQ(gf::ScanTypeClassifier().measure(nan.view(), o).hidden_share, 0.0);
   for (const char* method : {"voxel", "normal"}) {
     std::vector<std::uint8_t> labels;
     runChecked(method, nan, &labels);

@@ -81,7 +81,8 @@ const char kUsage[] =
     "                    the other points that differ from the whole scan's\n"
     "--scan-measures     with --json: each file's scan_type auto measures (JSON key\n"
     "                    \"scan_measures\": top_share, column_top_share, column_mean, read,\n"
-    "                    steep_share, steep_depth, high_share, extent; docs/scan_types.md),\n"
+    "                    steep_share, steep_depth, high_share, extent, hidden_share;\n"
+    "                    docs/scan_types.md, docs/normal_method.md),\n"
     "                    computed whatever the decision (scripts/crossval.py reads them)\n"
     "--hag               also build the ground surface from each scan's labels (those of\n"
     "                    --score-labels where given) and compute every point's height above\n"
@@ -552,7 +553,7 @@ void printJson(const Options& opt, const std::vector<FileResult>& results, const
          << ",\"column_top_share\":" << m.column_top_share << ",\"column_mean\":" << m.column_mean
          << ",\"read\":" << m.read << ",\"steep_share\":" << m.steep_share
          << ",\"steep_depth\":" << m.steep_depth << ",\"high_share\":" << m.high_share
-         << ",\"extent\":" << m.extent << "}";
+         << ",\"extent\":" << m.extent << ",\"hidden_share\":" << m.hidden_share << "}";
     }
     os << "}";
   }

@@ -8,6 +8,7 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "airborne/origin_view.h"
 #include "ground_filter/param_parse.h"
 
 namespace ground_filter {
@@ -54,6 +55,7 @@ void validateScanTypeSetting(const std::string& value) {
 ScanMeasures ScanTypeClassifier::measure(const CloudView& cloud, const float origin[3]) {
   ScanMeasures m = measureSample(cloud, origin);
   if (m.cells > 0) measureColumns(cloud, &m);
+  m.hidden_share = OriginView().hiddenShare(cloud, origin);
   return m;
 }
 

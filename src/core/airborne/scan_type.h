@@ -57,6 +57,9 @@ struct ScanMeasures {
   std::size_t columns = 0;        ///< occupied kColumn x kColumn columns
   double column_mean = 0.0;       ///< read points per occupied column
   double column_top_share = 0.0;  ///< share of the read points in the densest tenth of columns
+  /// Points behind nearer ones seen from the origin (OriginView; measure() only: the normal
+  /// method's sensor rule reads it, not the scan type).
+  double hidden_share = 0.0;
 };
 
 /// \brief scan_type auto: tells a ground-level scan from an airborne one by where its points

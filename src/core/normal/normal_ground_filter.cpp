@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "airborne/airborne_mode.h"
+#include "airborne/origin_view.h"
 #include "airborne/scan_type.h"
 #include "common/threads_timing.h"
 #include "knn/knn_backend.h"
@@ -85,10 +86,13 @@ struct NormalGroundFilter::Impl {
   // (another sensor); kept otherwise, as a sensor's lines do not change (the measurement reads
   // the whole cloud: about 1 ms a KITTI frame, two thirds of the GPU pipeline's time).
   const normal::ScanLines& linesOf(const CloudView& cloud);
-  // The sensor's x, y, z where the scan has one at its origin (none in a registered cloud),
-  // else null: no ground plane may pass above it (normal/plane.h).
-  const double* sensorOf(const ScanDecision& decision);
+  // The sensor's x, y, z where the scan has one at its origin, else null: no ground plane may
+  // pass above it (normal/plane.h). None in a registered cloud, nor where many points lie
+  // behind nearer ones seen from the origin (merged stations or sweeps: origin_view.h; stage
+  // "view", a note says so).
+  const double* sensorOf(const ScanDecision& decision, const CloudView& cloud, FilterStats* st);
   double sensor_xyz[3] = {0.0, 0.0, 0.0};
+  OriginView origin_view;
   // Steps 1b-4 on every segment of the `n` ordered points with `stride`; returns the
   // candidates among the sampled points, their number in *sampled, adds the vote's time to
   // *vote_ms.
@@ -130,11 +134,24 @@ const normal::ScanLines& NormalGroundFilter::Impl::linesOf(const CloudView& clou
   return lines_kept;
 }
 
-const double* NormalGroundFilter::Impl::sensorOf(const ScanDecision& decision) {
+const double* NormalGroundFilter::Impl::sensorOf(const ScanDecision& decision,
+                                                 const CloudView& cloud, FilterStats* st) {
   const float* o = scan.origin();
   for (int a = 0; a < 3; ++a) sensor_xyz[a] = o[a];
   const bool finite = std::isfinite(o[0]) && std::isfinite(o[1]) && std::isfinite(o[2]);
-  return decision.registered || !finite ? nullptr : sensor_xyz;
+  if (decision.registered || !finite) return nullptr;
+  const auto t_view = Clock::now();
+  const double hidden = origin_view.streamShare(cloud, o);
+  st->stage_ms.emplace_back("view", msSince(t_view));
+  if (hidden < OriginView::kHiddenCut) return sensor_xyz;
+  std::string* note = &st->note;
+  char text[200];
+  std::snprintf(text, sizeof text,
+                "%s%.0f %% of the points lie behind nearer ones seen from the origin (merged "
+                "stations or sweeps?): the planes are judged as a registered cloud's",
+                note->empty() ? "" : "; ", 100.0 * hidden);
+  note->append(text);
+  return nullptr;
 }
 
 std::size_t NormalGroundFilter::Impl::normalsAndVotes(const NormalGroundFilterParams& p,
@@ -263,7 +280,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     return;
   }
 
-  const double* sensor = im.sensorOf(scan);  // null: no sensor at the origin
+  const double* sensor = im.sensorOf(scan, cloud, &st);  // null: no sensor at the origin
 
   // ---- 1a. a sparse spinning sensor's scan lines: the stride its normals need (scan_lines.h)
   int stride = p.sample_stride;
