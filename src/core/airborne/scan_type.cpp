@@ -181,6 +181,7 @@ void ScanTypeClassifier::classify(const CloudView& cloud, const float origin[3],
   if (nadir_density) measureColumns(cloud, &m);
   char buf[kReasonRoom];
   d->registered = false;
+  d->side_view = false;
   const double cell = m.cell, top = 100.0 * m.top_share, below = 100.0 * m.below_share;
   const char* cell_fmt = cell < 10.0 ? "%.1f" : "%.0f";
   char cell_text[16];
@@ -207,6 +208,7 @@ void ScanTypeClassifier::classify(const CloudView& cloud, const float origin[3],
              m.column_top_share >= kColumnConcentrated) {
     d->type = ScanType::kGround;
     d->registered = true;
+    d->side_view = m.nearest <= kFarOrigin;
     std::snprintf(buf, sizeof(buf),
                   "auto: side view: the densest tenth of the %.0f m xy columns holds %.0f %% of "
                   "%zu points read (%.0f %% or more: density falls with range from each sensor "
@@ -250,15 +252,15 @@ ScanTypeSwitch::ScanTypeSwitch(const std::string& setting, bool morph_ground) {
   validateScanTypeSetting(setting);
   automatic_ = !morph_ground && setting == "auto";
   if (morph_ground) {
-    fixed_ = {ScanType::kAirborne, false, "morph_ground: true"};
+    fixed_ = {ScanType::kAirborne, false, false, "morph_ground: true"};
   } else if (setting == "airborne") {
-    fixed_ = {ScanType::kAirborne, false, "scan_type: airborne"};
+    fixed_ = {ScanType::kAirborne, false, false, "scan_type: airborne"};
   } else if (setting == "tls") {
-    fixed_ = {ScanType::kTls, false, "scan_type: tls"};
+    fixed_ = {ScanType::kTls, false, false, "scan_type: tls"};
   } else if (setting == "registered") {  // merged stations or sweeps: no sensor at the origin
-    fixed_ = {ScanType::kGround, true, "scan_type: registered"};
+    fixed_ = {ScanType::kGround, true, false, "scan_type: registered"};
   } else {
-    fixed_ = {ScanType::kGround, false, "scan_type: ground"};
+    fixed_ = {ScanType::kGround, false, false, "scan_type: ground"};
   }
 }
 

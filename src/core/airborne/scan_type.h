@@ -37,6 +37,10 @@ struct ScanDecision {
   /// A ground-level cloud with no single sensor at its origin (rule 4: registered sweeps or
   /// stations, a map tile): max_range does not cut it.
   bool registered = false;
+  /// Registered by rule 4 alone (a side view's density pattern, no far origin): the one reading
+  /// of `registered` that a cloud fully seen from its origin overrides (the normal method's
+  /// plane rule; OriginView).
+  bool side_view = false;
   std::string reason;
 };
 

@@ -87,9 +87,10 @@ struct NormalGroundFilter::Impl {
   // the whole cloud: about 1 ms a KITTI frame, two thirds of the GPU pipeline's time).
   const normal::ScanLines& linesOf(const CloudView& cloud);
   // The sensor's x, y, z where the scan has one at its origin, else null: no ground plane may
-  // pass above it (normal/plane.h). None in a registered cloud, nor where many points lie
-  // behind nearer ones seen from the origin (merged stations or sweeps: origin_view.h; stage
-  // "view", a note says so).
+  // pass above it (normal/plane.h). Asked of the cloud where auto decided (origin_view.h,
+  // stage "view"): none where many points lie behind nearer ones seen from the origin (merged
+  // stations or sweeps), one where few do (also in a cloud read as registered by its side
+  // view); a note says where that overrules the scan type.
   const double* sensorOf(const ScanDecision& decision, const CloudView& cloud, FilterStats* st);
   double sensor_xyz[3] = {0.0, 0.0, 0.0};
   OriginView origin_view;
@@ -139,19 +140,24 @@ const double* NormalGroundFilter::Impl::sensorOf(const ScanDecision& decision,
   const float* o = scan.origin();
   for (int a = 0; a < 3; ++a) sensor_xyz[a] = o[a];
   const bool finite = std::isfinite(o[0]) && std::isfinite(o[1]) && std::isfinite(o[2]);
-  if (decision.registered || !finite) return nullptr;
+  // Set or far from the points: no sensor there. Read from a side view's density alone: the
+  // origin may be one all the same (a single scan under a high ceiling), asked below.
+  if (!finite || (decision.registered && !decision.side_view)) return nullptr;
   const auto t_view = Clock::now();
   const double hidden = origin_view.streamShare(cloud, o);
   st->stage_ms.emplace_back("view", msSince(t_view));
-  if (hidden < OriginView::kHiddenCut) return sensor_xyz;
-  std::string* note = &st->note;
-  char text[200];
+  const bool sensor = hidden < OriginView::kHiddenCut;
+  if (sensor == !decision.registered) return sensor ? sensor_xyz : nullptr;
+  char text[240];
   std::snprintf(text, sizeof text,
-                "%s%.0f %% of the points lie behind nearer ones seen from the origin (merged "
-                "stations or sweeps?): the planes are judged as a registered cloud's",
-                note->empty() ? "" : "; ", 100.0 * hidden);
-  note->append(text);
-  return nullptr;
+                sensor ? "%sonly %.1f %% of the points lie behind nearer ones seen from the "
+                         "origin (one scan?): the planes are judged with a sensor there"
+                       : "%s%.0f %% of the points lie behind nearer ones seen from the origin "
+                         "(merged stations or sweeps?): the planes are judged as a registered "
+                         "cloud's",
+                st->note.empty() ? "" : "; ", 100.0 * hidden);
+  st->note.append(text);
+  return sensor ? sensor_xyz : nullptr;
 }
 
 std::size_t NormalGroundFilter::Impl::normalsAndVotes(const NormalGroundFilterParams& p,
