@@ -532,6 +532,18 @@ TEST(ScanType, EmptyAndInvalidClouds) {
   for (int i = 0; i < 100; ++i) nan.add(NAN, 0.f, 0.f, false);
   const float o[3] = {0.f, 0.f, 0.f};
   EXPECT_EQ(gf::ScanTypeClassifier().measure(nan.view(), o).hidden_share, 0.0);
+  // Points straight above and below the origin (a TLS zenith: x = y = 0, no azimuth) among a
+  // ground ring: a defined share (the fuzzer found 0 / 0 there).
+  Cloud zenith;
+  for (int i = 0; i < 2000; ++i) {
+    const float a = 0.0031416f * static_cast<float>(i), r = 3.f + 0.01f * static_cast<float>(i);
+    zenith.add(r * std::cos(a), r * std::sin(a), -1.5f, true);
+  }
+  for (int i = 0; i < 200; ++i) zenith.add(0.f, 0.f, 2.f + 0.1f * static_cast<float>(i % 2), false);
+  for (int i = 0; i < 50; ++i) zenith.add(0.f, 0.f, -1.5f - 0.5f * static_cast<float>(i), false);
+  const double share = gf::ScanTypeClassifier().measure(zenith.view(), o).hidden_share;
+  EXPECT_GE(share, 0.0);
+  EXPECT_LE(share, 0.1);
   for (const char* method : {"voxel", "normal"}) {
     std::vector<std::uint8_t> labels;
     runChecked(method, nan, &labels);

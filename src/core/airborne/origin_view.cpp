@@ -26,8 +26,10 @@ constexpr int kAzimuthBins = static_cast<int>(360.0 / OriginView::kAzimuthBin);
 constexpr int kElevationBins = static_cast<int>(2.0 * kDegPerRad / OriginView::kElevationBin) + 1;
 
 // Azimuth of (x, y) as a "diamond angle" in [0, 4): monotonic in the angle, no trigonometry.
+// Straight up or down (x = y = 0, a TLS zenith): 0, any azimuth holds such a point.
 inline float diamondAngle(float x, float y) {
   const float d = std::fabs(x) + std::fabs(y);
+  if (!(d > 0.f)) return 0.f;
   if (y >= 0.f) return x >= 0.f ? y / d : 1.f - x / d;
   return x < 0.f ? 2.f - y / d : 3.f + x / d;
 }
