@@ -1,4 +1,4 @@
-// Points hidden from the origin (normal/origin_view.h).
+// Points hidden from the origin (airborne/origin_view.h).
 
 #include "airborne/origin_view.h"
 
@@ -78,19 +78,7 @@ double OriginView::hiddenShare(const CloudView& cloud, const float origin[3]) {
 }
 
 double OriginView::streamShare(const CloudView& cloud, const float origin[3]) {
-  const std::size_t n = cloud.size();
-  const std::size_t diff = n > kept_points_ ? n - kept_points_ : kept_points_ - n;
-  const bool same = age_ >= 0 && age_ + 1 < kMeasureEvery && 10 * diff <= kept_points_ &&
-                    origin[0] == kept_origin_[0] && origin[1] == kept_origin_[1] &&
-                    origin[2] == kept_origin_[2];
-  if (same) {
-    ++age_;
-    return kept_;
-  }
-  kept_ = hiddenShare(cloud, origin);
-  kept_points_ = n;
-  std::copy(origin, origin + 3, kept_origin_);
-  age_ = 0;
+  if (!keep_.keep(cloud.size(), origin)) kept_ = hiddenShare(cloud, origin);
   return kept_;
 }
 

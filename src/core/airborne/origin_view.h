@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "common/stream_keep.h"
 #include "ground_filter/cloud_view.h"
 
 namespace ground_filter {
@@ -50,10 +51,8 @@ class OriginView {
   double streamShare(const CloudView& cloud, const float origin[3]);
 
  private:
-  double kept_ = 0.0;            // the last measured share
-  std::size_t kept_points_ = 0;  // the point count it was measured on
-  float kept_origin_[3] = {0.f, 0.f, 0.f};
-  int age_ = -1;  // scans since that measurement, -1: none yet
+  double kept_ = 0.0;  // the last measured share
+  StreamKeep keep_{kMeasureEvery};
 
   std::vector<std::uint32_t> bin_;   // per read point: its direction bin
   std::vector<float> range_;         // per read point: its range [m]

@@ -12,6 +12,7 @@
 #include "airborne/airborne_mode.h"
 #include "airborne/origin_view.h"
 #include "airborne/scan_type.h"
+#include "common/stream_keep.h"
 #include "common/threads_timing.h"
 #include "knn/knn_backend.h"
 #include "normal/cpu_gpu_common.h"
@@ -65,9 +66,7 @@ struct NormalGroundFilter::Impl {
   // 1a: the last measured scan lines, kept for the next scans of the same sensor (linesOf()).
   normal::ScanLineMeter line_meter;
   normal::ScanLines lines_kept;
-  std::size_t lines_points = 0;  // points of the scan they were measured on
-  float lines_origin[3] = {0.f, 0.f, 0.f};
-  int lines_age = -1;  // scans since; -1: none measured
+  StreamKeep lines_keep{16};  // measured again every 16th scan (or another sensor)
   Impl(const NormalGroundFilterParams& p, std::unique_ptr<KnnBackend> backend,
        std::unique_ptr<NormalFilterExecutor> exec)
       : search(std::move(backend)),
@@ -82,7 +81,7 @@ struct NormalGroundFilter::Impl {
     if (NeighborListStore* kept = search->listStore()) kept->keepLists(!host_lists);
   }
   // The scan lines of `cloud` (scan_lines.h): measured again on the first scan, every
-  // kLinesEvery-th, and when the point count moves by more than a tenth or the origin moves
+  // 16th (lines_keep), and when the point count moves by more than a tenth or the origin moves
   // (another sensor); kept otherwise, as a sensor's lines do not change (the measurement reads
   // the whole cloud: about 1 ms a KITTI frame, two thirds of the GPU pipeline's time).
   const normal::ScanLines& linesOf(const CloudView& cloud);
@@ -118,20 +117,8 @@ bool NormalGroundFilter::Impl::measureLattice(const CloudView& cloud, std::strin
 }
 
 const normal::ScanLines& NormalGroundFilter::Impl::linesOf(const CloudView& cloud) {
-  constexpr int kLinesEvery = 16;
   const float* o = scan.origin();
-  const std::size_t n = cloud.size();
-  const std::size_t diff = n > lines_points ? n - lines_points : lines_points - n;
-  const bool same = lines_age >= 0 && lines_age + 1 < kLinesEvery && 10 * diff <= lines_points &&
-                    o[0] == lines_origin[0] && o[1] == lines_origin[1] && o[2] == lines_origin[2];
-  if (same) {
-    ++lines_age;
-  } else {
-    lines_kept = line_meter.measure(cloud, o);
-    lines_points = n;
-    std::copy(o, o + 3, lines_origin);
-    lines_age = 0;
-  }
+  if (!lines_keep.keep(cloud.size(), o)) lines_kept = line_meter.measure(cloud, o);
   return lines_kept;
 }
 
