@@ -446,6 +446,38 @@ TEST(SceneGenerator, InvalidParametersAreRefused) {
   SceneParams g;
   g.grass_roughness = -0.01;
   EXPECT_THROW(generateScene(g), std::invalid_argument);
+  SceneParams e;
+  e.second_returns = 1.5;
+  EXPECT_THROW(generateScene(e), std::invalid_argument);
+}
+
+// A dual-return sensor: each point the scan without them lacks is a second echo of a beam
+// whose first echo was foliage, on the same ray 1 m or more farther out, right after it.
+TEST(SceneGenerator, SecondEchoesFollowTheirFoliageOnTheSameRay) {
+  const GeneratedScan one = generateScene(parseSceneSpec("offroad:1"));
+  const GeneratedScan two = generateScene(parseSceneSpec("offroad:1:second_returns=0.5"));
+  std::size_t j = 0, echoes = 0;
+  for (std::size_t i = 0; i < two.size(); ++i) {
+    if (j < one.size() && std::equal(&two.xyz[3 * i], &two.xyz[3 * i + 3], &one.xyz[3 * j])) {
+      ++j;
+      continue;
+    }
+    ASSERT_GT(i, 0u);
+    ++echoes;
+    EXPECT_EQ(two.semantic[i - 1], kClassVegetation) << i;
+    EXPECT_EQ(two.ring[i], two.ring[i - 1]) << i;
+    const float* a = &two.xyz[3 * (i - 1)];
+    const float* b = &two.xyz[3 * i];
+    const double ra = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    const double rb = std::sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+    EXPECT_GT(rb, ra + 0.8) << i;  // 1 m apart, less the range noise and grass roughness
+    // The same direction, but for the noise (0.05 m grass roughness at 5 m and more: 0.01).
+    const double cosine = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) / (ra * rb);
+    EXPECT_GT(cosine, 1.0 - 1e-3) << i;
+  }
+  EXPECT_EQ(j, one.size());
+  EXPECT_GT(echoes, one.size() / 20);
+  EXPECT_EQ(two.truth.size(), two.size());
 }
 
 // A solid-state sensor's frame: every return inside its forward disc, exact ground heights, no

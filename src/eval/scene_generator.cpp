@@ -99,6 +99,33 @@ struct Block {
 
 constexpr std::size_t kBlocks = 256;
 
+// The noise of the returns of one block of columns: an explicitly seeded engine and the
+// distributions drawing from it.
+struct PointNoise {
+  PointNoise(std::seed_seq& seq, double sigma) : rng(seq), range(0.0, sigma > 0.0 ? sigma : 1.0) {}
+  std::mt19937 rng;
+  std::normal_distribution<double> range;
+  std::normal_distribution<float> intensity{0.0f, 0.03f};
+  std::uniform_real_distribution<double> rough{-1.0, 1.0};
+};
+
+// Least range between two echoes of one beam that a dual-return sensor separates [m].
+constexpr double kEchoSeparation = 1.0;
+
+// A uniform number in [0, 1) from the scene's seeds and a ray (column c, row r): the same ray
+// decides the same in every pass (the TLS sizing pass draws no noise).
+double unitHash(std::uint32_t seed, std::uint32_t noise_seed, std::size_t c, std::size_t r) {
+  std::uint64_t x = (static_cast<std::uint64_t>(seed) << 32 | noise_seed) ^
+                    (static_cast<std::uint64_t>(c) * 0x9E3779B97F4A7C15ull) ^
+                    (static_cast<std::uint64_t>(r) * 0xC2B2AE3D27D4EB4Full);
+  x ^= x >> 30;
+  x *= 0xBF58476D1CE4E5B9ull;
+  x ^= x >> 27;
+  x *= 0x94D049BB133111EBull;
+  x ^= x >> 31;
+  return static_cast<double>(x >> 11) * 0x1.0p-53;
+}
+
 GeneratedScan castPattern(const SceneParams& p, const Scene& scene, const Pattern& pat,
                           bool with_noise) {
   const bool own = !pat.column_elevation.empty();  // one ray per column
@@ -118,10 +145,10 @@ GeneratedScan castPattern(const SceneParams& p, const Scene& scene, const Patter
     // One explicitly seeded engine per block: the result does not depend on the thread count.
     std::seed_seq seq{p.seed, p.noise_seed, static_cast<std::uint32_t>(b),
                       static_cast<std::uint32_t>(p.mode)};
-    std::mt19937 rng(seq);
-    std::normal_distribution<double> range_noise(0.0, sigma > 0.0 ? sigma : 1.0);
-    std::normal_distribution<float> intensity_noise(0.0f, 0.03f);
-    std::uniform_real_distribution<double> rough_noise(-1.0, 1.0);
+    PointNoise first(seq, sigma);
+    // Second echoes draw from their own engine: the first echoes are those of the scan without.
+    std::seed_seq echo_seq{p.seed, p.noise_seed, static_cast<std::uint32_t>(b), 0x2ec0u};
+    PointNoise second(echo_seq, sigma);
     std::vector<const SectorEntry*> objects;
     Block& blk = out[b];
     const std::size_t c0 = cols * b / blocks, c1 = cols * (b + 1) / blocks;
@@ -140,20 +167,28 @@ GeneratedScan castPattern(const SceneParams& p, const Scene& scene, const Patter
         const Vec3 d{ce * ca, ce * sa, se};
         const Hit hit = scene.cast(d, objects, p.min_range, pat.max_range);
         if (hit.t == kNoHit) continue;
-        if (!with_noise) {
-          blk.truth.push_back(hit.ground ? 1 : 0);
-          continue;
+        const auto emit = [&](const Hit& h, PointNoise& nz) {
+          blk.truth.push_back(h.ground ? 1 : 0);
+          if (!with_noise) return;
+          const double range = sigma > 0.0 ? h.t + nz.range(nz.rng) : h.t;
+          // Grass and dirt: the return comes from a blade or clod up to `roughness` off the
+          // surface.
+          const double dz = h.roughness > 0.f ? h.roughness * nz.rough(nz.rng) : 0.0;
+          blk.xyz.push_back(static_cast<float>(d.x * range));
+          blk.xyz.push_back(static_cast<float>(d.y * range));
+          blk.xyz.push_back(static_cast<float>(d.z * range + dz));
+          blk.semantic.push_back(h.cls);
+          blk.intensity.push_back(std::clamp(h.reflectivity + nz.intensity(nz.rng), 0.0f, 1.0f));
+          blk.ring.push_back(static_cast<std::uint16_t>(r));
+        };
+        emit(hit, first);
+        // Dual-return sensor: part of the beam passes through foliage and the last echo comes
+        // from the next surface behind it, right after the first in the scan's order.
+        if (p.second_returns > 0.0 && hit.cls == kClassVegetation &&
+            unitHash(p.seed, p.noise_seed, c, r) < p.second_returns) {
+          const Hit last = scene.cast(d, objects, hit.t + kEchoSeparation, pat.max_range);
+          if (last.t != kNoHit) emit(last, second);
         }
-        const double range = sigma > 0.0 ? hit.t + range_noise(rng) : hit.t;
-        // Grass and dirt: the return comes from a blade or clod up to `roughness` off the surface.
-        const double dz = hit.roughness > 0.f ? hit.roughness * rough_noise(rng) : 0.0;
-        blk.xyz.push_back(static_cast<float>(d.x * range));
-        blk.xyz.push_back(static_cast<float>(d.y * range));
-        blk.xyz.push_back(static_cast<float>(d.z * range + dz));
-        blk.semantic.push_back(hit.cls);
-        blk.intensity.push_back(std::clamp(hit.reflectivity + intensity_noise(rng), 0.0f, 1.0f));
-        blk.ring.push_back(static_cast<std::uint16_t>(r));
-        blk.truth.push_back(hit.ground ? 1 : 0);
       }
     }
   }
@@ -513,6 +548,7 @@ void SceneParams::validate() const {
   checkRange("crop_half_width", crop_half_width, 0.0, 1e4, "m");
   checkRange("crop_half_length", crop_half_length, 0.0, 1e4, "m");
   checkRange("airborne_extra", airborne_extra, 0.0, 0.5, "");
+  checkRange("second_returns", second_returns, 0.0, 1.0, "");
   checkRange("ceiling_height", ceiling_height, 1.5, 30.0, "m");
 }
 

@@ -99,6 +99,11 @@ struct SceneParams {
   /// Share of extra returns from a nadir UAV pass over the same world (uav_* fields, a 10 deg
   /// half angle) added to a registered cloud [-] (0): a map with a few airborne returns.
   double airborne_extra = 0.0;
+  /// Dual-return sensor: share of the beams whose first echo is foliage (bushes, undergrowth,
+  /// tree crowns) that also return the next surface 1 m or more behind it, as a second point
+  /// right after the first [-] (0; 0 .. 1). Those points lie behind nearer ones seen from the
+  /// sensor, as in a merged cloud.
+  double second_returns = 0.0;
 
   // Terrain (world frame; road level z = slope_x * x + slope_y * y + ramp).
   double slope_x = 0.02;        ///< road slope along x (gentle) [m/m] (0.02)

@@ -89,6 +89,7 @@ const SceneOverride kSceneOverrides[] = {
     {"slope_y", setDouble<&P::slope_y>},
     {"curb_height", setDouble<&P::curb_height>},
     {"ramp_height", setDouble<&P::ramp_height>},
+    {"second_returns", setDouble<&P::second_returns>},
 };
 
 // NAME=VALUE[,NAME=VALUE...] onto *p.

@@ -137,11 +137,12 @@ const double* NormalGroundFilter::Impl::sensorOf(const ScanDecision& decision,
   if (sensor == !decision.registered) return sensor ? sensor_xyz : nullptr;
   char text[240];
   std::snprintf(text, sizeof text,
-                sensor ? "%sonly %.1f %% of the points lie behind nearer ones seen from the "
-                         "origin (one scan?): the planes are judged with a sensor there"
-                       : "%s%.0f %% of the points lie behind nearer ones seen from the origin "
-                         "(merged stations or sweeps?): the planes are judged as a registered "
-                         "cloud's",
+                sensor
+                    ? "%sonly %.1f %% of the points lie behind nearer ones seen from the "
+                      "origin (one scan?): the planes are judged with a sensor there"
+                    : "%s%.0f %% of the points lie behind nearer ones seen from the origin "
+                      "(merged stations or sweeps, or second echoes?): the planes are judged as a "
+                      "registered cloud's",
                 st->note.empty() ? "" : "; ", 100.0 * hidden);
   st->note.append(text);
   return sensor ? sensor_xyz : nullptr;
