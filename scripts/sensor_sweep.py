@@ -17,6 +17,8 @@ mean and the lowest over all placements, for:
     python3 scripts/sensor_sweep.py                       # the table (a few minutes)
     python3 scripts/sensor_sweep.py --quick               # one seed, heights 0.7 and 1.8
     python3 scripts/sensor_sweep.py --set max_line_ratio=2.6   # the plateau's edges
+    python3 scripts/sensor_sweep.py --base-frame          # each scan in a frame on the ground
+                                                          # below its sensor (base_link)
     PEER_BIN=DIR python3 scripts/sensor_sweep.py --peers patchworkpp,csf
 
 --peers NAME,... also runs DIR/<name>_driver (scripts/peers/README.md: each driver is built
@@ -59,9 +61,10 @@ WORLDS = ["street", "verge", "offroad", "trail"]
 RULES_OFF = ["--set", "max_line_ratio=0", "--set", "min_candidate_share=0"]
 
 
-def scene(sensor, world, height, seed):
+def scene(sensor, world, height, seed, base_frame=False):
     _, kind, fields = sensor
-    return "builtin:%s:%d:layout=%s,%s,sensor_height=%g" % (kind, seed, world, fields, height)
+    return "builtin:%s:%d:layout=%s,%s,sensor_height=%g%s" % (
+        kind, seed, world, fields, height, ",base_frame=1" if base_frame else "")
 
 
 def run_json(cmd):
@@ -100,6 +103,8 @@ def main():
     ap.add_argument("--eval", default=os.environ.get("GF_EVAL", os.path.join(
         ROOT, ".ws", "devel", "lib", "ground_filter", "ground_filter_eval")))
     ap.add_argument("--json", action="store_true", help="print the F1 of every placement")
+    ap.add_argument("--base-frame", action="store_true",
+                    help="each scan in a frame on the ground below its sensor (base_link)")
     args = ap.parse_args()
     if not os.access(args.eval, os.X_OK):
         sys.exit("sensor_sweep.py: %s not built (bash -c 'source scripts/common.sh; gf_build')"
@@ -125,7 +130,7 @@ def main():
     tmp = tempfile.TemporaryDirectory()
     for sensor in SENSORS:
         cells = [(w, h) for w in WORLDS for h in heights]
-        paths = [scene(sensor, w, h, s) for w, h in cells for s in seeds]
+        paths = [scene(sensor, w, h, s, args.base_frame) for w, h in cells for s in seeds]
         per = {}  # column -> list of per-file JSON in the order of paths
         for i, (name, opts) in enumerate(configs):
             cmd = [args.eval, "--json"] + opts + paths

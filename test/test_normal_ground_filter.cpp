@@ -377,8 +377,8 @@ TEST(NormalGroundFilter, StageTimesNameEveryStage) {
     names.push_back(e.first);
     EXPECT_GE(e.second, 0.0) << e.first;
   }
-  const std::vector<std::string> expected = {"view", "lines", "sort", "sample", "kdtree_build",
-                                             "knn",  "pca",   "vote", "plane",  "local_ground"};
+  const std::vector<std::string> expected = {"lines", "view", "sort", "sample", "kdtree_build",
+                                             "knn",   "pca",  "vote", "plane",  "local_ground"};
   EXPECT_EQ(names, expected);
   // Every point sampled: no sample stage.
   gf::NormalGroundFilterParams p = groundLevel();

@@ -451,6 +451,24 @@ TEST(SceneGenerator, InvalidParametersAreRefused) {
   EXPECT_THROW(generateScene(e), std::invalid_argument);
 }
 
+// base_frame: the same scan with the sensor's height added to every z (the frame on the ground
+// below it, as a robot's base_link); the true terrain moves with it; not for merged clouds.
+TEST(SceneGenerator, BaseFrameIsTheScanMovedUpByTheSensorHeight) {
+  const SceneParams ps = parseSceneSpec("lidar16:1:layout=trail,sensor_height=1.8");
+  const SceneParams pb = parseSceneSpec("lidar16:1:layout=trail,sensor_height=1.8,base_frame=1");
+  const GeneratedScan s = generateScene(ps), b = generateScene(pb);
+  ASSERT_EQ(s.size(), b.size());
+  for (std::size_t i = 0; i < s.size(); i += 97) {
+    EXPECT_EQ(s.xyz[3 * i], b.xyz[3 * i]);
+    EXPECT_NEAR(b.xyz[3 * i + 2] - s.xyz[3 * i + 2], 1.8, 1e-4) << i;
+  }
+  EXPECT_NEAR(sceneGroundHeight(pb, 0.0, 0.0), 0.0, 1e-9);
+  EXPECT_NEAR(sceneGroundHeight(ps, 0.0, 0.0), -1.8, 1e-9);
+  EXPECT_NEAR(sceneGroundHeight(pb, 12.0, -5.0) - sceneGroundHeight(ps, 12.0, -5.0), 1.8, 1e-9);
+  EXPECT_THROW(generateScene(parseSceneSpec("lidar16:1:positions=2,base_frame=1")),
+               std::invalid_argument);
+}
+
 // A dual-return sensor: each point the scan without them lacks is a second echo of a beam
 // whose first echo was foliage, on the same ray 1 m or more farther out, right after it.
 TEST(SceneGenerator, SecondEchoesFollowTheirFoliageOnTheSameRay) {
@@ -521,7 +539,9 @@ TEST(SceneGenerator, SceneSpecSetsTheSeedAndNamedFields) {
   EXPECT_EQ(parseSceneSpec("offroad").beams, builtinSceneParams("offroad").beams);
   // Every listed field is settable.
   for (const std::string& name : sceneOverrideNames()) {
-    const std::string value = name == "layout" ? "verge" : name == "uniform_beams" ? "1" : "3";
+    const std::string value = name == "layout"                                  ? "verge"
+                              : name == "uniform_beams" || name == "base_frame" ? "1"
+                                                                                : "3";
     EXPECT_NO_THROW(parseSceneSpec("lidar:1:" + name + "=" + value)) << name;
   }
 }

@@ -549,6 +549,11 @@ void SceneParams::validate() const {
   checkRange("crop_half_length", crop_half_length, 0.0, 1e4, "m");
   checkRange("airborne_extra", airborne_extra, 0.0, 0.5, "");
   checkRange("second_returns", second_returns, 0.0, 1.0, "");
+  if (base_frame && (sceneInWorldFrame(*this) || mode == Mode::kAirborne)) {
+    throw std::invalid_argument(
+        "parameter 'base_frame': only for one scan of a ground-level scanner in its own frame "
+        "(not with world_frame, positions > 1, airborne or uav)");
+  }
   checkRange("ceiling_height", ceiling_height, 1.5, 30.0, "m");
 }
 
@@ -651,6 +656,13 @@ GeneratedScan generateScene(const SceneParams& params) {
   params.validate();
   GeneratedScan scan =
       sceneInWorldFrame(params) ? scene::registeredScan(params) : scene::singleScan(params);
+  if (params.base_frame) {  // the scanner's height above the ground below it, onto every z
+    const scene::Vec3 o = scene::scannerOrigin(params);
+    const double up = o.z - scene::worldGroundHeight(params, o.x, o.y);
+    for (std::size_t i = 0; i < scan.size(); ++i) {
+      scan.xyz[3 * i + 2] = static_cast<float>(scan.xyz[3 * i + 2] + up);
+    }
+  }
   scene::insertNans(&scan, params.nan_points);
   return scan;
 }
@@ -665,7 +677,9 @@ double sceneGroundHeight(const SceneParams& params, double x, double y) {
            params.world_offset_z;
   }
   const scene::Vec3 o = scene::scannerOrigin(params);
-  return scene::worldGroundHeight(params, x + o.x, y + o.y) - o.z;
+  // base_frame: z from the ground below the scanner rather than from the scanner.
+  const double z0 = params.base_frame ? scene::worldGroundHeight(params, o.x, o.y) : o.z;
+  return scene::worldGroundHeight(params, x + o.x, y + o.y) - z0;
 }
 
 }  // namespace ground_filter

@@ -85,12 +85,15 @@ struct SceneParams {
 
   // Registered clouds: several scanner positions merged in one world frame, as a mobile-mapping
   // run, several TLS stations or a SLAM map tile give them (no sensor at the origin).
-  int positions = 1;              ///< scanner positions merged; 1: one scan [-] (1)
-  double position_step = 4.0;     ///< distance between positions along world x [m] (4)
-  double position_keep = 1.0;     ///< share of each position's points kept, evenly [-] (1)
-  bool follow_track = false;      ///< positions follow the trail's centre line (y) [-] (false)
-  double station_y = 0.0;         ///< positions alternate between y = +-station_y [m] (0)
-  bool world_frame = false;       ///< points in the world frame (+ world_offset), not the scanner's
+  int positions = 1;           ///< scanner positions merged; 1: one scan [-] (1)
+  double position_step = 4.0;  ///< distance between positions along world x [m] (4)
+  double position_keep = 1.0;  ///< share of each position's points kept, evenly [-] (1)
+  bool follow_track = false;   ///< positions follow the trail's centre line (y) [-] (false)
+  double station_y = 0.0;      ///< positions alternate between y = +-station_y [m] (0)
+  bool world_frame = false;    ///< points in the world frame (+ world_offset), not the scanner's
+  /// One scan in a frame on the ground right below its scanner, z up (a robot's base_link or
+  /// base_footprint): the scanner frame moved down by the scanner's height [-] (false).
+  bool base_frame = false;
   double world_offset_x = 0.0;    ///< added to every x of a world-frame cloud [m] (0)
   double world_offset_y = 0.0;    ///< added to every y of a world-frame cloud [m] (0)
   double world_offset_z = 0.0;    ///< added to every z of a world-frame cloud [m] (0)

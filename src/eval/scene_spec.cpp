@@ -47,6 +47,10 @@ void setUniformBeams(SceneParams* p, const std::string& name, const std::string&
   p->uniform_beams = parseBoolParam(name, value);
 }
 
+void setBaseFrame(SceneParams* p, const std::string& name, const std::string& value) {
+  p->base_frame = parseBoolParam(name, value);
+}
+
 void setLayout(SceneParams* p, const std::string& name, const std::string& value) {
   checkChoice(name.c_str(), value, {"street", "verge", "offroad", "trail", "garage"});
   using L = SceneParams::Layout;
@@ -90,6 +94,12 @@ const SceneOverride kSceneOverrides[] = {
     {"curb_height", setDouble<&P::curb_height>},
     {"ramp_height", setDouble<&P::ramp_height>},
     {"second_returns", setDouble<&P::second_returns>},
+    {"positions", setInt<&P::positions>},
+    {"position_step", setDouble<&P::position_step>},
+    {"position_keep", setDouble<&P::position_keep>},
+    {"station_y", setDouble<&P::station_y>},
+    {"base_frame", setBaseFrame},
+    {"world_offset_z", setDouble<&P::world_offset_z>},
 };
 
 // NAME=VALUE[,NAME=VALUE...] onto *p.

@@ -673,12 +673,14 @@ void printTable(const Options& opt, const std::vector<FileResult>& results, cons
 
 int run(const Options& opt) {
   std::unique_ptr<gf::GroundFilter> filter;
-  if (opt.score_dir.empty()) filter = makeFilter(opt);
   const std::vector<std::string> files = gf::listScanFiles(opt.paths);
   std::vector<FileResult> results;
   std::vector<gf::ClassCount> classes;
   std::vector<std::uint8_t> labels;
   for (const auto& file : files) {
+    // A filter per file: what one keeps from a stream's scans (its view of the origin, its
+    // scan lines) must not carry over to another file of about as many points.
+    if (opt.score_dir.empty()) filter = makeFilter(opt);
     results.push_back(evalFile(filter.get(), file, opt, &labels, &classes));
   }
   const Pooled pooled = pool(results);

@@ -90,7 +90,8 @@ struct NormalGroundFilter::Impl {
   // stage "view"): none where many points lie behind nearer ones seen from the origin (merged
   // stations or sweeps), one where few do (also in a cloud read as registered by its side
   // view); a note says where that overrules the scan type.
-  const double* sensorOf(const ScanDecision& decision, const CloudView& cloud, FilterStats* st);
+  const double* sensorOf(const ScanDecision& decision, const CloudView& cloud, double raise,
+                         FilterStats* st);
   double sensor_xyz[3] = {0.0, 0.0, 0.0};
   OriginView origin_view;
   // Steps 1b-4 on every segment of the `n` ordered points with `stride`; returns the
@@ -101,6 +102,26 @@ struct NormalGroundFilter::Impl {
   // on_lattice (returned) and lattice_var of `cloud`; a note names the steps.
   bool measureLattice(const CloudView& cloud, std::string* note);
 };
+
+namespace {
+
+// "sample_stride A -> B: ..." onto *note, appended in place (a reused FilterStats allocates
+// nothing).
+void appendStrideNote(const NormalGroundFilterParams& p, int stride, const normal::ScanLines& lines,
+                      std::string* note) {
+  char text[240], above[64] = "";
+  if (lines.raised > 0.0) {
+    std::snprintf(above, sizeof above, " (seen from %.2f m above the origin)", lines.raised);
+  }
+  std::snprintf(text, sizeof text,
+                "%ssample_stride %d -> %d: scan lines %.2f deg apart, %.3f deg between the points "
+                "of a line%s (max_line_ratio %g)",
+                note->empty() ? "" : "; ", p.sample_stride, stride, lines.line_deg,
+                lines.firing_deg, above, p.max_line_ratio);
+  note->append(text);
+}
+
+}  // namespace
 
 bool NormalGroundFilter::Impl::measureLattice(const CloudView& cloud, std::string* note) {
   double step[3];
@@ -118,13 +139,16 @@ bool NormalGroundFilter::Impl::measureLattice(const CloudView& cloud, std::strin
 
 const normal::ScanLines& NormalGroundFilter::Impl::linesOf(const CloudView& cloud) {
   const float* o = scan.origin();
-  if (!lines_keep.keep(cloud.size(), o)) lines_kept = line_meter.measure(cloud, o);
+  if (!lines_keep.keep(cloud.size(), o)) lines_kept = line_meter.measureAbove(cloud, o);
   return lines_kept;
 }
 
 const double* NormalGroundFilter::Impl::sensorOf(const ScanDecision& decision,
-                                                 const CloudView& cloud, FilterStats* st) {
-  const float* o = scan.origin();
+                                                 const CloudView& cloud, double raise,
+                                                 FilterStats* st) {
+  // The sensor: the origin, or `raise` above it where the scan lines showed it there.
+  const float* origin = scan.origin();
+  const float o[3] = {origin[0], origin[1], static_cast<float>(origin[2] + raise)};
   for (int a = 0; a < 3; ++a) sensor_xyz[a] = o[a];
   const bool finite = std::isfinite(o[0]) && std::isfinite(o[1]) && std::isfinite(o[2]);
   // Set or far from the points: no sensor there. Read from a side view's density alone: the
@@ -274,25 +298,20 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     return;
   }
 
-  const double* sensor = im.sensorOf(scan, cloud, &st);  // null: no sensor at the origin
-
-  // ---- 1a. a sparse spinning sensor's scan lines: the stride its normals need (scan_lines.h)
+  // ---- 1a. a sparse spinning sensor's scan lines: the stride its normals need (scan_lines.h);
+  //      where the origin lies on the ground below the sensor, they show the sensor's height.
   int stride = p.sample_stride;
+  const normal::ScanLines* lines = nullptr;
   if (p.max_line_ratio > 0.0 && !scan.registered) {
     const auto t_lines = Clock::now();
-    const normal::ScanLines& lines = im.linesOf(cloud);
-    stride = normal::strideForScanLines(lines, p.max_line_ratio, stride);
+    lines = &im.linesOf(cloud);
+    stride = normal::strideForScanLines(*lines, p.max_line_ratio, stride);
     st.stage_ms.emplace_back("lines", msSince(t_lines));
-    if (stride != p.sample_stride) {  // appended in place: a reused FilterStats allocates nothing
-      char text[200];
-      std::snprintf(text, sizeof text,
-                    "%ssample_stride %d -> %d: scan lines %.2f deg apart, %.3f deg between the "
-                    "points of a line (max_line_ratio %g)",
-                    st.note.empty() ? "" : "; ", p.sample_stride, stride, lines.line_deg,
-                    lines.firing_deg, p.max_line_ratio);
-      st.note.append(text);
-    }
   }
+  // null: no sensor at the origin, nor where sparse lines, seen from above it, put it
+  const double raise = stride != p.sample_stride ? lines->raised : 0.0;
+  const double* sensor = im.sensorOf(scan, cloud, raise, &st);
+  if (stride != p.sample_stride) appendStrideNote(p, stride, *lines, &st.note);
 
   // ---- 0. coordinates on a coarse lattice (float32 far from the origin): the PCA adds back the
   //      spread its steps hide (normal/lattice.h; 0.03 ms a KITTI frame), on the CPU. Then the

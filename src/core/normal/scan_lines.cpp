@@ -25,6 +25,12 @@ constexpr double kMinThickness = 0.05;      // [deg] floor of a line's thickness
 constexpr std::size_t kMinLinePoints = 4;   // points of a cluster that counts as a line
 constexpr std::size_t kMinLines = 6;        // clusters with a neighbour needed to measure
 constexpr std::size_t kMaxWedgePoints = 20000;
+constexpr float kBelowOrigin = 0.3f;  // [m] a point this far below the origin lies "below" it
+// At least this share of the wedges' points below the origin: it is a sensor above the ground
+// (a vehicle's frame on the ground sees its ground level with it, and everything else above).
+constexpr double kMostBelow = 0.5;
+constexpr double kThinner = 0.5;             // raised lines this much thinner replace the origin's
+constexpr std::size_t kSearchPoints = 1000;  // per wedge, to compare the heights on
 
 double median(std::vector<double>* v) {
   const std::size_t k = v->size() / 2;
@@ -34,12 +40,13 @@ double median(std::vector<double>* v) {
 
 }  // namespace
 
-ScanLines ScanLineMeter::measure(const CloudView& cloud, const float origin[3]) {
-  std::vector<Angles>* wedge = wedge_;
-  for (int w = 0; w < 4; ++w) wedge[w].clear();
-  // One cheap test a point in float (NaN fails it); the angles only for the ~3 % in a wedge.
+double ScanLineMeter::gather(const CloudView& cloud, const float origin[3]) {
+  std::vector<Raw>* raw = raw_;
+  for (int w = 0; w < 4; ++w) raw[w].clear();
+  // One cheap test a point in float (NaN fails it); the rest only for the ~3 % in a wedge.
   const float t = static_cast<float>(std::tan(kHalfWedge / kDeg));
   const float ox = origin[0], oy = origin[1], oz = origin[2];
+  std::size_t kept = 0, below = 0;
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     const float dx = cloud.x(i) - ox, dy = cloud.y(i) - oy;
     const float ax = std::fabs(dx), ay = std::fabs(dy);
@@ -50,12 +57,28 @@ ScanLines ScanLineMeter::measure(const CloudView& cloud, const float origin[3]) 
     const float dz = cloud.z(i) - oz;
     const float rho = std::sqrt(dx * dx + dy * dy);
     if (!(rho >= kMinRange && rho <= kMaxRange) || !std::isfinite(dz) ||
-        wedge[w].size() >= kMaxWedgePoints) {
+        raw[w].size() >= kMaxWedgePoints) {
       continue;
     }
     // Inside +-1.5 deg the azimuth is across / along within 0.03 %: no atan for it.
-    wedge[w].push_back({static_cast<float>(std::atan(dz / rho) * kDeg),
-                        static_cast<float>(across / along * kDeg)});
+    raw[w].push_back({rho, dz, static_cast<float>(across / along * kDeg)});
+    ++kept;
+    below += dz < -kBelowOrigin;
+  }
+  return kept ? static_cast<double>(below) / static_cast<double>(kept) : 1.0;
+}
+
+ScanLines ScanLineMeter::linesAt(double raise, std::size_t every, double* thick) {
+  *thick = 0.0;
+  std::vector<Angles>* wedge = wedge_;
+  const float up = static_cast<float>(raise);
+  for (int w = 0; w < 4; ++w) {
+    wedge[w].clear();
+    const std::vector<Raw>& raw = raw_[w];
+    for (std::size_t i = 0; i < raw.size(); i += every) {
+      wedge[w].push_back(
+          {static_cast<float>(std::atan((raw[i].dz - up) / raw[i].rho) * kDeg), raw[i].az});
+    }
   }
   // Clusters of nearby elevations, one a line where it is thin; a thick one is a band of lines
   // closer than kSplit (the middle of a VLS-128, any dense sensor).
@@ -63,6 +86,8 @@ ScanLines ScanLineMeter::measure(const CloudView& cloud, const float origin[3]) 
   std::vector<double>&az = az_, &d = d_;
   std::vector<Weighted>& measured = measured_;
   measured.clear();
+  double thick_sum = 0.0;
+  std::size_t thick_points = 0;
   for (int w = 0; w < 4; ++w) {
     std::vector<Angles>& pts = wedge[w];
     std::sort(pts.begin(), pts.end(), [](const Angles& a, const Angles& b) { return a.el < b.el; });
@@ -88,6 +113,8 @@ ScanLines ScanLineMeter::measure(const CloudView& cloud, const float origin[3]) 
       if (c + 1 < clusters.size()) gap = std::min(gap, clusters[c + 1].centre - clusters[c].centre);
       if (gap > 1e8) continue;  // a lone cluster: no spacing to measure
       const bool line = gap >= kMinSeparation * clusters[c].thick;
+      thick_sum += clusters[c].thick * static_cast<double>(clusters[c].points);
+      thick_points += clusters[c].points;
       measured.push_back({line ? gap : 0.0, clusters[c].step, clusters[c].points});
     }
   }
@@ -99,6 +126,7 @@ ScanLines ScanLineMeter::measure(const CloudView& cloud, const float origin[3]) 
             [](const Weighted& a, const Weighted& b) { return a.spacing < b.spacing; });
   std::size_t total = 0, seen = 0;
   for (const Weighted& m : measured) total += m.points;
+  *thick = thick_sum / static_cast<double>(thick_points);
   double line = 0.0;
   for (const Weighted& m : measured) {
     seen += m.points;
@@ -115,7 +143,46 @@ ScanLines ScanLineMeter::measure(const CloudView& cloud, const float origin[3]) 
   }
   lines.line_deg = line;
   lines.firing_deg = median(&steps);
+  lines.raised = raise;
   return lines;
+}
+
+ScanLines ScanLineMeter::measure(const CloudView& cloud, const float origin[3]) {
+  gather(cloud, origin);
+  double thick;
+  return linesAt(0.0, 1, &thick);
+}
+
+ScanLines ScanLineMeter::measureAbove(const CloudView& cloud, const float origin[3]) {
+  const double below = gather(cloud, origin);
+  double thick;
+  ScanLines best = linesAt(0.0, 1, &thick);
+  // A sensor above the ground sees nearly all of its ground below it: its origin is the sensor.
+  if (below >= kMostBelow) return best;
+  // Seen from the sensor, each ring is one elevation whatever its points hit; from anywhere
+  // else the ring's near and far returns part: the thinnest lines show where the sensor is.
+  // Lines seen from the origin itself give way only to lines less than half as thick (they
+  // may be parted rings; or the origin is the sensor, low over rising ground).
+  // The heights are compared on at most kSearchPoints points a wedge (a dense sensor's wedges
+  // hold up to kMaxWedgePoints); the lines of the one chosen are measured on all of them.
+  const double origin_thick = thick;
+  std::size_t most = 0;
+  for (const std::vector<Raw>& raw : raw_) most = std::max(most, raw.size());
+  const std::size_t every = most / kSearchPoints + 1;
+  double raise = 0.0, raised_thick = 0.0;
+  const int steps = static_cast<int>(std::lround(kMaxRaise / kRaiseStep));
+  for (int k = 1; k <= steps; ++k) {
+    const ScanLines l = linesAt(k * kRaiseStep, every, &thick);
+    if (l.ratio() > 0.0 && (raise == 0.0 || thick < raised_thick)) {
+      raise = k * kRaiseStep;
+      raised_thick = thick;
+    }
+  }
+  if (raise > 0.0 && (best.ratio() == 0.0 || raised_thick < kThinner * origin_thick)) {
+    const ScanLines raised = linesAt(raise, 1, &thick);
+    if (raised.ratio() > 0.0) best = raised;
+  }
+  return best;
 }
 
 int strideForScanLines(const ScanLines& lines, double max_ratio, int stride) {

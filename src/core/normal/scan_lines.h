@@ -16,6 +16,9 @@ namespace normal {
 struct ScanLines {
   double line_deg = 0.0;    ///< median elevation between neighbouring lines
   double firing_deg = 0.0;  ///< median azimuth between neighbouring points of a line
+  /// How far above the origin the lines were seen [m]: 0, or where the origin lies on the
+  /// ground below the sensor (a base frame), the height that showed them (measureAbove()).
+  double raised = 0.0;
   /// \brief line_deg / firing_deg, 0 without clean lines.
   double ratio() const { return firing_deg > 0.0 ? line_deg / firing_deg : 0.0; }
 };
@@ -31,8 +34,23 @@ class ScanLineMeter {
   ///        they are thick (a band of lines closer than 0.5 deg, as in any dense sensor, counts
   ///        as dense); the spacing along a line is the median azimuth step inside them.
   ScanLines measure(const CloudView& cloud, const float origin[3]);
+  /// \brief measure(); but where most of the wedges' points do not lie below the origin (a
+  ///        frame on the ground: base_link, base_footprint, with the sensor on a mast above it,
+  ///        whose rings the origin sees parted), the lines seen from the origin or from
+  ///        kRaiseStep .. kMaxRaise above it: of the heights that show lines, the one whose
+  ///        lines are thinnest (a ring is one elevation only seen from its sensor), where they
+  ///        are less than half as thick as the origin's (or the origin shows none).
+  ScanLines measureAbove(const CloudView& cloud, const float origin[3]);
+
+  /// \brief Heights above the origin tried by measureAbove() [m]: every kRaiseStep up to
+  ///        kMaxRaise, where a vehicle's or robot's sensor sits above its base frame.
+  static constexpr double kRaiseStep = 0.25;
+  static constexpr double kMaxRaise = 3.5;
 
  private:
+  struct Raw {
+    float rho, dz, az;  // horizontal range [m], z above the origin [m], azimuth in the wedge
+  };
   struct Angles {
     float el, az;  // elevation, azimuth within the wedge [deg]
   };
@@ -45,6 +63,12 @@ class ScanLineMeter {
     double step;
     std::size_t points;
   };
+  // The wedges' points seen from `origin` into raw_; returns the share below it by 0.3 m.
+  double gather(const CloudView& cloud, const float origin[3]);
+  // The lines of every `every`-th point of raw_ seen from `raise` above the origin; *thick:
+  // the clusters' mean thickness, point-weighted [deg].
+  ScanLines linesAt(double raise, std::size_t every, double* thick);
+  std::vector<Raw> raw_[4];
   std::vector<Angles> wedge_[4];
   std::vector<Cluster> clusters_;
   std::vector<double> az_, d_, steps_;
