@@ -17,8 +17,9 @@ mean and the lowest over all placements, for:
     python3 scripts/sensor_sweep.py                       # the table (a few minutes)
     python3 scripts/sensor_sweep.py --quick               # one seed, heights 0.7 and 1.8
     python3 scripts/sensor_sweep.py --set max_line_ratio=2.6   # the plateau's edges
-    python3 scripts/sensor_sweep.py --base-frame          # each scan in a frame on the ground
+    python3 scripts/sensor_sweep.py --frame base          # each scan in a frame on the ground
                                                           # below its sensor (base_link)
+    python3 scripts/sensor_sweep.py --frame map --sensor-x 40   # in a map frame, 40 m away
     PEER_BIN=DIR python3 scripts/sensor_sweep.py --peers patchworkpp,csf
 
 --peers NAME,... also runs DIR/<name>_driver (scripts/peers/README.md: each driver is built
@@ -61,10 +62,14 @@ WORLDS = ["street", "verge", "offroad", "trail"]
 RULES_OFF = ["--set", "max_line_ratio=0", "--set", "min_candidate_share=0"]
 
 
-def scene(sensor, world, height, seed, base_frame=False):
+FRAMES = {"sensor": "", "base": ",base_frame=1", "map": ",world_frame=1"}
+
+
+def scene(sensor, world, height, seed, frame="sensor", sensor_x=0.0):
     _, kind, fields = sensor
-    return "builtin:%s:%d:layout=%s,%s,sensor_height=%g%s" % (
-        kind, seed, world, fields, height, ",base_frame=1" if base_frame else "")
+    return "builtin:%s:%d:layout=%s,%s,sensor_height=%g%s%s" % (
+        kind, seed, world, fields, height, ",sensor_x=%g" % sensor_x if sensor_x else "",
+        FRAMES[frame])
 
 
 def run_json(cmd):
@@ -103,8 +108,12 @@ def main():
     ap.add_argument("--eval", default=os.environ.get("GF_EVAL", os.path.join(
         ROOT, ".ws", "devel", "lib", "ground_filter", "ground_filter_eval")))
     ap.add_argument("--json", action="store_true", help="print the F1 of every placement")
-    ap.add_argument("--base-frame", action="store_true",
-                    help="each scan in a frame on the ground below its sensor (base_link)")
+    ap.add_argument("--frame", choices=sorted(FRAMES), default="sensor",
+                    help="each scan in its sensor's frame, a frame on the ground below it "
+                    "(base: base_link) or the world frame (map: the origin on the ground at x=0)")
+    ap.add_argument("--sensor-x", type=float, default=0.0,
+                    help="the sensor this far along the world's x (with --frame map: so far "
+                    "from the origin) [m]")
     args = ap.parse_args()
     if not os.access(args.eval, os.X_OK):
         sys.exit("sensor_sweep.py: %s not built (bash -c 'source scripts/common.sh; gf_build')"
@@ -130,7 +139,8 @@ def main():
     tmp = tempfile.TemporaryDirectory()
     for sensor in SENSORS:
         cells = [(w, h) for w in WORLDS for h in heights]
-        paths = [scene(sensor, w, h, s, args.base_frame) for w, h in cells for s in seeds]
+        paths = [scene(sensor, w, h, s, args.frame, args.sensor_x) for w, h in cells
+                 for s in seeds]
         per = {}  # column -> list of per-file JSON in the order of paths
         for i, (name, opts) in enumerate(configs):
             cmd = [args.eval, "--json"] + opts + paths

@@ -539,9 +539,10 @@ TEST(SceneGenerator, SceneSpecSetsTheSeedAndNamedFields) {
   EXPECT_EQ(parseSceneSpec("offroad").beams, builtinSceneParams("offroad").beams);
   // Every listed field is settable.
   for (const std::string& name : sceneOverrideNames()) {
-    const std::string value = name == "layout"                                  ? "verge"
-                              : name == "uniform_beams" || name == "base_frame" ? "1"
-                                                                                : "3";
+    const std::string value =
+        name == "layout"                                                           ? "verge"
+        : name == "uniform_beams" || name == "base_frame" || name == "world_frame" ? "1"
+                                                                                   : "3";
     EXPECT_NO_THROW(parseSceneSpec("lidar:1:" + name + "=" + value)) << name;
   }
 }

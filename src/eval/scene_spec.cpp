@@ -51,6 +51,10 @@ void setBaseFrame(SceneParams* p, const std::string& name, const std::string& va
   p->base_frame = parseBoolParam(name, value);
 }
 
+void setWorldFrame(SceneParams* p, const std::string& name, const std::string& value) {
+  p->world_frame = parseBoolParam(name, value);
+}
+
 void setLayout(SceneParams* p, const std::string& name, const std::string& value) {
   checkChoice(name.c_str(), value, {"street", "verge", "offroad", "trail", "garage"});
   using L = SceneParams::Layout;
@@ -99,6 +103,7 @@ const SceneOverride kSceneOverrides[] = {
     {"position_keep", setDouble<&P::position_keep>},
     {"station_y", setDouble<&P::station_y>},
     {"base_frame", setBaseFrame},
+    {"world_frame", setWorldFrame},
     {"world_offset_z", setDouble<&P::world_offset_z>},
 };
 

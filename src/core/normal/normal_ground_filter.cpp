@@ -90,7 +90,7 @@ struct NormalGroundFilter::Impl {
   // stage "view"): none where many points lie behind nearer ones seen from the origin (merged
   // stations or sweeps), one where few do (also in a cloud read as registered by its side
   // view); a note says where that overrules the scan type.
-  const double* sensorOf(const ScanDecision& decision, const CloudView& cloud, double raise,
+  const double* sensorOf(const ScanDecision& decision, const CloudView& cloud, const double from[3],
                          FilterStats* st);
   double sensor_xyz[3] = {0.0, 0.0, 0.0};
   OriginView origin_view;
@@ -109,9 +109,12 @@ namespace {
 // nothing).
 void appendStrideNote(const NormalGroundFilterParams& p, int stride, const normal::ScanLines& lines,
                       std::string* note) {
-  char text[240], above[64] = "";
-  if (lines.raised > 0.0) {
-    std::snprintf(above, sizeof above, " (seen from %.2f m above the origin)", lines.raised);
+  char text[280], above[96] = "";
+  if (lines.from[0] != 0.0 || lines.from[1] != 0.0) {
+    std::snprintf(above, sizeof above, " (seen from %.1f, %.1f, %.2f m off the origin)",
+                  lines.from[0], lines.from[1], lines.from[2]);
+  } else if (lines.from[2] > 0.0) {
+    std::snprintf(above, sizeof above, " (seen from %.2f m above the origin)", lines.from[2]);
   }
   std::snprintf(text, sizeof text,
                 "%ssample_stride %d -> %d: scan lines %.2f deg apart, %.3f deg between the points "
@@ -139,16 +142,18 @@ bool NormalGroundFilter::Impl::measureLattice(const CloudView& cloud, std::strin
 
 const normal::ScanLines& NormalGroundFilter::Impl::linesOf(const CloudView& cloud) {
   const float* o = scan.origin();
-  if (!lines_keep.keep(cloud.size(), o)) lines_kept = line_meter.measureAbove(cloud, o);
+  if (!lines_keep.keep(cloud.size(), o)) lines_kept = line_meter.measureAround(cloud, o);
   return lines_kept;
 }
 
 const double* NormalGroundFilter::Impl::sensorOf(const ScanDecision& decision,
-                                                 const CloudView& cloud, double raise,
+                                                 const CloudView& cloud, const double from[3],
                                                  FilterStats* st) {
-  // The sensor: the origin, or `raise` above it where the scan lines showed it there.
+  // The sensor: the origin, or `from` off it where sparse scan lines showed it there.
   const float* origin = scan.origin();
-  const float o[3] = {origin[0], origin[1], static_cast<float>(origin[2] + raise)};
+  const float o[3] = {static_cast<float>(origin[0] + from[0]),
+                      static_cast<float>(origin[1] + from[1]),
+                      static_cast<float>(origin[2] + from[2])};
   for (int a = 0; a < 3; ++a) sensor_xyz[a] = o[a];
   const bool finite = std::isfinite(o[0]) && std::isfinite(o[1]) && std::isfinite(o[2]);
   // Set or far from the points: no sensor there. Read from a side view's density alone: the
@@ -309,8 +314,9 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     st.stage_ms.emplace_back("lines", msSince(t_lines));
   }
   // null: no sensor at the origin, nor where sparse lines, seen from above it, put it
-  const double raise = stride != p.sample_stride ? lines->raised : 0.0;
-  const double* sensor = im.sensorOf(scan, cloud, raise, &st);
+  const double none[3] = {0.0, 0.0, 0.0};
+  const double* sensor =
+      im.sensorOf(scan, cloud, stride != p.sample_stride ? lines->from : none, &st);
   if (stride != p.sample_stride) appendStrideNote(p, stride, *lines, &st.note);
 
   // ---- 0. coordinates on a coarse lattice (float32 far from the origin): the PCA adds back the

@@ -4,6 +4,8 @@
 #define GROUND_FILTER_SRC_CORE_NORMAL_SCAN_LINES_H
 
 #include <cstddef>
+#include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "ground_filter/cloud_view.h"
@@ -16,9 +18,10 @@ namespace normal {
 struct ScanLines {
   double line_deg = 0.0;    ///< median elevation between neighbouring lines
   double firing_deg = 0.0;  ///< median azimuth between neighbouring points of a line
-  /// How far above the origin the lines were seen [m]: 0, or where the origin lies on the
-  /// ground below the sensor (a base frame), the height that showed them (measureAbove()).
-  double raised = 0.0;
+  /// Where the lines were seen from, relative to the origin [m]: 0 0 0 (the origin); 0 0 h
+  /// where the origin lies on the ground below the sensor (a base frame, measureAbove()); or a
+  /// sensor found away from the origin (a scan in a map frame, measureAround()).
+  double from[3] = {0.0, 0.0, 0.0};
   /// \brief line_deg / firing_deg, 0 without clean lines.
   double ratio() const { return firing_deg > 0.0 ? line_deg / firing_deg : 0.0; }
 };
@@ -41,6 +44,13 @@ class ScanLineMeter {
   ///        lines are thinnest (a ring is one elevation only seen from its sensor), where they
   ///        are less than half as thick as the origin's (or the origin shows none).
   ScanLines measureAbove(const CloudView& cloud, const float origin[3]);
+  /// \brief measureAbove(); where it finds no lines, the same from the ground below the centre
+  ///        of the cloud's densest area when that lies kMinShift or more from the origin: a
+  ///        spinning sensor's points are densest around it, so a single scan in a map or odom
+  ///        frame (a LIO's registered scan) shows its lines from there.
+  ScanLines measureAround(const CloudView& cloud, const float origin[3]);
+  /// \brief The densest area's centre lies at least this far from the origin (x/y) [m].
+  static constexpr double kMinShift = 2.0;
 
   /// \brief Heights above the origin tried by measureAbove() [m]: every kRaiseStep up to
   ///        kMaxRaise, where a vehicle's or robot's sensor sits above its base frame.
@@ -68,6 +78,11 @@ class ScanLineMeter {
   // The lines of every `every`-th point of raw_ seen from `raise` above the origin; *thick:
   // the clusters' mean thickness, point-weighted [deg].
   ScanLines linesAt(double raise, std::size_t every, double* thick);
+  // The x/y centre of the densest area of `cloud` and the ground's z there (its 20th
+  // percentile) into c; false for fewer than 1,000 finite points.
+  bool densestCentre(const CloudView& cloud, float c[3]);
+  std::vector<float> cx_, cy_, cz_;
+  std::vector<std::pair<std::int64_t, std::uint32_t>> cells_;
   std::vector<Raw> raw_[4];
   std::vector<Angles> wedge_[4];
   std::vector<Cluster> clusters_;
