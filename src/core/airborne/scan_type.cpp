@@ -175,6 +175,7 @@ void ScanTypeClassifier::measureColumns(const CloudView& cloud, ScanMeasures* m)
 
 void ScanTypeClassifier::classify(const CloudView& cloud, const float origin[3], ScanDecision* d) {
   ScanMeasures m = measureSample(cloud, origin);
+  d->below_share = m.sampled > 0 ? m.below_share : 1.0;
   const bool nadir_density = m.sampled >= kMinPoints && m.extent >= kMinExtent &&
                              !(m.steep_share >= kSteepShare && m.steep_depth >= kNadirDepth) &&
                              m.top_share < kConcentrated;

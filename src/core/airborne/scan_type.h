@@ -42,6 +42,10 @@ struct ScanDecision {
   /// plane rule; OriginView).
   bool side_view = false;
   std::string reason;
+  /// Share of the sampled points below the origin's height (auto; 1 where the user set the
+  /// scan type): an origin with almost none below it is no sensor above the ground (the voxel
+  /// method's start segment).
+  double below_share = 1.0;
 };
 
 /// \brief What scan_type auto measures on a cloud (ScanTypeClassifier::measure()).

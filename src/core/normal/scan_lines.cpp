@@ -33,10 +33,6 @@ constexpr float kBelowOrigin = 0.3f;  // [m] a point this far below the origin l
 constexpr double kMostBelow = 0.5;
 constexpr double kThinner = 0.5;  // raised lines this much thinner replace the origin's
 constexpr std::size_t kSearchPoints = 1000;
-constexpr std::size_t kCentreRead = 20000;  // points read for the densest area's centre
-constexpr double kCentreCell = 8.0;         // [m] cells of the first guess
-constexpr double kCentreReach = 10.0;       // [m] radius of each mean
-constexpr int kCentreShifts = 4;            // means taken  // per wedge, to compare the heights on
 
 double median(std::vector<double>* v) {
   const std::size_t k = v->size() / 2;
@@ -191,76 +187,10 @@ ScanLines ScanLineMeter::measureAbove(const CloudView& cloud, const float origin
   return best;
 }
 
-bool ScanLineMeter::densestCentre(const CloudView& cloud, float c[3]) {
-  // About kCentreRead points, evenly spread: finite ones into cx_, cy_, cz_.
-  const std::size_t n = cloud.size(), step = n / kCentreRead + 1;
-  cx_.clear();
-  cy_.clear();
-  cz_.clear();
-  for (std::size_t i = 0; i < n; i += step) {
-    const float x = cloud.x(i), y = cloud.y(i), z = cloud.z(i);
-    if (!(std::isfinite(x) && std::isfinite(y) && std::isfinite(z))) continue;
-    cx_.push_back(x);
-    cy_.push_back(y);
-    cz_.push_back(z);
-  }
-  if (cx_.size() < 1000) return false;
-  // Start: the mean of the points in the densest kCentreCell square; then move to the mean of
-  // the points within kCentreReach, a few times (a mean shift onto the density peak).
-  std::vector<std::pair<std::int64_t, std::uint32_t>>& cells = cells_;
-  cells.clear();
-  for (std::size_t i = 0; i < cx_.size(); ++i) {
-    const std::int64_t kx = static_cast<std::int64_t>(std::floor(cx_[i] / kCentreCell));
-    const std::int64_t ky = static_cast<std::int64_t>(std::floor(cy_[i] / kCentreCell));
-    cells.push_back({kx * 4194304 + ky, static_cast<std::uint32_t>(i)});
-  }
-  std::sort(cells.begin(), cells.end());
-  std::size_t best = 0, best_n = 0;
-  for (std::size_t a = 0; a < cells.size();) {
-    std::size_t e = a;
-    while (e < cells.size() && cells[e].first == cells[a].first) ++e;
-    if (e - a > best_n) {
-      best = a;
-      best_n = e - a;
-    }
-    a = e;
-  }
-  double mx = 0.0, my = 0.0;
-  for (std::size_t k = best; k < best + best_n; ++k) {
-    mx += cx_[cells[k].second];
-    my += cy_[cells[k].second];
-  }
-  mx /= static_cast<double>(best_n);
-  my /= static_cast<double>(best_n);
-  std::vector<double>& zs = d_;
-  for (int it = 0; it < kCentreShifts; ++it) {
-    double sx = 0.0, sy = 0.0;
-    std::size_t m = 0;
-    zs.clear();
-    for (std::size_t i = 0; i < cx_.size(); ++i) {
-      const double dx = cx_[i] - mx, dy = cy_[i] - my;
-      if (dx * dx + dy * dy > kCentreReach * kCentreReach) continue;
-      sx += cx_[i];
-      sy += cy_[i];
-      zs.push_back(cz_[i]);
-      ++m;
-    }
-    if (m == 0) return false;
-    mx = sx / static_cast<double>(m);
-    my = sy / static_cast<double>(m);
-  }
-  const std::size_t k = zs.size() / 5;
-  std::nth_element(zs.begin(), zs.begin() + static_cast<std::ptrdiff_t>(k), zs.end());
-  c[0] = static_cast<float>(mx);
-  c[1] = static_cast<float>(my);
-  c[2] = static_cast<float>(zs[k]);
-  return true;
-}
-
 ScanLines ScanLineMeter::measureAround(const CloudView& cloud, const float origin[3]) {
   ScanLines lines = measureAbove(cloud, origin);
   float c[3];
-  if (lines.ratio() > 0.0 || !densestCentre(cloud, c)) return lines;
+  if (lines.ratio() > 0.0 || !centre_.find(cloud, c)) return lines;
   const double dx = c[0] - origin[0], dy = c[1] - origin[1];
   if (dx * dx + dy * dy < kMinShift * kMinShift) return lines;
   ScanLines there = measureAbove(cloud, c);

@@ -8,6 +8,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/densest_centre.h"
 #include "ground_filter/cloud_view.h"
 
 namespace ground_filter {
@@ -78,11 +79,7 @@ class ScanLineMeter {
   // The lines of every `every`-th point of raw_ seen from `raise` above the origin; *thick:
   // the clusters' mean thickness, point-weighted [deg].
   ScanLines linesAt(double raise, std::size_t every, double* thick);
-  // The x/y centre of the densest area of `cloud` and the ground's z there (its 20th
-  // percentile) into c; false for fewer than 1,000 finite points.
-  bool densestCentre(const CloudView& cloud, float c[3]);
-  std::vector<float> cx_, cy_, cz_;
-  std::vector<std::pair<std::int64_t, std::uint32_t>> cells_;
+  DensestCentre centre_;
   std::vector<Raw> raw_[4];
   std::vector<Angles> wedge_[4];
   std::vector<Cluster> clusters_;

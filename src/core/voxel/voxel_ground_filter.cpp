@@ -9,6 +9,7 @@
 
 #include "airborne/airborne_mode.h"
 #include "airborne/scan_type.h"
+#include "common/densest_centre.h"
 #include "common/threads_timing.h"
 #include "ground_filter/param_parse.h"
 #include "ground_filter/working_volume_params.h"
@@ -24,6 +25,15 @@
 namespace ground_filter {
 
 namespace {
+
+// Below this share of the points under the origin's height the origin is no sensor above the
+// ground (sensor frames: 7 % and more, the OS-128 dev scan whose origin lies on the ground; a
+// map frame's origin behind the scan: 0 %).
+constexpr double kSensorBelowShare = 0.02;
+// Where it is none, the start segment's plane must pass below a point this far above the ground
+// at the densest area's centre: the ground under a sensor there, not a crown's or a roof's
+// underside [m].
+constexpr float kSensorAboveGround = 1.0f;
 
 /// Writes the labels `gr` (by sorted position) in input order: sorted position -> slot (low bits
 /// of a packed key, or `order`) -> input index (identity when every point is valid); returns the
@@ -75,6 +85,7 @@ struct VoxelGroundFilter::Impl {
   voxel::WorkerPool pool;                 // threads > 1 only
   MorphGround morph;                      // airborne scans only
   ScanTypeSwitch scan;                    // scan_type: this scan's mode
+  DensestCentre centre;                   // the sensor where the origin is none (a map frame)
   explicit Impl(const VoxelGroundFilterParams& p) : scan(p.scan_type, p.morph_ground) {}
 };
 
@@ -170,9 +181,17 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
 
   // ---- 6. plane of the largest segment (paper), local ground model
   t0 = Clock::now();
-  const float* sensor = m.scan.origin();  // NaN: none (the paper mode's normalised segments)
-  const bool below_sensor = !scan.registered && std::isfinite(sensor[0]) &&
-                            std::isfinite(sensor[1]) && std::isfinite(sensor[2]);
+  const float* origin = m.scan.origin();  // NaN: none (the paper mode's normalised segments)
+  float sensor[3] = {origin[0], origin[1], origin[2]};
+  bool below_sensor = !scan.registered && std::isfinite(origin[0]) && std::isfinite(origin[1]) &&
+                      std::isfinite(origin[2]);
+  if (below_sensor && scan.below_share < kSensorBelowShare) {
+    // Almost no point below the origin: no sensor above the ground there (a map frame's origin
+    // on the ground behind the scan), where "below the sensor" would take a plane extrapolated
+    // under it. A spinning sensor sits over the densest area's centre: 1 m above its ground.
+    below_sensor = m.centre.find(cloud, sensor);
+    sensor[2] += kSensorAboveGround;
+  }
   m.segmenter.globalPlane(p, g, below_sensor ? sensor : nullptr, &seg);
   const bool have_plane = seg.have_plane;
   if (have_plane) {
