@@ -43,16 +43,9 @@ void setCount(SceneParams* p, const std::string& name, const std::string& value)
   p->*kField = static_cast<T>(v);
 }
 
-void setUniformBeams(SceneParams* p, const std::string& name, const std::string& value) {
-  p->uniform_beams = parseBoolParam(name, value);
-}
-
-void setBaseFrame(SceneParams* p, const std::string& name, const std::string& value) {
-  p->base_frame = parseBoolParam(name, value);
-}
-
-void setWorldFrame(SceneParams* p, const std::string& name, const std::string& value) {
-  p->world_frame = parseBoolParam(name, value);
+template <bool SceneParams::*kField>
+void setBool(SceneParams* p, const std::string& name, const std::string& value) {
+  p->*kField = parseBoolParam(name, value);
 }
 
 void setLayout(SceneParams* p, const std::string& name, const std::string& value) {
@@ -77,7 +70,7 @@ const SceneOverride kSceneOverrides[] = {
     {"azimuth_steps", setInt<&P::azimuth_steps>},
     {"vertical_min_deg", setDouble<&P::vertical_min_deg>},
     {"vertical_max_deg", setDouble<&P::vertical_max_deg>},
-    {"uniform_beams", setUniformBeams},
+    {"uniform_beams", setBool<&P::uniform_beams>},
     {"lidar_max_range", setDouble<&P::lidar_max_range>},
     {"min_range", setDouble<&P::min_range>},
     {"tls_points", setCount<std::size_t, &P::tls_points>},
@@ -102,8 +95,8 @@ const SceneOverride kSceneOverrides[] = {
     {"position_step", setDouble<&P::position_step>},
     {"position_keep", setDouble<&P::position_keep>},
     {"station_y", setDouble<&P::station_y>},
-    {"base_frame", setBaseFrame},
-    {"world_frame", setWorldFrame},
+    {"base_frame", setBool<&P::base_frame>},
+    {"world_frame", setBool<&P::world_frame>},
     {"world_offset_z", setDouble<&P::world_offset_z>},
 };
 

@@ -149,12 +149,6 @@ ScanLines ScanLineMeter::linesAt(double raise, std::size_t every, double* thick)
   return lines;
 }
 
-ScanLines ScanLineMeter::measure(const CloudView& cloud, const float origin[3]) {
-  gather(cloud, origin);
-  double thick;
-  return linesAt(0.0, 1, &thick);
-}
-
 ScanLines ScanLineMeter::measureAbove(const CloudView& cloud, const float origin[3]) {
   const double below = gather(cloud, origin);
   double thick;
