@@ -152,6 +152,26 @@ TEST(ScanType, VehicleScansAreGroundLevel) {
   }
 }
 
+// A spinning sensor's points are densest around it: its densest cell lies within about 10 m of
+// it, and 40 m off in a frame whose origin lies elsewhere (the voxel method's start segment
+// reads more than 20 m as "the origin is no sensor").
+TEST(ScanType, DensestCellLiesAtTheSensor) {
+  for (const char* spec : {"lidar16:1:layout=trail,sensor_height=1.2,sensor_x=40",
+                           "lidar16:2:layout=street,beams=128,sensor_height=0.7,sensor_x=40"}) {
+    SCOPED_TRACE(spec);
+    for (int map = 0; map < 2; ++map) {
+      const Cloud c =
+          generated(gf::parseSceneSpec(std::string(spec) + (map ? ",world_frame=1" : "")));
+      const double offset = classify(c).densest_offset;
+      if (map) {
+        EXPECT_NEAR(offset, 40.0, 10.0);
+      } else {
+        EXPECT_LT(offset, 10.0);
+      }
+    }
+  }
+}
+
 TEST(ScanType, TlsStationIsGroundLevelTls) {
   const Cloud c = builtin("tls");
   const gf::ScanDecision d = classify(c);

@@ -119,6 +119,13 @@ ScanMeasures ScanTypeClassifier::measureSample(const CloudView& cloud, const flo
     const int cy = std::min(ny - 1, static_cast<int>((ys_[i] - y0) / m.cell));
     ++counts_[static_cast<std::size_t>(cy) * nx + cx];
   }
+  // The densest cell's centre (a spinning sensor's points are densest around it).
+  const std::size_t densest =
+      static_cast<std::size_t>(std::max_element(counts_.begin(), counts_.end()) - counts_.begin());
+  const std::size_t row = static_cast<std::size_t>(nx);
+  const double centre_x = x0 + (static_cast<double>(densest % row) + 0.5) * m.cell;
+  const double centre_y = y0 + (static_cast<double>(densest / row) + 0.5) * m.cell;
+  m.densest_offset = std::hypot(centre_x - origin[0], centre_y - origin[1]);
   counts_.erase(std::remove(counts_.begin(), counts_.end(), 0u), counts_.end());
   m.cells = counts_.size();
   if (counts_.empty()) return m;
@@ -176,6 +183,7 @@ void ScanTypeClassifier::measureColumns(const CloudView& cloud, ScanMeasures* m)
 void ScanTypeClassifier::classify(const CloudView& cloud, const float origin[3], ScanDecision* d) {
   ScanMeasures m = measureSample(cloud, origin);
   d->below_share = m.sampled > 0 ? m.below_share : 1.0;
+  d->densest_offset = m.densest_offset;
   const bool nadir_density = m.sampled >= kMinPoints && m.extent >= kMinExtent &&
                              !(m.steep_share >= kSteepShare && m.steep_depth >= kNadirDepth) &&
                              m.top_share < kConcentrated;

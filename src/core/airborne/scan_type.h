@@ -46,20 +46,25 @@ struct ScanDecision {
   /// scan type): an origin with almost none below it is no sensor above the ground (the voxel
   /// method's start segment).
   double below_share = 1.0;
+  /// x/y distance of the densest sampled cell's centre from the origin [m] (auto; 0 where the
+  /// user set the scan type): a spinning sensor's points are densest around it, so a far one
+  /// shows a sensor away from the origin (the voxel method's start segment).
+  double densest_offset = 0.0;
 };
 
 /// \brief What scan_type auto measures on a cloud (ScanTypeClassifier::measure()).
 struct ScanMeasures {
-  std::size_t sampled = 0;   ///< valid points looked at (every step-th valid point)
-  double cell = 0.0;         ///< edge of the xy cells [m]
-  std::size_t cells = 0;     ///< occupied cells
-  double top_share = 0.0;    ///< share of the points in the densest tenth of the cells
-  double below_share = 0.0;  ///< share of the points below the origin's height
-  double steep_share = 0.0;  ///< share of the points >= 45 deg below the origin
-  double steep_depth = 0.0;  ///< median depth of those below the origin [m]
-  double high_share = 0.0;   ///< share of the points >= 30 deg above the origin
-  double extent = 0.0;       ///< larger side of the (1-99 % trimmed) xy box [m]
-  double nearest = 0.0;      ///< distance of the nearest sampled point from the origin [m]
+  std::size_t sampled = 0;      ///< valid points looked at (every step-th valid point)
+  double cell = 0.0;            ///< edge of the xy cells [m]
+  std::size_t cells = 0;        ///< occupied cells
+  double top_share = 0.0;       ///< share of the points in the densest tenth of the cells
+  double below_share = 0.0;     ///< share of the points below the origin's height
+  double steep_share = 0.0;     ///< share of the points >= 45 deg below the origin
+  double steep_depth = 0.0;     ///< median depth of those below the origin [m]
+  double high_share = 0.0;      ///< share of the points >= 30 deg above the origin
+  double extent = 0.0;          ///< larger side of the (1-99 % trimmed) xy box [m]
+  double nearest = 0.0;         ///< distance of the nearest sampled point from the origin [m]
+  double densest_offset = 0.0;  ///< x/y distance of the densest cell's centre from the origin
   // Rule 4 (docs/scan_types.md): the same density pattern in 1 m columns over a bounded read.
   std::size_t read = 0;           ///< valid points read for the columns (at most kMaxRead)
   std::size_t columns = 0;        ///< occupied kColumn x kColumn columns

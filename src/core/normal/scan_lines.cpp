@@ -30,8 +30,10 @@ constexpr std::size_t kMaxWedgePoints = 20000;
 constexpr float kBelowOrigin = 0.3f;  // [m] a point this far below the origin lies "below" it
 // At least this share of the wedges' points below the origin: it is a sensor above the ground
 // (a vehicle's frame on the ground sees its ground level with it, and everything else above).
-constexpr double kMostBelow = 0.5;
-constexpr double kThinner = 0.5;  // raised lines this much thinner replace the origin's
+// The middle of the sweeps' plateau, 0.5-0.9 (docs/normal_method.md).
+constexpr double kMostBelow = 0.7;
+// Raised lines at most this fraction as thick replace the origin's (plateau 0.5-0.9).
+constexpr double kThinner = 0.7;
 constexpr std::size_t kSearchPoints = 1000;
 
 double median(std::vector<double>* v) {
@@ -157,8 +159,8 @@ ScanLines ScanLineMeter::measureAbove(const CloudView& cloud, const float origin
   if (below >= kMostBelow) return best;
   // Seen from the sensor, each ring is one elevation whatever its points hit; from anywhere
   // else the ring's near and far returns part: the thinnest lines show where the sensor is.
-  // Lines seen from the origin itself give way only to lines less than half as thick (they
-  // may be parted rings; or the origin is the sensor, low over rising ground).
+  // Lines seen from the origin itself give way only to clearly thinner lines (they may be
+  // parted rings; or the origin is the sensor, low over rising ground).
   // The heights are compared on at most kSearchPoints points a wedge (a dense sensor's wedges
   // hold up to kMaxWedgePoints); the lines of the one chosen are measured on all of them.
   const double origin_thick = thick;

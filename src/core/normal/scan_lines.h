@@ -37,12 +37,12 @@ class ScanLineMeter {
   ///        spacing is the point-weighted median gap of the clusters much farther apart than
   ///        they are thick (a band of lines closer than 0.5 deg, as in any dense sensor, counts
   ///        as dense); the spacing along a line is the median azimuth step inside them.
-  ///        But where most of the wedges' points do not lie below the origin (a frame on the
-  ///        ground: base_link, base_footprint, with the sensor on a mast above it, whose rings
-  ///        the origin sees parted), the lines seen from the origin or from kRaiseStep ..
+  ///        But where fewer than 70 % of the wedges' points lie below the origin (a frame on
+  ///        the ground: base_link, base_footprint, with the sensor on a mast above it, whose
+  ///        rings the origin sees parted), the lines seen from the origin or from kRaiseStep ..
   ///        kMaxRaise above it: of the heights that show lines, the one whose lines are
-  ///        thinnest (a ring is one elevation only seen from its sensor), where they are less
-  ///        than half as thick as the origin's (or the origin shows none).
+  ///        thinnest (a ring is one elevation only seen from its sensor), where they are at
+  ///        most 0.7 times as thick as the origin's (or the origin shows none).
   ScanLines measureAbove(const CloudView& cloud, const float origin[3]);
   /// \brief measureAbove(); where it finds no lines, the same from the ground below the centre
   ///        of the cloud's densest area when that lies kMinShift or more from the origin: a

@@ -11,6 +11,12 @@ namespace voxel {
 
 namespace {
 
+// A start segment "lies below the sensor" where its points' mean height is at most this far
+// above the sensor [m]: the ground a sensor stands on lies below it, or a little above where it
+// rises or the origin sits below the sensor (a frame on its mount); the undersides of crowns
+// and ceilings lie higher. Sweeps: 0-0.5 m in sensor frames, 0.5-1 m in base frames.
+constexpr double kAboveSensor = 0.5;
+
 std::uint32_t findRoot(std::uint32_t* uf, std::uint32_t i) {
   while (uf[i] != i) {
     uf[i] = uf[uf[i]];
@@ -186,12 +192,14 @@ void Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
     }
   }
   const double min_nz = std::cos(p.max_slope_deg * M_PI / 180.0);
-  // A sensor's own scan: the largest segment whose plane passes below the sensor, else (none
-  // does, or no sensor at the origin) the largest. A sparse sensor's rings fall apart into one
-  // segment each, and the underside of a tree crown, a ceiling or a roof can outgrow them all.
-  int chosen = -1;
-  HeightPlane chosen_plane;
-  for (int q = 0; q < ncand; ++q) {
+  // A sensor's own scan: the largest segment that lies below the sensor (kAboveSensor) and whose
+  // plane passes below it; else the largest whose plane passes below it; else (none does, or no
+  // sensor at the origin) the largest. A sparse sensor's rings fall apart into one segment each,
+  // and the underside of a tree crown, a ceiling or a roof can outgrow them all; a crown's tilted
+  // plane can pass below the sensor all the same, while its points stay above it.
+  int chosen = -1, passes = -1, lies = -1;
+  HeightPlane chosen_plane, passes_plane, lies_plane;
+  for (int q = 0; q < ncand && lies < 0; ++q) {
     Plane plane;
     if (!acc[q].fit(&plane) || plane.normal.z() < min_nz) continue;
     HeightPlane hp;
@@ -203,11 +211,23 @@ void Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
       chosen_plane = hp;
       if (!sensor) break;
     }
-    if (sensor && hp.at(sensor[0] - g.min[0], sensor[1] - g.min[1]) < sensor[2] - g.min[2]) {
-      chosen = q;
-      chosen_plane = hp;
-      break;
+    const double sz = sensor[2] - g.min[2];  // the plane's frame: relative to the grid's min
+    if (hp.at(sensor[0] - g.min[0], sensor[1] - g.min[1]) >= sz) continue;
+    if (passes < 0) {
+      passes = q;
+      passes_plane = hp;
     }
+    if (zsum[q] / cnt[q] < sz + kAboveSensor) {
+      lies = q;
+      lies_plane = hp;
+    }
+  }
+  if (lies >= 0) {
+    chosen = lies;
+    chosen_plane = lies_plane;
+  } else if (passes >= 0) {
+    chosen = passes;
+    chosen_plane = passes_plane;
   }
   if (chosen >= 0) {
     seg->best = cand[chosen];

@@ -38,8 +38,10 @@ class Segmenter {
   ///        steeper than max_slope_deg; sets `seg->best`, `seg->plane` and `seg->have_plane`
   ///        (false when there is no flat segment). With `sensor` (x y z in the input frame: a
   ///        sensor at the origin, not a registered cloud) the largest such segment whose plane
-  ///        passes below the sensor is taken where one of the largest does: the ground under a
-  ///        ground-level sensor lies below it.
+  ///        passes below the sensor and whose points lie below it (their mean at most 0.5 m
+  ///        above it) is taken where one of the largest does, else the largest whose plane
+  ///        passes below it: the ground under a ground-level sensor lies below it, a crown's
+  ///        underside above it.
   void globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g, const float* sensor,
                    SegmentResult* seg);
 

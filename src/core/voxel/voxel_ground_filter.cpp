@@ -34,6 +34,10 @@ constexpr double kSensorBelowShare = 0.02;
 // at the densest area's centre: the ground under a sensor there, not a crown's or a roof's
 // underside [m].
 constexpr float kSensorAboveGround = 1.0f;
+// A densest cell (scan_type's sample) this far from the origin: the origin is no spinning
+// sensor either, whatever lies below it (a map frame's origin above the ground under the scan)
+// [m]; a sensor's densest cell holds it or lies next to it, at most about 10 m away.
+constexpr double kFarDensest = 20.0;
 
 /// Writes the labels `gr` (by sorted position) in input order: sorted position -> slot (low bits
 /// of a packed key, or `order`) -> input index (identity when every point is valid); returns the
@@ -185,10 +189,11 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
   float sensor[3] = {origin[0], origin[1], origin[2]};
   bool below_sensor = !scan.registered && std::isfinite(origin[0]) && std::isfinite(origin[1]) &&
                       std::isfinite(origin[2]);
-  if (below_sensor && scan.below_share < kSensorBelowShare) {
-    // Almost no point below the origin: no sensor above the ground there (a map frame's origin
-    // on the ground behind the scan), where "below the sensor" would take a plane extrapolated
-    // under it. A spinning sensor sits over the densest area's centre: 1 m above its ground.
+  if (below_sensor && (scan.below_share < kSensorBelowShare || scan.densest_offset > kFarDensest)) {
+    // Almost no point below the origin, or the points densest far from it: no sensor above the
+    // ground there (a map frame's origin beside the scan), where "below the sensor" would take
+    // a plane extrapolated under it. A spinning sensor sits over the densest area's centre: 1 m
+    // above its ground.
     below_sensor = m.centre.find(cloud, sensor);
     sensor[2] += kSensorAboveGround;
   }
