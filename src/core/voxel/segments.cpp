@@ -197,41 +197,28 @@ void Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
   // sensor at the origin) the largest. A sparse sensor's rings fall apart into one segment each,
   // and the underside of a tree crown, a ceiling or a roof can outgrow them all; a crown's tilted
   // plane can pass below the sensor all the same, while its points stay above it.
-  int chosen = -1, passes = -1, lies = -1;
-  HeightPlane chosen_plane, passes_plane, lies_plane;
+  std::array<HeightPlane, kCandidates> planes;
+  int largest = -1, passes = -1, lies = -1;
   for (int q = 0; q < ncand && lies < 0; ++q) {
     Plane plane;
     if (!acc[q].fit(&plane) || plane.normal.z() < min_nz) continue;
-    HeightPlane hp;
+    HeightPlane& hp = planes[q];
     hp.a = -plane.normal.x() / plane.normal.z();
     hp.b = -plane.normal.y() / plane.normal.z();
     hp.c = -plane.d / plane.normal.z();
-    if (chosen < 0) {
-      chosen = q;
-      chosen_plane = hp;
+    if (largest < 0) {
+      largest = q;
       if (!sensor) break;
     }
     const double sz = sensor[2] - g.min[2];  // the plane's frame: relative to the grid's min
     if (hp.at(sensor[0] - g.min[0], sensor[1] - g.min[1]) >= sz) continue;
-    if (passes < 0) {
-      passes = q;
-      passes_plane = hp;
-    }
-    if (zsum[q] / cnt[q] < sz + kAboveSensor) {
-      lies = q;
-      lies_plane = hp;
-    }
+    if (passes < 0) passes = q;
+    if (zsum[q] / cnt[q] < sz + kAboveSensor) lies = q;
   }
-  if (lies >= 0) {
-    chosen = lies;
-    chosen_plane = lies_plane;
-  } else if (passes >= 0) {
-    chosen = passes;
-    chosen_plane = passes_plane;
-  }
+  const int chosen = lies >= 0 ? lies : passes >= 0 ? passes : largest;
   if (chosen >= 0) {
     seg->best = cand[chosen];
-    *gp = chosen_plane;
+    *gp = planes[chosen];
     return;
   }
   *gp = HeightPlane();
