@@ -299,7 +299,7 @@ TEST(UnseenSensors, ScansInAFrameOnTheGroundKeepTheirScanLines) {
 
 // The voxel method's start segment must pass below the sensor. In a map frame whose origin lies
 // on the ground 40 m behind the scan, almost no point lies below the origin, and planes
-// extrapolated under it were taken (F1 0.016 on the street): the sensor is then placed 1 m
+// extrapolated under it were taken (F1 0.016 on the street): the sensor is then placed 1.5 m
 // above the ground at the densest area's centre. On the trail the origin's ground lies higher
 // than the scan's and 3 % of the points lie below it, so the densest cell's distance from the
 // origin (over 20 m) must tell it too (F1 0.079 before).

@@ -32,8 +32,9 @@ namespace {
 constexpr double kSensorBelowShare = 0.02;
 // Where it is none, the start segment's plane must pass below a point this far above the ground
 // at the densest area's centre: the ground under a sensor there, not a crown's or a roof's
-// underside [m].
-constexpr float kSensorAboveGround = 1.0f;
+// underside [m]. The middle of the 1-2 m range where no map-frame placement of the sensor sweep
+// loses more than 3 points (0.75 and 2.5 m lose 26; docs/voxel_method.md).
+constexpr float kSensorAboveGround = 1.5f;
 // A densest cell (scan_type's sample) this far from the origin: the origin is no spinning
 // sensor either, whatever lies below it (a map frame's origin above the ground under the scan)
 // [m]; a sensor's densest cell holds it or lies next to it, at most about 10 m away.
