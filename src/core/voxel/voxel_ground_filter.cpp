@@ -193,8 +193,8 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
   if (below_sensor && (scan.below_share < kSensorBelowShare || scan.densest_offset > kFarDensest)) {
     // Almost no point below the origin, or the points densest far from it: no sensor above the
     // ground there (a map frame's origin beside the scan), where "below the sensor" would take
-    // a plane extrapolated under it. A spinning sensor sits over the densest area's centre: 1 m
-    // above its ground.
+    // a plane extrapolated under it. A spinning sensor sits over the densest area's centre,
+    // kSensorAboveGround above its ground.
     below_sensor = m.centre.find(cloud, sensor);
     sensor[2] += kSensorAboveGround;
   }
