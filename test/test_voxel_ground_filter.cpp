@@ -169,7 +169,9 @@ TEST(VoxelGroundFilter, PaperGlobalPlaneModeSeparatesBox) {
 }
 
 // The z range of a voxel decides flatness (step 2): three separate patches, one pair of points
-// a voxel column, both points in one voxel. A: 4 m x 4 m at z = 0, pairs 3 cm apart (flat);
+// a voxel column, both points in one voxel, 1.5 m below the origin (a sensor above the ground,
+// so that the start segment's "below the sensor" tests leave the choice to the segments' sizes
+// and support). Heights relative to that level: A: 4 m x 4 m at z = 0, pairs 3 cm apart (flat);
 // B: 6 m x 6 m at z = 0.5, pairs 5 cm apart (not flat, flatness_threshold 4 cm); C: 1 m x 1 m
 // at z = -0.3, 3 cm apart (flat, the cloud's lowest points). The paper mode fits its plane to
 // the largest flat segment: A. A range taken from the max z alone makes A not flat (C wins), one
@@ -180,8 +182,8 @@ TEST(VoxelGroundFilter, ZRangeOfEachVoxelDecidesFlatness) {
     for (int i = 0; x0 + 0.1f * i < x1; ++i) {
       for (int j = 0; y0 + 0.1f * j < y1; ++j) {
         const float x = x0 + 0.1f * i + 0.05f, y = y0 + 0.1f * j + 0.05f;
-        c.add(x, y, z, ground);
-        c.add(x, y, z + dz, ground);
+        c.add(x, y, z - 1.5f, ground);
+        c.add(x, y, z - 1.5f + dz, ground);
       }
     }
   };

@@ -16,6 +16,15 @@ namespace {
 // rises or the origin sits below the sensor (a frame on its mount); the undersides of crowns
 // and ceilings lie higher. Sweeps: 0-0.5 m in sensor frames, 0.5-1 m in base frames.
 constexpr double kAboveSensor = 0.5;
+// A sensor mounted high (4 m and more: a mast, a roadside pole, a truck's cab) scans the ground
+// in rings too far apart to join: the ground falls into one small segment per ring arc, and a
+// roof or a crown's top below the sensor outgrows each of them. The ground is the surface that
+// most of the flat voxels around the sensor lie at, so a candidate's support is the flat voxels
+// within kSupportRadius of the sensor and kSupportBand of its mean height, and the start segment
+// is the largest candidate with at least kSupportShare of the best support [m, m, share].
+constexpr double kSupportRadius = 40.0;
+constexpr double kSupportBand = 0.3;
+constexpr double kSupportShare = 0.75;
 
 std::uint32_t findRoot(std::uint32_t* uf, std::uint32_t i) {
   while (uf[i] != i) {
@@ -159,7 +168,7 @@ void Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
   HeightPlane* gp = &seg->plane;
   // The plane of the largest segment that is not steeper than max_slope_deg: the largest one can
   // be a wall scanned line by line (its flat voxels stack up), see the docs.
-  constexpr int kCandidates = 8;
+  constexpr int kCandidates = 16;
   std::array<std::uint32_t, kCandidates> cand{};
   int ncand = 0;
   auto better = [&](std::uint32_t a, std::uint32_t b) {
@@ -177,7 +186,7 @@ void Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
     ncand = std::min(ncand + 1, kCandidates);
   }
   std::array<PlaneAccumulator, kCandidates> acc;
-  std::array<double, kCandidates> zsum{}, cnt{};
+  std::array<double, kCandidates> zsum{}, zzsum{}, cnt{};
   rank_.assign(nf, -1);  // a lookup instead of a search of the candidates per flat voxel
   for (int q = 0; q < ncand; ++q) rank_[cand[q]] = static_cast<std::int8_t>(q);
   for (std::size_t j = 0; j < nf; ++j) {
@@ -188,6 +197,7 @@ void Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
       const float* pt = g.xyz(k);
       acc[q].add(pt[0], pt[1], pt[2]);
       zsum[q] += pt[2];
+      zzsum[q] += static_cast<double>(pt[2]) * pt[2];
       cnt[q] += 1.0;
     }
   }
@@ -196,24 +206,69 @@ void Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
   // plane passes below it; else the largest whose plane passes below it; else (none does, or no
   // sensor at the origin) the largest. A sparse sensor's rings fall apart into one segment each,
   // and the underside of a tree crown, a ceiling or a roof can outgrow them all; a crown's tilted
-  // plane can pass below the sensor all the same, while its points stay above it.
+  // plane can pass below the sensor all the same, while its points stay above it. Among the
+  // segments that qualify, the best supported wins over a larger one (kSupportShare).
   std::array<HeightPlane, kCandidates> planes;
-  int largest = -1, passes = -1, lies = -1;
-  for (int q = 0; q < ncand && lies < 0; ++q) {
+  std::array<std::uint8_t, kCandidates> qualifies{};  // 1: passes below, 2: lies below too
+  int largest = -1;
+  for (int q = 0; q < ncand; ++q) {
     Plane plane;
-    if (!acc[q].fit(&plane) || plane.normal.z() < min_nz) continue;
     HeightPlane& hp = planes[q];
-    hp.a = -plane.normal.x() / plane.normal.z();
-    hp.b = -plane.normal.y() / plane.normal.z();
-    hp.c = -plane.d / plane.normal.z();
-    if (largest < 0) {
-      largest = q;
-      if (!sensor) break;
+    const double mean_z = zsum[q] / cnt[q];
+    if (acc[q].fit(&plane) && plane.normal.z() >= min_nz) {
+      hp.a = -plane.normal.x() / plane.normal.z();
+      hp.b = -plane.normal.y() / plane.normal.z();
+      hp.c = -plane.d / plane.normal.z();
+      if (largest < 0) {
+        largest = q;
+        if (!sensor) break;
+      }
+    } else if (sensor &&
+               std::sqrt(std::max(0.0, zzsum[q] / cnt[q] - mean_z * mean_z)) <= kSupportBand) {
+      // One ring's arc: too narrow for a slope, level within the band: a level plane.
+      hp = HeightPlane();
+      hp.c = mean_z;
+    } else {
+      continue;
     }
     const double sz = sensor[2] - g.min[2];  // the plane's frame: relative to the grid's min
     if (hp.at(sensor[0] - g.min[0], sensor[1] - g.min[1]) >= sz) continue;
-    if (passes < 0) passes = q;
-    if (zsum[q] / cnt[q] < sz + kAboveSensor) lies = q;
+    qualifies[q] = mean_z < sz + kAboveSensor ? 2 : 1;
+  }
+  int passes = -1, lies = -1;
+  if (sensor) {
+    // Support: one pass over the flat voxels near the sensor, a histogram of their heights.
+    const std::uint8_t need =
+        *std::max_element(qualifies.begin(), qualifies.begin() + std::max(ncand, 1));
+    if (need > 0) {
+      const double sx = sensor[0] - g.min[0], sy = sensor[1] - g.min[1];
+      const double bin = kSupportBand / 3.0;
+      hist_.clear();
+      for (std::uint32_t v : g.flat) {
+        const double dx = g.vx[v] - sx, dy = g.vy[v] - sy;
+        if (dx * dx + dy * dy > kSupportRadius * kSupportRadius) continue;
+        // Heights are relative to the grid's min corner: bin >= 0.
+        const std::size_t b = static_cast<std::size_t>(std::max(0.0, g.vz[v] / bin));
+        if (b >= hist_.size()) hist_.resize(b + 1, 0);
+        ++hist_[b];
+      }
+      const long nbins = static_cast<long>(hist_.size());
+      std::array<std::uint32_t, kCandidates> support{};
+      std::uint32_t top = 0;
+      for (int q = 0; q < ncand; ++q) {
+        if (qualifies[q] != need) continue;
+        const long centre = static_cast<long>(std::floor(zsum[q] / cnt[q] / bin));
+        for (long b = std::max(0L, centre - 3); b <= std::min(nbins - 1, centre + 3); ++b) {
+          support[q] += hist_[static_cast<std::size_t>(b)];
+        }
+        top = std::max(top, support[q]);
+      }
+      int chosen_q = -1;
+      for (int q = 0; q < ncand && chosen_q < 0; ++q) {
+        if (qualifies[q] == need && support[q] >= kSupportShare * top) chosen_q = q;
+      }
+      (need == 2 ? lies : passes) = chosen_q;
+    }
   }
   const int chosen = lies >= 0 ? lies : passes >= 0 ? passes : largest;
   if (chosen >= 0) {

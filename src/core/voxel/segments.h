@@ -49,8 +49,9 @@ class Segmenter {
   // Scratch; seg_voxels_ and seg_points_ carry run()'s segment sizes to globalPlane().
   std::vector<std::uint32_t> seg_voxels_;
   std::vector<std::uint64_t> seg_points_;
-  std::vector<std::int32_t> rows_;  // two dense rows of flat ids (x parity)
-  std::vector<std::int8_t> rank_;   // globalPlane(): candidate index per segment id, or -1
+  std::vector<std::int32_t> rows_;   // two dense rows of flat ids (x parity)
+  std::vector<std::uint32_t> hist_;  // globalPlane(): flat voxels near the sensor per height bin
+  std::vector<std::int8_t> rank_;    // globalPlane(): candidate index per segment id, or -1
 };
 
 }  // namespace voxel
