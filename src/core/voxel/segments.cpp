@@ -209,33 +209,33 @@ void Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
   // plane can pass below the sensor all the same, while its points stay above it. Among the
   // segments that qualify, the best supported wins over a larger one (kSupportShare).
   std::array<HeightPlane, kCandidates> planes;
+  std::array<double, kCandidates> mean_z{};
   std::array<std::uint8_t, kCandidates> qualifies{};  // 1: passes below, 2: lies below too
-  int largest = -1;
+  int chosen = -1;  // the largest with a fitted plane, unless a sensor picks another below
   for (int q = 0; q < ncand; ++q) {
     Plane plane;
     HeightPlane& hp = planes[q];
-    const double mean_z = zsum[q] / cnt[q];
+    mean_z[q] = zsum[q] / cnt[q];
     if (acc[q].fit(&plane) && plane.normal.z() >= min_nz) {
       hp.a = -plane.normal.x() / plane.normal.z();
       hp.b = -plane.normal.y() / plane.normal.z();
       hp.c = -plane.d / plane.normal.z();
-      if (largest < 0) {
-        largest = q;
+      if (chosen < 0) {
+        chosen = q;
         if (!sensor) break;
       }
-    } else if (sensor &&
-               std::sqrt(std::max(0.0, zzsum[q] / cnt[q] - mean_z * mean_z)) <= kSupportBand) {
+    } else if (sensor && std::sqrt(std::max(0.0, zzsum[q] / cnt[q] - mean_z[q] * mean_z[q])) <=
+                             kSupportBand) {
       // One ring's arc: too narrow for a slope, level within the band: a level plane.
       hp = HeightPlane();
-      hp.c = mean_z;
+      hp.c = mean_z[q];
     } else {
       continue;
     }
     const double sz = sensor[2] - g.min[2];  // the plane's frame: relative to the grid's min
     if (hp.at(sensor[0] - g.min[0], sensor[1] - g.min[1]) >= sz) continue;
-    qualifies[q] = mean_z < sz + kAboveSensor ? 2 : 1;
+    qualifies[q] = mean_z[q] < sz + kAboveSensor ? 2 : 1;
   }
-  int passes = -1, lies = -1;
   if (sensor) {
     // Support: one pass over the flat voxels near the sensor, a histogram of their heights.
     const std::uint8_t need =
@@ -257,20 +257,19 @@ void Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
       std::uint32_t top = 0;
       for (int q = 0; q < ncand; ++q) {
         if (qualifies[q] != need) continue;
-        const long centre = static_cast<long>(std::floor(zsum[q] / cnt[q] / bin));
+        const long centre = static_cast<long>(std::floor(mean_z[q] / bin));
         for (long b = std::max(0L, centre - 3); b <= std::min(nbins - 1, centre + 3); ++b) {
           support[q] += hist_[static_cast<std::size_t>(b)];
         }
         top = std::max(top, support[q]);
       }
-      int chosen_q = -1;
-      for (int q = 0; q < ncand && chosen_q < 0; ++q) {
-        if (qualifies[q] == need && support[q] >= kSupportShare * top) chosen_q = q;
+      // The best supported qualifies itself, so one is always found.
+      chosen = -1;
+      for (int q = 0; q < ncand && chosen < 0; ++q) {
+        if (qualifies[q] == need && support[q] >= kSupportShare * top) chosen = q;
       }
-      (need == 2 ? lies : passes) = chosen_q;
     }
   }
-  const int chosen = lies >= 0 ? lies : passes >= 0 ? passes : largest;
   if (chosen >= 0) {
     seg->best = cand[chosen];
     *gp = planes[chosen];
