@@ -86,18 +86,23 @@ TEST(NormalGroundFilter, FlatPlaneIsGround) {
   EXPECT_EQ(st.backend, "kdtree");
 }
 
-/// Defaults with the normal-angle window [min_deg, max_deg] (the paper's: 80..100).
+/// Defaults with the normal-angle window [min_deg, max_deg] (the paper's: 80..100), and no
+/// levelling (level_tilt 0: a slope all around the sensor would be taken for a tilted mount).
 gf::NormalGroundFilterParams angleWindow(double min_deg, double max_deg) {
   gf::NormalGroundFilterParams p = groundLevel();
   p.min_normal_angle = min_deg;
   p.max_normal_angle = max_deg;
+  p.level_tilt = 0.0;
   return p;
 }
 
 TEST(NormalGroundFilter, PlaneTilted20DegreesDependsOnTheAngleWindow) {
   const Cloud c = plane(8.0, 0.1, -1.73, std::tan(20.0 * M_PI / 180.0));
   // Default window 75..105 deg (normal within 15 deg of vertical): a 20 deg slope is not ground.
-  EXPECT_EQ(groundShare(run(c)), 0.0);
+  EXPECT_EQ(groundShare(run(c, angleWindow(75.0, 105.0))), 0.0);
+  // Unless the scan is levelled first: a plane all around the sensor leaning 20 deg is what a
+  // mount tilted 20 deg sees (level_tilt 5 deg, the default).
+  EXPECT_EQ(groundShare(run(c)), 1.0);
   // The paper's 80..100 deg neither.
   EXPECT_EQ(groundShare(run(c, angleWindow(80.0, 100.0))), 0.0);
   // Window 65..115 deg (25 deg from vertical): all of it is ground.
@@ -109,7 +114,7 @@ TEST(NormalGroundFilter, PlaneTilted20DegreesDependsOnTheAngleWindow) {
 TEST(NormalGroundFilter, PlaneTilted12DegreesIsGroundWithTheDefaultsNotThePaperWindow) {
   // Grass verges slope 15-30 %: the default window keeps a 12 deg (21 %) slope, the paper's not.
   const Cloud c = plane(8.0, 0.1, -1.73, std::tan(12.0 * M_PI / 180.0));
-  EXPECT_EQ(groundShare(run(c)), 1.0);
+  EXPECT_EQ(groundShare(run(c, angleWindow(75.0, 105.0))), 1.0);
   EXPECT_EQ(groundShare(run(c, angleWindow(80.0, 100.0))), 0.0);
 }
 
@@ -377,8 +382,9 @@ TEST(NormalGroundFilter, StageTimesNameEveryStage) {
     names.push_back(e.first);
     EXPECT_GE(e.second, 0.0) << e.first;
   }
-  const std::vector<std::string> expected = {"lines", "view", "sort", "sample", "kdtree_build",
-                                             "knn",   "pca",  "vote", "plane",  "local_ground"};
+  const std::vector<std::string> expected = {"level",  "lines",        "view",        "sort",
+                                             "sample", "kdtree_build", "knn",         "pca",
+                                             "vote",   "plane",        "local_ground"};
   EXPECT_EQ(names, expected);
   // Every point sampled: no sample stage.
   gf::NormalGroundFilterParams p = groundLevel();

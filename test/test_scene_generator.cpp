@@ -469,6 +469,36 @@ TEST(SceneGenerator, BaseFrameIsTheScanMovedUpByTheSensorHeight) {
                std::invalid_argument);
 }
 
+// mount_roll_deg / mount_pitch_deg: the level scan's points in a frame rolled, then pitched
+// (> 0 tips x down); its frame has no vertical (no terrain height); one scan only.
+TEST(SceneGenerator, TiltedMountIsTheLevelScanTurned) {
+  const GeneratedScan s = generateScene(parseSceneSpec("lidar16:1"));
+  const SceneParams pt = parseSceneSpec("lidar16:1:mount_roll_deg=10,mount_pitch_deg=20");
+  const GeneratedScan t = generateScene(pt);
+  ASSERT_EQ(s.size(), t.size());
+  const double r = 10.0 * M_PI / 180.0, p = 20.0 * M_PI / 180.0;
+  for (std::size_t i = 0; i < s.size(); i += 89) {
+    // Back to the level frame: p_level = Ry(pitch) Rx(roll) p_tilted.
+    const double x = t.xyz[3 * i], y = t.xyz[3 * i + 1], z = t.xyz[3 * i + 2];
+    const double y1 = std::cos(r) * y - std::sin(r) * z, z1 = std::sin(r) * y + std::cos(r) * z;
+    const double x2 = std::cos(p) * x + std::sin(p) * z1, z2 = -std::sin(p) * x + std::cos(p) * z1;
+    EXPECT_NEAR(x2, s.xyz[3 * i], 1e-4) << i;
+    EXPECT_NEAR(y1, s.xyz[3 * i + 1], 1e-4) << i;
+    EXPECT_NEAR(z2, s.xyz[3 * i + 2], 1e-4) << i;
+    EXPECT_EQ(s.truth[i], t.truth[i]);
+  }
+  // Pitched down, the ground ahead rises in the sensor's frame.
+  const GeneratedScan down = generateScene(parseSceneSpec("lidar16:1:mount_pitch_deg=10"));
+  for (std::size_t i = 0; i < s.size(); i += 89) {
+    if (s.truth[i] == 1 && s.xyz[3 * i] > 10.f) EXPECT_GT(down.xyz[3 * i + 2], s.xyz[3 * i + 2]);
+  }
+  EXPECT_TRUE(std::isnan(sceneGroundHeight(pt, 1.0, 2.0)));
+  EXPECT_THROW(generateScene(parseSceneSpec("lidar16:1:positions=2,mount_roll_deg=5")),
+               std::invalid_argument);
+  EXPECT_THROW(generateScene(parseSceneSpec("lidar16:1:mount_pitch_deg=50")),
+               std::invalid_argument);
+}
+
 // A dual-return sensor: each point the scan without them lacks is a second echo of a beam
 // whose first echo was foliage, on the same ray 1 m or more farther out, right after it.
 TEST(SceneGenerator, SecondEchoesFollowTheirFoliageOnTheSameRay) {

@@ -555,6 +555,14 @@ void SceneParams::validate() const {
         "(not with world_frame, positions > 1, airborne or uav)");
   }
   checkRange("ceiling_height", ceiling_height, 1.5, 30.0, "m");
+  checkRange("mount_roll_deg", mount_roll_deg, -45.0, 45.0, "deg");
+  checkRange("mount_pitch_deg", mount_pitch_deg, -45.0, 45.0, "deg");
+  if ((mount_roll_deg != 0.0 || mount_pitch_deg != 0.0) &&
+      (sceneInWorldFrame(*this) || mode == Mode::kAirborne)) {
+    throw std::invalid_argument(
+        "parameters 'mount_roll_deg', 'mount_pitch_deg': only for one scan of a ground-level "
+        "scanner in its own frame (not with world_frame, positions > 1, airborne or uav)");
+  }
 }
 
 std::vector<std::string> builtinSceneKinds() {
@@ -663,6 +671,7 @@ GeneratedScan generateScene(const SceneParams& params) {
       scan.xyz[3 * i + 2] = static_cast<float>(scan.xyz[3 * i + 2] + up);
     }
   }
+  scene::turnToMount(params, scan.xyz.data(), scan.size());
   scene::insertNans(&scan, params.nan_points);
   return scan;
 }
@@ -672,6 +681,9 @@ bool sceneInWorldFrame(const SceneParams& params) {
 }
 
 double sceneGroundHeight(const SceneParams& params, double x, double y) {
+  if (params.mount_roll_deg != 0.0 || params.mount_pitch_deg != 0.0) {
+    return std::numeric_limits<double>::quiet_NaN();
+  }
   if (sceneInWorldFrame(params)) {
     return scene::worldGroundHeight(params, x - params.world_offset_x, y - params.world_offset_y) +
            params.world_offset_z;

@@ -94,6 +94,13 @@ struct SceneParams {
   /// One scan in a frame on the ground right below its scanner, z up (a robot's base_link or
   /// base_footprint): the scanner frame moved down by the scanner's height [-] (false).
   bool base_frame = false;
+  /// A scanner mounted tilted, with no gravity frame to undo it: the points of the level scan
+  /// expressed in a frame rolled about the scanner's x axis by this angle [deg] (0; -45..45).
+  /// One scan in its own (or base) frame only.
+  double mount_roll_deg = 0.0;
+  /// ... and then pitched about its y axis, right-handed (> 0 tips x down, REP 103) [deg] (0;
+  /// -45..45).
+  double mount_pitch_deg = 0.0;
   double world_offset_x = 0.0;    ///< added to every x of a world-frame cloud [m] (0)
   double world_offset_y = 0.0;    ///< added to every y of a world-frame cloud [m] (0)
   double world_offset_z = 0.0;    ///< added to every z of a world-frame cloud [m] (0)
@@ -198,7 +205,8 @@ bool sceneInWorldFrame(const SceneParams& params);
 /// \brief Height of the terrain surface below (x, y) of the output frame of `params` (the
 ///        scanner frame, or the world frame plus world_offset), in that frame [m]: the exact
 ///        surface the ground points were sampled from, before range noise and grass roughness
-///        (kStreet: the sidewalk level from the curb line on, i.e. world y >= curb_y).
+///        (kStreet: the sidewalk level from the curb line on, i.e. world y >= curb_y). NaN for
+///        a tilted mount (mount_roll_deg, mount_pitch_deg): that frame's z is not vertical.
 double sceneGroundHeight(const SceneParams& params, double x, double y);
 
 }  // namespace ground_filter

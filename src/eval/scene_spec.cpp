@@ -96,6 +96,8 @@ const SceneOverride kSceneOverrides[] = {
     {"position_keep", setDouble<&P::position_keep>},
     {"station_y", setDouble<&P::station_y>},
     {"base_frame", setBool<&P::base_frame>},
+    {"mount_roll_deg", setDouble<&P::mount_roll_deg>},
+    {"mount_pitch_deg", setDouble<&P::mount_pitch_deg>},
     {"world_frame", setBool<&P::world_frame>},
     {"world_offset_z", setDouble<&P::world_offset_z>},
 };

@@ -122,5 +122,20 @@ double minGroundOver(const SceneParams& p, double x0, double x1, double y0, doub
   }
   return m;
 }
+void turnToMount(const SceneParams& p, float* xyz, std::size_t n) {
+  if (p.mount_roll_deg == 0.0 && p.mount_pitch_deg == 0.0) return;
+  const double deg = 3.14159265358979323846 / 180.0;
+  const double cr = std::cos(p.mount_roll_deg * deg), sr = std::sin(p.mount_roll_deg * deg);
+  const double cp = std::cos(p.mount_pitch_deg * deg), sp = std::sin(p.mount_pitch_deg * deg);
+  for (std::size_t i = 0; i < n; ++i) {
+    float* q = xyz + 3 * i;
+    const double x = q[0], y = q[1], z = q[2];
+    const double xa = cp * x - sp * z, za = sp * x + cp * z;  // Ry(pitch)^T
+    q[0] = static_cast<float>(xa);
+    q[1] = static_cast<float>(cr * y + sr * za);  // then Rx(roll)^T
+    q[2] = static_cast<float>(-sr * y + cr * za);
+  }
+}
+
 }  // namespace scene
 }  // namespace ground_filter

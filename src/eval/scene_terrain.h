@@ -103,6 +103,9 @@ double trailHeight(const SceneParams& p, double x, double y);
 // over 9 m (about 55 %) along a line across the tile.
 double airborneHeight(const SceneParams& p, double x, double y);
 double worldGroundHeight(const SceneParams& p, double x, double y);
+/// The frame of a scanner mounted tilted by R = Ry(mount_pitch_deg) Rx(mount_roll_deg): each of
+/// the n packed points p becomes R^T p (nothing where both angles are 0).
+void turnToMount(const SceneParams& p, float* xyz, std::size_t n);
 // Surface class of the non-street terrains at (x, y) (world frame).
 std::uint16_t naturalClass(const SceneParams& p, double x, double y);
 Vec3 scannerOrigin(const SceneParams& p);

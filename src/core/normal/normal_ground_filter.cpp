@@ -12,6 +12,7 @@
 #include "airborne/airborne_mode.h"
 #include "airborne/origin_view.h"
 #include "airborne/scan_type.h"
+#include "common/ground_tilt.h"
 #include "common/stream_keep.h"
 #include "common/threads_timing.h"
 #include "knn/knn_backend.h"
@@ -55,6 +56,9 @@ struct NormalGroundFilter::Impl {
   normal::LatticeMeter lattice;             // coordinates on a coarse lattice (0.)
   double lattice_var[3] = {0.0, 0.0, 0.0};  // this scan's: step^2 / 12 per axis [m^2]
   bool on_lattice = false;
+  GroundTiltEstimator tilt;         // 0a: a sensor mounted tilted (level_tilt)
+  std::vector<float> levelled_xyz;  // 0a: the scan turned onto its ground, packed xyz
+  CloudView levelled_view;          // 0a: a view of it
   // Per-scan results, in stage order.
   normal::OrderedPoints ordered;  // 1: valid points in column order
   NeighborLists lists;            // 2: neighbour lists of one segment
@@ -99,6 +103,10 @@ struct NormalGroundFilter::Impl {
   // *vote_ms.
   std::size_t normalsAndVotes(const NormalGroundFilterParams& p, std::size_t n, int stride,
                               int threads, std::size_t* sampled, double* vote_ms);
+  // 0a: `cloud`, or where its ground leans level_tilt or more (a single scan: the sensor at the
+  // origin), the scan turned about the sensor onto that ground (levelled_view); a note says so.
+  const CloudView& levelled(const NormalGroundFilterParams& p, const ScanDecision& decision,
+                            const CloudView& cloud, FilterStats* st);
   // on_lattice (returned) and lattice_var of `cloud`; a note names the steps.
   bool measureLattice(const CloudView& cloud, std::string* note);
 };
@@ -138,6 +146,31 @@ bool NormalGroundFilter::Impl::measureLattice(const CloudView& cloud, std::strin
                 note->empty() ? "" : "; ", step[0], step[1], step[2]);
   note->append(text);
   return true;
+}
+
+const CloudView& NormalGroundFilter::Impl::levelled(const NormalGroundFilterParams& p,
+                                                    const ScanDecision& decision,
+                                                    const CloudView& cloud, FilterStats* st) {
+  const float* o = scan.origin();
+  if (p.level_tilt <= 0.0 || decision.registered || !std::isfinite(o[0]) || !std::isfinite(o[1]) ||
+      !std::isfinite(o[2])) {
+    return cloud;
+  }
+  const auto t_level = Clock::now();
+  const GroundTilt t = tilt.estimate(cloud, o);
+  const bool turn = t.found && t.tilt_deg >= p.level_tilt;
+  if (turn) {
+    GroundTiltEstimator::level(cloud, o, t, &levelled_xyz);
+    levelled_view = CloudView::packedXyz(levelled_xyz.data(), cloud.size());
+    char text[200];
+    std::snprintf(text, sizeof text,
+                  "%sthe ground around the sensor leans %.1f deg in the cloud's frame "
+                  "(level_tilt %.1f): the scan was turned onto it",
+                  st->note.empty() ? "" : "; ", t.tilt_deg, p.level_tilt);
+    st->note.append(text);
+  }
+  st->stage_ms.emplace_back("level", msSince(t_level));
+  return turn ? levelled_view : cloud;
 }
 
 const normal::ScanLines& NormalGroundFilter::Impl::linesOf(const CloudView& cloud) {
@@ -303,28 +336,31 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
     return;
   }
 
+  // ---- 0a. a sensor mounted tilted (no gravity frame): the scan turned onto its ground, which
+  //      the angle window would miss; every later stage (and the GPU) sees the turned points.
+  const CloudView& in = im.levelled(p, scan, cloud, &st);
+
   // ---- 1a. a sparse spinning sensor's scan lines: the stride its normals need (scan_lines.h);
   //      where the origin lies on the ground below the sensor, they show the sensor's height.
   int stride = p.sample_stride;
   const normal::ScanLines* lines = nullptr;
   if (p.max_line_ratio > 0.0 && !scan.registered) {
     const auto t_lines = Clock::now();
-    lines = &im.linesOf(cloud);
+    lines = &im.linesOf(in);
     stride = normal::strideForScanLines(*lines, p.max_line_ratio, stride);
     st.stage_ms.emplace_back("lines", msSince(t_lines));
   }
   // null: no sensor at the origin, nor where sparse lines, seen from above it, put it
   const double none[3] = {0.0, 0.0, 0.0};
-  const double* sensor =
-      im.sensorOf(scan, cloud, stride != p.sample_stride ? lines->from : none, &st);
+  const double* sensor = im.sensorOf(scan, in, stride != p.sample_stride ? lines->from : none, &st);
   if (stride != p.sample_stride) appendStrideNote(p, stride, *lines, &st.note);
 
   // ---- 0. coordinates on a coarse lattice (float32 far from the origin): the PCA adds back the
   //      spread its steps hide (normal/lattice.h; 0.03 ms a KITTI frame), on the CPU. Then the
   //      whole filter on the executor (GPU) when the filter has one; when it declines the scan
   //      (a device fault) the stages below run it on the CPU.
-  if (!im.measureLattice(cloud, &st.note) && im.executor) {
-    if (im.executor->run(cloud, stride, sensor, labels, &st)) {
+  if (!im.measureLattice(in, &st.note) && im.executor) {
+    if (im.executor->run(in, stride, sensor, labels, &st)) {
       st.total_ms = msSince(t_start);
       return;
     }
@@ -334,9 +370,9 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   // 1. Valid points in grid-column order, cut into segments.
   auto t0 = Clock::now();
   const std::size_t n =
-      im.order.run(cloud, p.cell_size, p.use_segments, p.segment_points, threads, &im.ordered);
+      im.order.run(in, p.cell_size, p.use_segments, p.segment_points, threads, &im.ordered);
   const normal::OrderedPoints& ordered = im.ordered;
-  st.invalid_points = cloud.size() - n;
+  st.invalid_points = in.size() - n;
   st.stage_ms.emplace_back("sort", msSince(t0));
   if (n == 0) {
     st.total_ms = msSince(t_start);

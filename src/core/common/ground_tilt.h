@@ -1,0 +1,58 @@
+#ifndef GROUND_FILTER_SRC_CORE_COMMON_GROUND_TILT_H
+#define GROUND_FILTER_SRC_CORE_COMMON_GROUND_TILT_H
+
+#include <cstddef>
+#include <vector>
+
+#include "ground_filter/cloud_view.h"
+
+namespace ground_filter {
+
+/// \brief The ground around a sensor, as a plane through the lowest point of each 1 m column
+///        within kRadius of it: its normal, and how far it leans from the frame's z.
+struct GroundTilt {
+  bool found = false;                  ///< a plane with enough support was found
+  double normal[3] = {0.0, 0.0, 1.0};  ///< unit normal, z >= 0
+  double tilt_deg = 0.0;               ///< angle between normal and the frame's z [deg]
+  std::size_t columns = 0;             ///< occupied columns within kRadius
+  std::size_t inliers = 0;             ///< columns whose lowest point lies on the plane
+};
+
+/// \brief Finds how far a single scan's frame leans from the ground around its sensor (a
+///        sensor mounted tilted, with no gravity frame to undo it), and levels the scan.
+///
+/// The ground a sensor stands over is the surface most of the lowest points of the columns
+/// around it lie on: a deterministic RANSAC over those lowest points (planes leaning at most
+/// kMaxTilt, passing below the sensor), refined by least squares over its inliers.
+class GroundTiltEstimator {
+ public:
+  static constexpr double kRadius = 15.0;   ///< columns within this of the sensor [m]
+  static constexpr double kNear = 1.5;      ///< and beyond this (the vehicle itself) [m]
+  static constexpr double kColumn = 1.0;    ///< column edge [m]
+  static constexpr double kBand = 0.25;     ///< a lowest point on the plane: within this [m]
+  static constexpr double kMaxTilt = 35.0;  ///< steeper planes are walls or slopes [deg]
+  /// The plane passes at most this far above the origin: the sensor, or in a frame on the
+  /// ground below it (base_link) that ground; a ceiling lies higher [m].
+  static constexpr double kAbove = 0.3;
+  static constexpr double kMinShare = 0.2;        ///< inliers: at least this share of the columns
+  static constexpr std::size_t kMinInliers = 30;  ///< and at least this many
+  static constexpr int kHypotheses = 200;         ///< RANSAC draws
+  static constexpr std::size_t kSample = 16384;   ///< points read, about (every n-th)
+
+  /// \brief The ground plane around `origin` (the sensor) in `cloud`'s frame.
+  GroundTilt estimate(const CloudView& cloud, const float origin[3]);
+
+  /// \brief Writes `cloud` turned about `origin` so that `tilt.normal` becomes the z axis (the
+  ///        smallest rotation) into `xyz` (packed x y z, input order; non-finite points as they
+  ///        are).
+  static void level(const CloudView& cloud, const float origin[3], const GroundTilt& tilt,
+                    std::vector<float>* xyz);
+
+ private:
+  std::vector<float> low_;  // per column: lowest x, y, z relative to the origin (z: +inf none)
+  std::vector<float> pts_;  // the occupied columns' lowest points
+};
+
+}  // namespace ground_filter
+
+#endif  // GROUND_FILTER_SRC_CORE_COMMON_GROUND_TILT_H
