@@ -549,19 +549,18 @@ void SceneParams::validate() const {
   checkRange("crop_half_length", crop_half_length, 0.0, 1e4, "m");
   checkRange("airborne_extra", airborne_extra, 0.0, 0.5, "");
   checkRange("second_returns", second_returns, 0.0, 1.0, "");
-  if (base_frame && (sceneInWorldFrame(*this) || mode == Mode::kAirborne)) {
-    throw std::invalid_argument(
-        "parameter 'base_frame': only for one scan of a ground-level scanner in its own frame "
-        "(not with world_frame, positions > 1, airborne or uav)");
-  }
   checkRange("ceiling_height", ceiling_height, 1.5, 30.0, "m");
   checkRange("mount_roll_deg", mount_roll_deg, -45.0, 45.0, "deg");
   checkRange("mount_pitch_deg", mount_pitch_deg, -45.0, 45.0, "deg");
-  if ((mount_roll_deg != 0.0 || mount_pitch_deg != 0.0) &&
-      (sceneInWorldFrame(*this) || mode == Mode::kAirborne)) {
-    throw std::invalid_argument(
-        "parameters 'mount_roll_deg', 'mount_pitch_deg': only for one scan of a ground-level "
-        "scanner in its own frame (not with world_frame, positions > 1, airborne or uav)");
+  // A frame on the ground below the scanner and a tilted mount both describe one scan.
+  const char* one_scan = base_frame ? "parameter 'base_frame'"
+                         : mount_roll_deg != 0.0 || mount_pitch_deg != 0.0
+                             ? "parameters 'mount_roll_deg', 'mount_pitch_deg'"
+                             : nullptr;
+  if (one_scan && (sceneInWorldFrame(*this) || mode == Mode::kAirborne)) {
+    throw std::invalid_argument(std::string(one_scan) +
+                                ": only for one scan of a ground-level scanner in its own frame "
+                                "(not with world_frame, positions > 1, airborne or uav)");
   }
 }
 

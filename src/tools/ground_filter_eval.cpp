@@ -228,12 +228,12 @@ HagResult hagOf(const gf::Scan& scan, const gf::CloudView& view,
     surface.heights(view, &heights);
     h.ms.push_back(cli::msSince(t0));
   }
-  // builtin:... (loadScan() has checked the spec): the exact terrain is known.
-  const bool builtin = scan.path.compare(0, 8, "builtin:") == 0;
+  // builtin:... (spec checked by loadScan()): exact terrain, but none in a tilted mount's frame.
+  const std::string prefix = "builtin:";
+  const bool builtin = scan.path.compare(0, prefix.size(), prefix) == 0;
   const gf::SceneParams scene =
-      builtin ? gf::parseSceneSpec(scan.path.substr(8)) : gf::SceneParams();
-  const bool terrain =  // not for a tilted mount's frame: no vertical (sceneGroundHeight NaN)
-      builtin && std::isfinite(gf::sceneGroundHeight(scene, 0.0, 0.0));
+      builtin ? gf::parseSceneSpec(scan.path.substr(prefix.size())) : gf::SceneParams();
+  const bool terrain = builtin && std::isfinite(gf::sceneGroundHeight(scene, 0.0, 0.0));
   for (std::size_t i = 0; i < view.size(); ++i) {
     float x, y, z;
     if (!view.get(i, &x, &y, &z)) continue;

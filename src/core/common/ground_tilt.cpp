@@ -123,14 +123,10 @@ GroundTilt GroundTiltEstimator::estimate(const CloudView& cloud, const float ori
         acc.add(px[i], py[i], pz[i]);
       }
     }
-    Plane plane;
-    if (!acc.fit(&plane)) break;
-    const double s = plane.normal.z() < 0.0 ? -1.0 : 1.0;
-    const double n[3] = {s * plane.normal.x(), s * plane.normal.y(), s * plane.normal.z()};
-    if (n[2] < min_nz) break;
-    const double d = s * (plane.d - plane.normal.dot(plane.origin));
-    std::copy(n, n + 3, bn);
-    bd = d;
+    Plane plane;  // fit(): normal z >= 0, origin 0, so n . p + d = 0 as the draws'
+    if (!acc.fit(&plane) || plane.normal.z() < min_nz) break;
+    for (int a = 0; a < 3; ++a) bn[a] = plane.normal[a];
+    bd = plane.d;
   }
   out.inliers = countNear(px, py, pz, m, bn, bd, kBand);
   out.found = bd >= -kAbove;
