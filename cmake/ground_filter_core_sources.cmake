@@ -17,7 +17,7 @@ set(GF_CORE_SOURCES)
 # shared: makeGroundFilter, parameter parsing, plane fit, working volume, morphological ground
 # surface (airborne mode of both methods), scan_type (which mode a scan runs in)
 gf_core_room(simd simd)
-gf_core_room(common plane_fit param_parse densest_centre ground_tilt)
+gf_core_room(common plane_fit param_parse densest_centre ground_tilt side_task)
 gf_core_room(. build_info filter_factory working_volume)
 gf_core_room(airborne morph_ground scan_type origin_view airborne_mode)
 # voxel method: the filter and its parameter table, one file per stage, the paper mode

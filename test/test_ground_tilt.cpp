@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -15,6 +16,8 @@
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/normal_ground_filter.h"
+#include "knn/kdtree_neighbor_search.h"
+#include "normal/filter_executor.h"
 
 namespace gf = ground_filter;
 
@@ -126,4 +129,78 @@ TEST(NormalGroundFilter, LevelsTheScanOfATiltedMount) {
   gf::NormalGroundFilter(off).filter(gf::CloudView::packedXyz(street.xyz.data(), street.size()),
                                      &labels);
   EXPECT_LT(f1Of(labels, street.truth), 0.5);
+}
+
+namespace {
+
+// An executor that runs the CPU stages on what it is given (the levelling off: the filter levels
+// before it), counting its calls and keeping the first point of each cloud it saw.
+class CpuExecutor : public gf::NormalFilterExecutor {
+ public:
+  explicit CpuExecutor(std::vector<float>* firsts) : firsts_(firsts) {}
+  std::string name() const override { return "cpu-executor"; }
+  bool run(const gf::CloudView& cloud, int sample_stride, const double* /*sensor*/,
+           std::vector<std::uint8_t>* labels, gf::FilterStats* stats) override {
+    firsts_->insert(firsts_->end(), {cloud.x(0), cloud.y(0), cloud.z(0)});
+    gf::NormalGroundFilterParams p;
+    p.threads = 2;
+    p.scan_type = "ground";
+    p.level_tilt = 0.0;
+    p.max_line_ratio = 0.0;  // the stride as given
+    p.sample_stride = sample_stride;
+    gf::NormalGroundFilter inner(p);
+    gf::FilterStats own;
+    inner.filter(cloud, labels, &own);
+    stats->ground_points = own.ground_points;
+    stats->invalid_points = own.invalid_points;
+    stats->backend = name();
+    stats->stage_ms.emplace_back("executor", own.total_ms);
+    return true;
+  }
+  std::string lastNote() const override { return ""; }
+
+ private:
+  std::vector<float>* firsts_;
+};
+
+std::size_t stagesNamed(const gf::FilterStats& st, const std::string& name) {
+  return static_cast<std::size_t>(std::count_if(st.stage_ms.begin(), st.stage_ms.end(),
+                                                [&](const auto& s) { return s.first == name; }));
+}
+
+}  // namespace
+
+// With an executor (the GPU) the tilt check runs beside it on the scan as it comes: a level
+// mount's scan runs once, a tilted one's run is dropped and the turned scan runs again; either
+// way the labels, the note and the stage list are those of the CPU stages, which level first.
+TEST(NormalGroundFilter, TiltCheckBesideTheExecutorGivesTheCpuLabels) {
+  for (const char* spec : {"lidar:1", "lidar:1:mount_pitch_deg=15", "trail:1:mount_roll_deg=12"}) {
+    const gf::GeneratedScan s = gf::generateScene(gf::parseSceneSpec(spec));
+    const gf::CloudView cloud = gf::CloudView::packedXyz(s.xyz.data(), s.size());
+    gf::NormalGroundFilterParams p;
+    p.threads = 2;
+    p.scan_type = "ground";
+    std::vector<std::uint8_t> cpu, beside;
+    gf::FilterStats cpu_st, st;
+    gf::NormalGroundFilter(p).filter(cloud, &cpu, &cpu_st);
+    std::vector<float> firsts;
+    gf::NormalGroundFilter filter(p, std::make_unique<gf::KdTreeNeighborSearch>(2),
+                                  std::make_unique<CpuExecutor>(&firsts));
+    for (int rep = 0; rep < 2; ++rep) {  // the second scan: the scan lines kept from the first
+      firsts.clear();
+      filter.filter(cloud, &beside, &st);
+      const bool turned = cpu_st.note.find("turned onto it") != std::string::npos;
+      EXPECT_EQ(turned, std::string(spec) != "lidar:1") << spec << ": " << cpu_st.note;
+      ASSERT_EQ(firsts.size(), turned ? 6u : 3u) << spec;
+      EXPECT_EQ(firsts[0], s.xyz[0]) << spec;              // the scan as it comes first
+      if (turned) EXPECT_NE(firsts[5], s.xyz[2]) << spec;  // then the turned one
+      EXPECT_EQ(beside, cpu) << spec;
+      EXPECT_EQ(st.backend, "cpu-executor") << spec;
+      EXPECT_EQ(st.note, cpu_st.note) << spec;
+      EXPECT_EQ(st.ground_points, cpu_st.ground_points) << spec;
+      EXPECT_EQ(stagesNamed(st, "level"), 1u) << spec;
+      EXPECT_EQ(stagesNamed(st, "executor"), 1u) << spec;
+      EXPECT_EQ(stagesNamed(st, "lines"), 1u) << spec;
+    }
+  }
 }

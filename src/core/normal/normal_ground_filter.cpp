@@ -13,6 +13,7 @@
 #include "airborne/origin_view.h"
 #include "airborne/scan_type.h"
 #include "common/ground_tilt.h"
+#include "common/side_task.h"
 #include "common/stream_keep.h"
 #include "common/threads_timing.h"
 #include "knn/knn_backend.h"
@@ -57,6 +58,9 @@ struct NormalGroundFilter::Impl {
   double lattice_var[3] = {0.0, 0.0, 0.0};  // this scan's: step^2 / 12 per axis [m^2]
   bool on_lattice = false;
   GroundTiltEstimator tilt;         // 0a: a sensor mounted tilted (level_tilt)
+  GroundTilt tilt_found;            // 0a: this scan's ground around the sensor
+  double tilt_ms = 0.0;             // 0a: the time its estimate took
+  SideTask side;                    // 0a beside the executor (executeBeside())
   std::vector<float> levelled_xyz;  // 0a: the scan turned onto its ground, packed xyz
   CloudView levelled_view;          // 0a: a view of it
   // Per-scan results, in stage order.
@@ -103,10 +107,34 @@ struct NormalGroundFilter::Impl {
   // *vote_ms.
   std::size_t normalsAndVotes(const NormalGroundFilterParams& p, std::size_t n, int stride,
                               int threads, std::size_t* sampled, double* vote_ms);
-  // 0a: `cloud`, or where its ground leans level_tilt or more (a single scan: the sensor at the
-  // origin), the scan turned about the sensor onto that ground (levelled_view); a note says so.
-  const CloudView& levelled(const NormalGroundFilterParams& p, const ScanDecision& decision,
-                            const CloudView& cloud, FilterStats* st);
+  // 0a applies: level_tilt > 0 and a single scan with its sensor at a finite origin.
+  bool checksTilt(const NormalGroundFilterParams& p, const ScanDecision& decision) const;
+  // 0a: tilt_found and tilt_ms of `cloud`.
+  void estimateTilt(const CloudView& cloud);
+  // 0a: tilt_found leans level_tilt or more.
+  bool turns(const NormalGroundFilterParams& p) const {
+    return tilt_found.found && tilt_found.tilt_deg >= p.level_tilt;
+  }
+  // 0a: `cloud` turned about the sensor onto tilt_found's ground (levelled_view); a note says so.
+  const CloudView& levelTo(const NormalGroundFilterParams& p, const CloudView& cloud,
+                           FilterStats* st);
+  // What the stages after 0a take from 1a and the sensor.
+  struct Prepared {
+    int stride = 1;                  // 1a: the sample stride the scan lines ask for
+    const double* sensor = nullptr;  // the sensor's x, y, z, or null
+  };
+  // 1a, the sensor and 0 on `in`, then the executor where there is one: true when it labelled
+  // the scan.
+  bool prepareAndExecute(const NormalGroundFilterParams& p, const ScanDecision& decision,
+                         const CloudView& in, std::vector<std::uint8_t>* labels, FilterStats* st,
+                         Prepared* prep);
+  // 0a beside the executor: the scan as it comes runs on the executor while a thread of its own
+  // estimates the tilt (its check then costs the host's waits on the device, not their sum).
+  // Where the scan turns, that run is dropped (stats, notes and the scan lines kept back as
+  // they were) and false returned: the caller runs the turned scan.
+  bool executeBeside(const NormalGroundFilterParams& p, const ScanDecision& decision,
+                     const CloudView& cloud, std::vector<std::uint8_t>* labels, FilterStats* st,
+                     Prepared* prep);
   // on_lattice (returned) and lattice_var of `cloud`; a note names the steps.
   bool measureLattice(const CloudView& cloud, std::string* note);
 };
@@ -148,29 +176,85 @@ bool NormalGroundFilter::Impl::measureLattice(const CloudView& cloud, std::strin
   return true;
 }
 
-const CloudView& NormalGroundFilter::Impl::levelled(const NormalGroundFilterParams& p,
-                                                    const ScanDecision& decision,
-                                                    const CloudView& cloud, FilterStats* st) {
+bool NormalGroundFilter::Impl::checksTilt(const NormalGroundFilterParams& p,
+                                          const ScanDecision& decision) const {
   const float* o = scan.origin();
-  if (p.level_tilt <= 0.0 || decision.registered || !std::isfinite(o[0]) || !std::isfinite(o[1]) ||
-      !std::isfinite(o[2])) {
-    return cloud;
+  return p.level_tilt > 0.0 && !decision.registered && std::isfinite(o[0]) && std::isfinite(o[1]) &&
+         std::isfinite(o[2]);
+}
+
+void NormalGroundFilter::Impl::estimateTilt(const CloudView& cloud) {
+  const auto t0 = Clock::now();
+  tilt_found = tilt.estimate(cloud, scan.origin());
+  tilt_ms = msSince(t0);
+}
+
+const CloudView& NormalGroundFilter::Impl::levelTo(const NormalGroundFilterParams& p,
+                                                   const CloudView& cloud, FilterStats* st) {
+  GroundTiltEstimator::level(cloud, scan.origin(), tilt_found, &levelled_xyz);
+  levelled_view = CloudView::packedXyz(levelled_xyz.data(), cloud.size());
+  char text[200];
+  std::snprintf(text, sizeof text,
+                "%sthe ground around the sensor leans %.1f deg in the cloud's frame "
+                "(level_tilt %.1f): the scan was turned onto it",
+                st->note.empty() ? "" : "; ", tilt_found.tilt_deg, p.level_tilt);
+  st->note.append(text);
+  return levelled_view;
+}
+
+bool NormalGroundFilter::Impl::prepareAndExecute(const NormalGroundFilterParams& p,
+                                                 const ScanDecision& decision, const CloudView& in,
+                                                 std::vector<std::uint8_t>* labels, FilterStats* st,
+                                                 Prepared* prep) {
+  // 1a. a sparse spinning sensor's scan lines: the stride its normals need (scan_lines.h);
+  //     where the origin lies on the ground below the sensor, they show the sensor's height.
+  int stride = p.sample_stride;
+  const normal::ScanLines* lines = nullptr;
+  if (p.max_line_ratio > 0.0 && !decision.registered) {
+    const auto t_lines = Clock::now();
+    lines = &linesOf(in);
+    stride = normal::strideForScanLines(*lines, p.max_line_ratio, stride);
+    st->stage_ms.emplace_back("lines", msSince(t_lines));
   }
-  const auto t_level = Clock::now();
-  const GroundTilt t = tilt.estimate(cloud, o);
-  const bool turn = t.found && t.tilt_deg >= p.level_tilt;
-  if (turn) {
-    GroundTiltEstimator::level(cloud, o, t, &levelled_xyz);
-    levelled_view = CloudView::packedXyz(levelled_xyz.data(), cloud.size());
-    char text[200];
-    std::snprintf(text, sizeof text,
-                  "%sthe ground around the sensor leans %.1f deg in the cloud's frame "
-                  "(level_tilt %.1f): the scan was turned onto it",
-                  st->note.empty() ? "" : "; ", t.tilt_deg, p.level_tilt);
-    st->note.append(text);
+  // null: no sensor at the origin, nor where sparse lines, seen from above it, put it
+  const double none[3] = {0.0, 0.0, 0.0};
+  prep->sensor = sensorOf(decision, in, stride != p.sample_stride ? lines->from : none, st);
+  if (stride != p.sample_stride) appendStrideNote(p, stride, *lines, &st->note);
+  prep->stride = stride;
+  // 0. coordinates on a coarse lattice (float32 far from the origin): the PCA adds back the
+  //    spread its steps hide (normal/lattice.h; 0.03 ms a KITTI frame), on the CPU. Then the
+  //    whole filter on the executor (GPU) when the filter has one; when it declines the scan
+  //    (a device fault) the caller's stages run it on the CPU.
+  if (measureLattice(in, &st->note) || !executor) return false;
+  if (executor->run(in, stride, prep->sensor, labels, st)) return true;
+  st->note += (st->note.empty() ? "" : "; ") + executor->lastNote();
+  return false;
+}
+
+bool NormalGroundFilter::Impl::executeBeside(const NormalGroundFilterParams& p,
+                                             const ScanDecision& decision, const CloudView& cloud,
+                                             std::vector<std::uint8_t>* labels, FilterStats* st,
+                                             Prepared* prep) {
+  const normal::ScanLines lines_before = lines_kept;
+  const StreamKeep keep_before = lines_keep;
+  const std::size_t note_size = st->note.size(), stages = st->stage_ms.size();
+  auto check = [this, &cloud] { estimateTilt(cloud); };
+  side.start(&check);
+  bool done = false;
+  try {
+    done = prepareAndExecute(p, decision, cloud, labels, st, prep);
+  } catch (...) {
+    side.wait();  // `check` reads `cloud`
+    throw;
   }
-  st->stage_ms.emplace_back("level", msSince(t_level));
-  return turn ? levelled_view : cloud;
+  side.wait();
+  if (!turns(p)) return done;
+  lines_kept = lines_before;
+  lines_keep = keep_before;
+  st->note.resize(note_size);
+  st->stage_ms.resize(stages);
+  labels->assign(cloud.size(), kNonGround);
+  return false;
 }
 
 const normal::ScanLines& NormalGroundFilter::Impl::linesOf(const CloudView& cloud) {
@@ -338,34 +422,30 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
 
   // ---- 0a. a sensor mounted tilted (no gravity frame): the scan turned onto its ground, which
   //      the angle window would miss; every later stage (and the GPU) sees the turned points.
-  const CloudView& in = im.levelled(p, scan, cloud, &st);
-
-  // ---- 1a. a sparse spinning sensor's scan lines: the stride its normals need (scan_lines.h);
-  //      where the origin lies on the ground below the sensor, they show the sensor's height.
-  int stride = p.sample_stride;
-  const normal::ScanLines* lines = nullptr;
-  if (p.max_line_ratio > 0.0 && !scan.registered) {
-    const auto t_lines = Clock::now();
-    lines = &im.linesOf(in);
-    stride = normal::strideForScanLines(*lines, p.max_line_ratio, stride);
-    st.stage_ms.emplace_back("lines", msSince(t_lines));
-  }
-  // null: no sensor at the origin, nor where sparse lines, seen from above it, put it
-  const double none[3] = {0.0, 0.0, 0.0};
-  const double* sensor = im.sensorOf(scan, in, stride != p.sample_stride ? lines->from : none, &st);
-  if (stride != p.sample_stride) appendStrideNote(p, stride, *lines, &st.note);
-
-  // ---- 0. coordinates on a coarse lattice (float32 far from the origin): the PCA adds back the
-  //      spread its steps hide (normal/lattice.h; 0.03 ms a KITTI frame), on the CPU. Then the
-  //      whole filter on the executor (GPU) when the filter has one; when it declines the scan
-  //      (a device fault) the stages below run it on the CPU.
-  if (!im.measureLattice(in, &st.note) && im.executor) {
-    if (im.executor->run(in, stride, sensor, labels, &st)) {
-      st.total_ms = msSince(t_start);
-      return;
+  //      With an executor (GPU) the check runs beside it on the scan as it comes.
+  // ---- 1a, the sensor's position, 0 (coordinates on a lattice) and the executor:
+  //      prepareAndExecute().
+  const CloudView* turned = nullptr;
+  Impl::Prepared prep;
+  bool ran = false, done = false;  // ran: 1a to the executor ran on the scan the stages see
+  if (im.checksTilt(p, scan)) {
+    if (im.executor) {
+      done = im.executeBeside(p, scan, cloud, labels, &st, &prep);
+      ran = !im.turns(p);
+    } else {
+      im.estimateTilt(cloud);
     }
-    st.note += (st.note.empty() ? "" : "; ") + im.executor->lastNote();
+    st.stage_ms.emplace_back("level", im.tilt_ms);
+    if (im.turns(p)) turned = &im.levelTo(p, cloud, &st);
   }
+  const CloudView& in = turned ? *turned : cloud;
+  if (!ran) done = im.prepareAndExecute(p, scan, in, labels, &st, &prep);
+  if (done) {
+    st.total_ms = msSince(t_start);
+    return;
+  }
+  int stride = prep.stride;
+  const double* sensor = prep.sensor;
 
   // 1. Valid points in grid-column order, cut into segments.
   auto t0 = Clock::now();
