@@ -202,8 +202,8 @@ class RosExtrasTest(RosTestCase):
             gi = np.frombuffer(g.data, dtype=REC)["idx"]
             self.assertTrue(np.all(b[gi] == 1))
 
-            # Control: the tilted frame classified without the gravity frame (and, for the
-            # normal method, without its own levelling: level_tilt 0 in ros_extras.test).
+            # Control: the tilted frame classified without the gravity frame (and without the
+            # method's own levelling: level_tilt 0 in ros_extras.test).
             stamp2 = self.next_stamp()
             self.pubs["flat"].publish(make_cloud(self.tilted, "velodyne_tilted", stamp2))
             self.wait_for(lambda: out.get(topics[0], stamp2), "control output")

@@ -16,6 +16,7 @@
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/normal_ground_filter.h"
+#include "ground_filter/voxel_ground_filter.h"
 #include "knn/kdtree_neighbor_search.h"
 #include "normal/filter_executor.h"
 
@@ -129,6 +130,37 @@ TEST(NormalGroundFilter, LevelsTheScanOfATiltedMount) {
   gf::NormalGroundFilter(off).filter(gf::CloudView::packedXyz(street.xyz.data(), street.size()),
                                      &labels);
   EXPECT_LT(f1Of(labels, street.truth), 0.5);
+}
+
+// The voxel method levels the same way (its flat-voxel test leans with the ground): each tilted
+// scene within 0.01 of its level mount's F1, a level mount not turned, and without the rule the
+// street pitched 20 deg more than 0.01 lower (94.9 against 96.8 %).
+TEST(VoxelGroundFilter, LevelsTheScanOfATiltedMount) {
+  const char* specs[][2] = {{"lidar:1:mount_pitch_deg=20", "lidar:1"},
+                            {"trail:1:mount_roll_deg=20", "trail:1"},
+                            {"verge:1:mount_pitch_deg=-8,mount_roll_deg=6", "verge:1"}};
+  gf::VoxelGroundFilterParams p;
+  gf::VoxelGroundFilter filter(p);
+  gf::VoxelGroundFilterParams off = p;
+  off.level_tilt = 0.0;
+  gf::VoxelGroundFilter unlevelled(off);
+  for (const auto& s : specs) {
+    const gf::GeneratedScan tilted = gf::generateScene(gf::parseSceneSpec(s[0]));
+    const gf::GeneratedScan level = gf::generateScene(gf::parseSceneSpec(s[1]));
+    std::vector<std::uint8_t> labels;
+    gf::FilterStats stats;
+    filter.filter(gf::CloudView::packedXyz(level.xyz.data(), level.size()), &labels, &stats);
+    const double f1_level = f1Of(labels, level.truth);
+    EXPECT_EQ(stats.note.find("turned"), std::string::npos) << s[1] << ": " << stats.note;
+    const gf::CloudView view = gf::CloudView::packedXyz(tilted.xyz.data(), tilted.size());
+    filter.filter(view, &labels, &stats);
+    EXPECT_GT(f1Of(labels, tilted.truth), f1_level - 0.01) << s[0];
+    EXPECT_NE(stats.note.find("turned onto it"), std::string::npos) << s[0] << ": " << stats.note;
+    if (s == specs[0]) {
+      unlevelled.filter(view, &labels, &stats);
+      EXPECT_LT(f1Of(labels, tilted.truth), f1_level - 0.01) << s[0];
+    }
+  }
 }
 
 namespace {

@@ -28,6 +28,7 @@ VoxelGroundFilterParams paperVoxelParams() {
   p.std_filter = true;
   p.std_multiplier = 1.0;
   p.scan_type = "ground";  // the paper's steps only (its segments are not whole scans)
+  p.level_tilt = 0.0;      // nor levelled: a segment has no sensor at its origin
   return p;
 }
 

@@ -5,11 +5,13 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 #include "airborne/airborne_mode.h"
 #include "airborne/scan_type.h"
 #include "common/densest_centre.h"
+#include "common/ground_tilt.h"
 #include "common/threads_timing.h"
 #include "ground_filter/param_parse.h"
 #include "ground_filter/working_volume_params.h"
@@ -91,8 +93,44 @@ struct VoxelGroundFilter::Impl {
   MorphGround morph;                      // airborne scans only
   ScanTypeSwitch scan;                    // scan_type: this scan's mode
   DensestCentre centre;                   // the sensor where the origin is none (a map frame)
+  GroundTiltEstimator tilt;               // 0: a sensor mounted tilted (level_tilt)
+  std::vector<float> levelled_xyz;        // 0: the scan turned onto its ground, packed xyz
+  CloudView levelled_view;                // 0: a view of it
   explicit Impl(const VoxelGroundFilterParams& p) : scan(p.scan_type, p.morph_ground) {}
+  // 0: `cloud`, or where its ground leans level_tilt or more (a single scan: the sensor at the
+  // origin), the scan turned about the sensor onto that ground; a note says so (stats only).
+  const CloudView& levelled(const VoxelGroundFilterParams& p, const ScanDecision& decision,
+                            const CloudView& cloud, FilterStats* stats);
 };
+
+const CloudView& VoxelGroundFilter::Impl::levelled(const VoxelGroundFilterParams& p,
+                                                   const ScanDecision& decision,
+                                                   const CloudView& cloud, FilterStats* stats) {
+  const float* o = scan.origin();
+  if (p.level_tilt <= 0.0 || decision.registered || !std::isfinite(o[0]) || !std::isfinite(o[1]) ||
+      !std::isfinite(o[2])) {
+    return cloud;
+  }
+  const auto t0 = Clock::now();
+  const GroundTilt t = tilt.estimate(cloud, o);
+  const bool turn = t.found && t.tilt_deg >= p.level_tilt;
+  if (turn) {
+    GroundTiltEstimator::level(cloud, o, t, &levelled_xyz);
+    levelled_view = CloudView::packedXyz(levelled_xyz.data(), cloud.size());
+  }
+  if (stats) {
+    if (turn) {
+      char text[200];
+      std::snprintf(text, sizeof text,
+                    "%sthe ground around the sensor leans %.1f deg in the cloud's frame "
+                    "(level_tilt %.1f): the scan was turned onto it",
+                    stats->note.empty() ? "" : "; ", t.tilt_deg, p.level_tilt);
+      stats->note.append(text);
+    }
+    stats->stage_ms.emplace_back("level", msSince(t0));
+  }
+  return turn ? levelled_view : cloud;
+}
 
 VoxelGroundFilter::VoxelGroundFilter(const VoxelGroundFilterParams& params) : params_(params) {
   params_.validate();
@@ -153,9 +191,13 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
     return true;
   }
 
+  // ---- 0. a sensor mounted tilted (no gravity frame): the scan turned onto its ground, whose
+  //      voxels would not be flat (a ball about the sensor, `volume`, turns onto itself)
+  const CloudView& in = m.levelled(p, scan, cloud, stats ? &st : nullptr);
+
   // ---- 1. valid points, bounds (inside `volume`?), voxel keys
   auto t0 = Clock::now();
-  const std::size_t n = m.voxelizer.prepare(cloud, p.voxel_size, threads, &m.pool, volume, &g);
+  const std::size_t n = m.voxelizer.prepare(in, p.voxel_size, threads, &m.pool, volume, &g);
   if (n == voxel::Voxelizer::kOutside) return false;
   st.invalid_points = cloud.size() - n;
   stage("prepare", t0);
@@ -195,7 +237,7 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
     // ground there (a map frame's origin beside the scan), where "below the sensor" would take
     // a plane extrapolated under it. A spinning sensor sits over the densest area's centre,
     // kSensorAboveGround above its ground.
-    below_sensor = m.centre.find(cloud, sensor);
+    below_sensor = m.centre.find(in, sensor);
     sensor[2] += kSensorAboveGround;
   }
   m.segmenter.globalPlane(p, g, below_sensor ? sensor : nullptr, &seg);
