@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <limits>
 
 #include "common/plane_fit.h"
@@ -163,6 +164,20 @@ void GroundTiltEstimator::level(const CloudView& cloud, const float origin[3],
     out[3 * i + 1] = static_cast<float>(oy + r[3] * x + r[4] * y + r[5] * z);
     out[3 * i + 2] = static_cast<float>(oz + r[6] * x + r[7] * y + r[8] * z);
   }
+}
+
+bool GroundTiltEstimator::applies(double level_tilt, bool registered, const float origin[3]) {
+  return level_tilt > 0.0 && !registered && std::isfinite(origin[0]) && std::isfinite(origin[1]) &&
+         std::isfinite(origin[2]);
+}
+
+void GroundTiltEstimator::appendTurnNote(double tilt_deg, double level_tilt, std::string* note) {
+  char text[160];
+  std::snprintf(text, sizeof text,
+                "%sthe ground around the sensor leans %.1f deg in the cloud's frame "
+                "(level_tilt %.1f): the scan was turned onto it",
+                note->empty() ? "" : "; ", tilt_deg, level_tilt);
+  note->append(text);
 }
 
 }  // namespace ground_filter

@@ -2,6 +2,7 @@
 #define GROUND_FILTER_SRC_CORE_COMMON_GROUND_TILT_H
 
 #include <cstddef>
+#include <string>
 #include <vector>
 
 #include "ground_filter/cloud_view.h"
@@ -38,6 +39,13 @@ class GroundTiltEstimator {
   static constexpr std::size_t kMinInliers = 30;  ///< and at least this many
   static constexpr int kHypotheses = 200;         ///< RANSAC draws
   static constexpr std::size_t kSample = 16384;   ///< points read, about (every n-th)
+
+  /// \brief The check applies: `level_tilt` > 0 and a single scan (not `registered`) whose
+  ///        sensor, `origin`, is finite.
+  static bool applies(double level_tilt, bool registered, const float origin[3]);
+  /// \brief Appends "the ground around the sensor leans ... the scan was turned onto it" to
+  ///        `note` ("; " first unless it is empty).
+  static void appendTurnNote(double tilt_deg, double level_tilt, std::string* note);
 
   /// \brief The ground plane around `origin` (the sensor) in `cloud`'s frame.
   GroundTilt estimate(const CloudView& cloud, const float origin[3]);

@@ -178,9 +178,7 @@ bool NormalGroundFilter::Impl::measureLattice(const CloudView& cloud, std::strin
 
 bool NormalGroundFilter::Impl::checksTilt(const NormalGroundFilterParams& p,
                                           const ScanDecision& decision) const {
-  const float* o = scan.origin();
-  return p.level_tilt > 0.0 && !decision.registered && std::isfinite(o[0]) && std::isfinite(o[1]) &&
-         std::isfinite(o[2]);
+  return GroundTiltEstimator::applies(p.level_tilt, decision.registered, scan.origin());
 }
 
 void NormalGroundFilter::Impl::estimateTilt(const CloudView& cloud) {
@@ -193,12 +191,7 @@ const CloudView& NormalGroundFilter::Impl::levelTo(const NormalGroundFilterParam
                                                    const CloudView& cloud, FilterStats* st) {
   GroundTiltEstimator::level(cloud, scan.origin(), tilt_found, &levelled_xyz);
   levelled_view = CloudView::packedXyz(levelled_xyz.data(), cloud.size());
-  char text[200];
-  std::snprintf(text, sizeof text,
-                "%sthe ground around the sensor leans %.1f deg in the cloud's frame "
-                "(level_tilt %.1f): the scan was turned onto it",
-                st->note.empty() ? "" : "; ", tilt_found.tilt_deg, p.level_tilt);
-  st->note.append(text);
+  GroundTiltEstimator::appendTurnNote(tilt_found.tilt_deg, p.level_tilt, &st->note);
   return levelled_view;
 }
 

@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <stdexcept>
 
 #include "airborne/airborne_mode.h"
@@ -107,10 +106,7 @@ const CloudView& VoxelGroundFilter::Impl::levelled(const VoxelGroundFilterParams
                                                    const ScanDecision& decision,
                                                    const CloudView& cloud, FilterStats* stats) {
   const float* o = scan.origin();
-  if (p.level_tilt <= 0.0 || decision.registered || !std::isfinite(o[0]) || !std::isfinite(o[1]) ||
-      !std::isfinite(o[2])) {
-    return cloud;
-  }
+  if (!GroundTiltEstimator::applies(p.level_tilt, decision.registered, o)) return cloud;
   const auto t0 = Clock::now();
   const GroundTilt t = tilt.estimate(cloud, o);
   const bool turn = t.found && t.tilt_deg >= p.level_tilt;
@@ -119,14 +115,7 @@ const CloudView& VoxelGroundFilter::Impl::levelled(const VoxelGroundFilterParams
     levelled_view = CloudView::packedXyz(levelled_xyz.data(), cloud.size());
   }
   if (stats) {
-    if (turn) {
-      char text[200];
-      std::snprintf(text, sizeof text,
-                    "%sthe ground around the sensor leans %.1f deg in the cloud's frame "
-                    "(level_tilt %.1f): the scan was turned onto it",
-                    stats->note.empty() ? "" : "; ", t.tilt_deg, p.level_tilt);
-      stats->note.append(text);
-    }
+    if (turn) GroundTiltEstimator::appendTurnNote(t.tilt_deg, p.level_tilt, &stats->note);
     stats->stage_ms.emplace_back("level", msSince(t0));
   }
   return turn ? levelled_view : cloud;
