@@ -133,7 +133,7 @@ TEST(VoxelGroundFilter, NoAllocationAfterTheFirstScanOfASize) {
         std::vector<std::uint8_t> first;
         gf::FilterStats stats;
         f.filter(c.view(), &first, &stats);
-        const std::size_t stages = veg ? 7u : 6u;  // + "vegetation"
+        const std::size_t stages = veg ? 8u : 7u;  // "level" first; + "vegetation"
         ASSERT_EQ(stats.stage_ms.size(), stages);
         std::vector<std::uint8_t> labels(c.size(), 2);  // allocated before counting
         const std::size_t before = allocationCount().load();
