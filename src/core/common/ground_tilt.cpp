@@ -136,8 +136,8 @@ GroundTilt GroundTiltEstimator::estimate(const CloudView& cloud, const float ori
   return out;
 }
 
-void GroundTiltEstimator::level(const CloudView& cloud, const float origin[3],
-                                const GroundTilt& tilt, std::vector<float>* xyz) {
+CloudView GroundTiltEstimator::level(const CloudView& cloud, const float origin[3],
+                                     const GroundTilt& tilt, std::vector<float>* xyz) {
   // Rodrigues: the rotation about axis n x z by the angle between them takes n onto z.
   const double* n = tilt.normal;
   const double ax = n[1], ay = -n[0];  // n x (0, 0, 1)
@@ -164,6 +164,7 @@ void GroundTiltEstimator::level(const CloudView& cloud, const float origin[3],
     out[3 * i + 1] = static_cast<float>(oy + r[3] * x + r[4] * y + r[5] * z);
     out[3 * i + 2] = static_cast<float>(oz + r[6] * x + r[7] * y + r[8] * z);
   }
+  return CloudView::packedXyz(out, cloud.size());
 }
 
 bool GroundTiltEstimator::applies(double level_tilt, bool registered, const float origin[3]) {

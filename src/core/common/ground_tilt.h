@@ -17,6 +17,8 @@ struct GroundTilt {
   double tilt_deg = 0.0;               ///< angle between normal and the frame's z [deg]
   std::size_t columns = 0;             ///< occupied columns within kRadius
   std::size_t inliers = 0;             ///< columns whose lowest point lies on the plane
+  /// \brief A plane was found and leans `level_tilt` or more: the scan is to be turned.
+  bool turns(double level_tilt) const { return found && tilt_deg >= level_tilt; }
 };
 
 /// \brief Finds how far a single scan's frame leans from the ground around its sensor (a
@@ -52,9 +54,9 @@ class GroundTiltEstimator {
 
   /// \brief Writes `cloud` turned about `origin` so that `tilt.normal` becomes the z axis (the
   ///        smallest rotation) into `xyz` (packed x y z, input order; non-finite points as they
-  ///        are).
-  static void level(const CloudView& cloud, const float origin[3], const GroundTilt& tilt,
-                    std::vector<float>* xyz);
+  ///        are). \return a view of `xyz`.
+  static CloudView level(const CloudView& cloud, const float origin[3], const GroundTilt& tilt,
+                         std::vector<float>* xyz);
 
  private:
   std::vector<float> low_;  // per column: lowest x, y, z relative to the origin (z: +inf none)

@@ -112,9 +112,7 @@ struct NormalGroundFilter::Impl {
   // 0a: tilt_found and tilt_ms of `cloud`.
   void estimateTilt(const CloudView& cloud);
   // 0a: tilt_found leans level_tilt or more.
-  bool turns(const NormalGroundFilterParams& p) const {
-    return tilt_found.found && tilt_found.tilt_deg >= p.level_tilt;
-  }
+  bool turns(const NormalGroundFilterParams& p) const { return tilt_found.turns(p.level_tilt); }
   // 0a: `cloud` turned about the sensor onto tilt_found's ground (levelled_view); a note says so.
   const CloudView& levelTo(const NormalGroundFilterParams& p, const CloudView& cloud,
                            FilterStats* st);
@@ -189,8 +187,7 @@ void NormalGroundFilter::Impl::estimateTilt(const CloudView& cloud) {
 
 const CloudView& NormalGroundFilter::Impl::levelTo(const NormalGroundFilterParams& p,
                                                    const CloudView& cloud, FilterStats* st) {
-  GroundTiltEstimator::level(cloud, scan.origin(), tilt_found, &levelled_xyz);
-  levelled_view = CloudView::packedXyz(levelled_xyz.data(), cloud.size());
+  levelled_view = GroundTiltEstimator::level(cloud, scan.origin(), tilt_found, &levelled_xyz);
   GroundTiltEstimator::appendTurnNote(tilt_found.tilt_deg, p.level_tilt, &st->note);
   return levelled_view;
 }

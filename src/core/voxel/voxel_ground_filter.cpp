@@ -109,11 +109,8 @@ const CloudView& VoxelGroundFilter::Impl::levelled(const VoxelGroundFilterParams
   if (!GroundTiltEstimator::applies(p.level_tilt, decision.registered, o)) return cloud;
   const auto t0 = Clock::now();
   const GroundTilt t = tilt.estimate(cloud, o);
-  const bool turn = t.found && t.tilt_deg >= p.level_tilt;
-  if (turn) {
-    GroundTiltEstimator::level(cloud, o, t, &levelled_xyz);
-    levelled_view = CloudView::packedXyz(levelled_xyz.data(), cloud.size());
-  }
+  const bool turn = t.turns(p.level_tilt);
+  if (turn) levelled_view = GroundTiltEstimator::level(cloud, o, t, &levelled_xyz);
   if (stats) {
     if (turn) GroundTiltEstimator::appendTurnNote(t.tilt_deg, p.level_tilt, &stats->note);
     stats->stage_ms.emplace_back("level", msSince(t0));
