@@ -10,8 +10,9 @@
       x y z intensity label with 1 ground / 0 non-ground / 255 ignored (RELLIS_* below).
   data_convert.py las IN.laz OUT.pcd --offset X Y [--ignore C ...]
       airborne tile with the provider's classes: x y z intensity label, label 1 for LAS class 2,
-      255 for the --ignore classes, else 0; x, y minus the offset. Needs laspy with a LAZ backend
-      (lazrs or laszip) or PDAL's command-line tool: Debian 12 packages none of them.
+      255 for the --ignore classes, else 0; x, y minus the offset. An uncompressed LAS needs
+      numpy only; a LAZ needs laspy with a LAZ backend (lazrs or laszip) or PDAL's command-line
+      tool: Debian 12 packages none of them.
 
 Output: binary PCD, written to OUT.pcd.part and renamed only when complete. numpy only (plus
 the LAZ reader for `las`). Python 3.8+.
@@ -163,8 +164,42 @@ def convert_rellis(scan, labels, out):
                     ("label", out_lab)])
 
 
+def read_plain_las(path):
+    """x y z (float64), intensity, classification of an uncompressed LAS file (1.0-1.4, point
+    formats 0-10), numpy only; None for anything else (LAZ)."""
+    with open(path, "rb") as f:
+        b = f.read()
+    if len(b) < 227 or b[:4] != b"LASF":
+        return None
+    fmt = b[104]
+    if fmt & 0xC0:  # LAZ marks compressed points with bit 7 (or 6) of the format id
+        return None
+    if fmt > 10:
+        raise ConvertError("%s: LAS point format %d is not one of 0-10" % (path, fmt))
+    offset = int(np.frombuffer(b, "<u4", 1, 96)[0])
+    rec = int(np.frombuffer(b, "<u2", 1, 105)[0])
+    n = int(np.frombuffer(b, "<u4", 1, 107)[0])
+    if n == 0 and b[25] >= 4 and len(b) >= 255:  # LAS 1.4: the 64-bit count
+        n = int(np.frombuffer(b, "<u8", 1, 247)[0])
+    if offset + n * rec > len(b):
+        raise ConvertError("%s: %d points of %d bytes do not fit in the file" % (path, n, rec))
+    scale = np.frombuffer(b, "<f8", 3, 131)
+    origin = np.frombuffer(b, "<f8", 3, 155)
+    pts = np.frombuffer(b, np.uint8, n * rec, offset).reshape(n, rec)
+    xyz = [pts[:, 4 * i:4 * i + 4].copy().view("<i4").ravel() * scale[i] + origin[i]
+           for i in range(3)]
+    intensity = pts[:, 12:14].copy().view("<u2").ravel()
+    # Formats 0-5: 5 bits of class in byte 15; 6-10: a whole byte at 16.
+    cls = (pts[:, 15] & 0x1F) if fmt < 6 else pts[:, 16]
+    return xyz[0], xyz[1], xyz[2], intensity, cls.astype(np.int64)
+
+
 def read_las(path):
-    """x y z (float64), intensity, classification of a LAS/LAZ file: laspy, else PDAL's CLI."""
+    """x y z (float64), intensity, classification of a LAS/LAZ file: an uncompressed LAS by
+    read_plain_las(), a LAZ by laspy, else by PDAL's CLI."""
+    plain = read_plain_las(path)
+    if plain is not None:
+        return plain
     try:
         import laspy  # noqa: F401 (optional)
         las = laspy.read(path)

@@ -5,6 +5,8 @@
 #                                   # voxel_paper; every group
 #   METHODS="voxel normal@vehicle_lidar_normal" bash scripts/eval_all.sh   # METHOD[@PRESET]
 #   bash scripts/eval_all.sh --set plane_distance=0.2   # extra eval arguments for every run
+#   HELDOUT=1 METHODS="voxel normal" bash scripts/eval_all.sh   # the held-out groups instead
+#       (bash scripts/get_data.sh --held-out: data folder's heldout/)
 #   SEEDS="0 1 2 3 4 5 6 7 8 9" METHODS=normal bash scripts/eval_all.sh   # normal rows once per
 #       ransac_seed: P / R / F1 of the first seed, then the F1 mean, sd and min-max over the seeds
 # Groups: SemanticKITTI seq00 0-2 (labelled), RELLIS-3D off-road frame, ISPRS 8 tiles and the two
@@ -31,6 +33,13 @@ SEEDS="${SEEDS:-}"  # ransac_seed values for the normal method (the voxel method
 [ -x "${EVAL}" ] || { echo "eval_all.sh: ${EVAL} not built" >&2; exit 1; }
 
 K="${DATA}/semantickitti/seq00"
+if [ "${HELDOUT:-0}" = 1 ] && [ -z "${GROUPS_DEF:-}" ]; then
+  H="${DATA}/heldout"
+  [ -d "${H}/isprs" ] || { echo "eval_all.sh: no ${H}: bash scripts/get_data.sh --held-out" >&2; exit 1; }
+  GROUPS_DEF="held-out kitti (seq04 000056, spvnas 000000)||${H}/semantickitti
+held-out isprs 7 tiles||${H}/isprs
+held-out airborne_pdal 5 tiles||${H}/airborne_pdal"
+fi
 # name|extra eval arguments|paths
 GROUPS_DEF="${GROUPS_DEF:-kitti seq00 0-2||${K}/000000.bin ${K}/000001.bin ${K}/000002.bin
 offroad rellis3d||${DATA}/offroad

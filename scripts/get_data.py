@@ -227,9 +227,13 @@ def main(argv=None):
     ap.add_argument("--check", action="store_true",
                     help="only check the files in the data folder against the manifest")
     ap.add_argument("--list", action="store_true", help="list the files, sources and licences")
+    ap.add_argument("--held-out", action="store_true",
+                    help="the held-out scans (scripts/heldout_manifest.tsv) instead, into "
+                         "<data folder>/heldout unless --dest says otherwise")
     ap.add_argument("--timeout", type=float, default=60.0, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
-    manifest = os.environ.get("GF_DATA_MANIFEST", os.path.join(HERE, "data_manifest.tsv"))
+    default_manifest = "heldout_manifest.tsv" if a.held_out else "data_manifest.tsv"
+    manifest = os.environ.get("GF_DATA_MANIFEST", os.path.join(HERE, default_manifest))
     rows = read_manifest(manifest)
 
     if a.list:
@@ -237,6 +241,8 @@ def main(argv=None):
             print("%s\t%s\t%s\t%s" % (r["path"], r["convert"], " ".join(r["urls"]), r["licence"]))
         return 0
     dest = os.path.abspath(a.dest) if a.dest else default_dest()
+    if a.held_out and not a.dest:
+        dest = os.path.join(dest, "heldout")
 
     if a.check:
         bad = 0

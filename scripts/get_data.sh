@@ -10,6 +10,8 @@
 #   bash scripts/get_data.sh --from COPY     # copy from an offline copy of the data folder
 #   bash scripts/get_data.sh --check         # check the data folder against the manifest
 #   bash scripts/get_data.sh --list          # files, sources, licences
+#   bash scripts/get_data.sh --held-out      # the held-out scans (heldout_manifest.tsv) into
+#                                            # <data folder>/heldout (any option above applies)
 #
 # Environment: GF_DATA_DIR (data folder; must exist), GF_DATA_BASE_URL (replaces
 # https://raw.githubusercontent.com/ in every source URL: a mirror), GF_DATA_MANIFEST (another

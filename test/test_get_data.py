@@ -284,6 +284,93 @@ class Conversions(unittest.TestCase):
             self.assertEqual(list(f["z"]), [10, 11, 12])
             self.assertEqual(struct.unpack("<I", open(out, "rb").read()[-4:])[0], 1)
 
+    def plain_las(self, path, fmt, xyz_int, cls, version=(1, 2)):
+        """A made-up uncompressed LAS file: scale 0.01, offset (1000, 2000, 0)."""
+        rec = 20 if fmt < 6 else 30
+        hdr = bytearray(227)
+        hdr[0:4] = b"LASF"
+        hdr[24], hdr[25] = version
+        struct.pack_into("<H", hdr, 94, 227)
+        struct.pack_into("<I", hdr, 96, 227)
+        hdr[104] = fmt
+        struct.pack_into("<H", hdr, 105, rec)
+        struct.pack_into("<I", hdr, 107, len(cls))
+        struct.pack_into("<3d", hdr, 131, 0.01, 0.01, 0.01)
+        struct.pack_into("<3d", hdr, 155, 1000.0, 2000.0, 0.0)
+        body = bytearray()
+        for (x, y, z), c in zip(xyz_int, cls):
+            r = bytearray(rec)
+            struct.pack_into("<3iH", r, 0, x, y, z, 7)
+            if fmt < 6:
+                r[15] = c | 0x40  # a synthetic flag in the upper bits: not part of the class
+            else:
+                r[16] = c
+            body += r
+        with open(path, "wb") as f:
+            f.write(bytes(hdr) + bytes(body))
+
+    def test_plain_las(self):
+        pts = [(150, 250, 1234), (-50, 0, 99), (1, 2, 3)]
+        with tempfile.TemporaryDirectory() as tmp:
+            for fmt in (1, 3, 6):
+                src = os.path.join(tmp, "t%d.las" % fmt)
+                self.plain_las(src, fmt, pts, [2, 6, 31])
+                out = os.path.join(tmp, "t%d.pcd" % fmt)
+                data_convert.convert_las(src, out, (1000.0, 2000.0), [31])
+                f = data_convert.read_pcd(out)
+                self.assertEqual(list(f["label"]), [1, 0, 255], fmt)
+                np.testing.assert_allclose(f["x"], [1.5, -0.5, 0.01], atol=1e-6)
+                np.testing.assert_allclose(f["y"], [2.5, 0.0, 0.02], atol=1e-6)
+                np.testing.assert_allclose(f["z"], [12.34, 0.99, 0.03], atol=1e-5)
+                self.assertEqual(list(f["intensity"]), [7, 7, 7])
+            # LAZ (compressed-points bit set) is left to laspy / PDAL; a truncated file is refused.
+            laz = os.path.join(tmp, "t.laz")
+            self.plain_las(laz, 3 | 0x80, pts, [2, 2, 2])
+            self.assertIsNone(data_convert.read_plain_las(laz))
+            short = os.path.join(tmp, "short.las")
+            self.plain_las(short, 1, pts, [2, 2, 2])
+            with open(short, "r+b") as f:
+                f.truncate(227 + 30)
+            with self.assertRaises(data_convert.ConvertError):
+                data_convert.read_plain_las(short)
+
+
+class HeldOutManifest(unittest.TestCase):
+    HELD = os.path.join(ROOT, "scripts", "heldout_manifest.tsv")
+
+    def rows(self, path):
+        return [l.split("\t") for l in open(path).read().splitlines()
+                if l and not l.startswith("#")]
+
+    def test_rows(self):
+        rows = self.rows(self.HELD)
+        self.assertEqual(len(rows), 16)
+        dev = {r[0] for r in self.rows(MANIFEST)}
+        for r in rows:
+            self.assertEqual(len(r), 6, r)
+            self.assertRegex(r[1], "^[0-9a-f]{64}$")
+            self.assertNotIn(r[0], dev)  # never a dev file
+            for url in r[3].split():
+                self.assertRegex(url, r"^https://raw\.githubusercontent\.com/[^/]+/[^/]+/"
+                                 r"[0-9a-f]{40}/")
+        # The dev ISPRS tiles and the held-out ones are disjoint samples of one test.
+        isprs = {os.path.basename(r[0]) for r in rows if r[0].startswith("isprs/")}
+        self.assertEqual(len(isprs), 7)
+        self.assertFalse(isprs & {os.path.basename(p) for p in dev if p.startswith("isprs/")})
+
+    def test_list_names_the_held_out_files(self):
+        rc, out, err = run(["--held-out", "--list"])
+        self.assertEqual(rc, 0, err)
+        self.assertIn("isprs/samp42.pcd", out)
+        self.assertIn("airborne_pdal/sample_c.pcd", out)
+        self.assertNotIn("seq00", out)
+
+    def test_held_out_goes_below_the_data_folder(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            rc, out, err = run(["--held-out", "--check"], GF_DATA_DIR=tmp)
+            self.assertNotEqual(rc, 0)
+            self.assertIn(os.path.join(tmp, "heldout"), out + err)
+
 
 if __name__ == "__main__":
     unittest.main()

@@ -429,6 +429,32 @@ TEST(SceneGenerator, AirborneTileHasExactTruthAndRelief) {
   EXPECT_EQ(a.xyz, b.xyz);  // deterministic
 }
 
+TEST(SceneGenerator, AirborneHallIsOneRoofWiderThanTheOpening) {
+  SceneParams p = builtinSceneParams("airborne");
+  p.seed = 1;
+  p.airborne_hall = 80.0;
+  const GeneratedScan a = generateScene(p);
+  // Every return over the hall's footprint (away from its edges) hits its flat roof, 8 m above
+  // the highest terrain under it, unless a higher crown hides it.
+  std::size_t inside = 0, roof = 0;
+  double roof_lo = 1e9, roof_hi = -1e9;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const float* q = &a.xyz[3 * i];
+    if (std::fabs(q[0]) >= 38.0 || std::fabs(q[1]) >= 38.0) continue;
+    ++inside;
+    EXPECT_EQ(a.truth[i], 0) << i;
+    if (a.semantic[i] != kClassBuilding) continue;
+    ++roof;
+    roof_lo = std::min(roof_lo, static_cast<double>(q[2]));
+    roof_hi = std::max(roof_hi, static_cast<double>(q[2]));
+  }
+  EXPECT_NEAR(static_cast<double>(inside), 76.0 * 76.0 * p.airborne_density, 0.05 * inside);
+  EXPECT_GT(roof, inside * 9 / 10);
+  EXPECT_LT(roof_hi - roof_lo, 10 * p.range_noise_sigma);  // one flat roof
+  p.airborne_hall = -1.0;
+  EXPECT_THROW(generateScene(p), std::invalid_argument);
+}
+
 TEST(SceneGenerator, InvalidParametersAreRefused) {
   SceneParams p;
   p.mode = SceneParams::Mode::kTls;

@@ -3,6 +3,8 @@
 # format of scripts/eval_all.sh, scored by ground_filter_eval itself (--score-labels: the same
 # loaders, ground-truth protocols and metrics as the package's own rows).
 #   bash scripts/peers/run_peers.sh [GROUP...]        # groups: kitti offroad isprs airborne
+#   bash scripts/peers/run_peers.sh heldout_kitti heldout_isprs heldout_airborne
+#       # the held-out scans (bash scripts/get_data.sh --held-out)
 #   PEERS="patchworkpp csf" bash scripts/peers/run_peers.sh kitti
 # The peers are programs PEER_BIN/<peer>_driver (default ${GF_PEERS_DIR:-~/.cache/
 # ground_filter_peers}/build), built by you from each peer's public code (scripts/peers/README.md
@@ -43,7 +45,13 @@ group_files() {
     offroad) echo "${DATA}/offroad/rellis3d_00000_000001.pcd" ;;
     isprs) find "${DATA}/isprs" -maxdepth 1 -name '*.pcd' 2>/dev/null | sort | tr '\n' ' ' ;;
     airborne) find "${DATA}/airborne" -maxdepth 1 -name '*.pcd' 2>/dev/null | sort | tr '\n' ' ' ;;
-    *) die "unknown group '$1' (kitti, offroad, isprs, airborne)" ;;
+    heldout_kitti) find "${DATA}/heldout/semantickitti" -maxdepth 1 -name '*.bin' 2>/dev/null |
+                     sort | tr '\n' ' ' ;;
+    heldout_isprs | heldout_airborne)
+      local d="isprs"
+      [ "$1" = heldout_airborne ] && d="airborne_pdal"
+      find "${DATA}/heldout/${d}" -maxdepth 1 -name '*.pcd' 2>/dev/null | sort | tr '\n' ' ' ;;
+    *) die "unknown group '$1' (kitti, offroad, isprs, airborne, heldout_kitti, heldout_isprs, heldout_airborne)" ;;
   esac
 }
 group_title() {
@@ -52,6 +60,9 @@ group_title() {
     offroad) echo "offroad rellis3d" ;;
     isprs) echo "isprs 8 tiles" ;;
     airborne) echo "airborne 2 tiles" ;;
+    heldout_kitti) echo "held-out kitti 2 frames" ;;
+    heldout_isprs) echo "held-out isprs 7 tiles" ;;
+    heldout_airborne) echo "held-out airborne_pdal 5 tiles" ;;
   esac
 }
 
@@ -66,8 +77,8 @@ for g in ${GROUPS_ASKED}; do
   for p in ${PEERS}; do
     var="PEER_GROUPS_${p}"
     case "${p}" in
-      patchwork* | linefit*) default="kitti offroad" ;;  # they assume a sensor at the origin
-      *) default="kitti offroad isprs airborne" ;;
+      patchwork* | linefit*) default="kitti offroad heldout_kitti" ;;  # a sensor at the origin
+      *) default="kitti offroad isprs airborne heldout_kitti heldout_isprs heldout_airborne" ;;
     esac
     [[ " ${!var:-${default}} " == *" ${g} "* ]] || continue
     drv="${PEER_BIN}/${p}_driver"

@@ -73,7 +73,11 @@ struct SceneParams {
   /// Half-range of the uniform vertical noise of grass returns (blades, tufts) [m] (0.05);
   /// dirt gets a fifth of it, roads and sidewalks none. Only the non-street layouts have grass.
   double grass_roughness = 0.05;
-  double airborne_density = 1.5;     ///< kAirborne: pulses per m2 over the tile [points/m2] (1.5)
+  double airborne_density = 1.5;  ///< kAirborne: pulses per m2 over the tile [points/m2] (1.5)
+  /// kAirborne: edge of one more flat-roofed hall, square, at the tile's centre, its roof 8 m
+  /// above the highest terrain under it [m] (0: none): wider than the airborne mode's opening
+  /// (2 x morph_window) from 36 m.
+  double airborne_hall = 0.0;
   double uav_height = 40.0;          ///< kUav: flying height over the ground below it [m] (40)
   double uav_half_angle_deg = 35.0;  ///< kUav: half the across-track field of view [deg] (35)
   double uav_line_step = 0.25;       ///< kUav: flight distance between scan lines [m] (0.25)

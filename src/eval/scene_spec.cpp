@@ -82,6 +82,7 @@ const SceneOverride kSceneOverrides[] = {
     {"nan_points", setCount<std::size_t, &P::nan_points>},
     {"noise_seed", setCount<std::uint32_t, &P::noise_seed>},
     {"airborne_density", setDouble<&P::airborne_density>},
+    {"airborne_hall", setDouble<&P::airborne_hall>},
     {"uav_height", setDouble<&P::uav_height>},
     {"rosette_fov_deg", setDouble<&P::rosette_fov_deg>},
     {"rosette_rays", setCount<std::size_t, &P::rosette_rays>},

@@ -113,14 +113,31 @@ Vec3 scannerOrigin(const SceneParams& p) {
 
 // Lowest terrain height over a footprint (terrain is piecewise linear: a 5x5 sample plus the
 // corners is exact enough to bury object bottoms).
-double minGroundOver(const SceneParams& p, double x0, double x1, double y0, double y1) {
+double minGroundOver(const SceneParams& p, double x0, double x1, double y0, double y1, int steps) {
   double m = kNoHit;
-  for (int i = 0; i <= 4; ++i) {
-    for (int j = 0; j <= 4; ++j) {
-      m = std::min(m, worldGroundHeight(p, x0 + (x1 - x0) * i / 4.0, y0 + (y1 - y0) * j / 4.0));
+  for (int i = 0; i <= steps; ++i) {
+    for (int j = 0; j <= steps; ++j) {
+      m = std::min(m, worldGroundHeight(p, x0 + (x1 - x0) * i / steps, y0 + (y1 - y0) * j / steps));
     }
   }
   return m;
+}
+double maxGroundOver(const SceneParams& p, double x0, double x1, double y0, double y1, int steps) {
+  double m = -kNoHit;
+  for (int i = 0; i <= steps; ++i) {
+    for (int j = 0; j <= steps; ++j) {
+      m = std::max(m, worldGroundHeight(p, x0 + (x1 - x0) * i / steps, y0 + (y1 - y0) * j / steps));
+    }
+  }
+  return m;
+}
+Box airborneHall(const SceneParams& p) {
+  const double h = 0.5 * std::min(p.airborne_hall, 1.6 * p.scene_extent);
+  const double top = maxGroundOver(p, -h, h, -h, h, 20) + 8.0;  // on a levelled pad
+  return {{-h, -h, minGroundOver(p, -h, h, -h, h) - 1.0},
+          {h, h, top},
+          kWallReflectivity,
+          kClassBuilding};
 }
 void turnToMount(const SceneParams& p, float* xyz, std::size_t n) {
   if (p.mount_roll_deg == 0.0 && p.mount_pitch_deg == 0.0) return;

@@ -109,9 +109,15 @@ void turnToMount(const SceneParams& p, float* xyz, std::size_t n);
 // Surface class of the non-street terrains at (x, y) (world frame).
 std::uint16_t naturalClass(const SceneParams& p, double x, double y);
 Vec3 scannerOrigin(const SceneParams& p);
-// Lowest terrain height over a footprint (terrain is piecewise linear: a 5x5 sample plus the
-// corners is exact enough to bury object bottoms).
-double minGroundOver(const SceneParams& p, double x0, double x1, double y0, double y1);
+// Lowest / highest terrain height over a footprint, sampled at (steps + 1)^2 points (terrain is
+// piecewise linear: a 5x5 sample with the corners is exact enough to bury object bottoms).
+double minGroundOver(const SceneParams& p, double x0, double x1, double y0, double y1,
+                     int steps = 4);
+double maxGroundOver(const SceneParams& p, double x0, double x1, double y0, double y1,
+                     int steps = 4);
+// The airborne tile's hall (SceneParams::airborne_hall): its roof 8 m above the highest terrain
+// under it.
+Box airborneHall(const SceneParams& p);
 
 }  // namespace scene
 }  // namespace ground_filter
