@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "airborne/morph_ground.h"
@@ -74,6 +75,80 @@ TEST(MorphGround, LowOutliersDoNotPitTheSurface) {
   ASSERT_GT(near, 200u);
   EXPECT_EQ(near_kept, near);
   EXPECT_EQ(ground_kept, ground);
+}
+
+// A flat-topped block in a 150 x 150 m tile on a 2 % slope, sampled about once per m2 (jittered
+// grid, 3 cm noise): `walls` says which of its four sides (bits 0-3: -x, +x, -y, +y) drop
+// `height` m to the ground; a side without a wall is a 30 % ramp down to the ground. `rough`
+// adds hills of that amplitude [m] to its top. Returns xyz; truth 1 where the point is on the
+// block's top (inside the footprint, 5 m in from its edges).
+std::vector<float> blockTile(float half, float height, int walls, float rough,
+                             std::vector<std::uint8_t>* on_top) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> jitter(0.f, 1.f);
+  std::normal_distribution<float> noise(0.f, 0.03f);
+  std::vector<float> xyz;
+  on_top->clear();
+  for (float gx = -75.f; gx < 75.f; gx += 1.f) {
+    for (float gy = -75.f; gy < 75.f; gy += 1.f) {
+      const float x = gx + jitter(rng), y = gy + jitter(rng);
+      const float ground = 50.f + 0.02f * x;
+      // Distance outside the footprint along each side that has no wall (the ramp's run).
+      float z = ground;
+      const float ox = std::fabs(x) - half, oy = std::fabs(y) - half;
+      const bool wall_x = (walls >> (x < 0 ? 0 : 1)) & 1, wall_y = (walls >> (y < 0 ? 2 : 3)) & 1;
+      const float top = ground + height + rough * std::sin(x / 7.f) * std::cos(y / 9.f);
+      if (ox <= 0.f && oy <= 0.f) {
+        z = top;
+      } else if ((ox <= 0.f || !wall_x) && (oy <= 0.f || !wall_y)) {
+        const float run = std::max(ox, oy);
+        z = std::max(ground, top - 0.3f * run);  // the ramp of a side without a wall
+      }
+      xyz.insert(xyz.end(), {x, y, z + noise(rng)});
+      on_top->push_back(ox < -5.f && oy < -5.f);
+    }
+  }
+  return xyz;
+}
+
+// A roof wider than the opening (2 x morph_window = 36 m) is not ground: a hall 60 m across,
+// 8 m high, walls all round. Every return on its roof is an object, the ground around it ground
+// (without the walled-roof rule every return on the roof came out ground).
+TEST(MorphGround, AHallWiderThanTheOpeningIsNotGround) {
+  std::vector<std::uint8_t> on_top;
+  const std::vector<float> xyz = blockTile(30.f, 8.f, 0xf, 0.f, &on_top);
+  const std::vector<std::uint8_t> labels = morphLabels(xyz);
+  std::size_t roof = 0, roof_ground = 0, ground = 0, ground_kept = 0;
+  for (std::size_t i = 0; i < on_top.size(); ++i) {
+    const float x = xyz[3 * i], y = xyz[3 * i + 1];
+    if (on_top[i]) {
+      ++roof;
+      roof_ground += labels[i];
+    } else if (std::fabs(x) > 32.f || std::fabs(y) > 32.f) {
+      ++ground;
+      ground_kept += labels[i];
+    }
+  }
+  ASSERT_GT(roof, 2000u);
+  EXPECT_EQ(roof_ground, 0u);
+  EXPECT_GT(ground_kept, ground * 99 / 100);
+}
+
+// Terrain that is as wide and as high stays ground when it is not walled all round (a terrace
+// reached by a ramp on one side) or not one plane (a rough mesa with cliffs all round).
+TEST(MorphGround, AWideTerraceOrARoughMesaIsTerrain) {
+  for (const auto& c : {std::make_pair(0x7, 0.f), std::make_pair(0xf, 1.5f)}) {
+    std::vector<std::uint8_t> on_top;
+    const std::vector<float> xyz = blockTile(30.f, 8.f, c.first, c.second, &on_top);
+    const std::vector<std::uint8_t> labels = morphLabels(xyz);
+    std::size_t top = 0, top_kept = 0;
+    for (std::size_t i = 0; i < on_top.size(); ++i) {
+      top += on_top[i];
+      top_kept += on_top[i] && labels[i];
+    }
+    ASSERT_GT(top, 2000u);
+    EXPECT_GT(top_kept, top * 95 / 100) << "walls " << c.first << " rough " << c.second;
+  }
 }
 
 // A narrow pit that is terrain keeps its floor: the rule asks for no return near the lowest one,

@@ -247,6 +247,113 @@ void MorphGround::joinTerrain(const MorphGroundSettings& s, double c) {
   }
 }
 
+double MorphGround::regionPlaneRms() const {
+  // z = a + b x + c y by least squares over the cells with a return, about the first cell.
+  const int x0 = frontier_[0] % nx_, y0 = frontier_[0] / nx_;
+  double m[3][4] = {};
+  for (const std::int32_t i : frontier_) {
+    if (std::isnan(zmin_[i])) continue;
+    const double v[3] = {1.0, static_cast<double>(i % nx_ - x0), static_cast<double>(i / nx_ - y0)};
+    for (int r = 0; r < 3; ++r) {
+      for (int k = 0; k < 3; ++k) m[r][k] += v[r] * v[k];
+      m[r][3] += v[r] * zmin_[i];
+    }
+  }
+  if (m[0][0] < 3.0) return std::numeric_limits<double>::infinity();
+  for (int p = 0; p < 3; ++p) {  // Gauss-Jordan; the region spans two axes, so no zero pivot
+    if (std::fabs(m[p][p]) < 1e-9) return std::numeric_limits<double>::infinity();
+    for (int r = 0; r < 3; ++r) {
+      if (r == p) continue;
+      const double f = m[r][p] / m[p][p];
+      for (int k = p; k < 4; ++k) m[r][k] -= f * m[p][k];
+    }
+  }
+  const double a = m[0][3] / m[0][0], b = m[1][3] / m[1][1], cc = m[2][3] / m[2][2];
+  double ss = 0.0, count = 0.0;
+  for (const std::int32_t i : frontier_) {
+    if (std::isnan(zmin_[i])) continue;
+    const double e = zmin_[i] - (a + b * (i % nx_ - x0) + cc * (i / nx_ - y0));
+    ss += e * e;
+    count += 1.0;
+  }
+  return std::sqrt(ss / count);
+}
+
+void MorphGround::markNearReturns(int rings) {
+  const std::size_t n = zmin_.size();
+  const int dx[4] = {-1, 1, 0, 0}, dy[4] = {0, 0, -1, 1};
+  known_.assign(n, 0);
+  for (std::size_t i = 0; i < n; ++i) known_[i] = !std::isnan(zmin_[i]);
+  for (int ring = 0; ring < rings; ++ring) {
+    for (std::size_t i = 0; i < n; ++i) {
+      if (known_[i] != 1) continue;
+      const int x = static_cast<int>(i % nx_), y = static_cast<int>(i / nx_);
+      for (int k = 0; k < 4; ++k) {
+        const int xx = x + dx[k], yy = y + dy[k];
+        if (xx < 0 || yy < 0 || xx >= nx_ || yy >= ny_) continue;
+        std::uint8_t& m = known_[static_cast<std::size_t>(yy) * nx_ + xx];
+        if (m == 0) m = 2;  // reached in this ring: grows from it only in the next
+      }
+    }
+    for (std::uint8_t& m : known_) m = m != 0;
+  }
+}
+
+void MorphGround::dropWalledRoofs(double c, int rmax) {
+  // A roof wider than the opening (2 x window) survives it as terrain. Its border tells it from
+  // terrain: walls, a drop of a storey or more from one cell to the next, all round it, and one
+  // plane through it. Regions of terrain cells joined by smaller steps, wider than the opening
+  // takes, standing on walls along kWalledShare of their border and that flat, become objects.
+  // The raster's edge, object cells (their terrain is filled from this very region) and cells
+  // far from any return (outside a clipped tile's footprint, a lake: the fill joins anything
+  // across them) neither join a region nor border it.
+  const float wall = static_cast<float>(std::max(kWallDrop, 2.0 * c));
+  const float gap_wall = static_cast<float>(kGapWallSlope * c);
+  const std::size_t n = zfill_.size();
+  const std::size_t min_cells = static_cast<std::size_t>(3.14159 * rmax * rmax);
+  const int dx[4] = {-1, 1, 0, 0}, dy[4] = {0, 0, -1, 1};
+  markNearReturns(2);
+  region_.assign(n, -1);
+  bool changed = false;
+  for (std::size_t seed = 0; seed < n; ++seed) {
+    if (object_[seed] || !known_[seed] || region_[seed] >= 0) continue;
+    frontier_.assign(1, static_cast<std::int32_t>(seed));
+    region_[seed] = static_cast<std::int32_t>(seed);
+    std::size_t border = 0, walls = 0;
+    for (std::size_t head = 0; head < frontier_.size(); ++head) {
+      const std::int32_t i = frontier_[head];
+      const int x = i % nx_, y = i / nx_;
+      for (int k = 0; k < 4; ++k) {
+        const int xx = x + dx[k], yy = y + dy[k];
+        if (xx < 0 || yy < 0 || xx >= nx_ || yy >= ny_) continue;
+        const std::int32_t j = yy * nx_ + xx;
+        if (object_[j] || !known_[j]) continue;  // an object's terrain comes from this region
+        const float other = zfill_[j];
+        // Across a gap (no return in a cell) the fill ramps from one side to the other: a
+        // ramp steeper than 45 degrees there is the wall the scan did not see.
+        const float step = std::isnan(zmin_[i]) || std::isnan(zmin_[j]) ? gap_wall : wall;
+        if (std::fabs(other - zfill_[i]) < step) {
+          if (region_[j] < 0) {
+            region_[j] = static_cast<std::int32_t>(seed);
+            frontier_.push_back(j);
+          }
+          continue;
+        }
+        ++border;
+        walls += zfill_[i] - other >= step;
+      }
+    }
+    if (frontier_.size() < min_cells || border == 0 ||
+        static_cast<double>(walls) < kWalledShare * static_cast<double>(border) ||
+        regionPlaneRms() > kRoofRms) {
+      continue;
+    }
+    for (const std::int32_t i : frontier_) object_[i] = 1;
+    changed = true;
+  }
+  if (changed) surfaceWithoutObjects();
+}
+
 bool MorphGround::aloneAtItsHeight(const CloudView& cloud, double c, int x, int y,
                                    std::int32_t m) const {
   const int ra = static_cast<int>(std::ceil(kLowOutlier.alone / c));
@@ -420,6 +527,9 @@ std::size_t MorphGround::run(const CloudView& cloud, const MorphGroundSettings& 
       if (pass > 0 && object_ == prev_object_) break;
     }
   }
+
+  // 3c. Roofs wider than the opening: flat regions that stand on walls all round.
+  dropWalledRoofs(c, rmax);
 
   // 4. Gradient magnitude (central differences, one-sided at the border).
   grad_.assign(n, 0.0f);

@@ -36,8 +36,10 @@ struct LowOutlierRule {
 /// \brief Airborne ground model after SMRF (Pingel, Clarke and McBride 2013), written from its
 ///        description: a minimum-elevation raster (without low outliers) with its gaps filled,
 ///        opened with disks of growing radius (cells that drop by more than slope x radius at a
-///        step are objects), the raster without the object cells filled again, and per point the
-///        test |z - bilinear surface| <= threshold + scale x gradient. Works on any cloud; meant
+///        step are objects; then steep terrain's own allowance, and flat regions wider than the
+///        opening that stand on walls all round: roofs), the raster without the object cells
+///        filled again, and per point the test |z - bilinear surface| <= threshold + scale x
+///        gradient. Works on any cloud; meant
 ///        for nadir scans, where the lowest return of a cell is mostly ground. Owns its buffers
 ///        (reused across scans).
 class MorphGround {
@@ -59,6 +61,19 @@ class MorphGround {
   /// \brief Steep-terrain passes at most (the second measures the terrain slope again on the
   ///        first's surface, which keeps more of a crest; skipped when nothing changes).
   static constexpr int kSteepPasses = 2;
+  /// \brief Walled roofs (dropWalledRoofs()): a drop of at least this from one cell to the next
+  ///        is a wall [m] (a storey; at least 2 cells' rise on coarse rasters). Plateau of the
+  ///        generated halls: 1.5-5 m; no real tile changes anywhere on it.
+  static constexpr double kWallDrop = 2.5;
+  /// \brief ... where one of the two cells has no return, a fill steeper than this (rise / run)
+  ///        is a wall: the one the scan did not see (plateau 0.5-2).
+  static constexpr double kGapWallSlope = 1.0;
+  /// \brief ... a region is a roof when it stands on walls along at least this share of its
+  ///        border (plateau 0.75-0.9; flat terrain regions of the real tiles reach 0.75 only
+  ///        where they are far from planar) ...
+  static constexpr double kWalledShare = 0.8;
+  /// \brief ... and its cells' minima lie within this RMS of one plane [m] (plateau 0.2-1.0).
+  static constexpr double kRoofRms = 0.3;
 
  private:
   void fill(std::vector<float>* z);  // fill NaN cells (nearest rings, then Laplace sweeps)
@@ -71,6 +86,12 @@ class MorphGround {
   void terrainSlope(double c, int w);  // tslope_ from dem_ across +-w cells
   void joinTerrain(const MorphGroundSettings& s, double c);  // second-pass cells joined to terrain
   void dropLowOutliers(const CloudView& cloud, double c);    // zmin_ without low outliers
+  // Terrain regions wider than the opening, flat and walled all round: objects (roofs).
+  void dropWalledRoofs(double c, int rmax);
+  // known_ = 1 on the cells with a return and the `rings` 4-neighbour rings around them.
+  void markNearReturns(int rings);
+  // RMS distance of the region's cells' minima (frontier_) from their least-squares plane.
+  double regionPlaneRms() const;
   // Whether point m (cell x, y) has no other return within kLowOutlier.alone that is less than
   // kLowOutlier.drop above it.
   bool aloneAtItsHeight(const CloudView& cloud, double c, int x, int y, std::int32_t m) const;
@@ -81,7 +102,7 @@ class MorphGround {
   std::vector<float> zmin_, zfill_, tmp_, eroded_, opened_, dem_, grad_, tslope_;
   std::vector<float> pad_;  // erode(): one row between two sentinels
   std::vector<std::uint8_t> object_, object1_, prev_object_, known_;
-  std::vector<std::int32_t> frontier_, next_, gaps_;
+  std::vector<std::int32_t> frontier_, next_, gaps_, region_;
   std::vector<float> fill_vals_;  // fill(): the values of one ring
 };
 
