@@ -30,10 +30,11 @@
 //   index order). A node whose points all coincide is a leaf whatever its size; only its first
 //   K points (lowest indices) can be in any list, so only those are scanned.
 // - Queries run in tree order, so consecutive queries are close and share cache lines. Each query
-//   starts with the bound (d_prev + |q - q_prev|)^2, d_prev the previous query's K-th distance:
-//   the previous query's K neighbours lie inside it, so the K-th distance of q does too. A query
-//   at the same coordinates as the previous one (a lidar's no-return points at the origin) copies
-//   its list.
+//   starts with the guess (d_prev + |q - q_prev| / 2)^2, d_prev the previous query's K-th
+//   distance: when K points lie within it, the list is exact; else it runs again with the bound
+//   (d_prev + |q - q_prev|)^2, which holds the previous query's K neighbours, so the K-th
+//   distance of q too. A query at the same coordinates as the previous one (a lidar's no-return
+//   points at the origin) copies its list.
 // - A neighbour list is ordered by the key (squared distance, index): the result is unique, so it
 //   is the same for any thread count, traversal order or code path. Squared distances are
 //   float ((dx*dx + dy*dy) + dz*dz), never fused multiply-adds, the same value as nanoflann's
@@ -239,6 +240,12 @@ GF_KNN_ALWAYS_INLINE void descend(const Tree& t, const float* q, Set* set) {
   set->finish();
 }
 
+/// Share of the step from the previous query that the first, guessed bound of a query adds to
+/// the previous K-th distance (the guaranteed bound adds all of it). Only the time depends on it:
+/// KITTI frames, one thread, AVX2, the search 10-15 % faster at 0.5-0.8 than with the guaranteed
+/// bound alone, slower at 0 (half the guesses miss); 2.4 % of the guesses miss at 0.5.
+constexpr double kGuessShare = 0.5;
+
 /// Queries the points at tree positions [pb, pe) in order, each bounded by the previous one.
 /// Row of the point at tree position p: its point index (input order), or p itself when
 /// `out_dist` is null (the kept layout: indices only, written sequentially).
@@ -259,18 +266,26 @@ GF_KNN_ALWAYS_INLINE void queryRange(const Tree& t, std::size_t pb, std::size_t 
       if (out_dist) std::copy_n(out_dist + prev_row, kk, out_dist + row);
       continue;
     }
-    float bound = inf;
+    float bound = inf, guess = inf;
     if (prev_kth >= 0.0) {
       const double dx = static_cast<double>(q[0]) - prev[0],
                    dy = static_cast<double>(q[1]) - prev[1],
                    dz = static_cast<double>(q[2]) - prev[2];
-      const double r = std::sqrt(prev_kth) + std::sqrt(dx * dx + dy * dy + dz * dz);
+      const double d_prev = std::sqrt(prev_kth), step = std::sqrt(dx * dx + dy * dy + dz * dz);
       // The margin covers the float rounding of the distances (a few ulp); a bound that is too
       // small anyway is caught below.
+      const double r = d_prev + step, g = d_prev + kGuessShare * step;
       bound = static_cast<float>(r * r * (1.0 + 1e-5) + 1e-30);
+      guess = static_cast<float>(g * g * (1.0 + 1e-5) + 1e-30);
     }
-    set->init(k, bound);
+    // First the guess: K points within it make the list exact (the K nearest lie no farther
+    // than the K-th of them); fewer (2 % of a KITTI frame's queries), then the bound.
+    set->init(k, guess);
     descend(t, q, set);
+    if (!set->complete() && guess < bound) {
+      set->init(k, bound);
+      descend(t, q, set);
+    }
     if (!set->complete()) {  // fewer than K points within the bound: not expected, but be safe
       set->init(k, inf);
       descend(t, q, set);
