@@ -237,8 +237,13 @@ def main(argv=None):
     rows = read_manifest(manifest)
 
     if a.list:
-        for r in rows:
-            print("%s\t%s\t%s\t%s" % (r["path"], r["convert"], " ".join(r["urls"]), r["licence"]))
+        try:
+            for r in rows:
+                print("%s\t%s\t%s\t%s" % (r["path"], r["convert"], " ".join(r["urls"]),
+                                           r["licence"]))
+            sys.stdout.flush()
+        except BrokenPipeError:  # `--list | head`: the reader has seen enough
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     dest = os.path.abspath(a.dest) if a.dest else default_dest()
     if a.held_out and not a.dest:

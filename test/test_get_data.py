@@ -365,6 +365,15 @@ class HeldOutManifest(unittest.TestCase):
         self.assertIn("airborne_pdal/sample_c.pcd", out)
         self.assertNotIn("seq00", out)
 
+    def test_list_into_a_closed_pipe(self):
+        # `--list | head -1` once head has gone: a quiet exit (no BrokenPipeError trace). `true`
+        # reads nothing and exits at once, before python has started.
+        p = subprocess.run(["bash", "-c", "bash '%s' --held-out --list | true; "
+                            "exit ${PIPESTATUS[0]}" % SCRIPT], stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, universal_newlines=True, timeout=60)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertEqual(p.stderr, "")
+
     def test_held_out_goes_below_the_data_folder(self):
         with tempfile.TemporaryDirectory() as tmp:
             rc, out, err = run(["--held-out", "--check"], GF_DATA_DIR=tmp)
