@@ -78,18 +78,14 @@ void MorphGround::fill(std::vector<float>* zp) {
     }
   }
   if (unknown == 0 || unknown == n) return;
-  const int dx[4] = {-1, 1, 0, 0}, dy[4] = {0, 0, -1, 1};
-  auto neighbourMean = [&](int x, int y, bool only_known, float* v) {
+  auto neighbourMean = [&](std::int32_t i, bool only_known, float* v) {
     double s = 0.0;
     int c = 0;
-    for (int k = 0; k < 4; ++k) {
-      const int xx = x + dx[k], yy = y + dy[k];
-      if (xx < 0 || yy < 0 || xx >= nx_ || yy >= ny_) continue;
-      const std::size_t j = static_cast<std::size_t>(yy) * nx_ + xx;
-      if (only_known && !known_[j]) continue;
+    forNeighbours(i, [&](std::int32_t j) {
+      if (only_known && !known_[j]) return;
       s += z[j];
       ++c;
-    }
+    });
     if (c == 0) return false;
     *v = static_cast<float>(s / c);
     return true;
@@ -105,16 +101,16 @@ void MorphGround::fill(std::vector<float>* zp) {
   }
   for (std::size_t i = 0; i < n; ++i) {
     if (known_[i]) continue;
-    const int x = static_cast<int>(i % nx_), y = static_cast<int>(i / nx_);
     float v;
-    if (neighbourMean(x, y, true, &v)) frontier_.push_back(static_cast<std::int32_t>(i));
+    if (neighbourMean(static_cast<std::int32_t>(i), true, &v)) {
+      frontier_.push_back(static_cast<std::int32_t>(i));
+    }
   }
   std::vector<float>& vals = fill_vals_;  // kept: no allocation per scan
   while (!frontier_.empty()) {
     vals.resize(frontier_.size());
     for (std::size_t f = 0; f < frontier_.size(); ++f) {
-      const int i = frontier_[f];
-      neighbourMean(i % nx_, i / nx_, true, &vals[f]);
+      neighbourMean(frontier_[f], true, &vals[f]);
     }
     next_.clear();
     for (std::size_t f = 0; f < frontier_.size(); ++f) {
@@ -122,16 +118,12 @@ void MorphGround::fill(std::vector<float>* zp) {
       known_[frontier_[f]] = 1;
     }
     for (std::size_t f = 0; f < frontier_.size(); ++f) {
-      const int i = frontier_[f], x = i % nx_, y = i / nx_;
-      for (int k = 0; k < 4; ++k) {
-        const int xx = x + dx[k], yy = y + dy[k];
-        if (xx < 0 || yy < 0 || xx >= nx_ || yy >= ny_) continue;
-        const std::int32_t j = yy * nx_ + xx;
+      forNeighbours(frontier_[f], [&](std::int32_t j) {
         if (!known_[j]) {
           known_[j] = 2;  // queued once
           next_.push_back(j);
         }
-      }
+      });
     }
     for (std::int32_t j : next_) known_[j] = 0;
     frontier_.swap(next_);
@@ -144,7 +136,7 @@ void MorphGround::fill(std::vector<float>* zp) {
       } else {
         const std::int32_t i = ~g;
         float v;
-        if (neighbourMean(i % nx_, i / nx_, false, &v)) zz[i] = v;
+        if (neighbourMean(i, false, &v)) zz[i] = v;
       }
     }
   }
@@ -227,20 +219,15 @@ void MorphGround::joinTerrain(const MorphGroundSettings& s, double c) {
       frontier_.push_back(static_cast<std::int32_t>(i));
     }
   }
-  const int dx[4] = {-1, 1, 0, 0}, dy[4] = {0, 0, -1, 1};
   for (std::size_t head = 0; head < frontier_.size(); ++head) {
     const std::int32_t i = frontier_[head];
-    const int x = i % nx_, y = i / nx_;
-    for (int k = 0; k < 4; ++k) {
-      const int xx = x + dx[k], yy = y + dy[k];
-      if (xx < 0 || yy < 0 || xx >= nx_ || yy >= ny_) continue;
-      const std::int32_t j = yy * nx_ + xx;
-      if (known_[j] || object_[j]) continue;
+    forNeighbours(i, [&](std::int32_t j) {
+      if (known_[j] || object_[j]) return;
       const double step = std::max(s.slope, static_cast<double>(tslope_[j])) * c;
-      if (std::fabs(zfill_[j] - zfill_[i]) > step) continue;
+      if (std::fabs(zfill_[j] - zfill_[i]) > step) return;
       known_[j] = 1;
       frontier_.push_back(j);
-    }
+    });
   }
   for (std::size_t i = 0; i < n; ++i) {
     if (object1_[i] && !known_[i]) object_[i] = 1;
@@ -281,19 +268,14 @@ double MorphGround::regionPlaneRms() const {
 
 void MorphGround::markNearReturns(int rings) {
   const std::size_t n = zmin_.size();
-  const int dx[4] = {-1, 1, 0, 0}, dy[4] = {0, 0, -1, 1};
   known_.assign(n, 0);
   for (std::size_t i = 0; i < n; ++i) known_[i] = !std::isnan(zmin_[i]);
   for (int ring = 0; ring < rings; ++ring) {
     for (std::size_t i = 0; i < n; ++i) {
       if (known_[i] != 1) continue;
-      const int x = static_cast<int>(i % nx_), y = static_cast<int>(i / nx_);
-      for (int k = 0; k < 4; ++k) {
-        const int xx = x + dx[k], yy = y + dy[k];
-        if (xx < 0 || yy < 0 || xx >= nx_ || yy >= ny_) continue;
-        std::uint8_t& m = known_[static_cast<std::size_t>(yy) * nx_ + xx];
-        if (m == 0) m = 2;  // reached in this ring: grows from it only in the next
-      }
+      forNeighbours(static_cast<std::int32_t>(i), [&](std::int32_t j) {
+        if (known_[j] == 0) known_[j] = 2;  // reached in this ring: grows from it in the next
+      });
     }
     for (std::uint8_t& m : known_) m = m != 0;
   }
@@ -311,7 +293,6 @@ void MorphGround::dropWalledRoofs(double c, int rmax) {
   const float gap_wall = static_cast<float>(kGapWallSlope * c);
   const std::size_t n = zfill_.size();
   const std::size_t min_cells = static_cast<std::size_t>(3.14159 * rmax * rmax);
-  const int dx[4] = {-1, 1, 0, 0}, dy[4] = {0, 0, -1, 1};
   markNearReturns(2);
   region_.assign(n, -1);
   bool changed = false;
@@ -322,12 +303,8 @@ void MorphGround::dropWalledRoofs(double c, int rmax) {
     std::size_t border = 0, walls = 0;
     for (std::size_t head = 0; head < frontier_.size(); ++head) {
       const std::int32_t i = frontier_[head];
-      const int x = i % nx_, y = i / nx_;
-      for (int k = 0; k < 4; ++k) {
-        const int xx = x + dx[k], yy = y + dy[k];
-        if (xx < 0 || yy < 0 || xx >= nx_ || yy >= ny_) continue;
-        const std::int32_t j = yy * nx_ + xx;
-        if (object_[j] || !known_[j]) continue;  // an object's terrain comes from this region
+      forNeighbours(i, [&](std::int32_t j) {
+        if (object_[j] || !known_[j]) return;  // an object's terrain comes from this region
         const float other = zfill_[j];
         // Across a gap (no return in a cell) the fill ramps from one side to the other: a
         // ramp steeper than 45 degrees there is the wall the scan did not see.
@@ -337,11 +314,11 @@ void MorphGround::dropWalledRoofs(double c, int rmax) {
             region_[j] = static_cast<std::int32_t>(seed);
             frontier_.push_back(j);
           }
-          continue;
+          return;
         }
         ++border;
         walls += zfill_[i] - other >= step;
-      }
+      });
     }
     if (frontier_.size() < min_cells || border == 0 ||
         static_cast<double>(walls) < kWalledShare * static_cast<double>(border) ||

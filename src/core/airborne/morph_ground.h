@@ -88,6 +88,15 @@ class MorphGround {
   void dropLowOutliers(const CloudView& cloud, double c);    // zmin_ without low outliers
   // Terrain regions wider than the opening, flat and walled all round: objects (roofs).
   void dropWalledRoofs(double c, int rmax);
+  // Calls f(j) for each 4-neighbour j of cell i inside the raster, in the order -x, +x, -y, +y.
+  template <class F>
+  void forNeighbours(std::int32_t i, F&& f) const {
+    const int x = i % nx_, y = i / nx_;
+    if (x > 0) f(i - 1);
+    if (x + 1 < nx_) f(i + 1);
+    if (y > 0) f(i - nx_);
+    if (y + 1 < ny_) f(i + nx_);
+  }
   // known_ = 1 on the cells with a return and the `rings` 4-neighbour rings around them.
   void markNearReturns(int rings);
   // RMS distance of the region's cells' minima (frontier_) from their least-squares plane.
