@@ -111,25 +111,28 @@ Vec3 scannerOrigin(const SceneParams& p) {
   return {p.sensor_x, p.sensor_y, worldGroundHeight(p, p.sensor_x, p.sensor_y) + h};
 }
 
-// Lowest terrain height over a footprint (terrain is piecewise linear: a 5x5 sample plus the
-// corners is exact enough to bury object bottoms).
-double minGroundOver(const SceneParams& p, double x0, double x1, double y0, double y1, int steps) {
-  double m = kNoHit;
+namespace {
+// The terrain heights at (steps + 1)^2 points of a footprint, folded by `pick` from `start`.
+template <class Pick>
+double groundOver(const SceneParams& p, double x0, double x1, double y0, double y1, int steps,
+                  double start, Pick pick) {
+  double m = start;
   for (int i = 0; i <= steps; ++i) {
     for (int j = 0; j <= steps; ++j) {
-      m = std::min(m, worldGroundHeight(p, x0 + (x1 - x0) * i / steps, y0 + (y1 - y0) * j / steps));
+      m = pick(m, worldGroundHeight(p, x0 + (x1 - x0) * i / steps, y0 + (y1 - y0) * j / steps));
     }
   }
   return m;
 }
+}  // namespace
+
+double minGroundOver(const SceneParams& p, double x0, double x1, double y0, double y1, int steps) {
+  return groundOver(p, x0, x1, y0, y1, steps, kNoHit,
+                    [](double a, double b) { return std::min(a, b); });
+}
 double maxGroundOver(const SceneParams& p, double x0, double x1, double y0, double y1, int steps) {
-  double m = -kNoHit;
-  for (int i = 0; i <= steps; ++i) {
-    for (int j = 0; j <= steps; ++j) {
-      m = std::max(m, worldGroundHeight(p, x0 + (x1 - x0) * i / steps, y0 + (y1 - y0) * j / steps));
-    }
-  }
-  return m;
+  return groundOver(p, x0, x1, y0, y1, steps, -kNoHit,
+                    [](double a, double b) { return std::max(a, b); });
 }
 Box airborneHall(const SceneParams& p) {
   const double h = 0.5 * std::min(p.airborne_hall, 1.6 * p.scene_extent);
