@@ -2,8 +2,10 @@
 the normal method (one run per ransac_seed; the voxel methods have no seed)."""
 import json
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 import unittest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
@@ -58,6 +60,30 @@ class EvalAllTest(unittest.TestCase):
         self.assertAlmostEqual(hi, max(f0, f3), places=2)
         self.assertEqual(rows["voxel"][7:10], ["", "", ""])  # one run, no spread
 
+
+
+    def test_held_out_groups_read_the_data_folders_heldout(self):
+        with tempfile.TemporaryDirectory() as data:
+            env = dict(os.environ, GF_EVAL=EVAL, GF_DATA_DIR=data, HELDOUT="1", METHODS="voxel")
+            env.pop("GROUPS_DEF", None)
+            p = subprocess.run(["bash", SCRIPT], env=env, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, universal_newlines=True)
+            self.assertEqual(p.returncode, 1)
+            self.assertIn("get_data.sh --held-out", p.stderr)
+            # The same generated scan in each held-out folder: each row is its F1.
+            scans = os.path.join(data, "scans")
+            subprocess.run([EVAL, "--write-scans", scans, SCENE], check=True,
+                           stdout=subprocess.DEVNULL)
+            for d in ("semantickitti", "isprs", "airborne_pdal"):
+                shutil.copytree(scans, os.path.join(data, "heldout", d))
+            out = subprocess.run(["bash", SCRIPT], env=env, check=True, stdout=subprocess.PIPE,
+                                 universal_newlines=True).stdout
+            rows = [[c.strip() for c in l.strip().strip("|").split("|")]
+                    for l in out.splitlines() if l.startswith("| held-out")]
+            self.assertEqual([r[0].split()[1] for r in rows],
+                             ["kitti", "isprs", "airborne_pdal"])
+            for r in rows:
+                self.assertAlmostEqual(float(r[5]), eval_f1("voxel"), places=2)
 
 if __name__ == "__main__":
     unittest.main()
