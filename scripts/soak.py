@@ -61,10 +61,20 @@ def publish(scan_path, rate):
     signal.signal(signal.SIGTERM, lambda *a: stop.append(1))
     signal.signal(signal.SIGINT, lambda *a: stop.append(1))
     next_t = time.monotonic()
+    # Seconds between consecutive clouds, summed without the gaps of the monitor's pauses
+    # (SIGSTOP for its quiescent RSS samples): kept / active is the rate kept while running.
+    active = 0.0
+    kept = 0
+    last = None
     while not stop and not rospy.is_shutdown():
         msg.header.stamp = rospy.Time.now()
         msg.header.seq = n
         pub.publish(msg)
+        now = time.monotonic()
+        if last is not None and now - last <= max(1.0, 5.0 * period):
+            active += now - last
+            kept += 1
+        last = now
         n += 1
         # The count goes to a file: the parent reads it after this process ends.
         next_t += period
@@ -73,7 +83,7 @@ def publish(scan_path, rate):
             time.sleep(delay)
         else:
             next_t = time.monotonic()
-    sys.stdout.write("published %d\n" % n)
+    sys.stdout.write("published %d %.3f %d\n" % (n, active, kept))
     sys.stdout.flush()
     rospy.signal_shutdown("done")
 
@@ -368,11 +378,15 @@ def run(args):
         time.sleep(3.0)  # outputs still in flight, one more diagnostic update
         alive = manager.poll() is None
         published = 0
+        intervals, active_s = 0, 0.0
         for i in range(len(publishers)):
             with open(os.path.join(logdir, "publisher%d.log" % (i + 1))) as f:
                 for line in f:
                     if line.startswith("published "):
-                        published += int(line.split()[1])
+                        fields = line.split()
+                        published += int(fields[1])
+                        intervals += int(fields[3])
+                        active_s += float(fields[2])
         reconf_text = ["parameters fixed (robot load)"]
         if reconf is not None:
             with open(os.path.join(logdir, "reconfigure.log")) as f:
@@ -384,9 +398,11 @@ def run(args):
         import make_bag
         scan = make_bag.read_scan(args.scan)
         expected = scan.width * scan.height
-        print("[soak] published %d clouds (%.1f Hz achieved), %s; manager %s"
-              % (published, published / total_s, reconf_text[0],
-                 "alive" if alive else "DEAD (exit %s)" % manager.returncode))
+        # The rate the publisher kept while it ran (published / MINUTES would also count the
+        # start-up and its pauses for the quiescent RSS samples).
+        print("[soak] published %d clouds (%s achieved while publishing), %s; manager %s"
+              % (published, "%.2f Hz" % (intervals / active_s) if active_s > 0 else "? Hz",
+                 reconf_text[0], "alive" if alive else "DEAD (exit %s)" % manager.returncode))
         conserved_ok = True
         drops_ok = True
         none_lost = True
