@@ -52,7 +52,10 @@ std::vector<float> roadHeights(const gf::GeneratedScan& scan, const std::vector<
 // fraction of a degree, whatever the mount's roll and pitch; level() turns the road flat.
 TEST(GroundTilt, FindsTheMountsTiltAndLevelsTheRoad) {
   const float origin[3] = {0.f, 0.f, 0.f};
-  const double pitch_roll[][2] = {{0.0, 0.0}, {10.0, 0.0}, {-12.0, 6.0}, {20.0, -15.0}};
+  // Up to a handheld rig's 45 deg and beyond (40 / 40: 54 deg); kMaxTilt 35 found no plane
+  // from 45 deg on.
+  const double pitch_roll[][2] = {{0.0, 0.0},    {10.0, 0.0}, {-12.0, 6.0},
+                                  {20.0, -15.0}, {45.0, 0.0}, {40.0, 40.0}};
   double level_spread = 0.0;  // of the level mount (the first)
   for (const auto& pr : pitch_roll) {
     gf::SceneParams p = gf::builtinSceneParams("lidar");
@@ -78,6 +81,26 @@ TEST(GroundTilt, FindsTheMountsTiltAndLevelsTheRoad) {
     EXPECT_NEAR(spread, level_spread, 0.03) << pr[0] << " " << pr[1];
     if (expected > 5.0) EXPECT_GT(pct(before, 0.95) - pct(before, 0.05), level_spread + 1.0);
   }
+}
+
+// A mount leaning more than kMaxTilt (a sensor nearly on its side) is left to gravity_frame:
+// turned 70 deg, a street scan's walls lean 20 deg and its road 70 deg from the frame's z; a
+// wall must never be taken for the ground to turn onto. Not turned (kMaxTilt 60), or turned
+// onto the road itself (a larger limit: 75 turns it by 68.8 deg).
+TEST(GroundTilt, AMountBeyondTheLimitIsNotTurnedOntoAWall) {
+  const float origin[3] = {0.f, 0.f, 0.f};
+  gf::GeneratedScan scan = gf::generateScene(gf::builtinSceneParams("lidar"));
+  const double a = 70.0 * M_PI / 180.0;  // the generator's mounts stop at 45 deg an axis
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    const double x = scan.xyz[3 * i], z = scan.xyz[3 * i + 2];
+    scan.xyz[3 * i] = static_cast<float>(std::cos(a) * x + std::sin(a) * z);
+    scan.xyz[3 * i + 2] = static_cast<float>(-std::sin(a) * x + std::cos(a) * z);
+  }
+  gf::GroundTiltEstimator estimator;
+  const gf::GroundTilt t =
+      estimator.estimate(gf::CloudView::packedXyz(scan.xyz.data(), scan.size()), origin);
+  if (t.turns(5.0)) EXPECT_NEAR(t.tilt_deg, 70.0, 2.0) << t.inliers << " of " << t.columns;
+  EXPECT_EQ(t.turns(5.0), 70.0 <= gf::GroundTiltEstimator::kMaxTilt) << t.tilt_deg << " deg";
 }
 
 // No ground plane where none lies below the sensor: a ceiling 0.8 m above it on a parking level
@@ -106,7 +129,8 @@ TEST(GroundTilt, CeilingsAndEmptySurroundingsGiveNoTilt) {
 TEST(NormalGroundFilter, LevelsTheScanOfATiltedMount) {
   const char* specs[][2] = {{"lidar:1:mount_pitch_deg=15", "lidar:1"},
                             {"trail:1:mount_roll_deg=12", "trail:1"},
-                            {"verge:1:mount_pitch_deg=-8,mount_roll_deg=6", "verge:1"}};
+                            {"verge:1:mount_pitch_deg=-8,mount_roll_deg=6", "verge:1"},
+                            {"offroad:1:mount_pitch_deg=45", "offroad:1"}};
   for (const auto& s : specs) {
     const gf::GeneratedScan tilted = gf::generateScene(gf::parseSceneSpec(s[0]));
     const gf::GeneratedScan level = gf::generateScene(gf::parseSceneSpec(s[1]));
@@ -138,7 +162,8 @@ TEST(NormalGroundFilter, LevelsTheScanOfATiltedMount) {
 TEST(VoxelGroundFilter, LevelsTheScanOfATiltedMount) {
   const char* specs[][2] = {{"lidar:1:mount_pitch_deg=20", "lidar:1"},
                             {"trail:1:mount_roll_deg=20", "trail:1"},
-                            {"verge:1:mount_pitch_deg=-8,mount_roll_deg=6", "verge:1"}};
+                            {"verge:1:mount_pitch_deg=-8,mount_roll_deg=6", "verge:1"},
+                            {"lidar:1:mount_pitch_deg=40,mount_roll_deg=40", "lidar:1"}};
   gf::VoxelGroundFilterParams p;
   gf::VoxelGroundFilter filter(p);
   gf::VoxelGroundFilterParams off = p;
