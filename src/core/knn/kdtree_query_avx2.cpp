@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <utility>
 
 #include "knn/kdtree_tree.h"
 #include "simd/avx2_common.h"
@@ -111,6 +112,82 @@ struct CompressTable {
 };
 constexpr CompressTable kCompress{};
 
+/// Squared distance from q (4 floats, q[3] = 0) to a node's box.
+GF_TARGET_AVX2_PATHS inline float boxDistAvx2(const Node& nd, const float* q) {
+  const __m128 q4 = _mm_load_ps(q);  // q[3] = 0, like the boxes' padding
+  const __m128 lo = _mm_load_ps(nd.lo), hi = _mm_load_ps(nd.hi);
+  const __m128 t = _mm_max_ps(_mm_max_ps(_mm_sub_ps(lo, q4), _mm_sub_ps(q4, hi)), _mm_setzero_ps());
+  const __m128 t2 = simd::avx2::opaque(_mm_mul_ps(t, t));
+  return (_mm_cvtss_f32(t2) + _mm_cvtss_f32(_mm_shuffle_ps(t2, t2, 1))) +
+         _mm_cvtss_f32(_mm_shuffle_ps(t2, t2, 2));
+}
+
+/// Squared distance from q to the leaf's first point (a same-point leaf: all of its points).
+GF_TARGET_AVX2_PATHS inline float firstPointDist(const Tree& t, const Node& nd, const float* q) {
+  const std::uint32_t b = nd.begin;
+  const float dx = q[0] - t.px[b], dy = q[1] - t.py[b], dz = q[2] - t.pz[b];
+  const __m128 d2 =
+      simd::avx2::opaque(_mm_mul_ps(_mm_set_ps(0.f, dz, dy, dx), _mm_set_ps(0.f, dz, dy, dx)));
+  return (_mm_cvtss_f32(d2) + _mm_cvtss_f32(_mm_shuffle_ps(d2, d2, 1))) +
+         _mm_cvtss_f32(_mm_shuffle_ps(d2, d2, 2));
+}
+
+/// Appends the first m points of a leaf that lie within `thr` of q to the candidates (distance
+/// bits in cd, index in ci) from position n on, eight at a time. Once more than `limit` are
+/// held, `set->makeRoom(n)` makes room and returns the count left and the new threshold. Returns
+/// the count. No branch on which points pass (see TopKAvx512::scan()): they are packed through a
+/// permutation table, and each step writes 8 lanes at n (limit + 8 slots needed).
+template <class Set>
+GF_TARGET_AVX2_PATHS inline int packLeafAvx2(const Tree& t, const Node& nd, int m, const float* q,
+                                             float thr_in, int limit, std::uint32_t* cd,
+                                             std::uint32_t* ci, int n, Set* set) {
+  using simd::avx2::opaque;
+  const std::uint32_t b = nd.begin;
+  const float *x = t.px.data() + b, *y = t.py.data() + b, *z = t.pz.data() + b;
+  const std::uint32_t* ids = t.pidx.data() + b;
+  const __m256 qx = _mm256_set1_ps(q[0]), qy = _mm256_set1_ps(q[1]), qz = _mm256_set1_ps(q[2]);
+  const __m256i shifts = _mm256_setr_epi32(0, 4, 8, 12, 16, 20, 24, 28);
+  const __m256i nibble = _mm256_set1_epi32(0xf);
+  __m256 thr = _mm256_set1_ps(thr_in);
+  for (int j = 0; j < m; j += 8) {
+    __m256 px, py, pz;
+    __m256i pi;
+    int in = 0xff;
+    if (m - j >= 8) {
+      px = _mm256_loadu_ps(x + j);
+      py = _mm256_loadu_ps(y + j);
+      pz = _mm256_loadu_ps(z + j);
+      pi = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(ids + j));
+    } else {  // the leaf's last block: masked loads (no read past the arrays)
+      const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+      const __m256i valid = _mm256_cmpgt_epi32(_mm256_set1_epi32(m - j), lane);
+      px = _mm256_maskload_ps(x + j, valid);
+      py = _mm256_maskload_ps(y + j, valid);
+      pz = _mm256_maskload_ps(z + j, valid);
+      pi = _mm256_maskload_epi32(reinterpret_cast<const int*>(ids + j), valid);
+      in = (1 << (m - j)) - 1;
+    }
+    const __m256 dx = _mm256_sub_ps(qx, px), dy = _mm256_sub_ps(qy, py), dz = _mm256_sub_ps(qz, pz);
+    const __m256 d =
+        _mm256_add_ps(_mm256_add_ps(opaque(_mm256_mul_ps(dx, dx)), opaque(_mm256_mul_ps(dy, dy))),
+                      opaque(_mm256_mul_ps(dz, dz)));
+    const int keep = _mm256_movemask_ps(_mm256_cmp_ps(d, thr, _CMP_LE_OQ)) & in;
+    const __m256i perm = _mm256_and_si256(
+        _mm256_srlv_epi32(_mm256_set1_epi32(static_cast<int>(kCompress.lanes[keep])), shifts),
+        nibble);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(cd + n),
+                        _mm256_permutevar8x32_epi32(_mm256_castps_si256(d), perm));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(ci + n), _mm256_permutevar8x32_epi32(pi, perm));
+    n += __builtin_popcount(static_cast<unsigned>(keep));
+    if (n > limit) {
+      const std::pair<int, float> left = set->makeRoom(n);
+      n = left.first;
+      thr = _mm256_set1_ps(left.second);
+    }
+  }
+  return n;
+}
+
 /// The best K <= 4R keys, sorted, fed by a buffer of candidates within the threshold.
 template <int R>
 class TopKAvx2 {
@@ -126,82 +203,32 @@ class TopKAvx2 {
   float threshold() const { return thr_; }
 
   GF_TARGET_AVX2_PATHS static float boxDist(const Node& nd, const float* q) {
-    const __m128 q4 = _mm_load_ps(q);  // q[3] = 0, like the boxes' padding
-    const __m128 lo = _mm_load_ps(nd.lo), hi = _mm_load_ps(nd.hi);
-    const __m128 t =
-        _mm_max_ps(_mm_max_ps(_mm_sub_ps(lo, q4), _mm_sub_ps(q4, hi)), _mm_setzero_ps());
-    const __m128 t2 = simd::avx2::opaque(_mm_mul_ps(t, t));
-    return (_mm_cvtss_f32(t2) + _mm_cvtss_f32(_mm_shuffle_ps(t2, t2, 1))) +
-           _mm_cvtss_f32(_mm_shuffle_ps(t2, t2, 2));
+    return boxDistAvx2(nd, q);
   }
 
   GF_TARGET_AVX2_PATHS void scan(const Tree& t, const Node& nd, const float* q) {
-    using simd::avx2::opaque;
-    const std::uint32_t b = nd.begin;
-    int m = static_cast<int>(nd.scan_end - b);
-    const float *x = t.px.data() + b, *y = t.py.data() + b, *z = t.pz.data() + b;
-    const std::uint32_t* ids = t.pidx.data() + b;
+    int m = static_cast<int>(nd.scan_end - nd.begin);
     if (nd.right == kSamePoint && !empty_) {
-      const float dx = q[0] - x[0], dy = q[1] - y[0], dz = q[2] - z[0];
-      const __m128 d2 =
-          opaque(_mm_mul_ps(_mm_set_ps(0.f, dz, dy, dx), _mm_set_ps(0.f, dz, dy, dx)));
-      const float d = (_mm_cvtss_f32(d2) + _mm_cvtss_f32(_mm_shuffle_ps(d2, d2, 1))) +
-                      _mm_cvtss_f32(_mm_shuffle_ps(d2, d2, 2));
       const std::uint64_t kth = top_[k_ - 1];
-      m = samePointPrefix(ids, m, d, kth == kNoKeyAvx2 ? kNoKey : kth);
+      m = samePointPrefix(t.pidx.data() + nd.begin, m, firstPointDist(t, nd, q),
+                          kth == kNoKeyAvx2 ? kNoKey : kth);
     }
-    const __m256 qx = _mm256_set1_ps(q[0]), qy = _mm256_set1_ps(q[1]), qz = _mm256_set1_ps(q[2]);
-    const __m256i shifts = _mm256_setr_epi32(0, 4, 8, 12, 16, 20, 24, 28);
-    const __m256i nibble = _mm256_set1_epi32(0xf);
-    int pending = pending_;  // in registers: see TopKAvx512::scan()
-    __m256 thr = _mm256_set1_ps(thr_);
-    for (int j = 0; j < m; j += 8) {
-      __m256 px, py, pz;
-      __m256i pi;
-      int in = 0xff;
-      if (m - j >= 8) {
-        px = _mm256_loadu_ps(x + j);
-        py = _mm256_loadu_ps(y + j);
-        pz = _mm256_loadu_ps(z + j);
-        pi = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(ids + j));
-      } else {  // the leaf's last block: masked loads (no read past the arrays)
-        const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-        const __m256i valid = _mm256_cmpgt_epi32(_mm256_set1_epi32(m - j), lane);
-        px = _mm256_maskload_ps(x + j, valid);
-        py = _mm256_maskload_ps(y + j, valid);
-        pz = _mm256_maskload_ps(z + j, valid);
-        pi = _mm256_maskload_epi32(reinterpret_cast<const int*>(ids + j), valid);
-        in = (1 << (m - j)) - 1;
-      }
-      const __m256 dx = _mm256_sub_ps(qx, px), dy = _mm256_sub_ps(qy, py),
-                   dz = _mm256_sub_ps(qz, pz);
-      const __m256 d =
-          _mm256_add_ps(_mm256_add_ps(opaque(_mm256_mul_ps(dx, dx)), opaque(_mm256_mul_ps(dy, dy))),
-                        opaque(_mm256_mul_ps(dz, dz)));
-      const int keep = _mm256_movemask_ps(_mm256_cmp_ps(d, thr, _CMP_LE_OQ)) & in;
-      // No branch on `keep` (see TopKAvx512::scan()): compress through a permutation table.
-      const __m256i perm = _mm256_and_si256(
-          _mm256_srlv_epi32(_mm256_set1_epi32(static_cast<int>(kCompress.lanes[keep])), shifts),
-          nibble);
-      _mm256_storeu_si256(reinterpret_cast<__m256i*>(cand_d_ + pending),
-                          _mm256_permutevar8x32_epi32(_mm256_castps_si256(d), perm));
-      _mm256_storeu_si256(reinterpret_cast<__m256i*>(cand_i_ + pending),
-                          _mm256_permutevar8x32_epi32(pi, perm));
-      pending += __builtin_popcount(static_cast<unsigned>(keep));
-      if (pending >= kSlots) {
-        const int extra = pending - kSlots;
-        pending_ = kSlots;
-        flush();
-        // Move the candidates past the flushed block to the front (extra < 8).
-        _mm256_store_si256(reinterpret_cast<__m256i*>(cand_d_),
-                           _mm256_load_si256(reinterpret_cast<const __m256i*>(cand_d_ + kSlots)));
-        _mm256_store_si256(reinterpret_cast<__m256i*>(cand_i_),
-                           _mm256_load_si256(reinterpret_cast<const __m256i*>(cand_i_ + kSlots)));
-        pending = extra;
-        thr = _mm256_set1_ps(thr_);
-      }
-    }
-    pending_ = pending;
+    // The count in a register, not pending_ (see TopKAvx512::scan()).
+    pending_ = packLeafAvx2(t, nd, m, q, thr_, kSlots - 1, cand_d_, cand_i_, pending_, this);
+  }
+
+  /// Flushes a full buffer of `pending` candidates (kSlots up to kSlots + 7): the count left
+  /// and the new threshold (packLeafAvx2()).
+  GF_TARGET_AVX2_PATHS std::pair<int, float> makeRoom(int pending) {
+    const int extra = pending - kSlots;
+    pending_ = kSlots;
+    flush();
+    // Move the candidates past the flushed block to the front (extra < 8).
+    _mm256_store_si256(reinterpret_cast<__m256i*>(cand_d_),
+                       _mm256_load_si256(reinterpret_cast<const __m256i*>(cand_d_ + kSlots)));
+    _mm256_store_si256(reinterpret_cast<__m256i*>(cand_i_),
+                       _mm256_load_si256(reinterpret_cast<const __m256i*>(cand_i_ + kSlots)));
+    return std::make_pair(extra, thr_);
   }
 
   GF_TARGET_AVX2_PATHS void finish() {
@@ -294,6 +321,239 @@ class TopKAvx2 {
   bool empty_ = true;
 };
 
+// ---- K of 33-64 (the normal method's default 40): a buffer of 32-bit sort proxies ----------
+//
+// TopKAvx2<16> keeps 64 keys of 64 bits in 16 registers, all that AVX2 has, and its flush
+// spills them. A query of the normal method passes about 58 candidates in all (KITTI, the
+// guessed bound of queryRange()), so this set keeps every candidate in one buffer of 128 and
+// sorts it once at the end (earlier only when the buffer fills). The sort runs on 32-bit
+// proxies: the distance bits with the low 8 cleared, the candidate's slot in the low 8; 64 of
+// them fit in 8 registers. Proxies order the candidates as their (distance, index) keys do
+// except where two distances share all but their low 8 bits (2^-15 apart): such a pair among
+// the first K + 1 sends the list to an exact sort of the full keys.
+
+constexpr int kProxyBits = 8;                     // slots < 256
+constexpr std::uint32_t kProxyPad = 0xffffffffu;  // above any real proxy (distances <= +inf)
+
+GF_TARGET_AVX2_PATHS inline void minMax8(__m256i* a, __m256i* b) {
+  const __m256i lo = _mm256_min_epu32(*a, *b);
+  *b = _mm256_max_epu32(*a, *b);
+  *a = lo;
+}
+
+/// Sorts the 8 lanes of a register that form a bitonic sequence.
+GF_TARGET_AVX2_PATHS inline __m256i laneMerge8(__m256i v) {
+  __m256i p = _mm256_permute2x128_si256(v, v, 0x01);  // lanes 4-7 0-3
+  v = _mm256_blend_epi32(_mm256_min_epu32(v, p), _mm256_max_epu32(v, p), 0xf0);
+  p = _mm256_shuffle_epi32(v, 0x4e);  // lanes 2 3 0 1 in each half
+  v = _mm256_blend_epi32(_mm256_min_epu32(v, p), _mm256_max_epu32(v, p), 0xcc);
+  p = _mm256_shuffle_epi32(v, 0xb1);  // lanes 1 0 3 2 in each half
+  return _mm256_blend_epi32(_mm256_min_epu32(v, p), _mm256_max_epu32(v, p), 0xaa);
+}
+
+/// Sorts each of 8 registers: an 8-input sorting network across them (19 comparators), then
+/// an 8 x 8 transpose.
+GF_TARGET_AVX2_PATHS inline void sortRegisters8(__m256i* v) {
+  static constexpr int kNet[19][2] = {{0, 2}, {1, 3}, {4, 6}, {5, 7}, {0, 4}, {1, 5}, {2, 6},
+                                      {3, 7}, {0, 1}, {2, 3}, {4, 5}, {6, 7}, {2, 4}, {3, 5},
+                                      {1, 4}, {3, 6}, {1, 2}, {3, 4}, {5, 6}};
+#pragma GCC unroll 19
+  for (const auto& c : kNet) minMax8(&v[c[0]], &v[c[1]]);
+  __m256i t[8], u[8];
+#pragma GCC unroll 4
+  for (int i = 0; i < 8; i += 2) {
+    t[i] = _mm256_unpacklo_epi32(v[i], v[i + 1]);
+    t[i + 1] = _mm256_unpackhi_epi32(v[i], v[i + 1]);
+  }
+#pragma GCC unroll 2
+  for (int i = 0; i < 8; i += 4) {
+    u[i] = _mm256_unpacklo_epi64(t[i], t[i + 2]);
+    u[i + 1] = _mm256_unpackhi_epi64(t[i], t[i + 2]);
+    u[i + 2] = _mm256_unpacklo_epi64(t[i + 1], t[i + 3]);
+    u[i + 3] = _mm256_unpackhi_epi64(t[i + 1], t[i + 3]);
+  }
+#pragma GCC unroll 4
+  for (int i = 0; i < 4; ++i) {
+    v[i] = _mm256_permute2x128_si256(u[i], u[i + 4], 0x20);
+    v[i + 4] = _mm256_permute2x128_si256(u[i], u[i + 4], 0x31);
+  }
+}
+
+/// Sorts the 8R proxies of v ascending (R = 8 or 16).
+template <int R>
+GF_TARGET_AVX2_PATHS inline void bitonicSort8(__m256i* v) {
+  const __m256i rev = _mm256_setr_epi32(7, 6, 5, 4, 3, 2, 1, 0);
+#pragma GCC unroll 2
+  for (int i = 0; i < R; i += 8) sortRegisters8(v + i);
+#pragma GCC unroll 4
+  for (int size = 2; size <= R; size *= 2) {  // merge sorted runs of size / 2 registers
+#pragma GCC unroll 8
+    for (int blk = 0; blk < R; blk += size) {
+#pragma GCC unroll 8
+      for (int j = 0; j < size / 2; ++j) {
+        // The run's second half reversed against its first: both halves become bitonic.
+        __m256i a = v[blk + j], b = _mm256_permutevar8x32_epi32(v[blk + size - 1 - j], rev);
+        minMax8(&a, &b);
+        v[blk + j] = a;
+        v[blk + size - 1 - j] = b;
+      }
+    }
+    // The upper half of each run was written back register-reversed: put it in order for the
+    // half-cleaners (a reversed bitonic sequence is bitonic, but the cleaners pair registers by
+    // position).
+#pragma GCC unroll 8
+    for (int blk = 0; blk < R; blk += size) {
+#pragma GCC unroll 4
+      for (int j = 0; j < size / 4; ++j) {
+        std::swap(v[blk + size / 2 + j], v[blk + size - 1 - j]);
+      }
+    }
+#pragma GCC unroll 4
+    for (int s = size / 4; s >= 1; s /= 2) {
+#pragma GCC unroll 16
+      for (int i = 0; i < R; ++i) {
+        if (i & s) continue;
+        minMax8(&v[i], &v[i + s]);
+      }
+    }
+#pragma GCC unroll 16
+    for (int i = 0; i < R; ++i) v[i] = laneMerge8(v[i]);
+  }
+}
+
+/// The proxies of the first n candidates (distance bits d[j], slot j) sorted into sp[0, 8R),
+/// padding after them and in sp[8R, 8R + 8).
+template <int R>
+GF_TARGET_AVX2_PATHS inline void sortProxies(const std::uint32_t* d, int n, std::uint32_t* sp) {
+  __m256i v[R];
+  const __m256i low = _mm256_set1_epi32((1 << kProxyBits) - 1);
+  const __m256i pad = _mm256_set1_epi32(static_cast<int>(kProxyPad));
+  const __m256i count = _mm256_set1_epi32(n);
+#pragma GCC unroll 16
+  for (int r = 0; r < R; ++r) {
+    const __m256i lane = _mm256_setr_epi32(8 * r, 8 * r + 1, 8 * r + 2, 8 * r + 3, 8 * r + 4,
+                                           8 * r + 5, 8 * r + 6, 8 * r + 7);
+    // Lanes at or past n (within the buffer, not yet written) become padding.
+    const __m256i dr = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(d + 8 * r));
+    const __m256i proxy = _mm256_or_si256(_mm256_andnot_si256(low, dr), lane);
+    v[r] = _mm256_blendv_epi8(pad, proxy, _mm256_cmpgt_epi32(count, lane));
+  }
+  bitonicSort8<R>(v);
+#pragma GCC unroll 16
+  for (int r = 0; r < R; ++r) _mm256_store_si256(reinterpret_cast<__m256i*>(sp + 8 * r), v[r]);
+  _mm256_store_si256(reinterpret_cast<__m256i*>(sp + 8 * R), pad);
+}
+
+/// The best K (33-64) keys of the candidates within the threshold, sorted; every candidate in
+/// one buffer, sorted when it fills and at the end (see above).
+class TopKProxyAvx2 {
+ public:
+  static constexpr int kBuf = 128;        // candidates sorted at once
+  static constexpr int kFill = kBuf - 8;  // sort when more than this (a block adds up to 8)
+
+  void init(int k, float bound) {
+    k_ = k;
+    n_ = 0;
+    kept_ = 0;
+    sorted_ = false;
+    thr_ = bound;
+  }
+  float threshold() const { return thr_; }
+
+  GF_TARGET_AVX2_PATHS static float boxDist(const Node& nd, const float* q) {
+    return boxDistAvx2(nd, q);
+  }
+
+  GF_TARGET_AVX2_PATHS void scan(const Tree& t, const Node& nd, const float* q) {
+    int m = static_cast<int>(nd.scan_end - nd.begin);
+    if (nd.right == kSamePoint && kept_ == k_) {
+      m = samePointPrefix(t.pidx.data() + nd.begin, m, firstPointDist(t, nd, q), key(k_ - 1));
+    }
+    n_ = packLeafAvx2(t, nd, m, q, thr_, kFill, d_, i_, n_, this);
+  }
+
+  /// Sorts a full buffer of n candidates: the count left and the new threshold (packLeafAvx2()).
+  GF_TARGET_AVX2_PATHS std::pair<int, float> makeRoom(int n) {
+    n_ = n;
+    reduce();
+    return std::make_pair(n_, thr_);
+  }
+
+  GF_TARGET_AVX2_PATHS void finish() {
+    if (!sorted_ || n_ > kept_) reduce();
+  }
+  bool complete() const { return kept_ == k_; }
+  std::uint64_t key(int j) const {
+    return j < kept_ ? (static_cast<std::uint64_t>(d_[j]) << 32) | i_[j] : kNoKey;
+  }
+
+  void write(std::int32_t* idx, float* dist) const {
+    std::memcpy(idx, i_, static_cast<std::size_t>(kept_) * sizeof(std::int32_t));
+    if (dist) std::memcpy(dist, d_, static_cast<std::size_t>(kept_) * sizeof(float));
+    for (int j = kept_; j < k_; ++j) {  // fewer points than K: TopKAvx2's empty slots
+      idx[j] = -1;
+      if (dist) {
+        const std::uint32_t none = 0x7fffffffu;
+        std::memcpy(dist + j, &none, sizeof none);
+      }
+    }
+  }
+
+ private:
+  /// Sorts the n_ candidates, keeps the best K at the front (kept_), tightens the threshold.
+  GF_TARGET_AVX2_PATHS void reduce() {
+    const int n = n_;
+    alignas(32) std::uint32_t sp[kBuf + 8];  // + 8 of padding: the tie check reads one past
+    if (n <= kBuf / 2) {
+      sortProxies<kBuf / 16>(d_, n, sp);
+    } else {
+      sortProxies<kBuf / 8>(d_, n, sp);
+    }
+    const int keep = std::min(n, k_);
+    // Two of the first K + 1 whose distances differ only in the bits the slot replaced: their
+    // order is the slots', not the keys'. Sort the full keys instead (rare).
+    const int pairs = std::min(n, k_ + 1) - 1;  // adjacent pairs (j, j + 1), j < pairs
+    bool near_tie = false;
+    for (int j = 0; j < pairs; j += 8) {
+      const __m256i a = _mm256_srli_epi32(
+          _mm256_load_si256(reinterpret_cast<const __m256i*>(sp + j)), kProxyBits);
+      const __m256i b = _mm256_srli_epi32(
+          _mm256_loadu_si256(reinterpret_cast<const __m256i*>(sp + j + 1)), kProxyBits);
+      const __m256i lane = _mm256_setr_epi32(j, j + 1, j + 2, j + 3, j + 4, j + 5, j + 6, j + 7);
+      const __m256i eq = _mm256_and_si256(_mm256_cmpeq_epi32(a, b),
+                                          _mm256_cmpgt_epi32(_mm256_set1_epi32(pairs), lane));
+      near_tie |= !_mm256_testz_si256(eq, eq);
+    }
+    alignas(32) std::uint32_t nd[kBuf + 8], ni[kBuf + 8];
+    if (!near_tie) {
+      for (int j = 0; j < keep; ++j) {
+        const std::uint32_t s = sp[j] & ((1u << kProxyBits) - 1);
+        nd[j] = d_[s];
+        ni[j] = i_[s];
+      }
+    } else {
+      std::uint64_t keys[kBuf];
+      for (int j = 0; j < n; ++j) keys[j] = (static_cast<std::uint64_t>(d_[j]) << 32) | i_[j];
+      std::partial_sort(keys, keys + keep, keys + n);
+      for (int j = 0; j < keep; ++j) {
+        nd[j] = static_cast<std::uint32_t>(keys[j] >> 32);
+        ni[j] = static_cast<std::uint32_t>(keys[j]);
+      }
+    }
+    std::memcpy(d_, nd, static_cast<std::size_t>(keep) * sizeof(std::uint32_t));
+    std::memcpy(i_, ni, static_cast<std::size_t>(keep) * sizeof(std::uint32_t));
+    n_ = kept_ = keep;
+    sorted_ = true;
+    if (kept_ == k_) thr_ = std::min(thr_, keyDist(key(k_ - 1)));
+  }
+
+  alignas(32) std::uint32_t d_[kBuf + 8];  // squared distance bits; the first kept_ sorted
+  alignas(32) std::uint32_t i_[kBuf + 8];  // point indices
+  int k_ = 0, n_ = 0, kept_ = 0;
+  bool sorted_ = false;
+  float thr_ = 0.f;
+};
+
 }  // namespace
 
 GF_TARGET_AVX2_PATHS void queryRangeAvx2(const Tree& t, std::size_t pb, std::size_t pe, int k,
@@ -305,7 +565,7 @@ GF_TARGET_AVX2_PATHS void queryRangeAvx2(const Tree& t, std::size_t pb, std::siz
     TopKAvx2<8> set;
     queryRange(t, pb, pe, k, &set, out_idx, out_dist);
   } else if (k <= 64) {
-    TopKAvx2<16> set;
+    TopKProxyAvx2 set;
     queryRange(t, pb, pe, k, &set, out_idx, out_dist);
   } else if (k <= 128) {
     TopKAvx2<32> set;
