@@ -379,46 +379,48 @@ GF_TARGET_AVX2_PATHS inline void sortRegisters8(__m256i* v) {
   }
 }
 
+/// Half-cleaners over registers S, S / 2, ..., 1 apart (S = 0: none).
+template <int R, int S>
+GF_TARGET_AVX2_PATHS inline void halfClean8(__m256i* v) {
+  if constexpr (S >= 1) {
+#pragma GCC unroll 16
+    for (int i = 0; i < R; ++i) {
+      if (!(i & S)) minMax8(&v[i], &v[i + S]);
+    }
+    halfClean8<R, S / 2>(v);
+  }
+}
+
+/// Merges the sorted runs of Size / 2 registers into runs of Size, then the next level up to R.
+/// Templates all the way down, so that every index is a constant and v stays in registers.
+template <int R, int Size>
+GF_TARGET_AVX2_PATHS inline void mergeRuns8(__m256i* v) {
+  const __m256i rev = _mm256_setr_epi32(7, 6, 5, 4, 3, 2, 1, 0);
+#pragma GCC unroll 16
+  for (int blk = 0; blk < R; blk += Size) {
+    __m256i hi[Size / 2];
+#pragma GCC unroll 8
+    for (int j = 0; j < Size / 2; ++j) {
+      // The run's second half reversed against its first: both halves become bitonic.
+      __m256i b = _mm256_permutevar8x32_epi32(v[blk + Size - 1 - j], rev);
+      minMax8(&v[blk + j], &b);
+      hi[j] = b;
+    }
+#pragma GCC unroll 8
+    for (int j = 0; j < Size / 2; ++j) v[blk + Size / 2 + j] = hi[j];
+  }
+  halfClean8<R, Size / 4>(v);
+#pragma GCC unroll 16
+  for (int i = 0; i < R; ++i) v[i] = laneMerge8(v[i]);
+  if constexpr (2 * Size <= R) mergeRuns8<R, 2 * Size>(v);
+}
+
 /// Sorts the 8R proxies of v ascending (R = 8 or 16).
 template <int R>
 GF_TARGET_AVX2_PATHS inline void bitonicSort8(__m256i* v) {
-  const __m256i rev = _mm256_setr_epi32(7, 6, 5, 4, 3, 2, 1, 0);
 #pragma GCC unroll 2
   for (int i = 0; i < R; i += 8) sortRegisters8(v + i);
-#pragma GCC unroll 4
-  for (int size = 2; size <= R; size *= 2) {  // merge sorted runs of size / 2 registers
-#pragma GCC unroll 8
-    for (int blk = 0; blk < R; blk += size) {
-#pragma GCC unroll 8
-      for (int j = 0; j < size / 2; ++j) {
-        // The run's second half reversed against its first: both halves become bitonic.
-        __m256i a = v[blk + j], b = _mm256_permutevar8x32_epi32(v[blk + size - 1 - j], rev);
-        minMax8(&a, &b);
-        v[blk + j] = a;
-        v[blk + size - 1 - j] = b;
-      }
-    }
-    // The upper half of each run was written back register-reversed: put it in order for the
-    // half-cleaners (a reversed bitonic sequence is bitonic, but the cleaners pair registers by
-    // position).
-#pragma GCC unroll 8
-    for (int blk = 0; blk < R; blk += size) {
-#pragma GCC unroll 4
-      for (int j = 0; j < size / 4; ++j) {
-        std::swap(v[blk + size / 2 + j], v[blk + size - 1 - j]);
-      }
-    }
-#pragma GCC unroll 4
-    for (int s = size / 4; s >= 1; s /= 2) {
-#pragma GCC unroll 16
-      for (int i = 0; i < R; ++i) {
-        if (i & s) continue;
-        minMax8(&v[i], &v[i + s]);
-      }
-    }
-#pragma GCC unroll 16
-    for (int i = 0; i < R; ++i) v[i] = laneMerge8(v[i]);
-  }
+  mergeRuns8<R, 2>(v);
 }
 
 /// The proxies of the first n candidates (distance bits d[j], slot j) sorted into sp[0, 8R),
@@ -500,6 +502,31 @@ class TopKProxyAvx2 {
   }
 
  private:
+  static constexpr std::uint32_t kSlotMask = (1u << kProxyBits) - 1;
+
+  std::uint64_t slotKey(std::uint32_t proxy) const {
+    const std::uint32_t s = proxy & kSlotMask;
+    return (static_cast<std::uint64_t>(d_[s]) << 32) | i_[s];
+  }
+
+  /// Puts each run of sorted proxies with equal upper bits that starts before `keep` in the
+  /// order of the full keys (distance, index): the runs are contiguous, and everything before
+  /// a run is smaller and everything after it larger, so the first `keep` are then exact.
+  void sortTiedRuns(std::uint32_t* sp, int n, int keep) const {
+    for (int j = 0; j < keep;) {
+      int e = j + 1;
+      while (e < n && (sp[e] >> kProxyBits) == (sp[j] >> kProxyBits)) ++e;
+      for (int a = j + 1; a < e; ++a) {  // insertion sort: runs are short
+        const std::uint32_t v = sp[a];
+        const std::uint64_t kv = slotKey(v);
+        int b = a;
+        for (; b > j && slotKey(sp[b - 1]) > kv; --b) sp[b] = sp[b - 1];
+        sp[b] = v;
+      }
+      j = e;
+    }
+  }
+
   /// Sorts the n_ candidates, keeps the best K at the front (kept_), tightens the threshold.
   GF_TARGET_AVX2_PATHS void reduce() {
     const int n = n_;
@@ -511,7 +538,7 @@ class TopKProxyAvx2 {
     }
     const int keep = std::min(n, k_);
     // Two of the first K + 1 whose distances differ only in the bits the slot replaced: their
-    // order is the slots', not the keys'. Sort the full keys instead (rare).
+    // order is the slots', not the keys' (rare: duplicate points, mostly).
     const int pairs = std::min(n, k_ + 1) - 1;  // adjacent pairs (j, j + 1), j < pairs
     bool near_tie = false;
     for (int j = 0; j < pairs; j += 8) {
@@ -524,21 +551,12 @@ class TopKProxyAvx2 {
                                           _mm256_cmpgt_epi32(_mm256_set1_epi32(pairs), lane));
       near_tie |= !_mm256_testz_si256(eq, eq);
     }
+    if (near_tie) sortTiedRuns(sp, n, keep);
     alignas(32) std::uint32_t nd[kBuf + 8], ni[kBuf + 8];
-    if (!near_tie) {
-      for (int j = 0; j < keep; ++j) {
-        const std::uint32_t s = sp[j] & ((1u << kProxyBits) - 1);
-        nd[j] = d_[s];
-        ni[j] = i_[s];
-      }
-    } else {
-      std::uint64_t keys[kBuf];
-      for (int j = 0; j < n; ++j) keys[j] = (static_cast<std::uint64_t>(d_[j]) << 32) | i_[j];
-      std::partial_sort(keys, keys + keep, keys + n);
-      for (int j = 0; j < keep; ++j) {
-        nd[j] = static_cast<std::uint32_t>(keys[j] >> 32);
-        ni[j] = static_cast<std::uint32_t>(keys[j]);
-      }
+    for (int j = 0; j < keep; ++j) {
+      const std::uint32_t s = sp[j] & kSlotMask;
+      nd[j] = d_[s];
+      ni[j] = i_[s];
     }
     std::memcpy(d_, nd, static_cast<std::size_t>(keep) * sizeof(std::uint32_t));
     std::memcpy(i_, ni, static_cast<std::size_t>(keep) * sizeof(std::uint32_t));
