@@ -329,8 +329,8 @@ class TopKAvx2 {
 // sorts it once at the end (earlier only when the buffer fills). The sort runs on 32-bit
 // proxies: the distance bits with the low 8 cleared, the candidate's slot in the low 8; 64 of
 // them fit in 8 registers. Proxies order the candidates as their (distance, index) keys do
-// except where two distances share all but their low 8 bits (2^-15 apart): such a pair among
-// the first K + 1 sends the list to an exact sort of the full keys.
+// except where two distances share all but their low 8 bits (2^-15 apart): such a run among
+// the first K + 1 is put in the order of the full keys (sortTiedRuns()).
 
 constexpr int kProxyBits = 8;                     // slots < 256
 constexpr std::uint32_t kProxyPad = 0xffffffffu;  // above any real proxy (distances <= +inf)
