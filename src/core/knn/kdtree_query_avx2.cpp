@@ -332,7 +332,8 @@ class TopKAvx2 {
 // except where two distances share all but their low 8 bits (2^-15 apart): such a run among
 // the first K + 1 is put in the order of the full keys (sortTiedRuns()).
 
-constexpr int kProxyBits = 8;                     // slots < 256
+constexpr int kProxyBits = 8;                                // slots < 256
+constexpr std::uint32_t kSlotMask = (1u << kProxyBits) - 1;  // a proxy's slot bits
 constexpr std::uint32_t kProxyPad = 0xffffffffu;  // above any real proxy (distances <= +inf)
 
 GF_TARGET_AVX2_PATHS inline void minMax8(__m256i* a, __m256i* b) {
@@ -428,7 +429,7 @@ GF_TARGET_AVX2_PATHS inline void bitonicSort8(__m256i* v) {
 template <int R>
 GF_TARGET_AVX2_PATHS inline void sortProxies(const std::uint32_t* d, int n, std::uint32_t* sp) {
   __m256i v[R];
-  const __m256i low = _mm256_set1_epi32((1 << kProxyBits) - 1);
+  const __m256i low = _mm256_set1_epi32(static_cast<int>(kSlotMask));
   const __m256i pad = _mm256_set1_epi32(static_cast<int>(kProxyPad));
   const __m256i count = _mm256_set1_epi32(n);
 #pragma GCC unroll 16
@@ -457,7 +458,6 @@ class TopKProxyAvx2 {
     k_ = k;
     n_ = 0;
     kept_ = 0;
-    sorted_ = false;
     thr_ = bound;
   }
   float threshold() const { return thr_; }
@@ -482,7 +482,7 @@ class TopKProxyAvx2 {
   }
 
   GF_TARGET_AVX2_PATHS void finish() {
-    if (!sorted_ || n_ > kept_) reduce();
+    if (n_ > kept_) reduce();  // candidates not sorted yet (none at all: nothing to keep)
   }
   bool complete() const { return kept_ == k_; }
   std::uint64_t key(int j) const {
@@ -502,8 +502,6 @@ class TopKProxyAvx2 {
   }
 
  private:
-  static constexpr std::uint32_t kSlotMask = (1u << kProxyBits) - 1;
-
   std::uint64_t slotKey(std::uint32_t proxy) const {
     const std::uint32_t s = proxy & kSlotMask;
     return (static_cast<std::uint64_t>(d_[s]) << 32) | i_[s];
@@ -561,14 +559,12 @@ class TopKProxyAvx2 {
     std::memcpy(d_, nd, static_cast<std::size_t>(keep) * sizeof(std::uint32_t));
     std::memcpy(i_, ni, static_cast<std::size_t>(keep) * sizeof(std::uint32_t));
     n_ = kept_ = keep;
-    sorted_ = true;
     if (kept_ == k_) thr_ = std::min(thr_, keyDist(key(k_ - 1)));
   }
 
   alignas(32) std::uint32_t d_[kBuf + 8];  // squared distance bits; the first kept_ sorted
   alignas(32) std::uint32_t i_[kBuf + 8];  // point indices
   int k_ = 0, n_ = 0, kept_ = 0;
-  bool sorted_ = false;
   float thr_ = 0.f;
 };
 
