@@ -264,8 +264,8 @@ CudaKnn::Impl::SortedCloud CudaKnn::Impl::sortPoints(const float* d_xyz, int n, 
                                            keys_b.as<unsigned long long>());
   cub::DoubleBuffer<unsigned int> vb(vals_a.as<unsigned int>(), vals_b.as<unsigned int>());
   std::size_t temp_bytes = sort_temp.bytes;
-  GF_CUDA_CHECK(
-      cub::DeviceRadixSort::SortPairs(sort_temp.ptr, temp_bytes, kb, vb, n, 0, 3 * kCoordBits, st));
+  GF_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(
+      sort_temp.ptr, temp_bytes, kb, vb, n, 3 * (kCoordBits - kSortedLevels), 3 * kCoordBits, st));
   const SortedCloud out{kb.Current(), vb.Current()};
   GF_CUDA_CHECK(cudaMemsetAsync(
       d_hist, 0, 32 * sizeof(unsigned int) + kStatCount * sizeof(unsigned long long), st));
@@ -315,9 +315,10 @@ GridDesc CudaKnn::Impl::buildGrid(const SortedCloud& sorted_cloud, int n, int k,
     acc += h_hist[b];
     cells[b] = acc;
   }
-  // Finest level: where cells average <= ~1.7 points (finer levels would be nearly empty).
-  int finest = kCoordBits;
-  for (int b = 0; b < kMaxLevels; ++b) {
+  // Finest level: where cells average <= ~1.7 points (finer levels would be nearly empty), at
+  // most the finest that the sort orders (kSortedLevels).
+  int finest = kSortedLevels;
+  for (int b = 0; b < kSortedLevels; ++b) {
     if (cells[b] * 10 >= n_in * 6) {
       finest = b;
       break;

@@ -253,7 +253,8 @@ void CudaNormalPipeline::Impl::packAndUpload(CudaKnn::Impl& im, const CloudView&
   float* hp = h_in.as<float>();
   const std::int64_t nn = static_cast<std::int64_t>(n_in);
   // One thread per 32 k points, up to all: a KITTI/OS-128 frame packs in 0.3/0.6 ms on one
-  // thread, and waking a few threads costs far less.
+  // thread, and waking a few threads costs far less; waking more costs more than it saves (one
+  // per 16 k / 8 k points: 0.30-0.48 / 0.53-0.72 ms a KITTI frame against 0.11-0.14, H200 host).
   const int pack_threads = static_cast<int>(
       std::max<std::int64_t>(1, std::min<std::int64_t>(omp_get_max_threads(), nn >> 15)));
 #pragma omp parallel for schedule(static) num_threads(pack_threads) if (pack_threads > 1)
@@ -366,7 +367,10 @@ void CudaNormalPipeline::Impl::planesAndLabels(CudaKnn::Impl& im, int n, std::si
   const double inv_tile = 1.0 / tile;
   const std::uint64_t tx_max = normal::cellIndex(bb.max_x, bb.min_x, inv_tile);
   const std::uint64_t ty_max = normal::cellIndex(bb.max_y, bb.min_y, inv_tile);
-  const int tile_bits = prm.local_planes ? 32 + bitLength(tx_max) : 1;
+  // Tile keys tx << ybits | ty: the order of the CPU's (tx << 32) | ty (plane.cpp; the RANSAC
+  // seeds are drawn from it) in the fewest radix passes (KITTI: 12 bits, 2 passes instead of 5).
+  const int ybits = prm.local_planes ? bitLength(ty_max) : 0;
+  const int tile_bits = prm.local_planes ? std::max(1, bitLength(tx_max) + ybits) : 1;
   std::uint64_t tiles_max = 1;
   if (prm.local_planes) {  // occupied tiles, at most: min(points, tiles of the bounding box)
     tiles_max = (tx_max + 1) > static_cast<std::uint64_t>(n) / (ty_max + 1)
@@ -380,7 +384,7 @@ void CudaNormalPipeline::Impl::planesAndLabels(CudaKnn::Impl& im, int n, std::si
   const normal::OverheadGrid og = normal::overheadGrid(bb.min_x, bb.min_y, bb.max_x, bb.max_y);
   im.grow(column_low, static_cast<std::size_t>(og.nx) * og.ny * sizeof(int), "the overhead test");
   launchUnvoteOverhead(d_xyz, d_voted, n, og, gp, sensorCounts(), column_low.as<int>(), st);
-  launchTileKeys(d_xyz, n, prm.local_planes, bb.min_x, bb.min_y, inv_tile,
+  launchTileKeys(d_xyz, n, prm.local_planes, bb.min_x, bb.min_y, inv_tile, ybits,
                  keys_a.as<unsigned long long>(), vals_a.as<unsigned int>(), st);
   cub::DoubleBuffer<unsigned long long> kb(keys_a.as<unsigned long long>(),
                                            keys_b.as<unsigned long long>());
@@ -408,10 +412,10 @@ void CudaNormalPipeline::Impl::planesAndLabels(CudaKnn::Impl& im, int n, std::si
   const unsigned int* d_gcount = gpos.as<unsigned int>() + n;
   PlaneDev* d_planes = planes.as<PlaneDev>();
   const int plane_blocks = static_cast<int>(std::min<std::uint64_t>(tiles_max + 1, 8ull * sms));
-  launchPlanes(d_xyz, d_tkeys, tile_begin.as<unsigned int>(), d_ntiles, vpos.as<unsigned int>(),
-               vlist.as<unsigned int>(), glist.as<unsigned int>(), d_gcount, gp, d_planes,
-               workPlanes(), needGlobal(), sensorCounts(), refine.as<double>(), tiles_max,
-               plane_blocks, st);
+  launchPlanes(d_xyz, d_tkeys, ybits, tile_begin.as<unsigned int>(), d_ntiles,
+               vpos.as<unsigned int>(), vlist.as<unsigned int>(), glist.as<unsigned int>(),
+               d_gcount, gp, d_planes, workPlanes(), needGlobal(), sensorCounts(),
+               refine.as<double>(), tiles_max, plane_blocks, st);
   std::uint8_t* d_labels = labels.as<std::uint8_t>();
   GF_CUDA_CHECK(cudaMemsetAsync(d_labels, 0, n_in, st));
   const int classify_blocks = static_cast<int>(std::min<std::uint64_t>(tiles_max, 8ull * sms));

@@ -373,11 +373,12 @@ __global__ void __launch_bounds__(kThreads)
 
 __global__ void __launch_bounds__(kPlaneThreads)
     planesKernel(const float* __restrict__ xyz, const unsigned long long* __restrict__ keys,
-                 const unsigned int* __restrict__ tile_begin, const unsigned int* ntiles_dev,
-                 const unsigned int* __restrict__ vpos, const unsigned int* __restrict__ vlist,
-                 const unsigned int* __restrict__ glist, const unsigned int* gcount,
-                 const unsigned int* need_global_dev, const unsigned int* sensor_counts,
-                 const GroundParamsDev p, PlaneDev* planes, unsigned int* work) {
+                 int ybits, const unsigned int* __restrict__ tile_begin,
+                 const unsigned int* ntiles_dev, const unsigned int* __restrict__ vpos,
+                 const unsigned int* __restrict__ vlist, const unsigned int* __restrict__ glist,
+                 const unsigned int* gcount, const unsigned int* need_global_dev,
+                 const unsigned int* sensor_counts, const GroundParamsDev p, PlaneDev* planes,
+                 unsigned int* work) {
   __shared__ float evp[3 * kEvalMax];
   __shared__ double stage[7 * kPlaneThreads];
   __shared__ Hypothesis batch[kPlaneWarps];
@@ -406,7 +407,10 @@ __global__ void __launch_bounds__(kPlaneThreads)
       const unsigned int t = item - 1, b = tile_begin[t], e = tile_begin[t + 1];
       const unsigned int m = vpos[e] - vpos[b];
       if (p.local_planes && m >= kMinTilePoints) {
-        const std::uint64_t seed = base_seed ^ (keys[b] * 0x9e3779b97f4a7c15ULL);
+        // The seed of the CPU's key (tx << 32) | ty (plane.cpp), from the packed tx << ybits | ty.
+        const unsigned long long key = keys[b];
+        const std::uint64_t cpu_key = ((key >> ybits) << 32) | (key & ((1ull << ybits) - 1ull));
+        const std::uint64_t seed = base_seed ^ (cpu_key * 0x9e3779b97f4a7c15ULL);
         fitPlaneBlock(xyz, vlist + vpos[b], m, p, seed, false, check, evp, stage, batch, shd,
                       &plane);
       } else {
@@ -535,7 +539,7 @@ __global__ void __launch_bounds__(kThreads)
 
 }  // namespace
 
-void launchPlanes(const float* xyz, const unsigned long long* sorted_keys,
+void launchPlanes(const float* xyz, const unsigned long long* sorted_keys, int ybits,
                   const unsigned int* tile_begin, const unsigned int* ntiles,
                   const unsigned int* vpos, const unsigned int* vlist, const unsigned int* glist,
                   const unsigned int* gcount, const GroundParamsDev& p, PlaneDev* planes,
@@ -546,9 +550,9 @@ void launchPlanes(const float* xyz, const unsigned long long* sorted_keys,
                                                                           need_global);
     GF_CUDA_CHECK_LAUNCH();
   }
-  planesKernel<<<blocks, kPlaneThreads, 0, st>>>(xyz, sorted_keys, tile_begin, ntiles, vpos, vlist,
-                                                 glist, gcount, need_global, sensor_counts, p,
-                                                 planes, work);
+  planesKernel<<<blocks, kPlaneThreads, 0, st>>>(xyz, sorted_keys, ybits, tile_begin, ntiles, vpos,
+                                                 vlist, glist, gcount, need_global, sensor_counts,
+                                                 p, planes, work);
   GF_CUDA_CHECK_LAUNCH();
   for (int pass = 0; pass < 3; ++pass) {
     globalRefineKernel<<<pass == 2 ? 1 : kRefineBlocks, kThreads, 0, st>>>(

@@ -17,8 +17,8 @@ namespace cuda_impl {
 /// local planes; refined grid-wide when large), item 1 + t tile t. `work` and `need_global` are
 /// zeroed counters, `partial` holds refinePartialBytes(); `tiles_max` bounds the tile count.
 /// With p.sensor_check and `sensor_counts` as launchUnvoteOverhead() left them, no plane passes
-/// above the sensor.
-void launchPlanes(const float* xyz, const unsigned long long* sorted_keys,
+/// above the sensor. `sorted_keys`: the tile keys tx << ybits | ty (launchTileKeys()).
+void launchPlanes(const float* xyz, const unsigned long long* sorted_keys, int ybits,
                   const unsigned int* tile_begin, const unsigned int* ntiles,
                   const unsigned int* vpos, const unsigned int* vlist, const unsigned int* glist,
                   const unsigned int* gcount, const GroundParamsDev& p, PlaneDev* planes,

@@ -15,7 +15,7 @@ constexpr int kThreads = kGroundThreads;
 using normal::cellIndex;
 
 __global__ void tileKeysKernel(const float* __restrict__ xyz, int n, bool local_planes,
-                               double min_x, double min_y, double inv_tile,
+                               double min_x, double min_y, double inv_tile, int ybits,
                                unsigned long long* keys, unsigned int* vals) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i >= n) return;
@@ -24,7 +24,7 @@ __global__ void tileKeysKernel(const float* __restrict__ xyz, int n, bool local_
     const std::size_t s = 3 * static_cast<std::size_t>(i);
     const std::uint32_t tx = cellIndex(xyz[s], min_x, inv_tile);
     const std::uint32_t ty = cellIndex(xyz[s + 1], min_y, inv_tile);
-    key = (static_cast<unsigned long long>(tx) << 32) | ty;
+    key = (static_cast<unsigned long long>(tx) << ybits) | ty;
   }
   keys[i] = key;
   vals[i] = static_cast<unsigned int>(i);
@@ -62,10 +62,10 @@ __global__ void tileListsKernel(
 }  // namespace
 
 void launchTileKeys(const float* xyz, int n, bool local_planes, double min_x, double min_y,
-                    double inv_tile, unsigned long long* keys, unsigned int* vals,
+                    double inv_tile, int ybits, unsigned long long* keys, unsigned int* vals,
                     cudaStream_t st) {
   tileKeysKernel<<<blocksFor(n, kThreads), kThreads, 0, st>>>(xyz, n, local_planes, min_x, min_y,
-                                                              inv_tile, keys, vals);
+                                                              inv_tile, ybits, keys, vals);
   GF_CUDA_CHECK_LAUNCH();
 }
 

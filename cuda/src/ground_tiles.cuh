@@ -12,9 +12,11 @@
 namespace ground_filter {
 namespace cuda_impl {
 
-/// Tile key (tx << 32 | ty) of every point, 0 without local planes; vals = identity.
+/// Tile key (tx << ybits | ty, ty < 2^ybits: the order of the CPU's tx << 32 | ty in fewer bits)
+/// of every point, 0 without local planes; vals = identity.
 void launchTileKeys(const float* xyz, int n, bool local_planes, double min_x, double min_y,
-                    double inv_tile, unsigned long long* keys, unsigned int* vals, cudaStream_t st);
+                    double inv_tile, int ybits, unsigned long long* keys, unsigned int* vals,
+                    cudaStream_t st);
 /// heads[j] = sorted tile key j starts a tile (j < n); heads[n] = 0. vflags[j] =
 /// voted[order[j]], gflags[i] = voted[i] (both with a 0 at n).
 void launchTileFlags(const unsigned long long* sorted_keys, const unsigned int* order,

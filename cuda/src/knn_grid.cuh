@@ -14,6 +14,10 @@ namespace cuda_impl {
 constexpr int kCoordBits = 21;  // per axis; 3 * 21 = 63-bit Morton keys
 constexpr std::uint32_t kCoordMax = (1u << kCoordBits) - 1;
 constexpr int kMaxLevels = kCoordBits + 1;  // level b has 2^b cells per axis, b = 0..21
+/// The Morton sort orders the keys' top 3 * kSortedLevels bits only (6 radix passes instead of 8):
+/// the cells of levels 0..16 (1/65536 of the cube's edge) are runs of the sorted points, and no
+/// finer level is used (a finer one would only order points a few mm apart on a KITTI frame).
+constexpr int kSortedLevels = 16;
 constexpr unsigned long long kEmptyKey = ~0ull;
 constexpr int kEmptyIndex = 0x7fffffff;  // sorts after every real index
 constexpr int kWarp = 32;
