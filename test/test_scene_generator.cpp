@@ -521,7 +521,10 @@ TEST(SceneGenerator, TiltedMountIsTheLevelScanTurned) {
   EXPECT_TRUE(std::isnan(sceneGroundHeight(pt, 1.0, 2.0)));
   EXPECT_THROW(generateScene(parseSceneSpec("lidar16:1:positions=2,mount_roll_deg=5")),
                std::invalid_argument);
-  EXPECT_THROW(generateScene(parseSceneSpec("lidar16:1:mount_pitch_deg=50")),
+  EXPECT_NO_THROW(generateScene(parseSceneSpec("lidar16:1:mount_pitch_deg=90")));
+  EXPECT_THROW(generateScene(parseSceneSpec("lidar16:1:mount_pitch_deg=95")),
+               std::invalid_argument);
+  EXPECT_THROW(generateScene(parseSceneSpec("lidar16:1:mount_roll_deg=-91")),
                std::invalid_argument);
 }
 

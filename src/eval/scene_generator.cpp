@@ -552,8 +552,8 @@ void SceneParams::validate() const {
   checkRange("airborne_hall", airborne_hall, 0.0, 1000.0, "m");
   checkRange("second_returns", second_returns, 0.0, 1.0, "");
   checkRange("ceiling_height", ceiling_height, 1.5, 30.0, "m");
-  checkRange("mount_roll_deg", mount_roll_deg, -45.0, 45.0, "deg");
-  checkRange("mount_pitch_deg", mount_pitch_deg, -45.0, 45.0, "deg");
+  checkRange("mount_roll_deg", mount_roll_deg, -90.0, 90.0, "deg");
+  checkRange("mount_pitch_deg", mount_pitch_deg, -90.0, 90.0, "deg");
   // A frame on the ground below the scanner and a tilted mount both describe one scan.
   const char* one_scan = base_frame ? "parameter 'base_frame'"
                          : mount_roll_deg != 0.0 || mount_pitch_deg != 0.0

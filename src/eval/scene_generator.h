@@ -99,11 +99,12 @@ struct SceneParams {
   /// base_footprint): the scanner frame moved down by the scanner's height [-] (false).
   bool base_frame = false;
   /// A scanner mounted tilted, with no gravity frame to undo it: the points of the level scan
-  /// expressed in a frame rolled about the scanner's x axis by this angle [deg] (0; -45..45).
+  /// expressed in a frame rolled about the scanner's x axis by this angle [deg] (0; -90..90:
+  /// beyond the levelling's 60 deg too, to test it).
   /// One scan in its own (or base) frame only.
   double mount_roll_deg = 0.0;
   /// ... and then pitched about its y axis, right-handed (> 0 tips x down, REP 103) [deg] (0;
-  /// -45..45).
+  /// -90..90).
   double mount_pitch_deg = 0.0;
   double world_offset_x = 0.0;    ///< added to every x of a world-frame cloud [m] (0)
   double world_offset_y = 0.0;    ///< added to every y of a world-frame cloud [m] (0)
