@@ -1,8 +1,9 @@
 // CudaNormalPipeline: the whole normal-vector filter on the device.
 //
-// run(): pack xyz (host, pinned) -> upload -> finite flags, scan, compaction + x/y bounds ->
-// [sync: count, bounds] -> column keys (CPU's cellIndex/spreadBits in double) -> stable radix
-// sort -> gather -> [sample_stride > 1: every stride-th point, a dense column capped; sync: m]
+// run(): pack xyz (host, pinned; the finite points' count and x/y bounds on the way, so no sync
+// waits for them) -> upload -> finite flags, scan, compaction -> column keys (CPU's
+// cellIndex/spreadBits in double) -> stable radix sort -> gather -> [sample_stride > 1: every
+// stride-th point, a dense column capped; sync: m]
 // -> KNN on the device copy
 // (CudaKnn's grid; it syncs once for its level choice)
 // -> PCA + candidates -> vote -> tile keys -> stable sort -> tile heads / voted lists (scans) ->
@@ -15,6 +16,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include <cub/device/device_radix_sort.cuh>
 #include <cub/device/device_scan.cuh>
 #include <stdexcept>
@@ -49,6 +53,75 @@ int bitLength(std::uint64_t v) {
 
 constexpr int kEvents = 8;
 
+/// The finite points of a packed range: count and x/y bounds (what the device's finite flags and
+/// compaction keep; min / max are exact, so the split into ranges does not matter).
+struct PackStats {
+  unsigned int valid = 0;
+  float min_x = INFINITY, min_y = INFINITY, max_x = -INFINITY, max_y = -INFINITY;
+  void merge(const PackStats& o) {
+    valid += o.valid;
+    min_x = std::min(min_x, o.min_x);
+    min_y = std::min(min_y, o.min_y);
+    max_x = std::max(max_x, o.max_x);
+    max_y = std::max(max_y, o.max_y);
+  }
+};
+
+/// Packs points [b, e) of the view as x y z triplets into hp (3 floats a point) and counts the
+/// finite ones (x, y and z finite, as finiteFlagsKernel) and their x/y bounds. Where x y z are
+/// adjacent, one 16-byte load and store a point: the load's 4th float is the record's next field
+/// or the next record's x (so not for the view's last record when the 12 bytes end it), and the
+/// store's is overwritten by the next point (not stored for the range's last one).
+void packRange(const CloudView& cloud, std::int64_t b, std::int64_t e, float* hp, PackStats* s) {
+  std::int64_t i = b;
+#if defined(__SSE2__)
+  if (cloud.xyzAdjacent()) {
+    const std::int64_t n = static_cast<std::int64_t>(cloud.size());
+    const std::int64_t simd_end = cloud.xyzFollowedByFloat() ? e : std::min(e, n - 1);
+    const std::uint8_t* rec = cloud.data() + cloud.xOffset();
+    const std::size_t stride = cloud.stride();
+    __m128 lo = _mm_set1_ps(INFINITY), hi = _mm_set1_ps(-INFINITY);
+    const __m128 zero = _mm_setzero_ps();
+    unsigned int valid = 0;
+    for (; i < simd_end; ++i) {
+      const __m128 p =
+          _mm_loadu_ps(reinterpret_cast<const float*>(rec + static_cast<std::size_t>(i) * stride));
+      if (i + 1 < e) {
+        _mm_storeu_ps(hp + 3 * i, p);
+      } else {
+        alignas(16) float v[4];
+        _mm_store_ps(v, p);
+        std::memcpy(hp + 3 * i, v, 3 * sizeof(float));
+      }
+      // p - p is 0 in a finite lane, NaN in an infinite or NaN one.
+      if ((_mm_movemask_ps(_mm_cmpeq_ps(_mm_sub_ps(p, p), zero)) & 7) == 7) {
+        ++valid;
+        lo = _mm_min_ps(lo, p);
+        hi = _mm_max_ps(hi, p);
+      }
+    }
+    alignas(16) float l[4], h[4];
+    _mm_store_ps(l, lo);
+    _mm_store_ps(h, hi);
+    s->merge(PackStats{valid, l[0], l[1], h[0], h[1]});
+  }
+#endif
+  for (; i < e; ++i) {
+    const std::size_t u = static_cast<std::size_t>(i);
+    const float x = cloud.x(u), y = cloud.y(u), z = cloud.z(u);
+    hp[3 * i] = x;
+    hp[3 * i + 1] = y;
+    hp[3 * i + 2] = z;
+    if (std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) {
+      ++s->valid;
+      s->min_x = std::min(s->min_x, x);
+      s->min_y = std::min(s->min_y, y);
+      s->max_x = std::max(s->max_x, x);
+      s->max_y = std::max(s->max_y, y);
+    }
+  }
+}
+
 /// The finite points' x/y bounds (as double, like the CPU's).
 struct XyBounds {
   double min_x, min_y, max_x, max_y;
@@ -69,7 +142,7 @@ struct CudaNormalPipeline::Impl {
   const unsigned long long* col_keys = nullptr;  // sorted column keys (orderColumns), n entries
 
   // The sections of run(), in their order; all on the KNN's stream `im.stream`.
-  // `counters` (device, 64 B): [0..3] x/y bounds (ordered ints), then the counters below.
+  // `counters` (device, 64 B): the counters below, from [4] on ([0..3] unused).
   unsigned int* candCount() { return counters.as<unsigned int>() + 4; }
   unsigned int* groundCount() { return counters.as<unsigned int>() + 5; }
   unsigned int* workPlanes() { return counters.as<unsigned int>() + 6; }
@@ -79,10 +152,12 @@ struct CudaNormalPipeline::Impl {
 
   /// Grows every buffer but the planes (grow only; the memory limit covers them with the KNN's).
   void growBuffers(CudaKnn::Impl& im, std::size_t n_in);
-  /// Packs the view's xyz into pinned memory and uploads it (events 0, 1).
-  void packAndUpload(CudaKnn::Impl& im, const CloudView& cloud, std::size_t n_in);
-  /// Compacts the finite points (raw_xyz, raw_src) and downloads their count and x/y bounds.
-  unsigned int compactFinite(CudaKnn::Impl& im, std::size_t n_in, XyBounds* bounds);
+  /// Packs the view's xyz into pinned memory and uploads it (events 0, 1); returns the count of
+  /// the finite points and their x/y bounds, which the device's compaction keeps.
+  unsigned int packAndUpload(CudaKnn::Impl& im, const CloudView& cloud, std::size_t n_in,
+                             XyBounds* bounds);
+  /// Compacts the finite points (raw_xyz, raw_src).
+  void compactFinite(CudaKnn::Impl& im, std::size_t n_in);
   /// Grid-column order of the n compacted points: xyz, src (event 2).
   void orderColumns(CudaKnn::Impl& im, int n, const XyBounds& bb, double cell_size);
   /// The sampled points (CPU: SampleStage::gather): sidx (m + 1 entries), sampled_xyz, and the
@@ -143,15 +218,16 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   if (n_in == 0) return;
   GF_CUDA_CHECK(cudaSetDevice(im.opt.device));
   pl.growBuffers(im, n_in);
-  pl.packAndUpload(im, cloud, n_in);
   XyBounds bb;
-  const unsigned int n_valid = pl.compactFinite(im, n_in, &bb);
+  const unsigned int n_valid = pl.packAndUpload(im, cloud, n_in, &bb);
   tm.valid_points = n_valid;
   if (n_valid == 0) {
+    GF_CUDA_CHECK(cudaStreamSynchronize(im.stream));  // the upload reads the pinned input
     std::memset(labels, 0, n_in);
     tm.total_ms = msSince(t_start);
     return;
   }
+  pl.compactFinite(im, n_in);
   const int n = static_cast<int>(n_valid);
   pl.orderColumns(im, n, bb, prm.cell_size);
 
@@ -240,14 +316,14 @@ void CudaNormalPipeline::Impl::growBuffers(CudaKnn::Impl& im, std::size_t n_in) 
   im.grow(counters, 64, "the counters");
   im.grow(refine, refinePartialBytes(), "the plane sums");
   im.grow(temp, temp_bytes, "the sort/scan scratch");
-  h_in.ensure(3 * n_in * sizeof(float));
+  h_in.ensure((3 * n_in + 1) * sizeof(float));  // + 1: packRange()'s 16-byte stores
   h_small.ensure(64);
   h_labels.ensure(n_in);
 }
 
 // ---- pack (host) and upload
-void CudaNormalPipeline::Impl::packAndUpload(CudaKnn::Impl& im, const CloudView& cloud,
-                                             std::size_t n_in) {
+unsigned int CudaNormalPipeline::Impl::packAndUpload(CudaKnn::Impl& im, const CloudView& cloud,
+                                                     std::size_t n_in, XyBounds* bounds) {
   cudaStream_t st = im.stream;
   const auto t0 = std::chrono::steady_clock::now();
   float* hp = h_in.as<float>();
@@ -257,48 +333,35 @@ void CudaNormalPipeline::Impl::packAndUpload(CudaKnn::Impl& im, const CloudView&
   // per 16 k / 8 k points: 0.30-0.48 / 0.53-0.72 ms a KITTI frame against 0.11-0.14, H200 host).
   const int pack_threads = static_cast<int>(
       std::max<std::int64_t>(1, std::min<std::int64_t>(omp_get_max_threads(), nn >> 15)));
-#pragma omp parallel for schedule(static) num_threads(pack_threads) if (pack_threads > 1)
-  for (std::int64_t i = 0; i < nn; ++i) {
-    hp[3 * i] = cloud.x(static_cast<std::size_t>(i));
-    hp[3 * i + 1] = cloud.y(static_cast<std::size_t>(i));
-    hp[3 * i + 2] = cloud.z(static_cast<std::size_t>(i));
+  PackStats all;
+#pragma omp parallel num_threads(pack_threads) if (pack_threads > 1)
+  {
+    const std::int64_t nt = omp_get_num_threads(), t = omp_get_thread_num();
+    PackStats mine;
+    packRange(cloud, nn * t / nt, nn * (t + 1) / nt, hp, &mine);
+#pragma omp critical
+    all.merge(mine);
   }
   timings.pack_ms = msSince(t0);
   GF_CUDA_CHECK(cudaEventRecord(ev[0], st));
   GF_CUDA_CHECK(cudaMemcpyAsync(in.ptr, hp, 3 * n_in * sizeof(float), cudaMemcpyHostToDevice, st));
   GF_CUDA_CHECK(cudaEventRecord(ev[1], st));
+  *bounds = XyBounds{all.min_x, all.min_y, all.max_x, all.max_y};
+  return all.valid;
 }
 
-// ---- compaction of the finite points, x/y bounds
-unsigned int CudaNormalPipeline::Impl::compactFinite(CudaKnn::Impl& im, std::size_t n_in,
-                                                     XyBounds* bounds) {
+// ---- compaction of the finite points
+void CudaNormalPipeline::Impl::compactFinite(CudaKnn::Impl& im, std::size_t n_in) {
   cudaStream_t st = im.stream;
-  const std::size_t u32 = sizeof(unsigned int);
   const int n_all = static_cast<int>(n_in);
   unsigned int* d_flags = flags.as<unsigned int>();
   unsigned int* d_pos = pos.as<unsigned int>();
-  unsigned int* d_counters = counters.as<unsigned int>();  // [0..3] bounds, [4..] counters
-  int* d_bounds = reinterpret_cast<int*>(d_counters);
   launchFiniteFlags(in.as<float>(), n_all, d_flags, st);
   std::size_t tb = temp.bytes;
   GF_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(temp.ptr, tb, d_flags, d_pos, n_all + 1, st));
   launchCompact(in.as<float>(), d_flags, d_pos, n_all, raw_xyz.as<float>(),
-                raw_src.as<unsigned int>(), d_bounds, st);
-  GF_CUDA_CHECK(cudaMemsetAsync(d_counters + 4, 0, 32, st));
-  char* hs = h_small.as<char>();
-  GF_CUDA_CHECK(cudaMemcpyAsync(hs, d_bounds, 16, cudaMemcpyDeviceToHost, st));
-  GF_CUDA_CHECK(cudaMemcpyAsync(hs + 16, d_pos + n_in, u32, cudaMemcpyDeviceToHost, st));
-  GF_CUDA_CHECK(cudaStreamSynchronize(st));
-  int hb[4];
-  std::memcpy(hb, hs, 16);
-  unsigned int n_valid = 0;
-  std::memcpy(&n_valid, hs + 16, u32);
-  // CPU: min/max of the finite points' x/y as double.
-  bounds->min_x = orderedToFloat(hb[0]);
-  bounds->min_y = orderedToFloat(hb[1]);
-  bounds->max_x = orderedToFloat(hb[2]);
-  bounds->max_y = orderedToFloat(hb[3]);
-  return n_valid;
+                raw_src.as<unsigned int>(), st);
+  GF_CUDA_CHECK(cudaMemsetAsync(counters.as<unsigned int>() + 4, 0, 32, st));
 }
 
 // ---- grid-column order (CPU: cellIndex + spreadBits), grid cell coarsened for very wide clouds

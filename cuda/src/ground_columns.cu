@@ -3,7 +3,6 @@
 
 #include "cuda_util.cuh"
 #include "ground_columns.cuh"
-#include "knn_grid.cuh"
 #include "normal/cpu_gpu_common.h"
 
 namespace ground_filter {
@@ -28,38 +27,16 @@ __global__ void finiteFlagsKernel(const float* __restrict__ in, int n, unsigned 
   flags[i] = isfinite(x) && isfinite(y) && isfinite(z);
 }
 
-__global__ void initBounds2Kernel(int* b) {
-  if (threadIdx.x < 2) b[threadIdx.x] = 0x7fffffff;
-  if (threadIdx.x >= 2 && threadIdx.x < 4) b[threadIdx.x] = static_cast<int>(0x80000000u);
-}
-
 __global__ void compactKernel(const float* __restrict__ in, const unsigned int* __restrict__ flags,
                               const unsigned int* __restrict__ pos, int n, float* raw_xyz,
-                              unsigned int* raw_src, int* bounds) {
+                              unsigned int* raw_src) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
-  float mnx = INFINITY, mny = INFINITY, mxx = -INFINITY, mxy = -INFINITY;
-  if (i < n && flags[i]) {
-    const std::size_t s = 3 * static_cast<std::size_t>(i), d = 3 * static_cast<std::size_t>(pos[i]);
-    const float x = in[s], y = in[s + 1], z = in[s + 2];
-    raw_xyz[d] = x;
-    raw_xyz[d + 1] = y;
-    raw_xyz[d + 2] = z;
-    raw_src[pos[i]] = static_cast<unsigned int>(i);
-    mnx = mxx = x;
-    mny = mxy = y;
-  }
-  for (int o = 16; o > 0; o >>= 1) {
-    mnx = fminf(mnx, __shfl_xor_sync(0xffffffffu, mnx, o));
-    mny = fminf(mny, __shfl_xor_sync(0xffffffffu, mny, o));
-    mxx = fmaxf(mxx, __shfl_xor_sync(0xffffffffu, mxx, o));
-    mxy = fmaxf(mxy, __shfl_xor_sync(0xffffffffu, mxy, o));
-  }
-  if ((threadIdx.x & 31) == 0 && mnx <= mxx) {
-    atomicMin(&bounds[0], floatToOrdered(mnx));
-    atomicMin(&bounds[1], floatToOrdered(mny));
-    atomicMax(&bounds[2], floatToOrdered(mxx));
-    atomicMax(&bounds[3], floatToOrdered(mxy));
-  }
+  if (i >= n || !flags[i]) return;
+  const std::size_t s = 3 * static_cast<std::size_t>(i), d = 3 * static_cast<std::size_t>(pos[i]);
+  raw_xyz[d] = in[s];
+  raw_xyz[d + 1] = in[s + 1];
+  raw_xyz[d + 2] = in[s + 2];
+  raw_src[pos[i]] = static_cast<unsigned int>(i);
 }
 
 __global__ void columnKeysKernel(const float* __restrict__ xyz, int n, double min_x, double min_y,
@@ -96,12 +73,9 @@ void launchFiniteFlags(const float* in, int n, unsigned int* flags, cudaStream_t
 }
 
 void launchCompact(const float* in, const unsigned int* flags, const unsigned int* pos, int n,
-                   float* raw_xyz, unsigned int* raw_src, int* bounds, cudaStream_t st) {
-  initBounds2Kernel<<<1, 32, 0, st>>>(bounds);
-  GF_CUDA_CHECK_LAUNCH();
+                   float* raw_xyz, unsigned int* raw_src, cudaStream_t st) {
   if (n == 0) return;
-  compactKernel<<<blocksFor(n, kThreads), kThreads, 0, st>>>(in, flags, pos, n, raw_xyz, raw_src,
-                                                             bounds);
+  compactKernel<<<blocksFor(n, kThreads), kThreads, 0, st>>>(in, flags, pos, n, raw_xyz, raw_src);
   GF_CUDA_CHECK_LAUNCH();
 }
 

@@ -16,9 +16,9 @@ namespace cuda_impl {
 /// flags[i] = point i of the packed input is finite (i < n); flags[n] = 0.
 void launchFiniteFlags(const float* in, int n, unsigned int* flags, cudaStream_t st);
 /// Compacts the finite points (pos = exclusive scan of the flags): raw_xyz, raw_src (input
-/// index); bounds[0..3] = min x, min y, max x, max y of them (ordered-int floats).
+/// index). Their count and x/y bounds come from the host's packing, so no sync waits for them.
 void launchCompact(const float* in, const unsigned int* flags, const unsigned int* pos, int n,
-                   float* raw_xyz, unsigned int* raw_src, int* bounds, cudaStream_t st);
+                   float* raw_xyz, unsigned int* raw_src, cudaStream_t st);
 /// Morton key of the x/y grid column of every compacted point (CPU: cellIndex + spreadBits).
 void launchColumnKeys(const float* raw_xyz, int n, double min_x, double min_y, double inv_cell,
                       unsigned long long* keys, unsigned int* vals, cudaStream_t st);

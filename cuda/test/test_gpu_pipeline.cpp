@@ -1,11 +1,12 @@
 // GPU tests of the whole normal-vector filter on the device (CudaNormalPipeline behind
 // knn_backend gpu): labels against the kd-tree backend on KITTI / Ouster frames, dense columns,
-// sparse scan lines, parking levels (a ceiling above the sensor), 1 M and 5 M points, bad input,
-// device memory across 1,000 scans, out-of-memory fallback.
+// sparse scan lines, parking levels (a ceiling above the sensor), 1 M and 5 M points, bad input
+// (packed x y z and 16-byte records), device memory across 1,000 scans, out-of-memory fallback.
 
 #include <cuda_runtime.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -52,11 +53,22 @@ struct Compared {
   gf::FilterStats sg, sc;
 };
 
-/// Runs the GPU and kd-tree backends on `xyz` with `p` (backend overridden).
+/// Runs the GPU and kd-tree backends on `xyz` with `p` (backend overridden). `records16`: the
+/// points as 16-byte records x y z w (w NaN on every other point: never read as a coordinate),
+/// the layout the GPU's host packing loads 16 bytes at a time; else packed x y z triplets.
 Compared compare(const std::vector<float>& xyz, gf::NormalGroundFilterParams p,
-                 std::vector<std::uint8_t>* lg_out = nullptr) {
+                 std::vector<std::uint8_t>* lg_out = nullptr, bool records16 = false) {
   const std::size_t n = xyz.size() / 3;
-  const auto cloud = gf::CloudView::packedXyz(xyz.data(), n);
+  std::vector<float> rec;
+  if (records16) {
+    rec.resize(4 * n);
+    for (std::size_t i = 0; i < n; ++i) {
+      std::copy_n(&xyz[3 * i], 3, &rec[4 * i]);
+      rec[4 * i + 3] = (i % 2) ? std::numeric_limits<float>::quiet_NaN() : 1.f;
+    }
+  }
+  const auto cloud = records16 ? gf::CloudView(rec.data(), n, 4 * sizeof(float))
+                               : gf::CloudView::packedXyz(xyz.data(), n);
   gf::NormalGroundFilterParams pg = p, pc = p;
   pg.knn_backend = "gpu";
   pc.knn_backend = "kdtree";
@@ -303,11 +315,13 @@ TEST_F(GpuPipelineTest, BadInputGivesTheKdTreeLabels) {
     clouds.back().second.insert(clouds.back().second.end(), {u(rng), u(rng), u(rng)});
   }
   for (const auto& c : clouds) {
-    const Compared r = compare(c.second, gf::NormalGroundFilterParams());
-    EXPECT_EQ(r.differ, 0u) << c.first;
-    EXPECT_EQ(r.sg.backend, "gpu") << c.first << ": " << r.sg.note;
-    EXPECT_EQ(r.sg.invalid_points, r.sc.invalid_points) << c.first;
-    EXPECT_EQ(r.sg.ground_points, r.sc.ground_points) << c.first;
+    for (const bool records16 : {false, true}) {
+      const Compared r = compare(c.second, gf::NormalGroundFilterParams(), nullptr, records16);
+      EXPECT_EQ(r.differ, 0u) << c.first << (records16 ? ", 16-byte records" : "");
+      EXPECT_EQ(r.sg.backend, "gpu") << c.first << ": " << r.sg.note;
+      EXPECT_EQ(r.sg.invalid_points, r.sc.invalid_points) << c.first;
+      EXPECT_EQ(r.sg.ground_points, r.sc.ground_points) << c.first;
+    }
   }
   // Empty cloud.
   gf::NormalGroundFilterParams p;
