@@ -316,7 +316,7 @@ void CudaNormalPipeline::Impl::growBuffers(CudaKnn::Impl& im, std::size_t n_in) 
   im.grow(counters, 64, "the counters");
   im.grow(refine, refinePartialBytes(), "the plane sums");
   im.grow(temp, temp_bytes, "the sort/scan scratch");
-  h_in.ensure((3 * n_in + 1) * sizeof(float));  // + 1: packRange()'s 16-byte stores
+  h_in.ensure(3 * n_in * sizeof(float));
   h_small.ensure(64);
   h_labels.ensure(n_in);
 }
