@@ -107,17 +107,9 @@ void packRange(const CloudView& cloud, std::int64_t b, std::int64_t e, float* hp
   }
 #endif
   for (; i < e; ++i) {
-    const std::size_t u = static_cast<std::size_t>(i);
-    const float x = cloud.x(u), y = cloud.y(u), z = cloud.z(u);
-    hp[3 * i] = x;
-    hp[3 * i + 1] = y;
-    hp[3 * i + 2] = z;
-    if (std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) {
-      ++s->valid;
-      s->min_x = std::min(s->min_x, x);
-      s->min_y = std::min(s->min_y, y);
-      s->max_x = std::max(s->max_x, x);
-      s->max_y = std::max(s->max_y, y);
+    float* o = hp + 3 * i;
+    if (cloud.get(static_cast<std::size_t>(i), o, o + 1, o + 2)) {
+      s->merge(PackStats{1, o[0], o[1], o[0], o[1]});
     }
   }
 }
@@ -142,13 +134,13 @@ struct CudaNormalPipeline::Impl {
   const unsigned long long* col_keys = nullptr;  // sorted column keys (orderColumns), n entries
 
   // The sections of run(), in their order; all on the KNN's stream `im.stream`.
-  // `counters` (device, 64 B): the counters below, from [4] on ([0..3] unused).
-  unsigned int* candCount() { return counters.as<unsigned int>() + 4; }
-  unsigned int* groundCount() { return counters.as<unsigned int>() + 5; }
-  unsigned int* workPlanes() { return counters.as<unsigned int>() + 6; }
-  unsigned int* workClassify() { return counters.as<unsigned int>() + 7; }
-  unsigned int* needGlobal() { return counters.as<unsigned int>() + 8; }
-  unsigned int* sensorCounts() { return counters.as<unsigned int>() + 9; }  // 9, 10
+  // `counters` (device, 64 B): the counters below, zeroed at the start of each pass (run()).
+  unsigned int* candCount() { return counters.as<unsigned int>(); }
+  unsigned int* groundCount() { return counters.as<unsigned int>() + 1; }
+  unsigned int* workPlanes() { return counters.as<unsigned int>() + 2; }
+  unsigned int* workClassify() { return counters.as<unsigned int>() + 3; }
+  unsigned int* needGlobal() { return counters.as<unsigned int>() + 4; }
+  unsigned int* sensorCounts() { return counters.as<unsigned int>() + 5; }  // 5, 6
 
   /// Grows every buffer but the planes (grow only; the memory limit covers them with the KNN's).
   void growBuffers(CudaKnn::Impl& im, std::size_t n_in);
@@ -238,6 +230,7 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
   //      labels, so a scan that keeps its stride pays no extra sync).
   int stride = prm.sample_stride;
   for (;;) {
+    GF_CUDA_CHECK(cudaMemsetAsync(pl.counters.ptr, 0, 32, im.stream));  // this pass's counters
     int m = n;
     const float* q = pl.xyz.as<float>();
     const unsigned int* d_sidx = nullptr;  // null: every point sampled
@@ -266,8 +259,6 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
                                                 prm.min_candidate_share, stride);
     if (wider == 0) break;
     stride = wider;
-    // The counters of the passes after the compaction start again from zero.
-    GF_CUDA_CHECK(cudaMemsetAsync(pl.counters.as<unsigned int>() + 4, 0, 32, im.stream));
   }
   tm.sample_stride = stride;
   tm.total_ms = msSince(t_start);
@@ -361,7 +352,6 @@ void CudaNormalPipeline::Impl::compactFinite(CudaKnn::Impl& im, std::size_t n_in
   GF_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(temp.ptr, tb, d_flags, d_pos, n_all + 1, st));
   launchCompact(in.as<float>(), d_flags, d_pos, n_all, raw_xyz.as<float>(),
                 raw_src.as<unsigned int>(), st);
-  GF_CUDA_CHECK(cudaMemsetAsync(counters.as<unsigned int>() + 4, 0, 32, st));
 }
 
 // ---- grid-column order (CPU: cellIndex + spreadBits), grid cell coarsened for very wide clouds
