@@ -19,7 +19,7 @@ set(GF_CORE_SOURCES)
 gf_core_room(simd simd)
 gf_core_room(common plane_fit param_parse densest_centre ground_tilt side_task)
 gf_core_room(. build_info filter_factory working_volume)
-gf_core_room(airborne morph_ground scan_type origin_view airborne_mode)
+gf_core_room(airborne morph_ground walled_roofs scan_type origin_view airborne_mode)
 # voxel method: the filter and its parameter table, one file per stage, the paper mode
 gf_core_room(voxel voxel_ground_filter voxel_ground_filter_params paper_voxel_filter)
 gf_core_room(voxel voxelize voxelize_build avx2_passes segments ground_model classify vote vegetation worker_pool)

@@ -77,38 +77,47 @@ TEST(MorphGround, LowOutliersDoNotPitTheSurface) {
   EXPECT_EQ(ground_kept, ground);
 }
 
-// A flat-topped block in a 150 x 150 m tile on a 2 % slope, sampled about once per m2 (jittered
-// grid, 3 cm noise): `walls` says which of its four sides (bits 0-3: -x, +x, -y, +y) drop
-// `height` m to the ground; a side without a wall is a 30 % ramp down to the ground. `rough`
-// adds hills of that amplitude [m] to its top. Returns xyz; truth 1 where the point is on the
-// block's top (inside the footprint, 5 m in from its edges).
-std::vector<float> blockTile(float half, float height, int walls, float rough,
-                             std::vector<std::uint8_t>* on_top) {
-  std::mt19937 rng(11);
+// A 150 x 150 m tile sampled about once per m2 (jittered 1 m grid, 3 cm noise; random numbers
+// from `seed`) with the surface `z(x, y, &roof)`: xyz, and per point whether z set roof.
+template <class Z>
+std::vector<float> tileOf(unsigned seed, Z z, std::vector<std::uint8_t>* on_roof) {
+  std::mt19937 rng(seed);
   std::uniform_real_distribution<float> jitter(0.f, 1.f);
   std::normal_distribution<float> noise(0.f, 0.03f);
   std::vector<float> xyz;
-  on_top->clear();
+  on_roof->clear();
   for (float gx = -75.f; gx < 75.f; gx += 1.f) {
     for (float gy = -75.f; gy < 75.f; gy += 1.f) {
       const float x = gx + jitter(rng), y = gy + jitter(rng);
-      const float ground = 50.f + 0.02f * x;
-      // Distance outside the footprint along each side that has no wall (the ramp's run).
-      float z = ground;
-      const float ox = std::fabs(x) - half, oy = std::fabs(y) - half;
-      const bool wall_x = (walls >> (x < 0 ? 0 : 1)) & 1, wall_y = (walls >> (y < 0 ? 2 : 3)) & 1;
-      const float top = ground + height + rough * std::sin(x / 7.f) * std::cos(y / 9.f);
-      if (ox <= 0.f && oy <= 0.f) {
-        z = top;
-      } else if ((ox <= 0.f || !wall_x) && (oy <= 0.f || !wall_y)) {
-        const float run = std::max(ox, oy);
-        z = std::max(ground, top - 0.3f * run);  // the ramp of a side without a wall
-      }
-      xyz.insert(xyz.end(), {x, y, z + noise(rng)});
-      on_top->push_back(ox < -5.f && oy < -5.f);
+      bool roof = false;
+      xyz.insert(xyz.end(), {x, y, z(x, y, &roof) + noise(rng)});
+      on_roof->push_back(roof);
     }
   }
   return xyz;
+}
+
+// A flat-topped block in tileOf()'s tile on a 2 % slope: `walls` says which of its four sides
+// (bits 0-3: -x, +x, -y, +y) drop `height` m to the ground; a side without a wall is a 30 % ramp
+// down to the ground. `rough` adds hills of that amplitude [m] to its top. Returns xyz; truth 1
+// where the point is on the block's top (inside the footprint, 5 m in from its edges).
+std::vector<float> blockTile(float half, float height, int walls, float rough,
+                             std::vector<std::uint8_t>* on_top) {
+  auto z = [&](float x, float y, bool* top_point) {
+    const float ground = 50.f + 0.02f * x;
+    // Distance outside the footprint along each side that has no wall (the ramp's run).
+    const float ox = std::fabs(x) - half, oy = std::fabs(y) - half;
+    const bool wall_x = (walls >> (x < 0 ? 0 : 1)) & 1, wall_y = (walls >> (y < 0 ? 2 : 3)) & 1;
+    const float top = ground + height + rough * std::sin(x / 7.f) * std::cos(y / 9.f);
+    *top_point = ox < -5.f && oy < -5.f;
+    if (ox <= 0.f && oy <= 0.f) return top;
+    if ((ox <= 0.f || !wall_x) && (oy <= 0.f || !wall_y)) {
+      const float run = std::max(ox, oy);
+      return std::max(ground, top - 0.3f * run);  // the ramp of a side without a wall
+    }
+    return ground;
+  };
+  return tileOf(11, z, on_top);
 }
 
 // A roof wider than the opening (2 x morph_window = 36 m) is not ground: a hall 60 m across,
@@ -149,6 +158,104 @@ TEST(MorphGround, AWideTerraceOrARoughMesaIsTerrain) {
     ASSERT_GT(top, 2000u);
     EXPECT_GT(top_kept, top * 95 / 100) << "walls " << c.first << " rough " << c.second;
   }
+}
+
+// Of tileOf()'s points and their airborne labels: the roof returns and those labelled ground,
+// and the other returns where `ground(x, y)` and those labelled ground.
+struct Tally {
+  std::size_t roof = 0, roof_ground = 0, ground = 0, ground_kept = 0;
+};
+template <class Where>
+Tally tally(const std::vector<float>& xyz, const std::vector<std::uint8_t>& on_roof, Where ground) {
+  const std::vector<std::uint8_t> labels = morphLabels(xyz);
+  Tally t;
+  for (std::size_t i = 0; i < on_roof.size(); ++i) {
+    if (on_roof[i]) {
+      ++t.roof;
+      t.roof_ground += labels[i];
+    } else if (ground(xyz[3 * i], xyz[3 * i + 1])) {
+      ++t.ground;
+      t.ground_kept += labels[i];
+    }
+  }
+  return t;
+}
+
+// A hall 120 x 80 m whose roof has parts at several heights: thirds 40 m wide along x, the west
+// one 3 m (or 1 m) lower, the centre as much higher. With 3 m the parts are regions of their
+// own, and the wings stand on walls only once the raised bay has gone; with 1 m they are one
+// region that lies on no one plane, but on three. Every roof return is an object either way, the
+// ground around the hall ground.
+TEST(MorphGround, AHallWithARoofAtSeveralHeightsIsNotGround) {
+  for (const float step : {3.f, 1.f}) {
+    std::vector<std::uint8_t> on_roof;
+    const std::vector<float> xyz = tileOf(
+        13,
+        [step](float x, float y, bool* roof) {
+          const float ground = 50.f + 0.02f * x;
+          if (std::fabs(x) > 60.f || std::fabs(y) > 40.f) return ground;
+          const float t = x < -20.f ? -step : (x < 20.f ? step : 0.f);
+          const float edge = std::min(60.f - std::fabs(x), 40.f - std::fabs(y));
+          const float seam = std::fabs(std::fabs(x) - 20.f);  // where two parts meet
+          *roof = edge > 5.f && seam > 2.f;
+          return 51.2f + 8.f + t;  // a pad level with the hall's highest ground
+        },
+        &on_roof);
+    const Tally t = tally(
+        xyz, on_roof, [](float x, float y) { return std::fabs(x) > 62.f || std::fabs(y) > 42.f; });
+    ASSERT_GT(t.roof, 3000u);
+    EXPECT_EQ(t.roof_ground, 0u) << "step " << step;
+    EXPECT_GT(t.ground_kept, t.ground * 99 / 100) << "step " << step;
+  }
+}
+
+// Ground at a hall's foot stays ground once the hall has gone: a terrace 3 m above the tile's
+// lower half (a retaining wall along y = 0, the whole tile wide), with a hall 60 m across on it.
+// With the hall's edges left out the terrace stands on walls only, and it is one plane; but it
+// reaches the tile's edge, where the ground goes on.
+TEST(MorphGround, ATerraceUnderAHallStaysGround) {
+  std::vector<std::uint8_t> on_roof;
+  const std::vector<float> xyz = tileOf(
+      13,
+      [](float x, float y, bool* roof) {
+        const float ground = 50.f + 0.02f * x + (y > 0.f ? 3.f : 0.f);
+        if (std::fabs(x) > 30.f || std::fabs(y - 40.f) > 30.f) return ground;
+        *roof = std::fabs(x) < 25.f && std::fabs(y - 40.f) < 25.f;
+        return 53.6f + 8.f;
+      },
+      &on_roof);
+  const Tally t = tally(xyz, on_roof, [](float x, float y) {
+    return y > 2.f && (std::fabs(x) > 32.f || y < 8.f);  // the terrace beside the hall
+  });
+  ASSERT_GT(t.roof, 2000u);
+  ASSERT_GT(t.ground, 3000u);
+  EXPECT_EQ(t.roof_ground, 0u);
+  EXPECT_GT(t.ground_kept, t.ground * 99 / 100);
+}
+
+// A courtyard stays ground: a ring of building 25 m deep (8 m high) round a yard 40 m across,
+// with a ramp pit 10 m across and 3 m deep in the yard. The opening takes the ring, and the pit's
+// walls are the yard's only steps; but the pit is a hole in the yard, not round it.
+TEST(MorphGround, ACourtyardStaysGround) {
+  std::vector<std::uint8_t> on_roof;
+  const std::vector<float> xyz = tileOf(
+      13,
+      [](float x, float y, bool* roof) {
+        const float r = std::max(std::fabs(x), std::fabs(y));
+        if (r < 5.f) return 47.f;
+        if (r < 20.f || r > 45.f) return 50.f;
+        *roof = r > 25.f && r < 40.f;
+        return 58.f;
+      },
+      &on_roof);
+  const Tally t = tally(xyz, on_roof, [](float x, float y) {
+    const float r = std::max(std::fabs(x), std::fabs(y));
+    return r > 7.f && r < 18.f;  // the yard round the pit
+  });
+  ASSERT_GT(t.roof, 2000u);
+  ASSERT_GT(t.ground, 1000u);
+  EXPECT_EQ(t.roof_ground, 0u);
+  EXPECT_GT(t.ground_kept, t.ground * 99 / 100);
 }
 
 // A narrow pit that is terrain keeps its floor: the rule asks for no return near the lowest one,

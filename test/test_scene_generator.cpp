@@ -455,6 +455,43 @@ TEST(SceneGenerator, AirborneHallIsOneRoofWiderThanTheOpening) {
   EXPECT_THROW(generateScene(p), std::invalid_argument);
 }
 
+TEST(SceneGenerator, AirborneHallStepGivesARoofInThreeParts) {
+  SceneParams p = builtinSceneParams("airborne");
+  p.seed = 1;
+  p.airborne_hall = 120.0;
+  const GeneratedScan flat = generateScene(p);
+  p.airborne_hall_step = 3.0;
+  const GeneratedScan a = generateScene(p);
+  // The roof's height per third along x (returns 2 m or more from its edges and seams): the
+  // flat roof's, 3 m lower in the west third, 3 m higher in the centre.
+  auto roofHeights = [](const GeneratedScan& s, double out[3]) {
+    std::size_t count[3] = {0, 0, 0};
+    for (int t = 0; t < 3; ++t) out[t] = 0.0;
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      const float* q = &s.xyz[3 * i];
+      if (s.semantic[i] != kClassBuilding || std::fabs(q[0]) > 58.f || std::fabs(q[1]) > 58.f ||
+          std::fabs(std::fabs(q[0]) - 20.f) < 2.f) {
+        continue;
+      }
+      const int t = q[0] < -20.f ? 0 : (q[0] < 20.f ? 1 : 2);
+      out[t] += q[2];
+      ++count[t];
+    }
+    for (int t = 0; t < 3; ++t) out[t] = count[t] > 500 ? out[t] / count[t] : 1e9;
+  };
+  double h_flat[3], h[3];
+  roofHeights(flat, h_flat);
+  roofHeights(a, h);
+  for (int t = 0; t < 3; ++t) EXPECT_NEAR(h_flat[t], h_flat[2], 0.05) << t;
+  EXPECT_NEAR(h[0], h_flat[2] - 3.0, 0.05);
+  EXPECT_NEAR(h[1], h_flat[2] + 3.0, 0.05);
+  EXPECT_NEAR(h[2], h_flat[2], 0.05);
+  for (const double bad : {-0.5, 6.5}) {
+    p.airborne_hall_step = bad;
+    EXPECT_THROW(generateScene(p), std::invalid_argument) << bad;
+  }
+}
+
 TEST(SceneGenerator, InvalidParametersAreRefused) {
   SceneParams p;
   p.mode = SceneParams::Mode::kTls;

@@ -282,7 +282,7 @@ GeneratedScan airborneScan(const SceneParams& p) {
   std::vector<Box> boxes;
   std::vector<Ellipsoid> crowns, bushes;
   const double area = 4.0 * ext * ext;
-  if (p.airborne_hall > 0.0) boxes.push_back(airborneHall(p));  // first: the others keep clear
+  if (p.airborne_hall > 0.0) airborneHall(p, &boxes);  // first: the others keep clear
   const int buildings = std::max(2, static_cast<int>(area / 1800.0));
   for (int i = 0; i < buildings; ++i) {
     const double w = uni(8.0, 30.0), d = uni(8.0, 22.0), cx = uni(-ext, ext), cy = uni(-ext, ext);
@@ -550,6 +550,7 @@ void SceneParams::validate() const {
   checkRange("crop_half_length", crop_half_length, 0.0, 1e4, "m");
   checkRange("airborne_extra", airborne_extra, 0.0, 0.5, "");
   checkRange("airborne_hall", airborne_hall, 0.0, 1000.0, "m");
+  checkRange("airborne_hall_step", airborne_hall_step, 0.0, 6.0, "m");
   checkRange("second_returns", second_returns, 0.0, 1.0, "");
   checkRange("ceiling_height", ceiling_height, 1.5, 30.0, "m");
   checkRange("mount_roll_deg", mount_roll_deg, -90.0, 90.0, "deg");

@@ -78,6 +78,10 @@ struct SceneParams {
   /// above the highest terrain under it [m] (0: none): wider than the airborne mode's opening
   /// (2 x morph_window) from 36 m.
   double airborne_hall = 0.0;
+  /// kAirborne: the hall's roof in thirds along x at several heights: the west third this much
+  /// lower, the centre this much higher (a raised bay), the east third as without it [m] (0:
+  /// one flat roof; at most 6).
+  double airborne_hall_step = 0.0;
   double uav_height = 40.0;          ///< kUav: flying height over the ground below it [m] (40)
   double uav_half_angle_deg = 35.0;  ///< kUav: half the across-track field of view [deg] (35)
   double uav_line_step = 0.25;       ///< kUav: flight distance between scan lines [m] (0.25)

@@ -83,6 +83,7 @@ const SceneOverride kSceneOverrides[] = {
     {"noise_seed", setCount<std::uint32_t, &P::noise_seed>},
     {"airborne_density", setDouble<&P::airborne_density>},
     {"airborne_hall", setDouble<&P::airborne_hall>},
+    {"airborne_hall_step", setDouble<&P::airborne_hall_step>},
     {"uav_height", setDouble<&P::uav_height>},
     {"rosette_fov_deg", setDouble<&P::rosette_fov_deg>},
     {"rosette_rays", setCount<std::size_t, &P::rosette_rays>},

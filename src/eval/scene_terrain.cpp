@@ -134,13 +134,20 @@ double maxGroundOver(const SceneParams& p, double x0, double x1, double y0, doub
   return groundOver(p, x0, x1, y0, y1, steps, -kNoHit,
                     [](double a, double b) { return std::max(a, b); });
 }
-Box airborneHall(const SceneParams& p) {
+void airborneHall(const SceneParams& p, std::vector<Box>* boxes) {
   const double h = 0.5 * std::min(p.airborne_hall, 1.6 * p.scene_extent);
   const double top = maxGroundOver(p, -h, h, -h, h, 20) + 8.0;  // on a levelled pad
-  return {{-h, -h, minGroundOver(p, -h, h, -h, h) - 1.0},
-          {h, h, top},
-          kWallReflectivity,
-          kClassBuilding};
+  const double base = minGroundOver(p, -h, h, -h, h) - 1.0;
+  // Thirds along x: the west one airborne_hall_step lower, the centre as much higher (a raised
+  // bay), the east one at `top`; one flat roof where the step is 0.
+  const double s = p.airborne_hall_step, x1 = -h / 3.0, x2 = h / 3.0;
+  if (s == 0.0) {
+    boxes->push_back({{-h, -h, base}, {h, h, top}, kWallReflectivity, kClassBuilding});
+    return;
+  }
+  boxes->push_back({{-h, -h, base}, {x1, h, top - s}, kWallReflectivity, kClassBuilding});
+  boxes->push_back({{x1, -h, base}, {x2, h, top + s}, kWallReflectivity, kClassBuilding});
+  boxes->push_back({{x2, -h, base}, {h, h, top}, kWallReflectivity, kClassBuilding});
 }
 void turnToMount(const SceneParams& p, float* xyz, std::size_t n) {
   if (p.mount_roll_deg == 0.0 && p.mount_pitch_deg == 0.0) return;

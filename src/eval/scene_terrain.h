@@ -116,8 +116,9 @@ double minGroundOver(const SceneParams& p, double x0, double x1, double y0, doub
 double maxGroundOver(const SceneParams& p, double x0, double x1, double y0, double y1,
                      int steps = 4);
 // The airborne tile's hall (SceneParams::airborne_hall): its roof 8 m above the highest terrain
-// under it.
-Box airborneHall(const SceneParams& p);
+// under it, in three parts at several heights where airborne_hall_step is set; its boxes onto
+// *boxes.
+void airborneHall(const SceneParams& p, std::vector<Box>* boxes);
 
 }  // namespace scene
 }  // namespace ground_filter

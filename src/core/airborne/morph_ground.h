@@ -74,6 +74,17 @@ class MorphGround {
   static constexpr double kWalledShare = 0.8;
   /// \brief ... and its cells' minima lie within this RMS of one plane [m] (plateau 0.2-1.0).
   static constexpr double kRoofRms = 0.3;
+  /// \brief ... or, a roof in parts at several heights, the region cut at steps of at least
+  ///        this [m] ...
+  static constexpr double kPartStep = 0.5;
+  /// \brief ... gives parts of at least this many cells with a return, each within kRoofRms of
+  ///        its own plane ...
+  static constexpr std::size_t kMinPartCells = 50;
+  /// \brief ... that hold at least this share of the region's cells with a return.
+  static constexpr double kFlatPartShare = 0.9;
+  /// \brief Passes over the regions at most: a pass after one that dropped a roof judges the
+  ///        lower parts it uncovered (a building of three levels needs three).
+  static constexpr int kRoofPasses = 3;
 
  private:
   void fill(std::vector<float>* z);  // fill NaN cells (nearest rings, then Laplace sweeps)
@@ -99,8 +110,26 @@ class MorphGround {
   }
   // known_ = 1 on the cells with a return and the `rings` 4-neighbour rings around them.
   void markNearReturns(int rings);
-  // RMS distance of the region's cells' minima (frontier_) from their least-squares plane.
-  double regionPlaneRms() const;
+  // RMS distance of the minima of `cells` from their least-squares plane.
+  double planeRms(const std::vector<std::int32_t>& cells) const;
+  // Whether the region (frontier_, region_) is a roof's: within kRoofRms of one plane, or in
+  // flat parts at several heights (kPartStep, kMinPartCells, kFlatPartShare).
+  bool flatRoof();
+  // A region's border as floodRegion() counts it: steps of a wall or more to the cells around,
+  // and how many of them drop (walls); edges up to a roof dropped before; cell sides on the
+  // raster's edge or next to cells far from any return.
+  struct RegionBorder {
+    std::size_t border = 0, walls = 0, against_roof = 0, open = 0;
+  };
+  // The region of terrain cells joined to `seed` by steps under `wall` (`gap_wall` where a cell
+  // has no return) into frontier_ and region_ (= seed), and its border.
+  RegionBorder floodRegion(std::int32_t seed, float wall, float gap_wall);
+  // The region (frontier_) becomes roof cells, and with it the cells without a return along its
+  // edge that stand a gap wall above a neighbour.
+  void dropRoof(float gap_wall);
+  // Whether the region (frontier_, region_) stands on walls (`wall`, `gap_wall` across a cell
+  // without a return) along kWalledShare of its outer border: its holes left out.
+  bool walledOutside(float wall, float gap_wall);
   // Whether point m (cell x, y) has no other return within kLowOutlier.alone that is less than
   // kLowOutlier.drop above it.
   bool aloneAtItsHeight(const CloudView& cloud, double c, int x, int y, std::int32_t m) const;
@@ -110,8 +139,13 @@ class MorphGround {
   std::vector<std::int32_t> cell_start_, cell_pts_;  // points bucketed by cell
   std::vector<float> zmin_, zfill_, tmp_, eroded_, opened_, dem_, grad_, tslope_;
   std::vector<float> pad_;  // erode(): one row between two sentinels
+  // object_: 0 terrain, 1 an object, kRoofCell a walled roof (dropWalledRoofs()).
+  static constexpr std::uint8_t kRoofCell = 2;
   std::vector<std::uint8_t> object_, object1_, prev_object_, known_;
   std::vector<std::int32_t> frontier_, next_, gaps_, region_;
+  std::vector<std::int32_t> part_, part_cells_;  // flatRoof(): part per cell, one part's cells
+  std::vector<std::uint8_t> outside_;            // walledOutside(): reached from the edge
+  std::vector<std::int32_t> outside_queue_;
   std::vector<float> fill_vals_;  // fill(): the values of one ring
 };
 
