@@ -144,7 +144,7 @@ class MorphGround {
   std::vector<std::uint8_t> object_, object1_, prev_object_, known_;
   std::vector<std::int32_t> frontier_, next_, gaps_, region_;
   std::vector<std::int32_t> part_, part_cells_;  // flatRoof(): part per cell, one part's cells
-  std::vector<std::uint8_t> outside_;            // walledOutside(): reached from the edge
+  std::vector<std::uint8_t> outside_;            // walledOutside(): reached; 0 between calls
   std::vector<std::int32_t> outside_queue_;
   std::vector<float> fill_vals_;  // fill(): the values of one ring
 };

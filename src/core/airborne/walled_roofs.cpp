@@ -43,28 +43,43 @@ double MorphGround::planeRms(const std::vector<std::int32_t>& cells) const {
 
 bool MorphGround::walledOutside(float wall, float gap_wall) {
   // The cells outside the region (frontier_, region_): reached from the raster's edge without
-  // crossing it. The others are its holes: a pit in a yard, a light well in a roof.
+  // crossing it. The others are its holes: a pit in a yard, a light well in a roof. Everything
+  // beyond the region's bounding box is outside, so the search starts on the box grown by a cell
+  // and stays in it: its cost follows the region, not the raster. outside_ is all 0 on entry
+  // and left so.
   const std::int32_t region = region_[frontier_[0]];
-  const std::size_t n = zfill_.size();
-  outside_.assign(n, 0);
+  int x0 = nx_, x1 = 0, y0 = ny_, y1 = 0;
+  for (const std::int32_t i : frontier_) {
+    x0 = std::min(x0, i % nx_);
+    x1 = std::max(x1, i % nx_);
+    y0 = std::min(y0, i / nx_);
+    y1 = std::max(y1, i / nx_);
+  }
+  x0 = std::max(0, x0 - 1);
+  y0 = std::max(0, y0 - 1);
+  x1 = std::min(nx_ - 1, x1 + 1);
+  y1 = std::min(ny_ - 1, y1 + 1);
   outside_queue_.clear();
   auto reach = [&](std::int32_t j) {
     if (region_[j] == region || outside_[j]) return;
     outside_[j] = 1;
     outside_queue_.push_back(j);
   };
-  for (int x = 0; x < nx_; ++x) {
-    reach(x);
-    reach((ny_ - 1) * nx_ + x);
+  for (int x = x0; x <= x1; ++x) {
+    reach(y0 * nx_ + x);
+    reach(y1 * nx_ + x);
   }
-  for (int y = 0; y < ny_; ++y) {
-    reach(y * nx_);
-    reach(y * nx_ + nx_ - 1);
+  for (int y = y0; y <= y1; ++y) {
+    reach(y * nx_ + x0);
+    reach(y * nx_ + x1);
   }
   for (std::size_t head = 0; head < outside_queue_.size(); ++head) {
-    forNeighbours(outside_queue_[head], reach);
+    forNeighbours(outside_queue_[head], [&](std::int32_t j) {
+      const int x = j % nx_, y = j / nx_;
+      if (x >= x0 && x <= x1 && y >= y0 && y <= y1) reach(j);
+    });
   }
-  // Its border and walls again, on the outside only.
+  // Its border and walls again, on the outside only (beyond the box every cell is outside).
   std::size_t border = 0, walls = 0;
   for (const std::int32_t i : frontier_) {
     forNeighbours(i, [&](std::int32_t j) {
@@ -75,6 +90,7 @@ bool MorphGround::walledOutside(float wall, float gap_wall) {
       walls += zfill_[i] - zfill_[j] >= step;
     });
   }
+  for (const std::int32_t j : outside_queue_) outside_[j] = 0;
   return border > 0 && static_cast<double>(walls) >= kWalledShare * static_cast<double>(border);
 }
 
@@ -184,6 +200,7 @@ void MorphGround::dropWalledRoofs(double c, int rmax) {
   const std::size_t n = zfill_.size();
   const std::size_t min_cells = static_cast<std::size_t>(3.14159 * rmax * rmax);
   markNearReturns(2);
+  outside_.assign(n, 0);
   bool changed = false;
   // A roof dropped here can uncover a lower part of the same building (a wing below a raised
   // bay): its edges against that roof are no border, so the regions are judged again while a
