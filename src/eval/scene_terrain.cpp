@@ -141,10 +141,6 @@ void airborneHall(const SceneParams& p, std::vector<Box>* boxes) {
   // Thirds along x: the west one airborne_hall_step lower, the centre as much higher (a raised
   // bay), the east one at `top`; one flat roof where the step is 0.
   const double s = p.airborne_hall_step, x1 = -h / 3.0, x2 = h / 3.0;
-  if (s == 0.0) {
-    boxes->push_back({{-h, -h, base}, {h, h, top}, kWallReflectivity, kClassBuilding});
-    return;
-  }
   boxes->push_back({{-h, -h, base}, {x1, h, top - s}, kWallReflectivity, kClassBuilding});
   boxes->push_back({{x1, -h, base}, {x2, h, top + s}, kWallReflectivity, kClassBuilding});
   boxes->push_back({{x2, -h, base}, {h, h, top}, kWallReflectivity, kClassBuilding});

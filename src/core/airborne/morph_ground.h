@@ -1,6 +1,7 @@
 #ifndef GROUND_FILTER_SRC_CORE_AIRBORNE_MORPH_GROUND_H
 #define GROUND_FILTER_SRC_CORE_AIRBORNE_MORPH_GROUND_H
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -121,6 +122,12 @@ class MorphGround {
   struct RegionBorder {
     std::size_t border = 0, walls = 0, against_roof = 0, open = 0;
   };
+  // The step between neighbouring cells i and j that is a border, not a join: `wall`, or
+  // `gap_wall` where either has no return (the fill ramps across the gap: a ramp steeper than 45
+  // degrees there is the wall the scan did not see).
+  float stepLimit(std::int32_t i, std::int32_t j, float wall, float gap_wall) const {
+    return std::isnan(zmin_[i]) || std::isnan(zmin_[j]) ? gap_wall : wall;
+  }
   // The region of terrain cells joined to `seed` by steps under `wall` (`gap_wall` where a cell
   // has no return) into frontier_ and region_ (= seed), and its border.
   RegionBorder floodRegion(std::int32_t seed, float wall, float gap_wall);

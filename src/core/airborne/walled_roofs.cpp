@@ -84,7 +84,7 @@ bool MorphGround::walledOutside(float wall, float gap_wall) {
   for (const std::int32_t i : frontier_) {
     forNeighbours(i, [&](std::int32_t j) {
       if (!outside_[j] || object_[j] || !known_[j]) return;
-      const float step = std::isnan(zmin_[i]) || std::isnan(zmin_[j]) ? gap_wall : wall;
+      const float step = stepLimit(i, j, wall, gap_wall);
       if (std::fabs(zfill_[j] - zfill_[i]) < step) return;
       ++border;
       walls += zfill_[i] - zfill_[j] >= step;
@@ -154,9 +154,7 @@ MorphGround::RegionBorder MorphGround::floodRegion(std::int32_t seed, float wall
       b.open += !object_[j] && !known_[j];
       if (object_[j] || !known_[j]) return;  // an object's terrain comes from this region
       const float other = zfill_[j];
-      // Across a gap (no return in a cell) the fill ramps from one side to the other: a ramp
-      // steeper than 45 degrees there is the wall the scan did not see.
-      const float step = std::isnan(zmin_[i]) || std::isnan(zmin_[j]) ? gap_wall : wall;
+      const float step = stepLimit(i, j, wall, gap_wall);
       if (std::fabs(other - zfill_[i]) < step) {
         if (region_[j] < 0) {
           region_[j] = seed;
