@@ -199,6 +199,9 @@ TEST(ScanType, UavNadirSeenFromTheSensorIsAirborne) {
   EXPECT_GE(m.steep_share, 0.9);
   EXPECT_GE(m.steep_depth, 40.0);
   EXPECT_LE(m.top_share, 0.3);
+  // And seen from above it is even at 1 m too: no side view (rule 4) overrides rule 2.
+  EXPECT_GE(m.column_mean, gf::ScanTypeClassifier::kMinColumnMean);
+  EXPECT_LE(m.column_top_share, 0.2);
 }
 
 TEST(ScanType, DroneFlyingLowOverTreesIsAirborne) {
@@ -263,6 +266,34 @@ TEST(ScanType, RegisteredCloudsAreGroundLevel) {
   }
 }
 
+TEST(ScanType, AProfileScannersStreetIsGroundLevel) {
+  // A mobile-mapping van's profile scanner: every 0.1 m of travel one profile across the
+  // track, registered in the world frame. Each profile sees the ground at its feet and the
+  // facades beside it, so the cloud is neither one sweep whose density falls with range nor a
+  // nadir view: it must not go to the airborne mode, and both methods must split it.
+  for (const char* layout : {"street", "verge"}) {
+    for (std::uint32_t seed : {1u, 2u}) {
+      SCOPED_TRACE(std::string(layout) + ":" + std::to_string(seed));
+      gf::SceneParams p = gf::builtinSceneParams("profiler");
+      p.seed = seed;
+      p.layout = std::string(layout) == "verge" ? gf::SceneParams::Layout::kVerge
+                                                : gf::SceneParams::Layout::kStreet;
+      p.crop_half_length = 12.0;  // 24 m of street: 241 profiles
+      p.uav_angle_step_deg = 0.5;
+      const Cloud c = generated(p);
+      ASSERT_GT(c.size(), 80000u);
+      const gf::ScanDecision d = classify(c);
+      EXPECT_EQ(d.type, gf::ScanType::kGround) << d.reason;
+      for (const char* method : {"voxel", "normal"}) {
+        SCOPED_TRACE(method);
+        std::vector<std::uint8_t> labels;
+        runChecked(method, c, &labels, {});
+        EXPECT_GT(f1(labels, c), 0.97);
+      }
+    }
+  }
+}
+
 TEST(ScanType, NadirCloudsOfTheSameWorldsStayAirborne) {
   // uav: a line scanner 40 m over the street (+-35 deg: walls seen obliquely, 25 points per
   // 1 m column); corridor: a 30 m strip of the airborne tile; airborne:3, an unseen seed.
@@ -276,6 +307,35 @@ TEST(ScanType, NadirCloudsOfTheSameWorldsStayAirborne) {
     }
   }
   EXPECT_EQ(classify(builtin("airborne", 3)).type, gf::ScanType::kAirborne);
+}
+
+TEST(ScanType, AMapTileFarBelowItsOriginIsGroundLevel) {
+  // A SLAM map tile or a mobile-mapping run registered in a frame whose origin lies 20 or 40 m
+  // above it (the map started uphill): seen from the origin, most points lie 45 deg or more below
+  // it, as under a drone (rule 2), but the 1 m columns hold the side view of ground-level
+  // sensors (rule 4). It was sent to the airborne mode (slam F1 0.82); it is ground-level.
+  const struct {
+    const char* kind;
+    double below;  // m
+  } cases[] = {{"slam", 20.0}, {"mls", 40.0}};
+  for (const auto& t : cases) {
+    SCOPED_TRACE(t.kind);
+    gf::SceneParams p = gf::builtinSceneParams(t.kind);
+    p.world_offset_z = -t.below;
+    const Cloud c = generated(p);
+    gf::ScanTypeClassifier k;
+    const float o[3] = {0.f, 0.f, 0.f};
+    const gf::ScanMeasures m = k.measure(c.view(), o);
+    EXPECT_GE(m.steep_share, gf::ScanTypeClassifier::kSteepShare);
+    EXPECT_GE(m.steep_depth, gf::ScanTypeClassifier::kNadirDepth);
+    const gf::ScanDecision d = classify(c);
+    EXPECT_EQ(d.type, gf::ScanType::kGround) << d.reason;
+    EXPECT_TRUE(d.registered);
+    EXPECT_NE(d.reason.find("side view"), std::string::npos) << d.reason;
+    std::vector<std::uint8_t> labels;
+    runChecked("voxel", c, &labels);
+    EXPECT_GT(f1(labels, c), 0.88);
+  }
 }
 
 TEST(ScanType, RegisteredCloudFarFromTheOriginIsNotCutByMaxRange) {

@@ -305,8 +305,15 @@ TEST(SceneGenerator, RegisteredCloudsAreInTheWorldFrameWithExactTruth) {
   slam.azimuth_steps = 256;
   slam.range_noise_sigma = 0.0;
   slam.grass_roughness = 0.0;
-  for (const SceneParams* p : {&mls, &far, &uav, &slam}) {
-    SCOPED_TRACE(p == &mls ? "mls" : p == &far ? "tls_far" : p == &uav ? "uav" : "slam");
+  SceneParams profiler = builtinSceneParams("profiler");
+  profiler.crop_half_length = 5.0;
+  profiler.range_noise_sigma = 0.0;
+  for (const SceneParams* p : {&mls, &far, &uav, &slam, &profiler}) {
+    SCOPED_TRACE(p == &mls    ? "mls"
+                 : p == &far  ? "tls_far"
+                 : p == &uav  ? "uav"
+                 : p == &slam ? "slam"
+                              : "profiler");
     EXPECT_TRUE(sceneInWorldFrame(*p));
     const GeneratedScan s = generateScene(*p);
     expectConsistentSizes(s);
@@ -336,13 +343,25 @@ TEST(SceneGenerator, RegisteredCloudsAreInTheWorldFrameWithExactTruth) {
   for (std::size_t i = 0; i < u.size(); ++i) {
     ASSERT_LT(u.xyz[3 * i + 2], sceneGroundHeight(uav, u.xyz[3 * i], u.xyz[3 * i + 1]) + 30.0);
   }
+  // The profile scanner sees every direction of its plane: facades and crowns above it too, on
+  // both sides of the street, and its profiles lie 0.1 m apart along x.
+  const GeneratedScan pr = generateScene(profiler);
+  std::size_t above = 0, left = 0, right = 0;
+  for (std::size_t i = 0; i < pr.size(); ++i) {
+    const float x = pr.xyz[3 * i], y = pr.xyz[3 * i + 1], z = pr.xyz[3 * i + 2];
+    if (z > sceneGroundHeight(profiler, x, y) + 3.0) ++above;
+    (y > profiler.sensor_y ? left : right) += 1;
+    ASSERT_LE(std::fabs(x), profiler.crop_half_length + 1e-3);
+  }
+  EXPECT_GT(above, pr.size() / 20);
+  EXPECT_GT(std::min(left, right), pr.size() / 5);
   SceneParams bad = mls;
   bad.position_keep = 0.0;
   EXPECT_THROW(bad.validate(), std::invalid_argument);
 }
 
 TEST(SceneGenerator, BuiltinKindsNameTheirSceneAndScanner) {
-  EXPECT_EQ(builtinSceneKinds().size(), 16u);
+  EXPECT_EQ(builtinSceneKinds().size(), 17u);
   for (const std::string& kind : builtinSceneKinds()) {
     EXPECT_NO_THROW(builtinSceneParams(kind).validate()) << kind;
   }

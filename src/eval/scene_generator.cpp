@@ -533,7 +533,7 @@ void SceneParams::validate() const {
   checkRange("grass_roughness", grass_roughness, 0.0, 1.0, "m");
   checkRange("airborne_density", airborne_density, 0.05, 100.0, "points/m2");
   checkRange("uav_height", uav_height, 2.0, 1000.0, "m");
-  checkRange("uav_half_angle_deg", uav_half_angle_deg, 1.0, 80.0, "deg");
+  checkRange("uav_half_angle_deg", uav_half_angle_deg, 1.0, 180.0, "deg");
   checkRange("uav_line_step", uav_line_step, 0.02, 100.0, "m");
   checkRange("uav_angle_step_deg", uav_angle_step_deg, 0.01, 10.0, "deg");
   checkRange("rosette_fov_deg", rosette_fov_deg, 1.0, 120.0, "deg");
@@ -565,101 +565,6 @@ void SceneParams::validate() const {
                                 ": only for one scan of a ground-level scanner in its own frame "
                                 "(not with world_frame, positions > 1, airborne or uav)");
   }
-}
-
-std::vector<std::string> builtinSceneKinds() {
-  return {"lidar", "tls",     "verge",   "offroad", "trail",    "airborne", "mls",     "stations",
-          "slam",  "tls_far", "mls_air", "uav",     "corridor", "lidar16",  "rosette", "garage"};
-}
-
-namespace {
-
-// A spinning LiDAR with `beams` evenly over +-half_fov_deg, `steps` firings a turn, `height` m up.
-void evenBeams(SceneParams* p, int beams, double half_fov_deg, int steps, double height) {
-  p->beams = beams;
-  p->uniform_beams = true;
-  p->vertical_min_deg = -half_fov_deg;
-  p->vertical_max_deg = half_fov_deg;
-  p->azimuth_steps = steps;
-  p->sensor_height = height;
-}
-
-}  // namespace
-
-SceneParams builtinSceneParams(const std::string& kind) {
-  SceneParams params;
-  if (kind == "lidar") {
-    params.mode = SceneParams::Mode::kLidar64;
-  } else if (kind == "tls") {
-    params.mode = SceneParams::Mode::kTls;
-  } else if (kind == "verge") {
-    params.layout = SceneParams::Layout::kVerge;
-  } else if (kind == "offroad" || kind == "trail") {
-    // Ouster OS1-64 on a small off-road vehicle, as in RELLIS-3D.
-    params.layout = kind == "offroad" ? SceneParams::Layout::kOffroad : SceneParams::Layout::kTrail;
-    evenBeams(&params, 64, 16.6, 2048, 1.3);
-  } else if (kind == "lidar16") {
-    // A small robot's 16-beam sensor (VLP-16: +-15 deg, 2 deg between beams, 0.2 deg a firing),
-    // 0.7 m above the street: rings ten firings apart.
-    evenBeams(&params, 16, 15.0, 1800, 0.7);
-    params.lidar_max_range = 100.0;
-  } else if (kind == "airborne" || kind == "corridor") {
-    params.mode = SceneParams::Mode::kAirborne;
-    params.range_noise_sigma = 0.05;
-    if (kind == "corridor") {  // a 30 m wide strip of the tile: a corridor survey's footprint
-      params.world_frame = true;
-      params.crop_half_width = 15.0;
-    }
-  } else if (kind == "mls" || kind == "mls_air") {
-    params.positions = 21;  // 80 m of street, a sweep every 4 m, a quarter of each kept
-    params.position_keep = 0.25;
-    params.world_frame = true;
-    if (kind == "mls_air") params.airborne_extra = 0.03;
-  } else if (kind == "stations" || kind == "tls_far") {
-    params.mode = SceneParams::Mode::kTls;
-    params.world_frame = true;
-    if (kind == "stations") {
-      params.positions = 3;
-      params.position_step = 30.0;
-      params.station_y = 2.5;
-      params.tls_points = 300000;
-    } else {  // one station exported in map coordinates
-      params.tls_points = 500000;
-      params.world_offset_x = 2400.0;
-      params.world_offset_y = -1700.0;
-      params.world_offset_z = 310.0;
-    }
-  } else if (kind == "slam") {  // an off-road robot's map tile: OS1-64 sweeps along the trail
-    params.layout = SceneParams::Layout::kTrail;
-    evenBeams(&params, 64, 16.6, 2048, 1.3);
-    params.positions = 31;
-    params.position_step = 2.0;
-    params.position_keep = 0.2;
-    params.follow_track = true;
-    params.world_frame = true;
-    params.crop_half_width = 30.0;
-    params.crop_half_length = 30.0;
-  } else if (kind == "rosette") {
-    // A small robot's solid-state sensor (Livox Avia / Mid-70 class: a 70 deg disc, 240 k
-    // returns a second, 0.1 s frames) 0.7 m above the street, looking along it.
-    params.mode = SceneParams::Mode::kRosette;
-    params.sensor_height = 0.7;
-    params.lidar_max_range = 100.0;
-  } else if (kind == "garage") {
-    // A car's 128-beam sensor (OS1-128: +-22.5 deg) 1.8 m up on a parking level: the ceiling,
-    // 0.8 m above the sensor, is a larger and denser flat surface than the floor it sees.
-    params.layout = SceneParams::Layout::kGarage;
-    evenBeams(&params, 128, 22.5, 2048, 1.8);
-  } else if (kind == "uav") {
-    params.mode = SceneParams::Mode::kUav;
-    params.world_frame = true;
-    params.crop_half_length = 80.0;
-  } else {
-    std::string known;
-    for (const auto& k : builtinSceneKinds()) known += (known.empty() ? "" : ", ") + k;
-    throw std::invalid_argument("unknown built-in scene '" + kind + "' (known: " + known + ")");
-  }
-  return params;
 }
 
 GeneratedScan generateScene(const SceneParams& params) {

@@ -28,8 +28,9 @@ struct SceneParams {
                 ///< cars (layout ignored): airborne_density points per m2, world frame
     kRosette,   ///< solid-state sensor looking along +x, sensor_height up, non-repetitive
                 ///< rosette pattern (two counter-rotating prisms, Livox-like)
-    kUav,       ///< low UAV line scanner flying along world x over the layout, uav_height up,
-                ///< rays across the track within +-uav_half_angle_deg of nadir, world frame
+    kUav,       ///< line scanner moving along world x over the layout, uav_height up, rays
+                ///< across the track within +-uav_half_angle_deg of nadir (a UAV; with 180 deg
+                ///< a van's profile scanner), world frame
   };
   /// \brief World layout.
   enum class Layout {
@@ -82,8 +83,10 @@ struct SceneParams {
   /// lower, the centre this much higher (a raised bay), the east third as without it [m] (0:
   /// one flat roof; at most 6).
   double airborne_hall_step = 0.0;
-  double uav_height = 40.0;          ///< kUav: flying height over the ground below it [m] (40)
-  double uav_half_angle_deg = 35.0;  ///< kUav: half the across-track field of view [deg] (35)
+  double uav_height = 40.0;  ///< kUav: flying height over the ground below it [m] (40)
+  /// kUav: half the across-track field of view [deg] (35; 1..180, 180: every direction of
+  /// the plane across the track, a profile scanner)
+  double uav_half_angle_deg = 35.0;
   double uav_line_step = 0.25;       ///< kUav: flight distance between scan lines [m] (0.25)
   double uav_angle_step_deg = 0.25;  ///< kUav: angle between rays of a line [deg] (0.25)
   double rosette_fov_deg = 70.4;     ///< kRosette: circular field of view, full angle [deg] (70.4)
@@ -180,7 +183,9 @@ struct GeneratedScan {
 ///        `corridor` (the airborne tile cut to a 30 m wide strip); `lidar16` (the street seen by a
 ///        small robot's 16-beam sensor, VLP-16-like, 0.7 m up: scan lines far apart);
 ///        `rosette` (the street seen by a solid-state sensor 0.7 m up, Livox-like: a 70.4 deg
-///        forward disc of 24 k non-repeating rays).
+///        forward disc of 24 k non-repeating rays); `garage` (a parking level under its
+///        ceiling); `profiler` (a mobile-mapping van's profile scanner 2.5 m up: one profile
+///        across the track every 0.1 m along 80 m of street, registered in the world frame).
 /// \throws std::invalid_argument naming the known kinds for any other name.
 SceneParams builtinSceneParams(const std::string& kind);
 

@@ -54,7 +54,7 @@ void validateScanTypeSetting(const std::string& value) {
 
 ScanMeasures ScanTypeClassifier::measure(const CloudView& cloud, const float origin[3]) {
   ScanMeasures m = measureSample(cloud, origin);
-  if (m.cells > 0) measureColumns(cloud, &m);
+  if (m.cells > 0) measureColumns(cloud, &m, kMaxRead);
   m.hidden_share = OriginView().hiddenShare(cloud, origin);
   return m;
 }
@@ -136,10 +136,10 @@ ScanMeasures ScanTypeClassifier::measureSample(const CloudView& cloud, const flo
   return m;
 }
 
-void ScanTypeClassifier::measureColumns(const CloudView& cloud, ScanMeasures* m) {
+void ScanTypeClassifier::measureColumns(const CloudView& cloud, ScanMeasures* m, std::size_t most) {
   const float x0 = box_[0], x1 = box_[1], y0 = box_[2], y1 = box_[3];
   const std::size_t n = cloud.size();
-  const std::size_t want = std::min(n, kMaxRead);
+  const std::size_t want = std::min(n, most);
   if (want == 0) return;
   const double c = kColumn;
   const std::uint64_t nx = static_cast<std::uint64_t>(std::ceil((x1 - x0) / c)) + 1;
@@ -162,13 +162,22 @@ void ScanTypeClassifier::measureColumns(const CloudView& cloud, ScanMeasures* m)
   }
   m->read = keys_.size();
   if (keys_.empty()) return;
-  std::sort(keys_.begin(), keys_.end());
   counts_.clear();
-  for (std::size_t a = 0; a < keys_.size();) {
-    std::size_t b = a + 1;
-    while (b < keys_.size() && keys_[b] == keys_[a]) ++b;
-    counts_.push_back(static_cast<std::uint32_t>(b - a));
-    a = b;
+  const std::uint64_t ny = static_cast<std::uint64_t>(std::ceil((y1 - y0) / c)) + 1;
+  if (nx * ny <= kDenseColumns) {  // a count per column of the box: no sort
+    dense_.assign(static_cast<std::size_t>(nx * ny), 0u);
+    for (const std::uint64_t key : keys_) ++dense_[static_cast<std::size_t>(key)];
+    for (const std::uint32_t count : dense_) {
+      if (count > 0) counts_.push_back(count);
+    }
+  } else {
+    std::sort(keys_.begin(), keys_.end());
+    for (std::size_t a = 0; a < keys_.size();) {
+      std::size_t b = a + 1;
+      while (b < keys_.size() && keys_[b] == keys_[a]) ++b;
+      counts_.push_back(static_cast<std::uint32_t>(b - a));
+      a = b;
+    }
   }
   m->columns = counts_.size();
   m->column_mean = static_cast<double>(keys_.size()) / static_cast<double>(counts_.size());
@@ -184,10 +193,18 @@ void ScanTypeClassifier::classify(const CloudView& cloud, const float origin[3],
   ScanMeasures m = measureSample(cloud, origin);
   d->below_share = m.sampled > 0 ? m.below_share : 1.0;
   d->densest_offset = m.densest_offset;
-  const bool nadir_density = m.sampled >= kMinPoints && m.extent >= kMinExtent &&
-                             !(m.steep_share >= kSteepShare && m.steep_depth >= kNadirDepth) &&
-                             m.top_share < kConcentrated;
-  if (nadir_density) measureColumns(cloud, &m);
+  const bool judged = m.sampled >= kMinPoints && m.extent >= kMinExtent;
+  const bool nadir_view = m.steep_share >= kSteepShare && m.steep_depth >= kNadirDepth;
+  // Rule 4's columns where rule 3 finds an even sampling, and where rule 2 finds the points far
+  // below the origin (a registered map tile below its frame's origin looks the same from
+  // there), on a smaller read: a drone's stream of scans meets rule 2 on every scan.
+  if (judged && nadir_view) {
+    measureColumns(cloud, &m, kNadirRead);
+  } else if (judged && m.top_share < kConcentrated) {
+    measureColumns(cloud, &m, kMaxRead);
+  }
+  const bool side_view =
+      m.column_mean >= kMinColumnMean && m.column_top_share >= kColumnConcentrated;
   char buf[kReasonRoom];
   d->registered = false;
   d->side_view = false;
@@ -206,25 +223,38 @@ void ScanTypeClassifier::classify(const CloudView& cloud, const float origin[3],
                   "auto: the points cover %.2f m across, too little to judge (under %.0f m): "
                   "ground-level mode",
                   m.extent, kMinExtent);
-  } else if (m.steep_share >= kSteepShare && m.steep_depth >= kNadirDepth) {
+  } else if (side_view && (nadir_view || m.top_share < kConcentrated)) {
+    // Rule 4. Where rule 2 holds too: a nadir sensor at the origin sees the surfaces below it
+    // evenly at the 1 m scale, and these columns hold the side view of sensors near the ground
+    // (walls, trunks, each position's near field): a map tile registered below its frame's
+    // origin, or a sensor looking obliquely down from a mast (OriginView tells them apart).
+    d->type = ScanType::kGround;
+    d->registered = true;
+    d->side_view = m.nearest <= kFarOrigin;
+    const int n = std::snprintf(
+        buf, sizeof(buf),
+        "auto: side view: the densest tenth of the %.0f m xy columns holds %.0f %% of %zu points "
+        "read (%.0f %% or more: density falls with range from each sensor position; a registered "
+        "cloud), although ",
+        kColumn, 100.0 * m.column_top_share, m.read, 100.0 * kColumnConcentrated);
+    if (n > 0 && static_cast<std::size_t>(n) < sizeof(buf)) {
+      if (nadir_view) {
+        std::snprintf(buf + n, sizeof(buf) - n,
+                      "%.0f %% of the points lie 45 deg or more below the origin, median %.0f m "
+                      "down (not the even sampling of a nadir view)",
+                      100.0 * m.steep_share, m.steep_depth);
+      } else {
+        std::snprintf(buf + n, sizeof(buf) - n,
+                      "the densest tenth of the %s m cells holds only %.0f %%", cell_text, top);
+      }
+    }
+  } else if (nadir_view) {
     d->type = ScanType::kAirborne;
     std::snprintf(buf, sizeof(buf),
                   "auto: %.0f %% of the points lie 45 deg or more below the origin, median %.0f m "
                   "down (a sensor looking down); the densest tenth of the %s m xy cells holds "
                   "%.0f %% of the points",
                   100.0 * m.steep_share, m.steep_depth, cell_text, top);
-  } else if (m.top_share < kConcentrated && m.column_mean >= kMinColumnMean &&
-             m.column_top_share >= kColumnConcentrated) {
-    d->type = ScanType::kGround;
-    d->registered = true;
-    d->side_view = m.nearest <= kFarOrigin;
-    std::snprintf(buf, sizeof(buf),
-                  "auto: side view: the densest tenth of the %.0f m xy columns holds %.0f %% of "
-                  "%zu points read (%.0f %% or more: density falls with range from each sensor "
-                  "position; a registered cloud), although the densest tenth of the %s m cells "
-                  "holds only %.0f %%",
-                  kColumn, 100.0 * m.column_top_share, m.read, 100.0 * kColumnConcentrated,
-                  cell_text, top);
   } else if (m.top_share < kConcentrated) {
     d->type = ScanType::kAirborne;
     std::snprintf(buf, sizeof(buf),

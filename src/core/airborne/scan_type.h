@@ -85,7 +85,8 @@ struct ScanMeasures {
 /// tenth of the cells holds little more than a tenth of the points. Frame-free: a survey tile
 /// in map coordinates, whose origin is no sensor, is judged like one centred on its sensor.
 /// A second rule looks from the origin: when most points lie at least 45 deg below it and many
-/// metres down, the origin is a sensor looking down on them (a drone).
+/// metres down, the origin is a sensor looking down on them (a drone), unless the 1 m columns
+/// hold a side view (a map tile registered below its frame's origin).
 /// Deterministic; looks at up to kMaxSamples evenly spread points (about 0.1 ms).
 class ScanTypeClassifier {
  public:
@@ -111,6 +112,12 @@ class ScanTypeClassifier {
   /// \brief Rule 4 reads at most this many points, evenly spread (memory and time stop
   ///        growing with the cloud past it).
   static constexpr std::size_t kMaxRead = 1048576;
+  /// \brief Rule 4's read where rule 2 finds a nadir view (a drone's stream meets it on every
+  ///        scan): 16 points a column or more over 4,096 m2, a 64 m map tile.
+  static constexpr std::size_t kNadirRead = 65536;
+  /// \brief Rule 4 counts the points of each column in an array where the box holds at most
+  ///        this many columns (1 M: 4 MiB, 1 km x 1 km), else it sorts the read's columns.
+  static constexpr std::uint64_t kDenseColumns = std::uint64_t{1} << 20;
   /// \brief Edge of rule 4's columns [m]: the scale of a side view's near field and walls.
   static constexpr double kColumn = 1.0;
   /// \brief Rule 4 judges only where the read holds at least this many points per occupied
@@ -133,14 +140,15 @@ class ScanTypeClassifier {
   std::vector<float> xs_, ys_, tmp_;  // sampled points
   std::vector<float> zs_, depth_;
   std::vector<std::uint32_t> counts_;
-  std::vector<std::uint64_t> keys_;  // column of each point read by rule 4
+  std::vector<std::uint64_t> keys_;   // column of each point read by rule 4
+  std::vector<std::uint32_t> dense_;  // points per column of a box of at most kDenseColumns
 
   float box_[4] = {0.f, 0.f, 0.f, 0.f};  // trimmed xy box: x0 x1 y0 y1
 
   // Rules 1-3's measures (the sample, its cells, the view from the origin); keeps the box.
   ScanMeasures measureSample(const CloudView& cloud, const float origin[3]);
   // Rule 4's measures over the box kept by measureSample().
-  void measureColumns(const CloudView& cloud, ScanMeasures* m);
+  void measureColumns(const CloudView& cloud, ScanMeasures* m, std::size_t most);
 };
 
 /// \brief Both methods' switch between their ground-level mode and the airborne one: resolves
