@@ -17,6 +17,7 @@ constexpr double GroundTiltEstimator::kColumn;
 constexpr double GroundTiltEstimator::kBand;
 constexpr double GroundTiltEstimator::kMaxTilt;
 constexpr double GroundTiltEstimator::kAbove;
+constexpr double GroundTiltEstimator::kMaxHeight;
 constexpr double GroundTiltEstimator::kMinShare;
 constexpr std::size_t GroundTiltEstimator::kMinInliers;
 constexpr int GroundTiltEstimator::kHypotheses;
@@ -130,7 +131,8 @@ GroundTilt GroundTiltEstimator::estimate(const CloudView& cloud, const float ori
     bd = plane.d;
   }
   out.inliers = countNear(px, py, pz, m, bn, bd, kBand);
-  out.found = bd >= -kAbove;
+  out.height = bd;
+  out.found = bd >= -kAbove && bd <= kMaxHeight;
   std::copy(bn, bn + 3, out.normal);
   out.tilt_deg = std::acos(std::min(1.0, bn[2])) / kDegToRad;
   return out;

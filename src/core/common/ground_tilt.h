@@ -17,6 +17,7 @@ struct GroundTilt {
   double tilt_deg = 0.0;               ///< angle between normal and the frame's z [deg]
   std::size_t columns = 0;             ///< occupied columns within kRadius
   std::size_t inliers = 0;             ///< columns whose lowest point lies on the plane
+  double height = 0.0;                 ///< the sensor's height above the plane [m]
   /// \brief A plane was found and leans `level_tilt` or more: the scan is to be turned.
   bool turns(double level_tilt) const { return found && tilt_deg >= level_tilt; }
 };
@@ -41,6 +42,13 @@ class GroundTiltEstimator {
   /// The plane passes at most this far above the origin: the sensor, or in a frame on the
   /// ground below it (base_link) that ground; a ceiling lies higher [m].
   static constexpr double kAbove = 0.3;
+  /// A sensor higher than this above the plane (a mast, a pole, a truck's roof) sees the ground
+  /// only as a far ring at kRadius's edge or beyond, and its lowest points near it lie where its
+  /// lowest beam meets walls and cars: their lean is the terrain's or that beam's cone, not the
+  /// mount's. Such a scan is not levelled (a tilted one needs a gravity frame). Generated
+  /// scenes 4.5-8 m up: 2-4 m the same F1 (5 m loses the 7 m ones); tilted mounts stand
+  /// 0.75-1.85 m over their plane [m].
+  static constexpr double kMaxHeight = 3.0;
   static constexpr double kMinShare = 0.2;        ///< inliers: at least this share of the columns
   static constexpr std::size_t kMinInliers = 30;  ///< and at least this many
   static constexpr int kHypotheses = 200;         ///< RANSAC draws
