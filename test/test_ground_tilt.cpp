@@ -118,21 +118,32 @@ TEST(GroundTilt, CeilingsAndEmptySurroundingsGiveNoTilt) {
 
 // A sensor on a mast, 7 m up: the lowest points within 15 m are where its lowest beam meets
 // walls, cars and crowns, on that beam's cone; the best plane through them leant 8.7 deg, the
-// scan was turned onto it and lost its ground (voxel F1 0.98 -> 0.68, normal 0.95 -> 0.86). The
-// ground such a sensor sees is a far ring whose lean is the terrain's, so a sensor more than
-// kMaxHeight above the plane is not levelled; on a car (1.73 m) the same world's plane stands.
+// scan was turned onto it and lost its ground (voxel F1 0.98 -> 0.68, normal 0.95 -> 0.86). A
+// sensor more than kMaxHeight above that plane reads its lean from the ground 15-40 m out: the
+// level mast is not turned, the same mast pitched 20 deg down is; on a car (1.73 m) the near
+// plane stands.
 TEST(GroundTilt, ASensorOnAMastIsNotTurnedOntoItsLowestBeam) {
   const float origin[3] = {0.f, 0.f, 0.f};
   gf::GroundTiltEstimator estimator;
   const gf::GeneratedScan mast = gf::generateScene(gf::parseSceneSpec("lidar:6:sensor_height=7"));
   const gf::GroundTilt high =
       estimator.estimate(gf::CloudView::packedXyz(mast.xyz.data(), mast.size()), origin);
+  EXPECT_TRUE(high.high);
   EXPECT_GT(high.height, gf::GroundTiltEstimator::kMaxHeight);
   EXPECT_FALSE(high.turns(5.0)) << high.tilt_deg << " deg, " << high.height << " m";
+  // Pitched 20 deg down, the ground farther out leans by the pitch as well: turned by it.
+  const gf::GeneratedScan pitched =
+      gf::generateScene(gf::parseSceneSpec("lidar:6:sensor_height=6,mount_pitch_deg=20"));
+  const gf::GroundTilt down =
+      estimator.estimate(gf::CloudView::packedXyz(pitched.xyz.data(), pitched.size()), origin);
+  EXPECT_TRUE(down.high);
+  EXPECT_TRUE(down.turns(5.0));
+  EXPECT_NEAR(down.tilt_deg, 21.0, 1.5);  // the pitch and the street's 2 % rise
   const gf::GeneratedScan car = gf::generateScene(gf::parseSceneSpec("lidar:6"));
   const gf::GroundTilt low =
       estimator.estimate(gf::CloudView::packedXyz(car.xyz.data(), car.size()), origin);
   ASSERT_TRUE(low.found);
+  EXPECT_FALSE(low.high);
   EXPECT_NEAR(low.height, 1.73, 0.2);
   EXPECT_LT(low.tilt_deg, 3.0);
   for (const char* method : {"voxel", "normal"}) {

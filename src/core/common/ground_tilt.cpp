@@ -18,6 +18,8 @@ constexpr double GroundTiltEstimator::kBand;
 constexpr double GroundTiltEstimator::kMaxTilt;
 constexpr double GroundTiltEstimator::kAbove;
 constexpr double GroundTiltEstimator::kMaxHeight;
+constexpr double GroundTiltEstimator::kFarRadius;
+constexpr double GroundTiltEstimator::kFarColumn;
 constexpr double GroundTiltEstimator::kMinShare;
 constexpr std::size_t GroundTiltEstimator::kMinInliers;
 constexpr int GroundTiltEstimator::kHypotheses;
@@ -45,11 +47,21 @@ std::size_t countNear(const float* x, const float* y, const float* z, std::size_
 }  // namespace
 
 GroundTilt GroundTiltEstimator::estimate(const CloudView& cloud, const float origin[3]) {
+  GroundTilt near = fitLowest(cloud, origin, kNear, kRadius, kColumn);
+  if (!near.found || near.height <= kMaxHeight) return near;
+  // A sensor high above the plane sees its ground from farther out: read the lean there.
+  GroundTilt far = fitLowest(cloud, origin, kRadius, kFarRadius, kFarColumn);
+  far.high = true;
+  return far;
+}
+
+GroundTilt GroundTiltEstimator::fitLowest(const CloudView& cloud, const float origin[3],
+                                          double near, double radius, double column) {
   GroundTilt out;
-  const int side = static_cast<int>(2.0 * kRadius / kColumn);
+  const int side = static_cast<int>(2.0 * radius / column);
   const float inf = std::numeric_limits<float>::infinity();
   low_.assign(static_cast<std::size_t>(side) * side * 3, inf);
-  const double r2_lo = kNear * kNear, r2_hi = kRadius * kRadius;
+  const double r2_lo = near * near, r2_hi = radius * radius;
   const double ox = origin[0], oy = origin[1], oz = origin[2];
   // Every step-th point (about kSample of them): a column's lowest point among them lies on
   // the ground as its lowest of all does, where the ground is seen at all.
@@ -61,8 +73,8 @@ GroundTilt GroundTiltEstimator::estimate(const CloudView& cloud, const float ori
     const double dx = x - ox, dy = y - oy, r2 = dx * dx + dy * dy;
     // NaN fails both tests, +-Inf the second.
     if (!(r2 >= r2_lo && r2 < r2_hi) || !std::isfinite(z)) continue;
-    const int cx = std::min(side - 1, static_cast<int>((dx + kRadius) / kColumn));
-    const int cy = std::min(side - 1, static_cast<int>((dy + kRadius) / kColumn));
+    const int cx = std::min(side - 1, static_cast<int>((dx + radius) / column));
+    const int cy = std::min(side - 1, static_cast<int>((dy + radius) / column));
     float* c = &low_[3 * (static_cast<std::size_t>(cy) * side + cx)];
     const float dz = static_cast<float>(z - oz);
     if (dz < c[2]) {
@@ -132,7 +144,7 @@ GroundTilt GroundTiltEstimator::estimate(const CloudView& cloud, const float ori
   }
   out.inliers = countNear(px, py, pz, m, bn, bd, kBand);
   out.height = bd;
-  out.found = bd >= -kAbove && bd <= kMaxHeight;
+  out.found = bd >= -kAbove;
   std::copy(bn, bn + 3, out.normal);
   out.tilt_deg = std::acos(std::min(1.0, bn[2])) / kDegToRad;
   return out;

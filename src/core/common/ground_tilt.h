@@ -18,6 +18,9 @@ struct GroundTilt {
   std::size_t columns = 0;             ///< occupied columns within kRadius
   std::size_t inliers = 0;             ///< columns whose lowest point lies on the plane
   double height = 0.0;                 ///< the sensor's height above the plane [m]
+  /// The sensor stood more than kMaxHeight above the near plane: this plane is the farther
+  /// ring's (kRadius to kFarRadius).
+  bool high = false;
   /// \brief A plane was found and leans `level_tilt` or more: the scan is to be turned.
   bool turns(double level_tilt) const { return found && tilt_deg >= level_tilt; }
 };
@@ -42,13 +45,16 @@ class GroundTiltEstimator {
   /// The plane passes at most this far above the origin: the sensor, or in a frame on the
   /// ground below it (base_link) that ground; a ceiling lies higher [m].
   static constexpr double kAbove = 0.3;
-  /// A sensor higher than this above the plane (a mast, a pole, a truck's roof) sees the ground
-  /// only as a far ring at kRadius's edge or beyond, and its lowest points near it lie where its
-  /// lowest beam meets walls and cars: their lean is the terrain's or that beam's cone, not the
-  /// mount's. Such a scan is not levelled (a tilted one needs a gravity frame). Generated
-  /// scenes 4.5-8 m up: 2-4 m the same F1 (5 m loses the 7 m ones); tilted mounts stand
-  /// 0.75-1.85 m over their plane [m].
+  /// A sensor higher than this above the plane of its near columns (a mast, a pole, a truck's
+  /// roof) sees the ground only from far out: when level, its lowest points within kRadius
+  /// lie where its lowest beam meets walls and cars (that beam's cone) or on a thin ring of
+  /// terrain, whose lean is not the mount's. Its lean is read from the ring kRadius to
+  /// kFarRadius instead, which it sees as a car's sensor sees its near ground [m].
   static constexpr double kMaxHeight = 3.0;
+  /// Outer edge of that farther ring: 25-50 m give the same F1 on 63 generated scans 4.5-7 m
+  /// up, level or pitched 10-20 deg; 60 m less [m].
+  static constexpr double kFarRadius = 40.0;
+  static constexpr double kFarColumn = 2.0;       ///< its column edge [m]
   static constexpr double kMinShare = 0.2;        ///< inliers: at least this share of the columns
   static constexpr std::size_t kMinInliers = 30;  ///< and at least this many
   static constexpr int kHypotheses = 200;         ///< RANSAC draws
@@ -71,6 +77,10 @@ class GroundTiltEstimator {
                          std::vector<float>* xyz);
 
  private:
+  // The plane through the lowest points of the columns from `near` to `radius` of the origin.
+  GroundTilt fitLowest(const CloudView& cloud, const float origin[3], double near, double radius,
+                       double column);
+
   std::vector<float> low_;  // per column: lowest x, y, z relative to the origin (z: +inf none)
   std::vector<float> pts_;  // the occupied columns' lowest points
 };
