@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "io_test_util.h"
 
 namespace {
@@ -566,7 +568,8 @@ TEST(Builtin, FailureModeScenesHaveClassesAndTruth) {
     EXPECT_GT(terrain, 5000u) << path;
   }
   const std::vector<std::string> kinds = gf::builtinSceneKinds();
-  EXPECT_EQ(kinds.size(), 16u);
+  EXPECT_EQ(kinds.size(), 17u);
+  EXPECT_NE(std::find(kinds.begin(), kinds.end(), "profiler"), kinds.end());
   try {
     gf::loadScan("builtin:moon");
     ADD_FAILURE() << "no exception";
