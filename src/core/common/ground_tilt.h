@@ -15,7 +15,7 @@ struct GroundTilt {
   bool found = false;                  ///< a plane with enough support was found
   double normal[3] = {0.0, 0.0, 1.0};  ///< unit normal, z >= 0
   double tilt_deg = 0.0;               ///< angle between normal and the frame's z [deg]
-  std::size_t columns = 0;             ///< occupied columns within kRadius
+  std::size_t columns = 0;             ///< occupied columns fitted (within kRadius; the ring)
   std::size_t inliers = 0;             ///< columns whose lowest point lies on the plane
   double height = 0.0;                 ///< the sensor's height above the plane [m]
   /// The sensor stood more than kMaxHeight above the near plane: this plane is the farther
