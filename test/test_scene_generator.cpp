@@ -355,6 +355,15 @@ TEST(SceneGenerator, RegisteredCloudsAreInTheWorldFrameWithExactTruth) {
   }
   EXPECT_GT(above, pr.size() / 20);
   EXPECT_GT(std::min(left, right), pr.size() / 5);
+  // Past 90 deg its near-horizontal rays still reach terrain far across the track.
+  for (double half : {91.0, 95.0, 180.0}) {
+    profiler.uav_half_angle_deg = half;
+    const GeneratedScan h = generateScene(profiler);
+    double reach = 0.0;
+    for (std::size_t i = 0; i < h.size(); ++i)
+      if (h.truth[i] == 1) reach = std::max(reach, std::fabs(h.xyz[3 * i + 1] - profiler.sensor_y));
+    EXPECT_GT(reach, 40.0) << half;
+  }
   SceneParams bad = mls;
   bad.position_keep = 0.0;
   EXPECT_THROW(bad.validate(), std::invalid_argument);

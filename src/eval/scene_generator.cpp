@@ -373,7 +373,10 @@ GeneratedScan airborneScan(const SceneParams& p) {
 // kUav: one line of rays across the track (azimuth +-90 deg), from nadir out to the half angle.
 Pattern uavPattern(const SceneParams& p) {
   Pattern pat;
-  pat.max_range = p.uav_height / std::cos(p.uav_half_angle_deg * kDegToRad) + 50.0;
+  // The slant range to level ground at the half angle, plus 50 m; past 80 deg (a profile
+  // scanner's rays reach the horizon and above) the range at 80 deg.
+  const double reach_deg = std::min(p.uav_half_angle_deg, 80.0);
+  pat.max_range = p.uav_height / std::cos(reach_deg * kDegToRad) + 50.0;
   pat.azimuth = {0.5 * kPi, 1.5 * kPi};
   const int n =
       std::max(1, static_cast<int>(std::floor(p.uav_half_angle_deg / p.uav_angle_step_deg)));

@@ -203,6 +203,7 @@ void ScanTypeClassifier::classify(const CloudView& cloud, const float origin[3],
   } else if (judged && m.top_share < kConcentrated) {
     measureColumns(cloud, &m, kMaxRead);
   }
+  // False where the columns were not measured (their fields stay 0): rules 2 and 3 gate rule 4.
   const bool side_view =
       m.column_mean >= kMinColumnMean && m.column_top_share >= kColumnConcentrated;
   char buf[kReasonRoom];
@@ -223,7 +224,7 @@ void ScanTypeClassifier::classify(const CloudView& cloud, const float origin[3],
                   "auto: the points cover %.2f m across, too little to judge (under %.0f m): "
                   "ground-level mode",
                   m.extent, kMinExtent);
-  } else if (side_view && (nadir_view || m.top_share < kConcentrated)) {
+  } else if (side_view) {
     // Rule 4. Where rule 2 holds too: a nadir sensor at the origin sees the surfaces below it
     // evenly at the 1 m scale, and these columns hold the side view of sensors near the ground
     // (walls, trunks, each position's near field): a map tile registered below its frame's
