@@ -5,9 +5,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
+#include <string>
 
 #include "airborne/airborne_mode.h"
+#include "airborne/origin_view.h"
 #include "airborne/scan_type.h"
 #include "common/densest_centre.h"
 #include "common/ground_tilt.h"
@@ -40,6 +43,21 @@ constexpr float kSensorAboveGround = 1.5f;
 // sensor either, whatever lies below it (a map frame's origin above the ground under the scan)
 // [m]; a sensor's densest cell holds it or lies next to it, at most about 10 m away.
 constexpr double kFarDensest = 20.0;
+// Fewer flat seed voxels than this share of the seed voxels: the scan is too sparse for its
+// voxels (scans of the dev data and the generated kinds: 0.15-0.71; sparse sensors 3-4 m up
+// whose ground starts 12-20 m out: 0.001-0.07), so they are made two, then three times as
+// large (kMaxCoarser steps: 0.1 -> 0.2 -> 0.3 m; 0.4 m loses 1.3 points on KITTI thinned by a
+// 0.3 m VoxelGrid, whose flat share at 0.2 m is 0.09).
+constexpr double kMinFlatSeeds = 0.1;
+constexpr int kMaxCoarser = 2;
+
+void appendCoarserNote(double voxel_size, std::string* note) {
+  char text[160];
+  std::snprintf(text, sizeof text,
+                "%sfew seed voxels flat (a sparse scan): voxel_size %.2f m for this scan",
+                note->empty() ? "" : "; ", voxel_size);
+  note->append(text);
+}
 
 /// Writes the labels `gr` (by sorted position) in input order: sorted position -> slot (low bits
 /// of a packed key, or `order`) -> input index (identity when every point is valid); returns the
@@ -92,15 +110,77 @@ struct VoxelGroundFilter::Impl {
   MorphGround morph;                      // airborne scans only
   ScanTypeSwitch scan;                    // scan_type: this scan's mode
   DensestCentre centre;                   // the sensor where the origin is none (a map frame)
+  OriginView origin_view;                 // a side view's origin: one scan's sensor after all?
+  VoxelGroundFilterParams coarse;         // 2: params_ with a coarser voxel_size
   GroundTiltEstimator tilt;               // 0: a sensor mounted tilted (level_tilt)
   std::vector<float> levelled_xyz;        // 0: the scan turned onto its ground, packed xyz
   CloudView levelled_view;                // 0: a view of it
-  explicit Impl(const VoxelGroundFilterParams& p) : scan(p.scan_type, p.morph_ground) {}
+  explicit Impl(const VoxelGroundFilterParams& p) : scan(p.scan_type, p.morph_ground), coarse(p) {}
   // 0: `cloud`, or where its ground leans level_tilt or more (a single scan: the sensor at the
   // origin), the scan turned about the sensor onto that ground; a note says so (stats only).
   const CloudView& levelled(const VoxelGroundFilterParams& p, const ScanDecision& decision,
                             const CloudView& cloud, FilterStats* stats);
+  // 2b: `p`, or where the scan is too sparse for its voxels, `coarse` with the voxels that
+  // steps 1-3 were run again with (stage times and a note into `stats` where given).
+  const VoxelGroundFilterParams& coarser(const VoxelGroundFilterParams& p, const CloudView& in,
+                                         const WorkingVolume* volume, int threads,
+                                         FilterStats* stats);
+  // 5: the sensor the start segment must pass below (written to `sensor`), or nullptr.
+  const float* startSensor(const ScanDecision& decision, const CloudView& in, float sensor[3]);
 };
+
+const VoxelGroundFilterParams& VoxelGroundFilter::Impl::coarser(const VoxelGroundFilterParams& p,
+                                                                const CloudView& in,
+                                                                const WorkingVolume* volume,
+                                                                int threads, FilterStats* stats) {
+  // Steps 1-3 again with voxels two, then three times as large where the scan is sampled too
+  // sparsely for them: hardly a seed voxel holds the two points that the flatness test needs,
+  // so the ground forms no segment to start from (a 16-beam sensor 3 m up sees the ground from
+  // 8-20 m out, its points 10-25 cm apart along a ring).
+  const VoxelGroundFilterParams* q = &p;
+  voxel::VoxelGrid& g = grid;
+  for (int k = 0; k < kMaxCoarser && p.local_planes && g.seeds.size() > 0 &&
+                  static_cast<double>(g.flat.size()) < kMinFlatSeeds * g.seeds.size();
+       ++k) {
+    const auto t0 = Clock::now();
+    coarse.voxel_size = p.voxel_size * (k + 2);  // a copy of p made once: no allocation
+    q = &coarse;
+    voxelizer.prepare(in, q->voxel_size, threads, &pool, volume, &g);
+    cells.setup(*q, g.nx, g.ny);
+    voxelizer.build(*q, threads, &pool, &g, &cells);
+    if (stats) {
+      stats->stage_ms.emplace_back("coarser_voxels", msSince(t0));  // short: no allocation
+      appendCoarserNote(q->voxel_size, &stats->note);
+    }
+  }
+  return *q;
+}
+
+const float* VoxelGroundFilter::Impl::startSensor(const ScanDecision& decision, const CloudView& in,
+                                                  float sensor[3]) {
+  const float* origin = scan.origin();  // NaN: none (the paper mode's normalised segments)
+  for (int a = 0; a < 3; ++a) sensor[a] = origin[a];
+  bool below_sensor =
+      std::isfinite(origin[0]) && std::isfinite(origin[1]) && std::isfinite(origin[2]);
+  // A side view read from the density alone (rule 4) is one scan all the same where its origin
+  // hides almost nothing (the normal method's plane rule asks the same): a sparse sensor high
+  // on a truck, whose ground starts 8-12 m out, leaves its cells as even as a merged cloud's;
+  // without the sensor, the largest segment may start the model on a roof or a wall's line.
+  if (below_sensor && decision.registered) {
+    below_sensor =
+        decision.side_view && origin_view.streamShare(in, origin) < OriginView::kHiddenCut;
+  }
+  if (below_sensor &&
+      (decision.below_share < kSensorBelowShare || decision.densest_offset > kFarDensest)) {
+    // Almost no point below the origin, or the points densest far from it: no sensor above the
+    // ground there (a map frame's origin beside the scan), where "below the sensor" would take
+    // a plane extrapolated under it. A spinning sensor sits over the densest area's centre,
+    // kSensorAboveGround above its ground.
+    below_sensor = centre.find(in, sensor);
+    sensor[2] += kSensorAboveGround;
+  }
+  return below_sensor ? sensor : nullptr;
+}
 
 const CloudView& VoxelGroundFilter::Impl::levelled(const VoxelGroundFilterParams& p,
                                                    const ScanDecision& decision,
@@ -197,6 +277,8 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
   t0 = Clock::now();
   m.voxelizer.build(p, threads, &m.pool, &g, &m.cells);
   stage("voxelize", t0);
+  // ---- 2b. the same with coarser voxels where the scan is too sparse for them
+  const VoxelGroundFilterParams& pv = m.coarser(p, in, volume, threads, stats ? &st : nullptr);
   if (g.flat.size() == 0 && n >= ScanTypeClassifier::kMinPoints) {
     // Not one voxel holds min_points_per_voxel points: the cloud is sampled more coarsely than
     // voxel_size (a map thinned to an even grid), so no ground model can grow. The
@@ -209,28 +291,17 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
   // ---- 4. height filter, 5. region growing, largest segment
   t0 = Clock::now();
   voxel::SegmentResult& seg = m.segments;
-  m.segmenter.run(p, &g, &seg);
+  m.segmenter.run(pv, &g, &seg);
   stage("segments", t0);
 
   // ---- 6. plane of the largest segment (paper), local ground model
   t0 = Clock::now();
-  const float* origin = m.scan.origin();  // NaN: none (the paper mode's normalised segments)
-  float sensor[3] = {origin[0], origin[1], origin[2]};
-  bool below_sensor = !scan.registered && std::isfinite(origin[0]) && std::isfinite(origin[1]) &&
-                      std::isfinite(origin[2]);
-  if (below_sensor && (scan.below_share < kSensorBelowShare || scan.densest_offset > kFarDensest)) {
-    // Almost no point below the origin, or the points densest far from it: no sensor above the
-    // ground there (a map frame's origin beside the scan), where "below the sensor" would take
-    // a plane extrapolated under it. A spinning sensor sits over the densest area's centre,
-    // kSensorAboveGround above its ground.
-    below_sensor = m.centre.find(in, sensor);
-    sensor[2] += kSensorAboveGround;
-  }
-  m.segmenter.globalPlane(p, g, below_sensor ? sensor : nullptr, &seg);
+  float sensor[3];
+  m.segmenter.globalPlane(pv, g, m.startSensor(scan, in, sensor), &seg);
   const bool have_plane = seg.have_plane;
   if (have_plane) {
     if (p.local_planes) {
-      m.model.grow(p, g, m.cells, seg, &m.ground_model);
+      m.model.grow(pv, g, m.cells, seg, &m.ground_model);
     } else {
       m.model.setGlobal(seg, &m.ground_model);
     }
@@ -241,7 +312,7 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
   t0 = Clock::now();
   voxel::ClassifyResult& cls = m.classified;
   if (have_plane) {
-    m.classifier.run(p, g, m.cells, m.ground_model, seg, threads, &m.pool, &cls);
+    m.classifier.run(pv, g, m.cells, m.ground_model, seg, threads, &m.pool, &cls);
   } else {
     cls.ground.assign(n, 0);
   }
@@ -255,7 +326,7 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
   // ---- 9. (added, veg_filter) ground points under porous clutter become non-ground
   if (p.veg_filter && have_plane) {
     t0 = Clock::now();
-    m.vegetation.run(p, g, m.ground_model, threads, &m.pool, &cls);
+    m.vegetation.run(pv, g, m.ground_model, threads, &m.pool, &cls);
     stage("vegetation", t0);
   }
 
