@@ -1,0 +1,149 @@
+#!/usr/bin/env python3
+"""Random sensor placements over the generated worlds: mean and lowest F1 per method.
+
+Two seeded sets of `ground_filter_eval` built-in scenes (exact truth, nothing to download),
+the same on every machine and Python 3.8 or later:
+
+  sparse-high  120 placements: `lidar`, `lidar16`, `verge`, `offroad`, `trail`; 16/32/64 evenly
+               spread beams 1.5-4 m up, the lowest beam -25 to -10 deg, the highest 2-16 deg,
+               512-2,048 firings a turn (trucks, buses, masts; docs/voxel_method.md)
+  general      205 placements: the same worlds 0.5-3.5 m up, slopes, kerbs, ramps, other beam
+               layouts, mounts pitched or rolled up to 8 deg, range noise, grass roughness
+
+    python3 scripts/placement_sweep.py sparse-high              # voxel and normal (3-5 minutes)
+    python3 scripts/placement_sweep.py general --methods voxel
+    python3 scripts/placement_sweep.py sparse-high --list       # the scene specs only
+    python3 scripts/placement_sweep.py sparse-high --per-scan   # one line per placement
+    PEER_BIN=DIR python3 scripts/placement_sweep.py sparse-high --peers patchworkpp,linefit
+
+--peers NAME,... runs DIR/<name>_driver (scripts/peers/README.md) on the same scans, written as
+KITTI .bin files by `ground_filter_eval --write-scans`, with each placement's true sensor height
+(`--set sensor_height=H`: Patchwork++ and linefit assume a fixed one), and scores their labels
+with `--score-labels`. F1 are labels, so the same on any CPU.
+"""
+import argparse
+import os
+import random
+import subprocess
+import sys
+import tempfile
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def sparse_high(rng, n):
+    for _ in range(n):
+        kind = rng.choice(['lidar16', 'lidar', 'verge', 'offroad', 'trail'])
+        beams = rng.choice([16, 16, 32, 32, 64])
+        height = round(rng.uniform(1.5, 4.0), 2)
+        vmin = round(rng.uniform(-25, -10), 1)
+        vmax = round(rng.uniform(2, 16), 1)
+        steps = rng.choice([512, 1024, 1024, 1800, 2048])
+        seed = rng.randint(1, 60)
+        yield ('builtin:%s:%d:sensor_height=%s,beams=%d,vertical_min_deg=%s,vertical_max_deg=%s,'
+               'uniform_beams=1,azimuth_steps=%d' % (kind, seed, height, beams, vmin, vmax, steps))
+
+
+def general(rng, n):
+    for _ in range(n):
+        kind = rng.choice(['lidar', 'verge', 'offroad', 'trail', 'lidar16', 'lidar', 'verge'])
+        f = [('sensor_height', round(rng.uniform(0.5, 3.5), 2)),
+             ('slope_x', round(rng.uniform(-0.12, 0.12), 3)),
+             ('slope_y', round(rng.uniform(-0.08, 0.08), 3))]
+        if kind in ('lidar', 'verge'):
+            f += [('curb_height', round(rng.uniform(0, 0.3), 2)),
+                  ('ramp_height', round(rng.uniform(-3, 3.5), 1))]
+        if rng.random() < 0.4:
+            f += [('beams', rng.choice([16, 32, 40, 64, 128]))]
+            lo, hi = rng.uniform(-30, -10), rng.uniform(0, 22)
+            f += [('vertical_min_deg', round(lo, 1)), ('vertical_max_deg', round(hi, 1)),
+                  ('uniform_beams', 1), ('azimuth_steps', rng.choice([512, 1024, 1800, 2048]))]
+        if rng.random() < 0.25:
+            f += [('mount_pitch_deg', round(rng.uniform(-8, 8), 1))]
+        if rng.random() < 0.25:
+            f += [('mount_roll_deg', round(rng.uniform(-8, 8), 1))]
+        if rng.random() < 0.2:
+            f += [('range_noise_sigma', round(rng.uniform(0, 0.05), 3))]
+        if kind in ('offroad', 'trail', 'verge') and rng.random() < 0.5:
+            f += [('grass_roughness', round(rng.uniform(0, 0.15), 3))]
+        seed = rng.randint(1, 50)
+        yield 'builtin:%s:%d:%s' % (kind, seed, ','.join('%s=%s' % kv for kv in f))
+
+
+# Each set: (generator, [(random seed, placements), ...]).
+SETS = {'sparse-high': (sparse_high, [(5, 60), (6, 60)]),
+        'general': (general, [(1, 5), (11, 100), (12, 100)])}
+
+
+def specs(name):
+    gen, parts = SETS[name]
+    out = []
+    for seed, n in parts:
+        out += list(gen(random.Random(seed), n))
+    return out
+
+
+def scores(cmd):
+    """Per-file F1 (%) of an eval table, in file order."""
+    r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, universal_newlines=True)
+    if r.returncode != 0:
+        sys.exit('placement_sweep: %s failed:\n%s' % (' '.join(cmd[:3]), r.stderr))
+    rows = [l.split() for l in r.stdout.splitlines()]
+    return [float(w[-2]) for w in rows if len(w) > 10 and w[0] != 'pooled' and w[1].isdigit()]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap.add_argument('set', choices=sorted(SETS))
+    ap.add_argument('--methods', default='voxel,normal')
+    ap.add_argument('--eval', default=os.path.join(ROOT, '.ws/devel/lib/ground_filter/'
+                                                   'ground_filter_eval'))
+    ap.add_argument('--peers', default='', help='driver names in $PEER_BIN (true heights)')
+    ap.add_argument('--first', type=int, default=0, help='only the first N placements')
+    ap.add_argument('--list', action='store_true', help='print the scene specs only')
+    ap.add_argument('--per-scan', action='store_true', help='one line per placement')
+    a = ap.parse_args()
+    todo = specs(a.set)
+    if a.first > 0:
+        todo = todo[:a.first]
+    if a.list:
+        print('\n'.join(todo))
+        return
+    if not os.access(a.eval, os.X_OK):
+        sys.exit('placement_sweep: no %s (build first, or --eval PATH)' % a.eval)
+    table = {}
+    for m in [x for x in a.methods.split(',') if x]:
+        table[m] = [scores([a.eval, '--method', m, s])[0] for s in todo]
+    peers = [x for x in a.peers.split(',') if x]
+    if peers:
+        bin_dir = os.environ.get('PEER_BIN', '')
+        with tempfile.TemporaryDirectory() as tmp:
+            files = []
+            for i, s in enumerate(todo):
+                d = os.path.join(tmp, 's%03d' % i)
+                os.mkdir(d)
+                scores([a.eval, '--write-scans', d, s])
+                files.append([os.path.join(d, f) for f in os.listdir(d) if f.endswith('.bin')][0])
+            for p in peers:
+                out = os.path.join(tmp, p)
+                os.mkdir(out)
+                driver = os.path.join(bin_dir, p + '_driver')
+                for s, f in zip(todo, files):
+                    h = s.split('sensor_height=')[1].split(',')[0]
+                    subprocess.run([driver, '--out', out, '--set', 'sensor_height=' + h, f],
+                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                   check=True)
+                table[p + ' (true height)'] = [scores([a.eval, '--score-labels', out, f])[0]
+                                               for f in files]
+    if a.per_scan:
+        print('\t'.join(list(table)) + '\tscene')
+        for i, s in enumerate(todo):
+            print('\t'.join('%.2f' % table[k][i] for k in table) + '\t' + s)
+    print('%s: %d placements; F1 %% per placement' % (a.set, len(todo)))
+    print('| method | mean | lowest |\n|---|---|---|')
+    for k, v in table.items():
+        print('| %s | %.2f | %.2f |' % (k, sum(v) / len(v), min(v)))
+
+
+if __name__ == '__main__':
+    main()
