@@ -9,9 +9,15 @@ the same on every machine and Python 3.8 or later:
                512-2,048 firings a turn (trucks, buses, masts; docs/voxel_method.md)
   general      205 placements: the same worlds 0.5-3.5 m up, slopes, kerbs, ramps, other beam
                layouts, mounts pitched or rolled up to 8 deg, range noise, grass roughness
+  registered   80 placements of merged and tripod clouds and other viewpoints: `mls`, `mls_air`,
+               `stations`, `slam` (2-12 positions, offsets of +-40 m in z, thinned), `tls` and
+               `tls_far` (tripods 1.2-2.5 m, other fields of view), `rosette` (0.4-4 m, pitched),
+               `garage` (ceilings 2.2-6 m); the table also counts the scans that
+               `scan_type: auto` sent to the airborne mode
 
     python3 scripts/placement_sweep.py sparse-high              # voxel and normal (3-5 minutes)
     python3 scripts/placement_sweep.py general --methods voxel
+    python3 scripts/placement_sweep.py registered
     python3 scripts/placement_sweep.py sparse-high --list       # the scene specs only
     python3 scripts/placement_sweep.py sparse-high --per-scan   # one line per placement
     PEER_BIN=DIR python3 scripts/placement_sweep.py sparse-high --peers patchworkpp,linefit
@@ -70,9 +76,39 @@ def general(rng, n):
         yield 'builtin:%s:%d:%s' % (kind, seed, ','.join('%s=%s' % kv for kv in f))
 
 
+def registered(rng, n):
+    layouts = ['street', 'verge', 'offroad', 'trail']
+    for _ in range(n):
+        kind = rng.choice(['mls', 'stations', 'slam', 'tls', 'rosette', 'garage', 'mls_air',
+                           'tls_far'])
+        f = []
+        if kind in ('mls', 'stations', 'slam', 'mls_air'):
+            f += [('layout', rng.choice(layouts)), ('positions', rng.randint(2, 12)),
+                  ('position_step', round(rng.uniform(2, 15), 1))]
+            if rng.random() < 0.4:
+                f += [('world_offset_z', round(rng.uniform(-40, 40), 1))]
+            if rng.random() < 0.3:
+                f += [('position_keep', round(rng.uniform(0.2, 1), 2))]
+        if kind in ('tls', 'tls_far'):
+            f += [('layout', rng.choice(layouts)),
+                  ('tripod_height', round(rng.uniform(1.2, 2.5), 2)),
+                  ('tls_points', rng.choice([200000, 500000])),
+                  ('tls_min_elevation_deg', round(rng.uniform(-80, -30), 1)),
+                  ('tls_max_elevation_deg', round(rng.uniform(20, 80), 1))]
+        if kind == 'rosette':
+            f += [('layout', rng.choice(layouts + ['garage'])),
+                  ('sensor_height', round(rng.uniform(0.4, 4), 2)),
+                  ('rosette_pitch_deg', round(rng.uniform(-45, 10), 1))]
+        if kind == 'garage':
+            f += [('ceiling_height', round(rng.uniform(2.2, 6), 2)),
+                  ('sensor_height', round(rng.uniform(0.4, 2.0), 2))]
+        yield 'builtin:%s:%d:%s' % (kind, rng.randint(1, 40), ','.join('%s=%s' % kv for kv in f))
+
+
 # Each set: (generator, [(random seed, placements), ...]).
 SETS = {'sparse-high': (sparse_high, [(5, 60), (6, 60)]),
-        'general': (general, [(1, 5), (11, 100), (12, 100)])}
+        'general': (general, [(1, 5), (11, 100), (12, 100)]),
+        'registered': (registered, [(31, 40), (32, 40)])}
 
 
 def specs(name):
@@ -83,12 +119,14 @@ def specs(name):
     return out
 
 
-def scores(cmd):
-    """Per-file F1 (%) of an eval table, in file order."""
+def scores(cmd, types=None):
+    """Per-file F1 (%) of an eval table, in file order; the scan types into `types`."""
     r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, universal_newlines=True)
     if r.returncode != 0:
         sys.exit('placement_sweep: %s failed:\n%s' % (' '.join(cmd[:3]), r.stderr))
     rows = [l.split() for l in r.stdout.splitlines()]
+    if types is not None:  # "FILE TYPE   auto: ..." lines of the scan-type section
+        types += [w[1] for w in rows if len(w) > 2 and w[2] == 'auto:']
     return [float(w[-2]) for w in rows if len(w) > 10 and w[0] != 'pooled' and w[1].isdigit()]
 
 
@@ -111,9 +149,10 @@ def main():
         return
     if not os.access(a.eval, os.X_OK):
         sys.exit('placement_sweep: no %s (build first, or --eval PATH)' % a.eval)
-    table = {}
+    table, types = {}, []
     for m in [x for x in a.methods.split(',') if x]:
-        table[m] = [scores([a.eval, '--method', m, s])[0] for s in todo]
+        seen = types if not table else None  # both methods decide alike: count once
+        table[m] = [scores([a.eval, '--method', m, s], seen)[0] for s in todo]
     peers = [x for x in a.peers.split(',') if x]
     if peers:
         bin_dir = os.environ.get('PEER_BIN', '')
@@ -143,6 +182,9 @@ def main():
     print('| method | mean | lowest |\n|---|---|---|')
     for k, v in table.items():
         print('| %s | %.2f | %.2f |' % (k, sum(v) / len(v), min(v)))
+    if types:
+        print('scan_type auto: %s' % ', '.join('%d %s' % (types.count(t), t)
+                                               for t in sorted(set(types))))
 
 
 if __name__ == '__main__':

@@ -1,5 +1,5 @@
 """scripts/placement_sweep.py: its seeded placements are the documented ones on any Python 3.8+
-(the first and last scene of each set pinned), and its F1 are ground_filter_eval's own."""
+(each set's first scene pinned), and its F1 are ground_filter_eval's own."""
 import json
 import os
 import subprocess
@@ -34,6 +34,11 @@ class TestPlacementSweep(unittest.TestCase):
                                      "-0.07,curb_height=0.04,ramp_height=1.9,mount_roll_deg=-0.2,"
                                      "grass_roughness=0.091")
         self.assertTrue(general[-1].startswith("builtin:lidar:34:sensor_height=1.75,"))
+        registered = run("registered", "--list").split()
+        self.assertEqual(len(registered), 80)
+        self.assertEqual(len(set(registered)), 80)
+        self.assertEqual(registered[0], "builtin:mls:35:layout=trail,positions=3,"
+                                        "position_step=11.9,world_offset_z=-36.5")
 
     @unittest.skipIf(EVAL is None, "ground_filter_eval not built")
     def test_scores_are_the_eval_tools(self):
@@ -48,6 +53,7 @@ class TestPlacementSweep(unittest.TestCase):
             self.assertAlmostEqual(float(f1), 100.0 * json.loads(js.decode())["pooled"]["f1"],
                                    places=2)
         self.assertIn("| voxel |", out)
+        self.assertIn("scan_type auto: 2 ground", out)  # each scene's decision, counted once
 
 
 if __name__ == "__main__":
