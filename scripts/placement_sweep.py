@@ -22,10 +22,11 @@ the same on every machine and Python 3.8 or later:
     python3 scripts/placement_sweep.py sparse-high --per-scan   # one line per placement
     PEER_BIN=DIR python3 scripts/placement_sweep.py sparse-high --peers patchworkpp,linefit
 
---peers NAME,... runs DIR/<name>_driver (scripts/peers/README.md) on the same scans, written as
-KITTI .bin files by `ground_filter_eval --write-scans`, with each placement's true sensor height
-(`--set sensor_height=H`: Patchwork++ and linefit assume a fixed one), and scores their labels
-with `--score-labels`. F1 are labels, so the same on any CPU.
+--peers NAME,... runs DIR/<name>_driver (scripts/peers/README.md; DIR as for sensor_sweep.py) on
+the same scans, written as KITTI .bin files by `ground_filter_eval --write-scans`, with each
+placement's true sensor height where it has one (`--set sensor_height=H`: Patchwork++ and linefit
+assume a fixed one), and scores their labels with `--score-labels`. F1 are labels, so the same
+on any CPU.
 """
 import argparse
 import os
@@ -33,6 +34,8 @@ import random
 import subprocess
 import sys
 import tempfile
+
+from sensor_sweep import peer_bin, run_json
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -119,17 +122,6 @@ def specs(name):
     return out
 
 
-def scores(cmd, types=None):
-    """Per-file F1 (%) of an eval table, in file order; the scan types into `types`."""
-    r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, universal_newlines=True)
-    if r.returncode != 0:
-        sys.exit('placement_sweep: %s failed:\n%s' % (' '.join(cmd[:3]), r.stderr))
-    rows = [l.split() for l in r.stdout.splitlines()]
-    if types is not None:  # "FILE TYPE   auto: ..." lines of the scan-type section
-        types += [w[1] for w in rows if len(w) > 2 and w[2] == 'auto:']
-    return [float(w[-2]) for w in rows if len(w) > 10 and w[0] != 'pooled' and w[1].isdigit()]
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('set', choices=sorted(SETS))
@@ -149,31 +141,33 @@ def main():
         return
     if not os.access(a.eval, os.X_OK):
         sys.exit('placement_sweep: no %s (build first, or --eval PATH)' % a.eval)
-    table, types = {}, []
-    for m in [x for x in a.methods.split(',') if x]:
-        seen = types if not table else None  # both methods decide alike: count once
-        table[m] = [scores([a.eval, '--method', m, s], seen)[0] for s in todo]
     peers = [x for x in a.peers.split(',') if x]
-    if peers:
-        bin_dir = os.environ.get('PEER_BIN', '')
-        with tempfile.TemporaryDirectory() as tmp:
-            files = []
-            for i, s in enumerate(todo):
-                d = os.path.join(tmp, 's%03d' % i)
-                os.mkdir(d)
-                scores([a.eval, '--write-scans', d, s])
-                files.append([os.path.join(d, f) for f in os.listdir(d) if f.endswith('.bin')][0])
-            for p in peers:
-                out = os.path.join(tmp, p)
-                os.mkdir(out)
-                driver = os.path.join(bin_dir, p + '_driver')
-                for s, f in zip(todo, files):
-                    h = s.split('sensor_height=')[1].split(',')[0]
-                    subprocess.run([driver, '--out', out, '--set', 'sensor_height=' + h, f],
-                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                   check=True)
-                table[p + ' (true height)'] = [scores([a.eval, '--score-labels', out, f])[0]
-                                               for f in files]
+    for p in peers:
+        if not os.access(os.path.join(peer_bin(), p + '_driver'), os.X_OK):
+            sys.exit('placement_sweep: no %s/%s_driver (scripts/peers/README.md)' % (peer_bin(), p))
+    table, types = {}, []
+    with tempfile.TemporaryDirectory() as tmp:
+        # One eval call per method over every scene (a fresh filter per file); the first
+        # also writes the scans the peers read.
+        for m in [x for x in a.methods.split(',') if x]:
+            write = ['--write-scans', tmp] if peers and not table else []
+            files = run_json([a.eval, '--json', '--method', m] + write + todo)
+            if not table:
+                types = [f['scan_type'] for f in files]
+                bins = [f.get('scan_file') for f in files]
+            table[m] = [100.0 * f['f1'] for f in files]
+        for p in peers:
+            out = os.path.join(tmp, p)
+            os.mkdir(out)
+            driver = [os.path.join(peer_bin(), p + '_driver'), '--out', out]
+            for s, b in zip(todo, bins):
+                # the placement's own height where the scene names one (not tripods, maps)
+                height = [w for w in s.split(':')[-1].split(',') if w.startswith('sensor_height=')]
+                sets = ['--set', height[0]] if height else []
+                subprocess.run(driver + sets + [b], stdout=subprocess.DEVNULL,
+                               stderr=subprocess.DEVNULL, check=True)
+            files = run_json([a.eval, '--json', '--score-labels', out] + todo)
+            table[p + ' (true height)'] = [100.0 * f['f1'] for f in files]
     if a.per_scan:
         print('\t'.join(list(table)) + '\tscene')
         for i, s in enumerate(todo):

@@ -73,11 +73,20 @@ def scene(sensor, world, height, seed, frame="sensor", sensor_x=0.0):
 
 
 def run_json(cmd):
+    """The per-file JSON objects of a `ground_filter_eval --json` call."""
     out = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                          universal_newlines=True)
     if out.returncode != 0:
-        sys.exit("sensor_sweep.py: %s failed (%d):\n%s" % (cmd[0], out.returncode, out.stderr))
+        sys.exit("%s: %s failed (%d):\n%s" % (os.path.basename(sys.argv[0]), cmd[0],
+                                                out.returncode, out.stderr))
     return json.loads(out.stdout)["files"]
+
+
+def peer_bin():
+    """Where the peers' drivers are: $PEER_BIN, else the build folder of scripts/peers/."""
+    return os.environ.get("PEER_BIN", os.path.join(
+        os.environ.get("GF_PEERS_DIR", os.path.expanduser("~/.cache/ground_filter_peers")),
+        "build"))
 
 
 def f1(files):
@@ -126,12 +135,10 @@ def main():
     height_peers = [p for p in args.height_peers.split(",") if p]
     if not set(height_peers) <= set(peers):
         sys.exit("sensor_sweep.py: --height-peers must name peers of --peers")
-    peer_bin = os.environ.get("PEER_BIN", os.path.join(
-        os.environ.get("GF_PEERS_DIR", os.path.expanduser("~/.cache/ground_filter_peers")),
-        "build"))
+    bin_dir = peer_bin()
     for p in peers:
-        if not os.access(os.path.join(peer_bin, p + "_driver"), os.X_OK):
-            sys.exit("sensor_sweep.py: no %s/%s_driver (scripts/peers/README.md)" % (peer_bin, p))
+        if not os.access(os.path.join(bin_dir, p + "_driver"), os.X_OK):
+            sys.exit("sensor_sweep.py: no %s/%s_driver (scripts/peers/README.md)" % (bin_dir, p))
     extra = [a for s in args.set for a in ("--set", s)]
     configs = [("normal, rules off", ["--method", "normal"] + RULES_OFF),
                ("normal", ["--method", "normal"] + extra), ("voxel", ["--method", "voxel"])]
@@ -160,7 +167,7 @@ def main():
         for name, p, true_height in runs:
             out = os.path.join(tmp.name, name.replace(", ", "_").replace(" ", "_"))
             os.makedirs(out, exist_ok=True)
-            driver = [os.path.join(peer_bin, p + "_driver"), "--out", out, "--repeats", "1"]
+            driver = [os.path.join(bin_dir, p + "_driver"), "--out", out, "--repeats", "1"]
             for h in sorted(set(heights_of)) if true_height else [None]:
                 sets = ["--set", "sensor_height=%g" % h] if h is not None else []
                 files = [b for b, bh in zip(bins, heights_of) if h is None or bh == h]

@@ -23,11 +23,12 @@ struct Score {
   double road_recall = 0.0;  // share of the road's points labelled ground
 };
 
-Score run(const std::string& method, const std::string& spec) {
+// `method` on the scene `spec`; its stats into `stats` where given.
+Score run(const std::string& method, const std::string& spec, FilterStats* stats = nullptr) {
   const GeneratedScan scan = generateScene(parseSceneSpec(spec));
   const CloudView view = CloudView::packedXyz(scan.xyz.data(), scan.size());
   std::vector<std::uint8_t> labels;
-  makeGroundFilter(method)->filter(view, &labels);
+  makeGroundFilter(method)->filter(view, &labels, stats);
   const std::vector<std::int8_t> truth(scan.truth.begin(), scan.truth.end());
   Score s;
   s.f1 = computeMetrics(countConfusion(labels, truth)).f1;
@@ -39,16 +40,6 @@ Score run(const std::string& method, const std::string& spec) {
   }
   s.road_recall = road ? static_cast<double>(road_ground) / road : 0.0;
   return s;
-}
-
-// F1 of `method` on the scene `spec`, its stats into `stats`.
-double f1WithStats(const std::string& method, const std::string& spec, FilterStats* stats) {
-  const GeneratedScan scan = generateScene(parseSceneSpec(spec));
-  std::vector<std::uint8_t> labels;
-  makeGroundFilter(method)->filter(CloudView::packedXyz(scan.xyz.data(), scan.size()), &labels,
-                                   stats);
-  const std::vector<std::int8_t> truth(scan.truth.begin(), scan.truth.end());
-  return computeMetrics(countConfusion(labels, truth)).f1;
 }
 
 // 32 rings 0.97 deg apart, 3,600 firings, 1.8 m above the street: each ring of the road falls
@@ -149,21 +140,13 @@ TEST(UnseenSensors, MergedCloudsInRoughTerrainKeepTheirHigherGround) {
   const std::string kNote = "behind nearer ones seen from the origin";
   for (const auto& c : {std::make_pair("stations:1:layout=offroad", 0.96),
                         std::make_pair("mls:1:layout=offroad", 0.93)}) {
-    const GeneratedScan scan = generateScene(parseSceneSpec(c.first));
-    std::vector<std::uint8_t> labels;
     FilterStats stats;
-    makeGroundFilter("normal")->filter(CloudView::packedXyz(scan.xyz.data(), scan.size()), &labels,
-                                       &stats);
-    const std::vector<std::int8_t> truth(scan.truth.begin(), scan.truth.end());
-    EXPECT_GT(computeMetrics(countConfusion(labels, truth)).f1, c.second) << c.first;
+    EXPECT_GT(run("normal", c.first, &stats).f1, c.second) << c.first;
     EXPECT_NE(stats.note.find(kNote), std::string::npos) << c.first << ": " << stats.note;
   }
   for (const char* spec : {"offroad:1", "trail:2", "garage:1", "rosette:1:layout=garage"}) {
-    const GeneratedScan scan = generateScene(parseSceneSpec(spec));
-    std::vector<std::uint8_t> labels;
     FilterStats stats;
-    makeGroundFilter("normal")->filter(CloudView::packedXyz(scan.xyz.data(), scan.size()), &labels,
-                                       &stats);
+    run("normal", spec, &stats);
     EXPECT_EQ(stats.note.find(kNote), std::string::npos) << spec << ": " << stats.note;
   }
 }
@@ -175,14 +158,10 @@ TEST(UnseenSensors, MergedCloudsInRoughTerrainKeepTheirHigherGround) {
 // scan_type: ground).
 TEST(UnseenSensors, ASingleScanReadAsRegisteredKeepsItsSensor) {
   for (const char* spec : {"garage:1:ceiling_height=4", "garage:2:ceiling_height=4"}) {
-    const GeneratedScan scan = generateScene(parseSceneSpec(spec));
-    std::vector<std::uint8_t> labels;
     FilterStats stats;
-    makeGroundFilter("normal")->filter(CloudView::packedXyz(scan.xyz.data(), scan.size()), &labels,
-                                       &stats);
-    const std::vector<std::int8_t> truth(scan.truth.begin(), scan.truth.end());
+    const double f1 = run("normal", spec, &stats).f1;
     EXPECT_NE(stats.scan_reason.find("side view"), std::string::npos) << stats.scan_reason;
-    EXPECT_GT(computeMetrics(countConfusion(labels, truth)).f1, 0.95) << spec;
+    EXPECT_GT(f1, 0.95) << spec;
     EXPECT_NE(stats.note.find("judged with a sensor there"), std::string::npos)
         << spec << ": " << stats.note;
   }
@@ -376,7 +355,7 @@ TEST(UnseenSensors, VoxelStartBelowTheSensorOfASideViewSeenWhole) {
                              ":sensor_height=3,vertical_min_deg=-20,vertical_max_deg=7.9,"
                              "azimuth_steps=1024";
     FilterStats stats;
-    EXPECT_GT(f1WithStats("voxel", spec, &stats), 0.9) << spec;
+    EXPECT_GT(run("voxel", spec, &stats).f1, 0.9) << spec;
     EXPECT_NE(stats.scan_reason.find("side view"), std::string::npos) << stats.scan_reason;
   }
 }
@@ -396,11 +375,11 @@ TEST(UnseenSensors, VoxelsGrowCoarserOnASparseScan) {
         "lidar16:23:sensor_height=3.8,beams=32,vertical_min_deg=-10.8,vertical_max_deg=8.1,"
         "azimuth_steps=512"}) {
     FilterStats stats;
-    EXPECT_GT(f1WithStats("voxel", spec, &stats), 0.85) << spec;
+    EXPECT_GT(run("voxel", spec, &stats).f1, 0.85) << spec;
     EXPECT_NE(stats.note.find("voxel_size 0."), std::string::npos) << stats.note;
   }
   FilterStats dense;  // a dense scan keeps its voxels
-  EXPECT_GT(f1WithStats("voxel", "lidar16:1", &dense), 0.9);
+  EXPECT_GT(run("voxel", "lidar16:1", &dense).f1, 0.9);
   EXPECT_EQ(dense.note.find("voxel_size"), std::string::npos) << dense.note;
 }
 
