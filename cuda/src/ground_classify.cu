@@ -60,22 +60,33 @@ __global__ void __launch_bounds__(kThreads)
     if (!plane.valid) continue;  // uniform
     if (p.local_planes && m < kMinTilePoints && p.floor_share > 0.0) {
       // As the CPU (plane.cpp, sparse-tile floor): the cloud-wide plane moved to the tile's
-      // lowest point when enough of the tile lies within plane_distance above it. Min and count
-      // are exact, so the order of the reduction does not matter.
+      // lowest point when enough of the tile lies within plane_distance above it, within a
+      // reach that grows with the distance from the sensor. Mins and count are exact, so the
+      // order of the reduction does not matter.
       const double up = plane.n[2] < 0.0 ? -1.0 : 1.0;
-      double low = HUGE_VAL;
+      double low = HUGE_VAL, low_z = HUGE_VAL, near2 = p.sensor_check ? HUGE_VAL : 0.0;
       for (unsigned int j = b + threadIdx.x; j < e; j += blockDim.x) {
-        low = fmin(low, up * planeDistance(plane, xyz + 3 * static_cast<std::size_t>(order[j])));
+        const float* q = xyz + 3 * static_cast<std::size_t>(order[j]);
+        low = fmin(low, up * planeDistance(plane, q));
+        low_z = fmin(low_z, static_cast<double>(q[2]));
+        if (p.sensor_check) {
+          near2 = fmin(near2, normal::horizontalDistance2(p.sensor[0], p.sensor[1], q[0], q[1]));
+        }
       }
       low = blockMin(low, floor_min_s);
-      if (low >= -p.floor_max_shift && low <= p.floor_max_shift) {  // uniform
+      low_z = blockMin(low_z, floor_min_s);
+      near2 = blockMin(near2, floor_min_s);
+      const bool under = p.sensor_check && low_z < p.sensor[2];  // uniform
+      const double reach = normal::floorReach(p.floor_max_shift, under ? sqrt(near2) : 0.0);
+      if (low >= -reach && low <= reach) {  // uniform
         unsigned int on_floor = 0;
         for (unsigned int j = b + threadIdx.x; j < e; j += blockDim.x) {
           const double h = up * planeDistance(plane, xyz + 3 * static_cast<std::size_t>(order[j]));
           on_floor += h >= low && h <= low + p.plane_distance;
         }
         on_floor = blockSum(on_floor, floor_count_s);
-        if (static_cast<double>(on_floor) >= p.floor_share * static_cast<double>(e - b)) {
+        const double share = normal::floorShare(p.floor_share, p.floor_max_shift, low);
+        if (static_cast<double>(on_floor) >= share * static_cast<double>(e - b)) {
           plane.d -= up * low;
         }
       }

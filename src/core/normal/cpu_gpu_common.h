@@ -146,10 +146,42 @@ constexpr unsigned int kRansacEvalPoints = 2048;  // hypotheses are scored on at
 // near road dominates (docs/normal_method.md, "Sparse tiles").
 constexpr unsigned int kMinTilePoints = 3;
 
+/// \brief Squared horizontal distance from (sx, sy) to (px, py) [m^2].
+GF_HOST_DEVICE inline double horizontalDistance2(double sx, double sy, double px, double py) {
+  const double rx = sx - px, ry = sy - py;
+  return rx * rx + ry * ry;
+}
+
 /// \brief Horizontal distance from (sx, sy) to (px, py) [m].
 GF_HOST_DEVICE inline double horizontalDistance(double sx, double sy, double px, double py) {
-  const double rx = sx - px, ry = sy - py;
-  return sqrt(rx * rx + ry * ry);
+  return sqrt(horizontalDistance2(sx, sy, px, py));
+}
+
+/// \brief Terrain grade of the sparse-tile floor's reach (floorReach()).
+constexpr double kFloorGrade = 0.1;
+/// \brief Share of its tile a floor beyond floor_max_shift must hold (floorShare()).
+constexpr double kFloorFarShare = 0.8;
+
+/// \brief How far a sparse tile's floor may lie off the cloud-wide plane [m]: `max_shift`
+///        (floor_max_shift), or kFloorGrade times the horizontal distance `r` from the sensor to
+///        the tile's nearest point where that is more. The callers pass r = 0 without a sensor
+///        and where the tile's lowest point lies above the sensor (the ground a sensor sees lies
+///        below it; far out a lone scan line across a crown fills its tile). Terrain of a
+///        steady grade parts from a plane fitted near the sensor in proportion to the distance: a
+///        16-beam sensor 3-4 m up sees ground only from 15-20 m on, 1-3 m over or under that
+///        plane (docs/normal_method.md, "Sparse-tile floor far from the sensor"; grades
+///        0.05-0.15 one plateau).
+GF_HOST_DEVICE inline double floorReach(double max_shift, double r) {
+  return fmax(max_shift, kFloorGrade * r);
+}
+
+/// \brief The share of a sparse tile's points within plane_distance over its lowest level
+///        (`low` off the cloud-wide plane) that makes that level its floor: `share`
+///        (floor_share), and kFloorFarShare beyond `max_shift`: there the lowest of the few scan
+///        lines across a wall or a car (a third to a half of its points) must not pass, open
+///        ground seen from far fills nearly all of its tile (0.7-0.9 one plateau).
+GF_HOST_DEVICE inline double floorShare(double share, double max_shift, double low) {
+  return fabs(low) > max_shift ? fmax(share, kFloorFarShare) : share;
 }
 
 /// \brief The support distance of a RANSAC draw for planeAboveSensor(): the horizontal distance

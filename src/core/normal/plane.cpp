@@ -225,22 +225,32 @@ bool PlaneStage::fitGlobalPlane(const std::vector<float>& xyz,
 }
 
 void PlaneStage::lowerToFloor(const std::vector<float>& xyz, std::size_t tb, std::size_t te,
-                              const NormalGroundFilterParams& p, Plane* plane) const {
+                              const NormalGroundFilterParams& p, const double* sensor,
+                              Plane* plane) const {
   // Sparse tile on the cloud-wide plane (the near road dominates it): far terrain that rises
   // or falls beside the road is off it. When enough of the tile lies on its lowest level,
-  // that level is its ground (docs/normal_method.md, "Sparse-tile floor").
+  // that level is its ground (docs/normal_method.md, "Sparse-tile floor"); the farther from
+  // the sensor, the farther off the plane it may lie (floorReach()).
   const double up = plane->normal.z() < 0.0 ? -1.0 : 1.0;
   double low = std::numeric_limits<double>::infinity();
+  double near2 = sensor ? std::numeric_limits<double>::infinity() : 0.0;
+  float low_z = std::numeric_limits<float>::infinity();
   for (std::size_t j = tb; j < te; ++j) {
-    low = std::min(low, up * distanceOf(*plane, &xyz[3 * std::size_t{tile_order_[j]}]));
+    const float* q = &xyz[3 * std::size_t{tile_order_[j]}];
+    low = std::min(low, up * distanceOf(*plane, q));
+    low_z = std::min(low_z, q[2]);
+    if (sensor) near2 = std::min(near2, horizontalDistance2(sensor[0], sensor[1], q[0], q[1]));
   }
-  if (low >= -p.floor_max_shift && low <= p.floor_max_shift) {
+  const bool under = sensor && static_cast<double>(low_z) < sensor[2];
+  const double reach = floorReach(p.floor_max_shift, under ? std::sqrt(near2) : 0.0);
+  if (low >= -reach && low <= reach) {
     std::size_t on_floor = 0;
     for (std::size_t j = tb; j < te; ++j) {
       const double h = up * distanceOf(*plane, &xyz[3 * std::size_t{tile_order_[j]}]);
       on_floor += h >= low && h <= low + p.plane_distance;
     }
-    if (static_cast<double>(on_floor) >= p.floor_share * static_cast<double>(te - tb)) {
+    const double share = floorShare(p.floor_share, p.floor_max_shift, low);
+    if (static_cast<double>(on_floor) >= share * static_cast<double>(te - tb)) {
       plane->d -= up * low;
     }
   }
@@ -280,6 +290,7 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
   ground.assign(n, 0);
   if (heights) heights->assign(n, std::numeric_limits<float>::quiet_NaN());
   sortIntoTiles(xyz, n, extent, p, threads);
+  const double* floor_from = sensor;  // the floor's reach grows from the sensor in any case
   if (sensor) {  // the check applies only where the origin lies above the voted points
     std::uint64_t below = 0, near = 0;
     for (std::size_t i = 0; i < n; ++i) {
@@ -292,10 +303,10 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
   if (!sensor) {  // no sensor to judge planes by: no voted point over another (overheadPoint())
     unroofed_.assign(voted.begin(), voted.end());
     unvoteOverhead(xyz, extent, &unroofed_);
-    runTiles(xyz, unroofed_, p, min_abs_nz, threads, ground_out, heights, nullptr);
+    runTiles(xyz, unroofed_, p, min_abs_nz, threads, ground_out, heights, nullptr, floor_from);
     return;
   }
-  runTiles(xyz, voted, p, min_abs_nz, threads, ground_out, heights, sensor);
+  runTiles(xyz, voted, p, min_abs_nz, threads, ground_out, heights, sensor, floor_from);
 }
 
 void PlaneStage::unvoteOverhead(const std::vector<float>& xyz, const Extent& extent,
@@ -319,7 +330,7 @@ void PlaneStage::unvoteOverhead(const std::vector<float>& xyz, const Extent& ext
 void PlaneStage::runTiles(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
                           const NormalGroundFilterParams& p, double min_abs_nz, int threads,
                           std::vector<std::uint8_t>* ground_out, std::vector<float>* heights,
-                          const double* sensor) {
+                          const double* sensor, const double* floor_from) {
   // Each thread's lists hold any tile (dynamic schedule: which thread gets which tile varies),
   // so a scan with the same tiles allocates nothing.
   std::size_t longest_tile = 0;
@@ -363,7 +374,7 @@ void PlaneStage::runTiles(const std::vector<float>& xyz, const std::vector<std::
         continue;
       }
     }
-    if (valid) labelTile(xyz, voted, t, tv, plane, p, ground_out, heights);
+    if (valid) labelTile(xyz, voted, t, tv, plane, p, floor_from, ground_out, heights);
   }
 
   if (std::find(deferred_.begin(), deferred_.end(), 1) == deferred_.end()) return;
@@ -372,7 +383,7 @@ void PlaneStage::runTiles(const std::vector<float>& xyz, const std::vector<std::
   for (std::size_t t = 0; t < tiles_.size(); ++t) {
     if (!deferred_[t]) continue;
     votedOfTile(voted, t, &thread_idx_[0]);
-    labelTile(xyz, voted, t, thread_idx_[0], global, p, ground_out, heights);
+    labelTile(xyz, voted, t, thread_idx_[0], global, p, floor_from, ground_out, heights);
   }
 }
 
@@ -386,11 +397,11 @@ void PlaneStage::votedOfTile(const std::vector<std::uint8_t>& voted, std::size_t
 
 void PlaneStage::labelTile(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
                            std::size_t t, const std::vector<std::uint32_t>& tv, Plane plane,
-                           const NormalGroundFilterParams& p, std::vector<std::uint8_t>* ground,
-                           std::vector<float>* heights) const {
+                           const NormalGroundFilterParams& p, const double* floor_from,
+                           std::vector<std::uint8_t>* ground, std::vector<float>* heights) const {
   const std::size_t tb = tiles_[t].first, te = tiles_[t].second;
   if (p.local_planes && tv.size() < kMinTilePoints && p.floor_share > 0.0) {
-    lowerToFloor(xyz, tb, te, p, &plane);
+    lowerToFloor(xyz, tb, te, p, floor_from, &plane);
   }
   double lo, hi;
   distanceBand(xyz, tv, plane, p, &lo, &hi);

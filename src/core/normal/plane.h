@@ -45,11 +45,12 @@ class PlaneStage {
   // Clears the voted flags of the points over other voted ones (overheadPoint()).
   void unvoteOverhead(const std::vector<float>& xyz, const Extent& extent,
                       std::vector<std::uint8_t>* voted);
-  // The tile planes and the distance test of run(), after its sensor decision.
+  // The tile planes and the distance test of run(), after its sensor decision; `floor_from`:
+  // run()'s sensor before that decision (lowerToFloor()).
   void runTiles(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
                 const NormalGroundFilterParams& p, double min_abs_nz, int threads,
                 std::vector<std::uint8_t>* ground, std::vector<float>* heights,
-                const double* sensor);
+                const double* sensor, const double* floor_from);
   // The steps of run(), in order.
   void sortIntoTiles(const std::vector<float>& xyz, std::size_t n, const Extent& extent,
                      const NormalGroundFilterParams& p, int threads);
@@ -67,10 +68,13 @@ class PlaneStage {
   // The distance test of tile t (its voted points tv) against `plane`.
   void labelTile(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
                  std::size_t t, const std::vector<std::uint32_t>& tv, Plane plane,
-                 const NormalGroundFilterParams& p, std::vector<std::uint8_t>* ground,
-                 std::vector<float>* heights) const;
+                 const NormalGroundFilterParams& p, const double* floor_from,
+                 std::vector<std::uint8_t>* ground, std::vector<float>* heights) const;
+  // The sparse-tile floor: `plane` moved to the tile's lowest level where that holds enough of
+  // it (floorReach(), floorShare(); `sensor` null, or the tile's lowest point above it: the
+  // reach is floor_max_shift).
   void lowerToFloor(const std::vector<float>& xyz, std::size_t tb, std::size_t te,
-                    const NormalGroundFilterParams& p, Plane* plane) const;
+                    const NormalGroundFilterParams& p, const double* sensor, Plane* plane) const;
   static void distanceBand(const std::vector<float>& xyz, const std::vector<std::uint32_t>& tv,
                            const Plane& plane, const NormalGroundFilterParams& p, double* lo,
                            double* hi);
