@@ -76,8 +76,8 @@ __global__ void __launch_bounds__(kThreads)
       low = blockMin(low, floor_min_s);
       low_z = blockMin(low_z, floor_min_s);
       near2 = blockMin(near2, floor_min_s);
-      const bool under = p.sensor_check && low_z < p.sensor[2];  // uniform
-      const double reach = normal::floorReach(p.floor_max_shift, under ? sqrt(near2) : 0.0);
+      const double reach =  // uniform: block-wide mins
+          normal::floorReach(p.floor_max_shift, p.sensor_check, low_z, p.sensor[2], near2);
       if (low >= -reach && low <= reach) {  // uniform
         unsigned int on_floor = 0;
         for (unsigned int j = b + threadIdx.x; j < e; j += blockDim.x) {

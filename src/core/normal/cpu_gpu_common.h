@@ -163,16 +163,19 @@ constexpr double kFloorGrade = 0.1;
 constexpr double kFloorFarShare = 0.8;
 
 /// \brief How far a sparse tile's floor may lie off the cloud-wide plane [m]: `max_shift`
-///        (floor_max_shift), or kFloorGrade times the horizontal distance `r` from the sensor to
-///        the tile's nearest point where that is more. The callers pass r = 0 without a sensor
-///        and where the tile's lowest point lies above the sensor (the ground a sensor sees lies
-///        below it; far out a lone scan line across a crown fills its tile). Terrain of a
-///        steady grade parts from a plane fitted near the sensor in proportion to the distance: a
-///        16-beam sensor 3-4 m up sees ground only from 15-20 m on, 1-3 m over or under that
-///        plane (docs/normal_method.md, "Sparse-tile floor far from the sensor"; grades
-///        0.05-0.15 one plateau).
-GF_HOST_DEVICE inline double floorReach(double max_shift, double r) {
-  return fmax(max_shift, kFloorGrade * r);
+///        (floor_max_shift), or kFloorGrade times the horizontal distance from the sensor to
+///        the tile's nearest point (`near2`, squared) where that is more. Only a tile whose lowest
+///        point (`low_z`) lies below the sensor (`sensor_z`) reaches farther, and only in a scan
+///        with a sensor (`has_sensor`): the ground a sensor sees lies below it, while far out a
+///        lone scan line across a crown fills its tile. Terrain of a steady grade parts from a
+///        plane fitted near the sensor in proportion to the distance: a 16-beam sensor 3-4 m up
+///        sees ground only from 15-20 m on, 1-3 m over or under that plane
+///        (docs/normal_method.md, "Sparse-tile floor far from the sensor"; grades 0.05-0.15 one
+///        plateau).
+GF_HOST_DEVICE inline double floorReach(double max_shift, bool has_sensor, double low_z,
+                                        double sensor_z, double near2) {
+  const bool under = has_sensor && low_z < sensor_z;
+  return under ? fmax(max_shift, kFloorGrade * sqrt(near2)) : max_shift;
 }
 
 /// \brief The share of a sparse tile's points within plane_distance over its lowest level

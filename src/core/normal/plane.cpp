@@ -241,8 +241,8 @@ void PlaneStage::lowerToFloor(const std::vector<float>& xyz, std::size_t tb, std
     low_z = std::min(low_z, q[2]);
     if (sensor) near2 = std::min(near2, horizontalDistance2(sensor[0], sensor[1], q[0], q[1]));
   }
-  const bool under = sensor && static_cast<double>(low_z) < sensor[2];
-  const double reach = floorReach(p.floor_max_shift, under ? std::sqrt(near2) : 0.0);
+  const double reach =
+      floorReach(p.floor_max_shift, sensor != nullptr, low_z, sensor ? sensor[2] : 0.0, near2);
   if (low >= -reach && low <= reach) {
     std::size_t on_floor = 0;
     for (std::size_t j = tb; j < te; ++j) {

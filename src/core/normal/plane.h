@@ -71,8 +71,7 @@ class PlaneStage {
                  const NormalGroundFilterParams& p, const double* floor_from,
                  std::vector<std::uint8_t>* ground, std::vector<float>* heights) const;
   // The sparse-tile floor: `plane` moved to the tile's lowest level where that holds enough of
-  // it (floorReach(), floorShare(); `sensor` null, or the tile's lowest point above it: the
-  // reach is floor_max_shift).
+  // it (floorReach(), floorShare(); `sensor` null: the reach is floor_max_shift).
   void lowerToFloor(const std::vector<float>& xyz, std::size_t tb, std::size_t te,
                     const NormalGroundFilterParams& p, const double* sensor, Plane* plane) const;
   static void distanceBand(const std::vector<float>& xyz, const std::vector<std::uint32_t>& tv,
