@@ -219,6 +219,19 @@ class LaunchParamsTest(unittest.TestCase):
                          5)
         self.assertEqual(dump("demo.launch", "scans:=0")["/demo_monitor/max_scans"], 0)
 
+    def test_demo_gui_names_the_fixed_frame_in_tf(self):
+        # rviz's Global Status warns while no transform names its fixed frame (the scans' frame):
+        # with gui:=true the demo publishes world_frame -> frame_id; not without rviz, not when
+        # the two frames are one, not with world_frame:=none.
+        def frames(*argv):
+            return [n.args.split()[-2:] for n in load("demo.launch", list(argv))
+                    if n.type == "static_tf.py"]
+        self.assertEqual(frames("gui:=true"), [["map", "velodyne"]])
+        self.assertEqual(frames("gui:=true", "frame_id:=os_sensor"), [["map", "os_sensor"]])
+        self.assertEqual(frames(), [])
+        self.assertEqual(frames("gui:=true", "world_frame:=none"), [])
+        self.assertEqual(frames("gui:=true", "frame_id:=map"), [])
+
     def test_rviz_follows_name_and_input(self):
         with open(os.path.join(ROOT, "rviz", "ground_filter.rviz")) as f:
             topics = re.findall(r"^\s+Topic: (\S+)$", f.read(), flags=re.M)
