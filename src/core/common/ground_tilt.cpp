@@ -20,6 +20,7 @@ constexpr double GroundTiltEstimator::kAbove;
 constexpr double GroundTiltEstimator::kMaxHeight;
 constexpr double GroundTiltEstimator::kFarRadius;
 constexpr double GroundTiltEstimator::kFarColumn;
+constexpr double GroundTiltEstimator::kBelowNear;
 constexpr double GroundTiltEstimator::kMinShare;
 constexpr std::size_t GroundTiltEstimator::kMinInliers;
 constexpr int GroundTiltEstimator::kHypotheses;
@@ -46,13 +47,23 @@ std::size_t countNear(const float* x, const float* y, const float* z, std::size_
 
 }  // namespace
 
-GroundTilt GroundTiltEstimator::estimate(const CloudView& cloud, const float origin[3]) {
+GroundTilt GroundTiltEstimator::estimate(const CloudView& cloud, const float origin[3],
+                                         double level_tilt) {
   GroundTilt near = fitLowest(cloud, origin, kNear, kRadius, kColumn);
-  if (!near.found || near.height <= kMaxHeight) return near;
-  // A sensor high above the plane sees its ground from farther out: read the lean there.
+  if (!near.found) return near;
+  const bool high = near.height > kMaxHeight;
+  // A level plane turns nothing: the farther ring is read only where the near plane would turn
+  // the scan (a level scan costs one fit, as before).
+  if (!high && !near.turns(level_tilt)) return near;
+  // A sensor high above the plane sees its ground from farther out: read the lean there. A
+  // leaning near plane over level ground that the ring sees lower down (object tops) gives way
+  // to the ring's plane too; where the ring leans as well, the near plane stands (a sloped
+  // world whose relief puts the ring's plane lower).
   GroundTilt far = fitLowest(cloud, origin, kRadius, kFarRadius, kFarColumn);
   far.high = true;
-  return far;
+  if (high) return far;
+  if (far.found && far.height > near.height + kBelowNear && !far.turns(level_tilt)) return far;
+  return near;
 }
 
 GroundTilt GroundTiltEstimator::fitLowest(const CloudView& cloud, const float origin[3],

@@ -54,7 +54,13 @@ class GroundTiltEstimator {
   /// Outer edge of that farther ring: 25-50 m give the same F1 on 63 generated scans 4.5-7 m
   /// up, level or pitched 10-20 deg; 60 m less [m].
   static constexpr double kFarRadius = 40.0;
-  static constexpr double kFarColumn = 2.0;       ///< its column edge [m]
+  static constexpr double kFarColumn = 2.0;  ///< its column edge [m]
+  /// A near plane that would turn the scan is checked against that farther ring: where the
+  /// ring's plane passes this much farther below the sensor, the near columns' lowest points
+  /// lie on car roofs, crowns and walls over ground the sensor sees only farther out (a sensor
+  /// 3 m or more up with a narrow vertical field: a lowest beam of -10 deg meets the ground
+  /// 17 m out), and the ring's plane decides [m].
+  static constexpr double kBelowNear = 1.0;
   static constexpr double kMinShare = 0.2;        ///< inliers: at least this share of the columns
   static constexpr std::size_t kMinInliers = 30;  ///< and at least this many
   static constexpr int kHypotheses = 200;         ///< RANSAC draws
@@ -67,8 +73,9 @@ class GroundTiltEstimator {
   ///        `note` ("; " first unless it is empty).
   static void appendTurnNote(double tilt_deg, double level_tilt, std::string* note);
 
-  /// \brief The ground plane around `origin` (the sensor) in `cloud`'s frame.
-  GroundTilt estimate(const CloudView& cloud, const float origin[3]);
+  /// \brief The ground plane around `origin` (the sensor) in `cloud`'s frame; a near plane
+  ///        leaning `level_tilt` or more is checked against the farther ring (kBelowNear).
+  GroundTilt estimate(const CloudView& cloud, const float origin[3], double level_tilt);
 
   /// \brief Writes `cloud` turned about `origin` so that `tilt.normal` becomes the z axis (the
   ///        smallest rotation) into `xyz` (packed x y z, input order; non-finite points as they

@@ -110,7 +110,7 @@ struct NormalGroundFilter::Impl {
   // 0a applies: level_tilt > 0 and a single scan with its sensor at a finite origin.
   bool checksTilt(const NormalGroundFilterParams& p, const ScanDecision& decision) const;
   // 0a: tilt_found and tilt_ms of `cloud`.
-  void estimateTilt(const CloudView& cloud);
+  void estimateTilt(const CloudView& cloud, double level_tilt);
   // 0a: tilt_found leans level_tilt or more.
   bool turns(const NormalGroundFilterParams& p) const { return tilt_found.turns(p.level_tilt); }
   // 0a: `cloud` turned about the sensor onto tilt_found's ground (levelled_view); a note says so.
@@ -179,9 +179,9 @@ bool NormalGroundFilter::Impl::checksTilt(const NormalGroundFilterParams& p,
   return GroundTiltEstimator::applies(p.level_tilt, decision.registered, scan.origin());
 }
 
-void NormalGroundFilter::Impl::estimateTilt(const CloudView& cloud) {
+void NormalGroundFilter::Impl::estimateTilt(const CloudView& cloud, double level_tilt) {
   const auto t0 = Clock::now();
-  tilt_found = tilt.estimate(cloud, scan.origin());
+  tilt_found = tilt.estimate(cloud, scan.origin(), level_tilt);
   tilt_ms = msSince(t0);
 }
 
@@ -228,7 +228,7 @@ bool NormalGroundFilter::Impl::executeBeside(const NormalGroundFilterParams& p,
   const normal::ScanLines lines_before = lines_kept;
   const StreamKeep keep_before = lines_keep;
   const std::size_t note_size = st->note.size(), stages = st->stage_ms.size();
-  auto check = [this, &cloud] { estimateTilt(cloud); };
+  auto check = [this, &cloud, &p] { estimateTilt(cloud, p.level_tilt); };
   side.start(&check);
   bool done = false;
   try {
@@ -423,7 +423,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
       done = im.executeBeside(p, scan, cloud, labels, &st, &prep);
       ran = !im.turns(p);
     } else {
-      im.estimateTilt(cloud);
+      im.estimateTilt(cloud, p.level_tilt);
     }
     st.stage_ms.emplace_back("level", im.tilt_ms);
     if (im.turns(p)) turned = &im.levelTo(p, cloud, &st);

@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstddef>
+#include <utility>
+#include <vector>
 
 #include "common/plane_fit.h"
 
@@ -25,6 +28,54 @@ constexpr double kAboveSensor = 0.5;
 constexpr double kSupportRadius = 40.0;
 constexpr double kSupportBand = 0.3;
 constexpr double kSupportShare = 0.75;
+// A sensor above the ground meets it first with its steepest lines of sight: of the flat voxels
+// within kSupportRadius, the kSteepShare it sees steepest down lie mostly where its lowest beams
+// meet the ground. Where those lines point kSteepMinDeg or more down (a sensor above the ground,
+// not a frame's origin on it), a candidate lying more than kOverSteep above their median height
+// is a crown or a roof over ground seen farther out (a 32-beam sensor 3.5-5 m up whose lowest
+// beam, -10 deg, meets the ground 20-28 m out): the candidates that do not come first [share,
+// deg, m]. Plateaus on generated narrow sensors 3-5 m up and 64 beams 7 m up:
+// docs/voxel_method.md.
+constexpr double kSteepShare = 0.2;
+constexpr double kSteepMinDeg = 5.0;
+constexpr double kOverSteep = 1.75;
+// Candidates for the start segment: the largest segments (by voxels, then points). A sparse
+// sensor's ground falls into many arcs of 4-10 voxels each, below dozens of larger pieces of
+// crowns, walls and car tops.
+constexpr int kCandidates = 64;
+
+// The median height of the flat voxels that the sensor sees steepest down (kSteepShare of
+// `steep`: pairs of the line of sight's slope and the voxel's height, reordered here) into *z,
+// where those lines point kSteepMinDeg or more down; false otherwise.
+bool steepestLevel(std::vector<std::pair<float, float>>* steep, double* z) {
+  if (steep->empty()) return false;
+  const std::size_t k = static_cast<std::size_t>(kSteepShare * static_cast<double>(steep->size()));
+  const auto first = steep->begin(), last = first + static_cast<std::ptrdiff_t>(k + 1);
+  const auto mid = first + static_cast<std::ptrdiff_t>((k + 1) / 2);
+  std::nth_element(first, first + static_cast<std::ptrdiff_t>(k), steep->end());
+  std::nth_element(first, mid, last);  // the median slope of the steepest
+  if (mid->first > -std::tan(kSteepMinDeg * M_PI / 180.0)) return false;
+  std::nth_element(first, mid, last,
+                   [](const std::pair<float, float>& a, const std::pair<float, float>& b) {
+                     return a.second < b.second;
+                   });
+  *z = mid->second;
+  return true;
+}
+
+// Raises the candidates of level `need` whose mean height lies at most kOverSteep above
+// `steep_z` (steepestLevel()) by one; returns the level to choose from.
+std::uint8_t raiseBelowSteep(double steep_z, int ncand, const double* mean_z, std::uint8_t need,
+                             std::uint8_t* qualifies) {
+  bool any = false;
+  for (int q = 0; q < ncand; ++q) {
+    if (qualifies[q] == need && mean_z[q] <= steep_z + kOverSteep) {
+      qualifies[q] = static_cast<std::uint8_t>(need + 1);
+      any = true;
+    }
+  }
+  return static_cast<std::uint8_t>(need + (any ? 1 : 0));
+}
 
 std::uint32_t findRoot(std::uint32_t* uf, std::uint32_t i) {
   while (uf[i] != i) {
@@ -160,6 +211,22 @@ void Segmenter::run(const VoxelGroundFilterParams& p, VoxelGrid* g, SegmentResul
   out->best = best;
 }
 
+void Segmenter::scanNearSensor(const VoxelGrid& g, const float* sensor, double bin) {
+  const double sx = sensor[0] - g.min[0], sy = sensor[1] - g.min[1], sz = sensor[2] - g.min[2];
+  hist_.clear();
+  steep_.clear();
+  for (std::uint32_t v : g.flat) {
+    const double dx = g.vx[v] - sx, dy = g.vy[v] - sy;
+    if (dx * dx + dy * dy > kSupportRadius * kSupportRadius) continue;
+    // Heights are relative to the grid's min corner: bin >= 0.
+    const std::size_t b = static_cast<std::size_t>(std::max(0.0, g.vz[v] / bin));
+    if (b >= hist_.size()) hist_.resize(b + 1, 0);
+    ++hist_[b];
+    steep_.emplace_back(static_cast<float>((g.vz[v] - sz) / std::sqrt(dx * dx + dy * dy + 1e-6)),
+                        g.vz[v]);
+  }
+}
+
 void Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g,
                             const float* sensor, SegmentResult* seg) {
   seg->have_plane = seg->best >= 0;
@@ -168,7 +235,6 @@ void Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
   HeightPlane* gp = &seg->plane;
   // The plane of the largest segment that is not steeper than max_slope_deg: the largest one can
   // be a wall scanned line by line (its flat voxels stack up), see the docs.
-  constexpr int kCandidates = 16;
   std::array<std::uint32_t, kCandidates> cand{};
   int ncand = 0;
   auto better = [&](std::uint32_t a, std::uint32_t b) {
@@ -207,10 +273,12 @@ void Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
   // sensor at the origin) the largest. A sparse sensor's rings fall apart into one segment each,
   // and the underside of a tree crown, a ceiling or a roof can outgrow them all; a crown's tilted
   // plane can pass below the sensor all the same, while its points stay above it. Among the
-  // segments that qualify, the best supported wins over a larger one (kSupportShare).
+  // segments that qualify, the best supported wins over a larger one (kSupportShare); those not
+  // above the ground that the sensor's steepest lines of sight meet come first (kOverSteep).
   std::array<HeightPlane, kCandidates> planes;
   std::array<double, kCandidates> mean_z{};
-  std::array<std::uint8_t, kCandidates> qualifies{};  // 1: passes below, 2: lies below too
+  // 1: passes below, 2: lies below too, 3: and not above the steepest level (steepestLevel())
+  std::array<std::uint8_t, kCandidates> qualifies{};
   int chosen = -1;  // the largest with a fitted plane, unless a sensor picks another below
   for (int q = 0; q < ncand; ++q) {
     Plane plane;
@@ -238,30 +306,29 @@ void Segmenter::globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g
   }
   if (sensor) {
     // Support: one pass over the flat voxels near the sensor, a histogram of their heights.
-    const std::uint8_t need =
+    std::uint8_t need =
         *std::max_element(qualifies.begin(), qualifies.begin() + std::max(ncand, 1));
     if (need > 0) {
-      const double sx = sensor[0] - g.min[0], sy = sensor[1] - g.min[1];
       const double bin = kSupportBand / 3.0;
-      hist_.clear();
-      for (std::uint32_t v : g.flat) {
-        const double dx = g.vx[v] - sx, dy = g.vy[v] - sy;
-        if (dx * dx + dy * dy > kSupportRadius * kSupportRadius) continue;
-        // Heights are relative to the grid's min corner: bin >= 0.
-        const std::size_t b = static_cast<std::size_t>(std::max(0.0, g.vz[v] / bin));
-        if (b >= hist_.size()) hist_.resize(b + 1, 0);
-        ++hist_[b];
-      }
+      scanNearSensor(g, sensor, bin);
       const long nbins = static_cast<long>(hist_.size());
       std::array<std::uint32_t, kCandidates> support{};
-      std::uint32_t top = 0;
       for (int q = 0; q < ncand; ++q) {
         if (qualifies[q] != need) continue;
         const long centre = static_cast<long>(std::floor(mean_z[q] / bin));
         for (long b = std::max(0L, centre - 3); b <= std::min(nbins - 1, centre + 3); ++b) {
           support[q] += hist_[static_cast<std::size_t>(b)];
         }
-        top = std::max(top, support[q]);
+      }
+      // Those not above the ground the sensor's steepest lines of sight meet: a level of their
+      // own (kOverSteep).
+      double steep_z = 0.0;
+      if (steepestLevel(&steep_, &steep_z)) {
+        need = raiseBelowSteep(steep_z, ncand, mean_z.data(), need, qualifies.data());
+      }
+      std::uint32_t top = 0;
+      for (int q = 0; q < ncand; ++q) {
+        if (qualifies[q] == need) top = std::max(top, support[q]);
       }
       // The best supported qualifies itself, so one is always found.
       chosen = -1;

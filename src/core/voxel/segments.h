@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "ground_filter/voxel_ground_filter_params.h"
@@ -41,17 +42,24 @@ class Segmenter {
   ///        passes below the sensor and whose points lie below it (their mean at most 0.5 m
   ///        above it) is taken where one of the largest does, else the largest whose plane
   ///        passes below it: the ground under a ground-level sensor lies below it, a crown's
-  ///        underside above it.
+  ///        underside above it. Of those, the ones not above the ground that the sensor's
+  ///        steepest lines of sight meet come first (a crown or a roof below a high sensor).
   void globalPlane(const VoxelGroundFilterParams& p, const VoxelGrid& g, const float* sensor,
                    SegmentResult* seg);
 
  private:
+  // globalPlane(): hist_ (heights in bins of `bin`) and steep_ of the flat voxels within
+  // kSupportRadius of the sensor.
+  void scanNearSensor(const VoxelGrid& g, const float* sensor, double bin);
+
   // Scratch; seg_voxels_ and seg_points_ carry run()'s segment sizes to globalPlane().
   std::vector<std::uint32_t> seg_voxels_;
   std::vector<std::uint64_t> seg_points_;
   std::vector<std::int32_t> rows_;   // two dense rows of flat ids (x parity)
   std::vector<std::uint32_t> hist_;  // globalPlane(): flat voxels near the sensor per height bin
-  std::vector<std::int8_t> rank_;    // globalPlane(): candidate index per segment id, or -1
+  // globalPlane(): per flat voxel near the sensor, its line of sight's slope and its height
+  std::vector<std::pair<float, float>> steep_;
+  std::vector<std::int8_t> rank_;  // globalPlane(): candidate index per segment id, or -1
 };
 
 }  // namespace voxel

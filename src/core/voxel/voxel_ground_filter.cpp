@@ -188,7 +188,7 @@ const CloudView& VoxelGroundFilter::Impl::levelled(const VoxelGroundFilterParams
   const float* o = scan.origin();
   if (!GroundTiltEstimator::applies(p.level_tilt, decision.registered, o)) return cloud;
   const auto t0 = Clock::now();
-  const GroundTilt t = tilt.estimate(cloud, o);
+  const GroundTilt t = tilt.estimate(cloud, o, p.level_tilt);
   const bool turn = t.turns(p.level_tilt);
   if (turn) levelled_view = GroundTiltEstimator::level(cloud, o, t, &levelled_xyz);
   if (stats) {
