@@ -18,8 +18,9 @@ struct GroundTilt {
   std::size_t columns = 0;             ///< occupied columns fitted (within kRadius; the ring)
   std::size_t inliers = 0;             ///< columns whose lowest point lies on the plane
   double height = 0.0;                 ///< the sensor's height above the plane [m]
-  /// The sensor stood more than kMaxHeight above the near plane: this plane is the farther
-  /// ring's (kRadius to kFarRadius).
+  /// This plane is the farther ring's (kRadius to kFarRadius): the sensor stood more than
+  /// kMaxHeight above the near plane, or the near plane would have turned the scan while the
+  /// ring's lies kBelowNear lower and level.
   bool high = false;
   /// \brief A plane was found and leans `level_tilt` or more: the scan is to be turned.
   bool turns(double level_tilt) const { return found && tilt_deg >= level_tilt; }
