@@ -14,6 +14,12 @@ namespace {
 constexpr double kSlopePriorWeight = 1.0;
 // Cells of the local model farther than this from any cell with points are not grown.
 constexpr std::int64_t kReachCells = 4;
+// Grade the ground may climb across cells without seeds [m/m]: a prediction carried level over
+// such a stretch (between the rings of a sparse sensor) accepts seeds this much higher per
+// metre crossed. The rings of a 16-beam sensor on a 4-7 % grade lie 4-10 m apart and
+// 0.3-0.7 m above the level prediction. 0.03-0.07 one plateau (docs/voxel_method.md, "A grade
+// between sparse rings").
+constexpr double kGapGrade = 0.05;
 
 }  // namespace
 
@@ -125,6 +131,7 @@ void GroundModel::resetCells(const CellGrid& cells) {
   nb_ok_.assign(nc, 0);
   plane_.resize(nc);
   parent_.resize(nc);
+  gap_.resize(nc);
   state_.resize(nc);
   near_q_.assign(nc, 0);
   CellState* state = state_.data();
@@ -185,20 +192,26 @@ bool GroundModel::fitCell(const VoxelGroundFilterParams& p, std::uint32_t t) {
   // Prediction: the parent's height at this cell's centre (level), refined by the seeds of the
   // finished neighbours (also for empty cells: they pass it on). Seeds: the candidates from
   // height_margin below to seed_window above the prediction (the ground is the lowest surface:
-  // lower candidates are safe, higher ones may be objects), refit, then those within
-  // plane_distance of the refit, refit again.
+  // lower candidates are safe, higher ones may be objects; kGapGrade more above for each metre
+  // the prediction crossed without seeds), refit, then those within plane_distance of the
+  // refit, refit again.
   const std::uint32_t tx = t / geo_.ncy, ty = t - tx * geo_.ncy;
   const double cx = (tx - 0.5) * geo_.cs;  // the border shifts the cell indices by one
   const double cy = (ty - 0.5) * geo_.cs;
+  const std::uint32_t par = parent_[t];
+  const std::uint16_t gap = par == t || state_[par] == CellState::kDoneSeeded
+                                ? 0
+                                : static_cast<std::uint16_t>(std::min(gap_[par] + 1, 65535));
+  gap_[t] = gap;
   HeightPlane pred;
-  pred.c = plane_[parent_[t]].at(cx, cy);
+  pred.c = plane_[par].at(cx, cy);
   const Moments nb = sumsOf(t);
   if (nb.w > 0) pred = fitHeightPlane(nb, 0.0, 0.0, geo_.lambda);
   HeightPlane cur = pred;
   Moments own;
   const std::uint32_t s0 = start_[t], s1 = start_[t + 1];
   if (s1 > s0) {
-    double below = p.height_margin, above = p.seed_window;
+    double below = p.height_margin, above = p.seed_window + kGapGrade * geo_.cs * gap;
     for (int pass = 0; pass < 2; ++pass) {
       own = Moments();
       for (std::uint32_t k = s0; k < s1; ++k) {

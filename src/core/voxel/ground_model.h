@@ -82,6 +82,7 @@ class GroundModel {
   std::vector<std::uint8_t> nb_ok_;       // nbsum_ of the cell holds this scan's sums
   UntouchedArray<HeightPlane> plane_;     // grown plane
   UntouchedArray<std::uint32_t> parent_;  // cell that queued it
+  UntouchedArray<std::uint16_t> gap_;     // cells without seeds its prediction crossed
   std::vector<CellState> state_;
   UntouchedArray<std::uint32_t> queue_, queue_far_;  // cells to grow: next to seeds, others
   std::size_t near_end_ = 0, far_end_ = 0;           // entries in queue_, queue_far_
