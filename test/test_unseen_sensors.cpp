@@ -369,8 +369,8 @@ TEST(UnseenSensors, VoxelStartSegmentUnderANarrowSensorHighUp) {
 // its rings lie 4-10 m apart there, and the next ring out lies 0.3-0.7 m above the level
 // prediction the ground model carries across the gap, more than seed_window (0.2 m), so the
 // model stopped at the last ring it could reach (F1 0.851, 0.903, 0.899). A prediction carried
-// across cells without seeds now accepts kGapGrade (5 %) per metre more above it (0.904, 0.933,
-// 0.938).
+// across cells without seeds now accepts kGapGrade (5 %) per metre more above it, at most
+// kGapRise (0.3 m) (0.899, 0.934, 0.934).
 TEST(UnseenSensors, VoxelGroundClimbsAGradeBetweenSparseRings) {
   const std::string vlp16 =
       ",beams=16,vertical_min_deg=-15,vertical_max_deg=15,uniform_beams=1,"

@@ -16,10 +16,14 @@ constexpr double kSlopePriorWeight = 1.0;
 constexpr std::int64_t kReachCells = 4;
 // Grade the ground may climb across cells without seeds [m/m]: a prediction carried level over
 // such a stretch (between the rings of a sparse sensor) accepts seeds this much higher per
-// metre crossed. The rings of a 16-beam sensor on a 4-7 % grade lie 4-10 m apart and
-// 0.3-0.7 m above the level prediction. 0.03-0.07 one plateau (docs/voxel_method.md, "A grade
-// between sparse rings").
+// metre crossed, up to kGapRise. The rings of a 16-beam sensor on a 4-7 % grade lie 4-10 m
+// apart and 0.3-0.7 m above the level prediction. 0.03-0.07 one plateau (docs/voxel_method.md,
+// "A grade between sparse rings").
 constexpr double kGapGrade = 0.05;
+// The most the window widens that way [m]: beyond 6 m of gap the widening reached the crowns
+// and car tops below a narrow sensor 5 m up (F1 95.5 -> 87.5); 0.2-0.3 keep it and most of the
+// grades' gain.
+constexpr double kGapRise = 0.3;
 
 }  // namespace
 
@@ -193,8 +197,8 @@ bool GroundModel::fitCell(const VoxelGroundFilterParams& p, std::uint32_t t) {
   // finished neighbours (also for empty cells: they pass it on). Seeds: the candidates from
   // height_margin below to seed_window above the prediction (the ground is the lowest surface:
   // lower candidates are safe, higher ones may be objects; kGapGrade more above for each metre
-  // the prediction crossed without seeds), refit, then those within plane_distance of the
-  // refit, refit again.
+  // the prediction crossed without seeds, at most kGapRise), refit, then those within
+  // plane_distance of the refit, refit again.
   const std::uint32_t tx = t / geo_.ncy, ty = t - tx * geo_.ncy;
   const double cx = (tx - 0.5) * geo_.cs;  // the border shifts the cell indices by one
   const double cy = (ty - 0.5) * geo_.cs;
@@ -211,7 +215,8 @@ bool GroundModel::fitCell(const VoxelGroundFilterParams& p, std::uint32_t t) {
   Moments own;
   const std::uint32_t s0 = start_[t], s1 = start_[t + 1];
   if (s1 > s0) {
-    double below = p.height_margin, above = p.seed_window + kGapGrade * geo_.cs * gap;
+    double below = p.height_margin;
+    double above = p.seed_window + std::min(kGapRise, kGapGrade * geo_.cs * gap);
     for (int pass = 0; pass < 2; ++pass) {
       own = Moments();
       for (std::uint32_t k = s0; k < s1; ++k) {
