@@ -141,8 +141,13 @@ void ScanTypeClassifier::measureColumns(const CloudView& cloud, ScanMeasures* m,
   const std::size_t n = cloud.size();
   const std::size_t want = std::min(n, most);
   if (want == 0) return;
-  const double c = kColumn;
-  const std::uint64_t nx = static_cast<std::uint64_t>(std::ceil((x1 - x0) / c)) + 1;
+  // In double: a float box can span more than float's range. Columns wider than kColumn only
+  // where the box is over 2^31 of them a side, so the keys and the casts to them stay in range
+  // whatever the coordinates.
+  const double span = std::max(static_cast<double>(x1) - x0, static_cast<double>(y1) - y0);
+  const double c = std::max(kColumn, span / 2147483648.0);
+  const std::uint64_t nx =
+      static_cast<std::uint64_t>(std::ceil((static_cast<double>(x1) - x0) / c)) + 1;
   keys_.clear();
   // Point k of the read sits at k n / want plus a jitter below the step: an even spread that a
   // scan pattern's period (rings, sweeps) cannot alias with.
@@ -157,13 +162,14 @@ void ScanTypeClassifier::measureColumns(const CloudView& cloud, ScanMeasures* m,
     float x, y, z;
     if (!cloud.get(i, &x, &y, &z)) continue;
     if (!(x >= x0 && x <= x1 && y >= y0 && y <= y1)) continue;
-    keys_.push_back(static_cast<std::uint64_t>((y - y0) / c) * nx +
-                    static_cast<std::uint64_t>((x - x0) / c));
+    keys_.push_back(static_cast<std::uint64_t>((static_cast<double>(y) - y0) / c) * nx +
+                    static_cast<std::uint64_t>((static_cast<double>(x) - x0) / c));
   }
   m->read = keys_.size();
   if (keys_.empty()) return;
   counts_.clear();
-  const std::uint64_t ny = static_cast<std::uint64_t>(std::ceil((y1 - y0) / c)) + 1;
+  const std::uint64_t ny =
+      static_cast<std::uint64_t>(std::ceil((static_cast<double>(y1) - y0) / c)) + 1;
   if (nx * ny <= kDenseColumns) {  // a count per column of the box: no sort
     dense_.assign(static_cast<std::size_t>(nx * ny), 0u);
     for (const std::uint64_t key : keys_) ++dense_[static_cast<std::size_t>(key)];
