@@ -10,6 +10,13 @@ made"):
                       a base_link on the road under a KITTI sensor, or map coordinates
   --tilt ROLL PITCH   rotate about x by ROLL, then about y by PITCH (degrees, about the origin): a
                       sensor mounted tilted, without a gravity frame
+  --crop X0 X1 Y0 Y1 Z0 Z1
+                      keep only the points inside the box (m, in the input frame), as
+                      pcl::CropBox or Autoware's crop_box_filter before the ground filter: a
+                      region of interest, a forward half (--crop 0 1e9 -1e9 1e9 -1e9 1e9)
+  --cut X0 X1 Y0 Y1 Z0 Z1
+                      drop the points inside the box (CropBox with setNegative): the own
+                      vehicle or robot
   --mirror FRAC       add FRAC x the scan's points as reflections under the road: random points
                       more than 0.5 m above KITTI's road (z > -1.23 m) mirrored in its plane
                       z = -1.73 m (wet asphalt, glass), labelled 1 "outlier" (left out of every
@@ -21,7 +28,8 @@ height (z < -1.2975 m), which --shift and --tilt would move: vegetation is writt
 so the truth reads back unchanged (instance bits kept). Output: OUTDIR/<stem>.bin (+ .label), the
 kept points in input order (reflections after them); the options apply in the order above.
 
-usage: scripts/derive_scans.py [--voxel LEAF] [--keep FRAC [--seed S]] [--shift DX DY DZ]
+usage: scripts/derive_scans.py [--voxel LEAF] [--keep FRAC [--seed S]] [--crop X0 X1 Y0 Y1 Z0 Z1]
+                               [--cut X0 X1 Y0 Y1 Z0 Z1] [--shift DX DY DZ]
                                [--tilt ROLL PITCH] [--mirror FRAC] OUTDIR FILE.bin...
 """
 import array
@@ -40,9 +48,11 @@ VEGETATION_GROUND_Z = 0.75 * KITTI_ROAD_Z  # SemanticKITTI protocol
 
 def parse(argv):
     """Options and files from argv, or None (usage)."""
-    opt = {"voxel": None, "keep": None, "seed": 1, "shift": None, "tilt": None, "mirror": None}
+    opt = {"voxel": None, "keep": None, "seed": 1, "crop": None, "cut": None, "shift": None,
+           "tilt": None, "mirror": None}
     args = list(argv[1:])
-    arity = {"--voxel": 1, "--keep": 1, "--seed": 1, "--shift": 3, "--tilt": 2, "--mirror": 1}
+    arity = {"--voxel": 1, "--keep": 1, "--seed": 1, "--crop": 6, "--cut": 6, "--shift": 3,
+             "--tilt": 2, "--mirror": 1}
     while args and args[0] in arity:
         name, k = args[0], arity[args[0]]
         if len(args) < k + 1:
@@ -61,6 +71,9 @@ def parse(argv):
         return None
     if opt["mirror"] is not None and not 0 <= opt["mirror"] <= 0.5:
         return None
+    for box in (opt["crop"], opt["cut"]):
+        if box is not None and not all(box[a] < box[a + 1] for a in (0, 2, 4)):
+            return None  # an empty box: each lower bound must lie below its upper one
     if len(args) < 2:
         return None
     return opt, args[0], args[1:]
@@ -86,6 +99,10 @@ def derive(path, opt, out):
     rng = random.Random(opt["seed"])
     if opt["keep"] is not None:
         keep = sorted(rng.sample(list(keep), int(round(len(keep) * opt["keep"]))))
+    if opt["crop"] is not None:
+        keep = [i for i in keep if inside(pts, i, opt["crop"])]
+    if opt["cut"] is not None:
+        keep = [i for i in keep if not inside(pts, i, opt["cut"])]
     mirrored = []
     if opt["mirror"]:
         above = [i for i in keep if pts[4 * i + 2] > KITTI_ROAD_Z + 0.5]
@@ -113,6 +130,11 @@ def derive(path, opt, out):
                                           " + %d reflections" % len(mirrored) if mirrored else "",
                                           bin_path))
     return True
+
+
+def inside(pts, i, box):
+    """Point i lies in the box (bounds included; NaN never does)."""
+    return all(box[2 * a] <= pts[4 * i + a] <= box[2 * a + 1] for a in range(3))
 
 
 def rotation(tilt):

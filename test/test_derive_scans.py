@@ -1,6 +1,6 @@
 """scripts/derive_scans.py: voxel and random downsampling keep each kept point beside its own
-label, a shift and a tilt move the points exactly and keep SemanticKITTI's vegetation truth, bad
-input is refused."""
+label, a crop box keeps (and a cut box drops) exactly the points inside it, a shift and a tilt
+move the points exactly and keep SemanticKITTI's vegetation truth, bad input is refused."""
 import array
 import math
 import os
@@ -72,6 +72,21 @@ class DeriveScansTest(unittest.TestCase):
         self.assertTrue(all(labs[i] >> 16 == idx[i] for i in range(50)))
         self.assertNotEqual(idx, self.derived("--keep", "0.25", "--seed", "4")[0])
 
+    def test_crop_keeps_and_cut_drops_the_points_inside_a_box(self):
+        pts, labs = self.derived("--crop", "0", "0.5", "-1", "1", "-2", "0")  # x of 0.05-0.45
+        idx = [int(pts[4 * i + 3]) for i in range(len(labs))]
+        self.assertEqual(idx, [i for i in range(200) if (i // 2) % 10 < 5])
+        self.assertTrue(all(labs[i] >> 16 == idx[i] for i in range(len(idx))))
+        pts, labs = self.derived("--cut", "0", "0.5", "-1", "1", "-2", "0")
+        self.assertEqual([int(pts[4 * i + 3]) for i in range(len(labs))],
+                         [i for i in range(200) if (i // 2) % 10 >= 5])
+        # z up to -1.745: the lower point of each pair
+        _, labs = self.derived("--crop", "-1", "1", "-1", "1", "-2", "-1.745")
+        self.assertEqual([lab >> 16 for lab in labs], list(range(0, 200, 2)))
+        _, labs = self.derived("--crop", "-1", "1", "-1", "1", "-2", "-1.745",
+                               "--cut", "-1", "1", "0.5", "1", "-2", "0")
+        self.assertEqual(len(labs), 50)
+
     def test_shift_and_tilt_move_the_points(self):
         pts, _ = self.derived("--shift", "100", "-2", "1.73")
         self.assertAlmostEqual(pts[0], 100.05, places=4)
@@ -111,7 +126,9 @@ class DeriveScansTest(unittest.TestCase):
     def test_bad_input_is_refused(self):
         out = os.path.join(self.dir, "bad")
         for args in (["--voxel", "0"], ["--keep", "1.5"], ["--shift", "1", "2"],
-                     ["--tilt", "nan", "0"], ["--voxel"], ["--mirror", "0.9"]):
+                     ["--tilt", "nan", "0"], ["--voxel"], ["--mirror", "0.9"],
+                     ["--crop", "1", "0", "0", "1", "0", "1"], ["--cut", "0", "1", "0", "1", "0"],
+                     ["--crop", "0", "1", "0", "1", "0", "inf"]):
             self.assertEqual(self.run_script(*(args + [out, self.src + ".bin"])).returncode, 2,
                              args)
         with open(os.path.join(self.dir, "odd.bin"), "wb") as f:
