@@ -17,16 +17,17 @@ set(GF_CORE_SOURCES)
 # shared: makeGroundFilter, parameter parsing, plane fit, working volume, morphological ground
 # surface (airborne mode of both methods), scan_type (which mode a scan runs in)
 gf_core_room(simd simd)
-gf_core_room(common plane_fit param_parse densest_centre ground_tilt side_task)
+gf_core_room(common plane_fit param_parse densest_centre ground_tilt scan_lines side_task)
 gf_core_room(. build_info filter_factory working_volume)
 gf_core_room(airborne morph_ground walled_roofs scan_type origin_view airborne_mode)
 # voxel method: the filter and its parameter table, one file per stage, the paper mode
 gf_core_room(voxel voxel_ground_filter voxel_ground_filter_params paper_voxel_filter)
-gf_core_room(voxel voxelize voxelize_build avx2_passes segments ground_model classify vote vegetation worker_pool)
+gf_core_room(voxel voxelize voxelize_build avx2_passes segments ground_model classify vote vegetation
+             line_walls worker_pool)
 # normal method: the filter and its parameter table (and the settings derived from it), one file
 # per stage
 gf_core_room(normal normal_ground_filter normal_ground_filter_params normal_settings)
-gf_core_room(normal order scan_lines lattice sample neighborhoods vote plane local_ground
+gf_core_room(normal order lattice sample neighborhoods vote plane local_ground
              vegetation scatter_labels)
 # K nearest neighbours, a room below the normal method that uses it (knn/): the
 # kd-tree (build, portable / AVX-512 / AVX2 / NEON queries), the PCA of the lists, the backend

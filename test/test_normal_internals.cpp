@@ -570,7 +570,7 @@ TEST(NormalLocalGround, OnlyAddsGroundAndZeroTurnsItOff) {
 // A small robot's 16-beam sensor (builtin lidar16: rings 2 deg apart, 0.2 deg a firing): with
 // the default stride each K neighbourhood lies on one scan line, almost no point is a candidate
 // and the ground is lost. Either rule widens the stride until the neighbourhoods reach the next
-// line: max_line_ratio from the measured lines before the normals (normal/scan_lines.h),
+// line: max_line_ratio from the measured lines before the normals (common/scan_lines.h),
 // min_candidate_share after them (normal::sparseLinesStride()).
 TEST(NormalGroundFilter, SparseScanLinesWidenTheStride) {
   struct Rules {

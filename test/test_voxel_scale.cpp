@@ -133,9 +133,9 @@ TEST(VoxelGroundFilter, NoAllocationAfterTheFirstScanOfASize) {
         std::vector<std::uint8_t> first;
         gf::FilterStats stats;
         f.filter(c.view(), &first, &stats);
-        // "level" first; + "vegetation"; the survey tile's 4 points a m2 get coarser voxels
-        // twice ("coarser_voxels")
-        const std::size_t stages = (veg ? 8u : 7u) + (cloud == &survey ? 2u : 0u);
+        // "level" first; + "vegetation"; "line_walls" last (single scans); the survey tile's
+        // 4 points a m2 get coarser voxels twice ("coarser_voxels")
+        const std::size_t stages = (veg ? 9u : 8u) + (cloud == &survey ? 2u : 0u);
         ASSERT_EQ(stats.stage_ms.size(), stages);
         std::vector<std::uint8_t> labels(c.size(), 2);  // allocated before counting
         const std::size_t before = allocationCount().load();

@@ -241,7 +241,7 @@ TEST_F(GpuPipelineTest, DenseColumnsGiveTheKdTreeLabels) {
 TEST_F(GpuPipelineTest, SparseScanLinesWidenTheStrideAsOnTheCpu) {
   // A VLP-16's scan: rings 2 deg apart, 0.2 deg a firing, 1.8 m above flat ground inside a round
   // wall 25 m away (6 rings on the ground, 10,800 points). The default stride leaves each K
-  // neighbourhood on one ring: no candidates, until max_line_ratio (normal/scan_lines.h) or
+  // neighbourhood on one ring: no candidates, until max_line_ratio (common/scan_lines.h) or
   // min_candidate_share (normal::sparseLinesStride()) has doubled the stride; for the latter the
   // GPU decides on its own count, as the CPU does. (At 0.1 deg a firing, stride 4 leaves the
   // neighbourhoods nearly degenerate, and the CPU's and the GPU's candidate counts there fell on

@@ -1,6 +1,6 @@
 // The centre of a cloud's densest area and the ground's height there: where a spinning sensor
 // sits when the cloud's origin is not it (a scan in a map frame). Used by the normal method's
-// scan lines (normal/scan_lines.cpp) and the voxel method's start segment.
+// scan lines (common/scan_lines.cpp) and the voxel method's start segment.
 #ifndef GROUND_FILTER_SRC_CORE_COMMON_DENSEST_CENTRE_H
 #define GROUND_FILTER_SRC_CORE_COMMON_DENSEST_CENTRE_H
 

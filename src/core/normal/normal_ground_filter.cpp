@@ -13,6 +13,7 @@
 #include "airborne/origin_view.h"
 #include "airborne/scan_type.h"
 #include "common/ground_tilt.h"
+#include "common/scan_lines.h"
 #include "common/side_task.h"
 #include "common/stream_keep.h"
 #include "common/threads_timing.h"
@@ -26,7 +27,6 @@
 #include "normal/order.h"
 #include "normal/plane.h"
 #include "normal/sample.h"
-#include "normal/scan_lines.h"
 #include "normal/scatter_labels.h"
 #include "normal/stage_times.h"
 #include "normal/vegetation.h"
@@ -72,8 +72,8 @@ struct NormalGroundFilter::Impl {
   normal::StageTimes times;    // per scan, memory kept
   FilterStats own_stats;       // filled when the caller passes none
   // 1a: the last measured scan lines, kept for the next scans of the same sensor (linesOf()).
-  normal::ScanLineMeter line_meter;
-  normal::ScanLines lines_kept;
+  ScanLineMeter line_meter;
+  ScanLines lines_kept;
   StreamKeep lines_keep{16};  // measured again every 16th scan (or another sensor)
   Impl(const NormalGroundFilterParams& p, std::unique_ptr<KnnBackend> backend,
        std::unique_ptr<NormalFilterExecutor> exec)
@@ -92,7 +92,7 @@ struct NormalGroundFilter::Impl {
   // 16th (lines_keep), and when the point count moves by more than a tenth or the origin moves
   // (another sensor); kept otherwise, as a sensor's lines do not change (the measurement reads
   // the whole cloud: about 1 ms a KITTI frame, two thirds of the GPU pipeline's time).
-  const normal::ScanLines& linesOf(const CloudView& cloud);
+  const ScanLines& linesOf(const CloudView& cloud);
   // The sensor's x, y, z where the scan has one at its origin, else null: no ground plane may
   // pass above it (normal/plane.h). Asked of the cloud where auto decided (origin_view.h,
   // stage "view"): none where many points lie behind nearer ones seen from the origin (merged
@@ -141,7 +141,7 @@ namespace {
 
 // "sample_stride A -> B: ..." onto *note, appended in place (a reused FilterStats allocates
 // nothing).
-void appendStrideNote(const NormalGroundFilterParams& p, int stride, const normal::ScanLines& lines,
+void appendStrideNote(const NormalGroundFilterParams& p, int stride, const ScanLines& lines,
                       std::string* note) {
   char text[280], above[96] = "";
   if (lines.from[0] != 0.0 || lines.from[1] != 0.0) {
@@ -199,7 +199,7 @@ bool NormalGroundFilter::Impl::prepareAndExecute(const NormalGroundFilterParams&
   // 1a. a sparse spinning sensor's scan lines: the stride its normals need (scan_lines.h);
   //     where the origin lies on the ground below the sensor, they show the sensor's height.
   int stride = p.sample_stride;
-  const normal::ScanLines* lines = nullptr;
+  const ScanLines* lines = nullptr;
   if (p.max_line_ratio > 0.0 && !decision.registered) {
     const auto t_lines = Clock::now();
     lines = &linesOf(in);
@@ -225,7 +225,7 @@ bool NormalGroundFilter::Impl::executeBeside(const NormalGroundFilterParams& p,
                                              const ScanDecision& decision, const CloudView& cloud,
                                              std::vector<std::uint8_t>* labels, FilterStats* st,
                                              Prepared* prep) {
-  const normal::ScanLines lines_before = lines_kept;
+  const ScanLines lines_before = lines_kept;
   const StreamKeep keep_before = lines_keep;
   const std::size_t note_size = st->note.size(), stages = st->stage_ms.size();
   auto check = [this, &cloud, &p] { estimateTilt(cloud, p.level_tilt); };
@@ -247,7 +247,7 @@ bool NormalGroundFilter::Impl::executeBeside(const NormalGroundFilterParams& p,
   return false;
 }
 
-const normal::ScanLines& NormalGroundFilter::Impl::linesOf(const CloudView& cloud) {
+const ScanLines& NormalGroundFilter::Impl::linesOf(const CloudView& cloud) {
   const float* o = scan.origin();
   if (!lines_keep.keep(cloud.size(), o)) lines_kept = line_meter.measureAround(cloud, o);
   return lines_kept;

@@ -67,5 +67,14 @@ void SampleStage::spread(std::uint8_t* voted) const {
   }
 }
 
+int strideForScanLines(const ScanLines& lines, double max_ratio, int stride) {
+  const double r = lines.ratio();
+  if (!(max_ratio > 0.0) || !(r > 0.0)) return stride;
+  while (stride < kMaxSampleStride && r / stride > max_ratio) {
+    stride = doubledStride(stride);
+  }
+  return stride;
+}
+
 }  // namespace normal
 }  // namespace ground_filter

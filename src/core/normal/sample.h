@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "common/scan_lines.h"
 #include "normal/order.h"
 
 namespace ground_filter {
@@ -46,6 +47,12 @@ class SampleStage {
   std::vector<std::uint32_t> index_;
   std::vector<std::uint8_t> candidate_, voted_;
 };
+
+/// \brief Stage 1a: `stride`, doubled (at most kMaxSampleStride) while lines.ratio() / stride
+///        exceeds `max_ratio`: the sampled points of a line then lie at least 1 / max_ratio of
+///        the line spacing apart, and a point's K nearest samples reach the next line. `stride`
+///        itself when max_ratio is 0 or no lines were found (common/scan_lines.h).
+int strideForScanLines(const ScanLines& lines, double max_ratio, int stride);
 
 }  // namespace normal
 }  // namespace ground_filter

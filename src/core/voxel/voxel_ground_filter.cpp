@@ -14,11 +14,14 @@
 #include "airborne/scan_type.h"
 #include "common/densest_centre.h"
 #include "common/ground_tilt.h"
+#include "common/scan_lines.h"
+#include "common/stream_keep.h"
 #include "common/threads_timing.h"
 #include "ground_filter/param_parse.h"
 #include "ground_filter/working_volume_params.h"
 #include "voxel/classify.h"
 #include "voxel/ground_model.h"
+#include "voxel/line_walls.h"
 #include "voxel/segments.h"
 #include "voxel/vegetation.h"
 #include "voxel/vote.h"
@@ -100,6 +103,7 @@ struct VoxelGroundFilter::Impl {
   voxel::Classifier classifier;
   voxel::Voter voter;
   voxel::VegetationRule vegetation;  // veg_filter only
+  voxel::LineWalls line_walls;       // a sparse spinning sensor's lowest line on a wall
   // Results: written by one stage, read (or rewritten) by the later ones.
   voxel::VoxelGrid grid;                  // Voxelizer: points, voxels, columns, flat, seeds
   voxel::CellGrid cells;                  // Voxelizer: cells holding voxels
@@ -115,6 +119,9 @@ struct VoxelGroundFilter::Impl {
   GroundTiltEstimator tilt;               // 0: a sensor mounted tilted (level_tilt)
   std::vector<float> levelled_xyz;        // 0: the scan turned onto its ground, packed xyz
   CloudView levelled_view;                // 0: a view of it
+  ScanLineMeter line_meter;               // 10: a sparse spinning sensor's scan lines
+  ScanLines lines_kept;                   // 10: the last measured, kept for the same sensor
+  StreamKeep lines_keep{16};              // 10: measured again every 16th scan
   explicit Impl(const VoxelGroundFilterParams& p) : scan(p.scan_type, p.morph_ground), coarse(p) {}
   // 0: `cloud`, or where its ground leans level_tilt or more (a single scan: the sensor at the
   // origin), the scan turned about the sensor onto that ground; a note says so (stats only).
@@ -125,6 +132,11 @@ struct VoxelGroundFilter::Impl {
   const VoxelGroundFilterParams& coarser(const VoxelGroundFilterParams& p, const CloudView& in,
                                          const WorkingVolume* volume, int threads,
                                          FilterStats* stats);
+  // 10: the lowest scan line on a wall, seen from the sensor whose lines `cloud` shows around
+  // the origin (measureAround(); nothing where the origin is not finite), relabelled in
+  // `classified`. The lines are measured again on the first scan, every 16th (lines_keep), and
+  // where the point count moves by more than a tenth or the origin moves (another sensor).
+  void lineWalls(const CloudView& cloud);
   // 5: the sensor the start segment must pass below (written to `sensor`), or nullptr.
   const float* startSensor(const ScanDecision& decision, const CloudView& in, float sensor[3]);
 };
@@ -180,6 +192,16 @@ const float* VoxelGroundFilter::Impl::startSensor(const ScanDecision& decision, 
     sensor[2] += kSensorAboveGround;
   }
   return below_sensor ? sensor : nullptr;
+}
+
+void VoxelGroundFilter::Impl::lineWalls(const CloudView& cloud) {
+  const float* o = scan.origin();
+  if (!(std::isfinite(o[0]) && std::isfinite(o[1]) && std::isfinite(o[2]))) return;
+  if (!lines_keep.keep(cloud.size(), o)) lines_kept = line_meter.measureAround(cloud, o);
+  const float sensor[3] = {static_cast<float>(o[0] + lines_kept.from[0]),
+                           static_cast<float>(o[1] + lines_kept.from[1]),
+                           static_cast<float>(o[2] + lines_kept.from[2])};
+  line_walls.run(grid, sensor, lines_kept.line_deg, &classified);
 }
 
 const CloudView& VoxelGroundFilter::Impl::levelled(const VoxelGroundFilterParams& p,
@@ -328,6 +350,14 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
     t0 = Clock::now();
     m.vegetation.run(pv, g, m.ground_model, threads, &m.pool, &cls);
     stage("vegetation", t0);
+  }
+
+  // ---- 10. (added) a sparse spinning sensor's lowest scan line on a wall or a car's side, seen
+  //      from the sensor: the origin of a single scan (or where its lines show it, a base frame)
+  if (p.local_planes && have_plane && !scan.registered) {
+    t0 = Clock::now();
+    m.lineWalls(in);
+    stage("line_walls", t0);
   }
 
   const std::size_t ground_count = labelsToInputOrder(g, cls.ground.data(), n, labels);

@@ -1,7 +1,8 @@
-// Private to the normal filter: how far apart a spinning sensor's scan lines lie compared with
-// its firings along a line (normal_ground_filter.cpp widens the sample stride from it).
-#ifndef GROUND_FILTER_SRC_CORE_NORMAL_SCAN_LINES_H
-#define GROUND_FILTER_SRC_CORE_NORMAL_SCAN_LINES_H
+// Shared by the methods: how far apart a spinning sensor's scan lines lie compared with its
+// firings along a line (the normal filter widens its sample stride from it; the voxel filter's
+// step 10 tells a wall's lowest line from the ground with it).
+#ifndef GROUND_FILTER_SRC_CORE_COMMON_SCAN_LINES_H
+#define GROUND_FILTER_SRC_CORE_COMMON_SCAN_LINES_H
 
 #include <cstddef>
 #include <cstdint>
@@ -12,7 +13,6 @@
 #include "ground_filter/cloud_view.h"
 
 namespace ground_filter {
-namespace normal {
 
 /// \brief The scan lines of a spinning sensor as seen from its origin [deg]: both 0 when the
 ///        cloud shows no clean, sparse lines (a dense sensor, no lines, no sensor at the origin).
@@ -86,13 +86,6 @@ class ScanLineMeter {
   std::vector<Weighted> measured_;
 };
 
-/// \brief `stride`, doubled (at most kMaxSampleStride) while lines.ratio() / stride exceeds
-///        `max_ratio`: the sampled points of a line then lie at least 1 / max_ratio of the
-///        line spacing apart, and a point's K nearest samples reach the next line. `stride`
-///        itself when max_ratio is 0 or no lines were found.
-int strideForScanLines(const ScanLines& lines, double max_ratio, int stride);
-
-}  // namespace normal
 }  // namespace ground_filter
 
-#endif  // GROUND_FILTER_SRC_CORE_NORMAL_SCAN_LINES_H
+#endif  // GROUND_FILTER_SRC_CORE_COMMON_SCAN_LINES_H

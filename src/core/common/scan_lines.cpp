@@ -1,6 +1,7 @@
-// Stage 1a of the normal filter: the scan lines' spacing (scan_lines.h).
+// A sparse spinning sensor's scan lines (scan_lines.h): the normal filter's stage 1a, the voxel
+// filter's step 10.
 
-#include "normal/scan_lines.h"
+#include "common/scan_lines.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,10 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "normal/cpu_gpu_common.h"
-
 namespace ground_filter {
-namespace normal {
 
 namespace {
 
@@ -195,14 +193,4 @@ ScanLines ScanLineMeter::measureAround(const CloudView& cloud, const float origi
   return there;
 }
 
-int strideForScanLines(const ScanLines& lines, double max_ratio, int stride) {
-  const double r = lines.ratio();
-  if (!(max_ratio > 0.0) || !(r > 0.0)) return stride;
-  while (stride < kMaxSampleStride && r / stride > max_ratio) {
-    stride = doubledStride(stride);
-  }
-  return stride;
-}
-
-}  // namespace normal
 }  // namespace ground_filter
