@@ -16,6 +16,10 @@ class StreamKeep {
  public:
   explicit StreamKeep(int every) : every_(every) {}
 
+  /// \brief Measure again every `every`-th scan from now on (a measurement that found nothing
+  ///        to act on may stand longer).
+  void setEvery(int every) { every_ = every; }
+
   /// \brief true: keep the last measurement for this scan; false: measure it again (this scan
   ///        becomes the one later scans are compared with).
   bool keep(std::size_t points, const float origin[3]) {
