@@ -193,4 +193,12 @@ ScanLines ScanLineMeter::measureAround(const CloudView& cloud, const float origi
   return there;
 }
 
+const ScanLines& StreamScanLines::of(const CloudView& cloud, const float origin[3]) {
+  if (!kept_.keep.keep(cloud.size(), origin)) {
+    kept_.lines = meter_.measureAround(cloud, origin);
+    kept_.keep.setEvery(kept_.lines.line_deg > 0.0 ? kLinesEvery : kDenseEvery);
+  }
+  return kept_.lines;
+}
+
 }  // namespace ground_filter

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "common/densest_centre.h"
+#include "common/stream_keep.h"
 #include "ground_filter/cloud_view.h"
 
 namespace ground_filter {
@@ -25,6 +26,21 @@ struct ScanLines {
   double from[3] = {0.0, 0.0, 0.0};
   /// \brief line_deg / firing_deg, 0 without clean lines.
   double ratio() const { return firing_deg > 0.0 ? line_deg / firing_deg : 0.0; }
+};
+
+/// \brief The lowest scan line on a wall or a car's side (the voxel filter's step 10, the
+///        normal filter's step 7): a hit that passed for ground and the next hit straight above
+///        it lie on one upright surface where the sensor sees them less than kLineSpan lines
+///        apart (no line passed between them).
+struct WallLines {
+  /// \brief Most elevation between the two hits, in scan lines: one line and a margin. At 1.0
+  ///        two hits on a wall fail as often as they pass; from 1.5 the real sparse scans at
+  ///        hand (KITTI thinned to every 4th / 2nd ring) lose 0.06-0.1, their lower block's
+  ///        lines lying 1.5 median spacings apart; the generated scans are flat from 1.1-1.2 to
+  ///        2-2.5 (docs: voxel_method.md, normal_method.md).
+  static constexpr double kLineSpan = 1.2;
+  /// \brief Most height of the upper hit above the lower one [m] (a car's or a wall's next line).
+  static constexpr double kMaxRise = 2.5;
 };
 
 /// \brief Measures ScanLines, keeping its buffers from call to call (no allocation once sized).
@@ -84,6 +100,33 @@ class ScanLineMeter {
   std::vector<Cluster> clusters_;
   std::vector<double> az_, d_, steps_;
   std::vector<Weighted> measured_;
+};
+
+/// \brief A stream's ScanLines (ScanLineMeter::measureAround()), measured on its first scan and
+///        again where its sensor may have changed (StreamKeep: the point count moves by more than
+///        a tenth, the origin moves), every kLinesEvery-th scan, or every kDenseEvery-th where
+///        the last measurement found no sparse lines: a dense sensor has nothing that uses them,
+///        and the measurement reads the whole cloud (4 ms a KITTI frame, 7 ms an OS-128 scan,
+///        about as long as a filter's other stages), so under 1 % of its scans pay it.
+class StreamScanLines {
+ public:
+  static constexpr int kLinesEvery = 16;
+  static constexpr int kDenseEvery = 256;
+  /// \brief What a stream keeps between scans (saved and restored where a run is dropped).
+  struct Kept {
+    ScanLines lines;
+    StreamKeep keep{kLinesEvery};
+  };
+
+  /// \brief The lines of `cloud` seen from `origin` (finite), kept or measured again.
+  const ScanLines& of(const CloudView& cloud, const float origin[3]);
+  /// \brief The state kept; restore() takes a copy back.
+  const Kept& kept() const { return kept_; }
+  void restore(const Kept& kept) { kept_ = kept; }
+
+ private:
+  ScanLineMeter meter_;
+  Kept kept_;
 };
 
 }  // namespace ground_filter

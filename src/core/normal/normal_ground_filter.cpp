@@ -15,12 +15,12 @@
 #include "common/ground_tilt.h"
 #include "common/scan_lines.h"
 #include "common/side_task.h"
-#include "common/stream_keep.h"
 #include "common/threads_timing.h"
 #include "knn/knn_backend.h"
 #include "normal/cpu_gpu_common.h"
 #include "normal/filter_executor.h"
 #include "normal/lattice.h"
+#include "normal/line_walls.h"
 #include "normal/local_ground.h"
 #include "normal/neighborhoods.h"
 #include "normal/normal_settings.h"
@@ -52,6 +52,7 @@ struct NormalGroundFilter::Impl {
   normal::PlaneStage plane;
   normal::LocalGroundStage local_ground;    // local_ground_min > 0 only
   normal::VegetationStage vegetation;       // veg_filter only
+  normal::LineWalls line_walls;             // 7: sparse scan lines only
   MorphGround morph;                        // airborne scans only
   ScanTypeSwitch scan;                      // scan_type: this scan's mode
   normal::LatticeMeter lattice;             // coordinates on a coarse lattice (0.)
@@ -71,10 +72,8 @@ struct NormalGroundFilter::Impl {
   std::vector<float> heights;  // 5: above the tile plane, veg_filter only
   normal::StageTimes times;    // per scan, memory kept
   FilterStats own_stats;       // filled when the caller passes none
-  // 1a: the last measured scan lines, kept for the next scans of the same sensor (linesOf()).
-  ScanLineMeter line_meter;
-  ScanLines lines_kept;
-  StreamKeep lines_keep{16};  // measured again every 16th scan (or another sensor)
+  // 1a: the scan lines, kept for the next scans of the same sensor (scan_lines.h).
+  StreamScanLines scan_lines;
   Impl(const NormalGroundFilterParams& p, std::unique_ptr<KnnBackend> backend,
        std::unique_ptr<NormalFilterExecutor> exec)
       : search(std::move(backend)),
@@ -88,11 +87,6 @@ struct NormalGroundFilter::Impl {
     const bool host_lists = p.local_ground_min > 0 && search->name() == "gpu";
     if (NeighborListStore* kept = search->listStore()) kept->keepLists(!host_lists);
   }
-  // The scan lines of `cloud` (scan_lines.h): measured again on the first scan, every
-  // 16th (lines_keep), and when the point count moves by more than a tenth or the origin moves
-  // (another sensor); kept otherwise, as a sensor's lines do not change (the measurement reads
-  // the whole cloud: about 1 ms a KITTI frame, two thirds of the GPU pipeline's time).
-  const ScanLines& linesOf(const CloudView& cloud);
   // The sensor's x, y, z where the scan has one at its origin, else null: no ground plane may
   // pass above it (normal/plane.h). Asked of the cloud where auto decided (origin_view.h,
   // stage "view"): none where many points lie behind nearer ones seen from the origin (merged
@@ -118,8 +112,9 @@ struct NormalGroundFilter::Impl {
                            FilterStats* st);
   // What the stages after 0a take from 1a and the sensor.
   struct Prepared {
-    int stride = 1;                  // 1a: the sample stride the scan lines ask for
-    const double* sensor = nullptr;  // the sensor's x, y, z, or null
+    int stride = 1;                    // 1a: the sample stride the scan lines ask for
+    const ScanLines* lines = nullptr;  // 1a: the scan lines measured, or null
+    const double* sensor = nullptr;    // the sensor's x, y, z, or null
   };
   // 1a, the sensor and 0 on `in`, then the executor where there is one: true when it labelled
   // the scan.
@@ -133,6 +128,12 @@ struct NormalGroundFilter::Impl {
   bool executeBeside(const NormalGroundFilterParams& p, const ScanDecision& decision,
                      const CloudView& cloud, std::vector<std::uint8_t>* labels, FilterStats* st,
                      Prepared* prep);
+  // 7: the lowest scan line on a wall, seen from the sensor whose sparse lines 1a measured
+  // (none: nothing done), relabelled in `labels` (per point of `in`; `ordered` holds its
+  // points in column order, or is sorted here where `sorted` is false: the executor's scan);
+  // stage "line_walls".
+  void lineWalls(const NormalGroundFilterParams& p, const CloudView& in, const Prepared& prep,
+                 bool sorted, int threads, std::vector<std::uint8_t>* labels, FilterStats* st);
   // on_lattice (returned) and lattice_var of `cloud`; a note names the steps.
   bool measureLattice(const CloudView& cloud, std::string* note);
 };
@@ -202,7 +203,7 @@ bool NormalGroundFilter::Impl::prepareAndExecute(const NormalGroundFilterParams&
   const ScanLines* lines = nullptr;
   if (p.max_line_ratio > 0.0 && !decision.registered) {
     const auto t_lines = Clock::now();
-    lines = &linesOf(in);
+    lines = &scan_lines.of(in, scan.origin());
     stride = normal::strideForScanLines(*lines, p.max_line_ratio, stride);
     st->stage_ms.emplace_back("lines", msSince(t_lines));
   }
@@ -211,6 +212,7 @@ bool NormalGroundFilter::Impl::prepareAndExecute(const NormalGroundFilterParams&
   prep->sensor = sensorOf(decision, in, stride != p.sample_stride ? lines->from : none, st);
   if (stride != p.sample_stride) appendStrideNote(p, stride, *lines, &st->note);
   prep->stride = stride;
+  prep->lines = lines;
   // 0. coordinates on a coarse lattice (float32 far from the origin): the PCA adds back the
   //    spread its steps hide (normal/lattice.h; 0.03 ms a KITTI frame), on the CPU. Then the
   //    whole filter on the executor (GPU) when the filter has one; when it declines the scan
@@ -225,8 +227,7 @@ bool NormalGroundFilter::Impl::executeBeside(const NormalGroundFilterParams& p,
                                              const ScanDecision& decision, const CloudView& cloud,
                                              std::vector<std::uint8_t>* labels, FilterStats* st,
                                              Prepared* prep) {
-  const ScanLines lines_before = lines_kept;
-  const StreamKeep keep_before = lines_keep;
+  const StreamScanLines::Kept lines_before = scan_lines.kept();
   const std::size_t note_size = st->note.size(), stages = st->stage_ms.size();
   auto check = [this, &cloud, &p] { estimateTilt(cloud, p.level_tilt); };
   side.start(&check);
@@ -239,18 +240,27 @@ bool NormalGroundFilter::Impl::executeBeside(const NormalGroundFilterParams& p,
   }
   side.wait();
   if (!turns(p)) return done;
-  lines_kept = lines_before;
-  lines_keep = keep_before;
+  scan_lines.restore(lines_before);
   st->note.resize(note_size);
   st->stage_ms.resize(stages);
   labels->assign(cloud.size(), kNonGround);
   return false;
 }
 
-const ScanLines& NormalGroundFilter::Impl::linesOf(const CloudView& cloud) {
+void NormalGroundFilter::Impl::lineWalls(const NormalGroundFilterParams& p, const CloudView& in,
+                                         const Prepared& prep, bool sorted, int threads,
+                                         std::vector<std::uint8_t>* labels, FilterStats* st) {
+  if (!prep.lines || !(prep.lines->line_deg > 0.0)) return;
   const float* o = scan.origin();
-  if (!lines_keep.keep(cloud.size(), o)) lines_kept = line_meter.measureAround(cloud, o);
-  return lines_kept;
+  if (!(std::isfinite(o[0]) && std::isfinite(o[1]) && std::isfinite(o[2]))) return;
+  const auto t0 = Clock::now();
+  if (!sorted) order.run(in, p.cell_size, false, p.segment_points, threads, &ordered);
+  const float sensor[3] = {static_cast<float>(o[0] + prep.lines->from[0]),
+                           static_cast<float>(o[1] + prep.lines->from[1]),
+                           static_cast<float>(o[2] + prep.lines->from[2])};
+  st->ground_points -= line_walls.run(ordered, order.columnKeys(), sorted ? ground.data() : nullptr,
+                                      sensor, prep.lines->line_deg, labels);
+  st->stage_ms.emplace_back("line_walls", msSince(t0));
 }
 
 const double* NormalGroundFilter::Impl::sensorOf(const ScanDecision& decision,
@@ -431,6 +441,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   const CloudView& in = turned ? *turned : cloud;
   if (!ran) done = im.prepareAndExecute(p, scan, in, labels, &st, &prep);
   if (done) {
+    im.lineWalls(p, in, prep, false, threads, labels, &st);
     st.total_ms = msSince(t_start);
     return;
   }
@@ -502,6 +513,9 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
 
   // 6. Labels in input order.
   st.ground_points = normal::scatterLabels(im.ground, ordered.source, labels, threads);
+
+  // 7. A sparse sensor's lowest scan line on a wall (line_walls.h).
+  im.lineWalls(p, in, prep, true, threads, labels, &st);
   st.total_ms = msSince(t_start);
 }
 

@@ -51,6 +51,8 @@ class OrderStage {
   /// \return the number of valid points.
   std::size_t run(const CloudView& cloud, double cell_size, bool use_segments, int segment_points,
                   int threads, OrderedPoints* out);
+  /// \brief The column key (columnKey()) of each point of the last run()'s `out`, in its order.
+  const std::uint64_t* columnKeys() const { return sort_scratch_.keys.data(); }
 
  private:
   std::vector<float> raw_xyz_;

@@ -10,7 +10,7 @@ namespace voxel {
 std::size_t LineWalls::run(const VoxelGrid& g, const float sensor[3], double line_deg,
                            ClassifyResult* cls) const {
   if (!(line_deg > 0.0)) return 0;  // no sparse lines measured: a dense sensor, or none
-  const double max_span = kLineSpan * line_deg * M_PI / 180.0;
+  const double max_span = WallLines::kLineSpan * line_deg * M_PI / 180.0;
   // The grid's coordinates are relative to its min corner.
   const double sx = static_cast<double>(sensor[0]) - g.min[0];
   const double sy = static_cast<double>(sensor[1]) - g.min[1];
@@ -32,7 +32,7 @@ std::size_t LineWalls::run(const VoxelGrid& g, const float sensor[3], double lin
     // A column's voxels in z order: v and the next one up, u, with an empty voxel or more
     // between them (a surface seen densely has none).
     for (std::size_t v = g.col_first[c], u = v + 1; u < g.col_first[c + 1]; ++v, ++u) {
-      if (g.zOf(u) < g.zOf(v) + 2 || g.vz[u] - g.vz[v] > kMaxRise) continue;
+      if (g.zOf(u) < g.zOf(v) + 2 || g.vz[u] - g.vz[v] > WallLines::kMaxRise) continue;
       if (!holdsGround(v) || holdsGround(u)) continue;
       if (elevation(u) - elevation(v) > max_span) continue;  // lines passed between them
       for (std::uint32_t k = vs[v]; k < vs[v + 1]; ++k) {

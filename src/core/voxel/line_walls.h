@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "common/scan_lines.h"
 #include "voxel/classify.h"
 #include "voxel/voxel_grid.h"
 
@@ -17,20 +18,17 @@ namespace voxel {
 ///        next line up hits the same surface straight above it. Ground points not below their
 ///        cell plane (kMinLift) become non-ground where the next voxel up their column lies an
 ///        empty voxel or more higher, holds only non-ground points, and is seen from the sensor
-///        less than kLineSpan scan lines higher: no line of the sensor passed between them, so
-///        the two lie on one upright surface. Ground under an overhang (a bush, a tree) mostly
-///        has lines passing over it first and stays; ground right at the foot of a car or a wall,
-///        hit by the line below the one on the object, stays where it lies below the plane.
+///        less than WallLines::kLineSpan lines higher (at most WallLines::kMaxRise): no line
+///        passed between them, so the two lie on one upright surface. Ground under an overhang
+///        (a bush, a tree) mostly has lines passing over it first and stays; ground right at the
+///        foot of a car or a wall, hit by the line below the one on the object, stays where it
+///        lies below the plane.
 class LineWalls {
  public:
   /// \brief Least height of a relabelled point above its cell plane [m]: a line on a wall lies
   ///        above the ground, ground at a wall's foot scatters about the plane (about half of
   ///        it stays).
   static constexpr double kMinLift = 0.0;
-  /// \brief Most elevation between the two voxels, in scan lines (one line apart: 1).
-  static constexpr double kLineSpan = 1.5;
-  /// \brief Most height of the voxel above [m] (a car's or a wall's next line).
-  static constexpr double kMaxRise = 2.5;
 
   /// \brief Rewrites `cls->ground` (per point, key order; read with cls->plane_height), seen
   ///        from `sensor` (x, y, z in the grid's frame) whose scan lines lie `line_deg` apart.

@@ -15,7 +15,6 @@
 #include "common/densest_centre.h"
 #include "common/ground_tilt.h"
 #include "common/scan_lines.h"
-#include "common/stream_keep.h"
 #include "common/threads_timing.h"
 #include "ground_filter/param_parse.h"
 #include "ground_filter/working_volume_params.h"
@@ -53,12 +52,6 @@ constexpr double kFarDensest = 20.0;
 // 0.3 m VoxelGrid, whose flat share at 0.2 m is 0.09).
 constexpr double kMinFlatSeeds = 0.1;
 constexpr int kMaxCoarser = 2;
-// Step 10 measures a sensor's scan lines again every kLinesEvery-th scan of a stream, and where
-// it found none (a dense sensor, nothing to do) every kDenseEvery-th: the measurement takes about
-// as long as the rest of the filter on a dense 64-beam frame (4 ms on KITTI), so one scan in 256
-// (under 1 %) pays it instead of one in 16.
-constexpr int kLinesEvery = 16;
-constexpr int kDenseEvery = 256;
 
 void appendCoarserNote(double voxel_size, std::string* note) {
   char text[160];
@@ -125,9 +118,7 @@ struct VoxelGroundFilter::Impl {
   GroundTiltEstimator tilt;               // 0: a sensor mounted tilted (level_tilt)
   std::vector<float> levelled_xyz;        // 0: the scan turned onto its ground, packed xyz
   CloudView levelled_view;                // 0: a view of it
-  ScanLineMeter line_meter;               // 10: a sparse spinning sensor's scan lines
-  ScanLines lines_kept;                   // 10: the last measured, kept for the same sensor
-  StreamKeep lines_keep{kLinesEvery};     // 10: when to measure them again
+  StreamScanLines lines;                  // 10: a sparse spinning sensor's scan lines
   explicit Impl(const VoxelGroundFilterParams& p) : scan(p.scan_type, p.morph_ground), coarse(p) {}
   // 0: `cloud`, or where its ground leans level_tilt or more (a single scan: the sensor at the
   // origin), the scan turned about the sensor onto that ground; a note says so (stats only).
@@ -139,10 +130,8 @@ struct VoxelGroundFilter::Impl {
                                          const WorkingVolume* volume, int threads,
                                          FilterStats* stats);
   // 10: the lowest scan line on a wall, seen from the sensor whose lines `cloud` shows around
-  // the origin (measureAround(); nothing where the origin is not finite), relabelled in
-  // `classified`. The lines are measured again on the first scan, every kLinesEvery-th
-  // (kDenseEvery-th where there were none: a dense sensor), and where the point count moves by
-  // more than a tenth or the origin moves (another sensor).
+  // the origin (StreamScanLines; nothing where the origin is not finite), relabelled in
+  // `classified`.
   void lineWalls(const CloudView& cloud);
   // 5: the sensor the start segment must pass below (written to `sensor`), or nullptr.
   const float* startSensor(const ScanDecision& decision, const CloudView& in, float sensor[3]);
@@ -204,14 +193,11 @@ const float* VoxelGroundFilter::Impl::startSensor(const ScanDecision& decision, 
 void VoxelGroundFilter::Impl::lineWalls(const CloudView& cloud) {
   const float* o = scan.origin();
   if (!(std::isfinite(o[0]) && std::isfinite(o[1]) && std::isfinite(o[2]))) return;
-  if (!lines_keep.keep(cloud.size(), o)) {
-    lines_kept = line_meter.measureAround(cloud, o);
-    lines_keep.setEvery(lines_kept.line_deg > 0.0 ? kLinesEvery : kDenseEvery);
-  }
-  const float sensor[3] = {static_cast<float>(o[0] + lines_kept.from[0]),
-                           static_cast<float>(o[1] + lines_kept.from[1]),
-                           static_cast<float>(o[2] + lines_kept.from[2])};
-  line_walls.run(grid, sensor, lines_kept.line_deg, &classified);
+  const ScanLines& l = lines.of(cloud, o);
+  const float sensor[3] = {static_cast<float>(o[0] + l.from[0]),
+                           static_cast<float>(o[1] + l.from[1]),
+                           static_cast<float>(o[2] + l.from[2])};
+  line_walls.run(grid, sensor, l.line_deg, &classified);
 }
 
 const CloudView& VoxelGroundFilter::Impl::levelled(const VoxelGroundFilterParams& p,

@@ -1,0 +1,87 @@
+// Step 7 of the normal filter (added): the lowest scan line of a wall or a car (line_walls.h).
+
+#include "normal/line_walls.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "ground_filter/ground_filter.h"
+
+namespace ground_filter {
+namespace normal {
+
+std::size_t LineWalls::run(const OrderedPoints& points, const std::uint64_t* columns,
+                           const std::uint8_t* ground, const float sensor[3], double line_deg,
+                           std::vector<std::uint8_t>* labels) {
+  if (!(line_deg > 0.0)) return 0;
+  const float gap = static_cast<float>(kGap);
+  // Elevations a above b differ by at most the span where tan(a - b) <= tan(span).
+  const double tan_span = std::tan(WallLines::kLineSpan * line_deg * M_PI / 180.0);
+  const float* xyz = points.xyz.data();
+  const std::uint32_t* source = points.source.data();
+  const std::size_t n = points.source.size();
+  std::uint8_t* lab = labels->data();
+  if (!ground) {
+    gathered_.resize(n);
+    for (std::size_t k = 0; k < n; ++k) gathered_[k] = lab[source[k]];
+    ground = gathered_.data();
+  }
+  auto tanElevation = [&](std::uint32_t k) {
+    const double dx = xyz[3 * k] - sensor[0], dy = xyz[3 * k + 1] - sensor[1];
+    return (xyz[3 * k + 2] - sensor[2]) / std::max(std::sqrt(dx * dx + dy * dy), 1e-6);
+  };
+  // Layers [lb, le) and [le, ue) of column_: the upper one holds no ground, the lower one
+  // does, and no line passed between them.
+  auto oneSurface = [&](std::size_t lb, std::size_t le, std::size_t ue) {
+    for (std::size_t j = le; j < ue; ++j) {
+      if (ground[column_[j].k] == kGround) return false;
+    }
+    bool lower = false;
+    for (std::size_t j = lb; j < le && !lower; ++j) lower = ground[column_[j].k] == kGround;
+    if (!lower || column_[le].z - column_[le - 1].z > WallLines::kMaxRise) return false;
+    const double a = tanElevation(column_[le].k), b = tanElevation(column_[le - 1].k);
+    return a - b <= tan_span * (1.0 + a * b);
+  };
+  std::size_t relabelled = 0;
+  // A column's points are consecutive: [b, e). Only one holding both labels can change.
+  for (std::size_t b = 0; b < n;) {
+    std::size_t e = b + 1;
+    bool any_ground = ground[b] == kGround, any_other = !any_ground;
+    for (; e < n && columns[e] == columns[b]; ++e) {
+      const bool g = ground[e] == kGround;
+      any_ground |= g;
+      any_other |= !g;
+    }
+    if (any_ground && any_other) {
+      column_.clear();
+      for (std::size_t i = b; i < e; ++i) {  // insertion sort by z: a column holds few points
+        const Layered p{xyz[3 * i + 2], static_cast<std::uint32_t>(i)};
+        std::size_t j = column_.size();
+        column_.push_back(p);
+        for (; j > 0 && column_[j - 1].z > p.z; --j) column_[j] = column_[j - 1];
+        column_[j] = p;
+      }
+      const std::size_t m = column_.size();
+      std::size_t lb = 0, le = 1;
+      while (le < m && column_[le].z - column_[le - 1].z < gap) ++le;
+      while (le < m) {
+        std::size_t ue = le + 1;
+        while (ue < m && column_[ue].z - column_[ue - 1].z < gap) ++ue;
+        if (oneSurface(lb, le, ue)) {
+          for (std::size_t j = lb; j < le; ++j) {
+            std::uint8_t& l = lab[source[column_[j].k]];
+            relabelled += l == kGround;
+            l = kNonGround;
+          }
+        }
+        lb = le;
+        le = ue;
+      }
+    }
+    b = e;
+  }
+  return relabelled;
+}
+
+}  // namespace normal
+}  // namespace ground_filter
