@@ -19,6 +19,7 @@
 #include "ground_filter/voxel_ground_filter.h"
 #include "knn/kdtree_neighbor_search.h"
 #include "normal/filter_executor.h"
+#include "normal/order.h"
 
 namespace gf = ground_filter;
 
@@ -259,11 +260,14 @@ namespace {
 // before it), counting its calls and keeping the first point of each cloud it saw.
 class CpuExecutor : public gf::NormalFilterExecutor {
  public:
-  explicit CpuExecutor(std::vector<float>* firsts) : firsts_(firsts) {}
+  /// `keeps_order`: lastColumnOrder() gives the scan's column order, as the GPU's does.
+  explicit CpuExecutor(std::vector<float>* firsts, bool keeps_order = false)
+      : firsts_(firsts), keeps_order_(keeps_order) {}
   std::string name() const override { return "cpu-executor"; }
   bool run(const gf::CloudView& cloud, int sample_stride, const double* /*sensor*/,
            std::vector<std::uint8_t>* labels, gf::FilterStats* stats) override {
     firsts_->insert(firsts_->end(), {cloud.x(0), cloud.y(0), cloud.z(0)});
+    last_ = cloud;
     gf::NormalGroundFilterParams p;
     p.threads = 2;
     p.scan_type = "ground";
@@ -280,9 +284,19 @@ class CpuExecutor : public gf::NormalFilterExecutor {
     return true;
   }
   std::string lastNote() const override { return ""; }
+  bool lastColumnOrder(std::vector<std::uint32_t>* source) override {
+    if (!keeps_order_) return false;
+    gf::normal::OrderStage order;
+    gf::normal::OrderedPoints ordered;
+    order.run(last_, gf::NormalGroundFilterParams().cell_size, false, 0, 1, &ordered);
+    *source = ordered.source;
+    return true;
+  }
 
  private:
   std::vector<float>* firsts_;
+  bool keeps_order_;
+  gf::CloudView last_;
 };
 
 std::size_t stagesNamed(const gf::FilterStats& st, const std::string& name) {
@@ -323,6 +337,35 @@ TEST(NormalGroundFilter, TiltCheckBesideTheExecutorGivesTheCpuLabels) {
       EXPECT_EQ(stagesNamed(st, "level"), 1u) << spec;
       EXPECT_EQ(stagesNamed(st, "executor"), 1u) << spec;
       EXPECT_EQ(stagesNamed(st, "lines"), 1u) << spec;
+    }
+  }
+}
+
+// A sparse sensor's scan through an executor (the GPU): the lowest scan line on a wall (step 7)
+// runs on the host after it, on the executor's column order where it keeps one (the GPU's,
+// downloaded) or on the host's own: the CPU's labels either way.
+TEST(NormalGroundFilter, LowestLinesAfterTheExecutorGiveTheCpuLabels) {
+  for (const char* spec : {"lidar16:1", "lidar16:2"}) {
+    const gf::GeneratedScan s = gf::generateScene(gf::parseSceneSpec(spec));
+    const gf::CloudView cloud = gf::CloudView::packedXyz(s.xyz.data(), s.size());
+    gf::NormalGroundFilterParams p;
+    p.threads = 2;
+    p.scan_type = "ground";
+    std::vector<std::uint8_t> cpu;
+    gf::FilterStats cpu_st;
+    gf::NormalGroundFilter(p).filter(cloud, &cpu, &cpu_st);
+    ASSERT_EQ(stagesNamed(cpu_st, "line_walls"), 1u) << spec;
+    for (const bool keeps : {false, true}) {
+      std::vector<float> firsts;
+      gf::NormalGroundFilter filter(p, std::make_unique<gf::KdTreeNeighborSearch>(2),
+                                    std::make_unique<CpuExecutor>(&firsts, keeps));
+      std::vector<std::uint8_t> labels;
+      gf::FilterStats st;
+      filter.filter(cloud, &labels, &st);
+      EXPECT_EQ(st.backend, "cpu-executor") << spec;
+      EXPECT_EQ(stagesNamed(st, "line_walls"), 1u) << spec;
+      EXPECT_EQ(labels, cpu) << spec << (keeps ? ", its order" : ", the host's order");
+      EXPECT_EQ(st.ground_points, cpu_st.ground_points) << spec;
     }
   }
 }

@@ -187,6 +187,19 @@ CudaNormalPipeline::~CudaNormalPipeline() {
 const CudaNormalTimings& CudaNormalPipeline::lastTimings() const { return impl_->timings; }
 CudaKnn& CudaNormalPipeline::knn() { return impl_->knn; }
 
+void CudaNormalPipeline::lastColumnOrder(std::vector<std::uint32_t>* source) {
+  Impl& pl = *impl_;
+  CudaKnn::Impl& im = *pl.knn.impl_;
+  const std::size_t n = pl.timings.valid_points;
+  source->resize(n);
+  if (n == 0) return;
+  GF_CUDA_CHECK(cudaSetDevice(im.opt.device));
+  // `src` holds the ordered points' input indices until the next run().
+  GF_CUDA_CHECK(cudaMemcpyAsync(source->data(), pl.src.ptr, n * sizeof(std::uint32_t),
+                                cudaMemcpyDeviceToHost, im.stream));
+  GF_CUDA_CHECK(cudaStreamSynchronize(im.stream));
+}
+
 void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm,
                              std::uint8_t* labels) {
   Impl& pl = *impl_;

@@ -47,6 +47,15 @@ bool GpuNormalExecutor::run(const CloudView& cloud, int sample_stride, const dou
   return true;
 }
 
+bool GpuNormalExecutor::lastColumnOrder(std::vector<std::uint32_t>* source) {
+  try {
+    pipeline_->lastColumnOrder(source);
+  } catch (const std::exception&) {
+    return false;  // the filter sorts the points itself
+  }
+  return true;
+}
+
 // The core's entry point (normal/filter_executor.h).
 std::unique_ptr<NormalFilterExecutor> makeGpuNormalExecutor(const NormalGroundFilterParams& params,
                                                             double min_abs_nz) {

@@ -32,6 +32,7 @@ class GpuNormalExecutor : public NormalFilterExecutor {
   bool run(const CloudView& cloud, int sample_stride, const double* sensor,
            std::vector<std::uint8_t>* labels, FilterStats* stats) override;
   std::string lastNote() const override { return last_note_; }
+  bool lastColumnOrder(std::vector<std::uint32_t>* source) override;
 
   /// \brief The pipeline (timings of the last run).
   const CudaNormalPipeline& pipeline() const { return *pipeline_; }

@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/cuda_knn.h"
@@ -76,6 +77,11 @@ class CudaNormalPipeline {
 
   /// \brief Stage times and counts of the last run().
   const CudaNormalTimings& lastTimings() const;
+  /// \brief The input index of each finite point of the last run(), in its grid-column order
+  ///        (lastTimings().valid_points entries), into `source`: one download, on request (the
+  ///        filter's step after the pipeline reads the points in that order).
+  /// \throws CudaError for any CUDA failure.
+  void lastColumnOrder(std::vector<std::uint32_t>* source);
   /// \brief The KNN search it uses (its own calls work as a standalone CudaKnn); its
   ///        deviceBytes() counts the pipeline's buffers too (one memory limit for all).
   CudaKnn& knn();

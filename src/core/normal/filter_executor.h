@@ -35,6 +35,14 @@ class NormalFilterExecutor {
                    std::vector<std::uint8_t>* labels, FilterStats* stats) = 0;
   /// \brief Why the last run() declined; empty after one that ran.
   virtual std::string lastNote() const = 0;
+  /// \brief After a run() that labelled the scan: the input index of each of its finite points
+  ///        in grid-column order (OrderStage's order, columnKey() of cell_size cells) into
+  ///        `source`. false where the executor keeps no such order (the filter then sorts the
+  ///        points itself).
+  virtual bool lastColumnOrder(std::vector<std::uint32_t>* source) {
+    (void)source;
+    return false;
+  }
 };
 
 /// \brief The CUDA executor (CudaNormalPipeline) for `params` and their |n_z| bound

@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "ground_filter/ground_filter.h"
+#include "normal/cpu_gpu_common.h"
 
 namespace ground_filter {
 namespace normal {
@@ -25,6 +26,15 @@ std::size_t LineWalls::run(const OrderedPoints& points, const std::uint64_t* col
     gathered_.resize(n);
     for (std::size_t k = 0; k < n; ++k) gathered_[k] = lab[source[k]];
     ground = gathered_.data();
+  }
+  if (!columns) {
+    const ColumnGrid grid = columnGrid(points);
+    keys_.resize(n);
+    for (std::size_t k = 0; k < n; ++k) {
+      keys_[k] = columnKey(cellIndex(xyz[3 * k], grid.min_x, grid.inv_cell),
+                           cellIndex(xyz[3 * k + 1], grid.min_y, grid.inv_cell));
+    }
+    columns = keys_.data();
   }
   auto tanElevation = [&](std::uint32_t k) {
     const double dx = xyz[3 * k] - sensor[0], dy = xyz[3 * k + 1] - sensor[1];

@@ -34,8 +34,9 @@ class LineWalls {
   /// \brief Rewrites `labels` (per input point, kGround / kNonGround; `points.source` maps the
   ///        ordered points to them), seen from `sensor` (x, y, z in the points' frame) whose
   ///        scan lines lie `line_deg` apart (0: nothing done). `columns`: each ordered point's
-  ///        column key (OrderStage::columnKeys()); `ground`: the labels per ordered point (read
-  ///        only), or null (gathered here). Returns the points relabelled.
+  ///        column key (OrderStage::columnKeys()), or null (computed here from the points' grid,
+  ///        columnGrid()); `ground`: the labels per ordered point (read only), or null
+  ///        (gathered here). Returns the points relabelled.
   std::size_t run(const OrderedPoints& points, const std::uint64_t* columns,
                   const std::uint8_t* ground, const float sensor[3], double line_deg,
                   std::vector<std::uint8_t>* labels);
@@ -47,6 +48,7 @@ class LineWalls {
   };
   std::vector<Layered> column_;         // one column's points in z order
   std::vector<std::uint8_t> gathered_;  // the labels per ordered point, where not given
+  std::vector<std::uint64_t> keys_;     // the column keys, where not given
 };
 
 }  // namespace normal

@@ -254,12 +254,20 @@ void NormalGroundFilter::Impl::lineWalls(const NormalGroundFilterParams& p, cons
   const float* o = scan.origin();
   if (!(std::isfinite(o[0]) && std::isfinite(o[1]) && std::isfinite(o[2]))) return;
   const auto t0 = Clock::now();
-  if (!sorted) order.run(in, p.cell_size, false, p.segment_points, threads, &ordered);
+  // The executor's scan: its own column order where it keeps one (one download), else sorted
+  // here.
+  const bool gathered = !sorted && executor && executor->lastColumnOrder(&ordered.source);
+  if (gathered) {
+    normal::OrderStage::fromOrder(in, p.cell_size, &ordered);
+  } else if (!sorted) {
+    order.run(in, p.cell_size, false, p.segment_points, threads, &ordered);
+  }
+  const std::uint64_t* columns = gathered ? nullptr : order.columnKeys();
   const float sensor[3] = {static_cast<float>(o[0] + prep.lines->from[0]),
                            static_cast<float>(o[1] + prep.lines->from[1]),
                            static_cast<float>(o[2] + prep.lines->from[2])};
-  st->ground_points -= line_walls.run(ordered, order.columnKeys(), sorted ? ground.data() : nullptr,
-                                      sensor, prep.lines->line_deg, labels);
+  st->ground_points -= line_walls.run(ordered, columns, sorted ? ground.data() : nullptr, sensor,
+                                      prep.lines->line_deg, labels);
   st->stage_ms.emplace_back("line_walls", msSince(t0));
 }
 

@@ -107,5 +107,23 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
   return n;
 }
 
+void OrderStage::fromOrder(const CloudView& cloud, double cell_size, OrderedPoints* out) {
+  const std::size_t n = out->source.size();
+  out->xyz.resize(3 * n);
+  const double inf = std::numeric_limits<double>::infinity();
+  double min_x = inf, min_y = inf, max_x = -inf, max_y = -inf;
+  for (std::size_t j = 0; j < n; ++j) {
+    float* o = &out->xyz[3 * j];
+    cloud.get(out->source[j], o, o + 1, o + 2);  // finite: the executor ordered finite points
+    min_x = std::min<double>(min_x, o[0]);
+    min_y = std::min<double>(min_y, o[1]);
+    max_x = std::max<double>(max_x, o[0]);
+    max_y = std::max<double>(max_y, o[1]);
+  }
+  out->extent = Extent{min_x, min_y, max_x, max_y};
+  out->cell = std::max(cell_size, out->extent.size() / 4.0e9);  // as run()
+  out->segments.assign(1, {0, n});
+}
+
 }  // namespace normal
 }  // namespace ground_filter

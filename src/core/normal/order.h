@@ -53,6 +53,11 @@ class OrderStage {
                   int threads, OrderedPoints* out);
   /// \brief The column key (columnKey()) of each point of the last run()'s `out`, in its order.
   const std::uint64_t* columnKeys() const { return sort_scratch_.keys.data(); }
+  /// \brief `out` from a column order made elsewhere (the GPU's,
+  ///        NormalFilterExecutor::lastColumnOrder()): `out->source` given, the points of `cloud`
+  ///        there gathered into `out->xyz`, their extent and cell as run() gives them, one
+  ///        segment. (columnKeys() do not belong to it.)
+  static void fromOrder(const CloudView& cloud, double cell_size, OrderedPoints* out);
 
  private:
   std::vector<float> raw_xyz_;
