@@ -11,6 +11,10 @@
 namespace ground_filter {
 namespace normal {
 
+namespace {
+constexpr std::size_t kInsertionSort = 32;  // larger columns: std::stable_sort
+}  // namespace
+
 std::size_t LineWalls::run(const OrderedPoints& points, const std::uint64_t* columns,
                            const std::uint8_t* ground, const float sensor[3], double line_deg,
                            std::vector<std::uint8_t>* labels) {
@@ -64,12 +68,21 @@ std::size_t LineWalls::run(const OrderedPoints& points, const std::uint64_t* col
     }
     if (any_ground && any_other) {
       column_.clear();
-      for (std::size_t i = b; i < e; ++i) {  // insertion sort by z: a column holds few points
-        const Layered p{xyz[3 * i + 2], static_cast<std::uint32_t>(i)};
-        std::size_t j = column_.size();
-        column_.push_back(p);
-        for (; j > 0 && column_[j - 1].z > p.z; --j) column_[j] = column_[j - 1];
-        column_[j] = p;
+      for (std::size_t i = b; i < e; ++i) {
+        column_.push_back({xyz[3 * i + 2], static_cast<std::uint32_t>(i)});
+      }
+      // By z, equal z in column order: a column of a sparse scan holds a few points, so
+      // insertion sort, but any number (a pole beside the sensor) in n log n.
+      auto byZ = [](const Layered& u, const Layered& v) { return u.z < v.z; };
+      if (column_.size() <= kInsertionSort) {
+        for (std::size_t i = 1; i < column_.size(); ++i) {
+          const Layered p = column_[i];
+          std::size_t j = i;
+          for (; j > 0 && byZ(p, column_[j - 1]); --j) column_[j] = column_[j - 1];
+          column_[j] = p;
+        }
+      } else {
+        std::stable_sort(column_.begin(), column_.end(), byZ);
       }
       const std::size_t m = column_.size();
       std::size_t lb = 0, le = 1;
