@@ -4,6 +4,7 @@
 #ifndef GROUND_FILTER_SRC_CORE_COMMON_SCAN_LINES_H
 #define GROUND_FILTER_SRC_CORE_COMMON_SCAN_LINES_H
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <utility>
@@ -26,6 +27,15 @@ struct ScanLines {
   double from[3] = {0.0, 0.0, 0.0};
   /// \brief line_deg / firing_deg, 0 without clean lines.
   double ratio() const { return firing_deg > 0.0 ? line_deg / firing_deg : 0.0; }
+  /// \brief The sensor the lines were seen from, `origin` + `from`, into `out`; false (out
+  ///        untouched) where the origin is not finite.
+  bool sensor(const float origin[3], float out[3]) const {
+    if (!(std::isfinite(origin[0]) && std::isfinite(origin[1]) && std::isfinite(origin[2]))) {
+      return false;
+    }
+    for (int a = 0; a < 3; ++a) out[a] = static_cast<float>(origin[a] + from[a]);
+    return true;
+  }
 };
 
 /// \brief The lowest scan line on a wall or a car's side (the voxel filter's step 10, the

@@ -250,9 +250,10 @@ bool NormalGroundFilter::Impl::executeBeside(const NormalGroundFilterParams& p,
 void NormalGroundFilter::Impl::lineWalls(const NormalGroundFilterParams& p, const CloudView& in,
                                          const Prepared& prep, bool sorted, int threads,
                                          std::vector<std::uint8_t>* labels, FilterStats* st) {
-  if (!prep.lines || !(prep.lines->line_deg > 0.0)) return;
-  const float* o = scan.origin();
-  if (!(std::isfinite(o[0]) && std::isfinite(o[1]) && std::isfinite(o[2]))) return;
+  float sensor[3];
+  if (!prep.lines || !(prep.lines->line_deg > 0.0) || !prep.lines->sensor(scan.origin(), sensor)) {
+    return;
+  }
   const auto t0 = Clock::now();
   // The executor's scan: its own column order where it keeps one (one download), else sorted
   // here.
@@ -263,9 +264,6 @@ void NormalGroundFilter::Impl::lineWalls(const NormalGroundFilterParams& p, cons
     order.run(in, p.cell_size, false, p.segment_points, threads, &ordered);
   }
   const std::uint64_t* columns = gathered ? nullptr : order.columnKeys();
-  const float sensor[3] = {static_cast<float>(o[0] + prep.lines->from[0]),
-                           static_cast<float>(o[1] + prep.lines->from[1]),
-                           static_cast<float>(o[2] + prep.lines->from[2])};
   st->ground_points -= line_walls.run(ordered, columns, sorted ? ground.data() : nullptr, sensor,
                                       prep.lines->line_deg, labels);
   st->stage_ms.emplace_back("line_walls", msSince(t0));

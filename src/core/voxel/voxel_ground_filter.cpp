@@ -194,10 +194,8 @@ void VoxelGroundFilter::Impl::lineWalls(const CloudView& cloud) {
   const float* o = scan.origin();
   if (!(std::isfinite(o[0]) && std::isfinite(o[1]) && std::isfinite(o[2]))) return;
   const ScanLines& l = lines.of(cloud, o);
-  const float sensor[3] = {static_cast<float>(o[0] + l.from[0]),
-                           static_cast<float>(o[1] + l.from[1]),
-                           static_cast<float>(o[2] + l.from[2])};
-  line_walls.run(grid, sensor, l.line_deg, &classified);
+  float sensor[3];
+  if (l.sensor(o, sensor)) line_walls.run(grid, sensor, l.line_deg, &classified);
 }
 
 const CloudView& VoxelGroundFilter::Impl::levelled(const VoxelGroundFilterParams& p,
