@@ -1,12 +1,13 @@
 # Part of -DGF_CORE_ONLY=ON -DGF_SANITIZE=ON (cmake/gf_core_only.cmake, clang): the libFuzzer
 # target over the serialised-PointCloud2 path and the link options of the sanitized gtests.
 
-# point_cloud2{,_check}.cpp need only message headers and roscpp_serialization (no ROS graph).
+# point_cloud2{,_check}.cpp and cloud_pool.cpp need only message headers and roscpp_serialization (no ROS graph).
 find_library(ROSCPP_SERIALIZATION roscpp_serialization REQUIRED)
 find_library(ROSTIME rostime REQUIRED)
 find_library(CPP_COMMON cpp_common REQUIRED)
 add_library(gf_pointcloud2_san STATIC "${GF_SOURCE_ROOT}/src/nodelets/point_cloud2.cpp"
-  "${GF_SOURCE_ROOT}/src/nodelets/point_cloud2_check.cpp")
+  "${GF_SOURCE_ROOT}/src/nodelets/point_cloud2_check.cpp"
+  "${GF_SOURCE_ROOT}/src/nodelets/cloud_pool.cpp")
 target_compile_options(gf_pointcloud2_san PRIVATE -fsanitize=fuzzer-no-link)
 target_link_libraries(gf_pointcloud2_san PUBLIC ground_filter_core ${ROSCPP_SERIALIZATION}
   ${ROSTIME} ${CPP_COMMON})

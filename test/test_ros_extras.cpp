@@ -107,6 +107,40 @@ TEST(CloudSubscriptionHelper, DeliversCloudsReportsOtherBytes) {
   EXPECT_NE(problems[1].find("std_msgs/String"), std::string::npos) << problems[1];
 }
 
+// With a pool, a delivered cloud that nobody holds any more lends its message (and its data
+// buffer) to the next one, which comes out whole; one still held is never written over.
+TEST(CloudSubscriptionHelper, PooledMessagesAreReusedOnlyWhenReleased) {
+  gf::CloudPool pool(2);
+  gf::CloudSubscriptionHelper helper([](const sensor_msgs::PointCloud2ConstPtr&) {},
+                                     [](const std::string&, const std::string&) {}, &pool);
+  auto header = boost::make_shared<ros::M_string>();
+  (*header)["md5sum"] = ros::message_traits::md5sum<PointCloud2>();
+  ros::SubscriptionCallbackHelperDeserializeParams params;
+  params.connection_header = header;
+  auto deliver = [&](const std::vector<std::uint8_t>& bytes) {
+    params.buffer = const_cast<std::uint8_t*>(bytes.data());
+    params.length = static_cast<std::uint32_t>(bytes.size());
+    return boost::static_pointer_cast<const PointCloud2>(helper.deserialize(params));
+  };
+  const PointCloud2 big = makeCloud(50, 2, 8), small = makeCloud(7, 1, 0);
+  const std::vector<std::uint8_t> big_bytes = serialize(big), small_bytes = serialize(small);
+  auto first = deliver(big_bytes);
+  ASSERT_TRUE(first);
+  const PointCloud2* first_address = first.get();
+  auto held = deliver(small_bytes);  // `first` is still held: another message
+  ASSERT_TRUE(held);
+  EXPECT_NE(held.get(), first_address);
+  EXPECT_EQ(first->data, big.data);
+  first.reset();
+  auto again = deliver(small_bytes);  // the first message again, now holding the small cloud
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again.get(), first_address);
+  EXPECT_EQ(serialize(*again), small_bytes);
+  EXPECT_EQ(serialize(*held), small_bytes);
+  EXPECT_EQ(pool.reused(), 1u);
+  EXPECT_EQ(pool.made(), 2u);
+}
+
 TEST(CheckSerializedPointCloud2, AcceptsRealMessages) {
   EXPECT_TRUE(checkBytes(serialize(makeCloud(100, 2, 8))));
   EXPECT_TRUE(checkBytes(serialize(PointCloud2())));  // empty cloud, no fields

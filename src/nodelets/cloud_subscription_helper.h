@@ -8,6 +8,8 @@
 #include <string>
 #include <typeinfo>
 
+#include "cloud_pool.h"
+
 namespace ground_filter {
 
 /// \brief Subscription helper of ~input: deserialises sensor_msgs/PointCloud2 like roscpp's own
@@ -23,8 +25,10 @@ class CloudSubscriptionHelper : public ros::SubscriptionCallbackHelper {
   using CloudCallback = std::function<void(const sensor_msgs::PointCloud2ConstPtr&)>;
   using ProblemCallback = std::function<void(const std::string& what, const std::string& from)>;
 
-  CloudSubscriptionHelper(CloudCallback on_cloud, ProblemCallback on_not_cloud)
-      : on_cloud_(std::move(on_cloud)), on_not_cloud_(std::move(on_not_cloud)) {}
+  /// \param pool where deserialised messages come from (reused buffers); null: new ones.
+  CloudSubscriptionHelper(CloudCallback on_cloud, ProblemCallback on_not_cloud,
+                          CloudPool* pool = nullptr)
+      : on_cloud_(std::move(on_cloud)), on_not_cloud_(std::move(on_not_cloud)), pool_(pool) {}
 
   /// \brief Checks the bytes, then deserialises; a null pointer (no callback) for bytes that are
   ///        no PointCloud2, reported through the problem callback.
@@ -43,6 +47,7 @@ class CloudSubscriptionHelper : public ros::SubscriptionCallbackHelper {
  private:
   CloudCallback on_cloud_;
   ProblemCallback on_not_cloud_;
+  CloudPool* pool_;
 };
 
 }  // namespace ground_filter

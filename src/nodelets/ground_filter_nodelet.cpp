@@ -155,9 +155,21 @@ void GroundFilterNodelet::setUpDiagnostics() {
   pnh_->param("malloc_trim_period", trim_period, 1.0);
   if (trim_period > 0.0) {
     trim_timer_ = nh_->createWallTimer(
-        ros::WallDuration(trim_period), [](const ros::WallTimerEvent&) { releaseFreeHeap(); },
+        ros::WallDuration(trim_period),
+        [this](const ros::WallTimerEvent&) {
+          // Idle for a whole period: the pooled messages go back too.
+          if (!active_.exchange(false)) clearPools();
+          releaseFreeHeap();
+        },
         false, false);
   }
+}
+
+void GroundFilterNodelet::clearPools() {
+  input_pool_.clear();
+  output_pools_.ground.clear();
+  output_pools_.nonground.clear();
+  output_pools_.labeled.clear();
 }
 
 void GroundFilterNodelet::afterInit() {
@@ -206,7 +218,8 @@ void GroundFilterNodelet::subscribe() {
   ops.datatype = ros::message_traits::datatype<sensor_msgs::PointCloud2>();
   ops.helper = boost::make_shared<CloudSubscriptionHelper>(
       [this](const sensor_msgs::PointCloud2ConstPtr& msg) { cloudCallback(msg); },
-      [this](const std::string& what, const std::string& from) { input_->notCloud(what, from); });
+      [this](const std::string& what, const std::string& from) { input_->notCloud(what, from); },
+      &input_pool_);
   // The single-threaded queue, not NodeletLazy's multi-threaded one: there a cloud arriving
   // while the previous one is filtered makes roscpp answer TryAgain, and the manager's threads
   // re-queue it in a busy loop for the whole filter run (perf: a quarter of the manager's CPU,
@@ -240,6 +253,7 @@ void GroundFilterNodelet::updateFilter() {
 
 void GroundFilterNodelet::cloudCallback(const sensor_msgs::PointCloud2ConstPtr& msg) {
   const auto t0 = std::chrono::steady_clock::now();
+  active_ = true;
   ++monitor_.counters().clouds_in;
   input_->checkStream(msg->header);
 
@@ -281,7 +295,7 @@ void GroundFilterNodelet::processCloud(const sensor_msgs::PointCloud2ConstPtr& m
       build_error = e.what();
     }
     processPointCloud2(*msg, layout, filter_.get(), to_gravity, outputs_->wantLabeled(), &buffers_,
-                       &out);
+                       &out, &output_pools_);
     if (!build_error.empty()) out.filter_error = build_error;
     outputs_->hag().process(*msg, layout, to_gravity, buffers_,
                             to_gravity ? tf_wait_->frame() : msg->header.frame_id, &out, &hag);
@@ -290,6 +304,7 @@ void GroundFilterNodelet::processCloud(const sensor_msgs::PointCloud2ConstPtr& m
     } else if (release_.afterCloud(static_cast<std::size_t>(msg->width) * msg->height)) {
       filter_.reset();  // a rare large cloud's buffers go; the next clouds size new ones
       buffers_ = CloudProcessingBuffers();
+      clearPools();
       ++monitor_.counters().buffer_releases;
     }
   }

@@ -7,6 +7,7 @@
 #include <sensor_msgs/PointCloud2.h>
 
 #include <Eigen/Geometry>
+#include <atomic>
 #include <chrono>
 #include <functional>
 #include <memory>
@@ -15,6 +16,7 @@
 #include <vector>
 
 #include "buffer_release.h"
+#include "cloud_pool.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/working_volume.h"
 #include "input_reporter.h"
@@ -100,8 +102,16 @@ class GroundFilterNodelet : public nodelet_topic_tools::NodeletLazy {
   void setUpDiagnostics();
   // True once the leaf installed a filter configuration (diagnostics: ERROR without one).
   bool haveConfig();
+  // Frees the pooled messages nobody holds (idle, or after a rare large cloud).
+  void clearPools();
   // Refuses unknown / mistyped / out-of-range private parameters, reads ~body_box.
   void checkParams();
+
+  // Messages reused from cloud to cloud (cloud_pool.h): the deserialised input and the two
+  // outputs. First: the subscription and the timers that use them go before them.
+  CloudPool input_pool_;
+  OutputPools output_pools_;
+  std::atomic<bool> active_{false};  // a cloud came since the last trim timer tick
 
   ros::Subscriber sub_input_;
   int queue_size_ = 3;

@@ -272,7 +272,7 @@ bool makeLabeledCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& lay
 
 void processPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
                         GroundFilter* filter, const Eigen::Isometry3d* transform, bool want_labeled,
-                        CloudProcessingBuffers* buffers, ProcessedCloud* out) {
+                        CloudProcessingBuffers* buffers, ProcessedCloud* out, OutputPools* pools) {
   std::vector<std::uint8_t>& labels = buffers->labels;
   out->stats = FilterStats();
   out->filter_error.clear();
@@ -313,12 +313,16 @@ void processPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& l
     out->stats = FilterStats();
     labels.assign(layout.points, kNonGround);
   }
-  out->ground = boost::make_shared<sensor_msgs::PointCloud2>();
-  out->nonground = boost::make_shared<sensor_msgs::PointCloud2>();
+  // A pooled message's buffer is sized for about the whole cloud: the first clouds' split varies.
+  const std::size_t bytes = layout.points * layout.point_step;
+  out->ground = pools ? pools->ground.take(bytes) : boost::make_shared<sensor_msgs::PointCloud2>();
+  out->nonground =
+      pools ? pools->nonground.take(bytes) : boost::make_shared<sensor_msgs::PointCloud2>();
   out->counts = splitPointCloud2(in, layout, &labels, out->ground.get(), out->nonground.get());
   out->labeled.reset();
   if (want_labeled) {
-    out->labeled = boost::make_shared<sensor_msgs::PointCloud2>();
+    out->labeled = pools ? pools->labeled.take(bytes + layout.points * 4)
+                         : boost::make_shared<sensor_msgs::PointCloud2>();
     if (!makeLabeledCloud(in, layout, labels, out->labeled.get(), &out->labeled_error)) {
       out->labeled.reset();
     }

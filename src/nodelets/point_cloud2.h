@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "cloud_pool.h"
 #include "ground_filter/cloud_view.h"
 #include "ground_filter/ground_filter.h"
 #include "ground_filter/working_volume.h"
@@ -139,6 +140,13 @@ struct CloudProcessingBuffers {
   double shift[3] = {0.0, 0.0, 0.0};
 };
 
+/// \brief Where processPointCloud2() takes its two output messages from (cloud_pool.h).
+struct OutputPools {
+  CloudPool ground;     ///< ~ground
+  CloudPool nonground;  ///< ~nonground
+  CloudPool labeled;    ///< ~labeled
+};
+
 /// \brief Outputs of one cloud: ground / non-ground (always), ~labeled (when asked for).
 struct ProcessedCloud {
   sensor_msgs::PointCloud2Ptr ground;     ///< records labelled ground
@@ -158,9 +166,11 @@ struct ProcessedCloud {
 /// origin moved alike for the call and the scan reason naming the move). A filter that
 /// throws or returns a wrong number of labels loses nothing: every record goes to non-ground
 /// and `out->filter_error` says why. Every record lands in exactly one of the two outputs.
+/// With `pools`, the two output messages come from them (reused buffers), else new ones.
 void processPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
                         GroundFilter* filter, const Eigen::Isometry3d* transform, bool want_labeled,
-                        CloudProcessingBuffers* buffers, ProcessedCloud* out);
+                        CloudProcessingBuffers* buffers, ProcessedCloud* out,
+                        OutputPools* pools = nullptr);
 
 /// \brief Short name of a rejection reason for logs ("row_step", ...).
 /// \brief A PointField of one value.
