@@ -60,12 +60,18 @@ TEST(CloudPool, HandsOutOnlyWhatNobodyHolds) {
   EXPECT_EQ(d.get(), a_address);
   EXPECT_EQ(d->data.size(), 5000u);
   EXPECT_EQ(pool.reused(), 1u);
-  // After a rare huge cloud, a small one does not keep its buffer resident.
+  // After rare huge clouds, a small one leaves no huge buffer resident in any idle slot.
   d->data.assign(std::size_t{8} << 20, 1);
+  b->data.assign(std::size_t{8} << 20, 1);
+  const PointCloud2* b_address = b.get();
   d.reset();
+  b.reset();
   auto e = pool.take(1000);
   EXPECT_EQ(e.get(), a_address);
   EXPECT_LT(e->data.capacity(), std::size_t{1} << 20);
+  b = pool.take(1000);  // the other slot, whose buffer went with the take() before
+  EXPECT_EQ(b.get(), b_address);
+  EXPECT_EQ(b->data.capacity(), 0u);
   // clear() frees the idle slots and keeps the held ones.
   e.reset();
   pool.clear();

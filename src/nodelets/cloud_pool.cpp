@@ -15,16 +15,23 @@ constexpr std::size_t kSlackBytes = std::size_t{1} << 20;
 
 sensor_msgs::PointCloud2Ptr CloudPool::take(std::size_t bytes) {
   std::lock_guard<std::mutex> lock(mutex_);
+  sensor_msgs::PointCloud2Ptr found;
   for (const sensor_msgs::PointCloud2Ptr& slot : slots_) {
     // 1: only the pool holds it, and only the pool can hand out a new reference (under the
     // lock): no other thread can start using it now. The fence orders our writes after the
     // last holder's reads (its release of the count).
     if (slot.use_count() != 1) continue;
     std::atomic_thread_fence(std::memory_order_acquire);
-    if (slot->data.capacity() > 2 * bytes + kSlackBytes)
+    // Every idle slot, not only the one taken: after a few huge clouds the others would keep
+    // their buffers until the pool goes idle.
+    if (slot->data.capacity() > 2 * bytes + kSlackBytes) {
       std::vector<std::uint8_t>().swap(slot->data);
+    }
+    if (!found) found = slot;
+  }
+  if (found) {
     ++reused_;
-    return slot;
+    return found;
   }
   ++made_;
   auto msg = boost::make_shared<sensor_msgs::PointCloud2>();

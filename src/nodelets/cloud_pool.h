@@ -29,7 +29,7 @@ class CloudPool {
 
   /// \brief A message that nobody else holds, for a cloud of about `bytes` of data: its fields
   ///        are the last cloud's (the caller sets every one), its data buffer's capacity kept
-  ///        unless it exceeds 2 * bytes + 1 MiB.
+  ///        unless it exceeds 2 * bytes + 1 MiB (then freed, in every idle slot).
   sensor_msgs::PointCloud2Ptr take(std::size_t bytes);
 
   /// \brief Frees the slots nobody else holds (messages still held elsewhere stay pooled).
