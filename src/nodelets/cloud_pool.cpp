@@ -39,6 +39,10 @@ sensor_msgs::PointCloud2Ptr CloudPool::take(std::size_t bytes) {
   return msg;
 }
 
+sensor_msgs::PointCloud2Ptr takeCloud(CloudPool* pool, std::size_t bytes) {
+  return pool ? pool->take(bytes) : boost::make_shared<sensor_msgs::PointCloud2>();
+}
+
 void CloudPool::clear() {
   std::lock_guard<std::mutex> lock(mutex_);
   std::vector<sensor_msgs::PointCloud2Ptr> kept;

@@ -49,6 +49,10 @@ class CloudPool {
   std::size_t reused_ = 0, made_ = 0;
 };
 
+/// \brief `pool->take(bytes)`, or a new message where `pool` is null (callers without a pool:
+///        tests, the fuzz target).
+sensor_msgs::PointCloud2Ptr takeCloud(CloudPool* pool, std::size_t bytes);
+
 }  // namespace ground_filter
 
 #endif  // GROUND_FILTER_SRC_NODELETS_CLOUD_POOL_H

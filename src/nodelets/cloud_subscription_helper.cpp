@@ -1,7 +1,5 @@
 #include "cloud_subscription_helper.h"
 
-#include <boost/make_shared.hpp>
-
 #include "point_cloud2.h"
 
 namespace ground_filter {
@@ -26,7 +24,7 @@ ros::VoidConstPtr CloudSubscriptionHelper::deserialize(
   }
   std::string why;
   // A reused message: its data buffer is already mapped and sized (no page faults, no zeroing).
-  auto msg = pool_ ? pool_->take(params.length) : boost::make_shared<sensor_msgs::PointCloud2>();
+  const sensor_msgs::PointCloud2Ptr msg = takeCloud(pool_, params.length);
   if (!deserializePointCloud2(params.buffer, params.length, msg.get(), &why)) {
     on_not_cloud_("bytes that do not decode as a PointCloud2: " + why, callerid);
     return ros::VoidConstPtr();

@@ -3,7 +3,6 @@
 #include <sensor_msgs/PointField.h>
 
 #include <algorithm>
-#include <boost/make_shared.hpp>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -315,14 +314,12 @@ void processPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& l
   }
   // A pooled message's buffer is sized for about the whole cloud: the first clouds' split varies.
   const std::size_t bytes = layout.points * layout.point_step;
-  out->ground = pools ? pools->ground.take(bytes) : boost::make_shared<sensor_msgs::PointCloud2>();
-  out->nonground =
-      pools ? pools->nonground.take(bytes) : boost::make_shared<sensor_msgs::PointCloud2>();
+  out->ground = takeCloud(pools ? &pools->ground : nullptr, bytes);
+  out->nonground = takeCloud(pools ? &pools->nonground : nullptr, bytes);
   out->counts = splitPointCloud2(in, layout, &labels, out->ground.get(), out->nonground.get());
   out->labeled.reset();
   if (want_labeled) {
-    out->labeled = pools ? pools->labeled.take(bytes + layout.points * 4)
-                         : boost::make_shared<sensor_msgs::PointCloud2>();
+    out->labeled = takeCloud(pools ? &pools->labeled : nullptr, bytes + layout.points * 4);
     if (!makeLabeledCloud(in, layout, labels, out->labeled.get(), &out->labeled_error)) {
       out->labeled.reset();
     }
