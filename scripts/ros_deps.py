@@ -30,6 +30,7 @@ SYSTEM = {
     "python3-numpy": (lambda: importlib.util.find_spec("numpy") is not None, "python3-numpy"),
     "python3-nose": (lambda: importlib.util.find_spec("nose") is not None, "python3-nose"),
     "python3-rospkg": (lambda: importlib.util.find_spec("rospkg") is not None, "python3-rospkg"),
+    "python3-yaml": (lambda: importlib.util.find_spec("yaml") is not None, "python3-yaml"),
     "xvfb": (lambda: shutil.which("Xvfb") is not None, "xvfb"),
     "imagemagick": (lambda: shutil.which("convert") is not None, "imagemagick"),
 }

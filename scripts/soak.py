@@ -18,10 +18,13 @@ flight RSS swings by ~150 MB within seconds, more than the limit.
 A robot's load (--robot-load): the parameters stay as the launch files set them (no
 reconfigurer, no publisher restart) and two more cases must pass: no cloud lost (every published
 cloud processed and published by every nodelet) and the callback-to-publish p99 below the scan
-period. --nodelets picks which nodelets run, --simd sets GF_SIMD for the manager.
+period. --nodelets picks which nodelets run, --simd sets GF_SIMD for the manager; --params FILE
+(a flat YAML of parameters, as ground_filter.launch's params_file) and --set [voxel:|normal:]NAME=
+VALUE set the nodelets' private parameters before they start (the nodelets refuse a bad name or
+value by name, as they do at a launch), e.g. to measure your own configuration under load.
 
   soak.py run --minutes M [--results DIR] [--rate HZ] [--scan PATH] [--nodelets voxel,normal]
-              [--simd LEVEL] [--robot-load]
+              [--simd LEVEL] [--robot-load] [--params FILE] [--set [NODELET:]NAME=VALUE]...
   soak.py publish --scan PATH --rate HZ        (child process)
   soak.py reconfigure --nodelets LIST          (child process)
 """
@@ -38,6 +41,41 @@ ROOT = os.path.dirname(HERE)
 NODELETS = {"soak_voxel": "ground_filter/VoxelGroundFilter",
             "soak_normal": "ground_filter/NormalGroundFilter"}
 INPUT = "/soak/points"
+
+
+def nodelet_params(params_file, sets, nodelets):
+    """The private parameters of each nodelet of the run: the YAML file's, then the --set ones
+    (NAME=VALUE for every nodelet, voxel:NAME=VALUE or normal:NAME=VALUE for one). Values are
+    YAML scalars (1, 0.5, true, kdtree). Raises ValueError naming a malformed entry."""
+    import yaml
+    base = {}
+    try:
+        if params_file:
+            with open(params_file) as f:
+                base = yaml.safe_load(f) or {}
+            if not isinstance(base, dict) or any(isinstance(v, (dict, list))
+                                                 for v in base.values()):
+                raise ValueError("%s: not a flat YAML of name: value" % params_file)
+        out = {n: dict(base) for n in nodelets}
+        for item in sets:
+            head, eq, value = item.partition("=")
+            target, _, name = head.rpartition(":")
+            if not eq or not name:
+                raise ValueError("--set %s: not [voxel:|normal:]NAME=VALUE" % item)
+            if target and "soak_" + target not in NODELETS:
+                raise ValueError("--set %s: %s is not voxel or normal" % (item, target))
+            for n in nodelets:
+                if not target or n == "soak_" + target:
+                    out[n][name] = yaml.safe_load(value)
+    except yaml.YAMLError as e:
+        raise ValueError("%s: %s" % (params_file, e))
+    return out
+
+
+def rosparam_upload(node, values):
+    """Sets /NODE/NAME for each entry (the nodelet's private namespace)."""
+    import rosparam
+    rosparam.upload_params("/" + node + "/", values)
 
 
 # ------------------------------------------------------------------------ child: publisher
@@ -207,6 +245,7 @@ def run(args):
 
     env = dict(os.environ)
     nodelets = {n: NODELETS[n] for n in args.nodelets}
+    params = nodelet_params(args.params, args.set, nodelets)
     if args.simd:
         env["GF_SIMD"] = args.simd
     procs = []
@@ -253,6 +292,10 @@ def run(args):
         trim = ([] if args.malloc_trim_period is None
                 else ["_malloc_trim_period:=%g" % args.malloc_trim_period])
         for name, plugin in nodelets.items():
+            if params[name]:  # set before the load: read as at a launch's rosparam load
+                rosparam_upload(name, params[name])
+                print("[soak] %s parameters: %s" % (name, ", ".join(
+                    "%s=%s" % kv for kv in sorted(params[name].items()))), flush=True)
             # --no-bond: on a machine loaded far past its cores (other builds), the loader's
             # bond heartbeats timed out after ~60 s and the manager unloaded both nodelets
             # ("Bond broken, exiting"); the soak measures the manager, not bondcpp.
@@ -387,7 +430,8 @@ def run(args):
                         published += int(fields[1])
                         intervals += int(fields[3])
                         active_s += float(fields[2])
-        reconf_text = ["parameters fixed (robot load)"]
+        reconf_text = ["parameters fixed (robot load%s)" % (
+            ", --params / --set" if any(params.values()) else "")]
         if reconf is not None:
             with open(os.path.join(logdir, "reconfigure.log")) as f:
                 reconf_text = f.read().strip().splitlines()[-1:] or ["?"]
@@ -523,6 +567,12 @@ def main():
     r.add_argument("--robot-load", action="store_true",
                    help="fixed parameters, no publisher restart; pass needs no cloud lost and "
                    "latency p99 below the scan period")
+    r.add_argument("--params", default="",
+                   help="flat YAML of private parameters for every nodelet of the run (as "
+                   "ground_filter.launch's params_file)")
+    r.add_argument("--set", action="append", default=[], metavar="[NODELET:]NAME=VALUE",
+                   help="a private parameter for every nodelet, or voxel: / normal: for one "
+                   "(repeatable; after --params)")
     r.add_argument("--malloc-trim-period", type=float, default=None,
                    help="the nodelets' ~malloc_trim_period [s] (default: theirs, 1 s; 0 = off)")
     r.add_argument("--malloc-mmap-threshold", type=int, default=1048576,
@@ -543,6 +593,11 @@ def main():
         if not names or unknown:
             sys.exit("soak.py: --nodelets takes voxel and/or normal, not %s" % (unknown or "''"))
         a.nodelets = ["soak_" + n for n in names]
+    if a.cmd == "run":
+        try:
+            nodelet_params(a.params, a.set, a.nodelets)
+        except (OSError, ValueError) as e:
+            sys.exit("soak.py: %s" % e)
     if a.cmd == "run" and a.scan is None:
         sys.path.insert(0, HERE)
         from gf_data import NoDataError, data_dir

@@ -16,7 +16,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
 # find_package / include / import names whose rosdep key differs from the name.
 KEYS = {"Eigen3": "eigen", "Eigen": "eigen", "PCL": "libpcl-all-dev", "pcl": "libpcl-all-dev",
         "ros": "roscpp", "numpy": "python3-numpy", "rospkg": "python3-rospkg",
-        "nanoflann": "nanoflann", "boost": "boost", "gtest": "gtest", "GTest": "gtest"}
+        "nanoflann": "nanoflann", "boost": "boost", "gtest": "gtest", "GTest": "gtest",
+        "yaml": "python3-yaml"}
 # Provided by the compiler / toolkit / C library, or this package itself: no rosdep key.
 NO_KEY = {"OpenMP", "Threads", "CUDAToolkit", "cub", "sys", "ground_filter", "catkin"}
 # Commands the tests and tools run, and the package that provides each.
