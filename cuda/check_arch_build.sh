@@ -38,9 +38,8 @@ cmake -S . -B "${BUILD}" "${args[@]}" > "${BUILD}.configure.log" 2>&1 ||
 cmake --build "${BUILD}" -j "$(nproc)" --target ground_filter_cuda > "${BUILD}.build.log" 2>&1 ||
   { tail -20 "${BUILD}.build.log"; echo "build failed"; exit 1; }
 lib_a=$(find "${BUILD}" -name libground_filter_cuda.a | head -1)
+# GF_CUDA=ON enables the CUDA language (configure fails without it): the cache names the nvcc.
 nvcc_bin=$(sed -n 's/^CMAKE_CUDA_COMPILER:[A-Z]*=//p' "${BUILD}/CMakeCache.txt")
-[ -n "${nvcc_bin}" ] ||
-  nvcc_bin=$(grep -o '/[^ ]*nvcc' "${BUILD}/CMakeFiles/"*/CMakeCUDACompiler.cmake | head -1)
 echo "nvcc: $("${nvcc_bin}" --version | tail -1)"
 echo "architectures asked: ${ARCHS}"
 objdump_bin="${CUOBJDUMP:-$(dirname "$(readlink -f "${nvcc_bin}")")/cuobjdump}"

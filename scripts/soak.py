@@ -245,7 +245,7 @@ def run(args):
 
     env = dict(os.environ)
     nodelets = {n: NODELETS[n] for n in args.nodelets}
-    params = nodelet_params(args.params, args.set, nodelets)
+    params = args.nodelet_params
     if args.simd:
         env["GF_SIMD"] = args.simd
     procs = []
@@ -594,8 +594,8 @@ def main():
             sys.exit("soak.py: --nodelets takes voxel and/or normal, not %s" % (unknown or "''"))
         a.nodelets = ["soak_" + n for n in names]
     if a.cmd == "run":
-        try:
-            nodelet_params(a.params, a.set, a.nodelets)
+        try:  # read once, before anything starts: a bad entry costs no roscore
+            a.nodelet_params = nodelet_params(a.params, a.set, a.nodelets)
         except (OSError, ValueError) as e:
             sys.exit("soak.py: %s" % e)
     if a.cmd == "run" and a.scan is None:
