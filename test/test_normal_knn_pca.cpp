@@ -31,6 +31,7 @@
 #include "ground_filter/normal_ground_filter.h"
 #include "knn/kdtree_neighbor_search.h"
 #include "knn/neighborhood_pca.h"
+#include "normal/cpu_gpu_common.h"
 #include "normal/plane.h"
 #include "simd/simd.h"
 
@@ -521,6 +522,44 @@ TEST(KdTreeNeighborSearch, SearchWithCandidatesMatchesSearchWithPca) {
         EXPECT_EQ(cc.invalid + cc.early + cc.fast + cc.exact, n);
         EXPECT_EQ(search.lastStageMs().size(), 3u);
       }
+    }
+  }
+}
+
+// cellIndex() without floor() (x86-64 without SSE4.1 makes floor() a branchy sequence) must
+// give floor((v - lo) * inv_cell) clamped to [0, 2^32 - 1], 0 for NaN, for every input.
+TEST(NormalGrid, CellIndexIsTheClampedFloor) {
+  auto reference = [](double v, double lo, double inv) -> std::uint32_t {
+    const double c = std::floor((v - lo) * inv);
+    if (!(c > 0.0)) return 0;
+    if (c >= 4294967295.0) return 4294967295U;
+    return static_cast<std::uint32_t>(c);
+  };
+  const double inf = std::numeric_limits<double>::infinity();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double big = 4294967295.0;
+  std::vector<double> edge = {0.0,       -0.0,      0.5,          0.999999999, 1.0,       1.0000001,
+                              1.5,       2.0,       -0.5,         -1.0,        -1e300,    1e300,
+                              inf,       -inf,      nan,          big - 1.0,   big - 0.5, big,
+                              big + 0.5, big + 1.0, 2147483647.5, 4e9};
+  for (double v : edge) {
+    EXPECT_EQ(gf::normal::cellIndex(v, 0.0, 1.0), reference(v, 0.0, 1.0)) << "v = " << v;
+  }
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> scale(-12.0, 12.0), unit(-1.0, 1.0);
+  for (int i = 0; i < 200000; ++i) {
+    const double v = unit(rng) * std::pow(10.0, scale(rng));
+    const double lo = unit(rng) * std::pow(10.0, scale(rng));
+    const double inv = std::pow(10.0, scale(rng));
+    ASSERT_EQ(gf::normal::cellIndex(v, lo, inv), reference(v, lo, inv))
+        << "v = " << v << ", lo = " << lo << ", inv_cell = " << inv;
+  }
+  // Values next to each integer step, as float coordinates on a 0.1 m grid produce them.
+  for (int c = 0; c < 3000; ++c) {
+    const float x = static_cast<float>(c) * 0.1f - 150.0f;
+    for (float v : {std::nextafter(x, -1e9f), x, std::nextafter(x, 1e9f)}) {
+      ASSERT_EQ(gf::normal::cellIndex(v, -150.0, 1.0 / 0.1), reference(v, -150.0, 1.0 / 0.1))
+          << "v = " << v;
     }
   }
 }

@@ -17,10 +17,14 @@
 namespace ground_filter {
 namespace normal {
 
-/// \brief Integer cell coordinate of `v` on a grid starting at `lo`, clamped to 32 bits.
+/// \brief Integer cell coordinate of `v` on a grid starting at `lo`, clamped to 32 bits:
+///        floor((v - lo) * inv_cell) in [0, 2^32 - 1], 0 for NaN.
 GF_HOST_DEVICE inline std::uint32_t cellIndex(double v, double lo, double inv_cell) {
-  const double c = floor((v - lo) * inv_cell);
-  if (!(c > 0.0)) return 0;
+  // floor(c) > 0 exactly when c >= 1, and from there truncation is floor: the same values as
+  // with floor(), which x86-64 without SSE4.1 computes in a branchy sequence (a KITTI frame's
+  // column keys took 2.6 times as long).
+  const double c = (v - lo) * inv_cell;
+  if (!(c >= 1.0)) return 0;
   if (c >= 4294967295.0) return 4294967295U;
   return static_cast<std::uint32_t>(c);
 }

@@ -78,7 +78,13 @@ class PlaneStage {
                            const Plane& plane, const NormalGroundFilterParams& p, double* lo,
                            double* hi);
 
+  /// (tx << 32) | ty of a sort key tx << y_bits_ | ty (the key the RANSAC seeds are drawn from).
+  std::uint64_t tileKey(std::uint64_t k) const {
+    return ((k >> y_bits_) << 32) | (k & ((std::uint64_t{1} << y_bits_) - 1));
+  }
+
   std::vector<std::uint64_t> keys_;
+  int y_bits_ = 0;  // bits of the largest ty (sortIntoTiles())
   std::vector<std::uint32_t> tile_order_;
   RadixSortScratch sort_scratch_;
   std::vector<std::pair<std::size_t, std::size_t>> tiles_;  // [begin, end) in tile_order_
