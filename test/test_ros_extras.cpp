@@ -18,6 +18,7 @@
 #include "cloud_subscription_helper.h"
 #include "gf_test_clouds.h"
 #include "ground_filter/ground_filter.h"
+#include "nodelet_monitor.h"
 #include "point_cloud2.h"
 
 namespace gf = ground_filter;
@@ -431,4 +432,34 @@ TEST(MakeCloudView, FarFloat64IsMovedInDoubleBeforeNarrowing) {
   EXPECT_EQ(shift[0], 0.0);
   EXPECT_EQ(shift[1], 0.0);
   EXPECT_EQ(scratch[0], static_cast<float>(local[0] + 4000.0));
+}
+
+// The nodelets log a filter note at once when its reason is new and once a minute when it
+// repeats: a note that differs only in its numbers (a ramp's lean, scan after scan) repeats.
+TEST(NoteKind, NumbersAsideTheSameReason) {
+  using ground_filter::NodeletMonitor;
+  std::string a, b, c;
+  NodeletMonitor::noteKind(
+      "the ground around the sensor leans 7.7 deg in the cloud's frame (level_tilt 5.0): the "
+      "scan was turned onto it",
+      &a);
+  NodeletMonitor::noteKind(
+      "the ground around the sensor leans 12.25 deg in the cloud's frame (level_tilt 5.0): the "
+      "scan was turned onto it",
+      &b);
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(a,
+            "the ground around the sensor leans # deg in the cloud's frame (level_tilt #): the "
+            "scan was turned onto it");
+  NodeletMonitor::noteKind("GPU search failed (out of memory); using kdtree", &c);
+  EXPECT_NE(a, c);
+  EXPECT_EQ(c, "GPU search failed (out of memory); using kdtree");  // no number: unchanged
+  NodeletMonitor::noteKind("x/y/z on a 0.0625 / 0.5 / 0 m lattice. 240000 points.", &c);
+  EXPECT_EQ(c, "x/y/z on a # / # / # m lattice. # points.");  // a sentence's point stays
+  NodeletMonitor::noteKind("", &c);
+  EXPECT_EQ(c, "");
+  // Names with digits are numbers too: sm_87 and sm_72 are one reason.
+  NodeletMonitor::noteKind("no kernel for sm_87", &a);
+  NodeletMonitor::noteKind("no kernel for sm_72", &b);
+  EXPECT_EQ(a, b);
 }

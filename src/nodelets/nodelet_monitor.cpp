@@ -3,6 +3,7 @@
 #include <diagnostic_msgs/DiagnosticStatus.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 
@@ -258,6 +259,25 @@ void NodeletMonitor::diagnose(diagnostic_updater::DiagnosticStatusWrapper& statu
   for (const Item& s : stream) status.add(s.name, static_cast<ull>(s.total));
   status.add("refused parameter sets", static_cast<ull>(total.config_rejected));
   status.add("last refused parameter set", refused.empty() ? std::string("none") : refused);
+}
+
+void NodeletMonitor::noteKind(const std::string& note, std::string* kind) {
+  kind->clear();
+  auto digit = [&note](std::size_t i) {
+    return std::isdigit(static_cast<unsigned char>(note[i])) != 0;
+  };
+  for (std::size_t i = 0; i < note.size();) {
+    if (!digit(i)) {
+      kind->push_back(note[i++]);
+      continue;
+    }
+    // A number: its digits and the points between them ("7.7", "240000", "0.0625").
+    while (i < note.size() &&
+           (digit(i) || (note[i] == '.' && i + 1 < note.size() && digit(i + 1)))) {
+      ++i;
+    }
+    kind->push_back('#');
+  }
 }
 
 }  // namespace ground_filter

@@ -101,6 +101,12 @@ class NodeletMonitor {
   ///        suppressed ones and returns their number since the last message in `suppressed`.
   bool logNow(int slot, std::uint64_t* suppressed = nullptr);
 
+  /// \brief `note` with every number in it replaced by '#', into `kind` (its capacity reused):
+  ///        what a filter note says without the values it measured, so that a note repeated
+  ///        with other numbers (a ground leaning 7.7 deg, then 7.5 deg on the next scan) counts
+  ///        as the same reason.
+  static void noteKind(const std::string& note, std::string* kind);
+
   /// \brief Compares `header` with the previous cloud's and remembers it.
   StreamChange checkStream(const std_msgs::Header& header);
 

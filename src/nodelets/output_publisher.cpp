@@ -50,12 +50,14 @@ void OutputPublisher::publish(const ProcessedCloud& out, const HagClouds& hag, d
   const std::string& note = out.stats.note;
   if (!note.empty()) {
     ++counters.fallbacks;
-    // A new reason (no device, a CUDA error) is logged at once; a repeated one once a minute.
-    if (note != logged_note_) {
+    // A new reason (no device, a CUDA error, a tilted scan) is logged at once; a repeated one,
+    // its numbers aside (a ramp's lean changes from scan to scan), once a minute.
+    NodeletMonitor::noteKind(note, &note_kind_);
+    const ros::WallTime now = ros::WallTime::now();
+    if (note_kind_ != logged_note_ || (now - note_logged_at_).toSec() >= 60.0) {
       NODELET_WARN("%s: %s", method, note.c_str());
-      logged_note_ = note;
-    } else {
-      NODELET_WARN_THROTTLE(60.0, "%s: %s", method, note.c_str());
+      logged_note_ = note_kind_;
+      note_logged_at_ = now;
     }
   }
   if (out.stats.out_of_range_points) {

@@ -3,6 +3,7 @@
 
 #include <ros/node_handle.h>
 #include <ros/publisher.h>
+#include <ros/time.h>
 
 #include <functional>
 #include <string>
@@ -53,8 +54,10 @@ class OutputPublisher {
   ros::Publisher pub_nonground_;
   ros::Publisher pub_labeled_;
   ros::Publisher pub_time_;
-  std::string logged_note_;  // last backend note written to the log
-  HagOutputs hag_;           // height above ground: fields, ~ground_surface, ~obstacles
+  std::string logged_note_;       // NodeletMonitor::noteKind() of the last note written to the log
+  std::string note_kind_;         // the same of this cloud's note (capacity kept)
+  ros::WallTime note_logged_at_;  // when logged_note_ was last written
+  HagOutputs hag_;                // height above ground: fields, ~ground_surface, ~obstacles
 };
 
 }  // namespace ground_filter
