@@ -32,6 +32,7 @@
 #include "knn/kdtree_neighbor_search.h"
 #include "knn/neighborhood_pca.h"
 #include "normal/cpu_gpu_common.h"
+#include "normal/order.h"
 #include "normal/plane.h"
 #include "simd/simd.h"
 
@@ -562,4 +563,48 @@ TEST(NormalGrid, CellIndexIsTheClampedFloor) {
           << "v = " << v;
     }
   }
+}
+
+// The column order is the stable sort of the finite points by column key, whichever way
+// OrderStage sorts: packed key-and-index words (most scans), or keys and indices apart (key and
+// index wider than 64 bits: a cloud over 2^32 cells wide; more than 2^20 points).
+TEST(NormalOrderStage, ColumnOrderIsTheStableSortByColumnKey) {
+  std::mt19937 rng(11);
+  auto check = [&](std::size_t n, float spread, int threads) {
+    std::uniform_real_distribution<float> u(-spread, spread);
+    std::vector<float> xyz(3 * n);
+    for (std::size_t i = 0; i < n; ++i) {
+      // Repeats: many points share a column (their index order must stay).
+      const std::size_t from = i > 0 && rng() % 4 == 0 ? rng() % i : i;
+      for (int d = 0; d < 3; ++d) xyz[3 * i + d] = from < i ? xyz[3 * from + d] : u(rng);
+      if (rng() % 50 == 0) xyz[3 * i + rng() % 3] = std::numeric_limits<float>::quiet_NaN();
+    }
+    gf::normal::OrderStage stage;
+    gf::normal::OrderedPoints out;
+    const double cell = 0.1;
+    stage.run(gf::CloudView::packedXyz(xyz.data(), n), cell, false, 0, threads, &out);
+    std::vector<std::uint32_t> want;
+    std::vector<std::uint64_t> key(n);
+    const double inv = 1.0 / out.cell;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!std::isfinite(xyz[3 * i]) || !std::isfinite(xyz[3 * i + 1]) ||
+          !std::isfinite(xyz[3 * i + 2])) {
+        continue;
+      }
+      want.push_back(static_cast<std::uint32_t>(i));
+      key[i] = gf::normal::columnKey(gf::normal::cellIndex(xyz[3 * i], out.extent.min_x, inv),
+                                     gf::normal::cellIndex(xyz[3 * i + 1], out.extent.min_y, inv));
+    }
+    std::stable_sort(want.begin(), want.end(),
+                     [&](std::uint32_t a, std::uint32_t b) { return key[a] < key[b]; });
+    ASSERT_EQ(out.source, want) << n << " points, spread " << spread;
+    for (std::size_t j = 0; j < want.size(); ++j) {
+      ASSERT_EQ(stage.columnKeys()[j], key[want[j]]) << "column key " << j;
+      ASSERT_EQ(out.xyz[3 * j + 2], xyz[3 * want[j] + 2]);
+    }
+  };
+  check(5000, 30.f, 1);     // packed words
+  check(5000, 30.f, 2);     // the same on two threads
+  check(3000, 1e9f, 2);     // a cloud wider than 2^32 cells: keys and indices apart
+  check(1100000, 80.f, 2);  // more than 2^20 points: keys and indices apart, threaded
 }
