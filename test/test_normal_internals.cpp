@@ -262,6 +262,7 @@ TEST(RadixSort, SortByKeyIsStableAndMatchesStdStableSort) {
                        [&](std::uint32_t a, std::uint32_t b) { return keys[a] < keys[b]; });
       gf::radixSortByKey(keys, &order, &scratch);
       EXPECT_EQ(order, want) << "bits " << bits << ", n " << n;
+      for (std::size_t j = 0; j < n; ++j) ASSERT_EQ(scratch.keys[j], keys[want[j]]) << j;
     }
   }
 }
@@ -382,13 +383,13 @@ TEST(RadixSort, BlockScatterGivesTheSerialOrder) {
 }
 
 TEST(RadixSort, ThreadedSortGivesTheSerialOrder) {
-  // Large enough for the per-thread blocks (kRadixPointsPerThread); 1, 2 and 3 threads must
-  // give std::stable_sort's order: narrow keys with many duplicates, one-pass and three-pass
-  // widths, a constant key (every pass skipped) and the tile keys' layout (x << 32 | y).
+  // Above the packed words' limit (kRadixPackedMaxPoints), so the per-thread blocks; 1, 2 and
+  // 3 threads must give std::stable_sort's order: narrow keys with many duplicates, one-pass and
+  // three-pass widths, a constant key (every pass skipped) and tile keys (x << 32 | y).
   std::mt19937_64 rng(5);
   gf::RadixSortScratch scratch;
   std::vector<std::uint32_t> order;
-  const std::size_t n = 3 * gf::kRadixPointsPerThread + 17;
+  const std::size_t n = gf::kRadixPackedMaxPoints + 17;
   for (int kind = 0; kind < 5; ++kind) {
     std::vector<std::uint64_t> keys(n);
     for (auto& k : keys) {

@@ -74,15 +74,13 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
   out->cell = cell;
   keys_.resize(n);
   const int nt = static_cast<int>(std::min<std::size_t>(threads, n / 16384 + 1));
-  std::uint64_t any = 0;
-#pragma omp parallel for num_threads(nt) schedule(static) reduction(| : any)
+#pragma omp parallel for num_threads(nt) schedule(static)
   for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
     const std::uint32_t cx = cellIndex(raw_xyz_[3 * i], min_x, 1.0 / cell);
     const std::uint32_t cy = cellIndex(raw_xyz_[3 * i + 1], min_y, 1.0 / cell);
     keys_[i] = columnKey(cx, cy);
-    any |= keys_[i];
   }
-  if (!sortPacked(any)) radixSortByKey(keys_, &order_, &sort_scratch_, threads);
+  radixSortByKey(keys_, &order_, &sort_scratch_, threads);
 #pragma omp parallel for num_threads(nt) schedule(static)
   for (std::int64_t j = 0; j < static_cast<std::int64_t>(n); ++j) {
     const std::uint32_t s = order_[j];
@@ -107,39 +105,6 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
     segments.emplace_back(0, n);
   }
   return n;
-}
-
-bool OrderStage::sortPacked(std::uint64_t any_key) {
-  const std::size_t n = keys_.size();
-  const int index_bits = radixBitsFor(n - 1);
-  const int key_bits = radixBitsFor(any_key);
-  if (n < 2 || n > kPackedSortMaxPoints || key_bits + index_bits > 64) return false;
-  // key << index_bits | index: equal keys keep index order (radixSortByKey()'s order), and a
-  // pass moves 8 bytes a point instead of a key and its index.
-  const int passes = (key_bits + kRadixMaxDigitBits - 1) / kRadixMaxDigitBits;
-  const int digit = (key_bits + passes - 1) / passes;
-  const std::uint32_t mask = (1u << digit) - 1;
-  std::vector<std::uint64_t>& words = sort_scratch_.keys;
-  words.resize(n);
-  sort_scratch_.hist.assign(static_cast<std::size_t>(passes) << digit, 0);
-  std::uint32_t* hist = sort_scratch_.hist.data();
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::uint64_t k = keys_[i];
-    words[i] = k << index_bits | i;
-    for (int q = 0; q < passes; ++q) {
-      ++hist[(static_cast<std::size_t>(q) << digit) + ((k >> (q * digit)) & mask)];
-    }
-  }
-  radixScatter<std::uint32_t>(index_bits, passes, digit, hist, &words, &sort_scratch_.keys_tmp,
-                              nullptr, nullptr);
-  // columnKeys(): the keys in sorted order, where the words were.
-  order_.resize(n);
-  const std::uint64_t index_mask = (std::uint64_t{1} << index_bits) - 1;
-  for (std::size_t j = 0; j < n; ++j) {
-    order_[j] = static_cast<std::uint32_t>(words[j] & index_mask);
-    words[j] >>= index_bits;
-  }
-  return true;
 }
 
 void OrderStage::fromOrder(const CloudView& cloud, double cell_size, OrderedPoints* out) {

@@ -60,15 +60,6 @@ class OrderStage {
   static void fromOrder(const CloudView& cloud, double cell_size, OrderedPoints* out);
 
  private:
-  /// Scans up to this many points sort on one thread as packed words (sortPacked()); larger
-  /// ones by radixSortByKey() on the `threads`.
-  static constexpr std::size_t kPackedSortMaxPoints = std::size_t{1} << 20;
-
-  /// Sorts keys_ into order_ and columnKeys() as radixSortByKey() does (the same order), each
-  /// point one 64-bit word; false (nothing done) where key and index do not fit in 64 bits or
-  /// the scan is too large. `any_key`: the OR of all keys.
-  bool sortPacked(std::uint64_t any_key);
-
   std::vector<float> raw_xyz_;
   std::vector<std::uint32_t> raw_source_;
   std::vector<std::uint64_t> keys_;

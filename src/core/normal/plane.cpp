@@ -178,11 +178,7 @@ void PlaneStage::sortIntoTiles(const std::vector<float>& xyz, std::size_t n, con
     const double tile = std::max(p.tile_size, extent.size() / 4.0e9);
     // Keys tx << y_bits_ | ty: the order of (tx << 32) | ty (tileKey(), the RANSAC seeds) in
     // the fewest radix passes (a KITTI frame: 12 bits, one pass instead of three).
-    y_bits_ = 0;
-    for (std::uint32_t ty_max = cellIndex(extent.max_y, extent.min_y, 1.0 / tile); ty_max;
-         ty_max >>= 1) {
-      ++y_bits_;
-    }
+    y_bits_ = radixBitsFor(cellIndex(extent.max_y, extent.min_y, 1.0 / tile));
     const int nt = static_cast<int>(std::min<std::size_t>(threads, n / 16384 + 1));
     const int yb = y_bits_;
 #pragma omp parallel for num_threads(nt) schedule(static)
