@@ -372,10 +372,14 @@ TEST(SimdLevels, RealScanSameLabelsAtEveryLevel) {
   std::printf("\n");
   expectSameAtEveryLevel(scan, source);
   // The scan is a street: plenty of ground for every filter (a filter that labels nothing
-  // ground would pass the comparison above).
+  // ground would pass the comparison above). The generated scene (no data) rolls: one global
+  // plane (voxel_one_plane) keeps only part of it, as in FiveMillionPointsAtEveryLevel.
+  const bool generated = source.rfind("generated", 0) == 0;
   for (const FilterCase& fc : filterCases()) {
     const ScanRun r = runAt(fc, simd::best(), scan, false);
-    EXPECT_GT(groundCount(r.labels), scan.size() / 3) << fc.name;
+    const bool one_plane = std::string(fc.name) == "voxel_one_plane";
+    EXPECT_GT(groundCount(r.labels), scan.size() / (generated && one_plane ? 4 : 3))
+        << fc.name << ", " << source;
   }
 }
 
