@@ -182,16 +182,21 @@ class HagOutputsTest(RosTestCase):
         self.assertGreater(int(np.median(surf["points"])), 50)
 
     def test_hag_field_on_split_outputs(self):
-        """~hag_field (YAML): ~ground and ~nonground carry the field too, matching ~labeled."""
-        t = ["/fields_filter/ground", "/fields_filter/nonground", "/fields_filter/labeled"]
+        """~hag_field (YAML): ~ground, ~nonground and ~obstacles carry the field too, matching
+        ~labeled."""
+        t = ["/fields_filter/ground", "/fields_filter/nonground", "/fields_filter/labeled",
+             "/fields_filter/obstacles"]
         got = self.send("fields", self.scene, t)
         lab = records(got[t[2]], field_dtype(got[t[2]]))
-        for topic, label in ((t[0], 1), (t[1], 0)):
+        h = lab["height_above_ground"]
+        band = (lab["ground"] == 0) & (h >= np.float32(0.2)) & (h <= np.float32(2.5))
+        for topic, keep in ((t[0], lab["ground"] == 1), (t[1], lab["ground"] == 0), (t[3], band)):
             msg = got[topic]
             self.assertIn("height_above_ground", [f.name for f in msg.fields], topic)
             rec = records(msg, field_dtype(msg))
-            want = lab["height_above_ground"][lab["ground"] == label]
-            np.testing.assert_array_equal(rec["height_above_ground"], want, topic)
+            np.testing.assert_array_equal(rec["obj"], lab["obj"][keep], topic)
+            np.testing.assert_array_equal(rec["height_above_ground"], h[keep], topic)
+        self.assertGreater(int(band.sum()), 0, "no obstacle in the scene")
 
     def test_reconfigured_band_and_refused_band(self):
         """The band through dynamic_reconfigure: 2.9-3.5 m takes the branch and leaves the
@@ -199,8 +204,9 @@ class HagOutputsTest(RosTestCase):
         client = Client("/fields_filter", timeout=30)
         try:
             client.update_configuration({"obstacle_min_height": 2.9, "obstacle_max_height": 3.5})
-            obs = records(self.send("fields", self.scene, ["/fields_filter/obstacles"])[
-                "/fields_filter/obstacles"], REC)
+            obs_msg = self.send("fields", self.scene, ["/fields_filter/obstacles"])[
+                "/fields_filter/obstacles"]
+            obs = records(obs_msg, field_dtype(obs_msg))  # REC + height_above_ground
             kinds = np.bincount(obs["obj"], minlength=6)
             self.assertGreater(kinds[BRANCH], 0.9 * int(np.sum(self.scene["obj"] == BRANCH)))
             self.assertEqual(kinds[PEDESTRIAN], 0)

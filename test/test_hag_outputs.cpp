@@ -109,7 +109,8 @@ TEST(HagOutputs, ObstacleBandKeepsWholeRecordsInTheBand) {
     surface.heights(gf::CloudView::packedXyz(s.xyz.data(), s.size()), &h);
     PointCloud2 obs;
     gf::ObstacleBand band;  // 0.2 .. 2.5 m
-    gf::makeObstacleCloud(in, layout, s.labels, h, band, &obs);
+    std::vector<float> kept;
+    gf::makeObstacleCloud(in, layout, s.labels, h, band, &obs, &kept);
     EXPECT_EQ(obs.header.frame_id, in.header.frame_id);
     EXPECT_EQ(obs.point_step, 14u);
     EXPECT_EQ(obs.height, 1u);
@@ -124,7 +125,10 @@ TEST(HagOutputs, ObstacleBandKeepsWholeRecordsInTheBand) {
       std::memcpy(&id, &obs.data[k * 14 + 12], 2);
       EXPECT_NEAR(floatAt(obs, k, 8), s.xyz[3 * id + 2], 0.f);  // the record of point `id`
       EXPECT_GE(h[id], 0.2f);
+      ASSERT_LT(k, kept.size());
+      EXPECT_EQ(kept[k], h[id]);  // the height of the record in that place (~hag_field)
     }
+    EXPECT_EQ(kept.size(), obs.width);
     // The ditch point lies below the surface: a negative height, never an obstacle.
     std::size_t ditch = 0;
     while (s.xyz[3 * ditch + 2] != -0.4f) ++ditch;

@@ -78,7 +78,8 @@ void makeSurfaceCloud(const GroundSurface& surface, const std_msgs::Header& head
 
 void makeObstacleCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
                        const std::vector<std::uint8_t>& labels, const std::vector<float>& heights,
-                       const ObstacleBand& band, sensor_msgs::PointCloud2* out) {
+                       const ObstacleBand& band, sensor_msgs::PointCloud2* out,
+                       std::vector<float>* kept_heights) {
   const float lo = static_cast<float>(band.min_height), hi = static_cast<float>(band.max_height);
   auto inBand = [&](std::size_t i) {
     return labels[i] == kNonGround && heights[i] >= lo && heights[i] <= hi;  // NaN: false
@@ -96,12 +97,14 @@ void makeObstacleCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& la
   out->row_step = static_cast<std::uint32_t>(n * step);
   out->data.resize(n * step);
   std::uint8_t* dst = out->data.data();
+  if (kept_heights) kept_heights->clear();
   for (std::size_t r = 0, i = 0; r < layout.height; ++r) {
     const std::uint8_t* rec = in.data.data() + r * layout.row_step;
     for (std::size_t c = 0; c < layout.width; ++c, ++i, rec += step) {
       if (!inBand(i)) continue;
       std::memcpy(dst, rec, step);
       dst += step;
+      if (kept_heights) kept_heights->push_back(heights[i]);
     }
   }
 }
@@ -179,6 +182,12 @@ void HagOutputs::process(const sensor_msgs::PointCloud2& in, const CloudLayout& 
   } else {
     surface_.heights(view, &heights_);
   }
+  auto addField = [&](sensor_msgs::PointCloud2Ptr* cloud, const std::vector<float>& values) {
+    auto with = boost::make_shared<sensor_msgs::PointCloud2>();
+    if (withFloatField(**cloud, kHeightFieldName, values, with.get(), &clouds->error)) {
+      *cloud = with;
+    }
+  };
   if (want_obstacles) {
     ObstacleBand band;
     {
@@ -186,14 +195,11 @@ void HagOutputs::process(const sensor_msgs::PointCloud2& in, const CloudLayout& 
       band = band_;
     }
     clouds->obstacles = boost::make_shared<sensor_msgs::PointCloud2>();
-    makeObstacleCloud(in, layout, labels, heights_, band, clouds->obstacles.get());
+    // With ~hag_field the obstacles carry the field as ~nonground does (they are a part of it).
+    makeObstacleCloud(in, layout, labels, heights_, band, clouds->obstacles.get(),
+                      hag_field_ ? &split_ : nullptr);
+    if (hag_field_) addField(&clouds->obstacles, split_);
   }
-  auto addField = [&](sensor_msgs::PointCloud2Ptr* cloud, const std::vector<float>& values) {
-    auto with = boost::make_shared<sensor_msgs::PointCloud2>();
-    if (withFloatField(**cloud, kHeightFieldName, values, with.get(), &clouds->error)) {
-      *cloud = with;
-    }
-  };
   if (out->labeled) addField(&out->labeled, heights_);
   if (hag_field_) {
     gatherByLabel(heights_, labels, kGround, &split_);

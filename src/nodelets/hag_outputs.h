@@ -2,7 +2,8 @@
 #define GROUND_FILTER_SRC_NODELETS_HAG_OUTPUTS_H
 
 // Height above ground in the nodelets (docs/height_above_ground.md): the `height_above_ground`
-// field of ~labeled (and, with ~hag_field, of ~ground / ~nonground), the lazy ~ground_surface
+// field of ~labeled (and, with ~hag_field, of ~ground / ~nonground / ~obstacles), the lazy
+// ~ground_surface
 // and ~obstacles outputs. The cloud-building functions need no ROS graph (tested alone); the
 // HagOutputs class holds the publishers, the start parameters and the obstacle band.
 
@@ -56,9 +57,12 @@ void makeSurfaceCloud(const GroundSurface& surface, const std_msgs::Header& head
 /// \brief The whole records of `in` labelled non-ground whose height (one per record, input
 ///        order) lies in [band.min_height, band.max_height]; NaN heights never do. The output
 ///        has the input's header and fields, height 1, no row padding.
+/// \param kept_heights when not null, the heights of the kept records, in output order (for
+///        withFloatField()).
 void makeObstacleCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
                        const std::vector<std::uint8_t>& labels, const std::vector<float>& heights,
-                       const ObstacleBand& band, sensor_msgs::PointCloud2* out);
+                       const ObstacleBand& band, sensor_msgs::PointCloud2* out,
+                       std::vector<float>* kept_heights = nullptr);
 
 /// \brief The values of `heights` whose label is `label`, in order (the records of the split
 ///        cloud of that label).
@@ -79,7 +83,7 @@ struct HagClouds {
 /// \brief The height-above-ground part of a filter nodelet.
 ///
 /// Private parameters (read at start): `~hag_field` (bool, false) also add the field to
-/// ~ground and ~nonground (always published, so it costs the surface on every cloud);
+/// ~ground, ~nonground and ~obstacles (always published, so it costs the surface on every cloud);
 /// `~hag_cell` (double, 1.0 m) and `~hag_radius` (double, 5.0 m): GroundSurfaceParams.
 /// Nothing is computed for a cloud unless ~labeled, ~ground_surface or ~obstacles has
 /// subscribers or ~hag_field is set.
