@@ -70,30 +70,46 @@ TEST(HagOutputs, FloatFieldAppendedAlignedOrWrittenInPlace) {
   const PointCloud2 in = s.cloud();
   std::vector<float> v(s.size());
   for (std::size_t i = 0; i < v.size(); ++i) v[i] = 0.5f * static_cast<float>(i);
-  PointCloud2 out;
+  PointCloud2 out = in;
   std::string why;
-  ASSERT_TRUE(gf::withFloatField(in, gf::kHeightFieldName, v, &out, &why)) << why;
+  ASSERT_TRUE(gf::addFloatField(&out, gf::kHeightFieldName, v, &why)) << why;
   ASSERT_EQ(out.fields.size(), 5u);
   EXPECT_EQ(out.fields.back().name, "height_above_ground");
   EXPECT_EQ(out.fields.back().offset, 16u);  // 14 rounded up to 4
   EXPECT_EQ(out.point_step, 20u);
+  EXPECT_EQ(out.row_step, 20u * in.width);
   EXPECT_EQ(out.width, in.width);
+  ASSERT_EQ(out.data.size(), 20u * s.size());
   for (std::size_t i = 0; i < s.size(); ++i) {
-    ASSERT_EQ(std::memcmp(&out.data[i * 20], &in.data[i * 14], 14), 0);
+    // Every record moved whole (the first ones overlap their old place), the gap zeroed.
+    ASSERT_EQ(std::memcmp(&out.data[i * 20], &in.data[i * 14], 14), 0) << i;
+    ASSERT_EQ(out.data[i * 20 + 14], 0) << i;
+    ASSERT_EQ(out.data[i * 20 + 15], 0) << i;
     ASSERT_EQ(floatAt(out, i, 16), v[i]);
   }
   // Again on its own output: the field is overwritten, the record does not grow.
   for (float& x : v) x = -x;
-  PointCloud2 again;
-  ASSERT_TRUE(gf::withFloatField(out, gf::kHeightFieldName, v, &again, &why)) << why;
+  PointCloud2 again = out;
+  ASSERT_TRUE(gf::addFloatField(&again, gf::kHeightFieldName, v, &why)) << why;
   EXPECT_EQ(again.point_step, 20u);
   EXPECT_EQ(again.fields.size(), 5u);
   EXPECT_EQ(floatAt(again, 3, 16), v[3]);
-  // A field of that name but another type: refused, named.
+  EXPECT_EQ(std::memcmp(&again.data[3 * 20], &out.data[3 * 20], 16), 0);
+  // A field of that name but another type: refused, named, the cloud unchanged.
   PointCloud2 bad = in;
   bad.fields[3].name = gf::kHeightFieldName;
-  EXPECT_FALSE(gf::withFloatField(bad, gf::kHeightFieldName, v, &again, &why));
+  const PointCloud2 bad_before = bad;
+  EXPECT_FALSE(gf::addFloatField(&bad, gf::kHeightFieldName, v, &why));
   EXPECT_NE(why.find("height_above_ground"), std::string::npos);
+  EXPECT_EQ(bad.data, bad_before.data);
+  EXPECT_EQ(bad.point_step, 14u);
+  // Padded rows: refused, unchanged.
+  PointCloud2 padded = s.cloud(4, 7);
+  const std::vector<std::uint8_t> padded_before = padded.data;
+  EXPECT_FALSE(gf::addFloatField(&padded, gf::kHeightFieldName, v, &why));
+  EXPECT_NE(why.find("padded"), std::string::npos);
+  EXPECT_EQ(padded.data, padded_before);
+  EXPECT_EQ(padded.fields.size(), 4u);
 }
 
 TEST(HagOutputs, ObstacleBandKeepsWholeRecordsInTheBand) {

@@ -22,22 +22,46 @@ void ObstacleBand::validate() const {
   }
 }
 
-bool withFloatField(const sensor_msgs::PointCloud2& in, const char* name,
-                    const std::vector<float>& values, sensor_msgs::PointCloud2* out,
-                    std::string* why) {
-  std::size_t offset = 0;
-  if (!layoutWithField(in, name, sensor_msgs::PointField::FLOAT32, sizeof(float), out, &offset,
-                       why)) {
+bool addFloatField(sensor_msgs::PointCloud2* cloud, const char* name,
+                   const std::vector<float>& values, std::string* why) {
+  const std::size_t in_step = cloud->point_step;
+  const std::size_t n = std::size_t{cloud->width} * cloud->height;
+  if (std::size_t{cloud->row_step} != in_step * cloud->width) {
+    if (why) *why = "the cloud's rows are padded (row_step != point_step * width)";
     return false;
   }
-  const std::size_t in_step = in.point_step, step = out->point_step;
-  const std::size_t n = std::size_t{in.width} * in.height;
-  const std::uint8_t* src = in.data.data();
-  std::uint8_t* dst = out->data.data();
-  for (std::size_t i = 0; i < n; ++i, src += in_step, dst += step) {
-    std::memcpy(dst, src, in_step);
-    std::memcpy(dst + offset, &values[i], sizeof(float));
+  const sensor_msgs::PointField* existing = nullptr;
+  for (const auto& f : cloud->fields) {
+    if (f.name == name) existing = &f;
   }
+  std::uint8_t* d = cloud->data.data();
+  const float* v = values.data();
+  if (existing) {
+    if (existing->datatype != sensor_msgs::PointField::FLOAT32 || existing->count != 1) {
+      if (why)
+        *why = std::string("the input already has a field '") + name +
+               "' that is not a single float32";
+      return false;
+    }
+    const std::size_t offset = existing->offset;
+    for (std::size_t i = 0; i < n; ++i) std::memcpy(d + i * in_step + offset, v + i, 4);
+    return true;
+  }
+  const std::size_t offset = (in_step + 3) / 4 * 4, step = offset + sizeof(float);
+  cloud->data.resize(n * step);
+  d = cloud->data.data();
+  // From the last record back: each record's new place starts at or after its old one, and
+  // after the old places of the records before it, so nothing is read after it was written.
+  for (std::size_t i = n; i-- > 0;) {
+    std::uint8_t* dst = d + i * step;
+    std::memmove(dst, d + i * in_step, in_step);
+    for (std::size_t k = in_step; k < offset; ++k) dst[k] = 0;
+    std::memcpy(dst + offset, v + i, sizeof(float));
+  }
+  cloud->fields.push_back(
+      makePointField(name, static_cast<std::uint32_t>(offset), sensor_msgs::PointField::FLOAT32));
+  cloud->point_step = static_cast<std::uint32_t>(step);
+  cloud->row_step = static_cast<std::uint32_t>(step * cloud->width);
   return true;
 }
 
@@ -95,6 +119,7 @@ void makeObstacleCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& la
   out->height = 1;
   out->width = static_cast<std::uint32_t>(n);
   out->row_step = static_cast<std::uint32_t>(n * step);
+  if (kept_heights) out->data.reserve(n * ((step + 3) / 4 * 4 + sizeof(float)));
   out->data.resize(n * step);
   std::uint8_t* dst = out->data.data();
   if (kept_heights) kept_heights->clear();
@@ -182,11 +207,10 @@ void HagOutputs::process(const sensor_msgs::PointCloud2& in, const CloudLayout& 
   } else {
     surface_.heights(view, &heights_);
   }
+  // In the (pooled) messages themselves: a second message per output cost a fresh buffer, its
+  // page faults and zeroing, and one more copy of every record (docs/height_above_ground.md#cost).
   auto addField = [&](sensor_msgs::PointCloud2Ptr* cloud, const std::vector<float>& values) {
-    auto with = boost::make_shared<sensor_msgs::PointCloud2>();
-    if (withFloatField(**cloud, kHeightFieldName, values, with.get(), &clouds->error)) {
-      *cloud = with;
-    }
+    addFloatField(cloud->get(), kHeightFieldName, values, &clouds->error);
   };
   if (want_obstacles) {
     ObstacleBand band;

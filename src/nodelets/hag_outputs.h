@@ -33,15 +33,16 @@ struct ObstacleBand {
   void validate() const;
 };
 
-/// \brief `in` (a packed cloud: height 1 or rows without padding) with a float32 field `name`
-///        holding values[i] for its i-th record: appended after the record (point_step grows
-///        to the next multiple of 4), or written in place when `in` has a float32 `name`
-///        field of count 1.
-/// \return false, with `why` set, when `in` has a field `name` of another type or count.
-/// \pre values.size() >= in.width * in.height; rows of `in` hold no padding.
-bool withFloatField(const sensor_msgs::PointCloud2& in, const char* name,
-                    const std::vector<float>& values, sensor_msgs::PointCloud2* out,
-                    std::string* why);
+/// \brief Gives every record of `cloud` a float32 field `name` holding values[i] for its i-th
+///        record, in the message itself: appended after the record (point_step grows to the
+///        next multiple of 4, the records move apart from the last one back, gap bytes 0), or
+///        written in place when `cloud` has a float32 `name` field of count 1. No second
+///        message: a pooled message keeps its buffer, which grows once (CloudPool).
+/// \return false, `cloud` unchanged and `why` set, when `cloud` has a field `name` of another
+///         type or count, or rows with padding (row_step != point_step * width).
+/// \pre values.size() >= cloud->width * cloud->height.
+bool addFloatField(sensor_msgs::PointCloud2* cloud, const char* name,
+                   const std::vector<float>& values, std::string* why);
 
 /// \brief One record per occupied cell of `surface`: x, y, z (float32, cell centre at the
 ///        ground elevation), points (uint32, ground points in the cell), confidence (float32,
@@ -58,7 +59,7 @@ void makeSurfaceCloud(const GroundSurface& surface, const std_msgs::Header& head
 ///        order) lies in [band.min_height, band.max_height]; NaN heights never do. The output
 ///        has the input's header and fields, height 1, no row padding.
 /// \param kept_heights when not null, the heights of the kept records, in output order (for
-///        withFloatField()).
+///        addFloatField()); the output's buffer is then reserved for that field too.
 void makeObstacleCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
                        const std::vector<std::uint8_t>& labels, const std::vector<float>& heights,
                        const ObstacleBand& band, sensor_msgs::PointCloud2* out,
