@@ -3,9 +3,8 @@
 
 // Height above ground in the nodelets (docs/height_above_ground.md): the `height_above_ground`
 // field of ~labeled (and, with ~hag_field, of ~ground / ~nonground / ~obstacles), the lazy
-// ~ground_surface
-// and ~obstacles outputs. The cloud-building functions need no ROS graph (tested alone); the
-// HagOutputs class holds the publishers, the start parameters and the obstacle band.
+// ~ground_surface and ~obstacles outputs. The cloud-building functions need no ROS graph (tested
+// alone); the HagOutputs class holds the publishers, the start parameters and the obstacle band.
 
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
