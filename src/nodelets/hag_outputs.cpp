@@ -30,26 +30,20 @@ bool addFloatField(sensor_msgs::PointCloud2* cloud, const char* name,
     if (why) *why = "the cloud's rows are padded (row_step != point_step * width)";
     return false;
   }
-  const sensor_msgs::PointField* existing = nullptr;
-  for (const auto& f : cloud->fields) {
-    if (f.name == name) existing = &f;
+  std::size_t offset = 0, step = 0;
+  bool append = false;
+  if (!fieldSlot(cloud->fields, in_step, name, sensor_msgs::PointField::FLOAT32, sizeof(float),
+                 &offset, &step, &append, why)) {
+    return false;
   }
-  std::uint8_t* d = cloud->data.data();
   const float* v = values.data();
-  if (existing) {
-    if (existing->datatype != sensor_msgs::PointField::FLOAT32 || existing->count != 1) {
-      if (why)
-        *why = std::string("the input already has a field '") + name +
-               "' that is not a single float32";
-      return false;
-    }
-    const std::size_t offset = existing->offset;
+  if (!append) {
+    std::uint8_t* d = cloud->data.data();
     for (std::size_t i = 0; i < n; ++i) std::memcpy(d + i * in_step + offset, v + i, 4);
     return true;
   }
-  const std::size_t offset = (in_step + 3) / 4 * 4, step = offset + sizeof(float);
   cloud->data.resize(n * step);
-  d = cloud->data.data();
+  std::uint8_t* d = cloud->data.data();
   // From the last record back: each record's new place starts at or after its old one, and
   // after the old places of the records before it, so nothing is read after it was written.
   for (std::size_t i = n; i-- > 0;) {

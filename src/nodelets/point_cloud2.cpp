@@ -214,16 +214,15 @@ sensor_msgs::PointField makePointField(const char* name, std::uint32_t offset,
   return singleValueField<sensor_msgs::PointField>(name, offset, datatype);
 }
 
-bool layoutWithField(const sensor_msgs::PointCloud2& in, const char* name, std::uint8_t datatype,
-                     std::size_t size, sensor_msgs::PointCloud2* out, std::size_t* offset,
-                     std::string* why) {
+bool fieldSlot(const std::vector<sensor_msgs::PointField>& fields, std::size_t point_step,
+               const char* name, std::uint8_t datatype, std::size_t size, std::size_t* offset,
+               std::size_t* step, bool* append, std::string* why) {
   const sensor_msgs::PointField* existing = nullptr;
-  for (const auto& f : in.fields) {
+  for (const auto& f : fields) {
     if (f.name == name) existing = &f;
   }
-  const std::size_t in_step = in.point_step;
-  std::size_t step = in_step;
-  out->fields = in.fields;
+  *append = existing == nullptr;
+  *step = point_step;
   if (existing) {
     if (existing->datatype != datatype || existing->count != 1) {
       if (why) {
@@ -234,8 +233,22 @@ bool layoutWithField(const sensor_msgs::PointCloud2& in, const char* name, std::
     }
     *offset = existing->offset;
   } else {
-    *offset = (in_step + size - 1) / size * size;  // the value aligned to its size
-    step = (*offset + size + 3) / 4 * 4;           // records stay 4-byte aligned
+    *offset = (point_step + size - 1) / size * size;  // the value aligned to its size
+    *step = (*offset + size + 3) / 4 * 4;             // records stay 4-byte aligned
+  }
+  return true;
+}
+
+bool layoutWithField(const sensor_msgs::PointCloud2& in, const char* name, std::uint8_t datatype,
+                     std::size_t size, sensor_msgs::PointCloud2* out, std::size_t* offset,
+                     std::string* why) {
+  std::size_t step = 0;
+  bool append = false;
+  if (!fieldSlot(in.fields, in.point_step, name, datatype, size, offset, &step, &append, why)) {
+    return false;
+  }
+  out->fields = in.fields;
+  if (append) {
     out->fields.push_back(makePointField(name, static_cast<std::uint32_t>(*offset), datatype));
   }
   out->header = in.header;

@@ -177,6 +177,15 @@ void processPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& l
 sensor_msgs::PointField makePointField(const char* name, std::uint32_t offset,
                                        std::uint8_t datatype);
 
+/// \brief Where a field `name` of one `datatype` value (`size` bytes) goes in records of
+///        `point_step` bytes with `fields`: an existing field of that name, written in place
+///        (`*step` = point_step, `*append` false), or a new one after the record at an offset
+///        aligned to `size`, records padded to 4 bytes (`*append` true).
+/// \returns false (reason in `why`) when `fields` has a field `name` of another type or count.
+bool fieldSlot(const std::vector<sensor_msgs::PointField>& fields, std::size_t point_step,
+               const char* name, std::uint8_t datatype, std::size_t size, std::size_t* offset,
+               std::size_t* step, bool* append, std::string* why);
+
 /// \brief `out` laid out as `in` (header, width, height; rows unpadded) with one more field `name`
 ///        of one `datatype` value of `size` bytes: appended after the record at an offset aligned
 ///        to `size` (records padded to 4 bytes), or an existing field of that type reused in
