@@ -1,6 +1,7 @@
 // libFuzzer target over the nodelets' byte path without any ROS graph: serialised bytes ->
 // deserializePointCloud2 -> checkPointCloud2 -> processPointCloud2 (view, working volume,
-// filter, split, labelled cloud), as GroundFilterNodelet runs it. Every accepted cloud must come
+// filter, split, labelled cloud; or its two halves with a float field written into the copies),
+// as GroundFilterNodelet runs it. Every accepted cloud must come
 // out with each record in exactly one output. Built by test/sanitize/CMakeLists.txt (ASan +
 // UBSan); run by scripts/fuzz.sh. GF_FUZZ_METHOD selects the filter (voxel | normal).
 #include <Eigen/Geometry>
@@ -56,15 +57,39 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
 
   gf::CloudProcessingBuffers buffers;
   gf::ProcessedCloud out;
-  gf::processPointCloud2(msg, layout, g_filter.get(), transformed ? &transform : nullptr,
-                         /*want_labeled=*/true, &buffers, &out);
+  // Seq bit 1: the nodelets' height path, a float field written into every output as it is
+  // copied (filterPointCloud2(), then writeOutputs() with the field).
+  const bool with_field = (msg.header.seq & 2u) != 0;
+  std::vector<float> values;
+  gf::RecordFloatField field;
+  field.name = "height_above_ground";
+  field.values = &values;
+  if (with_field) {
+    gf::filterPointCloud2(msg, layout, g_filter.get(), transformed ? &transform : nullptr, &buffers,
+                          &out);
+    for (std::size_t i = 0; i < layout.points; ++i) values.push_back(static_cast<float>(i));
+    gf::writeOutputs(msg, layout, /*want_labeled=*/true, &buffers, &out, nullptr, &field,
+                     /*field_in_split=*/true);
+  } else {
+    gf::processPointCloud2(msg, layout, g_filter.get(), transformed ? &transform : nullptr,
+                           /*want_labeled=*/true, &buffers, &out);
+  }
+  // The split's record size: the input's, or with the field (unless it was refused).
+  std::size_t step = layout.point_step;
+  if (with_field && out.field_error.empty()) {
+    std::size_t offset = 0;
+    bool append = false;
+    require(gf::fieldSlot(msg.fields, layout.point_step, field.name,
+                          sensor_msgs::PointField::FLOAT32, 4, &offset, &step, &append, &why),
+            "field slot");
+  }
   require(out.ground && out.nonground, "outputs missing");
   require(out.counts.ground + out.counts.nonground == layout.points, "points not conserved");
   require(out.ground->width == out.counts.ground, "ground width");
   require(out.nonground->width == out.counts.nonground, "nonground width");
-  require(out.ground->data.size() == out.counts.ground * layout.point_step, "ground bytes");
-  require(out.nonground->data.size() == out.counts.nonground * layout.point_step,
-          "nonground bytes");
+  require(out.ground->point_step == step && out.nonground->point_step == step, "split step");
+  require(out.ground->data.size() == out.counts.ground * step, "ground bytes");
+  require(out.nonground->data.size() == out.counts.nonground * step, "nonground bytes");
   require(out.counts.invalid <= out.counts.nonground, "invalid points outside non-ground");
   if (out.labeled) {
     require(out.labeled->width == msg.width && out.labeled->height == msg.height, "labelled size");

@@ -8,6 +8,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "gf_test_clouds.h"
@@ -236,10 +237,107 @@ TEST(HagOutputs, SurfaceCloudOfMovedPointsIsMovedBack) {
   }
 }
 
-TEST(HagOutputs, GatherByLabelAndBandValidation) {
-  std::vector<float> out;
-  gf::gatherByLabel({1.f, 2.f, 3.f, 4.f}, {1, 0, 1, 0}, 0, &out);
-  EXPECT_EQ(out, (std::vector<float>{2.f, 4.f}));
+// ~ground, ~nonground and ~labeled get the heights while their records are copied; the bytes are
+// those of the plain copy followed by addFloatField() of each output's heights.
+TEST(HagOutputs, SplitAndLabeledCarryTheFieldAsTheyCopy) {
+  const Scene s = postScene();
+  std::vector<float> v(s.size());
+  for (std::size_t i = 0; i < v.size(); ++i) v[i] = 0.25f * static_cast<float>(i) - 3.f;
+  gf::RecordFloatField field;
+  field.name = gf::kHeightFieldName;
+  field.values = &v;
+  for (const std::uint32_t pad : {0u, 7u}) {
+    const PointCloud2 in = s.cloud(4, pad);
+    gf::CloudLayout layout;
+    ASSERT_EQ(gf::checkPointCloud2(in, &layout, nullptr), gf::CloudRejectReason::kNone);
+    std::vector<std::uint8_t> labels = s.labels;
+    const gf::SplitCounts counts = gf::finalizeLabels(in, layout, &labels);
+    EXPECT_EQ(counts.invalid, 1u);
+    // Reused (pooled) messages hold old bytes: every byte must be written, the gaps too.
+    PointCloud2 g, ng, ref_g, ref_ng;
+    g.data.assign(2 * in.data.size(), 0xAB);
+    ng.data = g.data;
+    std::string why;
+    ASSERT_TRUE(gf::copySplit(in, layout, labels, counts, &g, &ng, &field, &why)) << why;
+    std::vector<std::uint8_t> ref_labels = s.labels;
+    gf::splitPointCloud2(in, layout, &ref_labels, &ref_g, &ref_ng);
+    ASSERT_EQ(ref_labels, labels);
+    std::vector<float> vg, vng;
+    for (std::size_t i = 0; i < labels.size(); ++i) {
+      (labels[i] == gf::kGround ? vg : vng).push_back(v[i]);
+    }
+    ASSERT_TRUE(gf::addFloatField(&ref_g, gf::kHeightFieldName, vg, &why)) << why;
+    ASSERT_TRUE(gf::addFloatField(&ref_ng, gf::kHeightFieldName, vng, &why)) << why;
+    for (const auto& pair : {std::make_pair(&g, &ref_g), std::make_pair(&ng, &ref_ng)}) {
+      const PointCloud2& a = *pair.first;
+      const PointCloud2& b = *pair.second;
+      EXPECT_EQ(a.point_step, 20u);
+      EXPECT_EQ(a.point_step, b.point_step);
+      EXPECT_EQ(a.row_step, b.row_step);
+      EXPECT_EQ(a.width, b.width);
+      EXPECT_EQ(a.is_dense, b.is_dense);
+      ASSERT_EQ(a.fields.size(), 5u);
+      EXPECT_EQ(a.fields.back().name, "height_above_ground");
+      EXPECT_EQ(a.fields.back().offset, 16u);
+      EXPECT_EQ(a.data, b.data);  // records, zeroed gaps and values byte for byte
+    }
+    EXPECT_EQ(g.width + ng.width, s.size());
+    EXPECT_FALSE(ng.is_dense);  // it holds the NaN record
+    // ~labeled: the label, then the height after it, in the same copy.
+    PointCloud2 lab, ref_lab;
+    lab.data.assign(2 * in.data.size(), 0xAB);
+    std::string field_why;
+    ASSERT_TRUE(gf::makeLabeledCloud(in, layout, labels, &lab, &why, &field, &field_why)) << why;
+    EXPECT_TRUE(field_why.empty()) << field_why;
+    ASSERT_TRUE(gf::makeLabeledCloud(in, layout, labels, &ref_lab, &why)) << why;
+    ASSERT_TRUE(gf::addFloatField(&ref_lab, gf::kHeightFieldName, v, &why)) << why;
+    ASSERT_EQ(lab.fields.size(), 6u);
+    EXPECT_EQ(lab.fields[4].name, "ground");
+    EXPECT_EQ(lab.fields[4].offset, 14u);
+    EXPECT_EQ(lab.fields[5].offset, 16u);
+    EXPECT_EQ(lab.point_step, 20u);
+    EXPECT_EQ(lab.height, 4u);
+    EXPECT_EQ(lab.data, ref_lab.data);
+    EXPECT_EQ(lab.row_step, ref_lab.row_step);
+    // Filtered again (its own output as input): the field is overwritten in place.
+    gf::CloudLayout again_layout;
+    ASSERT_EQ(gf::checkPointCloud2(lab, &again_layout, nullptr), gf::CloudRejectReason::kNone);
+    std::vector<float> w(v.size(), 7.f);
+    gf::RecordFloatField again_field = field;
+    again_field.values = &w;
+    PointCloud2 g2, ng2;
+    ASSERT_TRUE(gf::copySplit(lab, again_layout, labels, counts, &g2, &ng2, &again_field, &why));
+    EXPECT_EQ(g2.point_step, 20u);
+    EXPECT_EQ(g2.fields.size(), 6u);
+    for (std::size_t k = 0; k < g2.width; ++k) ASSERT_EQ(floatAt(g2, k, 16), 7.f);
+  }
+  // A field of that name and another type: the records go out whole without it, the reason
+  // named; ~labeled still goes out.
+  PointCloud2 bad = s.cloud();
+  bad.fields[3].name = gf::kHeightFieldName;
+  gf::CloudLayout layout;
+  ASSERT_EQ(gf::checkPointCloud2(bad, &layout, nullptr), gf::CloudRejectReason::kNone);
+  std::vector<std::uint8_t> labels = s.labels;
+  const gf::SplitCounts counts = gf::finalizeLabels(bad, layout, &labels);
+  PointCloud2 g, ng, ref_g, ref_ng;
+  std::string why;
+  EXPECT_FALSE(gf::copySplit(bad, layout, labels, counts, &g, &ng, &field, &why));
+  EXPECT_NE(why.find("height_above_ground"), std::string::npos);
+  std::vector<std::uint8_t> ref_labels = s.labels;
+  gf::splitPointCloud2(bad, layout, &ref_labels, &ref_g, &ref_ng);
+  EXPECT_EQ(g.point_step, 14u);
+  EXPECT_EQ(g.data, ref_g.data);
+  EXPECT_EQ(ng.data, ref_ng.data);
+  PointCloud2 lab, ref_lab;
+  std::string field_why;
+  ASSERT_TRUE(gf::makeLabeledCloud(bad, layout, labels, &lab, &why, &field, &field_why));
+  EXPECT_NE(field_why.find("height_above_ground"), std::string::npos);
+  ASSERT_TRUE(gf::makeLabeledCloud(bad, layout, labels, &ref_lab, &why));
+  EXPECT_EQ(lab.data, ref_lab.data);
+  EXPECT_EQ(lab.fields.size(), 5u);
+}
+
+TEST(HagOutputs, BandValidation) {
   gf::ObstacleBand band;
   EXPECT_NO_THROW(band.validate());
   band.min_height = 2.5;

@@ -294,11 +294,19 @@ void GroundFilterNodelet::processCloud(const sensor_msgs::PointCloud2ConstPtr& m
       filter_.reset();  // processPointCloud2 publishes the cloud as all non-ground
       build_error = e.what();
     }
-    processPointCloud2(*msg, layout, filter_.get(), to_gravity, outputs_->wantLabeled(), &buffers_,
-                       &out, &output_pools_);
+    filterPointCloud2(*msg, layout, filter_.get(), to_gravity, &buffers_, &out);
     if (!build_error.empty()) out.filter_error = build_error;
-    outputs_->hag().process(*msg, layout, to_gravity, buffers_,
-                            to_gravity ? tf_wait_->frame() : msg->header.frame_id, &out, &hag);
+    // The heights come from the labels and go into the outputs as their records are copied.
+    const bool want_labeled = outputs_->wantLabeled();
+    HagOutputs& hag_outputs = outputs_->hag();
+    const std::vector<float>* heights = hag_outputs.process(
+        *msg, layout, to_gravity, buffers_, to_gravity ? tf_wait_->frame() : msg->header.frame_id,
+        out.filter_error, want_labeled, &hag);
+    RecordFloatField height_field;
+    height_field.name = kHeightFieldName;
+    height_field.values = heights;
+    writeOutputs(*msg, layout, want_labeled, &buffers_, &out, &output_pools_,
+                 heights ? &height_field : nullptr, hag_outputs.fieldInSplit());
     if (!out.filter_error.empty()) {
       filter_.reset();  // rebuilt from scratch for the next cloud
     } else if (release_.afterCloud(static_cast<std::size_t>(msg->width) * msg->height)) {

@@ -64,11 +64,6 @@ void makeObstacleCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& la
                        const ObstacleBand& band, sensor_msgs::PointCloud2* out,
                        std::vector<float>* kept_heights = nullptr);
 
-/// \brief The values of `heights` whose label is `label`, in order (the records of the split
-///        cloud of that label).
-void gatherByLabel(const std::vector<float>& heights, const std::vector<std::uint8_t>& labels,
-                   std::uint8_t label, std::vector<float>* out);
-
 /// \brief The private start parameters of HagOutputs (hag_field, hag_cell, hag_radius), checked
 ///        with the base's (baseParamChecks()).
 std::vector<ParamCheck> hagParamChecks();
@@ -77,7 +72,7 @@ std::vector<ParamCheck> hagParamChecks();
 struct HagClouds {
   sensor_msgs::PointCloud2Ptr surface;
   sensor_msgs::PointCloud2Ptr obstacles;
-  std::string error;  ///< non-empty: a height field could not be added (logged by the caller)
+  std::string error;  ///< non-empty: ~obstacles' height field could not be added (logged)
 };
 
 /// \brief The height-above-ground part of a filter nodelet.
@@ -95,13 +90,22 @@ class HagOutputs {
             const ros::Publisher& obstacles);
   /// \brief Installs a validated band (thread-safe; from the next cloud on).
   void setBand(const ObstacleBand& band);
-  /// \brief Adds the height fields to `out`'s clouds and builds ~ground_surface / ~obstacles
-  ///        as far as wanted. `labels` as normalised by processPointCloud2(); `xyz`: its
-  ///        scratch (the transformed or packed view, when there was one).
+  /// \brief Builds the surface, the heights and ~ground_surface / ~obstacles as far as wanted,
+  ///        between filterPointCloud2() and writeOutputs() (which writes the heights into the
+  ///        copies). `buffers->labels` as normalised by filterPointCloud2(); `xyz`: its scratch
+  ///        (the transformed or packed view, when there was one).
   /// \param frame frame the heights are taken in (the gravity frame, else the input frame).
-  void process(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
-               const Eigen::Isometry3d* to_gravity, const CloudProcessingBuffers& buffers,
-               const std::string& frame, ProcessedCloud* out, HagClouds* clouds);
+  /// \param filter_error non-empty when the filter failed (every height NaN, no surface).
+  /// \param want_labeled whether ~labeled will be written (it carries the heights).
+  /// \return the heights, one per input record, for writeOutputs(); null when no output
+  ///         carries them.
+  const std::vector<float>* process(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
+                                    const Eigen::Isometry3d* to_gravity,
+                                    const CloudProcessingBuffers& buffers, const std::string& frame,
+                                    const std::string& filter_error, bool want_labeled,
+                                    HagClouds* clouds);
+  /// \brief Whether ~ground and ~nonground carry the heights too (`~hag_field`).
+  bool fieldInSplit() const { return hag_field_; }
   /// \brief Publishes what process() built.
   void publish(const HagClouds& clouds);
 
@@ -113,7 +117,7 @@ class HagOutputs {
   ObstacleBand band_;
   GroundSurface surface_;       // buffers kept between clouds
   std::vector<float> heights_;  // one per input record
-  std::vector<float> split_;    // heights of one split cloud
+  std::vector<float> kept_;     // heights of the ~obstacles records
 };
 
 }  // namespace ground_filter

@@ -44,8 +44,9 @@ void OutputPublisher::publish(const ProcessedCloud& out, const HagClouds& hag, d
   if (!out.labeled_error.empty() && monitor_->logNow(NodeletMonitor::kLabeled)) {
     NODELET_WARN("%s: ~labeled not published: %s", method, out.labeled_error.c_str());
   }
-  if (!hag.error.empty() && monitor_->logNow(NodeletMonitor::kLabeled)) {
-    NODELET_WARN("%s: no height_above_ground field: %s", method, hag.error.c_str());
+  const std::string& field_error = out.field_error.empty() ? hag.error : out.field_error;
+  if (!field_error.empty() && monitor_->logNow(NodeletMonitor::kLabeled)) {
+    NODELET_WARN("%s: no height_above_ground field: %s", method, field_error.c_str());
   }
   const std::string& note = out.stats.note;
   if (!note.empty()) {

@@ -33,17 +33,26 @@ void loadXyz(const std::uint8_t* rec, const CloudLayout& layout, double p[3]) {
   p[2] = loadCoord(rec + layout.z_offset, layout.float64);
 }
 
-// Output cloud with the input's header and record layout, room for `n` records.
-void prepareOutput(const sensor_msgs::PointCloud2& in, std::size_t n,
+// Output cloud with the input's header and fields, room for `n` records of `step` bytes.
+void prepareOutput(const sensor_msgs::PointCloud2& in, std::size_t n, std::size_t step,
                    sensor_msgs::PointCloud2* out) {
   out->header = in.header;
   out->fields = in.fields;
   out->is_bigendian = in.is_bigendian;
-  out->point_step = in.point_step;
+  out->point_step = static_cast<std::uint32_t>(step);
   out->height = 1;
   out->width = static_cast<std::uint32_t>(n);
-  out->row_step = static_cast<std::uint32_t>(n * in.point_step);
-  out->data.resize(n * in.point_step);
+  out->row_step = static_cast<std::uint32_t>(n * step);
+  out->data.resize(n * step);
+}
+
+// Where a RecordFloatField goes in records of `point_step` bytes with `fields` (fieldSlot());
+// `*append` when it is a new field.
+bool floatFieldSlot(const std::vector<sensor_msgs::PointField>& fields, std::size_t point_step,
+                    const RecordFloatField& field, std::size_t* offset, std::size_t* step,
+                    bool* append, std::string* why) {
+  return fieldSlot(fields, point_step, field.name, sensor_msgs::PointField::FLOAT32, sizeof(float),
+                   offset, step, append, why);
 }
 
 // Records sampled for packShift().
@@ -132,9 +141,15 @@ bool sampledCentre(const sensor_msgs::PointCloud2& cloud, const CloudLayout& lay
 SplitCounts splitPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
                              std::vector<std::uint8_t>* labels, sensor_msgs::PointCloud2* ground,
                              sensor_msgs::PointCloud2* nonground) {
+  const SplitCounts counts = finalizeLabels(in, layout, labels);
+  copySplit(in, layout, *labels, counts, ground, nonground);
+  return counts;
+}
+
+SplitCounts finalizeLabels(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
+                           std::vector<std::uint8_t>* labels) {
   SplitCounts counts;
   const std::size_t step = layout.point_step;
-  // Pass 1: final label per record (NaN/Inf forced to non-ground) and the output sizes.
   std::vector<std::uint8_t>& final_labels = *labels;
   for (std::size_t r = 0, i = 0; r < layout.height; ++r) {
     const std::uint8_t* rec = in.data.data() + r * layout.row_step;
@@ -152,28 +167,65 @@ SplitCounts splitPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayo
     }
   }
   counts.nonground = layout.points - counts.ground;
-  prepareOutput(in, counts.ground, ground);
-  prepareOutput(in, counts.nonground, nonground);
+  return counts;
+}
+
+bool copySplit(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
+               const std::vector<std::uint8_t>& labels, const SplitCounts& counts,
+               sensor_msgs::PointCloud2* ground, sensor_msgs::PointCloud2* nonground,
+               const RecordFloatField* field, std::string* why) {
+  const std::size_t in_step = layout.point_step;
+  std::size_t offset = 0, step = in_step;
+  bool append = false;
+  bool refused = false;
+  bool with_field = field && field->values;
+  if (with_field && !floatFieldSlot(in.fields, in_step, *field, &offset, &step, &append, why)) {
+    with_field = false;
+    refused = true;
+    step = in_step;
+  }
+  prepareOutput(in, counts.ground, step, ground);
+  prepareOutput(in, counts.nonground, step, nonground);
+  if (with_field && append) {
+    const sensor_msgs::PointField f = makePointField(
+        field->name, static_cast<std::uint32_t>(offset), sensor_msgs::PointField::FLOAT32);
+    ground->fields.push_back(f);
+    nonground->fields.push_back(f);
+  }
   ground->is_dense = true;
   nonground->is_dense = counts.invalid == 0;
-
-  // Pass 2: copy runs of equally labelled records within each row with one memcpy per run.
   std::uint8_t* dst[2] = {nonground->data.data(), ground->data.data()};
-  for (std::size_t r = 0, i = 0; r < layout.height; ++r) {
-    const std::uint8_t* row = in.data.data() + r * layout.row_step;
-    std::size_t c = 0;
-    while (c < layout.width) {
-      const std::uint8_t label = final_labels[i + c];
-      std::size_t end = c + 1;
-      while (end < layout.width && final_labels[i + end] == label) ++end;
-      const std::size_t bytes = (end - c) * step;
-      std::memcpy(dst[label], row + c * step, bytes);
-      dst[label] += bytes;
-      c = end;
+  if (!with_field) {
+    // Runs of equally labelled records within each row: one memcpy per run.
+    for (std::size_t r = 0, i = 0; r < layout.height; ++r) {
+      const std::uint8_t* row = in.data.data() + r * layout.row_step;
+      std::size_t c = 0;
+      while (c < layout.width) {
+        const std::uint8_t label = labels[i + c];
+        std::size_t end = c + 1;
+        while (end < layout.width && labels[i + end] == label) ++end;
+        const std::size_t bytes = (end - c) * in_step;
+        std::memcpy(dst[label], row + c * in_step, bytes);
+        dst[label] += bytes;
+        c = end;
+      }
+      i += layout.width;
     }
-    i += layout.width;
+    return !refused;
   }
-  return counts;
+  // Record by record, the value written as each record lands (no second pass over the outputs).
+  const float* v = field->values->data();
+  for (std::size_t r = 0, i = 0; r < layout.height; ++r) {
+    const std::uint8_t* rec = in.data.data() + r * layout.row_step;
+    for (std::size_t c = 0; c < layout.width; ++c, ++i, rec += in_step) {
+      std::uint8_t*& d = dst[labels[i]];
+      std::memcpy(d, rec, in_step);
+      if (step > in_step) std::memset(d + in_step, 0, step - in_step);
+      std::memcpy(d + offset, v + i, sizeof(float));
+      d += step;
+    }
+  }
+  return true;
 }
 
 CloudView makeTransformedCloudView(const sensor_msgs::PointCloud2& cloud, const CloudLayout& layout,
@@ -239,17 +291,33 @@ bool fieldSlot(const std::vector<sensor_msgs::PointField>& fields, std::size_t p
   return true;
 }
 
-bool layoutWithField(const sensor_msgs::PointCloud2& in, const char* name, std::uint8_t datatype,
-                     std::size_t size, sensor_msgs::PointCloud2* out, std::size_t* offset,
-                     std::string* why) {
-  std::size_t step = 0;
+bool makeLabeledCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
+                      const std::vector<std::uint8_t>& labels, sensor_msgs::PointCloud2* out,
+                      std::string* why, const RecordFloatField* field, std::string* field_why) {
+  const std::size_t in_step = layout.point_step;
+  std::size_t label_offset = 0, step = 0;
   bool append = false;
-  if (!fieldSlot(in.fields, in.point_step, name, datatype, size, offset, &step, &append, why)) {
+  if (!fieldSlot(in.fields, in_step, kLabelFieldName, sensor_msgs::PointField::UINT8, 1,
+                 &label_offset, &step, &append, why)) {
     return false;
   }
   out->fields = in.fields;
   if (append) {
-    out->fields.push_back(makePointField(name, static_cast<std::uint32_t>(*offset), datatype));
+    out->fields.push_back(makePointField(kLabelFieldName, static_cast<std::uint32_t>(label_offset),
+                                         sensor_msgs::PointField::UINT8));
+  }
+  // The float field after the label (or in place), in the same copy.
+  std::size_t value_offset = 0;
+  bool with_field = false;
+  if (field && field->values) {
+    std::size_t wider = 0;
+    with_field =
+        floatFieldSlot(out->fields, step, *field, &value_offset, &wider, &append, field_why);
+    if (with_field && append) {
+      out->fields.push_back(makePointField(field->name, static_cast<std::uint32_t>(value_offset),
+                                           sensor_msgs::PointField::FLOAT32));
+    }
+    if (with_field) step = wider;
   }
   out->header = in.header;
   out->height = in.height;
@@ -258,25 +326,16 @@ bool layoutWithField(const sensor_msgs::PointCloud2& in, const char* name, std::
   out->is_dense = in.is_dense;
   out->point_step = static_cast<std::uint32_t>(step);
   out->row_step = static_cast<std::uint32_t>(step * in.width);
-  out->data.assign(step * in.width * in.height, 0);
-  return true;
-}
-
-bool makeLabeledCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
-                      const std::vector<std::uint8_t>& labels, sensor_msgs::PointCloud2* out,
-                      std::string* why) {
-  std::size_t label_offset = 0;
-  if (!layoutWithField(in, kLabelFieldName, sensor_msgs::PointField::UINT8, 1, out, &label_offset,
-                       why)) {
-    return false;
-  }
-  const std::size_t step = out->point_step;
+  out->data.resize(step * layout.points);  // every byte written below (gaps zeroed)
+  const float* v = with_field ? field->values->data() : nullptr;
   std::uint8_t* dst = out->data.data();
   for (std::size_t r = 0, i = 0; r < layout.height; ++r) {
     const std::uint8_t* rec = in.data.data() + r * layout.row_step;
-    for (std::size_t c = 0; c < layout.width; ++c, ++i, rec += layout.point_step, dst += step) {
-      std::memcpy(dst, rec, layout.point_step);
+    for (std::size_t c = 0; c < layout.width; ++c, ++i, rec += in_step, dst += step) {
+      std::memcpy(dst, rec, in_step);
+      if (step > in_step) std::memset(dst + in_step, 0, step - in_step);
       dst[label_offset] = labels[i] == kGround ? 1 : 0;
+      if (v) std::memcpy(dst + value_offset, v + i, sizeof(float));
     }
   }
   return true;
@@ -285,10 +344,16 @@ bool makeLabeledCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& lay
 void processPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
                         GroundFilter* filter, const Eigen::Isometry3d* transform, bool want_labeled,
                         CloudProcessingBuffers* buffers, ProcessedCloud* out, OutputPools* pools) {
+  filterPointCloud2(in, layout, filter, transform, buffers, out);
+  writeOutputs(in, layout, want_labeled, buffers, out, pools);
+}
+
+void filterPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
+                       GroundFilter* filter, const Eigen::Isometry3d* transform,
+                       CloudProcessingBuffers* buffers, ProcessedCloud* out) {
   std::vector<std::uint8_t>& labels = buffers->labels;
   out->stats = FilterStats();
   out->filter_error.clear();
-  out->labeled_error.clear();
   std::fill_n(buffers->shift, 3, 0.0);
   try {
     if (!filter) throw std::runtime_error("no filter");
@@ -325,15 +390,29 @@ void processPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& l
     out->stats = FilterStats();
     labels.assign(layout.points, kNonGround);
   }
-  // A pooled message's buffer is sized for about the whole cloud: the first clouds' split varies.
+  out->counts = finalizeLabels(in, layout, &labels);
+}
+
+void writeOutputs(const sensor_msgs::PointCloud2& in, const CloudLayout& layout, bool want_labeled,
+                  CloudProcessingBuffers* buffers, ProcessedCloud* out, OutputPools* pools,
+                  const RecordFloatField* field, bool field_in_split) {
+  const std::vector<std::uint8_t>& labels = buffers->labels;
+  out->labeled_error.clear();
+  out->field_error.clear();
+  // A pooled message's buffer is sized for about the whole cloud (with room for the float field
+  // where it goes): the first clouds' split varies.
+  const std::size_t extra = field ? layout.points * (sizeof(float) + 3) : 0;
   const std::size_t bytes = layout.points * layout.point_step;
-  out->ground = takeCloud(pools ? &pools->ground : nullptr, bytes);
-  out->nonground = takeCloud(pools ? &pools->nonground : nullptr, bytes);
-  out->counts = splitPointCloud2(in, layout, &labels, out->ground.get(), out->nonground.get());
+  const std::size_t split_bytes = bytes + (field_in_split ? extra : 0);
+  out->ground = takeCloud(pools ? &pools->ground : nullptr, split_bytes);
+  out->nonground = takeCloud(pools ? &pools->nonground : nullptr, split_bytes);
+  copySplit(in, layout, labels, out->counts, out->ground.get(), out->nonground.get(),
+            field_in_split ? field : nullptr, &out->field_error);
   out->labeled.reset();
   if (want_labeled) {
-    out->labeled = takeCloud(pools ? &pools->labeled : nullptr, bytes + layout.points * 4);
-    if (!makeLabeledCloud(in, layout, labels, out->labeled.get(), &out->labeled_error)) {
+    out->labeled = takeCloud(pools ? &pools->labeled : nullptr, bytes + layout.points * 4 + extra);
+    if (!makeLabeledCloud(in, layout, labels, out->labeled.get(), &out->labeled_error, field,
+                          &out->field_error)) {
       out->labeled.reset();
     }
   }

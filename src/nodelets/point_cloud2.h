@@ -78,8 +78,15 @@ struct SplitCounts {
   std::size_t invalid = 0;    ///< NaN/Inf records (all in non-ground)
 };
 
+/// \brief Float32 values, one per input record in input order, that the output copies write
+///        into a field `name` as they copy the records (height_above_ground): no second pass.
+struct RecordFloatField {
+  const char* name = nullptr;                  ///< field name
+  const std::vector<float>* values = nullptr;  ///< one per input record (input order)
+};
+
 /// \brief Copies every record of `in` whole (point_step bytes) into exactly one of `ground` and
-///        `nonground`, in input order.
+///        `nonground`, in input order: finalizeLabels(), then copySplit().
 ///
 /// A record goes to ground when its label is not kNonGround and its x/y/z are finite; NaN/Inf
 /// records always go to non-ground. `labels` is normalised in place to the labels actually
@@ -89,6 +96,24 @@ struct SplitCounts {
 SplitCounts splitPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
                              std::vector<std::uint8_t>* labels, sensor_msgs::PointCloud2* ground,
                              sensor_msgs::PointCloud2* nonground);
+
+/// \brief The first pass of splitPointCloud2(): `labels` normalised in place (NaN/Inf records
+///        kNonGround, any other label but kNonGround kGround), and the counts.
+/// \pre `labels->size() == layout.points`.
+SplitCounts finalizeLabels(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
+                           std::vector<std::uint8_t>* labels);
+
+/// \brief The second pass of splitPointCloud2(): the records copied by their normalised
+///        `labels` (`counts` from finalizeLabels()).
+/// \param field when not null, every output record also carries it (fieldSlot(): an existing
+///        float32 field of that name overwritten in place, or appended, gap bytes 0), written
+///        during the copy.
+/// \return false, `why` set and the records copied without the field, when `in` has a field
+///         of that name of another type or count.
+bool copySplit(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
+               const std::vector<std::uint8_t>& labels, const SplitCounts& counts,
+               sensor_msgs::PointCloud2* ground, sensor_msgs::PointCloud2* nonground,
+               const RecordFloatField* field = nullptr, std::string* why = nullptr);
 
 /// \brief The middle of the x/y/z bounding box of at most `max_samples` records spread evenly
 ///        over the cloud, finite ones only (diagnostics: where to point rviz at a survey tile
@@ -120,11 +145,15 @@ constexpr char kLabelFieldName[] = "ground";
 /// Width, height, header and every input field are kept; row padding is dropped. Without a
 /// `ground` field in the input, it is appended after the input record (point_step grows to the
 /// next multiple of 4); an input uint8 `ground` field (count 1) is overwritten in place.
+/// \param field when not null, a float32 field written into the records as well (after
+///        `ground`, or in place: fieldSlot()); when `in` has a field of its name of another type
+///        or count the cloud goes without it and `field_why` says why.
 /// \return false, with `why` set, when the input has a `ground` field of another type.
 /// \pre `labels.size() == layout.points` (labels as normalised by splitPointCloud2()).
 bool makeLabeledCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
                       const std::vector<std::uint8_t>& labels, sensor_msgs::PointCloud2* out,
-                      std::string* why);
+                      std::string* why, const RecordFloatField* field = nullptr,
+                      std::string* field_why = nullptr);
 
 /// \brief Checks (checkSerializedPointCloud2()) and deserialises one serialised PointCloud2.
 /// \return false, with `why` set, when the bytes are no PointCloud2 (`msg` is then unspecified).
@@ -156,10 +185,11 @@ struct ProcessedCloud {
   FilterStats stats;                      ///< what the filter did (empty when it failed)
   std::string filter_error;   ///< non-empty: the filter failed, every record went to non-ground
   std::string labeled_error;  ///< non-empty: ~labeled was asked for but is not possible
+  std::string field_error;    ///< non-empty: the extra float field could not be written
 };
 
 /// \brief Filters one validated cloud and splits it: the shared path of the nodelets and of
-///        the fuzz target.
+///        the fuzz target (filterPointCloud2(), then writeOutputs()).
 ///
 /// The filter sees the cloud's x/y/z (mapped through `transform` when not null; far float64
 /// coordinates moved near the origin in double, `buffers->shift`, with the filter's sensor
@@ -172,7 +202,22 @@ void processPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& l
                         CloudProcessingBuffers* buffers, ProcessedCloud* out,
                         OutputPools* pools = nullptr);
 
-/// \brief Short name of a rejection reason for logs ("row_step", ...).
+/// \brief The first half of processPointCloud2(): the filter's labels, normalised
+///        (finalizeLabels()) in `buffers->labels`; `out`'s counts, stats and filter_error.
+///        Nothing is copied yet: what the labels give (heights) can go into the copies.
+void filterPointCloud2(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
+                       GroundFilter* filter, const Eigen::Isometry3d* transform,
+                       CloudProcessingBuffers* buffers, ProcessedCloud* out);
+
+/// \brief The second half of processPointCloud2(): ~ground, ~nonground and (when wanted)
+///        ~labeled from `buffers->labels`.
+/// \param field when not null, written into ~labeled's records and, with `field_in_split`,
+///        into ~ground's and ~nonground's, during the copies (`out->field_error` when refused).
+void writeOutputs(const sensor_msgs::PointCloud2& in, const CloudLayout& layout, bool want_labeled,
+                  CloudProcessingBuffers* buffers, ProcessedCloud* out,
+                  OutputPools* pools = nullptr, const RecordFloatField* field = nullptr,
+                  bool field_in_split = false);
+
 /// \brief A PointField of one value.
 sensor_msgs::PointField makePointField(const char* name, std::uint32_t offset,
                                        std::uint8_t datatype);
@@ -186,19 +231,11 @@ bool fieldSlot(const std::vector<sensor_msgs::PointField>& fields, std::size_t p
                const char* name, std::uint8_t datatype, std::size_t size, std::size_t* offset,
                std::size_t* step, bool* append, std::string* why);
 
-/// \brief `out` laid out as `in` (header, width, height; rows unpadded) with one more field `name`
-///        of one `datatype` value of `size` bytes: appended after the record at an offset aligned
-///        to `size` (records padded to 4 bytes), or an existing field of that type reused in
-///        place; `out->data` is sized and zeroed, `*offset` is the field's offset.
-/// \returns false (reason in `why`) when `in` has a field `name` of another type or count.
-bool layoutWithField(const sensor_msgs::PointCloud2& in, const char* name, std::uint8_t datatype,
-                     std::size_t size, sensor_msgs::PointCloud2* out, std::size_t* offset,
-                     std::string* why);
-
 /// \brief Sets the working volume's centre and axes on `filter`: the sensor's pose in the
 ///        filter's frame (the body box is given in the input frame).
 void setSensorPose(WorkingVolumeFilter* filter, const Eigen::Isometry3d& pose);
 
+/// \brief Short name of a rejection reason for logs ("row_step", ...).
 const char* reasonName(CloudRejectReason reason);
 
 }  // namespace ground_filter
