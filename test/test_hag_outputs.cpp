@@ -1,6 +1,6 @@
 // The clouds of the height-above-ground outputs (src/nodelets/hag_outputs.h) without a ROS graph:
-// the float field, the surface cloud, the obstacle band, bad input (no ground, NaN, a point
-// below the surface).
+// the float field written during the copies, the surface cloud, the obstacle band, bad input (no
+// ground, NaN, a point below the surface).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -26,6 +26,24 @@ float floatAt(const PointCloud2& c, std::size_t i, std::size_t offset) {
   float v;
   std::memcpy(&v, c.data.data() + i * c.point_step + offset, sizeof(float));
   return v;
+}
+
+// What `plain` (unpadded rows) with a float32 field appended holding values[k] for its k-th
+// record must be: each record whole, zeros up to the next multiple of 4, the value.
+PointCloud2 widened(const PointCloud2& plain, const std::vector<float>& values) {
+  PointCloud2 out = plain;
+  const std::size_t in_step = plain.point_step, offset = (in_step + 3) / 4 * 4;
+  const std::size_t n = std::size_t{plain.width} * plain.height;
+  out.point_step = static_cast<std::uint32_t>(offset + 4);
+  out.row_step = out.point_step * plain.width;
+  out.fields.push_back(gf_test::field(gf::kHeightFieldName, static_cast<std::uint32_t>(offset),
+                                      PointField::FLOAT32));
+  out.data.assign(n * out.point_step, 0);
+  for (std::size_t k = 0; k < n; ++k) {
+    std::memcpy(&out.data[k * out.point_step], &plain.data[k * in_step], in_step);
+    std::memcpy(&out.data[k * out.point_step + offset], &values.at(k), sizeof(float));
+  }
+  return out;
 }
 
 // 14-byte records: x, y, z (f32), id (u16: the point index); rows padded by `row_pad` bytes.
@@ -66,53 +84,6 @@ Scene postScene() {
 
 }  // namespace
 
-TEST(HagOutputs, FloatFieldAppendedAlignedOrWrittenInPlace) {
-  const Scene s = postScene();
-  const PointCloud2 in = s.cloud();
-  std::vector<float> v(s.size());
-  for (std::size_t i = 0; i < v.size(); ++i) v[i] = 0.5f * static_cast<float>(i);
-  PointCloud2 out = in;
-  std::string why;
-  ASSERT_TRUE(gf::addFloatField(&out, gf::kHeightFieldName, v, &why)) << why;
-  ASSERT_EQ(out.fields.size(), 5u);
-  EXPECT_EQ(out.fields.back().name, "height_above_ground");
-  EXPECT_EQ(out.fields.back().offset, 16u);  // 14 rounded up to 4
-  EXPECT_EQ(out.point_step, 20u);
-  EXPECT_EQ(out.row_step, 20u * in.width);
-  EXPECT_EQ(out.width, in.width);
-  ASSERT_EQ(out.data.size(), 20u * s.size());
-  for (std::size_t i = 0; i < s.size(); ++i) {
-    // Every record moved whole (the first ones overlap their old place), the gap zeroed.
-    ASSERT_EQ(std::memcmp(&out.data[i * 20], &in.data[i * 14], 14), 0) << i;
-    ASSERT_EQ(out.data[i * 20 + 14], 0) << i;
-    ASSERT_EQ(out.data[i * 20 + 15], 0) << i;
-    ASSERT_EQ(floatAt(out, i, 16), v[i]);
-  }
-  // Again on its own output: the field is overwritten, the record does not grow.
-  for (float& x : v) x = -x;
-  PointCloud2 again = out;
-  ASSERT_TRUE(gf::addFloatField(&again, gf::kHeightFieldName, v, &why)) << why;
-  EXPECT_EQ(again.point_step, 20u);
-  EXPECT_EQ(again.fields.size(), 5u);
-  EXPECT_EQ(floatAt(again, 3, 16), v[3]);
-  EXPECT_EQ(std::memcmp(&again.data[3 * 20], &out.data[3 * 20], 16), 0);
-  // A field of that name but another type: refused, named, the cloud unchanged.
-  PointCloud2 bad = in;
-  bad.fields[3].name = gf::kHeightFieldName;
-  const PointCloud2 bad_before = bad;
-  EXPECT_FALSE(gf::addFloatField(&bad, gf::kHeightFieldName, v, &why));
-  EXPECT_NE(why.find("height_above_ground"), std::string::npos);
-  EXPECT_EQ(bad.data, bad_before.data);
-  EXPECT_EQ(bad.point_step, 14u);
-  // Padded rows: refused, unchanged.
-  PointCloud2 padded = s.cloud(4, 7);
-  const std::vector<std::uint8_t> padded_before = padded.data;
-  EXPECT_FALSE(gf::addFloatField(&padded, gf::kHeightFieldName, v, &why));
-  EXPECT_NE(why.find("padded"), std::string::npos);
-  EXPECT_EQ(padded.data, padded_before);
-  EXPECT_EQ(padded.fields.size(), 4u);
-}
-
 TEST(HagOutputs, ObstacleBandKeepsWholeRecordsInTheBand) {
   const Scene s = postScene();
   for (const std::uint32_t pad : {0u, 7u}) {
@@ -124,10 +95,17 @@ TEST(HagOutputs, ObstacleBandKeepsWholeRecordsInTheBand) {
                   gf::GroundSurfaceParams());
     std::vector<float> h;
     surface.heights(gf::CloudView::packedXyz(s.xyz.data(), s.size()), &h);
-    PointCloud2 obs;
+    PointCloud2 obs, with_field;
     gf::ObstacleBand band;  // 0.2 .. 2.5 m
+    EXPECT_TRUE(gf::makeObstacleCloud(in, layout, s.labels, h, band, &obs));
+    // ~hag_field: the same records, each with its height, written as it is copied (into a
+    // reused message's old bytes).
+    with_field.data.assign(4 * in.data.size(), 0xAB);
+    std::string why;
+    EXPECT_TRUE(gf::makeObstacleCloud(in, layout, s.labels, h, band, &with_field,
+                                      gf::kHeightFieldName, &why))
+        << why;
     std::vector<float> kept;
-    gf::makeObstacleCloud(in, layout, s.labels, h, band, &obs, &kept);
     EXPECT_EQ(obs.header.frame_id, in.header.frame_id);
     EXPECT_EQ(obs.point_step, 14u);
     EXPECT_EQ(obs.height, 1u);
@@ -142,10 +120,12 @@ TEST(HagOutputs, ObstacleBandKeepsWholeRecordsInTheBand) {
       std::memcpy(&id, &obs.data[k * 14 + 12], 2);
       EXPECT_NEAR(floatAt(obs, k, 8), s.xyz[3 * id + 2], 0.f);  // the record of point `id`
       EXPECT_GE(h[id], 0.2f);
-      ASSERT_LT(k, kept.size());
-      EXPECT_EQ(kept[k], h[id]);  // the height of the record in that place (~hag_field)
+      kept.push_back(h[id]);
     }
-    EXPECT_EQ(kept.size(), obs.width);
+    EXPECT_EQ(with_field.fields.size(), 5u);
+    EXPECT_EQ(with_field.data, widened(obs, kept).data);  // records, zeroed gaps, heights
+    EXPECT_EQ(with_field.point_step, 20u);
+    EXPECT_EQ(with_field.row_step, 20u * obs.width);
     // The ditch point lies below the surface: a negative height, never an obstacle.
     std::size_t ditch = 0;
     while (s.xyz[3 * ditch + 2] != -0.4f) ++ditch;
@@ -238,7 +218,7 @@ TEST(HagOutputs, SurfaceCloudOfMovedPointsIsMovedBack) {
 }
 
 // ~ground, ~nonground and ~labeled get the heights while their records are copied; the bytes are
-// those of the plain copy followed by addFloatField() of each output's heights.
+// those of the plain copy with each record widened by its height.
 TEST(HagOutputs, SplitAndLabeledCarryTheFieldAsTheyCopy) {
   const Scene s = postScene();
   std::vector<float> v(s.size());
@@ -266,8 +246,8 @@ TEST(HagOutputs, SplitAndLabeledCarryTheFieldAsTheyCopy) {
     for (std::size_t i = 0; i < labels.size(); ++i) {
       (labels[i] == gf::kGround ? vg : vng).push_back(v[i]);
     }
-    ASSERT_TRUE(gf::addFloatField(&ref_g, gf::kHeightFieldName, vg, &why)) << why;
-    ASSERT_TRUE(gf::addFloatField(&ref_ng, gf::kHeightFieldName, vng, &why)) << why;
+    ref_g = widened(ref_g, vg);
+    ref_ng = widened(ref_ng, vng);
     for (const auto& pair : {std::make_pair(&g, &ref_g), std::make_pair(&ng, &ref_ng)}) {
       const PointCloud2& a = *pair.first;
       const PointCloud2& b = *pair.second;
@@ -290,7 +270,7 @@ TEST(HagOutputs, SplitAndLabeledCarryTheFieldAsTheyCopy) {
     ASSERT_TRUE(gf::makeLabeledCloud(in, layout, labels, &lab, &why, &field, &field_why)) << why;
     EXPECT_TRUE(field_why.empty()) << field_why;
     ASSERT_TRUE(gf::makeLabeledCloud(in, layout, labels, &ref_lab, &why)) << why;
-    ASSERT_TRUE(gf::addFloatField(&ref_lab, gf::kHeightFieldName, v, &why)) << why;
+    ref_lab = widened(ref_lab, v);
     ASSERT_EQ(lab.fields.size(), 6u);
     EXPECT_EQ(lab.fields[4].name, "ground");
     EXPECT_EQ(lab.fields[4].offset, 14u);
@@ -335,6 +315,17 @@ TEST(HagOutputs, SplitAndLabeledCarryTheFieldAsTheyCopy) {
   ASSERT_TRUE(gf::makeLabeledCloud(bad, layout, labels, &ref_lab, &why));
   EXPECT_EQ(lab.data, ref_lab.data);
   EXPECT_EQ(lab.fields.size(), 5u);
+  // ~obstacles the same way.
+  const std::vector<float> h(s.size(), 1.f);  // every non-ground point in the band
+  PointCloud2 obs, ref_obs;
+  why.clear();
+  EXPECT_FALSE(gf::makeObstacleCloud(bad, layout, labels, h, gf::ObstacleBand(), &obs,
+                                     gf::kHeightFieldName, &why));
+  EXPECT_NE(why.find("height_above_ground"), std::string::npos);
+  EXPECT_TRUE(gf::makeObstacleCloud(bad, layout, labels, h, gf::ObstacleBand(), &ref_obs));
+  EXPECT_EQ(obs.data, ref_obs.data);
+  EXPECT_EQ(obs.point_step, 14u);
+  EXPECT_EQ(obs.width, ng.width);  // every non-ground record: all heights are 1 m here
 }
 
 TEST(HagOutputs, BandValidation) {

@@ -22,43 +22,6 @@ void ObstacleBand::validate() const {
   }
 }
 
-bool addFloatField(sensor_msgs::PointCloud2* cloud, const char* name,
-                   const std::vector<float>& values, std::string* why) {
-  const std::size_t in_step = cloud->point_step;
-  const std::size_t n = std::size_t{cloud->width} * cloud->height;
-  if (std::size_t{cloud->row_step} != in_step * cloud->width) {
-    if (why) *why = "the cloud's rows are padded (row_step != point_step * width)";
-    return false;
-  }
-  std::size_t offset = 0, step = 0;
-  bool append = false;
-  if (!fieldSlot(cloud->fields, in_step, name, sensor_msgs::PointField::FLOAT32, sizeof(float),
-                 &offset, &step, &append, why)) {
-    return false;
-  }
-  const float* v = values.data();
-  if (!append) {
-    std::uint8_t* d = cloud->data.data();
-    for (std::size_t i = 0; i < n; ++i) std::memcpy(d + i * in_step + offset, v + i, 4);
-    return true;
-  }
-  cloud->data.resize(n * step);
-  std::uint8_t* d = cloud->data.data();
-  // From the last record back: each record's new place starts at or after its old one, and
-  // after the old places of the records before it, so nothing is read after it was written.
-  for (std::size_t i = n; i-- > 0;) {
-    std::uint8_t* dst = d + i * step;
-    std::memmove(dst, d + i * in_step, in_step);
-    for (std::size_t k = in_step; k < offset; ++k) dst[k] = 0;
-    std::memcpy(dst + offset, v + i, sizeof(float));
-  }
-  cloud->fields.push_back(
-      makePointField(name, static_cast<std::uint32_t>(offset), sensor_msgs::PointField::FLOAT32));
-  cloud->point_step = static_cast<std::uint32_t>(step);
-  cloud->row_step = static_cast<std::uint32_t>(step * cloud->width);
-  return true;
-}
-
 void makeSurfaceCloud(const GroundSurface& surface, const std_msgs::Header& header,
                       sensor_msgs::PointCloud2* out, const double* shift, bool wide) {
   using PF = sensor_msgs::PointField;
@@ -94,38 +57,54 @@ void makeSurfaceCloud(const GroundSurface& surface, const std_msgs::Header& head
   }
 }
 
-void makeObstacleCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
+bool makeObstacleCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
                        const std::vector<std::uint8_t>& labels, const std::vector<float>& heights,
-                       const ObstacleBand& band, sensor_msgs::PointCloud2* out,
-                       std::vector<float>* kept_heights) {
+                       const ObstacleBand& band, sensor_msgs::PointCloud2* out, const char* field,
+                       std::string* why) {
   const float lo = static_cast<float>(band.min_height), hi = static_cast<float>(band.max_height);
   auto inBand = [&](std::size_t i) {
     return labels[i] == kNonGround && heights[i] >= lo && heights[i] <= hi;  // NaN: false
   };
   std::size_t n = 0;
   for (std::size_t i = 0; i < layout.points; ++i) n += inBand(i) ? 1 : 0;
-  const std::size_t step = layout.point_step;
+  const std::size_t in_step = layout.point_step;
+  std::size_t offset = 0, step = in_step;
+  bool append = false;
+  bool with_field = field != nullptr;
+  bool refused = false;
+  if (with_field && !fieldSlot(in.fields, in_step, field, sensor_msgs::PointField::FLOAT32,
+                               sizeof(float), &offset, &step, &append, why)) {
+    with_field = false;
+    refused = true;
+    step = in_step;
+  }
   out->header = in.header;
   out->fields = in.fields;
+  if (with_field && append) {
+    out->fields.push_back(makePointField(field, static_cast<std::uint32_t>(offset),
+                                         sensor_msgs::PointField::FLOAT32));
+  }
   out->is_bigendian = in.is_bigendian;
   out->is_dense = true;  // a NaN/Inf record has a NaN height
-  out->point_step = in.point_step;
+  out->point_step = static_cast<std::uint32_t>(step);
   out->height = 1;
   out->width = static_cast<std::uint32_t>(n);
   out->row_step = static_cast<std::uint32_t>(n * step);
-  if (kept_heights) out->data.reserve(n * ((step + 3) / 4 * 4 + sizeof(float)));
   out->data.resize(n * step);
   std::uint8_t* dst = out->data.data();
-  if (kept_heights) kept_heights->clear();
   for (std::size_t r = 0, i = 0; r < layout.height; ++r) {
     const std::uint8_t* rec = in.data.data() + r * layout.row_step;
-    for (std::size_t c = 0; c < layout.width; ++c, ++i, rec += step) {
+    for (std::size_t c = 0; c < layout.width; ++c, ++i, rec += in_step) {
       if (!inBand(i)) continue;
-      std::memcpy(dst, rec, step);
+      std::memcpy(dst, rec, in_step);
+      if (with_field) {
+        if (step > in_step) std::memset(dst + in_step, 0, step - in_step);
+        std::memcpy(dst + offset, &heights[i], sizeof(float));
+      }
       dst += step;
-      if (kept_heights) kept_heights->push_back(heights[i]);
     }
   }
+  return !refused;
 }
 
 std::vector<ParamCheck> hagParamChecks() {
@@ -206,13 +185,10 @@ const std::vector<float>* HagOutputs::process(const sensor_msgs::PointCloud2& in
     clouds->obstacles = boost::make_shared<sensor_msgs::PointCloud2>();
     // With ~hag_field the obstacles carry the field as ~nonground does (they are a part of it).
     makeObstacleCloud(in, layout, labels, heights_, band, clouds->obstacles.get(),
-                      hag_field_ ? &kept_ : nullptr);
-    if (hag_field_) {
-      addFloatField(clouds->obstacles.get(), kHeightFieldName, kept_, &clouds->error);
-    }
+                      hag_field_ ? kHeightFieldName : nullptr, &clouds->error);
   }
-  // ~labeled, ~ground and ~nonground get them as their records are copied (writeOutputs()): a
-  // pass over each output after the copy cost 0.3-0.6 ms a cloud (docs/height_above_ground.md).
+  // ~labeled, ~ground and ~nonground get them as their records are copied (writeOutputs()),
+  // as ~obstacles did: no second pass over an output (docs/height_above_ground.md#cost).
   return &heights_;
 }
 

@@ -32,17 +32,6 @@ struct ObstacleBand {
   void validate() const;
 };
 
-/// \brief Gives every record of `cloud` a float32 field `name` holding values[i] for its i-th
-///        record, in the message itself: appended after the record (point_step grows to the
-///        next multiple of 4, the records move apart from the last one back, gap bytes 0), or
-///        written in place when `cloud` has a float32 `name` field of count 1. No second
-///        message: a pooled message keeps its buffer, which grows once (CloudPool).
-/// \return false, `cloud` unchanged and `why` set, when `cloud` has a field `name` of another
-///         type or count, or rows with padding (row_step != point_step * width).
-/// \pre values.size() >= cloud->width * cloud->height.
-bool addFloatField(sensor_msgs::PointCloud2* cloud, const char* name,
-                   const std::vector<float>& values, std::string* why);
-
 /// \brief One record per occupied cell of `surface`: x, y, z (float32, cell centre at the
 ///        ground elevation), points (uint32, ground points in the cell), confidence (float32,
 ///        0..1), in `header` (its frame is the frame the surface was built in).
@@ -57,12 +46,15 @@ void makeSurfaceCloud(const GroundSurface& surface, const std_msgs::Header& head
 /// \brief The whole records of `in` labelled non-ground whose height (one per record, input
 ///        order) lies in [band.min_height, band.max_height]; NaN heights never do. The output
 ///        has the input's header and fields, height 1, no row padding.
-/// \param kept_heights when not null, the heights of the kept records, in output order (for
-///        addFloatField()); the output's buffer is then reserved for that field too.
-void makeObstacleCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
+/// \param field when not null, each kept record also carries its height in a float32 field of
+///        this name, written as it is copied (fieldSlot(): appended, gap bytes 0, or an existing
+///        float32 field of that name overwritten).
+/// \return false, `why` set and the records kept without the field, when `in` has a field of
+///         that name of another type or count.
+bool makeObstacleCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
                        const std::vector<std::uint8_t>& labels, const std::vector<float>& heights,
                        const ObstacleBand& band, sensor_msgs::PointCloud2* out,
-                       std::vector<float>* kept_heights = nullptr);
+                       const char* field = nullptr, std::string* why = nullptr);
 
 /// \brief The private start parameters of HagOutputs (hag_field, hag_cell, hag_radius), checked
 ///        with the base's (baseParamChecks()).
@@ -117,7 +109,6 @@ class HagOutputs {
   ObstacleBand band_;
   GroundSurface surface_;       // buffers kept between clouds
   std::vector<float> heights_;  // one per input record
-  std::vector<float> kept_;     // heights of the ~obstacles records
 };
 
 }  // namespace ground_filter
