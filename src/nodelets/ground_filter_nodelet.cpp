@@ -291,7 +291,7 @@ void GroundFilterNodelet::processCloud(const sensor_msgs::PointCloud2ConstPtr& m
       updateFilter();
       if (filter_) setSensorPose(filter_.get(), pose);
     } catch (const std::exception& e) {
-      filter_.reset();  // processPointCloud2 publishes the cloud as all non-ground
+      filter_.reset();  // filterPointCloud2 labels the cloud all non-ground
       build_error = e.what();
     }
     filterPointCloud2(*msg, layout, filter_.get(), to_gravity, &buffers_, &out);

@@ -188,7 +188,7 @@ const std::vector<float>* HagOutputs::process(const sensor_msgs::PointCloud2& in
                       hag_field_ ? kHeightFieldName : nullptr, &clouds->error);
   }
   // ~labeled, ~ground and ~nonground get them as their records are copied (writeOutputs()),
-  // as ~obstacles did: no second pass over an output (docs/height_above_ground.md#cost).
+  // like ~obstacles above: no second pass over an output (docs/height_above_ground.md#cost).
   return &heights_;
 }
 
