@@ -68,22 +68,13 @@ bool makeObstacleCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& la
   std::size_t n = 0;
   for (std::size_t i = 0; i < layout.points; ++i) n += inBand(i) ? 1 : 0;
   const std::size_t in_step = layout.point_step;
-  std::size_t offset = 0, step = in_step;
-  bool append = false;
-  bool with_field = field != nullptr;
-  bool refused = false;
-  if (with_field && !fieldSlot(in.fields, in_step, field, sensor_msgs::PointField::FLOAT32,
-                               sizeof(float), &offset, &step, &append, why)) {
-    with_field = false;
-    refused = true;
-    step = in_step;
-  }
+  FloatFieldSlot slot;
+  const bool refused = field && !slot.place(in.fields, in_step, in_step, field, why);
+  const bool with_field = field && !refused;
+  const std::size_t step = with_field ? slot.step : in_step;
   out->header = in.header;
   out->fields = in.fields;
-  if (with_field && append) {
-    out->fields.push_back(makePointField(field, static_cast<std::uint32_t>(offset),
-                                         sensor_msgs::PointField::FLOAT32));
-  }
+  if (with_field) slot.addField(&out->fields, field);
   out->is_bigendian = in.is_bigendian;
   out->is_dense = true;  // a NaN/Inf record has a NaN height
   out->point_step = static_cast<std::uint32_t>(step);
@@ -96,10 +87,10 @@ bool makeObstacleCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& la
     const std::uint8_t* rec = in.data.data() + r * layout.row_step;
     for (std::size_t c = 0; c < layout.width; ++c, ++i, rec += in_step) {
       if (!inBand(i)) continue;
-      std::memcpy(dst, rec, in_step);
       if (with_field) {
-        if (step > in_step) std::memset(dst + in_step, 0, step - in_step);
-        std::memcpy(dst + offset, &heights[i], sizeof(float));
+        slot.copy(dst, rec, heights[i]);
+      } else {
+        std::memcpy(dst, rec, in_step);
       }
       dst += step;
     }

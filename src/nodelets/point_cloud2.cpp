@@ -46,15 +46,6 @@ void prepareOutput(const sensor_msgs::PointCloud2& in, std::size_t n, std::size_
   out->data.resize(n * step);
 }
 
-// Where a RecordFloatField goes in records of `point_step` bytes with `fields` (fieldSlot());
-// `*append` when it is a new field.
-bool floatFieldSlot(const std::vector<sensor_msgs::PointField>& fields, std::size_t point_step,
-                    const RecordFloatField& field, std::size_t* offset, std::size_t* step,
-                    bool* append, std::string* why) {
-  return fieldSlot(fields, point_step, field.name, sensor_msgs::PointField::FLOAT32, sizeof(float),
-                   offset, step, append, why);
-}
-
 // Records sampled for packShift().
 constexpr std::size_t kShiftSamples = 8192;
 
@@ -175,22 +166,16 @@ bool copySplit(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
                sensor_msgs::PointCloud2* ground, sensor_msgs::PointCloud2* nonground,
                const RecordFloatField* field, std::string* why) {
   const std::size_t in_step = layout.point_step;
-  std::size_t offset = 0, step = in_step;
-  bool append = false;
-  bool refused = false;
+  FloatFieldSlot slot;
   bool with_field = field && field->values;
-  if (with_field && !floatFieldSlot(in.fields, in_step, *field, &offset, &step, &append, why)) {
-    with_field = false;
-    refused = true;
-    step = in_step;
-  }
+  const bool refused = with_field && !slot.place(in.fields, in_step, in_step, field->name, why);
+  with_field = with_field && !refused;
+  const std::size_t step = with_field ? slot.step : in_step;
   prepareOutput(in, counts.ground, step, ground);
   prepareOutput(in, counts.nonground, step, nonground);
-  if (with_field && append) {
-    const sensor_msgs::PointField f = makePointField(
-        field->name, static_cast<std::uint32_t>(offset), sensor_msgs::PointField::FLOAT32);
-    ground->fields.push_back(f);
-    nonground->fields.push_back(f);
+  if (with_field) {
+    slot.addField(&ground->fields, field->name);
+    slot.addField(&nonground->fields, field->name);
   }
   ground->is_dense = true;
   nonground->is_dense = counts.invalid == 0;
@@ -219,9 +204,7 @@ bool copySplit(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
     const std::uint8_t* rec = in.data.data() + r * layout.row_step;
     for (std::size_t c = 0; c < layout.width; ++c, ++i, rec += in_step) {
       std::uint8_t*& d = dst[labels[i]];
-      std::memcpy(d, rec, in_step);
-      if (step > in_step) std::memset(d + in_step, 0, step - in_step);
-      std::memcpy(d + offset, v + i, sizeof(float));
+      slot.copy(d, rec, v[i]);
       d += step;
     }
   }
@@ -291,6 +274,21 @@ bool fieldSlot(const std::vector<sensor_msgs::PointField>& fields, std::size_t p
   return true;
 }
 
+bool FloatFieldSlot::place(const std::vector<sensor_msgs::PointField>& fields, std::size_t src,
+                           std::size_t point_step, const char* name, std::string* why) {
+  src_step = src;
+  return fieldSlot(fields, point_step, name, sensor_msgs::PointField::FLOAT32, sizeof(float),
+                   &offset, &step, &append, why);
+}
+
+void FloatFieldSlot::addField(std::vector<sensor_msgs::PointField>* fields,
+                              const char* name) const {
+  if (append) {
+    fields->push_back(
+        makePointField(name, static_cast<std::uint32_t>(offset), sensor_msgs::PointField::FLOAT32));
+  }
+}
+
 bool makeLabeledCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
                       const std::vector<std::uint8_t>& labels, sensor_msgs::PointCloud2* out,
                       std::string* why, const RecordFloatField* field, std::string* field_why) {
@@ -307,17 +305,12 @@ bool makeLabeledCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& lay
                                          sensor_msgs::PointField::UINT8));
   }
   // The float field after the label (or in place), in the same copy.
-  std::size_t value_offset = 0;
-  bool with_field = false;
-  if (field && field->values) {
-    std::size_t wider = 0;
-    with_field =
-        floatFieldSlot(out->fields, step, *field, &value_offset, &wider, &append, field_why);
-    if (with_field && append) {
-      out->fields.push_back(makePointField(field->name, static_cast<std::uint32_t>(value_offset),
-                                           sensor_msgs::PointField::FLOAT32));
-    }
-    if (with_field) step = wider;
+  FloatFieldSlot slot;
+  const bool with_field =
+      field && field->values && slot.place(out->fields, in_step, step, field->name, field_why);
+  if (with_field) {
+    slot.addField(&out->fields, field->name);
+    step = slot.step;
   }
   out->header = in.header;
   out->height = in.height;
@@ -332,10 +325,13 @@ bool makeLabeledCloud(const sensor_msgs::PointCloud2& in, const CloudLayout& lay
   for (std::size_t r = 0, i = 0; r < layout.height; ++r) {
     const std::uint8_t* rec = in.data.data() + r * layout.row_step;
     for (std::size_t c = 0; c < layout.width; ++c, ++i, rec += in_step, dst += step) {
-      std::memcpy(dst, rec, in_step);
-      if (step > in_step) std::memset(dst + in_step, 0, step - in_step);
+      if (v) {
+        slot.copy(dst, rec, v[i]);
+      } else {
+        std::memcpy(dst, rec, in_step);
+        if (step > in_step) std::memset(dst + in_step, 0, step - in_step);
+      }
       dst[label_offset] = labels[i] == kGround ? 1 : 0;
-      if (v) std::memcpy(dst + value_offset, v + i, sizeof(float));
     }
   }
   return true;

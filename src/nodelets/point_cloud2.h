@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -230,6 +231,29 @@ sensor_msgs::PointField makePointField(const char* name, std::uint32_t offset,
 bool fieldSlot(const std::vector<sensor_msgs::PointField>& fields, std::size_t point_step,
                const char* name, std::uint8_t datatype, std::size_t size, std::size_t* offset,
                std::size_t* step, bool* append, std::string* why);
+
+/// \brief Where a float32 field goes in output records copied from input records of `src_step`
+///        bytes, and the copy of one record with its value: the one place the outputs that
+///        carry height_above_ground (~ground, ~nonground, ~labeled, ~obstacles) write it.
+struct FloatFieldSlot {
+  std::size_t src_step = 0;  ///< bytes copied from the input record
+  std::size_t offset = 0;    ///< the value's offset in the output record
+  std::size_t step = 0;      ///< bytes per output record
+  bool append = false;       ///< a new field (false: an existing float32 field overwritten)
+  /// \brief fieldSlot() for a float32 `name` in records of `point_step` bytes (the copied
+  ///        `src_step` bytes and any field the output adds before this one) with `fields`.
+  /// \returns false (reason in `why`) when `fields` has a field `name` of another type or count.
+  bool place(const std::vector<sensor_msgs::PointField>& fields, std::size_t src_step,
+             std::size_t point_step, const char* name, std::string* why);
+  /// \brief Adds the field to `fields` when it is a new one.
+  void addField(std::vector<sensor_msgs::PointField>* fields, const char* name) const;
+  /// \brief The input record whole, zeros up to `step`, `value` at `offset`.
+  void copy(std::uint8_t* dst, const std::uint8_t* rec, float value) const {
+    std::memcpy(dst, rec, src_step);
+    if (step > src_step) std::memset(dst + src_step, 0, step - src_step);
+    std::memcpy(dst + offset, &value, sizeof(float));
+  }
+};
 
 /// \brief Sets the working volume's centre and axes on `filter`: the sensor's pose in the
 ///        filter's frame (the body box is given in the input frame).
