@@ -1,7 +1,7 @@
 // Height above ground (include/ground_filter/height_above_ground.h): exact heights on a tilted
-// plane, a kerb, single-point cells, negative heights, invalid points, no ground, points beyond
-// the radius, the accuracy on a generated street scene with its truth labels, bad parameters,
-// determinism, no allocation once the buffers are sized.
+// plane, a kerb, a roof in an occlusion shadow, single-point cells, negative heights, invalid
+// points, no ground, points beyond the radius, the accuracy on a generated street scene with
+// its truth labels, bad parameters, determinism, no allocation once the buffers are sized.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -143,6 +143,43 @@ TEST(HeightAboveGround, PatchLabelledGroundIsDroppedAStepIsKept) {
   EXPECT_NEAR(step.elevation(3.5f, 2.5f), 0.30f, 1e-3);  // an edge cell of the step
   // 0.40 m: above the wider test's 0.35 m, the whole patch is dropped as at 0.5 m.
   EXPECT_EQ(withPatch(0.40f).cells().size(), 400u - 9u);
+}
+
+// Flat ground on 20 x 20 cells with a 2 x 2-cell roof (x, y in 2..4) at `roof` m labelled
+// ground, the cells within 2 of it empty: a car beside a LiDAR, its roof seen as ground, with
+// the blind zone and its occlusion shadow around it.
+gf::GroundSurface roofInShadow(float roof, bool ground_level) {
+  TruthCloud c;
+  for (float x = -10.f; x < 10.f; x += 0.25f) {
+    for (float y = -10.f; y < 10.f; y += 0.25f) {
+      const bool on_roof = x >= 2.f && x < 4.f && y >= 2.f && y < 4.f;
+      const bool shadow = x >= 0.f && x < 6.f && y >= 0.f && y < 6.f;
+      if (on_roof || !shadow) c.add(x, y, on_roof ? roof : 0.f, true);
+    }
+  }
+  gf::GroundSurfaceParams p;
+  p.ground_level = ground_level;
+  return built(c, p);
+}
+
+TEST(HeightAboveGround, RoofInAnOcclusionShadowIsDroppedInGroundLevelScansOnly) {
+  // 1.4 m: the roof cells pass the 8-neighbour test (their neighbours are the roof) and the
+  // 24-cell window is too empty to judge them; the ground 3-5 cells out is 1.4 m below.
+  const gf::GroundSurface s = roofInShadow(1.4f, true);
+  EXPECT_EQ(s.cells().size(), 400u - 36u);
+  for (const gf::SurfaceCell& cell : s.cells()) {
+    EXPECT_LT(cell.z, 0.01f) << "cell " << cell.x << ", " << cell.y;
+  }
+  EXPECT_NEAR(s.heightAbove(3.f, 3.f, 1.4f), 1.4f, 1e-3);  // filled from the ground around
+  // An airborne scan's surface has no shadow test: the roof stays (its gaps are buildings and
+  // steep slopes, where the test would drop true ground).
+  const gf::GroundSurface air = roofInShadow(1.4f, false);
+  EXPECT_EQ(air.cells().size(), 400u - 32u);
+  EXPECT_NEAR(air.heightAbove(3.f, 3.f, 1.4f), 0.f, 1e-3);
+  // 0.8 m: under the shadow test's 1.0 m (a loading platform, a raised bed): kept.
+  const gf::GroundSurface low = roofInShadow(0.8f, true);
+  EXPECT_EQ(low.cells().size(), 400u - 32u);
+  EXPECT_NEAR(low.heightAbove(3.f, 3.f, 0.8f), 0.f, 1e-3);
 }
 
 TEST(HeightAboveGround, SingleGroundPointCellAndNegativeHeights) {

@@ -19,6 +19,11 @@ struct GroundSurfaceParams {
   /// A cell with no ground takes the inverse-distance-weighted elevation of the ground cells
   /// whose centres lie within this of its centre; farther: NaN [m] (5.0; 0 .. 1000, 0 = no fill).
   double radius = 5.0;
+  /// The scan was taken from among its points (a LiDAR, a TLS, a registered ground-level
+  /// cloud), so bushes and trunks cast occlusion shadows: a cell amid them is checked against
+  /// the cells 3 to 5 cells out too. False for an airborne scan (the filters' scan_type says
+  /// which; the nodelets and ground_filter_eval set it from there) (true).
+  bool ground_level = true;
 
   /// \brief The most cells a surface holds (4 Mi: 2 km x 2 km at 1 m); see `cell`.
   static constexpr std::size_t kMaxCells = std::size_t{1} << 22;
@@ -58,13 +63,15 @@ struct SurfaceCell {
 /// the occupied cells within `radius`, each extrapolated to its centre (so a fill follows
 /// slopes); none within `radius`: no elevation. An occupied cell more than 0.25 m above the
 /// median of its occupied neighbours' planes (3 or more of the 8, extrapolated to its centre),
-/// or more than 0.35 m above the median of those within 2 cells (12 or more of the 24), is taken
-/// for low vegetation or an object labelled ground: it is left out of cells() and filled like
-/// an empty cell (steps up to 0.25 m, kerbs, stay). The elevation below (x, y) is the
-/// bilinear interpolation of the elevations at the four cell centres around (x, y): continuous,
-/// exact on a plane. Cells without elevation drop out of it (the weights of the others are
-/// renormalised); all four without: NaN. Negative heights (ditches, reflections below the
-/// ground) are kept.
+/// or more than 0.35 m above the median of those within 2 cells (12 or more of the 24), or, in a
+/// ground-level scan (params.ground_level) where fewer than 12 of those 24 are occupied (an
+/// occlusion shadow around it), more than 1.0 m above the median of the occupied cells 3 to 5
+/// cells away (6 or more), is taken for low vegetation or an object labelled ground: it is
+/// left out of cells() and filled like an empty cell (steps up to 0.25 m, kerbs, stay). The
+/// elevation below (x, y) is the bilinear interpolation of the elevations at the four cell centres
+/// around (x, y): continuous, exact on a plane. Cells without elevation drop out of it (the weights
+/// of the others are renormalised); all four without: NaN. Negative heights (ditches, reflections
+/// below the ground) are kept.
 ///
 /// Buffers are kept between scans: after the first scan of a given extent, build() allocates
 /// nothing. Not thread-safe for concurrent build(); heightAbove()/heights() are const.
@@ -105,12 +112,17 @@ class GroundSurface {
   static void addTo(Accum* a, const Accum& b);
   Fit fitCell(const Accum& a) const;
   void dropSpikes();
+  bool shadowSpike(std::size_t s, int i, int j) const;
+  void blockLows();
+  static constexpr int kBlock = 4;  // cells: edge of a block of block_low_
   void fill();
 
   double cell_ = 1.0, radius_ = 5.0;
+  bool ground_level_ = true;
   double z_ref_ = 0.0;         // z the sums are taken from
   float x0_ = 0.f, y0_ = 0.f;  // lower-left corner of the grid
   int nx_ = 0, ny_ = 0;
+  int bnx_ = 0, bny_ = 0;   // blocks of block_low_
   std::size_t ground_ = 0;  // finite ground points of the last build
   // Per finite ground point (cloud order): x, y, z; x, y relative to the cell centre after
   // cellOffsets().
@@ -125,6 +137,7 @@ class GroundSurface {
   std::vector<float> z_, gx_, gy_;       // per occupied cell: plane (absolute z at the centre)
   std::vector<std::uint8_t> flags_;      // per occupied cell: refit, spike bits
   std::vector<std::uint32_t> count_;     // per occupied cell: its ground points
+  std::vector<float> block_low_;         // per block of kBlock x kBlock cells: lowest z_
   std::vector<float> kernel_;            // 1 / d^2 of the fill window, 0 beyond the radius
   std::vector<SurfaceCell> cells_;
 };

@@ -301,7 +301,7 @@ void GroundFilterNodelet::processCloud(const sensor_msgs::PointCloud2ConstPtr& m
     HagOutputs& hag_outputs = outputs_->hag();
     const std::vector<float>* heights = hag_outputs.process(
         *msg, layout, to_gravity, buffers_, to_gravity ? tf_wait_->frame() : msg->header.frame_id,
-        out.filter_error, want_labeled, &hag);
+        out, want_labeled, &hag);
     RecordFloatField height_field;
     height_field.name = kHeightFieldName;
     height_field.values = heights;

@@ -132,8 +132,9 @@ const std::vector<float>* HagOutputs::process(const sensor_msgs::PointCloud2& in
                                               const Eigen::Isometry3d* to_gravity,
                                               const CloudProcessingBuffers& buffers,
                                               const std::string& frame,
-                                              const std::string& filter_error, bool want_labeled,
+                                              const ProcessedCloud& filtered, bool want_labeled,
                                               HagClouds* clouds) {
+  const std::string& filter_error = filtered.filter_error;
   const bool want_surface = pub_surface_.getNumSubscribers() > 0;
   const bool want_obstacles = pub_obstacles_.getNumSubscribers() > 0;
   const bool want_heights = want_labeled || hag_field_ || want_obstacles;
@@ -153,6 +154,8 @@ const std::vector<float>* HagOutputs::process(const sensor_msgs::PointCloud2& in
       !filter_error.empty() || view.size() != labels.size() ||
       (view.size() && (to_gravity || layout.packed()) && buffers.xyz.size() < 3 * layout.points);
   if (failed) view = CloudView();
+  // Occlusion shadows (the shadow spike test) only where a sensor stood among the points.
+  params_.ground_level = filtered.stats.scan_type != "airborne";
   surface_.build(view, failed ? std::vector<std::uint8_t>() : labels, params_);
   if (want_surface) {
     clouds->surface = boost::make_shared<sensor_msgs::PointCloud2>();

@@ -87,14 +87,15 @@ class HagOutputs {
   ///        copies). `buffers->labels` as normalised by filterPointCloud2(); `xyz`: its scratch
   ///        (the transformed or packed view, when there was one).
   /// \param frame frame the heights are taken in (the gravity frame, else the input frame).
-  /// \param filter_error non-empty when the filter failed (every height NaN, no surface).
+  /// \param filtered what filterPointCloud2() reported: a filter_error (every height NaN, no
+  ///        surface), and the scan type (an airborne scan's surface skips the shadow test).
   /// \param want_labeled whether ~labeled will be written (it carries the heights).
   /// \return the heights, one per input record, for writeOutputs(); null when no output
   ///         carries them.
   const std::vector<float>* process(const sensor_msgs::PointCloud2& in, const CloudLayout& layout,
                                     const Eigen::Isometry3d* to_gravity,
                                     const CloudProcessingBuffers& buffers, const std::string& frame,
-                                    const std::string& filter_error, bool want_labeled,
+                                    const ProcessedCloud& filtered, bool want_labeled,
                                     HagClouds* clouds);
   /// \brief Whether ~ground and ~nonground carry the heights too (`~hag_field`).
   bool fieldInSplit() const { return hag_field_; }

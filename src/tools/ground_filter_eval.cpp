@@ -20,8 +20,8 @@
 #include "cli_args.h"
 #include "eval/metrics.h"
 #include "eval/scan_io.h"
+#include "eval_hag.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/height_above_ground.h"
 
 namespace gf = ground_filter;
 namespace cli = ground_filter::cli;
@@ -87,7 +87,9 @@ const char kUsage[] =
     "--hag               also build the ground surface from each scan's labels (those of\n"
     "                    --score-labels where given) and compute every point's height above\n"
     "                    ground (include/ground_filter/height_above_ground.h, default\n"
-    "                    GroundSurfaceParams) and print, per file and pooled: ms of\n"
+    "                    GroundSurfaceParams; the shadow test for scans the filter did not\n"
+    "                    take for airborne, as the nodelets do; with --score-labels for\n"
+    "                    every scan) and print, per file and pooled: ms of\n"
     "                    build + heights (min and median of --repeat runs) and their shares of\n"
     "                    the filter's min and median ms on the same scan, the share of finite\n"
     "                    points with a NaN height; for builtin: scenes the median and p95 of\n"
@@ -169,87 +171,6 @@ DropResult dropOne(gf::GroundFilter* filter, const gf::CloudView& view,
   return out;
 }
 
-// --hag: heights above ground of one file (or pooled).
-struct HagResult {
-  std::vector<float> error;      // builtin: |height - (z - terrain)| of the finite heights
-  std::vector<float> ground;     // heights of truly-ground points (finite)
-  std::vector<float> nonground;  // heights of truly-non-ground points (finite)
-  std::vector<double> ms;        // build + heights, one per run
-  double filter_min = 0.0, filter_med = 0.0;  // the filter's ms on the same scan (min, median)
-  std::size_t finite = 0, nan = 0;            // finite points; of them NaN heights
-  void add(const HagResult& o) {
-    filter_min += o.filter_min;
-    filter_med += o.filter_med;
-    error.insert(error.end(), o.error.begin(), o.error.end());
-    ground.insert(ground.end(), o.ground.begin(), o.ground.end());
-    nonground.insert(nonground.end(), o.nonground.begin(), o.nonground.end());
-    finite += o.finite;
-    nan += o.nan;
-  }
-};
-
-/// The q-quantile (nearest rank, 0..1) of `v`; NaN when empty. Sorts `v`.
-double quantile(std::vector<float>* v, double q) {
-  if (v->empty()) return NAN;
-  const std::size_t k = static_cast<std::size_t>(std::lround(q * (v->size() - 1)));
-  std::nth_element(v->begin(), v->begin() + static_cast<std::ptrdiff_t>(k), v->end());
-  return (*v)[k];
-}
-
-/// The numbers --hag prints: keys of the JSON, in table order.
-std::vector<std::pair<std::string, double>> hagNumbers(HagResult h, double ms_min, double ms_med) {
-  const double within =
-      std::count_if(h.ground.begin(), h.ground.end(), [](float v) { return std::fabs(v) <= 0.1f; });
-  return {{"ms_min", ms_min},
-          {"ms_median", ms_med},
-          {"share_min", h.filter_min > 0.0 ? ms_min / h.filter_min : NAN},
-          {"share_median", h.filter_med > 0.0 ? ms_med / h.filter_med : NAN},
-          {"nan_share", h.finite ? static_cast<double>(h.nan) / h.finite : NAN},
-          {"error_median", quantile(&h.error, 0.5)},
-          {"error_p95", quantile(&h.error, 0.95)},
-          {"ground_median", quantile(&h.ground, 0.5)},
-          {"ground_p5", quantile(&h.ground, 0.05)},
-          {"ground_p95", quantile(&h.ground, 0.95)},
-          {"ground_within_0_1", h.ground.empty() ? NAN : within / h.ground.size()},
-          {"nonground_median", quantile(&h.nonground, 0.5)},
-          {"nonground_p5", quantile(&h.nonground, 0.05)},
-          {"nonground_p95", quantile(&h.nonground, 0.95)}};
-}
-
-/// --hag on one filtered scan: the surface from `labels`, `repeat` times, and the statistics.
-HagResult hagOf(const gf::Scan& scan, const gf::CloudView& view,
-                const std::vector<std::uint8_t>& labels, int repeat) {
-  HagResult h;
-  gf::GroundSurface surface;
-  std::vector<float> heights;
-  for (int r = 0; r < repeat; ++r) {
-    const auto t0 = std::chrono::steady_clock::now();
-    surface.build(view, labels, gf::GroundSurfaceParams());
-    surface.heights(view, &heights);
-    h.ms.push_back(cli::msSince(t0));
-  }
-  // builtin:... (spec checked by loadScan()): exact terrain, but none in a tilted mount's frame.
-  const std::string prefix = "builtin:";
-  const bool builtin = scan.path.compare(0, prefix.size(), prefix) == 0;
-  const gf::SceneParams scene =
-      builtin ? gf::parseSceneSpec(scan.path.substr(prefix.size())) : gf::SceneParams();
-  const bool terrain = builtin && std::isfinite(gf::sceneGroundHeight(scene, 0.0, 0.0));
-  for (std::size_t i = 0; i < view.size(); ++i) {
-    float x, y, z;
-    if (!view.get(i, &x, &y, &z)) continue;
-    ++h.finite;
-    const float v = heights[i];
-    if (std::isnan(v)) {
-      ++h.nan;
-      continue;
-    }
-    if (terrain) h.error.push_back(std::fabs(v - (z - gf::sceneGroundHeight(scene, x, y))));
-    if (scan.labelled() && scan.truth[i] == 1) h.ground.push_back(v);
-    if (scan.labelled() && scan.truth[i] == 0) h.nonground.push_back(v);
-  }
-  return h;
-}
-
 struct FileResult {
   std::string file;
   std::size_t points = 0;
@@ -262,7 +183,7 @@ struct FileResult {
   std::string note;                    // FilterStats::note of the last run (e.g. a wider stride)
   std::string scan_file;               // --write-scans: the .bin written
   gf::ScanMeasures measures;           // --scan-measures
-  HagResult hag;                       // --hag
+  cli::HagResult hag;                  // --hag
 };
 
 Options parseArgs(int argc, char** argv) {
@@ -465,7 +386,7 @@ FileResult evalFile(gf::GroundFilter* filter, const std::string& file, const Opt
     gf::addClassCounts(labels, scan.truth, scan.semantic, classes);
   }
   if (opt.hag) {
-    res.hag = hagOf(scan, view, labels, opt.repeat);
+    res.hag = cli::hagOf(scan, view, labels, stats.scan_type, opt.repeat);
     if (filter) {  // shares of the filter's time (none with --score-labels)
       res.hag.filter_min = *std::min_element(times.begin(), times.end());
       res.hag.filter_med = res.ms;
@@ -512,17 +433,17 @@ Pooled pool(const std::vector<FileResult>& results) {
 std::vector<std::vector<std::pair<std::string, double>>> hagTable(
     const std::vector<FileResult>& results) {
   std::vector<std::vector<std::pair<std::string, double>>> rows;
-  HagResult all;
+  cli::HagResult all;
   double ms_min = 0.0, ms_med = 0.0;
   for (const auto& r : results) {
     const double mn = *std::min_element(r.hag.ms.begin(), r.hag.ms.end());
     const double md = cli::median(r.hag.ms);
-    rows.push_back(hagNumbers(r.hag, mn, md));
+    rows.push_back(cli::hagNumbers(r.hag, mn, md));
     all.add(r.hag);
     ms_min += mn;
     ms_med += md;
   }
-  rows.push_back(hagNumbers(std::move(all), ms_min, ms_med));
+  rows.push_back(cli::hagNumbers(std::move(all), ms_min, ms_med));
   return rows;
 }
 

@@ -38,8 +38,22 @@ constexpr float kSpikeHeight = 0.25f;
 // middle of the range 0.30-0.425 m where both generated vegetation scenes keep their gain
 // (docs/height_above_ground.md, "Plateaus") [m].
 constexpr float kPatchHeight = 0.35f;
-constexpr int kPatchReach = 2;             // cells: the wider window is 5 x 5
-constexpr int kPatchLeast = 12;            // occupied cells of its 24 that the wider test needs
+constexpr int kPatchReach = 2;   // cells: the wider window is 5 x 5
+constexpr int kPatchLeast = 12;  // occupied cells of its 24 that the wider test needs
+// A ground-level scanner leaves occlusion shadows behind bushes, trunks and cars: a cell
+// among them has too few occupied cells around it for the tests above (fewer than kPatchLeast
+// of its 24), so it is judged against the occupied cells kShadowInner to kShadowReach cells
+// away (kShadowLeast or more; their elevations), the terrain beyond the shadow: more than
+// kShadowHeight above their median, it is a spike. Larger than kPatchHeight: the terrain may
+// rise or fall over 3-5 cells. Airborne scans have no such
+// shadows (their gaps are buildings and steep slopes, where the test hurt): ground-level
+// scans only (GroundSurfaceParams::ground_level). 1.0 m: inside 0.75-2.0 m, where the
+// generated trail and off-road scenes keep their gain and no dev group loses
+// (docs/height_above_ground.md, "Plateaus") [m].
+constexpr float kShadowHeight = 1.0f;
+constexpr int kShadowInner = 3;            // cells: the ring starts outside the 5 x 5 window ...
+constexpr int kShadowReach = 5;            // ... and ends at the 11 x 11 window's edge
+constexpr int kShadowLeast = 6;            // occupied cells of the ring's 96 that the test needs
 constexpr double kConfidencePoints = 3.0;  // confidence n / (n + this) ...
 constexpr double kConfidenceRms = 0.05;    // ... / (1 + (rms / this)^2) [m]
 
@@ -408,11 +422,13 @@ GroundSurface::Fit GroundSurface::fitCell(const Accum& a) const {
 // kPatchReach cells (half of them or more occupied: a sparse window, as an airborne scan's on a
 // steep slope, extrapolates cells without a fitted slope too far). A patch of low vegetation or
 // an object labelled ground spans several cells, so its nearest neighbours stand as high as it
-// does; two cells out the terrain around it is the majority.
+// does; two cells out the terrain around it is the majority. In a ground-level scan a cell
+// that the wider window cannot judge gets the shadow test (shadowSpike()).
 // fill() treats them as empty cells.
 void GroundSurface::dropSpikes() {
   const float cell = static_cast<float>(cell_);
   const std::size_t occ = occupied_.size();
+  if (ground_level_) blockLows();
   for (std::size_t s = 0; s < occ; ++s) {
     const std::uint32_t g = occupied_[s];
     const int j = static_cast<int>(g / nx_), i = static_cast<int>(g) - j * nx_;
@@ -433,7 +449,57 @@ void GroundSurface::dropSpikes() {
     if (aboveMedian(z_[s], near, kn, 3, kSpikeHeight) ||
         aboveMedian(z_[s], all, ka, kPatchLeast, kPatchHeight)) {
       flags_[s] |= kSpike;
+    } else if (ground_level_ && ka < kPatchLeast && shadowSpike(s, i, j)) {
+      flags_[s] |= kSpike;
     }
+  }
+}
+
+// The shadow test of dropSpikes() for occupied cell s at grid (i, j): whether it stands more
+// than kShadowHeight above the median elevation of the occupied cells kShadowInner to
+// kShadowReach cells away. Their elevations at their own centres, not their planes
+// extrapolated: a sparse cell's slope carried 3-5 cells adds as much error as it removes
+// (docs/height_above_ground.md, "Plateaus"), and without it the blocks' lowest elevations
+// bound the ring from below. Counted rather than sorted: the median lies that far below
+// exactly when more than half of them do.
+bool GroundSurface::shadowSpike(std::size_t s, int i, int j) const {
+  const float z = z_[s];
+  // No cell of the 4 x 4-cell blocks around the ring lies that far below: none of the ring
+  // does (most cells stop here).
+  const int bi0 = std::max(0, i - kShadowReach) / kBlock, bi1 = (i + kShadowReach) / kBlock;
+  const int bj0 = std::max(0, j - kShadowReach) / kBlock, bj1 = (j + kShadowReach) / kBlock;
+  float low = std::numeric_limits<float>::infinity();
+  for (int bj = bj0; bj <= std::min(bj1, bny_ - 1); ++bj) {
+    for (int bi = bi0; bi <= std::min(bi1, bnx_ - 1); ++bi) {
+      low = std::min(low, block_low_[static_cast<std::size_t>(bj) * bnx_ + bi]);
+    }
+  }
+  if (!(z - low > kShadowHeight)) return false;
+  int ring = 0, below = 0;
+  for (int dj = std::max(-kShadowReach, -j); dj <= std::min(kShadowReach, ny_ - 1 - j); ++dj) {
+    const std::int32_t* row = slot_.data() + static_cast<std::size_t>(j + dj) * nx_ + i;
+    const bool inner_row = dj > -kShadowInner && dj < kShadowInner;
+    for (int di = std::max(-kShadowReach, -i); di <= std::min(kShadowReach, nx_ - 1 - i); ++di) {
+      const std::int32_t t = row[di];
+      if (t < 0 || (inner_row && di > -kShadowInner && di < kShadowInner)) continue;
+      ++ring;
+      below += z - z_[t] > kShadowHeight;
+    }
+  }
+  return ring >= kShadowLeast && 2 * below > ring;
+}
+
+// The lowest elevation of the occupied cells in each kBlock x kBlock block of the grid
+// (shadowSpike()'s first look).
+void GroundSurface::blockLows() {
+  bnx_ = (nx_ + kBlock - 1) / kBlock;
+  bny_ = (ny_ + kBlock - 1) / kBlock;
+  block_low_.assign(static_cast<std::size_t>(bnx_) * bny_, std::numeric_limits<float>::infinity());
+  for (std::size_t s = 0; s < occupied_.size(); ++s) {
+    const std::uint32_t g = occupied_[s];
+    const int j = static_cast<int>(g / nx_), i = static_cast<int>(g) - j * nx_;
+    float& low = block_low_[static_cast<std::size_t>(j / kBlock) * bnx_ + i / kBlock];
+    low = std::min(low, z_[s]);
   }
 }
 
@@ -506,6 +572,7 @@ void GroundSurface::build(const CloudView& cloud, const std::vector<std::uint8_t
                                 " labels for " + std::to_string(n) + " points");
   }
   radius_ = params.radius;
+  ground_level_ = params.ground_level;
   cells_.clear();
   occupied_.clear();
   acc_.clear();
