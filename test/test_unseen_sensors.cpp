@@ -86,6 +86,38 @@ TEST(UnseenSensors, BothMethodsKeepTheGroundOfEverySensorOfTheSweep) {
   }
 }
 
+// A car in the next lane 3-3.6 m beside the sensor (builtin:lidar:SEED:beside_car=D): the
+// blind zone and the car's own shadow leave its bonnet and roof most of their 4 m tile, and the
+// normal method's tile plane took them for the ground (F1 0.928 / 0.950 / 0.931 here; 16-17 %
+// of the car points within 8 m ground, its roof 1.3-1.5 m up). A tile plane more than 0.75 m
+// above its neighbours' is replaced by theirs (normal::raisedTileMedian()); both methods keep
+// the near car points off the ground but for its lowest edge (5 % of them).
+TEST(UnseenSensors, ACarInTheNextLaneIsNotGround) {
+  for (const char* spec :
+       {"lidar:1:beside_car=3.6", "lidar:2:beside_car=3.6", "lidar:1:beside_car=3"}) {
+    const GeneratedScan scan = generateScene(parseSceneSpec(spec));
+    const CloudView view = CloudView::packedXyz(scan.xyz.data(), scan.size());
+    const std::vector<std::int8_t> truth(scan.truth.begin(), scan.truth.end());
+    for (const char* method : {"voxel", "normal"}) {
+      std::vector<std::uint8_t> labels;
+      makeGroundFilter(method)->filter(view, &labels, nullptr);
+      std::size_t car = 0, car_ground = 0;
+      for (std::size_t i = 0; i < scan.size(); ++i) {
+        const float* p = &scan.xyz[3 * i];
+        if (scan.semantic[i] != kClassCar || p[0] * p[0] + p[1] * p[1] > 64.f) continue;
+        ++car;
+        car_ground += labels[i] == 1;
+      }
+      const double f1 = computeMetrics(countConfusion(labels, truth)).f1;
+      std::printf("%s %s: F1 %.4f, car points within 8 m %zu of %zu ground\n", method, spec, f1,
+                  car_ground, car);
+      EXPECT_GT(f1, 0.955) << method << " " << spec;
+      ASSERT_GT(car, 10000u) << spec;
+      EXPECT_LT(car_ground, car * 8 / 100) << method << " " << spec;
+    }
+  }
+}
+
 // Both methods on a generated indoor scene: F1 above `min_f1`, and fewer than 1 / `share` of
 // the building points above `ceiling_z` (the ceiling, tops of walls and pillars) ground.
 void expectCeilingOffTheGround(const char* spec, float ceiling_z, double min_f1,

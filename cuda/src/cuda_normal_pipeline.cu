@@ -129,7 +129,7 @@ struct CudaNormalPipeline::Impl {
   CudaNormalTimings timings;
   DeviceBuffer in, flags, pos, raw_xyz, raw_src, keys_a, keys_b, vals_a, vals_b, xyz, src, cand,
       voted, sampled_xyz, sampled_voted, vflags, vpos, gflags, gpos, tile_begin, vlist, glist,
-      planes, refine, labels, counters, temp, sidx, column_low;
+      planes, donor, refine, labels, counters, temp, sidx, column_low;
   PinnedBuffer h_in, h_small, h_labels;
   const unsigned long long* col_keys = nullptr;  // sorted column keys (orderColumns), n entries
 
@@ -444,6 +444,7 @@ void CudaNormalPipeline::Impl::planesAndLabels(CudaKnn::Impl& im, int n, std::si
                     : std::min<std::uint64_t>(n, (tx_max + 1) * (ty_max + 1));
   }
   im.grow(planes, (tiles_max + 1) * sizeof(PlaneDev), "the planes");
+  im.grow(donor, tiles_max * sizeof(int), "the raised-tile test");
   const float* d_xyz = xyz.as<float>();
   std::uint8_t* d_voted = voted.as<std::uint8_t>();
   // Without a sensor to judge the planes by, no voted point over another (CPU: PlaneStage::run).
@@ -485,9 +486,12 @@ void CudaNormalPipeline::Impl::planesAndLabels(CudaKnn::Impl& im, int n, std::si
   std::uint8_t* d_labels = labels.as<std::uint8_t>();
   GF_CUDA_CHECK(cudaMemsetAsync(d_labels, 0, n_in, st));
   const int classify_blocks = static_cast<int>(std::min<std::uint64_t>(tiles_max, 8ull * sms));
+  launchRaisedTiles(d_tkeys, ybits, tile_begin.as<unsigned int>(), d_ntiles,
+                    vpos.as<unsigned int>(), gp, d_planes, bb.min_x, bb.min_y, tile,
+                    donor.as<int>(), tiles_max, st);
   launchClassify(d_xyz, src.as<unsigned int>(), d_order, d_voted, tile_begin.as<unsigned int>(),
                  d_ntiles, vpos.as<unsigned int>(), vlist.as<unsigned int>(), gp, d_planes,
-                 d_labels, groundCount(), workClassify(), classify_blocks, st);
+                 donor.as<int>(), d_labels, groundCount(), workClassify(), classify_blocks, st);
 }
 
 // ---- local ground plane (CPU: LocalGroundStage), on the KNN's lists of the sampled points

@@ -33,14 +33,63 @@ __device__ inline double blockMin(double v, double* warp_s) {
   return r;
 }
 
+/// The raised-tile test (CPU: PlaneStage::lowerRaisedTiles()), one thread per tile: donor[t] =
+/// the neighbouring tile whose plane tile t is labelled against, -1 for its own.
+__global__ void raisedTilesKernel(const unsigned long long* __restrict__ keys, int ybits,
+                                  const unsigned int* __restrict__ tile_begin,
+                                  const unsigned int* ntiles_dev,
+                                  const unsigned int* __restrict__ vpos, const GroundParamsDev p,
+                                  const PlaneDev* __restrict__ planes, double min_x, double min_y,
+                                  double tile, int* __restrict__ donor) {
+  const unsigned int ntiles = *ntiles_dev;
+  const unsigned int t = blockIdx.x * blockDim.x + threadIdx.x;
+  if (t >= ntiles) return;
+  // The CPU's kOwnPlane: a tile with enough voted points whose own fit found a plane.
+  auto own = [&](unsigned int u) {
+    return vpos[tile_begin[u + 1]] - vpos[tile_begin[u]] >= kMinTilePoints && planes[1 + u].valid;
+  };
+  donor[t] = -1;
+  if (!p.local_planes || !own(t)) return;
+  const unsigned long long y_max = (1ull << ybits) - 1ull, key = keys[tile_begin[t]];
+  const unsigned long long tx = key >> ybits, ty = key & y_max;
+  const double cx = min_x + (static_cast<double>(tx) + 0.5) * tile;
+  const double cy = min_y + (static_cast<double>(ty) + 0.5) * tile;
+  const PlaneDev pt = planes[1 + t];
+  const double zt = normal::planeZAt(pt.n, pt.d, pt.o, cx, cy);
+  double zs[8];
+  int who[8];
+  int k = 0;
+  for (int v = 0; v < 8; ++v) {
+    int dx, dy;
+    normal::tileNeighbour(v, &dx, &dy);
+    if ((dx < 0 && tx == 0) || (dy < 0 && ty == 0) || (dy > 0 && ty == y_max)) continue;
+    const unsigned long long want = ((tx + dx) << ybits) | (ty + dy);
+    unsigned int lo = 0, hi = ntiles;  // the tiles are in key order
+    while (lo < hi) {
+      const unsigned int mid = (lo + hi) / 2;
+      if (keys[tile_begin[mid]] < want) {
+        lo = mid + 1;
+      } else {
+        hi = mid;
+      }
+    }
+    if (lo >= ntiles || keys[tile_begin[lo]] != want || !own(lo)) continue;
+    const PlaneDev pu = planes[1 + lo];
+    zs[k] = normal::planeZAt(pu.n, pu.d, pu.o, cx, cy);
+    who[k++] = static_cast<int>(lo);
+  }
+  const int mid = normal::raisedTileMedian(zt, zs, k);
+  if (mid >= 0) donor[t] = who[mid];
+}
+
 __global__ void __launch_bounds__(kThreads)
     classifyKernel(const float* __restrict__ xyz, const unsigned int* __restrict__ src,
                    const unsigned int* __restrict__ order, const std::uint8_t* __restrict__ voted,
                    const unsigned int* __restrict__ tile_begin, const unsigned int* ntiles_dev,
                    const unsigned int* __restrict__ vpos, const unsigned int* __restrict__ vlist,
                    const GroundParamsDev p, const PlaneDev* __restrict__ planes,
-                   std::uint8_t* __restrict__ labels, unsigned int* ground_count,
-                   unsigned int* work) {
+                   const int* __restrict__ donor, std::uint8_t* __restrict__ labels,
+                   unsigned int* ground_count, unsigned int* work) {
   __shared__ unsigned int item_s;
   __shared__ double band[2];
   __shared__ double floor_min_s[kThreads / 32];
@@ -56,7 +105,10 @@ __global__ void __launch_bounds__(kThreads)
     const unsigned int b = tile_begin[t], e = tile_begin[t + 1];
     const unsigned int m = vpos[e] - vpos[b];
     PlaneDev plane = planes[0];
-    if (p.local_planes && m >= kMinTilePoints && planes[1 + t].valid) plane = planes[1 + t];
+    if (p.local_planes && m >= kMinTilePoints && planes[1 + t].valid) {
+      plane =
+          planes[1 + (donor[t] >= 0 ? donor[t] : static_cast<int>(t))];  // raised: a neighbour's
+    }
     if (!plane.valid) continue;  // uniform
     if (p.local_planes && m < kMinTilePoints && p.floor_share > 0.0) {
       // As the CPU (plane.cpp, sparse-tile floor): the cloud-wide plane moved to the tile's
@@ -137,10 +189,24 @@ __global__ void __launch_bounds__(kThreads)
 void launchClassify(const float* xyz, const unsigned int* src, const unsigned int* order,
                     const std::uint8_t* voted, const unsigned int* tile_begin,
                     const unsigned int* ntiles, const unsigned int* vpos, const unsigned int* vlist,
-                    const GroundParamsDev& p, const PlaneDev* planes, std::uint8_t* labels,
-                    unsigned int* ground_count, unsigned int* work, int blocks, cudaStream_t st) {
+                    const GroundParamsDev& p, const PlaneDev* planes, const int* donor,
+                    std::uint8_t* labels, unsigned int* ground_count, unsigned int* work,
+                    int blocks, cudaStream_t st) {
   classifyKernel<<<blocks, kThreads, 0, st>>>(xyz, src, order, voted, tile_begin, ntiles, vpos,
-                                              vlist, p, planes, labels, ground_count, work);
+                                              vlist, p, planes, donor, labels, ground_count, work);
+  GF_CUDA_CHECK_LAUNCH();
+}
+
+void launchRaisedTiles(const unsigned long long* sorted_keys, int ybits,
+                       const unsigned int* tile_begin, const unsigned int* ntiles,
+                       const unsigned int* vpos, const GroundParamsDev& p, const PlaneDev* planes,
+                       double min_x, double min_y, double tile, int* donor, std::size_t tiles_max,
+                       cudaStream_t st) {
+  if (tiles_max == 0) return;
+  const int threads = 256;
+  const int blocks = static_cast<int>((tiles_max + threads - 1) / threads);
+  raisedTilesKernel<<<blocks, threads, 0, st>>>(sorted_keys, ybits, tile_begin, ntiles, vpos, p,
+                                                planes, min_x, min_y, tile, donor);
   GF_CUDA_CHECK_LAUNCH();
 }
 

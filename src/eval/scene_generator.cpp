@@ -556,6 +556,7 @@ void SceneParams::validate() const {
   checkRange("airborne_hall_step", airborne_hall_step, 0.0, 6.0, "m");
   checkRange("second_returns", second_returns, 0.0, 1.0, "");
   checkRange("ceiling_height", ceiling_height, 1.5, 30.0, "m");
+  checkRange("beside_car", beside_car, 0.0, 30.0, "m");
   checkRange("mount_roll_deg", mount_roll_deg, -90.0, 90.0, "deg");
   checkRange("mount_pitch_deg", mount_pitch_deg, -90.0, 90.0, "deg");
   // A frame on the ground below the scanner and a tilted mount both describe one scan.

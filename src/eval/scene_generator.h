@@ -137,6 +137,9 @@ struct SceneParams {
   double ramp_height = 2.0;     ///< upper level minus lower level [m] (2.0)
   double scene_extent = 90.0;   ///< objects are placed for |world x| <= this [m] (90)
   double ceiling_height = 2.6;  ///< kGarage: the ceiling's underside above the floor [m] (2.6)
+  /// kStreet: a car in the next lane beside the scanner, its centre this far to the side (world
+  /// y = sensor_y - beside_car, x = sensor_x); 0 = none; the rest of the layout unchanged [m] (0)
+  double beside_car = 0.0;
 
   /// \brief Checks every field's range.
   /// \throws std::invalid_argument naming the first bad field, its value and its range.

@@ -63,6 +63,7 @@ using P = SceneParams;
 const SceneOverride kSceneOverrides[] = {
     {"layout", setLayout},
     {"ceiling_height", setDouble<&P::ceiling_height>},
+    {"beside_car", setDouble<&P::beside_car>},
     {"sensor_height", setDouble<&P::sensor_height>},
     {"tripod_height", setDouble<&P::tripod_height>},
     {"sensor_x", setDouble<&P::sensor_x>},

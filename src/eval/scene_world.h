@@ -234,6 +234,12 @@ class Scene {
     for (double x = 9.0 + tree_gap(rng); x < e; x += tree_gap(rng)) addTree(rng, x, cy + 2.0);
     for (double x = 9.0 - tree_gap(rng); x > -e; x -= tree_gap(rng)) addTree(rng, x, cy + 2.0);
     for (double x = -e + tree_gap(rng); x < e; x += tree_gap(rng)) addTree(rng, x, -9.0);
+
+    // A car beside the scanner (beside_car): its own random stream, so nothing else moves.
+    if (p_.beside_car > 0.0) {
+      std::mt19937 car_rng(p_.seed ^ 0x5bd1e995u);
+      addCar(car_rng, p_.sensor_x, p_.sensor_y - p_.beside_car);
+    }
   }
 
   // A parking level: the floor (one flat patch), a ceiling slab over the whole level, outer walls,

@@ -150,6 +150,51 @@ constexpr unsigned int kRansacEvalPoints = 2048;  // hypotheses are scored on at
 // near road dominates (docs/normal_method.md, "Sparse tiles").
 constexpr unsigned int kMinTilePoints = 3;
 
+// A tile whose own plane stands more than this above the median of its neighbouring tiles'
+// own planes, all taken at its centre, is the top of an object (a car in the next lane, its
+// bonnet and roof 0.9-1.5 m up, whose tile holds little else: the blind zone and the car's own
+// shadow hide the road around it). The tile is labelled against that median neighbour's plane.
+// Ground does not step this much between 4 m tiles: kerbs are 0.1-0.25 m, and a slope is in
+// both planes. 0.75 m: the middle of 0.5-1.0 m, below a car's bonnet and above a kerb with the
+// slope error of planes carried 4 m; the dev groups do not move from 0.75 to 3.0 m
+// (docs/normal_method.md, "Raised tiles") [m].
+constexpr double kRaisedTileStep = 0.75;
+// Neighbouring tiles (of 8) with their own plane that the raised-tile test needs.
+constexpr int kRaisedTileLeast = 3;
+/// \brief Neighbour v (0..7) of a tile: its offsets dx, dy in -1..1, x-major, the tile itself
+///        skipped; the order in which both the CPU and the GPU visit them.
+GF_HOST_DEVICE inline void tileNeighbour(int v, int* dx, int* dy) {
+  const int cell = v < 4 ? v : v + 1;
+  *dx = cell / 3 - 1;
+  *dy = cell % 3 - 1;
+}
+
+/// \brief z at (x, y) of the plane n . (q - o) + d = 0 (a tile plane: n_z within the angle
+///        window, never 0).
+GF_HOST_DEVICE inline double planeZAt(const double n[3], double d, const double o[3], double x,
+                                      double y) {
+  return o[2] - ((n[0] * (x - o[0]) + n[1] * (y - o[1])) + d) / n[2];
+}
+
+/// \brief The raised-tile test: given a tile's plane height `zt` at its centre and its
+///        neighbours' `zs[0..k)` there (in tileNeighbour() order), the position in `zs` of
+///        the median neighbour (the upper one of an even count; ties in visiting order) when
+///        k >= kRaisedTileLeast and the tile stands more than kRaisedTileStep above it, else -1.
+GF_HOST_DEVICE inline int raisedTileMedian(double zt, const double* zs, int k) {
+  if (k < kRaisedTileLeast) return -1;
+  int order[8];
+  for (int i = 0; i < k; ++i) {  // insertion sort of at most 8: stable, the same on both sides
+    int j = i;
+    while (j > 0 && zs[order[j - 1]] > zs[i]) {
+      order[j] = order[j - 1];
+      --j;
+    }
+    order[j] = i;
+  }
+  const int mid = order[k / 2];
+  return zt - zs[mid] > kRaisedTileStep ? mid : -1;
+}
+
 /// \brief Squared horizontal distance from (sx, sy) to (px, py) [m^2].
 GF_HOST_DEVICE inline double horizontalDistance2(double sx, double sy, double px, double py) {
   const double rx = sx - px, ry = sy - py;

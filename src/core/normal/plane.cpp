@@ -19,6 +19,14 @@ namespace {
 
 double distanceOf(const Plane& plane, const float* p) { return plane.distance(p[0], p[1], p[2]); }
 
+// A plane's normal and origin as the arrays of the CPU/GPU helpers (planeZAt()).
+void planeArrays(const Plane& plane, double n[3], double o[3]) {
+  for (int c = 0; c < 3; ++c) {
+    n[c] = plane.normal[c];
+    o[c] = plane.origin[c];
+  }
+}
+
 /// Sums the W values term(j, v) writes for the list positions j in [0, m) where it returns true,
 /// in the GPU's order (ground_planes.cu): kPlaneSumLanes interleaved lanes, then the lanes in
 /// order; returns how many were added. A lane starts at +0.0 and so never becomes -0.0: the
@@ -176,6 +184,9 @@ void PlaneStage::sortIntoTiles(const std::vector<float>& xyz, std::size_t n, con
   keys_.resize(n);
   if (p.local_planes) {
     const double tile = std::max(p.tile_size, extent.size() / 4.0e9);
+    tile_size_ = tile;
+    tile_min_x_ = extent.min_x;
+    tile_min_y_ = extent.min_y;
     // Keys tx << y_bits_ | ty: the order of (tx << 32) | ty (tileKey(), the RANSAC seeds) in
     // the fewest radix passes (a KITTI frame: 12 bits, one pass instead of three).
     y_bits_ = radixBitsFor(cellIndex(extent.max_y, extent.min_y, 1.0 / tile));
@@ -358,38 +369,104 @@ void PlaneStage::runTiles(const std::vector<float>& xyz, const std::vector<std::
     global_fitted = true;
   }
   deferred_.assign(tiles_.size(), 0);
+  tile_plane_.resize(tiles_.size());
+  tile_kind_.assign(tiles_.size(), kNoPlane);
 
+  // Each tile's plane: its own fit, else the cloud-wide plane.
   const int nt = static_cast<int>(std::min<std::size_t>(threads, tiles_.size()));
 #pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(tiles_.size()); ++t) {
     std::vector<std::uint32_t>& tv = thread_idx_[omp_get_thread_num()];
     votedOfTile(voted, t, &tv);
-    Plane plane = global;
-    bool valid = global_valid;
     if (p.local_planes && tv.size() >= kMinTilePoints) {
       const std::uint64_t seed =
           base_seed ^ (tileKey(sort_scratch_.keys[tiles_[t].first]) * 0x9e3779b97f4a7c15ULL);
-      Plane fit;
       if (fitPlaneRansac(xyz.data(), tv, p.ransac_iterations, p.plane_distance, min_abs_nz, seed,
-                         &thread_eval_[omp_get_thread_num()], &fit, sensor)) {
-        plane = fit;
-        valid = true;
-      } else if (sensor && !global_fitted) {
-        deferred_[t] = 1;  // labelled with the cloud-wide plane below
+                         &thread_eval_[omp_get_thread_num()], &tile_plane_[t], sensor)) {
+        tile_kind_[t] = kOwnPlane;
+        continue;
+      }
+      if (sensor && !global_fitted) {
+        deferred_[t] = 1;  // the cloud-wide plane, fitted below
         continue;
       }
     }
-    if (valid) labelTile(xyz, voted, t, tv, plane, p, floor_from, ground_out, heights);
+    if (global_valid) {
+      tile_plane_[t] = global;
+      tile_kind_[t] = kCloudPlane;
+    }
   }
+  if (std::find(deferred_.begin(), deferred_.end(), 1) != deferred_.end() &&
+      fitGlobalPlane(xyz, voted, p, min_abs_nz, base_seed, sensor, &global)) {
+    for (std::size_t t = 0; t < tiles_.size(); ++t) {
+      if (!deferred_[t]) continue;
+      tile_plane_[t] = global;
+      tile_kind_[t] = kCloudPlane;
+    }
+  }
+  if (p.local_planes) lowerRaisedTiles();
 
-  if (std::find(deferred_.begin(), deferred_.end(), 1) == deferred_.end()) return;
-  global_valid = fitGlobalPlane(xyz, voted, p, min_abs_nz, base_seed, sensor, &global);
-  if (!global_valid) return;
-  for (std::size_t t = 0; t < tiles_.size(); ++t) {
-    if (!deferred_[t]) continue;
-    votedOfTile(voted, t, &thread_idx_[0]);
-    labelTile(xyz, voted, t, thread_idx_[0], global, p, floor_from, ground_out, heights);
+    // The distance test of each tile against its plane.
+#pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
+  for (std::int64_t t = 0; t < static_cast<std::int64_t>(tiles_.size()); ++t) {
+    if (tile_kind_[t] == kNoPlane) continue;
+    std::vector<std::uint32_t>& tv = thread_idx_[omp_get_thread_num()];
+    votedOfTile(voted, t, &tv);
+    labelTile(xyz, voted, t, tv, tile_plane_[t], p, floor_from, ground_out, heights);
   }
+}
+
+void PlaneStage::lowerRaisedTiles() {
+  // Every tile's test reads the planes as fitted: the replacements go to raised_ first.
+  const std::size_t nt = tiles_.size();
+  const std::uint64_t y_max = (std::uint64_t{1} << y_bits_) - 1;
+  raised_.assign(nt, -1);
+  for (std::size_t t = 0; t < nt; ++t) {
+    if (tile_kind_[t] != kOwnPlane) continue;
+    const std::uint64_t key = sort_scratch_.keys[tiles_[t].first];
+    const std::uint64_t tx = key >> y_bits_, ty = key & y_max;
+    double o[3], n[3];
+    planeArrays(tile_plane_[t], n, o);
+    const double cx = tile_min_x_ + (static_cast<double>(tx) + 0.5) * tile_size_;
+    const double cy = tile_min_y_ + (static_cast<double>(ty) + 0.5) * tile_size_;
+    const double zt = planeZAt(n, tile_plane_[t].d, o, cx, cy);
+    double zs[8];
+    std::int64_t who[8];
+    int k = 0;
+    for (int v = 0; v < 8; ++v) {
+      int dx, dy;
+      tileNeighbour(v, &dx, &dy);
+      const std::int64_t u = tileAt(tx, ty, dx, dy);
+      if (u < 0 || tile_kind_[u] != kOwnPlane) continue;
+      planeArrays(tile_plane_[u], n, o);
+      zs[k] = planeZAt(n, tile_plane_[u].d, o, cx, cy);
+      who[k++] = u;
+    }
+    const int mid = raisedTileMedian(zt, zs, k);
+    if (mid >= 0) raised_[t] = who[mid];
+  }
+  for (std::size_t t = 0; t < nt; ++t) {
+    if (raised_[t] >= 0) tile_plane_[t] = tile_plane_[raised_[t]];
+  }
+}
+
+std::int64_t PlaneStage::tileAt(std::uint64_t tx, std::uint64_t ty, int dx, int dy) const {
+  const std::uint64_t y_max = (std::uint64_t{1} << y_bits_) - 1;
+  if ((dx < 0 && tx == 0) || (dy < 0 && ty == 0) || (dy > 0 && ty == y_max)) return -1;
+  const std::uint64_t key = ((tx + dx) << y_bits_) | (ty + dy);
+  // tiles_ are in key order (sortIntoTiles()).
+  std::size_t lo = 0, hi = tiles_.size();
+  while (lo < hi) {
+    const std::size_t mid = (lo + hi) / 2;
+    if (sort_scratch_.keys[tiles_[mid].first] < key) {
+      lo = mid + 1;
+    } else {
+      hi = mid;
+    }
+  }
+  return lo < tiles_.size() && sort_scratch_.keys[tiles_[lo].first] == key
+             ? static_cast<std::int64_t>(lo)
+             : -1;
 }
 
 void PlaneStage::votedOfTile(const std::vector<std::uint8_t>& voted, std::size_t t,
