@@ -33,7 +33,7 @@ __device__ inline double blockMin(double v, double* warp_s) {
   return r;
 }
 
-/// The raised-tile test (CPU: PlaneStage::lowerRaisedTiles()), one thread per tile: donor[t] =
+/// The raised-tile test (CPU: PlaneStage::raisedTiles()), one thread per tile: donor[t] =
 /// the neighbouring tile whose plane tile t is labelled against, -1 for its own.
 __global__ void raisedTilesKernel(const unsigned long long* __restrict__ keys, int ybits,
                                   const unsigned int* __restrict__ tile_begin,

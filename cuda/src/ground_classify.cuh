@@ -13,7 +13,7 @@
 namespace ground_filter {
 namespace cuda_impl {
 
-/// The raised-tile test after launchPlanes() (CPU: PlaneStage::lowerRaisedTiles()): donor[t]
+/// The raised-tile test after launchPlanes() (CPU: PlaneStage::raisedTiles()): donor[t]
 /// (tiles_max ints) = the neighbouring tile whose plane tile t is labelled against, or -1.
 /// `sorted_keys`: the tile keys tx << ybits | ty; (min_x, min_y): the tile grid's corner;
 /// `tile`: its edge [m].

@@ -404,23 +404,23 @@ void PlaneStage::runTiles(const std::vector<float>& xyz, const std::vector<std::
       tile_kind_[t] = kCloudPlane;
     }
   }
-  if (p.local_planes) lowerRaisedTiles();
-
-    // The distance test of each tile against its plane.
+  raised_.assign(tiles_.size(), -1);
+  if (p.local_planes) raisedTiles();
 #pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(tiles_.size()); ++t) {
     if (tile_kind_[t] == kNoPlane) continue;
     std::vector<std::uint32_t>& tv = thread_idx_[omp_get_thread_num()];
     votedOfTile(voted, t, &tv);
-    labelTile(xyz, voted, t, tv, tile_plane_[t], p, floor_from, ground_out, heights);
+    // The distance test against its plane (a raised tile's: its donor's, as fitted).
+    const Plane& plane = tile_plane_[raised_[t] >= 0 ? raised_[t] : t];
+    labelTile(xyz, voted, t, tv, plane, p, floor_from, ground_out, heights);
   }
 }
 
-void PlaneStage::lowerRaisedTiles() {
-  // Every tile's test reads the planes as fitted: the replacements go to raised_ first.
+void PlaneStage::raisedTiles() {
+  // The planes stay as fitted: raised_ names each raised tile's donor (as the GPU's donor[]).
   const std::size_t nt = tiles_.size();
   const std::uint64_t y_max = (std::uint64_t{1} << y_bits_) - 1;
-  raised_.assign(nt, -1);
   for (std::size_t t = 0; t < nt; ++t) {
     if (tile_kind_[t] != kOwnPlane) continue;
     const std::uint64_t key = sort_scratch_.keys[tiles_[t].first];
@@ -444,9 +444,6 @@ void PlaneStage::lowerRaisedTiles() {
     }
     const int mid = raisedTileMedian(zt, zs, k);
     if (mid >= 0) raised_[t] = who[mid];
-  }
-  for (std::size_t t = 0; t < nt; ++t) {
-    if (raised_[t] >= 0) tile_plane_[t] = tile_plane_[raised_[t]];
   }
 }
 

@@ -62,9 +62,9 @@ class PlaneStage {
   bool fitGlobalPlane(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
                       const NormalGroundFilterParams& p, double min_abs_nz, std::uint64_t base_seed,
                       const double* sensor, Plane* global);
-  // The raised-tile test (normal::raisedTileMedian()): a tile's own plane more than
-  // kRaisedTileStep above its neighbours' is replaced by the median neighbour's.
-  void lowerRaisedTiles();
+  // The raised-tile test (normal::raisedTileMedian()): raised_[t] = the neighbour whose plane
+  // tile t is labelled against, where its own stands more than kRaisedTileStep above theirs.
+  void raisedTiles();
   // Index in tiles_ of the tile (tx + dx, ty + dy), -1 when not occupied.
   std::int64_t tileAt(std::uint64_t tx, std::uint64_t ty, int dx, int dy) const;
   // The voted points of tile t into *tv.
@@ -99,7 +99,7 @@ class PlaneStage {
   enum TilePlane : std::uint8_t { kNoPlane, kOwnPlane, kCloudPlane };
   std::vector<Plane> tile_plane_;
   std::vector<std::uint8_t> tile_kind_;
-  std::vector<std::int64_t> raised_;  // per tile: the neighbour whose plane replaces its own
+  std::vector<std::int64_t> raised_;  // per tile: the neighbour whose plane it takes, or -1
   double tile_size_ = 1.0, tile_min_x_ = 0.0, tile_min_y_ = 0.0;  // the tile grid
   std::vector<std::uint8_t> unroofed_;  // voted less the overhead points (no sensor only)
   std::vector<float> column_low_;       // lowest voted z per overhead-test column
