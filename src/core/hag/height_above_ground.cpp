@@ -45,11 +45,11 @@ constexpr int kPatchLeast = 12;  // occupied cells of its 24 that the wider test
 // of its 24), so it is judged against the occupied cells kShadowInner to kShadowReach cells
 // away (kShadowLeast or more; their elevations), the terrain beyond the shadow: more than
 // kShadowHeight above their median, it is a spike. Larger than kPatchHeight: the terrain may
-// rise or fall over 3-5 cells. Airborne scans have no such
-// shadows (their gaps are buildings and steep slopes, where the test hurt): ground-level
-// scans only (GroundSurfaceParams::ground_level). 1.0 m: inside 0.75-2.0 m, where the
-// generated trail and off-road scenes keep their gain and no dev group loses
-// (docs/height_above_ground.md, "Plateaus") [m].
+// rise or fall over 3-5 cells. Airborne scans have no such shadows (their gaps are buildings
+// and steep slopes, where the test hurt): ground-level scans only
+// (GroundSurfaceParams::ground_level). 1.0 m: inside 0.75-2.0 m, where the generated trail and
+// off-road scenes keep their gain and no dev group loses (docs/height_above_ground.md,
+// "Plateaus") [m].
 constexpr float kShadowHeight = 1.0f;
 constexpr int kShadowInner = 3;            // cells: the ring starts outside the 5 x 5 window ...
 constexpr int kShadowReach = 5;            // ... and ends at the 11 x 11 window's edge
