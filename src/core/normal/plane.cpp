@@ -272,16 +272,19 @@ void PlaneStage::lowerToFloor(const std::vector<float>& xyz, std::size_t tb, std
   }
 }
 
-void PlaneStage::distanceBand(const std::vector<float>& xyz, const std::vector<std::uint32_t>& tv,
-                              const Plane& plane, const NormalGroundFilterParams& p, double* lo,
-                              double* hi) {
-  // Band of the voted points' signed distances within the threshold.
+void PlaneStage::distanceBand(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
+                              std::size_t t, const Plane& plane, const NormalGroundFilterParams& p,
+                              double* lo, double* hi) const {
+  // Band of the voted points' signed distances within the threshold (in tile order, as the
+  // GPU's vlist).
   *lo = -p.plane_distance;
   *hi = p.plane_distance;
   if (!p.std_filter) return;
   double s = 0.0, s2 = 0.0;
   std::size_t c = 0;
-  for (std::uint32_t i : tv) {
+  for (std::size_t j = tiles_[t].first; j < tiles_[t].second; ++j) {
+    const std::uint32_t i = tile_order_[j];
+    if (!voted[i]) continue;
     const double d = distanceOf(plane, &xyz[3 * static_cast<std::size_t>(i)]);
     if (std::abs(d) <= p.plane_distance) {
       s += d;
@@ -371,6 +374,7 @@ void PlaneStage::runTiles(const std::vector<float>& xyz, const std::vector<std::
   deferred_.assign(tiles_.size(), 0);
   tile_plane_.resize(tiles_.size());
   tile_kind_.assign(tiles_.size(), kNoPlane);
+  tile_voted_.resize(tiles_.size());
 
   // Each tile's plane: its own fit, else the cloud-wide plane.
   const int nt = static_cast<int>(std::min<std::size_t>(threads, tiles_.size()));
@@ -378,6 +382,7 @@ void PlaneStage::runTiles(const std::vector<float>& xyz, const std::vector<std::
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(tiles_.size()); ++t) {
     std::vector<std::uint32_t>& tv = thread_idx_[omp_get_thread_num()];
     votedOfTile(voted, t, &tv);
+    tile_voted_[t] = static_cast<std::uint32_t>(tv.size());
     if (p.local_planes && tv.size() >= kMinTilePoints) {
       const std::uint64_t seed =
           base_seed ^ (tileKey(sort_scratch_.keys[tiles_[t].first]) * 0x9e3779b97f4a7c15ULL);
@@ -409,11 +414,9 @@ void PlaneStage::runTiles(const std::vector<float>& xyz, const std::vector<std::
 #pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(tiles_.size()); ++t) {
     if (tile_kind_[t] == kNoPlane) continue;
-    std::vector<std::uint32_t>& tv = thread_idx_[omp_get_thread_num()];
-    votedOfTile(voted, t, &tv);
     // The distance test against its plane (a raised tile's: its donor's, as fitted).
     const Plane& plane = tile_plane_[raised_[t] >= 0 ? raised_[t] : t];
-    labelTile(xyz, voted, t, tv, plane, p, floor_from, ground_out, heights);
+    labelTile(xyz, voted, t, plane, p, floor_from, ground_out, heights);
   }
 }
 
@@ -475,15 +478,15 @@ void PlaneStage::votedOfTile(const std::vector<std::uint8_t>& voted, std::size_t
 }
 
 void PlaneStage::labelTile(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
-                           std::size_t t, const std::vector<std::uint32_t>& tv, Plane plane,
-                           const NormalGroundFilterParams& p, const double* floor_from,
-                           std::vector<std::uint8_t>* ground, std::vector<float>* heights) const {
+                           std::size_t t, Plane plane, const NormalGroundFilterParams& p,
+                           const double* floor_from, std::vector<std::uint8_t>* ground,
+                           std::vector<float>* heights) const {
   const std::size_t tb = tiles_[t].first, te = tiles_[t].second;
-  if (p.local_planes && tv.size() < kMinTilePoints && p.floor_share > 0.0) {
+  if (p.local_planes && tile_voted_[t] < kMinTilePoints && p.floor_share > 0.0) {
     lowerToFloor(xyz, tb, te, p, floor_from, &plane);
   }
   double lo, hi;
-  distanceBand(xyz, tv, plane, p, &lo, &hi);
+  distanceBand(xyz, voted, t, plane, p, &lo, &hi);
   if (heights) {  // for the vegetation stage: up = the side the plane's normal z points to
     const double up = plane.normal.z() < 0.0 ? -1.0 : 1.0;
     for (std::size_t j = tb; j < te; ++j) {

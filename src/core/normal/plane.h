@@ -70,18 +70,19 @@ class PlaneStage {
   // The voted points of tile t into *tv.
   void votedOfTile(const std::vector<std::uint8_t>& voted, std::size_t t,
                    std::vector<std::uint32_t>* tv) const;
-  // The distance test of tile t (its voted points tv) against `plane`.
+  // The distance test of tile t (tile_voted_[t] voted points) against `plane`.
   void labelTile(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
-                 std::size_t t, const std::vector<std::uint32_t>& tv, Plane plane,
-                 const NormalGroundFilterParams& p, const double* floor_from,
-                 std::vector<std::uint8_t>* ground, std::vector<float>* heights) const;
+                 std::size_t t, Plane plane, const NormalGroundFilterParams& p,
+                 const double* floor_from, std::vector<std::uint8_t>* ground,
+                 std::vector<float>* heights) const;
   // The sparse-tile floor: `plane` moved to the tile's lowest level where that holds enough of
   // it (floorReach(), floorShare(); `sensor` null: the reach is floor_max_shift).
   void lowerToFloor(const std::vector<float>& xyz, std::size_t tb, std::size_t te,
                     const NormalGroundFilterParams& p, const double* sensor, Plane* plane) const;
-  static void distanceBand(const std::vector<float>& xyz, const std::vector<std::uint32_t>& tv,
-                           const Plane& plane, const NormalGroundFilterParams& p, double* lo,
-                           double* hi);
+  // The band of tile t's voted points' distances to `plane` (std_filter).
+  void distanceBand(const std::vector<float>& xyz, const std::vector<std::uint8_t>& voted,
+                    std::size_t t, const Plane& plane, const NormalGroundFilterParams& p,
+                    double* lo, double* hi) const;
 
   /// (tx << 32) | ty of a sort key tx << y_bits_ | ty (the key the RANSAC seeds are drawn from).
   std::uint64_t tileKey(std::uint64_t k) const {
@@ -99,7 +100,8 @@ class PlaneStage {
   enum TilePlane : std::uint8_t { kNoPlane, kOwnPlane, kCloudPlane };
   std::vector<Plane> tile_plane_;
   std::vector<std::uint8_t> tile_kind_;
-  std::vector<std::int64_t> raised_;  // per tile: the neighbour whose plane it takes, or -1
+  std::vector<std::uint32_t> tile_voted_;  // per tile: its voted points (the fit loop counts)
+  std::vector<std::int64_t> raised_;       // per tile: the neighbour whose plane it takes, or -1
   double tile_size_ = 1.0, tile_min_x_ = 0.0, tile_min_y_ = 0.0;  // the tile grid
   std::vector<std::uint8_t> unroofed_;  // voted less the overhead points (no sensor only)
   std::vector<float> column_low_;       // lowest voted z per overhead-test column
