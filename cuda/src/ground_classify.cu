@@ -59,24 +59,15 @@ __global__ void raisedTilesKernel(const unsigned long long* __restrict__ keys, i
   double zs[8];
   int who[8];
   int k = 0;
+  auto key_at = [&](std::uint64_t i) { return static_cast<std::uint64_t>(keys[tile_begin[i]]); };
   for (int v = 0; v < 8; ++v) {
-    int dx, dy;
-    normal::tileNeighbour(v, &dx, &dy);
-    if ((dx < 0 && tx == 0) || (dy < 0 && ty == 0) || (dy > 0 && ty == y_max)) continue;
-    const unsigned long long want = ((tx + dx) << ybits) | (ty + dy);
-    unsigned int lo = 0, hi = ntiles;  // the tiles are in key order
-    while (lo < hi) {
-      const unsigned int mid = (lo + hi) / 2;
-      if (keys[tile_begin[mid]] < want) {
-        lo = mid + 1;
-      } else {
-        hi = mid;
-      }
-    }
-    if (lo >= ntiles || keys[tile_begin[lo]] != want || !own(lo)) continue;
-    const PlaneDev pu = planes[1 + lo];
+    std::uint64_t want;
+    if (!normal::tileNeighbourKey(tx, ty, ybits, v, &want)) continue;
+    const std::int64_t u = normal::findTile(key_at, ntiles, want);  // the tiles are in key order
+    if (u < 0 || !own(static_cast<unsigned int>(u))) continue;
+    const PlaneDev pu = planes[1 + u];
     zs[k] = normal::planeZAt(pu.n, pu.d, pu.o, cx, cy);
-    who[k++] = static_cast<int>(lo);
+    who[k++] = static_cast<int>(u);
   }
   const int mid = normal::raisedTileMedian(zt, zs, k);
   if (mid >= 0) donor[t] = who[mid];

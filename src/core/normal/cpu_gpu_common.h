@@ -169,6 +169,34 @@ GF_HOST_DEVICE inline void tileNeighbour(int v, int* dx, int* dy) {
   *dy = cell % 3 - 1;
 }
 
+/// \brief The sort key tx << ybits | ty of neighbour v of the tile (tx, ty) (tileNeighbour());
+///        false where it lies off the grid.
+GF_HOST_DEVICE inline bool tileNeighbourKey(std::uint64_t tx, std::uint64_t ty, int ybits, int v,
+                                            std::uint64_t* key) {
+  int dx, dy;
+  tileNeighbour(v, &dx, &dy);
+  const std::uint64_t y_max = (std::uint64_t{1} << ybits) - 1;
+  if ((dx < 0 && tx == 0) || (dy < 0 && ty == 0) || (dy > 0 && ty == y_max)) return false;
+  *key = ((tx + dx) << ybits) | (ty + dy);
+  return true;
+}
+
+/// \brief Index of the tile whose sort key is `want` among `n` tiles in key order
+///        (key_at(i): tile i's key), -1 when no tile has it.
+template <class KeyAt>
+GF_HOST_DEVICE inline std::int64_t findTile(KeyAt key_at, std::uint64_t n, std::uint64_t want) {
+  std::uint64_t lo = 0, hi = n;
+  while (lo < hi) {
+    const std::uint64_t mid = (lo + hi) / 2;
+    if (key_at(mid) < want) {
+      lo = mid + 1;
+    } else {
+      hi = mid;
+    }
+  }
+  return lo < n && key_at(lo) == want ? static_cast<std::int64_t>(lo) : -1;
+}
+
 /// \brief z at (x, y) of the plane n . (q - o) + d = 0 (a tile plane: n_z within the angle
 ///        window, never 0).
 GF_HOST_DEVICE inline double planeZAt(const double n[3], double d, const double o[3], double x,

@@ -424,6 +424,8 @@ void PlaneStage::raisedTiles() {
   // The planes stay as fitted: raised_ names each raised tile's donor (as the GPU's donor[]).
   const std::size_t nt = tiles_.size();
   const std::uint64_t y_max = (std::uint64_t{1} << y_bits_) - 1;
+  // tiles_ are in key order (sortIntoTiles()).
+  auto key_at = [&](std::uint64_t i) { return sort_scratch_.keys[tiles_[i].first]; };
   for (std::size_t t = 0; t < nt; ++t) {
     if (tile_kind_[t] != kOwnPlane) continue;
     const std::uint64_t key = sort_scratch_.keys[tiles_[t].first];
@@ -437,9 +439,9 @@ void PlaneStage::raisedTiles() {
     std::int64_t who[8];
     int k = 0;
     for (int v = 0; v < 8; ++v) {
-      int dx, dy;
-      tileNeighbour(v, &dx, &dy);
-      const std::int64_t u = tileAt(tx, ty, dx, dy);
+      std::uint64_t want;
+      if (!tileNeighbourKey(tx, ty, y_bits_, v, &want)) continue;
+      const std::int64_t u = findTile(key_at, nt, want);
       if (u < 0 || tile_kind_[u] != kOwnPlane) continue;
       planeArrays(tile_plane_[u], n, o);
       zs[k] = planeZAt(n, tile_plane_[u].d, o, cx, cy);
@@ -448,25 +450,6 @@ void PlaneStage::raisedTiles() {
     const int mid = raisedTileMedian(zt, zs, k);
     if (mid >= 0) raised_[t] = who[mid];
   }
-}
-
-std::int64_t PlaneStage::tileAt(std::uint64_t tx, std::uint64_t ty, int dx, int dy) const {
-  const std::uint64_t y_max = (std::uint64_t{1} << y_bits_) - 1;
-  if ((dx < 0 && tx == 0) || (dy < 0 && ty == 0) || (dy > 0 && ty == y_max)) return -1;
-  const std::uint64_t key = ((tx + dx) << y_bits_) | (ty + dy);
-  // tiles_ are in key order (sortIntoTiles()).
-  std::size_t lo = 0, hi = tiles_.size();
-  while (lo < hi) {
-    const std::size_t mid = (lo + hi) / 2;
-    if (sort_scratch_.keys[tiles_[mid].first] < key) {
-      lo = mid + 1;
-    } else {
-      hi = mid;
-    }
-  }
-  return lo < tiles_.size() && sort_scratch_.keys[tiles_[lo].first] == key
-             ? static_cast<std::int64_t>(lo)
-             : -1;
 }
 
 void PlaneStage::votedOfTile(const std::vector<std::uint8_t>& voted, std::size_t t,

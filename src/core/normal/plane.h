@@ -65,8 +65,6 @@ class PlaneStage {
   // The raised-tile test (normal::raisedTileMedian()): raised_[t] = the neighbour whose plane
   // tile t is labelled against, where its own stands more than kRaisedTileStep above theirs.
   void raisedTiles();
-  // Index in tiles_ of the tile (tx + dx, ty + dy), -1 when not occupied.
-  std::int64_t tileAt(std::uint64_t tx, std::uint64_t ty, int dx, int dy) const;
   // The voted points of tile t into *tv.
   void votedOfTile(const std::vector<std::uint8_t>& voted, std::size_t t,
                    std::vector<std::uint32_t>* tv) const;
