@@ -8,6 +8,8 @@
 #   PEERS="patchworkpp" bash scripts/speed_table.sh   # only these peers ("" = none)
 #   EVERY_POINT=1 bash scripts/speed_table.sh   # + normal rows with a normal for every point
 #                                               #   (sample_stride 1, k 64: the paper's way)
+#   STRIDE3=1 bash scripts/speed_table.sh       # + normal rows with every third point sampled
+#                                               #   (sample_stride 3, k 28: docs/normal_speed.md)
 # Rows: voxel (1 thread), normal (1 and 2 threads) at each GF_SIMD level the CPU has, and the
 # peers' drivers (one thread, their segmentation call only; CSF with REPEAT/2 calls).
 # Needs a build (bash -c 'source scripts/common.sh; gf_build'); data: $GF_DATA_DIR, else data/
@@ -47,6 +49,9 @@ for lv in ${LEVELS}; do
   TOOLS+=("normal ${lv}, 2 threads|GF_SIMD=${lv} ${BENCH} --method normal --threads 2")
   if [ "${EVERY_POINT:-0}" = 1 ]; then
     TOOLS+=("normal ${lv}, 2 threads, every point (sample_stride 1, k 64)|GF_SIMD=${lv} ${BENCH} --method normal --threads 2 --set sample_stride=1 --set k=64")
+  fi
+  if [ "${STRIDE3:-0}" = 1 ]; then
+    TOOLS+=("normal ${lv}, 2 threads, sample_stride 3, k 28|GF_SIMD=${lv} ${BENCH} --method normal --threads 2 --set sample_stride=3 --set k=28")
   fi
 done
 for p in ${PEERS}; do

@@ -336,3 +336,38 @@ TEST(HagOutputs, BandValidation) {
   band.min_height = std::nan("");
   EXPECT_THROW(band.validate(), std::invalid_argument);
 }
+
+// The nodelets' path (HagOutputs::process(), no ROS graph: no subscriber, ~labeled wanted) takes
+// the scan type the filter reported: a car roof labelled ground amid its occlusion shadow (as in
+// test_height_above_ground.cpp) is a spike for a ground-level scan only.
+TEST(HagOutputs, ProcessSkipsTheShadowTestForAirborneScansOnly) {
+  Scene s;
+  for (float x = -10.f; x < 10.f; x += 0.25f) {
+    for (float y = -10.f; y < 10.f; y += 0.25f) {
+      const bool on_roof = x >= 2.f && x < 4.f && y >= 2.f && y < 4.f;
+      const bool shadow = x >= 0.f && x < 6.f && y >= 0.f && y < 6.f;
+      if (on_roof || !shadow) s.add(x, y, on_roof ? 1.4f : 0.f, gf::kGround);
+    }
+  }
+  std::size_t roof = 0;  // the point at the roof's centre
+  while (s.xyz[3 * roof] != 3.f || s.xyz[3 * roof + 1] != 3.f) ++roof;
+  ASSERT_EQ(s.xyz[3 * roof + 2], 1.4f);
+  const PointCloud2 in = s.cloud();
+  gf::CloudLayout layout;
+  ASSERT_EQ(gf::checkPointCloud2(in, &layout, nullptr), gf::CloudRejectReason::kNone);
+  gf::CloudProcessingBuffers buffers;
+  buffers.labels = s.labels;
+  for (const char* type : {"ground", "registered", "airborne"}) {
+    gf::ProcessedCloud filtered;
+    filtered.stats.scan_type = type;
+    gf::HagOutputs hag;
+    gf::HagClouds clouds;
+    const std::vector<float>* h =
+        hag.process(in, layout, nullptr, buffers, "base_link", filtered, true, &clouds);
+    ASSERT_NE(h, nullptr) << type;
+    ASSERT_EQ(h->size(), s.size());
+    const bool airborne = std::string(type) == "airborne";
+    EXPECT_NEAR((*h)[roof], airborne ? 0.f : 1.4f, 1e-3f) << type;  // the roof kept / dropped
+    EXPECT_NEAR((*h)[0], 0.f, 1e-3f) << type;
+  }
+}

@@ -234,7 +234,7 @@ TEST_F(GpuPipelineTest, FilterOptionsGiveTheKdTreeLabels) {
        {"local_planes=false", "std_filter=true", "bayes_vote=false plane_all_points=false",
         "k=20 min_planarity=0.3 tile_size=10", "k=64 ransac_iterations=20", "ransac_seed=7",
         "local_planes=false ransac_seed=7", "sample_stride=1 k=64",
-        "sample_stride=3 k=24 plane_all_points=false"}) {
+        "sample_stride=3 k=24 plane_all_points=false", "sample_stride=3 k=28"}) {
     Case cs{what, {}};
     std::istringstream items(what);
     for (std::string item; items >> item;) {

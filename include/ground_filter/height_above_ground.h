@@ -3,6 +3,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "ground_filter/cloud_view.h"
@@ -24,6 +25,10 @@ struct GroundSurfaceParams {
   /// the cells 3 to 5 cells out too. False for an airborne scan (the filters' scan_type says
   /// which; the nodelets and ground_filter_eval set it from there) (true).
   bool ground_level = true;
+
+  /// \brief Sets `ground_level` from a filter's FilterStats::scan_type: every scan type but
+  ///        "airborne" was taken from among its points.
+  void setScanType(const std::string& scan_type) { ground_level = scan_type != "airborne"; }
 
   /// \brief The most cells a surface holds (4 Mi: 2 km x 2 km at 1 m); see `cell`.
   static constexpr std::size_t kMaxCells = std::size_t{1} << 22;

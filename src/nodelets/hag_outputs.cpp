@@ -155,7 +155,7 @@ const std::vector<float>* HagOutputs::process(const sensor_msgs::PointCloud2& in
       (view.size() && (to_gravity || layout.packed()) && buffers.xyz.size() < 3 * layout.points);
   if (failed) view = CloudView();
   // Occlusion shadows (the shadow spike test) only where a sensor stood among the points.
-  params_.ground_level = filtered.stats.scan_type != "airborne";
+  params_.setScanType(filtered.stats.scan_type);
   surface_.build(view, failed ? std::vector<std::uint8_t>() : labels, params_);
   if (want_surface) {
     clouds->surface = boost::make_shared<sensor_msgs::PointCloud2>();

@@ -46,7 +46,7 @@ HagResult hagOf(const Scan& scan, const CloudView& view, const std::vector<std::
                 const std::string& scan_type, int repeat) {
   HagResult h;
   GroundSurfaceParams params;
-  params.ground_level = scan_type != "airborne";  // as the nodelets do
+  params.setScanType(scan_type);  // as the nodelets do
   GroundSurface surface;
   std::vector<float> heights;
   for (int r = 0; r < repeat; ++r) {
