@@ -3,34 +3,53 @@
 # ${GF_PEERS_DIR:-~/.cache/ground_filter_peers}/build, outside the package, where
 # scripts/peers/run_peers.sh and scripts/speed_table.sh look for drivers:
 #   bash scripts/peers/build.sh                # PCL's SAC plane (libpcl-dev), generic and -march=native
-#   bash scripts/peers/build.sh --patchworkpp  # + Patchwork++: clones url-kaist/patchwork-plusplus at
-#                                              #   the pinned commit into ${GF_PEERS_DIR}/src (network,
-#                                              #   git; PATCHWORKPP_GIT=URL or path for a mirror)
+#   bash scripts/peers/build.sh --all   # + Patchwork++, CSF and linefit (or --patchworkpp, --csf,
+#       --linefit): clones url-kaist/patchwork-plusplus, jianboqi/CSF and
+#       lorenwel/linefit_ground_segmentation at the pinned commits into ${GF_PEERS_DIR}/src
+#       (network, git; PATCHWORKPP_GIT / CSF_GIT / LINEFIT_GIT = a URL or a local clone)
 # Prints the build folder. Nothing of a peer's code enters the package: its clone stays in the
-# cache folder. linefit's and CSF's drivers are not built here (scripts/peers/README.md).
+# cache folder.
 set -euo pipefail
 export PATH="/usr/bin:/bin:${PATH}"
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 CACHE="${GF_PEERS_DIR:-${HOME}/.cache/ground_filter_peers}"
 BUILD="${CACHE}/build"
+# Each peer: git URL (overridable: a mirror or a local clone), the README's pinned commit, the
+# paths of it that are needed.
 PATCHWORKPP_GIT="${PATCHWORKPP_GIT:-https://github.com/url-kaist/patchwork-plusplus.git}"
-PATCHWORKPP_COMMIT=b608129a4549523067eae461da656195026cd7ca  # the README's rows
-extra=()
+CSF_GIT="${CSF_GIT:-https://github.com/jianboqi/CSF.git}"
+LINEFIT_GIT="${LINEFIT_GIT:-https://github.com/lorenwel/linefit_ground_segmentation.git}"
+# fetch NAME URL COMMIT PATH...: a clone in ${CACHE}/src/NAME with PATHs at COMMIT.
+fetch() {
+  local name="$1" url="$2" commit="$3" src="${CACHE}/src/$1"
+  shift 3
+  if [ ! -d "${src}/.git" ]; then
+    mkdir -p "${CACHE}/src"
+    rm -rf "${src}"
+    git clone -q --no-checkout "${url}" "${src}" ||
+      { echo "build.sh: cannot clone ${url} (network? ${name}: set the *_GIT variable)" >&2; exit 1; }
+  fi
+  git -C "${src}" checkout -q "${commit}" -- "$@" ||
+    { echo "build.sh: ${src} has no commit ${commit}" >&2; exit 1; }
+}
+args=()
 for a in "$@"; do
+  if [ "$a" = --all ]; then args+=(--patchworkpp --csf --linefit); else args+=("$a"); fi
+done
+extra=()
+for a in "${args[@]}"; do
   case "$a" in
-    --patchworkpp)
-      src="${CACHE}/src/patchwork-plusplus"
-      if [ ! -d "${src}/.git" ]; then
-        mkdir -p "${CACHE}/src"
-        rm -rf "${src}"
-        git clone -q --no-checkout "${PATCHWORKPP_GIT}" "${src}" ||
-          { echo "build.sh: cannot clone ${PATCHWORKPP_GIT} (network? PATCHWORKPP_GIT=mirror)" >&2; exit 1; }
-      fi
-      # Its C++ core (cpp/) and licence at the pinned commit: nothing else is needed.
-      git -C "${src}" checkout -q "${PATCHWORKPP_COMMIT}" -- cpp LICENSE ||
-        { echo "build.sh: ${src} has no commit ${PATCHWORKPP_COMMIT}" >&2; exit 1; }
-      extra+=("-DGF_PATCHWORKPP_DIR=${src}") ;;
-    *) echo "usage: $0 [--patchworkpp]" >&2; exit 2 ;;
+    --patchworkpp)  # its C++ core (cpp/) and licence
+      fetch patchwork-plusplus "${PATCHWORKPP_GIT}" b608129a4549523067eae461da656195026cd7ca cpp LICENSE
+      extra+=("-DGF_PATCHWORKPP_DIR=${CACHE}/src/patchwork-plusplus") ;;
+    --csf)  # its C++ core (src/), top CMakeLists.txt and licence
+      fetch CSF "${CSF_GIT}" e0322a29162c1586a0eae15dc1dd647abce1d11d src CMakeLists.txt LICENSE.txt
+      extra+=("-DGF_CSF_DIR=${CACHE}/src/CSF") ;;
+    --linefit)  # its core library, its launch parameters and licence
+      fetch linefit "${LINEFIT_GIT}" e6b9418cc5756e30e4ea87b11d8792f936a2002a \
+        linefit_ground_segmentation linefit_ground_segmentation_ros/launch LICENSE
+      extra+=("-DGF_LINEFIT_DIR=${CACHE}/src/linefit") ;;
+    *) echo "usage: $0 [--patchworkpp] [--csf] [--linefit] [--all]" >&2; exit 2 ;;
   esac
 done
 mkdir -p "${BUILD}" || { echo "build.sh: cannot create ${BUILD}: set GF_PEERS_DIR" >&2; exit 1; }

@@ -75,7 +75,7 @@ for g in ${GROUPS_ASKED}; do
   for f in "${files[@]}"; do [ -r "${f}" ] || die "missing ${f}: run bash scripts/get_data.sh"; done
   [ "${#files[@]}" -gt 0 ] || die "no files for group ${g} in ${DATA}: run bash scripts/get_data.sh"
   for p in ${PEERS}; do
-    var="PEER_GROUPS_${p}"
+    var="PEER_GROUPS_${p//[^A-Za-z0-9_]/_}"  # linefit_h1.28: PEER_GROUPS_linefit_h1_28
     case "${p}" in
       patchwork* | linefit*) default="kitti offroad heldout_kitti" ;;  # a sensor at the origin
       *) default="kitti offroad isprs airborne heldout_kitti heldout_isprs heldout_airborne" ;;
