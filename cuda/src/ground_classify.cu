@@ -22,6 +22,13 @@ __device__ inline double planeDistance(const PlaneDev& pl, const float* p) {
          pl.d;
 }
 
+/// Whether tile t is labelled against its own plane (the CPU's kOwnPlane): enough voted points
+/// and its own fit found a plane.
+__device__ inline bool ownPlane(const unsigned int* vpos, const unsigned int* tile_begin,
+                                const PlaneDev* planes, unsigned int t) {
+  return vpos[tile_begin[t + 1]] - vpos[tile_begin[t]] >= kMinTilePoints && planes[1 + t].valid;
+}
+
 /// Min of v over the block (all threads get it); `warp_s` holds one word per warp.
 __device__ inline double blockMin(double v, double* warp_s) {
   for (int o = 16; o > 0; o >>= 1) v = fmin(v, __shfl_xor_sync(0xffffffffu, v, o));
@@ -44,10 +51,7 @@ __global__ void raisedTilesKernel(const unsigned long long* __restrict__ keys, i
   const unsigned int ntiles = *ntiles_dev;
   const unsigned int t = blockIdx.x * blockDim.x + threadIdx.x;
   if (t >= ntiles) return;
-  // The CPU's kOwnPlane: a tile with enough voted points whose own fit found a plane.
-  auto own = [&](unsigned int u) {
-    return vpos[tile_begin[u + 1]] - vpos[tile_begin[u]] >= kMinTilePoints && planes[1 + u].valid;
-  };
+  auto own = [&](unsigned int u) { return ownPlane(vpos, tile_begin, planes, u); };
   donor[t] = -1;
   if (!p.local_planes || !own(t)) return;
   const unsigned long long y_max = (1ull << ybits) - 1ull, key = keys[tile_begin[t]];
@@ -96,7 +100,7 @@ __global__ void __launch_bounds__(kThreads)
     const unsigned int b = tile_begin[t], e = tile_begin[t + 1];
     const unsigned int m = vpos[e] - vpos[b];
     PlaneDev plane = planes[0];
-    if (p.local_planes && m >= kMinTilePoints && planes[1 + t].valid) {
+    if (p.local_planes && ownPlane(vpos, tile_begin, planes, t)) {
       plane =
           planes[1 + (donor[t] >= 0 ? donor[t] : static_cast<int>(t))];  // raised: a neighbour's
     }
