@@ -29,7 +29,9 @@ int run(int argc, char** argv) {
   Params params = CSF().params;  // its defaults
   for (const auto& kv : args.sets) {
     const std::string& k = kv.first;
-    const double v = std::stod(kv.second);
+    const bool known = k == "cloth_resolution" || k == "rigidness" || k == "smooth" ||
+                       k == "class_threshold" || k == "time_step" || k == "iterations";
+    const double v = known ? peers::number(k, kv.second) : 0.0;
     if (k == "cloth_resolution") {
       params.cloth_resolution = v;
     } else if (k == "rigidness") {

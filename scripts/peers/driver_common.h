@@ -87,6 +87,22 @@ inline std::string stemOf(const std::string& path) {
   return dot == std::string::npos ? name : name.substr(0, dot);
 }
 
+/// \brief `value` as a number, the whole of it.
+/// \throws std::invalid_argument naming `name` when it is not one.
+inline double number(const std::string& name, const std::string& value) {
+  std::size_t used = 0;
+  double v = 0.0;
+  try {
+    v = std::stod(value, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != value.size()) {
+    throw std::invalid_argument(name + "=" + value + ": not a number");
+  }
+  return v;
+}
+
 /// \brief `--out DIR [--repeats N] [--set NAME=VALUE]... FILE...`
 struct Args {
   std::string out;
@@ -104,7 +120,7 @@ inline Args parseArgs(int argc, char** argv, const std::string& usage) {
     if (s == "--out" && has_value) {
       a.out = argv[++i];
     } else if (s == "--repeats" && has_value) {
-      a.repeats = std::stoi(argv[++i]);
+      a.repeats = static_cast<int>(number("--repeats", argv[++i]));
     } else if (s == "--set" && has_value) {
       const std::string kv = argv[++i];
       const std::size_t eq = kv.find('=');

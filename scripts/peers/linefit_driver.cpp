@@ -12,6 +12,7 @@
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -49,7 +50,21 @@ GroundSegmentationParams paramsOf(const std::map<std::string, std::string>& kv) 
     if (k == "gravity_aligned_frame" || k == "latch" || k == "visualize" || k == "n_threads") {
       continue;  // ROS-only, or fixed below
     }
-    const double v = std::stod(e.second);
+    static const std::set<std::string> kKnown = {"r_min",
+                                                 "r_max",
+                                                 "max_fit_error",
+                                                 "n_bins",
+                                                 "n_segments",
+                                                 "max_dist_to_line",
+                                                 "sensor_height",
+                                                 "min_slope",
+                                                 "max_slope",
+                                                 "long_threshold",
+                                                 "max_long_height",
+                                                 "max_start_height",
+                                                 "line_search_angle"};
+    if (!kKnown.count(k)) throw std::invalid_argument("unknown linefit parameter " + k);
+    const double v = peers::number(k, e.second);
     if (k == "r_min") {
       p.r_min_square = v * v;
     } else if (k == "r_max") {

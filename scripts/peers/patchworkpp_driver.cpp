@@ -27,7 +27,7 @@ int run(int argc, char** argv) {
   params.verbose = false;
   for (const auto& kv : args.sets) {
     if (kv.first == "sensor_height") {
-      params.sensor_height = std::stod(kv.second);
+      params.sensor_height = peers::number(kv.first, kv.second);
     } else {
       throw std::invalid_argument("unknown --set " + kv.first + " (sensor_height)");
     }

@@ -30,9 +30,9 @@ int run(int argc, char** argv) {
   double distance = 0.2;
   for (const auto& kv : args.sets) {
     if (kv.first == "distance") {
-      distance = std::stod(kv.second);
+      distance = peers::number(kv.first, kv.second);
     } else if (kv.first == "iterations") {
-      iterations = std::stoi(kv.second);
+      iterations = static_cast<int>(peers::number(kv.first, kv.second));
     } else {
       throw std::invalid_argument("unknown --set " + kv.first + " (distance, iterations)");
     }
