@@ -11,10 +11,13 @@
 #   bash scripts/get_data.sh --check         # check the data folder against the manifest
 #   bash scripts/get_data.sh --list          # files, sources, licences
 #   bash scripts/get_data.sh --held-out      # the held-out scans (heldout_manifest.tsv) into
-#                                            # <data folder>/heldout (any option above applies)
+#                                            # <data folder>/heldout (any option above applies;
+#                                            # with --dest DIR into DIR itself: give it
+#                                            # <data folder>/heldout for scripts/eval_all.sh)
 #
 # Environment: GF_DATA_DIR (data folder; must exist), GF_DATA_BASE_URL (replaces
-# https://raw.githubusercontent.com/ in every source URL: a mirror), GF_DATA_MANIFEST (another
+# https://raw.githubusercontent.com/ in every source URL: a mirror, or file:///DIR/ with the files
+# at DIR/<owner>/<repo>/<commit>/<path>), GF_DATA_MANIFEST (another
 # manifest, for the tests).
 # Needs python3 (and python3-numpy for the converted files). The two airborne tiles come as LAZ:
 # converting them needs laspy with a LAZ backend (pip install 'laspy[lazrs]') or PDAL's `pdal`,

@@ -2,7 +2,8 @@
 # Builds the peer drivers (scripts/peers/CMakeLists.txt) into
 # ${GF_PEERS_DIR:-~/.cache/ground_filter_peers}/build, outside the package, where
 # scripts/peers/run_peers.sh and scripts/speed_table.sh look for drivers:
-#   bash scripts/peers/build.sh                # PCL's SAC plane (libpcl-dev), generic and -march=native
+#   bash scripts/peers/build.sh                # PCL's SAC plane and APMF (libpcl-dev), generic and
+#                                              # -march=native
 #   bash scripts/peers/build.sh --all   # + Patchwork++, CSF and linefit (or --patchworkpp, --csf,
 #       --linefit): clones url-kaist/patchwork-plusplus, jianboqi/CSF and
 #       lorenwel/linefit_ground_segmentation at the pinned commits into ${GF_PEERS_DIR}/src

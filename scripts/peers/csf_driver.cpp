@@ -13,7 +13,6 @@
 #include <omp.h>
 #endif
 
-#include <chrono>
 #include <cstdio>
 #include <stdexcept>
 #include <string>
@@ -75,10 +74,7 @@ int run(int argc, char** argv) {
       csf.params = params;
       csf.setPointCloud(points);  // its own axis swap (z up -> y up)
       std::vector<int> ground, off_ground;
-      const auto t0 = std::chrono::steady_clock::now();
-      csf.do_filtering(ground, off_ground, false);
-      const double t =
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      const double t = peers::timeMs([&] { csf.do_filtering(ground, off_ground, false); });
       if (r > 0) {
         ms.push_back(t);
         continue;

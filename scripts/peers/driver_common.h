@@ -9,6 +9,7 @@
 #include <pcl/point_types.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstddef>
 #include <cstdio>
@@ -42,6 +43,18 @@ void appendPoints(const pcl::PointCloud<PointT>& c, Scan* s) {
     s->y.push_back(p.y);
     s->z.push_back(p.z);
   }
+}
+
+/// \brief The points of `s` given to a peer (Scan::given), and in `index` each one's input index.
+inline pcl::PointCloud<pcl::PointXYZ>::Ptr givenXyz(const Scan& s, std::vector<std::size_t>* index) {
+  pcl::PointCloud<pcl::PointXYZ>::Ptr given(new pcl::PointCloud<pcl::PointXYZ>);
+  index->clear();
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (!s.given(i)) continue;
+    given->push_back(pcl::PointXYZ(s.x[i], s.y[i], s.z[i]));
+    index->push_back(i);
+  }
+  return given;
 }
 
 /// \brief Reads a KITTI .bin (float32 x y z intensity) or a PCD (x y z [intensity], any type
@@ -144,6 +157,14 @@ inline void writeGnd(const std::string& dir, const std::string& file,
   f.write(reinterpret_cast<const char*>(labels.data()),
           static_cast<std::streamsize>(labels.size()));
   if (!f) throw std::runtime_error(path + ": cannot write");
+}
+
+/// \brief Runs `call()` once; returns its wall time [ms].
+template <typename Call>
+double timeMs(Call&& call) {
+  const auto t0 = std::chrono::steady_clock::now();
+  call();
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 /// \brief The median of `ms` (not empty).

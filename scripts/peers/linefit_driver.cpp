@@ -8,7 +8,6 @@
 // per file; call 0 is the warm-up whose labels are written.
 #include <ground_segmentation/ground_segmentation.h>
 
-#include <chrono>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -126,10 +125,7 @@ int run(int argc, char** argv) {
     std::vector<double> ms;
     for (int r = 0; r <= args.repeats; ++r) {
       std::vector<int> segmentation;
-      const auto t0 = std::chrono::steady_clock::now();
-      peer.segment(cloud, &segmentation);
-      const double t =
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      const double t = peers::timeMs([&] { peer.segment(cloud, &segmentation); });
       if (r > 0) {
         ms.push_back(t);
         continue;

@@ -9,7 +9,6 @@
 #include <patchwork/patchworkpp.h>
 
 #include <Eigen/Core>
-#include <chrono>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -56,10 +55,7 @@ int run(int argc, char** argv) {
     std::vector<unsigned char> labels(scan.size(), 0);
     std::vector<double> ms;
     for (int r = 0; r <= args.repeats; ++r) {
-      const auto t0 = std::chrono::steady_clock::now();
-      peer->estimateGround(cloud);
-      const double t =
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      const double t = peers::timeMs([&] { peer->estimateGround(cloud); });
       if (r > 0) {
         ms.push_back(t);
         continue;

@@ -10,7 +10,6 @@
 #include <pcl/point_types.h>
 #include <pcl/segmentation/sac_segmentation.h>
 
-#include <chrono>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -40,13 +39,8 @@ int run(int argc, char** argv) {
   std::printf("PARAMS %s distance=%g iterations=%d\n", PEER_NAME, distance, iterations);
   for (const std::string& file : args.files) {
     const peers::Scan scan = peers::readScan(file);
-    pcl::PointCloud<pcl::PointXYZ>::Ptr given(new pcl::PointCloud<pcl::PointXYZ>);
     std::vector<std::size_t> index;  // given point -> input point
-    for (std::size_t i = 0; i < scan.size(); ++i) {
-      if (!scan.given(i)) continue;
-      given->push_back(pcl::PointXYZ(scan.x[i], scan.y[i], scan.z[i]));
-      index.push_back(i);
-    }
+    const pcl::PointCloud<pcl::PointXYZ>::Ptr given = peers::givenXyz(scan, &index);
     pcl::PointIndices inliers;
     std::vector<double> ms;
     // Call 0 is the warm-up, whose labels are written; a fresh instance per call.
@@ -60,10 +54,7 @@ int run(int argc, char** argv) {
       seg.setInputCloud(given);
       pcl::PointIndices got;
       pcl::ModelCoefficients coefficients;
-      const auto t0 = std::chrono::steady_clock::now();
-      seg.segment(got, coefficients);
-      const double t =
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      const double t = peers::timeMs([&] { seg.segment(got, coefficients); });
       if (r == 0) {
         inliers = got;
       } else {
