@@ -156,3 +156,86 @@ class RunPeers(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+def _scene(path):
+    """A KITTI .bin: a flat road 1.7 m below the sensor, a 2 x 2 m box standing on it (its points 0.6-1.5 m up), NaN
+    returns and no-return placeholders at the origin. Returns the kinds of its points in file
+    order: 'road', 'box' (0.6 m or more above the road: above both peers' ground bands), 'bad'
+    (never given to a peer)."""
+    import numpy as np
+    rng = np.random.RandomState(7)
+    road = np.c_[rng.uniform(-25, 25, (20000, 2)), np.full(20000, -1.7)]
+    box = np.c_[rng.uniform(6, 8, 3000), rng.uniform(-1, 1, 3000), rng.uniform(-1.1, -0.2, 3000)]
+    bad = np.array([[np.nan, 1, 1], [0, 0, 0], [0, 0, 0], [np.inf, 0, -1.7]])
+    xyz = np.r_[road, box, bad]
+    kinds = ["road"] * len(road) + ["box"] * len(box) + ["bad"] * len(bad)
+    order = rng.permutation(len(xyz))
+    np.c_[xyz[order], np.zeros(len(xyz))].astype("<f4").tofile(path)
+    return [kinds[i] for i in order]
+
+
+class PclDrivers(unittest.TestCase):
+    """The PCL peers' drivers of scripts/peers (the generic builds: PCL only, no network), built
+    as build.sh builds them, on a generated scan: the driver interface and its refusals."""
+    DRIVERS = ("pcl_ransac", "pcl_apmf")
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.build = os.path.join(cls.tmp.name, "build")
+        src = os.path.join(ROOT, "scripts", "peers")
+        for cmd in (["cmake", "-S", src, "-B", cls.build, "-DCMAKE_BUILD_TYPE=Release"],
+                    ["cmake", "--build", cls.build, "-j2", "--target"] +
+                    [d + "_driver" for d in cls.DRIVERS]):
+            p = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                               universal_newlines=True, timeout=1800)
+            if p.returncode != 0:
+                raise AssertionError("%s failed:\n%s" % (" ".join(cmd), p.stdout[-3000:]))
+        cls.scan = os.path.join(cls.tmp.name, "scene.bin")
+        cls.kinds = _scene(cls.scan)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def driver(self, name, *args):
+        out = os.path.join(self.tmp.name, name)
+        os.makedirs(out, exist_ok=True)
+        return out, run([os.path.join(self.build, name + "_driver"), "--out", out] + list(args))
+
+    def test_labels_of_every_point(self):
+        for name in self.DRIVERS:
+            out, (rc, stdout, err) = self.driver(name, "--repeats", "2", self.scan)
+            self.assertEqual(rc, 0, err)
+            self.assertIn("PARAMS " + name, stdout)
+            result = [l for l in stdout.splitlines() if l.startswith("RESULT ")]
+            self.assertEqual(len(result), 1, stdout)
+            self.assertIn("RESULT %s scene points=%d " % (name, len(self.kinds)), result[0])
+            self.assertIn("repeats=2", result[0])
+            with open(os.path.join(out, "scene.gnd"), "rb") as f:
+                gnd = f.read()
+            self.assertEqual(len(gnd), len(self.kinds), name)
+            self.assertTrue(set(gnd) <= {0, 1}, name)
+            share = {}
+            for kind in ("road", "box", "bad"):
+                got = [g for g, k in zip(gnd, self.kinds) if k == kind]
+                share[kind] = sum(got) / float(len(got))
+            self.assertGreater(share["road"], 0.99, (name, share))
+            self.assertLess(share["box"], 0.01, (name, share))
+            self.assertEqual(share["bad"], 0.0, (name, share))
+
+    def test_bad_command_lines_are_named(self):
+        for name in self.DRIVERS:
+            _, (rc, _, err) = self.driver(name, "--set", "nosuch=1", self.scan)
+            self.assertEqual(rc, 1)
+            self.assertIn("unknown --set nosuch", err)
+            _, (rc, _, err) = self.driver(name, "--repeats", "x", self.scan)
+            self.assertEqual(rc, 1)
+            self.assertIn("--repeats=x: not a number", err)
+            _, (rc, _, err) = self.driver(name, self.scan + ".missing")
+            self.assertEqual(rc, 1)
+            self.assertIn("scene.bin.missing: cannot", err)
+        _, (rc, _, err) = self.driver("pcl_apmf", "--set", "slope=steep", self.scan)
+        self.assertEqual(rc, 1)
+        self.assertIn("slope=steep: not a number", err)

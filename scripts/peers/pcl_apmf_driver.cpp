@@ -44,7 +44,7 @@ int run(int argc, char** argv) {
     const peers::Scan scan = peers::readScan(file);
     std::vector<std::size_t> index;  // given point -> input point
     const pcl::PointCloud<pcl::PointXYZ>::Ptr given = peers::givenXyz(scan, &index);
-    pcl::Indices ground;
+    std::vector<int> ground;  // pcl::Indices from PCL 1.11; Noetic has 1.10
     std::vector<double> ms;
     // Call 0 is the warm-up, whose labels are written; a fresh instance per call.
     for (int r = 0; r <= args.repeats; ++r) {
@@ -58,7 +58,7 @@ int run(int argc, char** argv) {
       pmf.setExponential(p["exponential"] != 0.0);
       pmf.setNumberOfThreads(1);
       pmf.setInputCloud(given);
-      pcl::Indices got;
+      std::vector<int> got;
       const double t = peers::timeMs([&] { pmf.extract(got); });
       if (r == 0) {
         ground = got;
