@@ -20,7 +20,7 @@ if [ "${major}" -lt 14 ] 2>/dev/null; then
   echo "check_format: skipped: ${CF} ${major} is older than clang-format 14, which lays out the tree"
   exit 77
 fi
-mapfile -t files < <(cd "${ROOT}" && find include src cuda test \
+mapfile -t files < <(cd "${ROOT}" && find include src cuda test scripts/peers \
   \( -name '*.h' -o -name '*.hpp' -o -name '*.cpp' -o -name '*.cu' -o -name '*.cuh' \) \
   -not -path '*/fuzz_corpus/*' | sort)
 cd "${ROOT}"

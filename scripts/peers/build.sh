@@ -4,10 +4,11 @@
 # scripts/peers/run_peers.sh and scripts/speed_table.sh look for drivers:
 #   bash scripts/peers/build.sh                # PCL's SAC plane and APMF (libpcl-dev), generic and
 #                                              # -march=native
-#   bash scripts/peers/build.sh --all   # + Patchwork++, CSF and linefit (or --patchworkpp, --csf,
-#       --linefit): clones url-kaist/patchwork-plusplus, jianboqi/CSF and
-#       lorenwel/linefit_ground_segmentation at the pinned commits into ${GF_PEERS_DIR}/src
-#       (network, git; PATCHWORKPP_GIT / CSF_GIT / LINEFIT_GIT = a URL or a local clone)
+#   bash scripts/peers/build.sh --all   # + Patchwork++, Patchwork, CSF and linefit (or
+#       --patchworkpp, --patchwork, --csf, --linefit): clones url-kaist/patchwork-plusplus,
+#       LimHyungTae/patchwork, jianboqi/CSF and lorenwel/linefit_ground_segmentation at the
+#       pinned commits into ${GF_PEERS_DIR}/src (network, git; PATCHWORKPP_GIT / PATCHWORK_GIT /
+#       CSF_GIT / LINEFIT_GIT = a URL or a local clone)
 # Prints the build folder. Nothing of a peer's code enters the package: its clone stays in the
 # cache folder.
 set -euo pipefail
@@ -18,6 +19,7 @@ BUILD="${CACHE}/build"
 # Each peer: git URL (overridable: a mirror or a local clone), the README's pinned commit, the
 # paths of it that are needed.
 PATCHWORKPP_GIT="${PATCHWORKPP_GIT:-https://github.com/url-kaist/patchwork-plusplus.git}"
+PATCHWORK_GIT="${PATCHWORK_GIT:-https://github.com/LimHyungTae/patchwork.git}"
 CSF_GIT="${CSF_GIT:-https://github.com/jianboqi/CSF.git}"
 LINEFIT_GIT="${LINEFIT_GIT:-https://github.com/lorenwel/linefit_ground_segmentation.git}"
 # fetch NAME URL COMMIT PATH...: a clone in ${CACHE}/src/NAME with PATHs at COMMIT.
@@ -35,7 +37,7 @@ fetch() {
 }
 args=()
 for a in "$@"; do
-  if [ "$a" = --all ]; then args+=(--patchworkpp --csf --linefit); else args+=("$a"); fi
+  if [ "$a" = --all ]; then args+=(--patchworkpp --patchwork --csf --linefit); else args+=("$a"); fi
 done
 extra=()
 for a in "${args[@]}"; do
@@ -43,6 +45,9 @@ for a in "${args[@]}"; do
     --patchworkpp)  # its C++ core (cpp/) and licence
       fetch patchwork-plusplus "${PATCHWORKPP_GIT}" b608129a4549523067eae461da656195026cd7ca cpp LICENSE
       extra+=("-DGF_PATCHWORKPP_DIR=${CACHE}/src/patchwork-plusplus") ;;
+    --patchwork)  # its header-only core (include/), its parameter files and licence
+      fetch patchwork "${PATCHWORK_GIT}" 00672c83ca75d0b4a598cd430cfa97393a460059 include config LICENSE
+      extra+=("-DGF_PATCHWORK_DIR=${CACHE}/src/patchwork") ;;
     --csf)  # its C++ core (src/), top CMakeLists.txt and licence
       fetch CSF "${CSF_GIT}" e0322a29162c1586a0eae15dc1dd647abce1d11d src CMakeLists.txt LICENSE.txt
       extra+=("-DGF_CSF_DIR=${CACHE}/src/CSF") ;;
@@ -50,7 +55,7 @@ for a in "${args[@]}"; do
       fetch linefit "${LINEFIT_GIT}" e6b9418cc5756e30e4ea87b11d8792f936a2002a \
         linefit_ground_segmentation linefit_ground_segmentation_ros/launch LICENSE
       extra+=("-DGF_LINEFIT_DIR=${CACHE}/src/linefit") ;;
-    *) echo "usage: $0 [--patchworkpp] [--csf] [--linefit] [--all]" >&2; exit 2 ;;
+    *) echo "usage: $0 [--patchworkpp] [--patchwork] [--csf] [--linefit] [--all]" >&2; exit 2 ;;
   esac
 done
 mkdir -p "${BUILD}" || { echo "build.sh: cannot create ${BUILD}: set GF_PEERS_DIR" >&2; exit 1; }
@@ -58,7 +63,7 @@ if ! cmake -S "${HERE}" -B "${BUILD}" -DCMAKE_BUILD_TYPE=Release "${extra[@]}" \
   >"${BUILD}/configure.log" 2>&1; then
   tail -n 20 "${BUILD}/configure.log" >&2
   echo "build.sh: configure failed (needs cmake, g++, libpcl-dev; Patchwork++: libeigen3-dev," \
-    "a C++20 compiler): ${BUILD}/configure.log" >&2
+    "a C++20 compiler; Patchwork: libtbb-dev, libboost-dev): ${BUILD}/configure.log" >&2
   exit 1
 fi
 if ! cmake --build "${BUILD}" -j"${GF_JOBS:-2}" >"${BUILD}/build.log" 2>&1; then

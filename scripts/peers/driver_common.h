@@ -46,7 +46,8 @@ void appendPoints(const pcl::PointCloud<PointT>& c, Scan* s) {
 }
 
 /// \brief The points of `s` given to a peer (Scan::given), and in `index` each one's input index.
-inline pcl::PointCloud<pcl::PointXYZ>::Ptr givenXyz(const Scan& s, std::vector<std::size_t>* index) {
+inline pcl::PointCloud<pcl::PointXYZ>::Ptr givenXyz(const Scan& s,
+                                                    std::vector<std::size_t>* index) {
   pcl::PointCloud<pcl::PointXYZ>::Ptr given(new pcl::PointCloud<pcl::PointXYZ>);
   index->clear();
   for (std::size_t i = 0; i < s.size(); ++i) {

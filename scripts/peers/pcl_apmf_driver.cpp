@@ -25,9 +25,9 @@ namespace {
 int run(int argc, char** argv) {
   const peers::Args args = peers::parseArgs(
       argc, argv, "usage: pcl_apmf_driver --out DIR [--repeats N] [--set NAME=VALUE] FILE...");
-  std::map<std::string, double> p = {{"cell_size", 1.0},        {"max_window_size", 20.0},
-                                     {"slope", 1.0},            {"initial_distance", 0.5},
-                                     {"max_distance", 3.0},     {"base", 2.0},
+  std::map<std::string, double> p = {{"cell_size", 1.0},    {"max_window_size", 20.0},
+                                     {"slope", 1.0},        {"initial_distance", 0.5},
+                                     {"max_distance", 3.0}, {"base", 2.0},
                                      {"exponential", 1.0}};
   for (const auto& kv : args.sets) {
     if (p.count(kv.first) == 0) {

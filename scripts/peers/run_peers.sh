@@ -14,7 +14,7 @@
 # line "RESULT <peer> <stem> ... median_ms=<ms> ..." per file. Timings (speed_table.sh takes the
 # same drivers from PEER_BIN) are one-thread medians of REPEATS calls (default 3).
 # Groups of a peer: PEER_GROUPS_<peer> (e.g. PEER_GROUPS_csf="kitti isprs"); default kitti and
-# offroad for the sensor-centred methods (patchwork*, linefit*), every group for the others.
+# offroad (and heldout_kitti) for the sensor-centred methods (patchwork*, linefit*), every group for the others.
 # Data: $GF_DATA_DIR, else data/ (bash scripts/get_data.sh), else ../shared/data.
 # Exit status: 0 every row printed; 1 no driver, no data, no eval tool, or a driver failed (its
 # row says so and the script goes on).
