@@ -43,14 +43,14 @@ group_files() {
   case "$1" in
     kitti) echo "${K}/000000.bin ${K}/000001.bin ${K}/000002.bin" ;;
     offroad) echo "${DATA}/offroad/rellis3d_00000_000001.pcd" ;;
-    isprs) find "${DATA}/isprs" -maxdepth 1 -name '*.pcd' 2>/dev/null | sort | tr '\n' ' ' ;;
-    airborne) find "${DATA}/airborne" -maxdepth 1 -name '*.pcd' 2>/dev/null | sort | tr '\n' ' ' ;;
-    heldout_kitti) find "${DATA}/heldout/semantickitti" -maxdepth 1 -name '*.bin' 2>/dev/null |
+    isprs) find -H "${DATA}/isprs" -maxdepth 1 -name '*.pcd' 2>/dev/null | sort | tr '\n' ' ' ;;
+    airborne) find -H "${DATA}/airborne" -maxdepth 1 -name '*.pcd' 2>/dev/null | sort | tr '\n' ' ' ;;
+    heldout_kitti) find -H "${DATA}/heldout/semantickitti" -maxdepth 1 -name '*.bin' 2>/dev/null |
                      sort | tr '\n' ' ' ;;
     heldout_isprs | heldout_airborne)
       local d="isprs"
       [ "$1" = heldout_airborne ] && d="airborne_pdal"
-      find "${DATA}/heldout/${d}" -maxdepth 1 -name '*.pcd' 2>/dev/null | sort | tr '\n' ' ' ;;
+      find -H "${DATA}/heldout/${d}" -maxdepth 1 -name '*.pcd' 2>/dev/null | sort | tr '\n' ' ' ;;
     *) die "unknown group '$1' (kitti, offroad, isprs, airborne, heldout_kitti, heldout_isprs, heldout_airborne)" ;;
   esac
 }
