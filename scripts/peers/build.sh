@@ -59,6 +59,13 @@ for a in "${args[@]}"; do
   esac
 done
 mkdir -p "${BUILD}" || { echo "build.sh: cannot create ${BUILD}: set GF_PEERS_DIR" >&2; exit 1; }
+# A build folder configured from another checkout of the package (CMake refuses to mix two
+# sources): configure it afresh from this one.
+if [ -f "${BUILD}/CMakeCache.txt" ] &&
+  ! grep -qxF "CMAKE_HOME_DIRECTORY:INTERNAL=${HERE}" "${BUILD}/CMakeCache.txt"; then
+  echo "build.sh: ${BUILD} was configured from another checkout: configuring it from ${HERE}" >&2
+  rm -rf "${BUILD}/CMakeCache.txt" "${BUILD}/CMakeFiles"
+fi
 if ! cmake -S "${HERE}" -B "${BUILD}" -DCMAKE_BUILD_TYPE=Release "${extra[@]}" \
   >"${BUILD}/configure.log" 2>&1; then
   tail -n 20 "${BUILD}/configure.log" >&2
