@@ -52,18 +52,21 @@ GROUPS = ("kitti", "offroad", "isprs", "airborne", "held-out kitti", "held-out i
 
 
 def peer_bin():
+    """The peers' drivers folder, as scripts/peers/run_peers.sh finds it."""
     return os.environ.get("PEER_BIN") or os.path.join(
         os.environ.get("GF_PEERS_DIR") or os.path.join(os.path.expanduser("~"), ".cache",
                                                       "ground_filter_peers"), "build")
 
 
 def data_dir():
+    """The data folder, as every tool finds it (scripts/gf_data.py)."""
     sys.path.insert(0, os.path.join(ROOT, "scripts"))
     from gf_data import data_dir as find  # noqa: E402
     return find()
 
 
 def built_peers():
+    """The drivers of the README's peer rows that are built."""
     b = peer_bin()
     return [p for p in PEER_DRIVERS if os.access(os.path.join(b, p + "_driver"), os.X_OK)]
 
