@@ -101,6 +101,13 @@ inline std::string stemOf(const std::string& path) {
   return dot == std::string::npos ? name : name.substr(0, dot);
 }
 
+/// \brief `s` without the `chars` at either end.
+inline std::string trimmed(const std::string& s, const char* chars = " \t\r") {
+  const std::size_t a = s.find_first_not_of(chars);
+  if (a == std::string::npos) return "";
+  return s.substr(a, s.find_last_not_of(chars) - a + 1);
+}
+
 /// \brief `value` as a number, the whole of it.
 /// \throws std::invalid_argument naming `name` when it is not one.
 inline double number(const std::string& name, const std::string& value) {

@@ -28,12 +28,6 @@
 
 namespace {
 
-std::string trimmed(const std::string& s) {
-  const std::size_t a = s.find_first_not_of(" \t\r");
-  if (a == std::string::npos) return "";
-  return s.substr(a, s.find_last_not_of(" \t\r") - a + 1);
-}
-
 /// \brief The parameters of a ROS 2 YAML file ("/**: ros__parameters: ..."), nested keys
 ///        joined with '.', each value as text (a list as "[a, b, ...]", also over several lines).
 std::map<std::string, std::string> readYaml(const std::string& path) {
@@ -44,19 +38,20 @@ std::map<std::string, std::string> readYaml(const std::string& path) {
   std::string line;
   while (std::getline(in, line)) {
     line = line.substr(0, line.find('#'));
-    const std::string t = trimmed(line);
+    const std::string t = peers::trimmed(line);
     if (t.empty()) continue;
     const std::size_t indent = line.find_first_not_of(' ');
     const std::size_t colon = t.find(':');
     if (colon == std::string::npos) throw std::runtime_error(path + ": cannot read: " + t);
-    std::string key = trimmed(t.substr(0, colon)), value = trimmed(t.substr(colon + 1));
+    std::string key = peers::trimmed(t.substr(0, colon)),
+                value = peers::trimmed(t.substr(colon + 1));
     while (!open.empty() && open.back().first >= indent) open.pop_back();
     if (value.empty()) {
       open.emplace_back(indent, key);
       continue;
     }
     while (value.front() == '[' && value.find(']') == std::string::npos && std::getline(in, line)) {
-      value += " " + trimmed(line.substr(0, line.find('#')));
+      value += " " + peers::trimmed(line.substr(0, line.find('#')));
     }
     std::string name;
     for (const auto& o : open) {

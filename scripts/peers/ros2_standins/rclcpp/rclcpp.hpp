@@ -12,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "../../driver_common.h"  // peers::trimmed(), peers::number()
+
 namespace rclcpp {
 
 /// \brief Parameters by their dotted name, as text; declare_parameter parses the one asked for.
@@ -30,25 +32,10 @@ class Node {
   int get_logger() const { return 0; }
 
  private:
-  static std::string trimmed(std::string s) {
-    const char* ws = " \t\"'";
-    s.erase(0, s.find_first_not_of(ws));
-    s.erase(s.find_last_not_of(ws) + 1);
-    return s;
-  }
+  /// YAML values may be quoted ("HDL-64E").
+  static std::string trimmed(const std::string& s) { return peers::trimmed(s, " \t\r\"'"); }
   static double parse(const std::string& name, const std::string& v, double*) {
-    const std::string t = trimmed(v);
-    std::size_t used = 0;
-    double d = 0.0;
-    try {
-      d = std::stod(t, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != t.size()) {
-      throw std::invalid_argument(name + "=" + v + ": not a number");
-    }
-    return d;
+    return peers::number(name, trimmed(v));
   }
   static int parse(const std::string& name, const std::string& v, int*) {
     return static_cast<int>(parse(name, v, static_cast<double*>(nullptr)));
