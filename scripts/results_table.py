@@ -160,6 +160,8 @@ def compose(out_dir):
     lines = ["| method (parameters) | KITTI | RELLIS | ISPRS | ALS | held-out KITTI / ISPRS | "
              "8 sensors | ms, AVX-512 | ms, AVX2 |", "|---|---|---|---|---|---|---|---|---|"]
     na, missing = "–", "not run"  # not applicable (a sensor-centred peer on airborne tiles)
+    # The voxel method and the peers have one time: in the column of the CPU's best path.
+    best_col = 0 if best == "avx512" else 1
     for label, names, sweep_col, speed_row in ROWS:
         cells = [f1.get((g, n), missing) if n else na for g, n in zip(GROUPS, names)]
         if not any(names):
@@ -168,14 +170,11 @@ def compose(out_dir):
         s = sweep.get(sweep_col, missing) if sweep_col else ""
         if sweep_col == "linefit" and "linefit, true height" in sweep:
             s += "; %s at the true height" % sweep["linefit, true height"]
-        dash = missing
-        # The voxel method and the peers have one time: in the column of the CPU's best path.
-        best_col = 0 if best == "avx512" else 1
         ms = ["", ""]
         if speed_row and "%s" in speed_row:
-            ms = [speed.get(speed_row % path, dash) for path in ("avx512", "avx2")]
+            ms = [speed.get(speed_row % path, missing) for path in ("avx512", "avx2")]
         elif speed_row:
-            ms[best_col] = speed.get(speed_row, dash)
+            ms[best_col] = speed.get(speed_row, missing)
         if speed_row == "pcl_ransac" and "pcl_ransac_native" in speed:
             ms[best_col] += "; `-march=native`: %s" % speed["pcl_ransac_native"]
         lines.append("| %s |" % " | ".join([label] + cells[:4] + [held, s] + ms))
