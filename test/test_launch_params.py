@@ -212,6 +212,26 @@ class LaunchParamsTest(unittest.TestCase):
                        if n.args.strip() == "manager"][0]
             self.assertIn(("OMP_WAIT_POLICY", "active"), [tuple(e) for e in manager.env_args])
 
+    def test_no_bond_where_the_launch_owns_the_manager(self):
+        # A launch file that starts the manager loads with --no-bond (docs/ros_integration.md,
+        # "bond": nodelet 1.10's Loader aborts when one Ctrl-C breaks the bond during its
+        # shutdown); loaded into a manager of someone else's, the bond stays by default.
+        def loaders(launch, *argv):
+            return [n.args.split() for n in load(launch, list(argv))
+                    if n.args.split()[:1] == ["load"]]
+        for launch, argv in (("ground_filter.launch", []), ("ground_filter.launch",
+                                                            ["method:=normal"]),
+                             ("crop_and_filter.launch", []), ("demo.launch", []),
+                             ("play_bag.launch", ["bag:=/tmp/none.bag"])):
+            found = loaders(launch, *argv)
+            self.assertTrue(found, launch)
+            for args in found:
+                self.assertEqual(args[-1], "--no-bond", (launch, args))
+        for launch in ("voxel_ground_filter.launch", "normal_ground_filter.launch"):
+            self.assertNotIn("--no-bond", loaders(launch)[0], launch)
+            self.assertIn("--no-bond", loaders(launch, "bond:=false")[0], launch)
+            self.assertNotIn("--no-bond", loaders(launch, "bond:=true")[0], launch)
+
     def test_demo_gui_streams_until_closed(self):
         self.assertEqual(dump("demo.launch")["/demo_monitor/max_scans"], 30)
         self.assertEqual(dump("demo.launch", "gui:=true")["/demo_monitor/max_scans"], 0)
