@@ -231,6 +231,14 @@ class LaunchParamsTest(unittest.TestCase):
             self.assertNotIn("--no-bond", loaders(launch)[0], launch)
             self.assertIn("--no-bond", loaders(launch, "bond:=false")[0], launch)
             self.assertNotIn("--no-bond", loaders(launch, "bond:=true")[0], launch)
+            self.assertIn("--no-bond", loaders(launch, "bond:=0")[0], launch)
+            # A typo is refused by name, not read as "no bond".
+            p = subprocess.run(["roslaunch", "--nodes", "ground_filter", launch, "bond:=treu"],
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                               universal_newlines=True)
+            self.assertIn("bond must be true or false, not 'treu'", p.stdout, launch)
+            self.assertNotEqual(p.returncode, 0, launch)
+            self.assertNotIn("/ground_filter\n", p.stdout, launch)  # no node listed
 
     def test_demo_gui_streams_until_closed(self):
         self.assertEqual(dump("demo.launch")["/demo_monitor/max_scans"], 30)
