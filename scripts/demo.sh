@@ -43,6 +43,13 @@ gf_ros_env  # loopback unless the caller's ROS_HOSTNAME / ROS_MASTER_URI resolve
 # the launch is stopped cleanly (no "REQUIRED process has died"), and its status is ours.
 roslaunch ground_filter demo.launch monitor:=false "${args[@]+"${args[@]}"}" &
 launch_pid=$!
+# The monitor's _max_scans:= goes to the master as the monitor starts: wait for roslaunch's master
+# first, or roscpp prints "[setParam] Failed to contact master" in red while it retries.
+for _ in $(seq 1 150); do
+  rosparam get /rosdistro >/dev/null 2>&1 && break
+  kill -0 "${launch_pid}" 2>/dev/null || break
+  sleep 0.2
+done
 rosrun ground_filter demo_monitor ~ground:="/${name}/ground" \
   ~nonground:="/${name}/nonground" ~processing_time_ms:="/${name}/processing_time_ms" \
   _max_scans:="${scans}" &
