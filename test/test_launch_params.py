@@ -79,9 +79,15 @@ def dump(launch, *args):
     return params
 
 
+def run_nodes(launch, *args):
+    """`roslaunch --nodes` of a launch file, whatever its exit status (stdout with stderr)."""
+    return subprocess.run(["roslaunch", "--nodes", "ground_filter", launch] + list(args),
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                          universal_newlines=True)
+
+
 def nodes(launch, *args):
-    p = subprocess.run(["roslaunch", "--nodes", "ground_filter", launch] + list(args),
-                       stdout=subprocess.PIPE, stderr=subprocess.STDOUT, universal_newlines=True)
+    p = run_nodes(launch, *args)
     assert p.returncode == 0, p.stdout
     return p.stdout.split()
 
@@ -233,9 +239,7 @@ class LaunchParamsTest(unittest.TestCase):
             self.assertNotIn("--no-bond", loaders(launch, "bond:=true")[0], launch)
             self.assertIn("--no-bond", loaders(launch, "bond:=0")[0], launch)
             # A typo is refused by name, not read as "no bond".
-            p = subprocess.run(["roslaunch", "--nodes", "ground_filter", launch, "bond:=treu"],
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                               universal_newlines=True)
+            p = run_nodes(launch, "bond:=treu")
             self.assertIn("bond must be true or false, not 'treu'", p.stdout, launch)
             self.assertNotEqual(p.returncode, 0, launch)
             self.assertNotIn("/ground_filter\n", p.stdout, launch)  # no node listed
