@@ -81,11 +81,21 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
     keys_[i] = columnKey(cx, cy);
   }
   radixSortByKey(keys_, &order_, &sort_scratch_, threads);
+  // Plain pointers and three stores: through the vectors GCC cannot rule out that they overlap
+  // and calls memmove for every point's 12 bytes.
+  const std::uint32_t* const ord = order_.data();
+  const float* const from = raw_xyz_.data();
+  const std::uint32_t* const from_source = raw_source_.data();
+  float* const to = xyz.data();
+  std::uint32_t* const to_source = source.data();
 #pragma omp parallel for num_threads(nt) schedule(static)
   for (std::int64_t j = 0; j < static_cast<std::int64_t>(n); ++j) {
-    const std::uint32_t s = order_[j];
-    std::copy_n(&raw_xyz_[3 * static_cast<std::size_t>(s)], 3, &xyz[3 * j]);
-    source[j] = raw_source_[s];
+    const std::size_t s = ord[j];
+    const float x = from[3 * s], y = from[3 * s + 1], z = from[3 * s + 2];
+    to[3 * j] = x;
+    to[3 * j + 1] = y;
+    to[3 * j + 2] = z;
+    to_source[j] = from_source[s];
   }
   // Segments of at most segment_points, cut at column borders (whole cloud when disabled).
   if (use_segments) {
