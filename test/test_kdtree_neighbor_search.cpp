@@ -210,6 +210,38 @@ TEST(KdTreeNeighborSearchExact, OneAndTwoBuildThreadsAgree) {
   });
 }
 
+TEST(KdTreeNeighborSearchExact, GroupListsOverflowAndMisses) {
+  // The AVX2 / AVX-512 query code searches the queries of a leaf from one list of the leaves
+  // within reach of it (kdtree_tree.h, queryRange()). One-point leaves with K = 256 put more
+  // leaves in reach than a list holds (each query then descends); a cloud whose spacing grows
+  // tenfold from one stretch to the next leaves queries with fewer than K points on their list
+  // (they descend with their bound). Both must stay exact.
+  Cloud cube = randomCloud(3000, 13u, false), stretches;
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<float> u(0.f, 1.f);
+  float x = 0.f;
+  for (int s = 0; s < 4; ++s) {
+    const float step = 0.001f * std::pow(10.f, static_cast<float>(s));
+    for (int i = 0; i < 400; ++i) {
+      x += step;
+      stretches.insert(stretches.end(), {x, step * u(rng), step * u(rng)});
+    }
+  }
+  forEachCodePath([&](Level level) {
+    gf::NeighborLists got;
+    for (int leaf : {1, 8}) {
+      gf::KdTreeNeighborSearch search(2, leaf);
+      for (int k : {40, 256}) {
+        SCOPED_TRACE(nameOf(level) + " leaf " + std::to_string(leaf) + " k " + std::to_string(k));
+        search.search(cube.data(), cube.size() / 3, k, &got);
+        expectSameLists(bruteForce(cube, k), got);
+        search.search(stretches.data(), stretches.size() / 3, k, &got);
+        expectSameLists(bruteForce(stretches, k), got);
+      }
+    }
+  });
+}
+
 TEST(KdTreeNeighborSearchExact, RegularGridTiesAndLine) {
   // Many neighbours at exactly the same distance: the lower index must win every tie.
   Cloud grid, line;

@@ -84,7 +84,10 @@ void KdTree::buildNode(std::uint32_t id, std::uint32_t b, std::uint32_t e) {
   const bool same_point = !(ext[dim] > 0.f);
   if (same_point || e - b <= leaf) {
     // Leaf points go in index order; build() places them (one pass, no sort per leaf).
-    for (std::uint32_t i = b; i < e; ++i) leaf_of[pts[i].idx] = b;
+    for (std::uint32_t i = b; i < e; ++i) {
+      leaf_of[pts[i].idx] = b;
+      leaf_node[i] = static_cast<std::int32_t>(id);
+    }
     cursor[b] = b;
     cursor_end[b] = e;
     if (same_point) {
@@ -128,6 +131,7 @@ void KdTree::build(const float* xyz, std::size_t n, int k_, int threads) {
   leaf_of.resize(n);
   cursor.resize(n);
   cursor_end.resize(n);
+  leaf_node.resize(n);
   nodes.assign(subtreeNodes(static_cast<std::uint32_t>(n), leaf), Node());
 #pragma omp parallel num_threads(threads)
   {

@@ -192,6 +192,7 @@ GF_TARGET_AVX2_PATHS inline int packLeafAvx2(const Tree& t, const Node& nd, int 
 template <int R>
 class TopKAvx2 {
  public:
+  static constexpr bool kSearchesByGroups = true;  // in queryRange() (AVX2 box tests)
   static constexpr int kSlots = 4 * R;
 
   void init(int k, float bound) {
@@ -451,7 +452,8 @@ GF_TARGET_AVX2_PATHS inline void sortProxies(const std::uint32_t* d, int n, std:
 /// one buffer, sorted when it fills and at the end (see above).
 class TopKProxyAvx2 {
  public:
-  static constexpr int kBuf = 128;        // candidates sorted at once
+  static constexpr bool kSearchesByGroups = true;  // in queryRange() (AVX2 box tests)
+  static constexpr int kBuf = 128;                 // candidates sorted at once
   static constexpr int kFill = kBuf - 8;  // sort when more than this (a block adds up to 8)
 
   void init(int k, float bound) {

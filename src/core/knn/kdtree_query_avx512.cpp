@@ -144,6 +144,7 @@ GF_TARGET_AVX512 inline void bitonicSort(__m512i* v) {
 template <int R>
 class TopKAvx512 {
  public:
+  static constexpr bool kSearchesByGroups = true;  // in queryRange() (AVX2 box tests)
   static constexpr int kSlots = 8 * R;
 
   GF_TARGET_AVX512 void init(int k, float bound) {
