@@ -461,6 +461,7 @@ class TopKProxyAvx2 {
     n_ = 0;
     kept_ = 0;
     thr_ = bound;
+    ordered_ = false;
   }
   float threshold() const { return thr_; }
 
@@ -483,17 +484,29 @@ class TopKProxyAvx2 {
     return std::make_pair(n_, thr_);
   }
 
+  /// The query's last sort: the best K stay where they are, in the order of order_ (write()
+  /// reads them through it: no copy to the front).
   GF_TARGET_AVX2_PATHS void finish() {
-    if (n_ > kept_) reduce();  // candidates not sorted yet (none at all: nothing to keep)
+    if (n_ > kept_) reduce(true);  // candidates not sorted yet (none at all: nothing to keep)
   }
   bool complete() const { return kept_ == k_; }
   std::uint64_t key(int j) const {
-    return j < kept_ ? (static_cast<std::uint64_t>(d_[j]) << 32) | i_[j] : kNoKey;
+    if (j >= kept_) return kNoKey;
+    const int s = ordered_ ? static_cast<int>(order_[j] & kSlotMask) : j;
+    return (static_cast<std::uint64_t>(d_[s]) << 32) | i_[s];
   }
 
   void write(std::int32_t* idx, float* dist) const {
-    std::memcpy(idx, i_, static_cast<std::size_t>(kept_) * sizeof(std::int32_t));
-    if (dist) std::memcpy(dist, d_, static_cast<std::size_t>(kept_) * sizeof(float));
+    if (ordered_) {
+      for (int j = 0; j < kept_; ++j) {
+        const std::uint32_t s = order_[j] & kSlotMask;
+        idx[j] = static_cast<std::int32_t>(i_[s]);
+        if (dist) std::memcpy(dist + j, d_ + s, sizeof(float));
+      }
+    } else {
+      std::memcpy(idx, i_, static_cast<std::size_t>(kept_) * sizeof(std::int32_t));
+      if (dist) std::memcpy(dist, d_, static_cast<std::size_t>(kept_) * sizeof(float));
+    }
     for (int j = kept_; j < k_; ++j) {  // fewer points than K: TopKAvx2's empty slots
       idx[j] = -1;
       if (dist) {
@@ -527,10 +540,11 @@ class TopKProxyAvx2 {
     }
   }
 
-  /// Sorts the n_ candidates, keeps the best K at the front (kept_), tightens the threshold.
-  GF_TARGET_AVX2_PATHS void reduce() {
+  /// Sorts the n_ candidates, keeps the best K (kept_) at the front, or in place through
+  /// order_ when `last` (finish()), tightens the threshold.
+  GF_TARGET_AVX2_PATHS void reduce(bool last = false) {
     const int n = n_;
-    alignas(32) std::uint32_t sp[kBuf + 8];  // + 8 of padding: the tie check reads one past
+    std::uint32_t* const sp = order_;  // kBuf + 8: the tie check reads one past
     if (n <= kBuf / 2) {
       sortProxies<kBuf / 16>(d_, n, sp);
     } else {
@@ -552,6 +566,12 @@ class TopKProxyAvx2 {
       near_tie |= !_mm256_testz_si256(eq, eq);
     }
     if (near_tie) sortTiedRuns(sp, n, keep);
+    if (last) {
+      ordered_ = true;
+      n_ = kept_ = keep;
+      if (kept_ == k_) thr_ = std::min(thr_, keyDist(key(k_ - 1)));
+      return;
+    }
     alignas(32) std::uint32_t nd[kBuf + 8], ni[kBuf + 8];
     for (int j = 0; j < keep; ++j) {
       const std::uint32_t s = sp[j] & kSlotMask;
@@ -564,10 +584,12 @@ class TopKProxyAvx2 {
     if (kept_ == k_) thr_ = std::min(thr_, keyDist(key(k_ - 1)));
   }
 
-  alignas(32) std::uint32_t d_[kBuf + 8];  // squared distance bits; the first kept_ sorted
-  alignas(32) std::uint32_t i_[kBuf + 8];  // point indices
+  alignas(32) std::uint32_t d_[kBuf + 8];      // squared distance bits; the first kept_ sorted
+  alignas(32) std::uint32_t i_[kBuf + 8];      // point indices
+  alignas(32) std::uint32_t order_[kBuf + 8];  // the last sort's proxies (slots in the low bits)
   int k_ = 0, n_ = 0, kept_ = 0;
   float thr_ = 0.f;
+  bool ordered_ = false;  // finish() sorted: the best K are d_ / i_ at the slots of order_
 };
 
 }  // namespace
