@@ -266,7 +266,7 @@ constexpr int kMaxGroupLeaves = 256;
 constexpr double kGroupShare = 0.15;
 
 /// A group's leaves: node ids and boxes, the boxes' coordinates in separate arrays padded to a
-/// multiple of 8 with empty boxes (lo = hi = +inf: never within a threshold).
+/// multiple of 8 with empty boxes (lo = hi = +inf; scanLeaves() masks them out).
 struct LeafList {
   int count = -1;  // -1: no list (more than kMaxGroupLeaves leaves)
   alignas(32) float lx[kMaxGroupLeaves + 8], ly[kMaxGroupLeaves + 8], lz[kMaxGroupLeaves + 8];
@@ -341,6 +341,7 @@ GF_TARGET_AVX2_PATHS inline void scanLeaves(const Tree& t, const LeafList& list,
                       opaque(_mm256_mul_ps(dz, dz)));
     unsigned in = static_cast<unsigned>(
         _mm256_movemask_ps(_mm256_cmp_ps(d, _mm256_set1_ps(set->threshold()), _CMP_LE_OQ)));
+    if (list.count - i < 8) in &= (1u << (list.count - i)) - 1;  // not the padding (+inf bounds)
     while (in) {
       const int j = __builtin_ctz(in);
       in &= in - 1;
