@@ -317,7 +317,7 @@ std::size_t NormalGroundFilter::Impl::normalsAndVotes(const NormalGroundFilterPa
     std::size_t m = len;
     if (stride > 1) {
       auto t0 = Clock::now();
-      m = sample.gather(pts, len, stride, normal::columnSampleCap(p.k), grid);
+      m = sample.gather(pts, len, stride, normal::columnSampleCap(p.k), grid, threads);
       pts = sample.sampledXyz();
       cand = sample.candidates();
       vote_out = sample.votes();

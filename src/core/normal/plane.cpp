@@ -230,14 +230,14 @@ bool PlaneStage::fitGlobalPlane(const std::vector<float>& xyz,
                                 const std::vector<std::uint8_t>& voted,
                                 const NormalGroundFilterParams& p, double min_abs_nz,
                                 std::uint64_t base_seed, const double* sensor, Plane* global) {
-  std::vector<std::uint32_t>& all_voted = thread_idx_[0];  // free outside the tile loops
+  std::vector<std::uint32_t>& all_voted = global_idx_;
   all_voted.clear();
   all_voted.reserve(voted.size());
   for (std::size_t i = 0; i < voted.size(); ++i) {
     if (voted[i]) all_voted.push_back(static_cast<std::uint32_t>(i));
   }
   return fitPlaneRansac(xyz.data(), all_voted, p.ransac_iterations, p.plane_distance, min_abs_nz,
-                        base_seed, &thread_eval_[0], global, sensor);
+                        base_seed, &global_eval_, global, sensor);
 }
 
 void PlaneStage::lowerToFloor(const std::vector<float>& xyz, std::size_t tb, std::size_t te,
@@ -366,40 +366,49 @@ void PlaneStage::runTiles(const std::vector<float>& xyz, const std::vector<std::
   // tiles, only where one needs it: the same plane as fitted before them).
   const std::uint64_t base_seed = ransacBaseSeed(static_cast<std::uint32_t>(p.ransac_seed));
   Plane global;
-  bool global_valid = false, global_fitted = false;
-  if (needGlobalPlane(voted, p)) {
-    global_valid = fitGlobalPlane(xyz, voted, p, min_abs_nz, base_seed, sensor, &global);
-    global_fitted = true;
-  }
+  bool global_valid = false;
+  const bool global_fitted = needGlobalPlane(voted, p);
   deferred_.assign(tiles_.size(), 0);
+  wants_global_.assign(tiles_.size(), 0);
   tile_plane_.resize(tiles_.size());
   tile_kind_.assign(tiles_.size(), kNoPlane);
   tile_voted_.resize(tiles_.size());
 
-  // Each tile's plane: its own fit, else the cloud-wide plane.
-  const int nt = static_cast<int>(std::min<std::size_t>(threads, tiles_.size()));
-#pragma omp parallel for num_threads(nt) schedule(dynamic, 1)
-  for (std::int64_t t = 0; t < static_cast<std::int64_t>(tiles_.size()); ++t) {
-    std::vector<std::uint32_t>& tv = thread_idx_[omp_get_thread_num()];
-    votedOfTile(voted, t, &tv);
-    tile_voted_[t] = static_cast<std::uint32_t>(tv.size());
-    if (p.local_planes && tv.size() >= kMinTilePoints) {
-      const std::uint64_t seed =
-          base_seed ^ (tileKey(sort_scratch_.keys[tiles_[t].first]) * 0x9e3779b97f4a7c15ULL);
-      if (fitPlaneRansac(xyz.data(), tv, p.ransac_iterations, p.plane_distance, min_abs_nz, seed,
-                         &thread_eval_[omp_get_thread_num()], &tile_plane_[t], sensor)) {
-        tile_kind_[t] = kOwnPlane;
-        continue;
-      }
-      if (sensor && !global_fitted) {
-        deferred_[t] = 1;  // the cloud-wide plane, fitted below
-        continue;
-      }
+  // Each tile's plane: its own fit, else the cloud-wide plane, which one thread fits beside the
+  // tiles' fits where some tile will need it (its own scratch; the same plane as fitted first).
+  const int nt =
+      static_cast<int>(std::min<std::size_t>(threads, tiles_.size() + (global_fitted ? 1 : 0)));
+#pragma omp parallel num_threads(nt)
+  {
+#pragma omp single nowait
+    if (global_fitted) {
+      global_valid = fitGlobalPlane(xyz, voted, p, min_abs_nz, base_seed, sensor, &global);
     }
-    if (global_valid) {
-      tile_plane_[t] = global;
-      tile_kind_[t] = kCloudPlane;
+#pragma omp for schedule(dynamic, 1) nowait
+    for (std::int64_t t = 0; t < static_cast<std::int64_t>(tiles_.size()); ++t) {
+      std::vector<std::uint32_t>& tv = thread_idx_[omp_get_thread_num()];
+      votedOfTile(voted, t, &tv);
+      tile_voted_[t] = static_cast<std::uint32_t>(tv.size());
+      if (p.local_planes && tv.size() >= kMinTilePoints) {
+        const std::uint64_t seed =
+            base_seed ^ (tileKey(sort_scratch_.keys[tiles_[t].first]) * 0x9e3779b97f4a7c15ULL);
+        if (fitPlaneRansac(xyz.data(), tv, p.ransac_iterations, p.plane_distance, min_abs_nz, seed,
+                           &thread_eval_[omp_get_thread_num()], &tile_plane_[t], sensor)) {
+          tile_kind_[t] = kOwnPlane;
+          continue;
+        }
+        if (sensor && !global_fitted) {
+          deferred_[t] = 1;  // the cloud-wide plane, fitted below
+          continue;
+        }
+      }
+      wants_global_[t] = 1;
     }
+  }  // (the region's end waits for the cloud-wide fit)
+  for (std::size_t t = 0; t < tiles_.size(); ++t) {
+    if (!wants_global_[t] || !global_valid) continue;
+    tile_plane_[t] = global;
+    tile_kind_[t] = kCloudPlane;
   }
   if (std::find(deferred_.begin(), deferred_.end(), 1) != deferred_.end() &&
       fitGlobalPlane(xyz, voted, p, min_abs_nz, base_seed, sensor, &global)) {

@@ -93,7 +93,9 @@ class PlaneStage {
   RadixSortScratch sort_scratch_;
   std::vector<std::pair<std::size_t, std::size_t>> tiles_;  // [begin, end) in tile_order_
   std::vector<std::vector<std::uint32_t>> thread_idx_, thread_eval_;
-  std::vector<std::uint8_t> deferred_;  // per tile: labelled with the late cloud-wide plane
+  std::vector<std::uint32_t> global_idx_, global_eval_;  // the cloud-wide fit beside the tiles'
+  std::vector<std::uint8_t> wants_global_;  // per tile: labelled with the cloud-wide plane
+  std::vector<std::uint8_t> deferred_;      // per tile: labelled with the late cloud-wide plane
   // Per tile: the plane it is labelled against, and where that came from.
   enum TilePlane : std::uint8_t { kNoPlane, kOwnPlane, kCloudPlane };
   std::vector<Plane> tile_plane_;

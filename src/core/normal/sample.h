@@ -23,11 +23,12 @@ namespace normal {
 ///        columnSampleStep()). Holds only scratch memory, reused between scans.
 class SampleStage {
  public:
-  /// \brief Samples the `len` points at `xyz` (x y z packed, column order of `grid`).
+  /// \brief Samples the `len` points at `xyz` (x y z packed, column order of `grid`), copying
+  ///        them on up to `threads` threads.
   /// \return the number m of sampled points; their xyz is sampledXyz(), their positions
   ///         sampledIndex().
   std::size_t gather(const float* xyz, std::size_t len, int stride, int column_cap,
-                     const ColumnGrid& grid);
+                     const ColumnGrid& grid, int threads = 1);
   /// \brief Packed xyz of the sampled points (valid after gather()).
   const float* sampledXyz() const { return xyz_.data(); }
   /// \brief m + 1 positions: sampled point j is point sampledIndex()[j] of the segment, the last
