@@ -24,12 +24,14 @@ catkin_make tests -j"$(nproc 2>/dev/null || echo 2)"
 set +e
 catkin_make run_tests -j1 2>&1 | tee "${GF_WS}/run_tests.log"
 build_rc=${PIPESTATUS[0]}
-# Core gtests under ASan + UBSan, 60 s of fuzzing per filter, a 2-minute soak; each writes
+# Core gtests under ASan + UBSan, 60 s of fuzzing per filter, 2 + 1 minutes of soak; each writes
 # JUnit XML next to catkin's, so the summary below counts them.
 t0=${SECONDS}
 bash "${GF_ROOT}/scripts/sanitize.sh" --results "${results}/sanitize"
 bash "${GF_ROOT}/scripts/fuzz.sh" 60 --results "${results}/fuzz"
 bash "${GF_ROOT}/scripts/soak.sh" 2 --results "${results}/soak"
+# The same with the scan published inside the manager (a driver's nodelet: no serialisation).
+bash "${GF_ROOT}/scripts/soak.sh" 1 --driver-in-manager --results "${results}/soak_driver"
 echo "[ci] sanitize + fuzz + soak: $((SECONDS - t0)) s"
 echo "[ci] catkin tests done after ${SECONDS} s"
 if [ "${GF_CI_EXTRA:-1}" != "0" ]; then

@@ -2,10 +2,14 @@
 # Soak test of the nodelets (scripts/soak.py says what it does and what passes).
 #   scripts/soak.sh [MINUTES] [--results DIR] [--rate HZ] [--scan PATH] [--malloc-trim-period S]
 #                   [--malloc-mmap-threshold BYTES] [--malloc-trim-threshold BYTES]
-#                   [--nodelets voxel,normal] [--simd LEVEL] [--robot-load] [--params FILE]
+#                   [--nodelets voxel,normal] [--simd LEVEL] [--robot-load] [--driver-in-manager]
+#                   [--params FILE]
 #                   [--set [voxel:|normal:]NAME=VALUE]...
 # A robot's load, e.g. 30 minutes at 10 Hz, both nodelets, the AVX2 path, parameters fixed:
 #   scripts/soak.sh 30 --rate 10 --simd avx2 --robot-load
+# The same with the scan published inside the manager, as a driver's nodelet would (no
+# serialisation of the clouds; scripts/soak.py says more):
+#   scripts/soak.sh 30 --rate 10 --simd avx2 --robot-load --driver-in-manager
 # Your configuration under that load (the YAML you pass to the launch file's params_file):
 #   scripts/soak.sh 30 --rate 10 --robot-load --params my_params.yaml --set normal:threads=1
 # Default 10 minutes at 20 Hz of unlabelled/os128_000000.pcd of the data folder ($GF_DATA_DIR,
@@ -21,11 +25,11 @@ while [ $# -gt 0 ]; do
     --results|--rate|--scan|--malloc-trim-period|--malloc-mmap-threshold|--malloc-trim-threshold|\
     --nodelets|--simd|--params|--set)
       EXTRA+=("$1" "$2"); shift 2 ;;
-    --robot-load) EXTRA+=("$1"); shift ;;
+    --robot-load|--driver-in-manager) EXTRA+=("$1"); shift ;;
     [0-9]*) MINUTES="$1"; shift ;;
     *) echo "usage: $0 [MINUTES] [--results DIR] [--rate HZ] [--scan PATH] [--malloc-trim-period S]" \
          "[--malloc-mmap-threshold BYTES] [--malloc-trim-threshold BYTES] [--nodelets voxel,normal]" \
-         "[--simd LEVEL] [--robot-load] [--params FILE] [--set [voxel:|normal:]NAME=VALUE]..." \
+         "[--simd LEVEL] [--robot-load] [--driver-in-manager] [--params FILE] [--set [voxel:|normal:]NAME=VALUE]..." \
          >&2; exit 2 ;;
   esac
 done
