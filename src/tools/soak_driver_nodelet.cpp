@@ -7,7 +7,7 @@
 // has its own; the manager's worker threads stay the filters'). It also checks, in the same
 // manager, the outputs of the filter nodelets named in ~filters: the /NAME/ground and
 // /NAME/nonground of each cloud must together hold all its points. Its counts go to
-// /diagnostics every second (status "soak_driver: outputs"), where scripts/soak.py reads them.
+// /diagnostics every second (status "NODELET_NAME: outputs"), where scripts/soak.py reads them.
 //
 // Parameters:
 //   ~input (string)              the scan (.bin, .pcd, .ply), read once
@@ -182,8 +182,10 @@ class SoakDriverNodelet : public nodelet::Nodelet {
     diagnostic_msgs::DiagnosticArray arr;
     arr.header.stamp = ros::Time::now();
     diagnostic_msgs::DiagnosticStatus st;
-    st.name = "soak_driver: outputs";
-    st.hardware_id = "soak_driver";
+    std::string name = getName();  // "/NAME": the status is "NAME: outputs", as the filters'
+    if (!name.empty() && name[0] == '/') name.erase(0, 1);
+    st.name = name + ": outputs";
+    st.hardware_id = name;
     auto add = [&st](const std::string& key, const std::string& value) {
       diagnostic_msgs::KeyValue kv;
       kv.key = key;
