@@ -122,8 +122,10 @@ class LoadTest(RosTestCase):
         # A burst of 100 clouds at once: the queue (3) keeps the newest; the rest are lost by
         # policy and counted from the seq gaps; the last one is always processed.
         in0, lost0 = self.number("clouds in"), self.number("lost before the filter (seq/stamp gaps)")
+        burst = set()
         for _ in range(100):
             last = self.send(self.small, 0.001)
+            burst.add(last)
         self.settle(last, len(self.small))
         got = self.number("clouds in") - in0
         lost = self.number("lost before the filter (seq/stamp gaps)") - lost0
@@ -166,15 +168,21 @@ class LoadTest(RosTestCase):
         self.assertEqual(self.number("lost before the filter (seq/stamp gaps)"), lost0)
         self.assertEqual(self.number("dropped"), 0)
         # Both outputs of every cloud reach this subscriber, except where the outputs' latest-only
-        # publisher queue (1) replaced a large cloud's output that this Python subscriber was
-        # still reading (tens of MB): then one part of that pair is missing. A small cloud's
-        # output never is.
+        # publisher queue (1) replaced an output that this Python subscriber was still reading:
+        # a large cloud's (tens of MB), or one of the burst's, whose outputs follow each other
+        # within a millisecond (seen once in a CI run on 2 cores). Outside those, none may miss.
         with self.lock:
             broken = {s: p for s, p in self.pairs.items() if None in p}
-        small = {s: p for s, p in broken.items() if max(n or 0 for n in p) <= len(self.small)}
+        small = {s: p for s, p in broken.items()
+                 if s not in burst and max(n or 0 for n in p) <= len(self.small)}
         self.assertEqual(small, {}, "outputs without their partner (stamp ns: [ground, nonground])")
-        self.assertLessEqual(len(broken), 3, "large clouds' outputs without their partner: %s"
-                             % broken)
+        large = {s: p for s, p in broken.items() if max(n or 0 for n in p) > len(self.small)}
+        self.assertLessEqual(len(large), 3, "large clouds' outputs without their partner: %s"
+                             % large)
+        # Every pair that did arrive whole holds all the points of its cloud.
+        with self.lock:
+            sizes = {sum(p) for p in self.pairs.values() if None not in p}
+        self.assertLessEqual(sizes, {len(self.small), rospy.get_param("~big_points")})
 
 
 if __name__ == "__main__":
