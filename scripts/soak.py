@@ -248,6 +248,69 @@ def wait_for(cond, timeout, what):
     return False
 
 
+class PythonSource(object):
+    """The scan published by this script's `publish` mode, a process of its own (its clouds cross
+    processes, as a driver's that is no nodelet); paused by SIGSTOP, restartable."""
+    restartable = True
+
+    def __init__(self, start, stop, cmd, logdir):
+        self.start, self.stop, self.cmd, self.logdir = start, stop, cmd, logdir
+        self.procs = [start("publisher1", cmd)]
+
+    def pause(self, paused):
+        os.killpg(self.procs[-1].pid, signal.SIGSTOP if paused else signal.SIGCONT)
+
+    def restart(self):
+        self.stop(self.procs[-1])
+        time.sleep(1.0)
+        self.procs.append(self.start("publisher%d" % (len(self.procs) + 1), self.cmd))
+
+    def finish(self):
+        for p in self.procs:
+            self.stop(p)
+
+    def counts(self, diag):
+        """(clouds published, intervals between them, seconds spent publishing) from the logs."""
+        published, intervals, active_s = 0, 0, 0.0
+        for i in range(len(self.procs)):
+            with open(os.path.join(self.logdir, "publisher%d.log" % (i + 1))) as f:
+                for line in f:
+                    if line.startswith("published "):
+                        fields = line.split()
+                        published += int(fields[1])
+                        intervals += int(fields[3])
+                        active_s += float(fields[2])
+        return published, intervals, active_s
+
+
+class DriverSource(object):
+    """The scan published by the SoakDriver nodelet in the manager (--driver-in-manager), by
+    pointer as a driver's nodelet; paused through its ~pause topic; it counts the output pairs
+    itself. Not restartable: it is a nodelet of the manager."""
+    restartable = False
+
+    def __init__(self, start, scan, rate, nodelets):
+        import rospy
+        from std_msgs.msg import Bool
+        self.bool = Bool
+        start("publisher1", [
+            "rosrun", "nodelet", "nodelet", "load", "ground_filter/SoakDriver", "/soak_manager",
+            "__name:=" + DRIVER, "~output:=" + INPUT, "_input:=" + os.path.abspath(scan),
+            "_rate:=%f" % rate, "_filters:=" + ",".join(nodelets), "--no-bond"])
+        self.pause_pub = rospy.Publisher("/%s/pause" % DRIVER, Bool, queue_size=2, latch=True)
+
+    def pause(self, paused):
+        self.pause_pub.publish(self.bool(paused))
+
+    def finish(self):
+        self.pause(True)  # the driver stays loaded: its last counts come after this
+
+    def counts(self, diag):
+        drv = diag.get(DRIVER, {})
+        return (int(drv.get("published", 0)), int(drv.get("intervals", 0)),
+                float(drv.get("active seconds", 0.0)))
+
+
 def run(args):
     import rosgraph
     import rospy
@@ -359,27 +422,9 @@ def run(args):
         reconf = None if args.robot_load else start(
             "reconfigure", [sys.executable, os.path.abspath(__file__), "reconfigure",
                             "--nodelets", ",".join(nodelets)])
-        pause_pub = None
-        if args.driver_in_manager:
-            # Loaded last: it publishes once every filter has subscribed.
-            publishers = [start("publisher1", [
-                "rosrun", "nodelet", "nodelet", "load", "ground_filter/SoakDriver",
-                "/soak_manager", "__name:=" + DRIVER, "~output:=" + INPUT,
-                "_input:=" + os.path.abspath(args.scan), "_rate:=%f" % args.rate,
-                "_filters:=" + ",".join(nodelets), "--no-bond"])]
-            from std_msgs.msg import Bool
-            pause_pub = rospy.Publisher("/%s/pause" % DRIVER, Bool, queue_size=2, latch=True)
-
-        def pause_clouds(paused):
-            """Stops (or resumes) the clouds: the driver nodelet through ~pause, the Python
-            publisher with SIGSTOP / SIGCONT."""
-            if pause_pub is not None:
-                pause_pub.publish(Bool(paused))
-            else:
-                os.killpg(publishers[-1].pid, signal.SIGSTOP if paused else signal.SIGCONT)
-
-        if not args.driver_in_manager:
-            publishers = [start("publisher1", pub_cmd)]
+        # The driver nodelet is loaded last: it publishes once every filter has subscribed.
+        source = (DriverSource(start, args.scan, args.rate, nodelets) if args.driver_in_manager
+                  else PythonSource(start, stop, pub_cmd, logdir))
         import dynamic_reconfigure.client as drc
         ref_clients = {n: drc.Client("/" + n, timeout=30) for n in nodelets}
 
@@ -397,7 +442,7 @@ def run(args):
                     for n, client in ref_clients.items():
                         client.update_configuration(REFERENCE_SETS[n])
                     time.sleep(5.0)
-                pause_clouds(True)
+                source.pause(True)
                 try:
                     time.sleep(10.0)
                     samples = []
@@ -405,7 +450,7 @@ def run(args):
                         samples.append(rss_kb(manager.pid))
                         time.sleep(1.0)
                 finally:
-                    pause_clouds(False)
+                    source.pause(False)
             finally:
                 if reconf is not None:
                     os.killpg(reconf.pid, signal.SIGCONT)
@@ -441,38 +486,17 @@ def run(args):
                 quiet["end_t"] = time.monotonic() - t0
                 print("[soak] quiescent RSS at the end: %s KB" % quiet["end"])
                 break
-            # (A driver in the manager is not restarted: it is a nodelet of the manager.)
-            if (not restarted and not args.robot_load and not args.driver_in_manager
-                    and t >= total_s / 2):
-                stop(publishers[-1])
-                time.sleep(1.0)
-                publishers.append(start("publisher2", pub_cmd))
+            if not restarted and not args.robot_load and source.restartable and t >= total_s / 2:
+                source.restart()
                 restarted = True
                 print("[soak] publisher restarted at %.0f s" % t)
-        if args.driver_in_manager:
-            pause_clouds(True)  # the driver stays loaded: its last counts come after this
-        else:
-            for p in publishers:
-                stop(p)
+        source.finish()
         if reconf is not None:
             stop(reconf)
         time.sleep(3.0)  # outputs still in flight, one more diagnostic update
         alive = manager.poll() is None
-        published = 0
-        intervals, active_s = 0, 0.0
+        published, intervals, active_s = source.counts(diag)
         drv = diag.get(DRIVER, {})
-        if args.driver_in_manager:
-            published = int(drv.get("published", 0))
-            intervals = int(drv.get("intervals", 0))
-            active_s = float(drv.get("active seconds", 0.0))
-        for i in range(len(publishers) if not args.driver_in_manager else 0):
-            with open(os.path.join(logdir, "publisher%d.log" % (i + 1))) as f:
-                for line in f:
-                    if line.startswith("published "):
-                        fields = line.split()
-                        published += int(fields[1])
-                        intervals += int(fields[3])
-                        active_s += float(fields[2])
         reconf_text = ["parameters fixed (robot load%s)" % (
             ", --params / --set" if any(params.values()) else "")]
         if reconf is not None:
