@@ -7,7 +7,8 @@
 // has its own; the manager's worker threads stay the filters'). It also checks, in the same
 // manager, the outputs of the filter nodelets named in ~filters: the /NAME/ground and
 // /NAME/nonground of each cloud must together hold all its points. Its counts go to
-// /diagnostics every second (status "NODELET_NAME: outputs"), where scripts/soak.py reads them.
+// /diagnostics every second through a diagnostic_updater, as the filters' status (status
+// "NODELET_NAME: outputs"), where scripts/soak.py reads them.
 //
 // Parameters:
 //   ~input (string)              the scan (.bin, .pcd, .ply), read once
@@ -16,7 +17,7 @@
 //   ~filters (string, "")        filter nodelet names, separated by commas or spaces
 // Topics: ~output (sensor_msgs/PointCloud2, out); ~pause (std_msgs/Bool, in: true stops the
 // clouds, false resumes them).
-#include <diagnostic_msgs/DiagnosticArray.h>
+#include <diagnostic_updater/diagnostic_updater.h>
 #include <nodelet/nodelet.h>
 #include <pcl_conversions/pcl_conversions.h>
 #include <ros/ros.h>
@@ -28,6 +29,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <pluginlib/class_list_macros.hpp>
 #include <sstream>
@@ -98,11 +100,14 @@ class SoakDriverNodelet : public nodelet::Nodelet {
           [this, f](const sensor_msgs::PointCloud2ConstPtr& m) { onOutput(m, f, false); });
     }
     pub_ = pnh.advertise<sensor_msgs::PointCloud2>("output", 2);
-    diag_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
+    // As the filters' status: the updater names it "NAME: outputs" after this nodelet.
+    updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh, getName());
+    updater_->setHardwareID(getName().substr(1));
+    updater_->add("outputs", this, &SoakDriverNodelet::report);
     pause_sub_ = pnh.subscribe<std_msgs::Bool>(
         "pause", 10, [this](const std_msgs::BoolConstPtr& m) { paused_ = m->data; });
-    report_timer_ = nh.createWallTimer(ros::WallDuration(1.0),
-                                       [this](const ros::WallTimerEvent&) { report(); });
+    report_timer_ = nh.createWallTimer(
+        ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { updater_->force_update(); });
     NODELET_INFO("publishing %s (%llu points) at %g Hz; checking the outputs of %zu filter(s)",
                  input.c_str(), static_cast<unsigned long long>(points_), rate_, filters_.size());
     thread_ = std::thread([this] { publishLoop(); });
@@ -178,39 +183,24 @@ class SoakDriverNodelet : public nodelet::Nodelet {
     other.erase(it);
   }
 
-  void report() {
-    diagnostic_msgs::DiagnosticArray arr;
-    arr.header.stamp = ros::Time::now();
-    diagnostic_msgs::DiagnosticStatus st;
-    std::string name = getName();  // "/NAME": the status is "NAME: outputs", as the filters'
-    if (!name.empty() && name[0] == '/') name.erase(0, 1);
-    st.name = name + ": outputs";
-    st.hardware_id = name;
-    auto add = [&st](const std::string& key, const std::string& value) {
-      diagnostic_msgs::KeyValue kv;
-      kv.key = key;
-      kv.value = value;
-      st.values.push_back(kv);
-    };
-    add("published", std::to_string(published_.load()));
-    add("intervals", std::to_string(intervals_.load()));
-    add("active seconds", std::to_string(active_ns_.load() * 1e-9));
-    add("points per cloud", std::to_string(points_));
+  void report(diagnostic_updater::DiagnosticStatusWrapper& st) {
+    st.add("published", std::to_string(published_.load()));
+    st.add("intervals", std::to_string(intervals_.load()));
+    st.add("active seconds", std::to_string(active_ns_.load() * 1e-9));
+    st.add("points per cloud", std::to_string(points_));
     bool ok = true;
     {
       std::lock_guard<std::mutex> lock(mutex_);
       for (const Filter& f : filters_) {
-        add(f.name + " pairs", std::to_string(f.pairs));
-        add(f.name + " points not conserved", std::to_string(f.not_conserved));
-        add(f.name + " unpaired", std::to_string(f.ground.size() + f.nonground.size()));
+        st.add(f.name + " pairs", std::to_string(f.pairs));
+        st.add(f.name + " points not conserved", std::to_string(f.not_conserved));
+        st.add(f.name + " unpaired", std::to_string(f.ground.size() + f.nonground.size()));
         ok &= f.not_conserved == 0;
       }
     }
-    st.level =
-        ok ? diagnostic_msgs::DiagnosticStatus::OK : diagnostic_msgs::DiagnosticStatus::ERROR;
-    st.message = ok ? "every pair conserved its points" : "points not conserved";
-    arr.status.push_back(st);
-    diag_pub_.publish(arr);
+    st.summary(
+        ok ? diagnostic_msgs::DiagnosticStatus::OK : diagnostic_msgs::DiagnosticStatus::ERROR,
+        ok ? "every pair conserved its points" : "points not conserved");
   }
 
   sensor_msgs::PointCloud2 scan_;
@@ -219,7 +209,8 @@ class SoakDriverNodelet : public nodelet::Nodelet {
   std::uint64_t points_ = 0;
   std::vector<Filter> filters_;
   std::mutex mutex_;  // filters_' maps and counts (the output callbacks, report())
-  ros::Publisher pub_, diag_pub_;
+  ros::Publisher pub_;
+  std::unique_ptr<diagnostic_updater::Updater> updater_;
   ros::Subscriber pause_sub_;
   ros::WallTimer report_timer_;
   std::atomic<bool> paused_{false};
