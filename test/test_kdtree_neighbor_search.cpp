@@ -18,6 +18,7 @@
 #include "gf_test_points.h"
 #include "ground_filter/cloud_view.h"
 #include "knn/kdtree_neighbor_search.h"
+#include "knn/kdtree_tree.h"
 #include "knn/neighborhood_pca.h"
 #include "simd/simd.h"
 
@@ -544,4 +545,61 @@ TEST(KdTreeNeighborSearchExact, PcaSameBitsOnEveryLevel) {
   search.search(c.data(), c.size() / 3, 64, &l);
   SCOPED_TRACE(file);
   expectPcaSameOnEveryLevel(c, l);
+}
+
+TEST(KdTreeBuild, EverySplitIsAtTheMedian) {
+  // The build selects each node's median along its widest axis (std::nth_element above 4096
+  // points, its own quickselect below): then every inner node's halves have equal sizes (the
+  // left one the smaller by one at most) and their boxes meet at most at the median's key
+  // along some axis. Inputs that trip quickselects: sorted, reversed, few distinct keys,
+  // runs of one value, a grid; sizes above and below the switch.
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-50.f, 50.f);
+  std::vector<std::pair<std::string, Cloud>> clouds;
+  for (std::size_t n : {300u, 5000u, 20000u}) {
+    Cloud rnd, sorted, reversed, few, runs;
+    for (std::size_t i = 0; i < n; ++i) {
+      rnd.insert(rnd.end(), {u(rng), u(rng), 0.1f * u(rng)});
+      sorted.insert(sorted.end(), {0.01f * i, 0.f, 0.f});
+      reversed.insert(reversed.end(), {-0.01f * i, 0.001f * (i % 3), 0.f});
+      few.insert(few.end(), {static_cast<float>(i % 3), 0.01f * u(rng), 0.f});
+      runs.insert(runs.end(), {i < n / 2 ? 0.f : static_cast<float>(i % 5), 1e-4f * i, 0.f});
+    }
+    for (auto* c : {&rnd, &sorted, &reversed, &few, &runs}) {
+      const char* name = c == &rnd        ? "random"
+                         : c == &sorted   ? "sorted"
+                         : c == &reversed ? "reversed"
+                         : c == &few      ? "three keys"
+                                          : "runs";
+      clouds.emplace_back(std::string(name) + " " + std::to_string(n), *c);
+    }
+  }
+  Cloud grid;
+  for (int i = 0; i < 40; ++i) {
+    for (int j = 0; j < 40; ++j) {
+      for (int l = 0; l < 4; ++l) grid.insert(grid.end(), {0.5f * i, 0.5f * j, 0.5f * l});
+    }
+  }
+  clouds.emplace_back("grid 6400", grid);
+  for (const auto& named : clouds) {
+    SCOPED_TRACE(named.first);
+    const Cloud& c = named.second;
+    gf::kdtree::KdTree t;
+    t.leaf = 8;
+    t.build(c.data(), c.size() / 3, 10, 2);
+    std::size_t inner = 0;
+    for (const gf::kdtree::Node& nd : t.nodes) {
+      if (nd.left < 0 || nd.right <= 0 || nd.right == gf::kdtree::kSamePoint) continue;
+      if (nd.scan_end <= nd.begin) continue;  // an unused slot
+      const gf::kdtree::Node& l = t.nodes[static_cast<std::size_t>(nd.left)];
+      const gf::kdtree::Node& r = t.nodes[static_cast<std::size_t>(nd.right)];
+      ++inner;
+      ASSERT_EQ(l.begin, nd.begin);
+      ASSERT_EQ(r.begin, nd.begin + (nd.scan_end - nd.begin) / 2);
+      bool apart = false;
+      for (int d = 0; d < 3; ++d) apart = apart || l.hi[d] <= r.lo[d];
+      ASSERT_TRUE(apart) << "node of " << nd.scan_end - nd.begin << " points at " << nd.begin;
+    }
+    EXPECT_GT(inner, c.size() / 3 / 16);
+  }
 }
