@@ -61,16 +61,15 @@ inline float axisKey(const Point& p) {
 /// larger ones with std::nth_element. On a KITTI frame's sampled points (62 k, in column order)
 /// std::nth_element took 0.11-0.15 ms for each of the top three levels of the tree but
 /// 0.36-0.66 ms for each of the levels of 250-1000 points, where its partitions mispredict
-/// about every other point; the quickselect took 0.18-0.26 ms a level below 8 k points and
-/// 0.9-2.1 ms at the top two. Whole selection 3.1 -> 1.8 ms on one thread (2048: the same, 16 k:
-/// 2.5 ms).
+/// about every other point; the quickselect took 0.11-0.23 ms a level below 8 k points and
+/// 0.9-2.1 ms at the top two. Whole selection 3.1 -> 1.4 ms on one thread (2048: the same, 16 k:
+/// slower).
 constexpr std::ptrdiff_t kQuickselectMaxPoints = 4096;
 
 /// std::nth_element(first, mid, last) by the axis D key, with the same guarantee (nothing
 /// before mid above it, nothing after it below it); below kQuickselectMaxPoints a quickselect
-/// whose partition does not branch on the keys. Pivot: the median of three keys; a pivot that
-/// is the range's least key (many equal keys) is followed by a pass that moves its equals next
-/// to it.
+/// whose partition does not branch on the keys. A pivot that is the part's least key (many
+/// equal keys) is followed by a pass that moves its equals next to it.
 template <int D>
 void selectMedian(Point* first, Point* mid, Point* last) {
   const auto less = [](const Point& a, const Point& b) { return axisKey<D>(a) < axisKey<D>(b); };
@@ -80,13 +79,16 @@ void selectMedian(Point* first, Point* mid, Point* last) {
   }
   for (int round = 0; last - first > 16; ++round) {
     if (round == 64) break;  // far more rounds than random pivots need: leave it to the library
-    // The median of the first, middle and last keys into *first.
-    Point* a = first;
-    Point* b = first + (last - first) / 2;
-    Point* c = last - 1;
-    if (less(*b, *a)) std::swap(a, b);
-    if (less(*c, *b)) b = less(*c, *a) ? a : c;
-    std::swap(*first, *b);
+    // The pivot: of the keys at 1/6, 3/6 and 5/6 of the part, sorted, the one whose rank
+    // matches mid's (the middle one on the first round; after it mid lies near an end of its
+    // part, and a pivot near that end leaves a small part). First, middle and last keys instead
+    // (the points come in column order): 1.82 against 1.43 ms a KITTI frame's selection.
+    const std::ptrdiff_t n = last - first;
+    Point* sp[3] = {first + n / 6, first + n / 2, first + 5 * n / 6};
+    if (less(*sp[1], *sp[0])) std::swap(sp[0], sp[1]);
+    if (less(*sp[2], *sp[1])) std::swap(sp[1], sp[2]);
+    if (less(*sp[1], *sp[0])) std::swap(sp[0], sp[1]);
+    std::swap(*first, *sp[(mid - first) * 3 / n]);
     const float pivot = axisKey<D>(*first);
     // Lomuto without branches: [first + 1, w) below the pivot, [w, r) not.
     Point* w = first + 1;
