@@ -3,10 +3,13 @@
 #include <omp.h>
 #if defined(__SSE__)
 #include <xmmintrin.h>
+#elif defined(__aarch64__) && defined(__ARM_NEON)
+#include <arm_neon.h>
 #endif
 
 #include <algorithm>
 #include <cstdint>
+#include <cstring>
 #include <vector>
 
 #include "knn/kdtree_tree.h"
@@ -47,6 +50,12 @@ inline void swapPoints(Point* a, Point* b) {
   const __m128 va = _mm_loadu_ps(&a->x), vb = _mm_loadu_ps(&b->x);
   _mm_storeu_ps(&a->x, vb);
   _mm_storeu_ps(&b->x, va);
+#elif defined(__aarch64__) && defined(__ARM_NEON)
+  float32x4_t va, vb;  // memcpy: the index's bits move through a float register untouched
+  std::memcpy(&va, a, sizeof va);
+  std::memcpy(&vb, b, sizeof vb);
+  std::memcpy(a, &vb, sizeof vb);
+  std::memcpy(b, &va, sizeof va);
 #else
   std::swap(*a, *b);
 #endif

@@ -74,6 +74,7 @@ struct Point {
   float x, y, z;
   std::uint32_t idx;
 };
+static_assert(sizeof(Point) == 16, "the build moves points as 16-byte words (swapPoints())");
 
 struct alignas(16) Node {
   float lo[4];  // tight bounding box of the node's points; [3] = 0
