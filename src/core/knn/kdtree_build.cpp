@@ -70,9 +70,10 @@ inline float axisKey(const Point& p) {
 /// larger ones with std::nth_element. On a KITTI frame's sampled points (62 k, in column order)
 /// std::nth_element took 0.11-0.15 ms for each of the top three levels of the tree but
 /// 0.36-0.66 ms for each of the levels of 250-1000 points, where its partitions mispredict
-/// about every other point; the quickselect took 0.11-0.23 ms a level below 8 k points and
-/// 0.9-2.1 ms at the top two. Whole selection 3.1 -> 1.4 ms on one thread (2048: the same, 16 k:
-/// slower).
+/// about every other point; the quickselect took 0.11-0.23 ms a level below 8 k points. Whole
+/// selection on one thread, KITTI 000000 / 000003: 1.39 / 1.39 ms with this switch, 1.31 / 1.33
+/// at 8 k, 1.28 / 1.76 at 16 k; on 000000 3.1 with std::nth_element alone, 1.65 with the
+/// quickselect everywhere.
 constexpr std::ptrdiff_t kQuickselectMaxPoints = 4096;
 
 /// std::nth_element(first, mid, last) by the axis D key, with the same guarantee (nothing
@@ -87,7 +88,7 @@ void selectMedian(Point* first, Point* mid, Point* last) {
     return;
   }
   for (int round = 0; last - first > 16; ++round) {
-    if (round == 64) break;  // far more rounds than random pivots need: leave it to the library
+    if (round == 64) break;  // a bound on the cost whatever the keys: leave it to the library
     // The pivot: of the keys at 1/6, 3/6 and 5/6 of the part, sorted, the one whose rank
     // matches mid's (the middle one on the first round; after it mid lies near an end of its
     // part, and a pivot near that end leaves a small part). First, middle and last keys instead

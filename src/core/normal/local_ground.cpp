@@ -35,8 +35,8 @@ std::size_t LocalGroundStage::run(const std::vector<float>& xyz, const std::int3
       // The points that use this list: the sampled one and those after it up to the next. All of
       // them ground already (about half the rows): nothing to decide, and the list (k indices,
       // the stage's memory traffic) is not read.
-      const std::size_t first = at(o), last = std::min(at(o + 1), n);
-      std::size_t i0 = first;
+      const std::size_t last = std::min(at(o + 1), n);
+      std::size_t i0 = at(o);
       while (i0 < last && ground[i0]) ++i0;
       if (i0 == last) continue;
       const std::int32_t* row = rows + r * static_cast<std::size_t>(k);
