@@ -1,12 +1,14 @@
 // Height above ground (include/ground_filter/height_above_ground.h): exact heights on a tilted
 // plane, a kerb, a roof in an occlusion shadow, single-point cells, negative heights, invalid
 // points, no ground, points beyond the radius, the accuracy on a generated street scene with
-// its truth labels, bad parameters, determinism, no allocation once the buffers are sized.
+// its truth labels, bad parameters, determinism, the same surface on every SIMD path and record
+// layout, no allocation once the buffers are sized.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <random>
 #include <stdexcept>
@@ -17,6 +19,7 @@
 #include "gf_test_alloc_counter.h"  // allocationCount()
 #include "gf_test_scenes.h"
 #include "ground_filter/height_above_ground.h"
+#include "simd/simd.h"
 
 namespace gf = ground_filter;
 using gf_test::TruthCloud;
@@ -383,6 +386,65 @@ TEST(HeightAboveGround, TwoBuildsGiveIdenticalHeights) {
   for (std::size_t k = 1; k < a.cells().size(); ++k) {
     const gf::SurfaceCell &p = a.cells()[k - 1], &q = a.cells()[k];
     EXPECT_TRUE(p.y < q.y || (p.y == q.y && p.x < q.x)) << k;
+  }
+}
+
+// build() collects the ground points and sums each cell eight points / four sums at a time where
+// the CPU allows (AVX2: records whose x y z lie in 16 bytes), heights() looks the cells up in
+// pairs: every code path and record layout gives the same cells and heights, bit for bit, as the
+// portable code on bare x y z records (a generated street, with invalid points, an odd count).
+TEST(HeightAboveGround, EveryCodePathAndLayoutGivesTheSameSurface) {
+  using Level = gf::simd::Level;
+  const gf::GeneratedScan scan = gf::generateScene(gf::builtinSceneParams("verge"));
+  std::vector<float> xyz(scan.xyz.begin(), scan.xyz.end());
+  std::vector<std::uint8_t> labels(scan.truth.begin(), scan.truth.end());
+  for (std::size_t i = 0; i < labels.size(); i += 97) labels[i] = 1;  // ground among the rest
+  for (std::size_t i = 5; i < labels.size(); i += 1009) xyz[3 * i + (i % 3)] = i % 2 ? kNaN : kInf;
+  xyz.insert(xyz.end(), {1.f, 2.f, -0.1f, 3.f, 1.f, 0.f, kNaN, 0.f, 0.f});
+  labels.insert(labels.end(), {1, 1, 1});
+  const std::size_t n = labels.size();
+  ASSERT_NE(n % 8, 0u);
+  std::vector<float> rec;  // x y z intensity: the layout the AVX2 collection reads
+  for (std::size_t i = 0; i < n; ++i)
+    rec.insert(rec.end(), {xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2], 7.f});
+  const gf::CloudView bare = gf::CloudView::packedXyz(xyz.data(), n);
+  const gf::CloudView wide(rec.data(), n, 4 * sizeof(float), 0, sizeof(float), 2 * sizeof(float));
+  const auto run = [&](Level level, const gf::CloudView& view, std::vector<float>* h) {
+    const gf::simd::ScopedLevel scoped(level);
+    EXPECT_TRUE(scoped.ok());
+    gf::GroundSurface s;
+    s.build(view, labels, gf::GroundSurfaceParams());
+    s.heights(view, h);
+    return s.cells();
+  };
+  std::vector<float> want;
+  const std::vector<gf::SurfaceCell> cells = run(Level::kPortable, bare, &want);
+  ASSERT_GT(cells.size(), 100u);
+  const auto bits = [](float v) {
+    std::uint32_t u;
+    std::memcpy(&u, &v, sizeof u);
+    return std::isnan(v) ? 0x7fc00000u : u;
+  };
+  for (Level level : {Level::kPortable, Level::kSse, Level::kAvx2, Level::kAvx512, Level::kNeon}) {
+    if (!gf::simd::supported(level)) continue;
+    for (const gf::CloudView* view : {&bare, &wide}) {
+      SCOPED_TRACE(std::string(gf::simd::levelName(level)) +
+                   (view == &wide ? ", 16-byte records" : ", x y z"));
+      std::vector<float> h;
+      const std::vector<gf::SurfaceCell> got = run(level, *view, &h);
+      ASSERT_EQ(got.size(), cells.size());
+      std::size_t same = 0;
+      for (std::size_t k = 0; k < cells.size(); ++k) {
+        const gf::SurfaceCell &a = cells[k], &b = got[k];
+        same += a.x == b.x && a.y == b.y && bits(a.z) == bits(b.z) && a.points == b.points &&
+                bits(a.confidence) == bits(b.confidence);
+      }
+      EXPECT_EQ(same, cells.size());
+      ASSERT_EQ(h.size(), n);
+      same = 0;
+      for (std::size_t i = 0; i < n; ++i) same += bits(h[i]) == bits(want[i]);
+      EXPECT_EQ(same, n);
+    }
   }
 }
 

@@ -103,8 +103,9 @@ class GroundSurface {
   double cellSize() const { return cell_; }
 
  private:
+  // A cell's sums, in fours as the AVX2 path holds them: n, x, y, z | xx, xy, yy, zz | xz, yz.
   struct Accum {
-    double n, sx, sy, sz, sxx, sxy, syy, sxz, syz, szz;
+    double n, sx, sy, sz, sxx, sxy, syy, szz, sxz, syz;
   };
   struct Fit {
     double z, gx, gy, rms;  // z relative to z_ref_ at the cell centre; slope [m/m]; residual
@@ -114,7 +115,9 @@ class GroundSurface {
   bool gatherGround(const CloudView& cloud, const std::vector<std::uint8_t>& labels, float* bounds);
   void cellOffsets();
   void accumulate(bool refit);
-  static void addTo(Accum* a, const Accum& b);
+  template <class Run>
+  void accumulateWith(bool refit);
+  void accumulateAvx2(bool refit);
   Fit fitCell(const Accum& a) const;
   void dropSpikes();
   bool shadowSpike(std::size_t s, int i, int j) const;

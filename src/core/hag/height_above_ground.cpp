@@ -72,6 +72,9 @@ struct XyzReader {
     std::memcpy(z, p + oz, sizeof(float));
     return std::isfinite(*x) && std::isfinite(*y) && std::isfinite(*z);
   }
+  // y and z follow x in the record, and 4 more bytes after z: a record's x y z is one 16-byte
+  // load (the AVX2 paths' transposes).
+  bool packed() const { return oy == ox + 4 && oz == ox + 8 && ox + 16 <= stride; }
   const std::uint8_t* data;
   std::size_t stride, ox, oy, oz;
 };
@@ -105,6 +108,95 @@ struct Lookup {
   std::size_t nx;
   float x0, y0, inv, hi_u, hi_v;  // lower-left corner, 1 / cell, last u and v inside
 };
+
+#if GF_HAVE_AVX2_PATHS
+// x, y, z of the 8 records from `base` (in.packed()): 8 loads and two 4 x 4 transposes.
+GF_TARGET_AVX2_PATHS inline void loadXyz8(const XyzReader& in, const std::uint8_t* base, __m256* x,
+                                          __m256* y, __m256* z) {
+  __m128 r[8];
+  for (int k = 0; k < 8; ++k) {
+    r[k] = _mm_loadu_ps(reinterpret_cast<const float*>(base + k * in.stride + in.ox));
+  }
+  _MM_TRANSPOSE4_PS(r[0], r[1], r[2], r[3]);
+  _MM_TRANSPOSE4_PS(r[4], r[5], r[6], r[7]);
+  *x = _mm256_insertf128_ps(_mm256_castps128_ps256(r[0]), r[4], 1);
+  *y = _mm256_insertf128_ps(_mm256_castps128_ps256(r[1]), r[5], 1);
+  *z = _mm256_insertf128_ps(_mm256_castps128_ps256(r[2]), r[6], 1);
+}
+
+// All-ones lanes where x, y and z are finite (0 * v is 0, NaN for NaN and Inf).
+GF_TARGET_AVX2_PATHS inline __m256 finiteLanes(__m256 x, __m256 y, __m256 z) {
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256 f = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(x, zero), _mm256_mul_ps(y, zero)),
+                                 _mm256_mul_ps(z, zero));
+  return _mm256_cmp_ps(f, zero, _CMP_EQ_OQ);
+}
+
+// p[g] and p[g + 1] of the eight indices g: each pair one 8-byte element of a gather, half as
+// many elements as two float gathers (a gather's cost grows with its elements).
+GF_TARGET_AVX2_PATHS inline void gatherPairs(const float* p, __m256i g, __m256* first,
+                                             __m256* second) {
+  const long long* q = reinterpret_cast<const long long*>(p);
+  const __m256 lo = _mm256_castsi256_ps(_mm256_i32gather_epi64(q, _mm256_castsi256_si128(g), 4));
+  const __m256 hi =
+      _mm256_castsi256_ps(_mm256_i32gather_epi64(q, _mm256_extracti128_si256(g, 1), 4));
+  // lo: f0 s0 f1 s1 | f2 s2 f3 s3, hi: f4 s4 f5 s5 | f6 s6 f7 s7; the shuffles give
+  // f0 f1 f4 f5 | f2 f3 f6 f7, and the 64-bit permutation the lane order.
+  const __m256 f = _mm256_shuffle_ps(lo, hi, _MM_SHUFFLE(2, 0, 2, 0));
+  const __m256 s = _mm256_shuffle_ps(lo, hi, _MM_SHUFFLE(3, 1, 3, 1));
+  *first = _mm256_castpd_ps(_mm256_permute4x64_pd(_mm256_castps_pd(f), _MM_SHUFFLE(3, 1, 2, 0)));
+  *second = _mm256_castpd_ps(_mm256_permute4x64_pd(_mm256_castps_pd(s), _MM_SHUFFLE(3, 1, 2, 0)));
+}
+
+// gatherGround()'s loop eight points at a time from point 0, for packed records (else it does
+// nothing): the kept points compressed to the front of each block of 8 (a table permutation, no
+// branch on the labels, which alternate in short runs); k and the bounds (min x, min y, max x,
+// max y) carried in and out. Returns where it stopped. The same points, order and bounds as the
+// scalar loop.
+GF_TARGET_AVX2_PATHS std::size_t gatherAvx2(const XyzReader& in, const std::uint8_t* label,
+                                            std::size_t n, float* px, float* py, float* pz,
+                                            std::size_t* k_io, float* b) {
+  if (!in.packed()) return 0;
+  const __m256 inf = _mm256_set1_ps(std::numeric_limits<float>::infinity());
+  const __m256 ninf = _mm256_set1_ps(-std::numeric_limits<float>::infinity());
+  const __m256i one = _mm256_set1_epi32(1);
+  __m256 min_x = _mm256_set1_ps(b[0]), min_y = _mm256_set1_ps(b[1]);
+  __m256 max_x = _mm256_set1_ps(b[2]), max_y = _mm256_set1_ps(b[3]);
+  std::size_t k = *k_io, i = 0;
+  for (; i + 8 <= n; i += 8) {  // k + 8 <= i + 8 <= n: every store inside the arrays
+    __m256 x, y, z;
+    loadXyz8(in, in.data + i * in.stride, &x, &y, &z);
+    std::uint64_t l8;
+    std::memcpy(&l8, label + i, sizeof l8);
+    const __m256i ground = _mm256_cmpeq_epi32(
+        _mm256_cvtepu8_epi32(_mm_cvtsi64_si128(static_cast<long long>(l8))), one);
+    const __m256 keep = _mm256_and_ps(_mm256_castsi256_ps(ground), finiteLanes(x, y, z));
+    const int mask = _mm256_movemask_ps(keep);
+    const __m256i perm = simd::avx2::compressPermutation(mask);
+    _mm256_storeu_ps(px + k, _mm256_permutevar8x32_ps(x, perm));
+    _mm256_storeu_ps(py + k, _mm256_permutevar8x32_ps(y, perm));
+    _mm256_storeu_ps(pz + k, _mm256_permutevar8x32_ps(z, perm));
+    k += static_cast<std::size_t>(__builtin_popcount(static_cast<unsigned>(mask)));
+    min_x = _mm256_min_ps(min_x, _mm256_blendv_ps(inf, x, keep));
+    min_y = _mm256_min_ps(min_y, _mm256_blendv_ps(inf, y, keep));
+    max_x = _mm256_max_ps(max_x, _mm256_blendv_ps(ninf, x, keep));
+    max_y = _mm256_max_ps(max_y, _mm256_blendv_ps(ninf, y, keep));
+  }
+  alignas(32) float v[4][8];
+  _mm256_store_ps(v[0], min_x);
+  _mm256_store_ps(v[1], min_y);
+  _mm256_store_ps(v[2], max_x);
+  _mm256_store_ps(v[3], max_y);
+  for (int j = 0; j < 8; ++j) {
+    b[0] = std::min(b[0], v[0][j]);
+    b[1] = std::min(b[1], v[1][j]);
+    b[2] = std::max(b[2], v[2][j]);
+    b[3] = std::max(b[3], v[3][j]);
+  }
+  *k_io = k;
+  return i;
+}
+#endif
 
 // Heights of points [begin, end) of `in` into h.
 void heightsScalar(const XyzReader& in, const Lookup& at, std::size_t begin, std::size_t end,
@@ -145,34 +237,22 @@ GF_TARGET_AVX2_PATHS std::size_t heightsAvx2(const XyzReader& in, const Lookup& 
   const __m256i nx = _mm256_set1_epi32(static_cast<int>(at.nx));
   const float* c = at.centre;
   const int row = static_cast<int>(at.nx);
-  // y and z follow x, and the record holds 4 bytes more after z.
-  const bool packed = in.oy == in.ox + 4 && in.oz == in.ox + 8 && in.ox + 16 <= in.stride;
+  const bool packed = in.packed();
   std::size_t i = 0;
   for (; i + 8 <= n; i += 8) {
     const std::uint8_t* base = in.data + i * in.stride;
     __m256 x, y, z;
-    if (packed) {  // x y z ? in 16 bytes of each record: 8 loads and a transpose
-      __m128 r[8];
-      for (int k = 0; k < 8; ++k) {
-        r[k] = _mm_loadu_ps(reinterpret_cast<const float*>(base + k * in.stride + in.ox));
-      }
-      _MM_TRANSPOSE4_PS(r[0], r[1], r[2], r[3]);
-      _MM_TRANSPOSE4_PS(r[4], r[5], r[6], r[7]);
-      x = _mm256_insertf128_ps(_mm256_castps128_ps256(r[0]), r[4], 1);
-      y = _mm256_insertf128_ps(_mm256_castps128_ps256(r[1]), r[5], 1);
-      z = _mm256_insertf128_ps(_mm256_castps128_ps256(r[2]), r[6], 1);
+    if (packed) {
+      loadXyz8(in, base, &x, &y, &z);
     } else {
       x = _mm256_i32gather_ps(reinterpret_cast<const float*>(base + in.ox), lane, 1);
       y = _mm256_i32gather_ps(reinterpret_cast<const float*>(base + in.oy), lane, 1);
       z = _mm256_i32gather_ps(reinterpret_cast<const float*>(base + in.oz), lane, 1);
     }
-    // Finite x, y, z: 0 * v is 0, NaN for NaN and Inf.
-    const __m256 fin = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(x, zero), _mm256_mul_ps(y, zero)),
-                                     _mm256_mul_ps(z, zero));
     __m256 u = _mm256_sub_ps(_mm256_mul_ps(_mm256_sub_ps(x, x0), inv), half);
     __m256 v = _mm256_sub_ps(_mm256_mul_ps(_mm256_sub_ps(y, y0), inv), half);
     const __m256 in_grid = _mm256_and_ps(
-        _mm256_and_ps(_mm256_cmp_ps(fin, zero, _CMP_EQ_OQ), _mm256_cmp_ps(u, zero, _CMP_GE_OQ)),
+        _mm256_and_ps(finiteLanes(x, y, z), _mm256_cmp_ps(u, zero, _CMP_GE_OQ)),
         _mm256_and_ps(
             _mm256_and_ps(_mm256_cmp_ps(v, zero, _CMP_GE_OQ), _mm256_cmp_ps(u, hi_u, _CMP_LT_OQ)),
             _mm256_cmp_ps(v, hi_v, _CMP_LT_OQ)));
@@ -182,9 +262,9 @@ GF_TARGET_AVX2_PATHS std::size_t heightsAvx2(const XyzReader& in, const Lookup& 
     const __m256 tx = _mm256_sub_ps(u, _mm256_cvtepi32_ps(i0));
     const __m256 ty = _mm256_sub_ps(v, _mm256_cvtepi32_ps(j0));
     const __m256i g = _mm256_add_epi32(_mm256_mullo_epi32(j0, nx), i0);
-    const __m256 a = _mm256_i32gather_ps(c, g, 4), b = _mm256_i32gather_ps(c + 1, g, 4);
-    const __m256 cc = _mm256_i32gather_ps(c + row, g, 4);
-    const __m256 d = _mm256_i32gather_ps(c + row + 1, g, 4);
+    __m256 a, b, cc, d;
+    gatherPairs(c, g, &a, &b);
+    gatherPairs(c + row, g, &cc, &d);
     const __m256 lo = _mm256_add_ps(a, _mm256_mul_ps(tx, _mm256_sub_ps(b, a)));
     const __m256 hi = _mm256_add_ps(cc, _mm256_mul_ps(tx, _mm256_sub_ps(d, cc)));
     const __m256 e = _mm256_add_ps(lo, _mm256_mul_ps(ty, _mm256_sub_ps(hi, lo)));
@@ -272,7 +352,18 @@ bool GroundSurface::gatherGround(const CloudView& cloud, const std::vector<std::
   float min_x = std::numeric_limits<float>::infinity(), min_y = min_x;
   float max_x = -min_x, max_y = -min_x;
   std::size_t k = 0;
-  for (std::size_t i = 0; i < n; ++i) {
+  std::size_t i = 0;
+#if GF_HAVE_AVX2_PATHS
+  if (simd::allows(simd::Level::kAvx2) && simd::avx2::cpuHasAvx2()) {
+    float b4[4] = {min_x, min_y, max_x, max_y};
+    i = gatherAvx2(in, label, n, px, py, pz, &k, b4);
+    min_x = b4[0];
+    min_y = b4[1];
+    max_x = b4[2];
+    max_y = b4[3];
+  }
+#endif
+  for (; i < n; ++i) {
     float x, y, z;
     if (label[i] != 1 || !in.get(i, &x, &y, &z)) continue;
     px[k] = x;
@@ -290,19 +381,6 @@ bool GroundSurface::gatherGround(const CloudView& cloud, const std::vector<std::
   bounds[2] = max_x;
   bounds[3] = max_y;
   return k > 0;
-}
-
-void GroundSurface::addTo(Accum* a, const Accum& b) {
-  a->n += b.n;
-  a->sx += b.sx;
-  a->sy += b.sy;
-  a->sz += b.sz;
-  a->sxx += b.sxx;
-  a->sxy += b.sxy;
-  a->syy += b.syy;
-  a->sxz += b.sxz;
-  a->syz += b.syz;
-  a->szz += b.szz;
 }
 
 // Each ground point's grid cell (into pslot_, for accumulate()) and its x, y relative to the
@@ -327,11 +405,62 @@ void GroundSurface::cellOffsets() {
   }
 }
 
+namespace {
+
+// The sums of a run of points in one cell (see accumulate()), in the field order of
+// GroundSurface::Accum: n, x, y, z | xx, xy, yy, zz | xz, yz. Portable code: ten doubles.
+struct ScalarRun {
+  double s[10];
+  void reset() { std::fill(s, s + 10, 0.0); }
+  void add(double dx, double dy, double dz) {
+    s[0] += 1.0;
+    s[1] += dx;
+    s[2] += dy;
+    s[3] += dz;
+    s[4] += dx * dx;
+    s[5] += dx * dy;
+    s[6] += dy * dy;
+    s[7] += dz * dz;
+    s[8] += dx * dz;
+    s[9] += dy * dz;
+  }
+  void addTo(double* acc) const {
+    for (int j = 0; j < 10; ++j) acc[j] += s[j];
+  }
+};
+
+#if GF_HAVE_AVX2_PATHS
+// ScalarRun in three registers: the ten doubles would not fit the sixteen scalar registers,
+// and their spills to the stack made each point wait on a store (2x slower). Lane by lane the
+// same additions and products (not fused) in the same order: the same sums, bit for bit.
+struct Avx2Run {
+  __m256d a, b, c;  // n x y z | xx xy yy zz | xz yz - -
+  GF_TARGET_AVX2_PATHS void reset() { a = b = c = _mm256_setzero_pd(); }
+  GF_TARGET_AVX2_PATHS void add(double dx, double dy, double dz) {
+    const __m256d d = _mm256_setr_pd(1.0, dx, dy, dz);
+    a = _mm256_add_pd(a, d);
+    const __m256d p = _mm256_permute4x64_pd(d, _MM_SHUFFLE(3, 2, 1, 1));  // x x y z
+    const __m256d q = _mm256_permute4x64_pd(d, _MM_SHUFFLE(3, 2, 2, 1));  // x y y z
+    b = _mm256_add_pd(b, simd::avx2::opaque(_mm256_mul_pd(p, q)));
+    const __m256d r = _mm256_permute4x64_pd(d, _MM_SHUFFLE(3, 3, 3, 3));  // z z z z
+    c = _mm256_add_pd(c, simd::avx2::opaque(_mm256_mul_pd(q, r)));        // xz yz yz zz
+  }
+  GF_TARGET_AVX2_PATHS void addTo(double* acc) const {
+    _mm256_storeu_pd(acc, _mm256_add_pd(_mm256_loadu_pd(acc), a));
+    _mm256_storeu_pd(acc + 4, _mm256_add_pd(_mm256_loadu_pd(acc + 4), b));
+    _mm_storeu_pd(acc + 8, _mm_add_pd(_mm_loadu_pd(acc + 8), _mm256_castpd256_pd128(c)));
+  }
+};
+#endif
+
+}  // namespace
+
 // Sums of the ground points of each occupied cell (x, y relative to the cell centre, z to
 // z_ref_) and the occupied cells in the order their first point comes; pslot_ from grid cell
 // to occupied cell. refit: of the cells marked kRefit only, the points within kOutlierSigmas
 // rms of fit_.
-void GroundSurface::accumulate(bool refit) {
+template <class Run>
+inline __attribute__((always_inline)) void GroundSurface::accumulateWith(bool refit) {
   // Locals only in the loop: the stores would make the compiler reload members.
   const double z_ref = z_ref_;
   const std::size_t n = ground_;
@@ -343,7 +472,8 @@ void GroundSurface::accumulate(bool refit) {
   Accum* acc = acc_.data();
   // Consecutive points mostly share a cell: their sums run in registers (`run`) and go to the
   // cell's Accum when the cell changes, instead of a load and store of it for every point.
-  Accum run{0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+  Run run;
+  run.reset();
   std::int32_t cur = -1;
   for (std::size_t i = 0; i < n; ++i) {
     std::int32_t s;
@@ -367,23 +497,34 @@ void GroundSurface::accumulate(bool refit) {
       pslot[i] = s;
     }
     if (s != cur) {
-      if (cur >= 0) addTo(&acc[cur], run);
+      if (cur >= 0) run.addTo(&acc[cur].n);
       cur = s;
-      run = Accum{0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+      run.reset();
     }
-    run.n += 1.0;
-    run.sx += dx;
-    run.sy += dy;
-    run.sz += dz;
-    run.sxx += dx * dx;
-    run.sxy += dx * dy;
-    run.syy += dy * dy;
-    run.sxz += dx * dz;
-    run.syz += dy * dz;
-    run.szz += dz * dz;
+    run.add(dx, dy, dz);
   }
-  if (cur >= 0) addTo(&acc[cur], run);
+  if (cur >= 0) run.addTo(&acc[cur].n);
 }
+
+// accumulateWith() with the AVX2 registers where the CPU and GF_SIMD allow them.
+void GroundSurface::accumulate(bool refit) {
+  static_assert(sizeof(Accum) == 10 * sizeof(double), "Accum: ten doubles, no padding");
+#if GF_HAVE_AVX2_PATHS
+  if (simd::allows(simd::Level::kAvx2) && simd::avx2::cpuHasAvx2()) {
+    accumulateAvx2(refit);
+    return;
+  }
+#endif
+  accumulateWith<ScalarRun>(refit);
+}
+
+#if GF_HAVE_AVX2_PATHS
+GF_TARGET_AVX2_PATHS void GroundSurface::accumulateAvx2(bool refit) {
+  accumulateWith<Avx2Run>(refit);
+}
+#else
+void GroundSurface::accumulateAvx2(bool refit) { accumulateWith<ScalarRun>(refit); }
+#endif
 
 // Least squares z = z0 + g . d on the directions the points spread along (a pseudo-inverse of
 // their 2x2 covariance); mean z where they do not, or where the slope is implausible.

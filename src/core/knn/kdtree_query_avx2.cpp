@@ -96,22 +96,6 @@ GF_TARGET_AVX2_PATHS inline void bitonicSort4(__m256i* v) {
   }
 }
 
-/// The 8 lanes of an 8-bit mask's set bits, packed to the front (4 bits per lane).
-struct CompressTable {
-  std::uint32_t lanes[256];
-  constexpr CompressTable() : lanes() {
-    for (int m = 0; m < 256; ++m) {
-      std::uint32_t v = 0;
-      int o = 0;
-      for (int b = 0; b < 8; ++b) {
-        if (m & (1 << b)) v |= static_cast<std::uint32_t>(b) << (4 * o++);
-      }
-      lanes[m] = v;
-    }
-  }
-};
-constexpr CompressTable kCompress{};
-
 /// Squared distance from q (4 floats, q[3] = 0) to a node's box.
 GF_TARGET_AVX2_PATHS inline float boxDistAvx2(const Node& nd, const float* q) {
   const __m128 q4 = _mm_load_ps(q);  // q[3] = 0, like the boxes' padding
@@ -146,8 +130,6 @@ GF_TARGET_AVX2_PATHS inline int packLeafAvx2(const Tree& t, const Node& nd, int 
   const float *x = t.px.data() + b, *y = t.py.data() + b, *z = t.pz.data() + b;
   const std::uint32_t* ids = t.pidx.data() + b;
   const __m256 qx = _mm256_set1_ps(q[0]), qy = _mm256_set1_ps(q[1]), qz = _mm256_set1_ps(q[2]);
-  const __m256i shifts = _mm256_setr_epi32(0, 4, 8, 12, 16, 20, 24, 28);
-  const __m256i nibble = _mm256_set1_epi32(0xf);
   __m256 thr = _mm256_set1_ps(thr_in);
   for (int j = 0; j < m; j += 8) {
     __m256 px, py, pz;
@@ -172,9 +154,7 @@ GF_TARGET_AVX2_PATHS inline int packLeafAvx2(const Tree& t, const Node& nd, int 
         _mm256_add_ps(_mm256_add_ps(opaque(_mm256_mul_ps(dx, dx)), opaque(_mm256_mul_ps(dy, dy))),
                       opaque(_mm256_mul_ps(dz, dz)));
     const int keep = _mm256_movemask_ps(_mm256_cmp_ps(d, thr, _CMP_LE_OQ)) & in;
-    const __m256i perm = _mm256_and_si256(
-        _mm256_srlv_epi32(_mm256_set1_epi32(static_cast<int>(kCompress.lanes[keep])), shifts),
-        nibble);
+    const __m256i perm = simd::avx2::compressPermutation(keep);
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(cd + n),
                         _mm256_permutevar8x32_epi32(_mm256_castps_si256(d), perm));
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(ci + n), _mm256_permutevar8x32_epi32(pi, perm));
