@@ -36,7 +36,7 @@ gf_core_room(knn kdtree_neighbor_search kdtree_build kdtree_query_avx512 kdtree_
              kdtree_query_neon)
 gf_core_room(knn neighborhood_pca neighbor_search_factory)
 # height above ground: the ground surface from a filter's labels
-gf_core_room(hag height_above_ground)
+gf_core_room(hag height_above_ground surface_points_avx2)
 
 # The CUDA library's entry points (makeGpuKnnBackend(), makeGpuNormalExecutor(), ...) where CUDA is
 # not built: added to the core instead of linking ground_filter_cuda (cuda/src/gpu_*.cpp define
