@@ -146,6 +146,7 @@ class GroundSurface {
   std::vector<std::uint8_t> flags_;      // per occupied cell: refit, spike bits
   std::vector<std::uint32_t> count_;     // per occupied cell: its ground points
   std::vector<float> block_low_;         // per block of kBlock x kBlock cells: lowest z_
+  std::vector<float> planes_;            // per grid cell: z_ (+inf: none), gx_, gy_
   std::vector<float> kernel_;            // 1 / d^2 of the fill window, 0 beyond the radius
   std::vector<SurfaceCell> cells_;
 };

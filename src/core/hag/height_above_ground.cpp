@@ -366,9 +366,48 @@ void GroundSurface::dropSpikes() {
   const float cell = static_cast<float>(cell_);
   const std::size_t occ = occupied_.size();
   if (ground_level_) blockLows();
+  // Each grid cell's plane (z, gx, gy; z +inf where empty) in one dense array: most cells stand
+  // no higher above their lowest neighbour than the tests allow, and the dense rows give the
+  // lowest neighbours without a branch (empty cells extrapolate to +inf).
+  const std::size_t cells = static_cast<std::size_t>(nx_) * static_cast<std::size_t>(ny_);
+  planes_.resize(3 * cells);
+  float* pl = planes_.data();
+  for (std::size_t g = 0; g < cells; ++g) {
+    pl[3 * g] = std::numeric_limits<float>::infinity();
+    pl[3 * g + 1] = pl[3 * g + 2] = 0.f;
+  }
+  for (std::size_t s = 0; s < occ; ++s) {
+    float* c = pl + 3 * static_cast<std::size_t>(occupied_[s]);
+    c[0] = z_[s];
+    c[1] = gx_[s];
+    c[2] = gy_[s];
+  }
   for (std::size_t s = 0; s < occ; ++s) {
     const std::uint32_t g = occupied_[s];
     const int j = static_cast<int>(g / nx_), i = static_cast<int>(g) - j * nx_;
+    if (i >= kPatchReach && j >= kPatchReach && i < nx_ - kPatchReach && j < ny_ - kPatchReach) {
+      // The lowest of the neighbours' planes at this centre (the same values as below), and
+      // the occupied cells of the window.
+      float low_near = std::numeric_limits<float>::infinity(), low_all = low_near;
+      int occupied = 0;
+      for (int dj = -kPatchReach; dj <= kPatchReach; ++dj) {
+        const float* row = pl + 3 * (static_cast<std::size_t>(j + dj) * nx_ + i);
+        for (int di = -kPatchReach; di <= kPatchReach; ++di) {
+          if (di == 0 && dj == 0) continue;
+          const float* c = row + 3 * di;
+          const float p =
+              c[0] + c[1] * static_cast<float>(-di) * cell + c[2] * static_cast<float>(-dj) * cell;
+          occupied += c[0] != std::numeric_limits<float>::infinity();
+          low_all = std::min(low_all, p);
+          if (di >= -1 && di <= 1 && dj >= -1 && dj <= 1) low_near = std::min(low_near, p);
+        }
+      }
+      const float z = z_[s];
+      if (z - low_near <= kSpikeHeight && z - low_all <= kPatchHeight) {  // no median needed
+        if (ground_level_ && occupied < kPatchLeast && shadowSpike(s, i, j)) flags_[s] |= kSpike;
+        continue;
+      }
+    }
     // The neighbours' planes at this centre: all within kPatchReach, and the 8 nearest.
     float all[(2 * kPatchReach + 1) * (2 * kPatchReach + 1)], near[8];
     int ka = 0, kn = 0;
@@ -440,6 +479,64 @@ void GroundSurface::blockLows() {
   }
 }
 
+namespace {
+
+// What fill()'s scatter reads, in locals.
+template <class FitT>
+struct ScatterOf {
+  const std::uint32_t* occupied;  // grid cell of each occupied cell
+  const std::uint8_t* flags;      // kSpike: not scattered
+  const FitT* fit;                // plane height relative to z_ref at the centre
+  const float *gx, *gy;           // slopes
+  const float* kernel;            // (2 reach + 1)^2 weights 1 / d^2, 0 beyond the radius
+  std::size_t occ;
+  int nx, ny, reach;
+  float cell;
+};
+
+// Each occupied cell (not a spike) adds its weights and its plane, extrapolated, to the cells
+// within reach: ws and zs of a few dense row spans. Inlined into two builds (plain and AVX2), so
+// the compiler vectorises the spans eight wide where it may; element by element the same
+// operations, hence the same sums.
+template <class Sc>
+inline __attribute__((always_inline)) void scatterSpans(const Sc& a, float* __restrict ws,
+                                                        float* __restrict zs) {
+  const int reach = a.reach, side = 2 * reach + 1, nx = a.nx, ny = a.ny;
+  for (std::size_t s = 0; s < a.occ; ++s) {
+    if (a.flags[s] & kSpike) continue;
+    const std::uint32_t g = a.occupied[s];
+    const int i = static_cast<int>(g % static_cast<std::uint32_t>(nx));
+    const int j = static_cast<int>(g / static_cast<std::uint32_t>(nx));
+    const float z = static_cast<float>(a.fit[s].z), gxc = a.gx[s] * a.cell, gyc = a.gy[s] * a.cell;
+    const int di_lo = std::max(-reach, -i), di_hi = std::min(reach, nx - 1 - i);
+    for (int dj = std::max(-reach, -j); dj <= std::min(reach, ny - 1 - j); ++dj) {
+      const float* __restrict k = a.kernel + static_cast<std::size_t>(dj + reach) * side + reach;
+      const std::size_t row = static_cast<std::size_t>(j + dj) * nx + i;
+      float* __restrict w = ws + row;
+      float* __restrict zr = zs + row;
+      const float base = z + gyc * static_cast<float>(dj);
+      for (int di = di_lo; di <= di_hi; ++di) {
+        w[di] += k[di];
+        zr[di] += k[di] * (base + gxc * static_cast<float>(di));
+      }
+    }
+  }
+}
+
+template <class Sc>
+void scatterPlanes(const Sc& a, float* ws, float* zs) {
+  scatterSpans(a, ws, zs);
+}
+
+#if GF_HAVE_AVX2_PATHS
+template <class Sc>
+GF_TARGET_AVX2_PATHS void scatterPlanesAvx2(const Sc& a, float* ws, float* zs) {
+  scatterSpans(a, ws, zs);
+}
+#endif
+
+}  // namespace
+
 // Every cell's elevation at its centre: an occupied cell's own plane; any other cell the
 // inverse-distance-weighted average of the planes of the occupied cells within the radius, each
 // extrapolated to its centre, NaN where there are none. Each occupied cell adds its plane to the
@@ -464,25 +561,19 @@ void GroundSurface::fill() {
   centre_.assign(cells, 0.f);  // first the weighted sums of z - z_ref_
   float* __restrict ws = wsum_.data();
   float* __restrict zs = centre_.data();
-  const std::size_t occ = occupied_.size();
-  for (std::size_t s = 0; reach > 0 && s < occ; ++s) {
-    if (flags_[s] & kSpike) continue;
-    const std::uint32_t g = occupied_[s];
-    const int i = static_cast<int>(g % nx_), j = static_cast<int>(g / nx_);
-    const float z = static_cast<float>(fit_[s].z), gxc = gx_[s] * cell, gyc = gy_[s] * cell;
-    const int di_lo = std::max(-reach, -i), di_hi = std::min(reach, nx_ - 1 - i);
-    for (int dj = std::max(-reach, -j); dj <= std::min(reach, ny_ - 1 - j); ++dj) {
-      const float* __restrict k =
-          kernel_.data() + static_cast<std::size_t>(dj + reach) * side + reach;
-      const std::size_t row = static_cast<std::size_t>(j + dj) * nx_ + i;
-      float* __restrict w = ws + row;
-      float* __restrict zr = zs + row;
-      const float base = z + gyc * static_cast<float>(dj);
-      for (int di = di_lo; di <= di_hi; ++di) {
-        w[di] += k[di];
-        zr[di] += k[di] * (base + gxc * static_cast<float>(di));
-      }
+  if (reach > 0) {
+    const ScatterOf<Fit> sc{
+        occupied_.data(), flags_.data(), fit_.data(), gx_.data(), gy_.data(), kernel_.data(),
+        occupied_.size(), nx_,           ny_,         reach,      cell};
+#if GF_HAVE_AVX2_PATHS
+    if (simd::allows(simd::Level::kAvx2) && simd::avx2::cpuHasAvx2()) {
+      scatterPlanesAvx2(sc, ws, zs);
+    } else {
+      scatterPlanes(sc, ws, zs);
     }
+#else
+    scatterPlanes(sc, ws, zs);
+#endif
   }
   const float z_ref = static_cast<float>(z_ref_);
   for (std::size_t g = 0; g < cells; ++g) {
