@@ -135,10 +135,13 @@ class GroundSurface {
   // Per finite ground point (cloud order): x, y, z; x, y relative to the cell centre after
   // cellOffsets().
   std::vector<float> px_, py_, pz_;
-  std::vector<std::int32_t> pslot_;      // per ground point: its grid cell, then its occupied cell
-  std::vector<std::int32_t> slot_;       // per grid cell: its occupied-cell index, or -1
-  std::vector<float> centre_;            // per grid cell: elevation at the centre, NaN: none
-  std::vector<float> wsum_;              // per grid cell: fill weights (fill())
+  std::vector<std::int32_t> pslot_;       // per ground point: its grid cell
+  std::vector<std::uint32_t> run_start_;  // first ground point of each run of points in one cell
+  std::vector<std::int32_t> run_slot_;    // per run: its occupied cell
+  std::vector<std::int32_t> slot_;        // per grid cell: its occupied-cell index, or -1
+  std::vector<float> centre_;             // per grid cell: elevation at the centre, NaN: none
+  std::vector<float> wsum_;     // per grid cell: fill weights (fill()); before it z_ (dropSpikes())
+  std::vector<float> gy_grid_;  // per grid cell: gy_ (dropSpikes(); centre_ holds gx_ then)
   std::vector<std::uint32_t> occupied_;  // grid cell of each occupied cell, first seen first
   std::vector<Accum> acc_;               // per occupied cell
   std::vector<Fit> fit_;                 // per occupied cell
@@ -146,7 +149,6 @@ class GroundSurface {
   std::vector<std::uint8_t> flags_;      // per occupied cell: refit, spike bits
   std::vector<std::uint32_t> count_;     // per occupied cell: its ground points
   std::vector<float> block_low_;         // per block of kBlock x kBlock cells: lowest z_
-  std::vector<float> planes_;            // per grid cell: z_ (+inf: none), gx_, gy_
   std::vector<float> kernel_;            // 1 / d^2 of the fill window, 0 beyond the radius
   std::vector<SurfaceCell> cells_;
 };

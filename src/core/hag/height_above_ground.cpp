@@ -24,6 +24,7 @@ namespace {
 using hag::bilinear;
 using hag::kNaN;
 using hag::Lookup;
+using hag::ScalarRun;
 using hag::XyzReader;
 // A plane's slope is fitted along a direction only where the cell's points spread along it by
 // at least this share of the cell edge (standard deviation); elsewhere the slope is 0.
@@ -201,103 +202,68 @@ void GroundSurface::cellOffsets() {
   }
 }
 
-namespace {
-
-// The sums of a run of points in one cell (see accumulate()), in the field order of
-// GroundSurface::Accum: n, x, y, z | xx, xy, yy, zz | xz, yz. Portable code: ten doubles.
-struct ScalarRun {
-  double s[10];
-  void reset() { std::fill(s, s + 10, 0.0); }
-  void add(double dx, double dy, double dz) {
-    s[0] += 1.0;
-    s[1] += dx;
-    s[2] += dy;
-    s[3] += dz;
-    s[4] += dx * dx;
-    s[5] += dx * dy;
-    s[6] += dy * dy;
-    s[7] += dz * dz;
-    s[8] += dx * dz;
-    s[9] += dy * dz;
-  }
-  void addTo(double* acc) const {
-    for (int j = 0; j < 10; ++j) acc[j] += s[j];
-  }
-};
-
-#if GF_HAVE_AVX2_PATHS
-// ScalarRun in three registers: the ten doubles would not fit the sixteen scalar registers,
-// and their spills to the stack made each point wait on a store (2x slower). Lane by lane the
-// same additions and products (not fused) in the same order: the same sums, bit for bit.
-struct Avx2Run {
-  __m256d a, b, c;  // n x y z | xx xy yy zz | xz yz - -
-  GF_TARGET_AVX2_PATHS void reset() { a = b = c = _mm256_setzero_pd(); }
-  GF_TARGET_AVX2_PATHS void add(double dx, double dy, double dz) {
-    const __m256d d = _mm256_setr_pd(1.0, dx, dy, dz);
-    a = _mm256_add_pd(a, d);
-    const __m256d p = _mm256_permute4x64_pd(d, _MM_SHUFFLE(3, 2, 1, 1));  // x x y z
-    const __m256d q = _mm256_permute4x64_pd(d, _MM_SHUFFLE(3, 2, 2, 1));  // x y y z
-    b = _mm256_add_pd(b, simd::avx2::opaque(_mm256_mul_pd(p, q)));
-    const __m256d r = _mm256_permute4x64_pd(d, _MM_SHUFFLE(3, 3, 3, 3));  // z z z z
-    c = _mm256_add_pd(c, simd::avx2::opaque(_mm256_mul_pd(q, r)));        // xz yz yz zz
-  }
-  GF_TARGET_AVX2_PATHS void addTo(double* acc) const {
-    _mm256_storeu_pd(acc, _mm256_add_pd(_mm256_loadu_pd(acc), a));
-    _mm256_storeu_pd(acc + 4, _mm256_add_pd(_mm256_loadu_pd(acc + 4), b));
-    _mm_storeu_pd(acc + 8, _mm_add_pd(_mm_loadu_pd(acc + 8), _mm256_castpd256_pd128(c)));
-  }
-};
-#endif
-
-}  // namespace
-
 // Sums of the ground points of each occupied cell (x, y relative to the cell centre, z to
-// z_ref_) and the occupied cells in the order their first point comes; pslot_ from grid cell
-// to occupied cell. refit: of the cells marked kRefit only, the points within kOutlierSigmas
-// rms of fit_.
+// z_ref_) and the occupied cells in the order their first point comes; the runs of consecutive
+// points in one cell (run_start_, run_slot_). refit: of the cells marked kRefit only, the points
+// within kOutlierSigmas rms of fit_, read run by run (the other runs' points are not touched):
+// the same points in the same order as a pass over all of them.
 template <class Run>
 inline __attribute__((always_inline)) void GroundSurface::accumulateWith(bool refit) {
-  // Locals only in the loop: the stores would make the compiler reload members.
+  // Locals only in the loops: the stores would make the compiler reload members.
   const double z_ref = z_ref_;
   const std::size_t n = ground_;
   const float *px = px_.data(), *py = py_.data(), *pz = pz_.data();
-  std::int32_t* pslot = pslot_.data();
-  std::int32_t* slot = slot_.data();
-  const std::uint8_t* flags = flags_.data();
-  const Fit* fit = fit_.data();
   Accum* acc = acc_.data();
   // Consecutive points mostly share a cell: their sums run in registers (`run`) and go to the
   // cell's Accum when the cell changes, instead of a load and store of it for every point.
   Run run;
   run.reset();
   std::int32_t cur = -1;
-  for (std::size_t i = 0; i < n; ++i) {
-    std::int32_t s;
-    if (refit) {
-      s = pslot[i];
-      if (!(flags[s] & kRefit)) continue;
-    }
-    const double dx = px[i], dy = py[i], dz = pz[i] - z_ref;
-    if (refit) {
-      const Fit& f = fit[s];
-      if (std::fabs(dz - f.z - f.gx * dx - f.gy * dy) > kOutlierSigmas * f.rms) continue;
-    } else {
-      const std::int32_t g = pslot[i];
-      s = slot[g];
+  if (!refit) {
+    const std::int32_t* cell = pslot_.data();
+    std::int32_t* slot = slot_.data();
+    run_start_.clear();
+    run_slot_.clear();
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::int32_t g = cell[i];
+      std::int32_t s = slot[g];
       if (s < 0) {
         s = slot[g] = static_cast<std::int32_t>(occupied_.size());
         occupied_.push_back(static_cast<std::uint32_t>(g));
         acc_.push_back(Accum{0, 0, 0, 0, 0, 0, 0, 0, 0, 0});
         acc = acc_.data();
       }
-      pslot[i] = s;
+      if (s != cur) {
+        if (cur >= 0) run.addTo(&acc[cur].n);
+        cur = s;
+        run.reset();
+        run_start_.push_back(static_cast<std::uint32_t>(i));
+        run_slot_.push_back(s);
+      }
+      run.add(px[i], py[i], pz[i] - z_ref);
     }
-    if (s != cur) {
-      if (cur >= 0) run.addTo(&acc[cur].n);
-      cur = s;
-      run.reset();
+  } else {
+    const std::uint8_t* flags = flags_.data();
+    const Fit* fit = fit_.data();
+    const std::uint32_t* start = run_start_.data();
+    const std::int32_t* run_slot = run_slot_.data();
+    const std::size_t runs = run_start_.size();
+    for (std::size_t r = 0; r < runs; ++r) {
+      const std::int32_t s = run_slot[r];
+      if (!(flags[s] & kRefit)) continue;
+      const Fit f = fit[s];
+      const std::size_t end = r + 1 < runs ? start[r + 1] : n;
+      for (std::size_t i = start[r]; i < end; ++i) {
+        const double dx = px[i], dy = py[i], dz = pz[i] - z_ref;
+        if (std::fabs(dz - f.z - f.gx * dx - f.gy * dy) > kOutlierSigmas * f.rms) continue;
+        if (s != cur) {
+          if (cur >= 0) run.addTo(&acc[cur].n);
+          cur = s;
+          run.reset();
+        }
+        run.add(dx, dy, dz);
+      }
     }
-    run.add(dx, dy, dz);
   }
   if (cur >= 0) run.addTo(&acc[cur].n);
 }
@@ -316,7 +282,7 @@ void GroundSurface::accumulate(bool refit) {
 
 #if GF_HAVE_AVX2_PATHS
 GF_TARGET_AVX2_PATHS void GroundSurface::accumulateAvx2(bool refit) {
-  accumulateWith<Avx2Run>(refit);
+  accumulateWith<hag::Avx2Run>(refit);
 }
 #else
 void GroundSurface::accumulateAvx2(bool refit) { accumulateWith<ScalarRun>(refit); }
@@ -366,21 +332,20 @@ void GroundSurface::dropSpikes() {
   const float cell = static_cast<float>(cell_);
   const std::size_t occ = occupied_.size();
   if (ground_level_) blockLows();
-  // Each grid cell's plane (z, gx, gy; z +inf where empty) in one dense array: most cells stand
-  // no higher above their lowest neighbour than the tests allow, and the dense rows give the
-  // lowest neighbours without a branch (empty cells extrapolate to +inf).
+  // Most cells stand no higher above their lowest neighbours than the tests allow: found from
+  // every grid cell's plane in three dense arrays (z +inf, no slope where the cell is empty, so
+  // no branch on which neighbours are occupied), the medians are left out. The arrays are the
+  // fill's (wsum_, centre_: fill() sets them anew) and gy_grid_.
   const std::size_t cells = static_cast<std::size_t>(nx_) * static_cast<std::size_t>(ny_);
-  planes_.resize(3 * cells);
-  float* pl = planes_.data();
-  for (std::size_t g = 0; g < cells; ++g) {
-    pl[3 * g] = std::numeric_limits<float>::infinity();
-    pl[3 * g + 1] = pl[3 * g + 2] = 0.f;
-  }
+  wsum_.assign(cells, std::numeric_limits<float>::infinity());
+  centre_.assign(cells, 0.f);
+  gy_grid_.assign(cells, 0.f);
+  float *pz = wsum_.data(), *pgx = centre_.data(), *pgy = gy_grid_.data();
   for (std::size_t s = 0; s < occ; ++s) {
-    float* c = pl + 3 * static_cast<std::size_t>(occupied_[s]);
-    c[0] = z_[s];
-    c[1] = gx_[s];
-    c[2] = gy_[s];
+    const std::uint32_t g = occupied_[s];
+    pz[g] = z_[s];
+    pgx[g] = gx_[s];
+    pgy[g] = gy_[s];
   }
   for (std::size_t s = 0; s < occ; ++s) {
     const std::uint32_t g = occupied_[s];
@@ -391,13 +356,13 @@ void GroundSurface::dropSpikes() {
       float low_near = std::numeric_limits<float>::infinity(), low_all = low_near;
       int occupied = 0;
       for (int dj = -kPatchReach; dj <= kPatchReach; ++dj) {
-        const float* row = pl + 3 * (static_cast<std::size_t>(j + dj) * nx_ + i);
+        const std::size_t row = static_cast<std::size_t>(j + dj) * nx_ + i;
+        const float *rz = pz + row, *rgx = pgx + row, *rgy = pgy + row;
         for (int di = -kPatchReach; di <= kPatchReach; ++di) {
           if (di == 0 && dj == 0) continue;
-          const float* c = row + 3 * di;
-          const float p =
-              c[0] + c[1] * static_cast<float>(-di) * cell + c[2] * static_cast<float>(-dj) * cell;
-          occupied += c[0] != std::numeric_limits<float>::infinity();
+          const float p = rz[di] + rgx[di] * static_cast<float>(-di) * cell +
+                          rgy[di] * static_cast<float>(-dj) * cell;
+          occupied += rz[di] != std::numeric_limits<float>::infinity();
           low_all = std::min(low_all, p);
           if (di >= -1 && di <= 1 && dj >= -1 && dj <= 1) low_near = std::min(low_near, p);
         }

@@ -2,9 +2,10 @@
 #define GROUND_FILTER_SRC_CORE_HAG_SURFACE_POINTS_H
 
 // What the ground surface's passes over a cloud share (height_above_ground.cpp, and the AVX2
-// passes of surface_points_avx2.cpp): the records' x, y, z, the bilinear elevation, and the
-// AVX2 passes' entry points.
+// passes of surface_points_avx2.cpp): the records' x, y, z, the bilinear elevation, the sums of
+// a cell's points, and the AVX2 passes' entry points.
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -67,7 +68,51 @@ struct Lookup {
   float x0, y0, inv, hi_u, hi_v;  // lower-left corner, 1 / cell, last u and v inside
 };
 
+// The sums of a run of points in one cell (GroundSurface::accumulate()), in the field order of
+// GroundSurface::Accum: n, x, y, z | xx, xy, yy, zz | xz, yz. Portable code: ten doubles.
+struct ScalarRun {
+  double s[10];
+  void reset() { std::fill(s, s + 10, 0.0); }
+  void add(double dx, double dy, double dz) {
+    s[0] += 1.0;
+    s[1] += dx;
+    s[2] += dy;
+    s[3] += dz;
+    s[4] += dx * dx;
+    s[5] += dx * dy;
+    s[6] += dy * dy;
+    s[7] += dz * dz;
+    s[8] += dx * dz;
+    s[9] += dy * dz;
+  }
+  void addTo(double* acc) const {
+    for (int j = 0; j < 10; ++j) acc[j] += s[j];
+  }
+};
+
 #if GF_HAVE_AVX2_PATHS
+// ScalarRun in three registers: the ten doubles would not fit the sixteen scalar registers,
+// and their spills to the stack made each point wait on a store (2x slower). Lane by lane the
+// same additions and products (not fused) in the same order: the same sums, bit for bit.
+struct Avx2Run {
+  __m256d a, b, c;  // n x y z | xx xy yy zz | xz yz - -
+  GF_TARGET_AVX2_PATHS void reset() { a = b = c = _mm256_setzero_pd(); }
+  GF_TARGET_AVX2_PATHS void add(double dx, double dy, double dz) {
+    const __m256d d = _mm256_setr_pd(1.0, dx, dy, dz);
+    a = _mm256_add_pd(a, d);
+    const __m256d p = _mm256_permute4x64_pd(d, _MM_SHUFFLE(3, 2, 1, 1));  // x x y z
+    const __m256d q = _mm256_permute4x64_pd(d, _MM_SHUFFLE(3, 2, 2, 1));  // x y y z
+    b = _mm256_add_pd(b, simd::avx2::opaque(_mm256_mul_pd(p, q)));
+    const __m256d r = _mm256_permute4x64_pd(d, _MM_SHUFFLE(3, 3, 3, 3));  // z z z z
+    c = _mm256_add_pd(c, simd::avx2::opaque(_mm256_mul_pd(q, r)));        // xz yz yz zz
+  }
+  GF_TARGET_AVX2_PATHS void addTo(double* acc) const {
+    _mm256_storeu_pd(acc, _mm256_add_pd(_mm256_loadu_pd(acc), a));
+    _mm256_storeu_pd(acc + 4, _mm256_add_pd(_mm256_loadu_pd(acc + 4), b));
+    _mm_storeu_pd(acc + 8, _mm_add_pd(_mm_loadu_pd(acc + 8), _mm256_castpd256_pd128(c)));
+  }
+};
+
 /// \brief The finite points labelled 1 of `in` into px, py, pz from *k_io on, eight at a time from
 ///        point 0, for records whose x y z lie in 16 bytes (else nothing); the bounds b (min x,
 ///        min y, max x, max y) and *k_io carried in and out. Returns the point where it stopped.
