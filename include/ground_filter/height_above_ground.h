@@ -120,6 +120,7 @@ class GroundSurface {
   void accumulateAvx2(bool refit);
   Fit fitCell(const Accum& a) const;
   void dropSpikes();
+  bool medianSpike(std::size_t s, int i, int j, int* ka) const;
   bool shadowSpike(std::size_t s, int i, int j) const;
   void blockLows();
   static constexpr int kBlock = 4;  // cells: edge of a block of block_low_

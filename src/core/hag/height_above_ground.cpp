@@ -66,6 +66,15 @@ constexpr double kConfidenceRms = 0.05;    // ... / (1 + (rms / this)^2) [m]
 constexpr std::uint8_t kRefit = 1;  // refitted without its outliers
 constexpr std::uint8_t kSpike = 2;  // dropped: too high above its neighbours
 
+// Whether the AVX2 passes run: the GF_SIMD level allows them and the CPU has them.
+inline bool avx2Paths() {
+#if GF_HAVE_AVX2_PATHS
+  return simd::allows(simd::Level::kAvx2) && simd::avx2::cpuHasAvx2();
+#else
+  return false;
+#endif
+}
+
 // Heights of points [begin, end) of `in` into h.
 void heightsScalar(const XyzReader& in, const Lookup& at, std::size_t begin, std::size_t end,
                    float* h) {
@@ -146,20 +155,14 @@ bool GroundSurface::gatherGround(const CloudView& cloud, const std::vector<std::
   const XyzReader in(cloud);
   const std::uint8_t* label = labels.data();
   float *px = px_.data(), *py = py_.data(), *pz = pz_.data();
-  float min_x = std::numeric_limits<float>::infinity(), min_y = min_x;
-  float max_x = -min_x, max_y = -min_x;
-  std::size_t k = 0;
-  std::size_t i = 0;
+  const float inf = std::numeric_limits<float>::infinity();
+  bounds[0] = bounds[1] = inf;
+  bounds[2] = bounds[3] = -inf;
+  std::size_t k = 0, i = 0;
 #if GF_HAVE_AVX2_PATHS
-  if (simd::allows(simd::Level::kAvx2) && simd::avx2::cpuHasAvx2()) {
-    float b4[4] = {min_x, min_y, max_x, max_y};
-    i = hag::gatherAvx2(in, label, n, px, py, pz, &k, b4);
-    min_x = b4[0];
-    min_y = b4[1];
-    max_x = b4[2];
-    max_y = b4[3];
-  }
+  if (avx2Paths()) i = hag::gatherAvx2(in, label, n, px, py, pz, &k, bounds);
 #endif
+  float min_x = bounds[0], min_y = bounds[1], max_x = bounds[2], max_y = bounds[3];
   for (; i < n; ++i) {
     float x, y, z;
     if (label[i] != 1 || !in.get(i, &x, &y, &z)) continue;
@@ -272,7 +275,7 @@ inline __attribute__((always_inline)) void GroundSurface::accumulateWith(bool re
 void GroundSurface::accumulate(bool refit) {
   static_assert(sizeof(Accum) == 10 * sizeof(double), "Accum: ten doubles, no padding");
 #if GF_HAVE_AVX2_PATHS
-  if (simd::allows(simd::Level::kAvx2) && simd::avx2::cpuHasAvx2()) {
+  if (avx2Paths()) {
     accumulateAvx2(refit);
     return;
   }
@@ -350,8 +353,10 @@ void GroundSurface::dropSpikes() {
   for (std::size_t s = 0; s < occ; ++s) {
     const std::uint32_t g = occupied_[s];
     const int j = static_cast<int>(g / nx_), i = static_cast<int>(g) - j * nx_;
+    bool judged = false, spike = false;
+    int ka = 0;
     if (i >= kPatchReach && j >= kPatchReach && i < nx_ - kPatchReach && j < ny_ - kPatchReach) {
-      // The lowest of the neighbours' planes at this centre (the same values as below), and
+      // The lowest of the neighbours' planes at this centre (the same values as medianSpike()), and
       // the occupied cells of the window.
       float low_near = std::numeric_limits<float>::infinity(), low_all = low_near;
       int occupied = 0;
@@ -368,32 +373,36 @@ void GroundSurface::dropSpikes() {
         }
       }
       const float z = z_[s];
-      if (z - low_near <= kSpikeHeight && z - low_all <= kPatchHeight) {  // no median needed
-        if (ground_level_ && occupied < kPatchLeast && shadowSpike(s, i, j)) flags_[s] |= kSpike;
-        continue;
-      }
+      judged = z - low_near <= kSpikeHeight && z - low_all <= kPatchHeight;  // no median needed
+      ka = occupied;
     }
-    // The neighbours' planes at this centre: all within kPatchReach, and the 8 nearest.
-    float all[(2 * kPatchReach + 1) * (2 * kPatchReach + 1)], near[8];
-    int ka = 0, kn = 0;
-    for (int dj = std::max(-kPatchReach, -j); dj <= std::min(kPatchReach, ny_ - 1 - j); ++dj) {
-      const std::int32_t* row = slot_.data() + static_cast<std::size_t>(j + dj) * nx_ + i;
-      for (int di = std::max(-kPatchReach, -i); di <= std::min(kPatchReach, nx_ - 1 - i); ++di) {
-        const std::int32_t t = row[di];
-        if (t < 0 || (di == 0 && dj == 0)) continue;
-        const float p = z_[t] + gx_[t] * static_cast<float>(-di) * cell +
-                        gy_[t] * static_cast<float>(-dj) * cell;
-        all[ka++] = p;
-        if (di >= -1 && di <= 1 && dj >= -1 && dj <= 1) near[kn++] = p;
-      }
-    }
-    if (aboveMedian(z_[s], near, kn, 3, kSpikeHeight) ||
-        aboveMedian(z_[s], all, ka, kPatchLeast, kPatchHeight)) {
-      flags_[s] |= kSpike;
-    } else if (ground_level_ && ka < kPatchLeast && shadowSpike(s, i, j)) {
-      flags_[s] |= kSpike;
+    if (!judged) spike = medianSpike(s, i, j, &ka);
+    if (!spike && ground_level_ && ka < kPatchLeast) spike = shadowSpike(s, i, j);
+    if (spike) flags_[s] |= kSpike;
+  }
+}
+
+// The tests of dropSpikes() with the medians, for occupied cell s at grid (i, j); *ka gets the
+// occupied cells of its window.
+bool GroundSurface::medianSpike(std::size_t s, int i, int j, int* ka_out) const {
+  const float cell = static_cast<float>(cell_);
+  // The neighbours' planes at this centre: all within kPatchReach, and the 8 nearest.
+  float all[(2 * kPatchReach + 1) * (2 * kPatchReach + 1)], near[8];
+  int ka = 0, kn = 0;
+  for (int dj = std::max(-kPatchReach, -j); dj <= std::min(kPatchReach, ny_ - 1 - j); ++dj) {
+    const std::int32_t* row = slot_.data() + static_cast<std::size_t>(j + dj) * nx_ + i;
+    for (int di = std::max(-kPatchReach, -i); di <= std::min(kPatchReach, nx_ - 1 - i); ++di) {
+      const std::int32_t t = row[di];
+      if (t < 0 || (di == 0 && dj == 0)) continue;
+      const float p =
+          z_[t] + gx_[t] * static_cast<float>(-di) * cell + gy_[t] * static_cast<float>(-dj) * cell;
+      all[ka++] = p;
+      if (di >= -1 && di <= 1 && dj >= -1 && dj <= 1) near[kn++] = p;
     }
   }
+  *ka_out = ka;
+  return aboveMedian(z_[s], near, kn, 3, kSpikeHeight) ||
+         aboveMedian(z_[s], all, ka, kPatchLeast, kPatchHeight);
 }
 
 // The shadow test of dropSpikes() for occupied cell s at grid (i, j): whether it stands more
@@ -531,7 +540,7 @@ void GroundSurface::fill() {
         occupied_.data(), flags_.data(), fit_.data(), gx_.data(), gy_.data(), kernel_.data(),
         occupied_.size(), nx_,           ny_,         reach,      cell};
 #if GF_HAVE_AVX2_PATHS
-    if (simd::allows(simd::Level::kAvx2) && simd::avx2::cpuHasAvx2()) {
+    if (avx2Paths()) {
       scatterPlanesAvx2(sc, ws, zs);
     } else {
       scatterPlanes(sc, ws, zs);
@@ -649,8 +658,7 @@ void GroundSurface::heights(const CloudView& cloud, std::vector<float>* out) con
                   static_cast<float>(ny_ - 1)};
   std::size_t i = 0;
 #if GF_HAVE_AVX2_PATHS
-  if (simd::allows(simd::Level::kAvx2) && simd::avx2::cpuHasAvx2())
-    i = hag::heightsAvx2(in, at, n, h);
+  if (avx2Paths()) i = hag::heightsAvx2(in, at, n, h);
 #endif
   heightsScalar(in, at, i, n, h);
 }
