@@ -172,37 +172,58 @@ GF_TARGET_AVX2_PATHS void sumsAvx2(const float* xyz, const std::int32_t* row, in
   *s = momentsOf4(s1, s2, s3, k);
 }
 
-/// sumsAvx512Fast() with AVX2: even and odd neighbours in separate accumulators (the same
-/// additions as sumsAvx512Fast(), so the same bits; not the reference bits).
+/// The sums of the lanes of a and of b: [sum a, sum b].
+GF_TARGET_AVX2_PATHS inline __m128d laneSums2(__m256d a, __m256d b) {
+  const __m256d h = _mm256_hadd_pd(a, b);  // a0+a1 b0+b1 a2+a3 b2+b3
+  return _mm_add_pd(_mm256_castpd256_pd128(h), _mm256_extractf128_pd(h, 1));
+}
+
+/// Sums of a full row for the candidate decision only (not the reference bits: a point the fast
+/// decision cannot certify recomputes sumsAvx2()). Four neighbours a step, transposed: x, y, z
+/// of four neighbours in one register each and every one of the nine sums in its own register
+/// (lane i sums neighbours i, i + 4, ...), so no shuffle per neighbour and no sum waits on
+/// another; the 4 lanes are added at the end.
 GF_TARGET_AVX2_PATHS void sumsAvx2Fast(const float* xyz, const std::int32_t* row, int k,
                                        std::size_t query, Moments* s) {
-  using simd::avx2::opaque;
-  const __m256d o = offsetOf4(xyz + 3 * query, _mm256_setzero_pd());
-  __m256d s1 = _mm256_setzero_pd(), s2 = _mm256_setzero_pd(), s3 = _mm256_setzero_pd();
-  __m256d t1 = _mm256_setzero_pd(), t2 = _mm256_setzero_pd(), t3 = _mm256_setzero_pd();
+  const float* const q = xyz + 3 * query;
+  const __m256d qx = _mm256_set1_pd(q[0]), qy = _mm256_set1_pd(q[1]), qz = _mm256_set1_pd(q[2]);
+  const __m128i xyz_only = _mm_setr_epi32(-1, -1, -1, 0);  // no read past a point's z
+  __m256d sx = _mm256_setzero_pd(), sy = sx, sz = sx, sxx = sx, sxy = sx, sxz = sx, syy = sx,
+          syz = sx, szz = sx;
   int j = 0;
-  for (; j + 1 < k; j += 2) {
-    const __m256d d = offsetOf4(xyz + 3 * static_cast<std::size_t>(row[j]), o);
-    const __m256d e = offsetOf4(xyz + 3 * static_cast<std::size_t>(row[j + 1]), o);
-    __m256d p1, p2, q1, q2;
-    productsOf4(d, &p1, &p2);
-    productsOf4(e, &q1, &q2);
-    s1 = _mm256_add_pd(s1, d);
-    t1 = _mm256_add_pd(t1, e);
-    s2 = _mm256_add_pd(s2, opaque(p1));
-    s3 = _mm256_add_pd(s3, opaque(p2));
-    t2 = _mm256_add_pd(t2, opaque(q1));
-    t3 = _mm256_add_pd(t3, opaque(q2));
+  for (; j + 4 <= k; j += 4) {
+    __m128 p0 = _mm_maskload_ps(xyz + 3 * static_cast<std::size_t>(row[j]), xyz_only);
+    __m128 p1 = _mm_maskload_ps(xyz + 3 * static_cast<std::size_t>(row[j + 1]), xyz_only);
+    __m128 p2 = _mm_maskload_ps(xyz + 3 * static_cast<std::size_t>(row[j + 2]), xyz_only);
+    __m128 p3 = _mm_maskload_ps(xyz + 3 * static_cast<std::size_t>(row[j + 3]), xyz_only);
+    _MM_TRANSPOSE4_PS(p0, p1, p2, p3);  // p0: the four x, p1: y, p2: z
+    const __m256d dx = _mm256_sub_pd(_mm256_cvtps_pd(p0), qx);
+    const __m256d dy = _mm256_sub_pd(_mm256_cvtps_pd(p1), qy);
+    const __m256d dz = _mm256_sub_pd(_mm256_cvtps_pd(p2), qz);
+    sx = _mm256_add_pd(sx, dx);
+    sy = _mm256_add_pd(sy, dy);
+    sz = _mm256_add_pd(sz, dz);
+    sxx = _mm256_add_pd(sxx, _mm256_mul_pd(dx, dx));
+    sxy = _mm256_add_pd(sxy, _mm256_mul_pd(dx, dy));
+    sxz = _mm256_add_pd(sxz, _mm256_mul_pd(dx, dz));
+    syy = _mm256_add_pd(syy, _mm256_mul_pd(dy, dy));
+    syz = _mm256_add_pd(syz, _mm256_mul_pd(dy, dz));
+    szz = _mm256_add_pd(szz, _mm256_mul_pd(dz, dz));
   }
-  for (; j < k; ++j) {
-    const __m256d d = offsetOf4(xyz + 3 * static_cast<std::size_t>(row[j]), o);
-    __m256d p1, p2;
-    productsOf4(d, &p1, &p2);
-    s1 = _mm256_add_pd(s1, d);
-    s2 = _mm256_add_pd(s2, opaque(p1));
-    s3 = _mm256_add_pd(s3, opaque(p2));
+  alignas(16) double r[10];
+  _mm_store_pd(r, laneSums2(sx, sy));
+  _mm_store_pd(r + 2, laneSums2(sz, sxx));
+  _mm_store_pd(r + 4, laneSums2(sxy, sxz));
+  _mm_store_pd(r + 6, laneSums2(syy, syz));
+  _mm_store_pd(r + 8, laneSums2(szz, _mm256_setzero_pd()));
+  Moments m{r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], 0};
+  const double ox = q[0], oy = q[1], oz = q[2];
+  for (; j < k; ++j) {  // the last k mod 4
+    const float* p = xyz + 3 * static_cast<std::size_t>(row[j]);
+    m.add(p[0] - ox, p[1] - oy, p[2] - oz);
   }
-  *s = momentsOf4(_mm256_add_pd(s1, t1), _mm256_add_pd(s2, t2), _mm256_add_pd(s3, t3), k);
+  m.m = k;
+  *s = m;
 }
 
 #pragma GCC diagnostic pop
@@ -371,12 +392,19 @@ inline int fastCandidate(const Covariance& c, const CandidateTest& t, CandidateC
       0.5 * (b00 * b00 + b11 * b11 + b22 * b22) + c.xy * c.xy + c.xz * c.xz + c.yz * c.yz;
   const double det = b00 * (b11 * b22 - c.yz * c.yz) - c.xy * (c.xy * b22 - c.yz * c.xz) +
                      c.xz * (c.xy * c.yz - b11 * c.xz);
-  // Smallest root x0 by Newton from x = -m (lambda = 0 <= lambda0, C is PSD). p is increasing
-  // and concave left of x0 (p'' = 6x < 0 and x0 <= -sqrt(a/3) < 0), so the iterates rise
-  // monotonically towards x0 and never pass it. Once the steps are small, p(x + w) >= 0 proves
-  // x0 <= x + wb (p < 0 on [x, x0)): x0 is then known to wb = 1e-8 trace, far inside the margins.
+  // Smallest root x0 by Newton from a lower bound of it (below; else from x = -m, lambda = 0 <=
+  // lambda0 as C is PSD). p is increasing and concave left of x0 (p'' = 6x < 0 and x0 <= -sqrt(a/3)
+  // < 0), so the iterates rise monotonically towards x0 and never pass it. Once the steps are
+  // small, p(x + w) >= 0 proves x0 <= x + wb (p < 0 on [x, x0)): x0 is then known to wb = 1e-8
+  // trace, far inside the margins.
   const double wb = 1e-8 * tr;
-  double x = -m;
+  // The start: lambda0 = det(C) / (lambda1 lambda2) and lambda1 lambda2 <= (trace / 2)^2, so
+  // lambda0 >= 4 det(C) / trace^2, tight for flat ground (lambda1 ~ lambda2), so fewer steps.
+  // Rounding may put it past x0 (p > 0 there): then lambda = 0.
+  const double det_c = c.xx * (c.yy * c.zz - c.yz * c.yz) - c.xy * (c.xy * c.zz - c.yz * c.xz) +
+                       c.xz * (c.xy * c.yz - c.yy * c.xz);
+  double x = 4.0 * std::max(0.0, det_c) / (tr * tr) - m;
+  if (!((x * x - a) * x - det <= 0.0)) x = -m;
   bool converged = false;
   for (int it = 0; it < 16; ++it) {
     const double p = (x * x - a) * x - det, dp = 3.0 * x * x - a;
