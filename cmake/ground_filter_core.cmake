@@ -34,6 +34,11 @@ function(gf_add_core target)
   # x86-64 nothing is fused anyway (no FMA in the baseline or in the AVX2/AVX-512 target
   # attributes); GCC for aarch64 fuses by default (docs/cpu_support.md).
   target_compile_options(${target} PRIVATE -ffp-contract=off)
+  # std::sqrt as the one instruction it is: otherwise GCC tests every argument for a negative
+  # value and calls libm to set errno, which nothing here reads. The same values; the kd-tree's
+  # query bounds (two square roots a query) and the candidate test use it most
+  # (docs/normal_speed.md#the-other-stages).
+  target_compile_options(${target} PRIVATE -fno-math-errno)
   # A shared library's own functions are interposable by default under GCC: calls between them
   # go through the PLT and are never inlined (fitHeightPlane() in the ground model's cell loop).
   check_cxx_compiler_flag(-fno-semantic-interposition GF_HAVE_NO_SEMANTIC_INTERPOSITION)
