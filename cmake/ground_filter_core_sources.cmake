@@ -27,7 +27,7 @@ gf_core_room(voxel voxelize voxelize_build avx2_passes segments ground_model cla
 # normal method: the filter and its parameter table (and the settings derived from it), one file
 # per stage
 gf_core_room(normal normal_ground_filter normal_ground_filter_params normal_settings)
-gf_core_room(normal order lattice sample neighborhoods vote plane local_ground
+gf_core_room(normal order cell_keys lattice sample neighborhoods vote plane local_ground
              vegetation scatter_labels line_walls)
 # K nearest neighbours, a room below the normal method that uses it (knn/): the
 # kd-tree (build, portable / AVX-512 / AVX2 / NEON queries), the PCA of the lists, the backend

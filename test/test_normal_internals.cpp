@@ -383,33 +383,38 @@ TEST(RadixSort, BlockScatterGivesTheSerialOrder) {
 }
 
 TEST(RadixSort, ThreadedSortGivesTheSerialOrder) {
-  // Above the packed words' limit (kRadixPackedMaxPoints), so the per-thread blocks; 1, 2 and
-  // 3 threads must give std::stable_sort's order: narrow keys with many duplicates, one-pass and
+  // Above the packed words' limit (kRadixPackedMaxPoints), so the per-thread blocks, and within
+  // it (packed words in blocks: a KITTI frame's sorts); 1, 2 and 3 threads must give
+  // std::stable_sort's order and the keys in it: narrow keys with many duplicates, one-pass and
   // three-pass widths, a constant key (every pass skipped) and tile keys (x << 32 | y).
   std::mt19937_64 rng(5);
   gf::RadixSortScratch scratch;
   std::vector<std::uint32_t> order;
-  const std::size_t n = gf::kRadixPackedMaxPoints + 17;
-  for (int kind = 0; kind < 5; ++kind) {
-    std::vector<std::uint64_t> keys(n);
-    for (auto& k : keys) {
-      const std::uint64_t r = rng();
-      k = kind == 0   ? r % 7
-          : kind == 1 ? r & 0x3fffff
-          : kind == 2 ? r & ((std::uint64_t{1} << 45) - 1)
-          : kind == 3 ? 12345
-                      : ((r % 40) << 32) | ((r >> 20) % 40);
+  for (const std::size_t n : {gf::kRadixPackedMaxPoints + 17, 3 * gf::kRadixPointsPerThread + 5})
+    for (int kind = 0; kind < 5; ++kind) {
+      std::vector<std::uint64_t> keys(n);
+      for (auto& k : keys) {
+        const std::uint64_t r = rng();
+        k = kind == 0   ? r % 7
+            : kind == 1 ? r & 0x3fffff
+            : kind == 2 ? r & ((std::uint64_t{1} << 45) - 1)
+            : kind == 3 ? 12345
+                        : ((r % 40) << 32) | ((r >> 20) % 40);
+      }
+      std::vector<std::uint32_t> want(n);
+      for (std::size_t i = 0; i < n; ++i) want[i] = static_cast<std::uint32_t>(i);
+      std::stable_sort(want.begin(), want.end(),
+                       [&](std::uint32_t a, std::uint32_t b) { return keys[a] < keys[b]; });
+      for (int threads : {1, 2, 3}) {
+        order.assign(5, 7);  // stale contents must not matter
+        gf::radixSortByKey(keys, &order, &scratch, threads);
+        EXPECT_EQ(order, want) << "n " << n << ", kind " << kind << ", threads " << threads;
+        bool keys_follow = scratch.keys.size() == n;
+        for (std::size_t j = 0; keys_follow && j < n; ++j)
+          keys_follow = scratch.keys[j] == keys[want[j]];
+        EXPECT_TRUE(keys_follow) << "n " << n << ", kind " << kind << ", threads " << threads;
+      }
     }
-    std::vector<std::uint32_t> want(n);
-    for (std::size_t i = 0; i < n; ++i) want[i] = static_cast<std::uint32_t>(i);
-    std::stable_sort(want.begin(), want.end(),
-                     [&](std::uint32_t a, std::uint32_t b) { return keys[a] < keys[b]; });
-    for (int threads : {1, 2, 3}) {
-      order.assign(5, 7);  // stale contents must not matter
-      gf::radixSortByKey(keys, &order, &scratch, threads);
-      EXPECT_EQ(order, want) << "kind " << kind << ", threads " << threads;
-    }
-  }
 }
 
 namespace {

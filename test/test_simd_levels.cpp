@@ -10,12 +10,14 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <limits>
 #include <memory>
 #include <new>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -23,6 +25,8 @@
 #include "gf_test_alloc_counter.h"  // allocationCount()
 #include "ground_filter/build_info.h"
 #include "ground_filter/ground_filter.h"
+#include "normal/cell_keys.h"
+#include "normal/cpu_gpu_common.h"
 #include "simd/simd.h"
 
 namespace gf = ground_filter;
@@ -454,6 +458,55 @@ TEST(SimdLevels, FiveMillionPointsAtEveryLevel) {
       } else {
         EXPECT_EQ(differences(ref.labels, r.labels), 0u)
             << fc.name << " at " << simd::levelName(level) << ", " << cloud.size() << " points";
+      }
+    }
+  }
+}
+
+// The grid keys of the column order and the tile sort: the AVX2 path (four points at a time,
+// a group with a cell at or beyond 2^31 left to the scalar code) gives the portable keys, on
+// points at the grid's origin, just below and above cell edges, far out, at 2^31 and beyond,
+// and for every tail length.
+TEST(CellKeys, EveryPathGivesThePortableKeys) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-80.f, 80.f);
+  std::vector<float> xyz;
+  for (int i = 0; i < 4000; ++i) xyz.insert(xyz.end(), {u(rng), u(rng), u(rng)});
+  const double min_x = -80.0, min_y = -80.0;
+  for (double cell : {0.1, 1.0, 0.3}) {  // points on and around cell edges
+    for (int k = 0; k < 40; ++k) {
+      const float e = static_cast<float>(min_x + k * cell);
+      xyz.insert(xyz.end(), {e, std::nextafter(e, 1e9f), 0.f});
+      xyz.insert(xyz.end(), {std::nextafter(e, -1e9f), e, 0.f});
+    }
+  }
+  xyz.insert(xyz.end(), {-80.f, -80.f, 0.f, 3.0e8f, 5.0f, 0.f, 2.0e8f, 2.1e8f, 1.f});
+  xyz.insert(xyz.end(), {5.0e8f, -80.f, 0.f, 1.f, 4.5e8f, 2.f, -100.f, -95.f, 0.f});
+  const std::size_t n = xyz.size() / 3;
+  for (double inv : {10.0, 1.0 / 0.3, 1.0}) {
+    for (std::size_t b : {std::size_t{0}, std::size_t{1}, std::size_t{3}}) {
+      for (std::size_t e : {n, n - 1, n - 2, n - 3, b + 5}) {
+        std::vector<std::uint64_t> want(n, 7), got(n, 7), want_t(n, 7), got_t(n, 7);
+        {
+          simd::ScopedLevel portable(simd::Level::kPortable);
+          ASSERT_TRUE(portable.ok());
+          gf::normal::columnKeysOf(xyz.data(), b, e, min_x, min_y, inv, want.data());
+          gf::normal::tileKeysOf(xyz.data(), b, e, min_x, min_y, inv, 31, want_t.data());
+        }
+        for (std::size_t i = b; i < e; ++i) {  // the definition
+          const std::uint32_t cx = gf::normal::cellIndex(xyz[3 * i], min_x, inv);
+          const std::uint32_t cy = gf::normal::cellIndex(xyz[3 * i + 1], min_y, inv);
+          ASSERT_EQ(want[i], gf::normal::columnKey(cx, cy)) << i;
+          ASSERT_EQ(want_t[i], (std::uint64_t{cx} << 31) | cy) << i;
+        }
+        for (simd::Level level : {simd::Level::kAvx2, simd::Level::kAvx512}) {
+          if (!simd::supported(level)) continue;
+          simd::ScopedLevel scoped(level);
+          gf::normal::columnKeysOf(xyz.data(), b, e, min_x, min_y, inv, got.data());
+          gf::normal::tileKeysOf(xyz.data(), b, e, min_x, min_y, inv, 31, got_t.data());
+          EXPECT_EQ(got, want) << simd::levelName(level) << " b " << b << " e " << e;
+          EXPECT_EQ(got_t, want_t) << simd::levelName(level) << " b " << b << " e " << e;
+        }
       }
     }
   }

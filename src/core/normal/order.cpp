@@ -10,6 +10,7 @@
 
 #include "common/radix_sort.h"
 #include "cpu_gpu_common.h"
+#include "normal/cell_keys.h"
 
 namespace ground_filter {
 namespace normal {
@@ -26,8 +27,11 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
       static_cast<int>(std::min<std::size_t>(threads > 0 ? threads : 1, total / 32768 + 1));
   block_count_.assign(static_cast<std::size_t>(ct) + 1, 0);
   const double inf = std::numeric_limits<double>::infinity();
-  double min_x = inf, min_y = inf, max_x = -inf, max_y = -inf;
-#pragma omp parallel num_threads(ct) reduction(min : min_x, min_y) reduction(max : max_x, max_y)
+  double min_x = inf, min_y = inf, max_x = -inf, max_y = -inf, min_z = inf, max_z = -inf;
+#pragma omp parallel num_threads(ct) reduction(min                    \
+                                               : min_x, min_y, min_z) \
+    reduction(max                                                     \
+              : max_x, max_y, max_z)
   {
     const int t = omp_get_thread_num(), nt_run = omp_get_num_threads();
     const std::size_t b = total * t / nt_run, e = total * (t + 1) / nt_run;
@@ -40,6 +44,8 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
       min_y = std::min<double>(min_y, o[1]);
       max_x = std::max<double>(max_x, o[0]);
       max_y = std::max<double>(max_y, o[1]);
+      min_z = std::min<double>(min_z, o[2]);
+      max_z = std::max<double>(max_z, o[2]);
     }
     block_count_[t + 1] = kept - b;
 #pragma omp barrier
@@ -61,6 +67,8 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
   raw_xyz_.resize(3 * valid);
   raw_source_.resize(valid);
   out->extent = Extent{min_x, min_y, max_x, max_y};
+  out->min_z = min_z;
+  out->max_z = max_z;
   const std::size_t n = raw_source_.size();
   std::vector<float>& xyz = out->xyz;
   std::vector<std::uint32_t>& source = out->source;
@@ -74,11 +82,12 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
   out->cell = cell;
   keys_.resize(n);
   const int nt = static_cast<int>(std::min<std::size_t>(threads, n / 16384 + 1));
-#pragma omp parallel for num_threads(nt) schedule(static)
-  for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
-    const std::uint32_t cx = cellIndex(raw_xyz_[3 * i], min_x, 1.0 / cell);
-    const std::uint32_t cy = cellIndex(raw_xyz_[3 * i + 1], min_y, 1.0 / cell);
-    keys_[i] = columnKey(cx, cy);
+#pragma omp parallel num_threads(nt)
+  {
+    const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
+    const std::size_t parts = static_cast<std::size_t>(omp_get_num_threads());
+    columnKeysOf(raw_xyz_.data(), n * t / parts, n * (t + 1) / parts, min_x, min_y, 1.0 / cell,
+                 keys_.data());
   }
   radixSortByKey(keys_, &order_, &sort_scratch_, threads);
   // Plain pointers and three stores: through the vectors GCC cannot rule out that they overlap
@@ -121,7 +130,7 @@ void OrderStage::fromOrder(const CloudView& cloud, double cell_size, OrderedPoin
   const std::size_t n = out->source.size();
   out->xyz.resize(3 * n);
   const double inf = std::numeric_limits<double>::infinity();
-  double min_x = inf, min_y = inf, max_x = -inf, max_y = -inf;
+  double min_x = inf, min_y = inf, max_x = -inf, max_y = -inf, min_z = inf, max_z = -inf;
   for (std::size_t j = 0; j < n; ++j) {
     float* o = &out->xyz[3 * j];
     cloud.get(out->source[j], o, o + 1, o + 2);  // finite: the executor ordered finite points
@@ -129,8 +138,12 @@ void OrderStage::fromOrder(const CloudView& cloud, double cell_size, OrderedPoin
     min_y = std::min<double>(min_y, o[1]);
     max_x = std::max<double>(max_x, o[0]);
     max_y = std::max<double>(max_y, o[1]);
+    min_z = std::min<double>(min_z, o[2]);
+    max_z = std::max<double>(max_z, o[2]);
   }
   out->extent = Extent{min_x, min_y, max_x, max_y};
+  out->min_z = min_z;
+  out->max_z = max_z;
   out->cell = std::max(cell_size, out->extent.size() / 4.0e9);  // as run()
   out->segments.assign(1, {0, n});
 }

@@ -11,6 +11,7 @@
 
 #include "common/radix_sort.h"
 #include "cpu_gpu_common.h"
+#include "normal/cell_keys.h"
 
 namespace ground_filter {
 namespace normal {
@@ -191,12 +192,12 @@ void PlaneStage::sortIntoTiles(const std::vector<float>& xyz, std::size_t n, con
     // the fewest radix passes (a KITTI frame: 12 bits, one pass instead of three).
     y_bits_ = radixBitsFor(cellIndex(extent.max_y, extent.min_y, 1.0 / tile));
     const int nt = static_cast<int>(std::min<std::size_t>(threads, n / 16384 + 1));
-    const int yb = y_bits_;
-#pragma omp parallel for num_threads(nt) schedule(static)
-    for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
-      const std::uint32_t tx = cellIndex(xyz[3 * i], extent.min_x, 1.0 / tile);
-      const std::uint32_t ty = cellIndex(xyz[3 * i + 1], extent.min_y, 1.0 / tile);
-      keys_[i] = (static_cast<std::uint64_t>(tx) << yb) | ty;
+#pragma omp parallel num_threads(nt)
+    {
+      const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
+      const std::size_t parts = static_cast<std::size_t>(omp_get_num_threads());
+      tileKeysOf(xyz.data(), n * t / parts, n * (t + 1) / parts, extent.min_x, extent.min_y,
+                 1.0 / tile, y_bits_, keys_.data());
     }
   } else {
     y_bits_ = 0;
@@ -312,7 +313,10 @@ void PlaneStage::run(const std::vector<float>& xyz, const std::vector<std::uint8
   const double* floor_from = sensor;  // the floor's reach grows from the sensor in any case
   if (sensor) {  // the check applies only where the origin lies above the voted points
     std::uint64_t below = 0, near = 0;
-    for (std::size_t i = 0; i < n; ++i) {
+    const int ct = static_cast<int>(std::min<std::size_t>(std::max(threads, 1), n / 32768 + 1));
+#pragma omp parallel for num_threads(ct) schedule(static) reduction(+ : below, near)
+    for (std::int64_t ii = 0; ii < static_cast<std::int64_t>(n); ++ii) {
+      const std::size_t i = static_cast<std::size_t>(ii);
       if (!voted[i] || !nearSensor(xyz[3 * i] - sensor[0], xyz[3 * i + 1] - sensor[1])) continue;
       ++near;
       below += belowSensor(xyz[3 * i + 2], sensor[2]);
