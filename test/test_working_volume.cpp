@@ -17,7 +17,6 @@
 #include "eval/scene_generator.h"
 #include "gf_test_data.h"
 #include "ground_filter/ground_filter.h"
-#include "ground_filter/normal_ground_filter.h"
 #include "ground_filter/voxel_ground_filter.h"
 #include "ground_filter/working_volume.h"
 
@@ -382,61 +381,6 @@ TEST(WorkingVolume, VolumeTestedOnTheBounds) {
   EXPECT_FALSE(v.containsBox(a, b));
   EXPECT_TRUE(v.containsBox(a, c));   // corner 99.5 m away
   EXPECT_FALSE(v.containsBox(a, d));  // corner (71, -70, -10): 100.2 m
-}
-
-// The normal filter tests the volume on the box its compaction takes (filterInside()), and on
-// the points themselves where it turned a tilted mount's scan (the turned box is not the
-// cloud's). Labels equal the bare filter's; a point outside, or a box reaching outside, makes
-// it decline, and the wrapper then finds the same labels.
-TEST(WorkingVolume, NormalFilterTestsTheVolumeOnItsBox) {
-  for (const char* spec : {"lidar:1", "lidar:1:mount_pitch_deg=15"}) {
-    SCOPED_TRACE(spec);
-    const gf::GeneratedScan scan = gf::generateScene(gf::parseSceneSpec(spec));
-    const std::size_t n = scan.size();
-    const gf::CloudView view = gf::CloudView::packedXyz(scan.xyz.data(), n);
-    gf::NormalGroundFilterParams p;
-    p.threads = 2;
-    gf::NormalGroundFilter bare(p);
-    std::vector<std::uint8_t> reference, labels;
-    gf::FilterStats stats;
-    bare.filter(view, &reference, &stats);
-    const bool turned = stats.note.find("turned onto it") != std::string::npos;
-    EXPECT_EQ(turned, std::string(spec).find("pitch") != std::string::npos) << stats.note;
-    double farthest = 0.0;
-    float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
-    for (std::size_t i = 0; i < n; ++i) {
-      const float* q = &scan.xyz[3 * i];
-      if (!(std::isfinite(q[0]) && std::isfinite(q[1]) && std::isfinite(q[2]))) continue;
-      farthest = std::max(
-          farthest, std::sqrt(double{q[0]} * q[0] + double{q[1]} * q[1] + double{q[2]} * q[2]));
-      for (int d = 0; d < 3; ++d) {
-        lo[d] = std::min(lo[d], q[d]);
-        hi[d] = std::max(hi[d], q[d]);
-      }
-    }
-    gf::WorkingVolume whole;
-    whole.max_range = 0.0;
-    EXPECT_TRUE(bare.filterInside(view, whole, &labels));
-    EXPECT_EQ(labels, reference);
-    // Every point inside but the box's corner outside: declined without the turn (the box
-    // decides), filtered with it (the points decide).
-    gf::WorkingVolume ball;
-    ball.max_range = farthest * 1.0001;
-    ASSERT_FALSE(ball.containsBox(lo, hi));
-    labels.clear();
-    EXPECT_EQ(bare.filterInside(view, ball, &labels), turned);
-    if (turned) EXPECT_EQ(labels, reference);
-    // One point outside: declined either way.
-    gf::WorkingVolume tight;
-    tight.max_range = farthest * 0.999;
-    EXPECT_FALSE(bare.filterInside(view, tight, &labels));
-    gf::WorkingVolumeFilter wrapped(std::make_unique<gf::NormalGroundFilter>(p), ball);
-    for (int round = 0; round < 2; ++round) {
-      wrapped.filter(view, &labels, &stats);
-      EXPECT_EQ(stats.out_of_range_points, 0u);
-      EXPECT_EQ(labels, reference);
-    }
-  }
 }
 
 // ------------------------------------------------------------ min_range and body_box

@@ -39,11 +39,6 @@ class NormalGroundFilter : public GroundFilter {
 
   void filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
               FilterStats* stats = nullptr) override;
-  /// \brief filter(), when the box of the finite points (taken in the first pass anyway) lies
-  ///        inside `volume`; false otherwise, and always for an airborne scan or the GPU
-  ///        executor.
-  bool filterInside(const CloudView& cloud, const WorkingVolume& volume,
-                    std::vector<std::uint8_t>* labels, FilterStats* stats = nullptr) override;
   std::string name() const override { return "normal"; }
   /// \brief The origin scan_type auto looks from.
   void setSensorOrigin(float x, float y, float z) override;
@@ -58,9 +53,6 @@ class NormalGroundFilter : public GroundFilter {
   const std::string& backendNote() const { return backend_note_; }
 
  private:
-  // filter() with the volume test of filterInside() when `volume` is given.
-  bool run(const CloudView& cloud, const WorkingVolume* volume, std::vector<std::uint8_t>* labels,
-           FilterStats* stats);
   struct Impl;
   NormalGroundFilterParams params_;
   std::string backend_note_;

@@ -16,7 +16,6 @@
 #include "common/scan_lines.h"
 #include "common/side_task.h"
 #include "common/threads_timing.h"
-#include "ground_filter/working_volume_params.h"
 #include "knn/knn_backend.h"
 #include "normal/cpu_gpu_common.h"
 #include "normal/filter_executor.h"
@@ -342,32 +341,8 @@ std::size_t NormalGroundFilter::Impl::normalsAndVotes(const NormalGroundFilterPa
 
 namespace {
 
-// filterInside(): every finite point of `cloud` inside `volume`, read from the box of the n
-// `ordered` points (containsBox(); their bounds are the points' own floats, held in doubles),
-// or, where the scan was `turned` (that box is not the cloud's), from the points themselves as
-// WorkingVolumeFilter's own pass reads them.
-bool volumeHolds(const WorkingVolume& volume, const CloudView& cloud, bool turned,
-                 const normal::OrderedPoints& ordered, std::size_t n) {
-  if (n == 0) return true;
-  if (turned) {
-    for (std::size_t i = 0; i < cloud.size(); ++i) {
-      float x, y, z;
-      if (cloud.get(i, &x, &y, &z) && !volume.contains(x, y, z)) return false;
-    }
-    return true;
-  }
-  const normal::Extent& e = ordered.extent;
-  const float lo[3] = {static_cast<float>(e.min_x), static_cast<float>(e.min_y),
-                       static_cast<float>(ordered.min_z)};
-  const float hi[3] = {static_cast<float>(e.max_x), static_cast<float>(e.max_y),
-                       static_cast<float>(ordered.max_z)};
-  return volume.containsBox(lo, hi);
-}
-
-// st = FilterStats() for a scan of `points` with `backend` and `note`, keeping the memory of its
-// strings and stage list (no allocation per scan).
-void resetStats(FilterStats* st, std::size_t points, const std::string& backend_name,
-                const std::string& backend_note) {
+// st = FilterStats(), keeping the memory of its strings and stage list (no allocation per scan).
+void resetStats(FilterStats* st) {
   std::string backend = std::move(st->backend), note = std::move(st->note);
   std::string scan_type = std::move(st->scan_type), scan_reason = std::move(st->scan_reason);
   std::vector<std::pair<std::string, double>> stage_ms = std::move(st->stage_ms);
@@ -382,9 +357,6 @@ void resetStats(FilterStats* st, std::size_t points, const std::string& backend_
   st->scan_type.clear();
   st->scan_reason.clear();
   st->stage_ms.clear();
-  st->input_points = points;
-  st->backend = backend_name;
-  st->note = backend_note;
 }
 
 }  // namespace
@@ -432,25 +404,15 @@ bool NormalGroundFilter::noSensorAtOrigin(const CloudView& cloud) {
 
 void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t>* labels,
                                 FilterStats* stats) {
-  run(cloud, nullptr, labels, stats);
-}
-
-bool NormalGroundFilter::filterInside(const CloudView& cloud, const WorkingVolume& volume,
-                                      std::vector<std::uint8_t>* labels, FilterStats* stats) {
-  // The GPU executor packs the points itself: the caller's own pass tests them.
-  if (impl_->executor) return false;
-  impl_->scan.setOrigin(volume.origin[0], volume.origin[1], volume.origin[2]);
-  return impl_->scan.pin(cloud).type != ScanType::kAirborne && run(cloud, &volume, labels, stats);
-}
-
-bool NormalGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
-                             std::vector<std::uint8_t>* labels, FilterStats* stats) {
   const auto t_start = Clock::now();
   Impl& im = *impl_;
   const NormalGroundFilterParams& p = params_;
   const int threads = resolveThreads(p.threads);
   FilterStats& st = stats ? *stats : im.own_stats;
-  resetStats(&st, cloud.size(), backend(), backend_note_);
+  resetStats(&st);
+  st.input_points = cloud.size();
+  st.backend = backend();
+  st.note = backend_note_;
   labels->assign(cloud.size(), kNonGround);
 
   // ---- airborne mode: the morphological surface replaces the normals and tile planes (on a
@@ -460,9 +422,8 @@ bool NormalGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume
   st.scan_type = scanTypeName(scan.type);
   st.scan_reason = scan.reason;
   if (scan.type == ScanType::kAirborne) {
-    if (volume) return false;  // the airborne mode takes no bounds: the caller tests the points
     runAirborneMode(cloud, airborneSettings(p), &im.morph, t_start, true, labels, &st);
-    return true;
+    return;
   }
 
   // ---- 0a. a sensor mounted tilted (no gravity frame): the scan turned onto its ground, which
@@ -488,7 +449,7 @@ bool NormalGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume
   if (done) {
     im.lineWalls(p, in, prep, false, threads, labels, &st);
     st.total_ms = msSince(t_start);
-    return volume == nullptr;  // the executor's points were not tested (filterInside())
+    return;
   }
   int stride = prep.stride;
   const double* sensor = prep.sensor;
@@ -500,10 +461,9 @@ bool NormalGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume
   const normal::OrderedPoints& ordered = im.ordered;
   st.invalid_points = in.size() - n;
   st.stage_ms.emplace_back("sort", msSince(t0));
-  if (volume && !volumeHolds(*volume, cloud, turned != nullptr, ordered, n)) return false;
   if (n == 0) {
     st.total_ms = msSince(t_start);
-    return true;
+    return;
   }
 
   // 2-4. Per segment: the sampled points (1b, every sample_stride-th), their neighbours
@@ -563,7 +523,6 @@ bool NormalGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume
   // 7. A sparse sensor's lowest scan line on a wall (line_walls.h).
   im.lineWalls(p, in, prep, true, threads, labels, &st);
   st.total_ms = msSince(t_start);
-  return true;
 }
 
 }  // namespace ground_filter

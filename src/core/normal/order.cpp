@@ -27,11 +27,8 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
       static_cast<int>(std::min<std::size_t>(threads > 0 ? threads : 1, total / 32768 + 1));
   block_count_.assign(static_cast<std::size_t>(ct) + 1, 0);
   const double inf = std::numeric_limits<double>::infinity();
-  double min_x = inf, min_y = inf, max_x = -inf, max_y = -inf, min_z = inf, max_z = -inf;
-#pragma omp parallel num_threads(ct) reduction(min                    \
-                                               : min_x, min_y, min_z) \
-    reduction(max                                                     \
-              : max_x, max_y, max_z)
+  double min_x = inf, min_y = inf, max_x = -inf, max_y = -inf;
+#pragma omp parallel num_threads(ct) reduction(min : min_x, min_y) reduction(max : max_x, max_y)
   {
     const int t = omp_get_thread_num(), nt_run = omp_get_num_threads();
     const std::size_t b = total * t / nt_run, e = total * (t + 1) / nt_run;
@@ -44,8 +41,6 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
       min_y = std::min<double>(min_y, o[1]);
       max_x = std::max<double>(max_x, o[0]);
       max_y = std::max<double>(max_y, o[1]);
-      min_z = std::min<double>(min_z, o[2]);
-      max_z = std::max<double>(max_z, o[2]);
     }
     block_count_[t + 1] = kept - b;
 #pragma omp barrier
@@ -67,8 +62,6 @@ std::size_t OrderStage::run(const CloudView& cloud, double cell_size, bool use_s
   raw_xyz_.resize(3 * valid);
   raw_source_.resize(valid);
   out->extent = Extent{min_x, min_y, max_x, max_y};
-  out->min_z = min_z;
-  out->max_z = max_z;
   const std::size_t n = raw_source_.size();
   std::vector<float>& xyz = out->xyz;
   std::vector<std::uint32_t>& source = out->source;
@@ -130,7 +123,7 @@ void OrderStage::fromOrder(const CloudView& cloud, double cell_size, OrderedPoin
   const std::size_t n = out->source.size();
   out->xyz.resize(3 * n);
   const double inf = std::numeric_limits<double>::infinity();
-  double min_x = inf, min_y = inf, max_x = -inf, max_y = -inf, min_z = inf, max_z = -inf;
+  double min_x = inf, min_y = inf, max_x = -inf, max_y = -inf;
   for (std::size_t j = 0; j < n; ++j) {
     float* o = &out->xyz[3 * j];
     cloud.get(out->source[j], o, o + 1, o + 2);  // finite: the executor ordered finite points
@@ -138,12 +131,8 @@ void OrderStage::fromOrder(const CloudView& cloud, double cell_size, OrderedPoin
     min_y = std::min<double>(min_y, o[1]);
     max_x = std::max<double>(max_x, o[0]);
     max_y = std::max<double>(max_y, o[1]);
-    min_z = std::min<double>(min_z, o[2]);
-    max_z = std::max<double>(max_z, o[2]);
   }
   out->extent = Extent{min_x, min_y, max_x, max_y};
-  out->min_z = min_z;
-  out->max_z = max_z;
   out->cell = std::max(cell_size, out->extent.size() / 4.0e9);  // as run()
   out->segments.assign(1, {0, n});
 }

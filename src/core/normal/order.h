@@ -26,7 +26,6 @@ struct OrderedPoints {
   std::vector<std::uint32_t> source;                          ///< input index of each point
   std::vector<std::pair<std::size_t, std::size_t>> segments;  ///< [begin, end) in column order
   Extent extent;                                              ///< bounding box of the points
-  double min_z = 0.0, max_z = 0.0;  ///< z range of the points (with extent: their 3-D box)
   double cell = 0.0;  ///< the grid's cell [m]: cell_size, coarser for very wide clouds
 };
 
