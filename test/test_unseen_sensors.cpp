@@ -4,12 +4,14 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "common/densest_centre.h"
 #include "eval/metrics.h"
 #include "eval/scene_generator.h"
 #include "ground_filter/cloud_view.h"
@@ -50,6 +52,35 @@ Score run(const std::string& method, const std::string& spec, FilterStats* stats
   s.upright_ground = upright ? static_cast<double>(upright_ground) / upright : 0.0;
   s.road_recall = road ? static_cast<double>(road_ground) / road : 0.0;
   return s;
+}
+
+// Points far beyond any sensor's range (a driver's garbage, 2.7e21 m out) join no cell of the
+// densest-area search: its keys would overflow, and 2,000 of them in one spot outnumbered the
+// scan's own densest 8 m cell, which moved the centre 1e21 m out.
+TEST(UnseenSensors, DensestCentreLeavesOutPointsBeyondItsCells) {
+  std::vector<float> xyz;
+  for (int r = 1; r <= 40; ++r) {  // a disc of 20 m around (30, -12), ground at -1.7 m
+    for (int a = 0; a < 120; ++a) {
+      const double ang = a * 2.0 * M_PI / 120.0, rad = 0.5 * r;
+      xyz.insert(xyz.end(), {static_cast<float>(30.0 + rad * std::cos(ang)),
+                             static_cast<float>(-12.0 + rad * std::sin(ang)), -1.7f});
+    }
+  }
+  DensestCentre finder;
+  float plain[3], with_far[3];
+  ASSERT_TRUE(finder.find(CloudView::packedXyz(xyz.data(), xyz.size() / 3), plain));
+  std::vector<float> far_only;
+  for (int i = 0; i < 4000; ++i) {
+    const float far = i % 2 ? 2.7e21f : -3.0e38f;
+    far_only.insert(far_only.end(), {far, i % 3 ? far : 5.f, 1.f});
+    if (i % 2 == 0) xyz.insert(xyz.end(), {far, 5.f, 1.f});
+  }
+  ASSERT_TRUE(finder.find(CloudView::packedXyz(xyz.data(), xyz.size() / 3), with_far));
+  for (int d = 0; d < 3; ++d) EXPECT_NEAR(with_far[d], plain[d], 1e-3) << "axis " << d;
+  EXPECT_NEAR(plain[0], 30.0, 2.0);
+  EXPECT_NEAR(plain[2], -1.7, 1e-3);
+  float none[3];
+  EXPECT_FALSE(finder.find(CloudView::packedXyz(far_only.data(), far_only.size() / 3), none));
 }
 
 // 32 rings 0.97 deg apart, 3,600 firings, 1.8 m above the street: each ring of the road falls

@@ -15,6 +15,7 @@ constexpr std::size_t DensestCentre::kRead;
 constexpr double DensestCentre::kCell;
 constexpr double DensestCentre::kReach;
 constexpr int DensestCentre::kShifts;
+constexpr double DensestCentre::kMaxCellIndex;
 
 bool DensestCentre::find(const CloudView& cloud, float c[3]) {
   // About kRead points, evenly spread: finite ones into x_, y_, z_.
@@ -35,10 +36,14 @@ bool DensestCentre::find(const CloudView& cloud, float c[3]) {
   std::vector<std::pair<std::int64_t, std::uint32_t>>& cells = cells_;
   cells.clear();
   for (std::size_t i = 0; i < x_.size(); ++i) {
-    const std::int64_t kx = static_cast<std::int64_t>(std::floor(x_[i] / kCell));
-    const std::int64_t ky = static_cast<std::int64_t>(std::floor(y_[i] / kCell));
+    // Cells within 2^21 of the origin (16,000 km) only: the key packs two of them, and a
+    // coordinate further out would overflow the conversion; such a point joins no cell.
+    const double fx = std::floor(x_[i] / kCell), fy = std::floor(y_[i] / kCell);
+    if (!(std::fabs(fx) < kMaxCellIndex && std::fabs(fy) < kMaxCellIndex)) continue;
+    const std::int64_t kx = static_cast<std::int64_t>(fx), ky = static_cast<std::int64_t>(fy);
     cells.push_back({kx * 4194304 + ky, static_cast<std::uint32_t>(i)});
   }
+  if (cells.empty()) return false;
   std::sort(cells.begin(), cells.end());
   std::size_t best = 0, best_n = 0;
   for (std::size_t a = 0; a < cells.size();) {

@@ -24,11 +24,13 @@ class DensestCentre {
   static constexpr double kReach = 10.0;
   /// \brief Means taken.
   static constexpr int kShifts = 4;
+  /// \brief Cell indices beyond this (2^21) in x or y join no cell: keys pack two of them.
+  static constexpr double kMaxCellIndex = 2097152.0;
 
   /// \brief The mean of the points read in the densest kCell square, moved kShifts times to the
   ///        mean of those within kReach (a spinning sensor's points are densest around it), and
   ///        the 20th percentile of their z (the ground there), into c[0..2]; false for fewer than
-  ///        1,000 finite points read.
+  ///        1,000 finite points read (or none within kMaxCellIndex cells of the origin).
   bool find(const CloudView& cloud, float c[3]);
 
  private:
