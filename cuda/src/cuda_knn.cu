@@ -349,8 +349,14 @@ GridDesc CudaKnn::Impl::buildGrid(const SortedCloud& sorted_cloud, int n, int k,
     return s;
   };
   const std::size_t slot_bytes = sizeof(unsigned long long) + sizeof(uint2);
-  const std::size_t allow = allowance() + table_keys.bytes + table_vals.bytes;
-  while (finest > 0 && tableSlots(finest) * slot_bytes * 9 / 8 > allow) --finest;
+  const std::size_t held = table_keys.bytes + table_vals.bytes;
+  // The free memory is asked for only when the tables must grow (the same levels: what fits
+  // in the tables held fits in them plus the allowance): cudaMemGetInfo took 50 us a KITTI
+  // frame, with the GPU idle meanwhile (docs/gpu.md, "The host side, traced").
+  if (tableSlots(finest) * slot_bytes * 9 / 8 > held) {
+    const std::size_t allow = allowance() + held;
+    while (finest > 0 && tableSlots(finest) * slot_bytes * 9 / 8 > allow) --finest;
+  }
   g.nlev = finest + 1;
   std::size_t off = 0;
   for (int l = 0; l < g.nlev; ++l) {
