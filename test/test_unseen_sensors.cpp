@@ -55,8 +55,8 @@ Score run(const std::string& method, const std::string& spec, FilterStats* stats
 }
 
 // Points far beyond any sensor's range (a driver's garbage, 2.7e21 m out) join no cell of the
-// densest-area search: its keys would overflow, and 2,000 of them in one spot outnumbered the
-// scan's own densest 8 m cell, which moved the centre 1e21 m out.
+// densest-area search: its keys would overflow, and with the old conversion these 2,000 moved
+// the centre off the disc on all three axes (checked).
 TEST(UnseenSensors, DensestCentreLeavesOutPointsBeyondItsCells) {
   std::vector<float> xyz;
   for (int r = 1; r <= 40; ++r) {  // a disc of 20 m around (30, -12), ground at -1.7 m
