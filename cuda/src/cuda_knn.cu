@@ -349,13 +349,14 @@ GridDesc CudaKnn::Impl::buildGrid(const SortedCloud& sorted_cloud, int n, int k,
     return s;
   };
   const std::size_t slot_bytes = sizeof(unsigned long long) + sizeof(uint2);
+  auto tableBytes = [&](int fin) { return tableSlots(fin) * slot_bytes * 9 / 8; };
   const std::size_t held = table_keys.bytes + table_vals.bytes;
   // The free memory is asked for only when the tables must grow (the same levels: what fits
   // in the tables held fits in them plus the allowance): cudaMemGetInfo took 50 us a KITTI
   // frame, with the GPU idle meanwhile (docs/gpu.md, "The host side, traced").
-  if (tableSlots(finest) * slot_bytes * 9 / 8 > held) {
+  if (tableBytes(finest) > held) {
     const std::size_t allow = allowance() + held;
-    while (finest > 0 && tableSlots(finest) * slot_bytes * 9 / 8 > allow) --finest;
+    while (finest > 0 && tableBytes(finest) > allow) --finest;
   }
   g.nlev = finest + 1;
   std::size_t off = 0;

@@ -36,12 +36,14 @@ bool DensestCentre::find(const CloudView& cloud, float c[3]) {
   std::vector<std::pair<std::int64_t, std::uint32_t>>& cells = cells_;
   cells.clear();
   for (std::size_t i = 0; i < x_.size(); ++i) {
-    // Cells within 2^21 of the origin (16,000 km) only: the key packs two of them, and a
-    // coordinate further out would overflow the conversion; such a point joins no cell.
+    // Cells within 2^21 of the origin (16,000 km) only: the key packs two of them (ky in
+    // (-2^21, 2^21), so a stride of 2^22 keeps keys apart), and a coordinate further out
+    // would overflow the conversion; such a point joins no cell.
     const double fx = std::floor(x_[i] / kCell), fy = std::floor(y_[i] / kCell);
     if (!(std::fabs(fx) < kMaxCellIndex && std::fabs(fy) < kMaxCellIndex)) continue;
     const std::int64_t kx = static_cast<std::int64_t>(fx), ky = static_cast<std::int64_t>(fy);
-    cells.push_back({kx * 4194304 + ky, static_cast<std::uint32_t>(i)});
+    constexpr std::int64_t kRowStride = 2 * static_cast<std::int64_t>(kMaxCellIndex);
+    cells.push_back({kx * kRowStride + ky, static_cast<std::uint32_t>(i)});
   }
   if (cells.empty()) return false;
   std::sort(cells.begin(), cells.end());
