@@ -192,7 +192,7 @@ void CudaKnn::search(const float* xyz, std::size_t n_in, int k, std::int32_t* in
 }
 
 void CudaKnn::Impl::searchOnDevice(const float* d_xyz, int n, int k, std::int32_t* indices,
-                                   float* sq_dists) {
+                                   float* sq_dists, bool wait) {
   list_n = 0;
   const bool download = indices != nullptr;
   const auto t_start = std::chrono::steady_clock::now();
@@ -202,8 +202,8 @@ void CudaKnn::Impl::searchOnDevice(const float* d_xyz, int n, int k, std::int32_
   const GridDesc g = buildGrid(sorted_cloud, n, k, download);
   timings.grid_ms = msSince(t0);
   t0 = std::chrono::steady_clock::now();
-  runQueries(g, n, k, indices, sq_dists);
-  timings.query_ms = msSince(t0);  // with the overlapped download and scatter
+  runQueries(g, n, k, indices, sq_dists, wait);
+  timings.query_ms = msSince(t0);  // with the overlapped download and scatter (if it waits)
   list_n = static_cast<std::size_t>(n);
   list_k = k;
   list_xyz = d_xyz;
@@ -386,7 +386,7 @@ GridDesc CudaKnn::Impl::buildGrid(const SortedCloud& sorted_cloud, int n, int k,
 // ---- queries in chunks of Morton-ordered rows; each chunk's rows download while the next
 //      chunk computes, and the host scatters them to their original rows meanwhile.
 void CudaKnn::Impl::runQueries(const GridDesc& g, int n, int k, std::int32_t* indices,
-                               float* sq_dists) {
+                               float* sq_dists, bool wait) {
   const bool download = indices != nullptr;
   const std::size_t rows = static_cast<std::size_t>(n) * static_cast<std::size_t>(k);
   cudaStream_t st = stream;
@@ -448,8 +448,10 @@ void CudaKnn::Impl::runQueries(const GridDesc& g, int n, int k, std::int32_t* in
       }
     }
   }
-  GF_CUDA_CHECK(cudaStreamSynchronize(st));
-  GF_CUDA_CHECK(cudaStreamSynchronize(copy));
+  if (wait || download || tune.collect_stats) {
+    GF_CUDA_CHECK(cudaStreamSynchronize(st));
+    GF_CUDA_CHECK(cudaStreamSynchronize(copy));
+  }
 }
 
 void CudaKnn::Impl::readQueryStats(int n) {

@@ -254,7 +254,9 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
     }
     im.timings = CudaKnnTimings();
     im.stats = CudaKnnQueryStats();
-    im.searchOnDevice(q, m, prm.k, nullptr, nullptr);
+    // No wait for the queries: the host queues the stages after them meanwhile (the GPU ran
+    // them with a launch gap before each: docs/gpu.md, "The host side, traced").
+    im.searchOnDevice(q, m, prm.k, nullptr, nullptr, /*wait=*/false);
     GF_CUDA_CHECK(cudaEventRecord(pl.ev[3], im.stream));
 
     const GroundParamsDev& gp = prm;

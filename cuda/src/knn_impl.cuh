@@ -68,7 +68,10 @@ struct CudaKnn::Impl {
 
   /// Everything of search() after the points are on the device at `d_xyz` (n finite points):
   /// grid, queries; the lists stay on the device, and are downloaded when `indices` is set.
-  void searchOnDevice(const float* d_xyz, int n, int k, std::int32_t* indices, float* sq_dists);
+  /// wait = false (lists kept on the device only): returns once the queries are launched, so
+  /// the caller's next kernels queue behind them; the stream's next sync reports their errors.
+  void searchOnDevice(const float* d_xyz, int n, int k, std::int32_t* indices, float* sq_dists,
+                      bool wait = true);
 
   // The sections of searchOnDevice (cuda_knn.cu), in their order.
   /// Layout of `small` (device) and `h_small` (its host copy): bounds (7 ints), frame (5 floats:
@@ -88,9 +91,10 @@ struct CudaKnn::Impl {
   /// Level choice from the histogram and the cell tables of levels finest..0; returns the grid.
   cuda_impl::GridDesc buildGrid(const SortedCloud& sorted, int n, int k, bool download);
   /// The query kernel in chunks; with `indices`, each chunk downloads while the next computes and
-  /// the host scatters its rows to their original places.
+  /// the host scatters its rows to their original places; waits for them unless `wait` is
+  /// false with no download and no statistics.
   void runQueries(const cuda_impl::GridDesc& g, int n, int k, std::int32_t* indices,
-                  float* sq_dists);
+                  float* sq_dists, bool wait);
   /// Reads the query counters into `stats` (tune.collect_stats).
   void readQueryStats(int n);
 
