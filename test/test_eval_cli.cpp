@@ -223,6 +223,28 @@ TEST(EvalCli, ErrorsExitNonZeroWithMessage) {
   EXPECT_NE(r.out.find("--write-labels"), std::string::npos);
 }
 
+// --hag --hag-threads N: the heights (and so every figure of them) do not depend on N; out of
+// range is refused by name.
+TEST(EvalCli, HagThreadsGiveTheSameHeights) {
+  const auto hag = [](const std::string& threads) {
+    const CommandResult r =
+        runEval("--method voxel --json --hag --hag-threads " + threads + " builtin:lidar:1");
+    EXPECT_EQ(r.status, 0) << r.out;
+    Json doc;
+    EXPECT_NO_THROW(doc = JsonParser(r.out).parseDocument()) << r.out;
+    return doc.at("hag");
+  };
+  const Json one = hag("1"), three = hag("3");
+  for (const char* k : {"nan_share", "error_median", "error_p95", "nonground_median"}) {
+    ASSERT_EQ(one.at(k).type, Json::kNumber) << k;
+    EXPECT_EQ(one.at(k).num, three.at(k).num) << k;
+  }
+  EXPECT_LT(one.at("error_median").num, 0.05);
+  const CommandResult bad = runEval("--hag --hag-threads 300 builtin:lidar:1", true);
+  EXPECT_NE(bad.status, 0);
+  EXPECT_NE(bad.out.find("--hag-threads"), std::string::npos) << bad.out;
+}
+
 // --write-scans: a generated sensor's scene as KITTI files, scored alike when read back; the
 // JSON names the wider stride of a sparse sensor in "note".
 TEST(EvalCli, WriteScansGivesAGeneratedSceneToOtherTools) {

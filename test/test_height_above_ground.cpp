@@ -353,6 +353,11 @@ TEST(HeightAboveGround, BadParamsAreRefusedByName) {
   EXPECT_TRUE(refused(p, "radius"));
   p.radius = std::numeric_limits<double>::infinity();
   EXPECT_TRUE(refused(p, "radius"));
+  p = gf::GroundSurfaceParams();
+  p.threads = -1;
+  EXPECT_TRUE(refused(p, "threads"));
+  p.threads = 257;
+  EXPECT_TRUE(refused(p, "threads"));
   EXPECT_THROW(s.build(c.view(), std::vector<std::uint8_t>(3, 1), gf::GroundSurfaceParams()),
                std::invalid_argument);
   EXPECT_NO_THROW(gf::GroundSurfaceParams().validate());
@@ -448,19 +453,73 @@ TEST(HeightAboveGround, EveryCodePathAndLayoutGivesTheSameSurface) {
   }
 }
 
+// heights() splits the points over params.threads: every point written once, with the same
+// value; the cells do not depend on it either.
+TEST(HeightAboveGround, SurfaceAndHeightsAreTheSameForAnyThreadCount) {
+  const gf::GeneratedScan scan = gf::generateScene(gf::builtinSceneParams("lidar"));
+  std::vector<float> xyz(scan.xyz.begin(), scan.xyz.end());
+  xyz.insert(xyz.end(), {1.f, 2.f, -0.1f, kNaN, 0.f, 0.f, 3.f, 1.f, 0.f});  // not a multiple of 8
+  std::vector<std::uint8_t> labels(scan.truth.begin(), scan.truth.end());
+  labels.insert(labels.end(), {1, 1, 0});
+  const std::size_t n = labels.size();
+  ASSERT_GT(n, 100000u);  // several threads' worth (16 k points each at least)
+  ASSERT_NE(n % 8, 0u);
+  const gf::CloudView view = gf::CloudView::packedXyz(xyz.data(), n);
+  std::vector<gf::SurfaceCell> cells;
+  const auto heights = [&](int threads) {
+    gf::GroundSurfaceParams p;
+    p.threads = threads;
+    gf::GroundSurface s;
+    s.build(view, labels, p);
+    std::vector<float> h(n, 12345.f);  // a point left out keeps this
+    s.heights(view, &h);
+    cells = s.cells();
+    return h;
+  };
+  const std::vector<float> want = heights(1);
+  const std::vector<gf::SurfaceCell> want_cells = cells;
+  std::size_t finite = 0;
+  for (float v : want) finite += std::isfinite(v) && v != 12345.f;
+  EXPECT_GT(finite, n * 9 / 10);
+  for (int threads : {2, 3, 7, 0}) {
+    SCOPED_TRACE("threads " + std::to_string(threads));
+    const std::vector<float> got = heights(threads);
+    ASSERT_EQ(cells.size(), want_cells.size());
+    std::size_t same = 0;
+    for (std::size_t k = 0; k < cells.size(); ++k) {
+      const gf::SurfaceCell &a = cells[k], &b = want_cells[k];
+      same += a.x == b.x && a.y == b.y && a.z == b.z && a.points == b.points &&
+              a.confidence == b.confidence;
+    }
+    EXPECT_EQ(same, cells.size());
+    ASSERT_EQ(got.size(), n);
+    same = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      same += std::memcmp(&got[i], &want[i], sizeof(float)) == 0 ||
+              (std::isnan(got[i]) && std::isnan(want[i]));
+    }
+    EXPECT_EQ(same, n);
+  }
+}
+
 TEST(HeightAboveGround, NoAllocationAfterTheFirstScan) {
   const gf::SceneParams params = gf::builtinSceneParams("lidar");
   const gf::GeneratedScan scan = gf::generateScene(params);
   const gf::CloudView view = gf::CloudView::packedXyz(scan.xyz.data(), scan.size());
-  gf::GroundSurface s;
-  std::vector<float> h;
-  s.build(view, scan.truth, gf::GroundSurfaceParams());
-  s.heights(view, &h);
-  const std::size_t before = allocationCount().load();
-  s.build(view, scan.truth, gf::GroundSurfaceParams());
-  s.heights(view, &h);
-  EXPECT_EQ(allocationCount().load() - before, 0u);
-  EXPECT_FALSE(s.cells().empty());
+  for (int threads : {1, 2}) {
+    SCOPED_TRACE("threads " + std::to_string(threads));
+    gf::GroundSurfaceParams p;
+    p.threads = threads;
+    gf::GroundSurface s;
+    std::vector<float> h;
+    s.build(view, scan.truth, p);
+    s.heights(view, &h);
+    const std::size_t before = allocationCount().load();
+    s.build(view, scan.truth, p);
+    s.heights(view, &h);
+    EXPECT_EQ(allocationCount().load() - before, 0u);
+    EXPECT_FALSE(s.cells().empty());
+  }
 }
 
 }  // namespace

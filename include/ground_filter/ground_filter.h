@@ -33,6 +33,7 @@ struct FilterStats {
   double total_ms = 0.0;          ///< wall time of the whole call
   std::string backend;            ///< neighbour backend actually used ("" when not applicable)
   std::string note;               ///< e.g. the reason for a backend fallback; empty when none
+  int threads = 1;                ///< worker threads the filter may use (`threads` resolved)
   /// The kind of scan this one was run as: "ground", "tls" (both the method's own steps) or
   /// "airborne" (the morphological surface); parameter scan_type. "" for a filter without one.
   std::string scan_type;

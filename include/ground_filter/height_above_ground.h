@@ -25,6 +25,10 @@ struct GroundSurfaceParams {
   /// the cells 3 to 5 cells out too. False for an airborne scan (the filters' scan_type says
   /// which; the nodelets and ground_filter_eval set it from there) (true).
   bool ground_level = true;
+  /// Threads of heights(), 0 = all cores (1; 0 .. 256): the nodelets and ground_filter_eval
+  /// pass the filter's own (FilterStats::threads). The heights are the same bit for bit for any
+  /// count. build() runs on one thread (split, it was no faster on 2 cores: docs, "Cost").
+  int threads = 1;
 
   /// \brief Sets `ground_level` from a filter's FilterStats::scan_type: every scan type but
   ///        "airborne" was taken from among its points.
@@ -128,6 +132,7 @@ class GroundSurface {
 
   double cell_ = 1.0, radius_ = 5.0;
   bool ground_level_ = true;
+  int threads_ = 1;            // params.threads resolved (heights())
   double z_ref_ = 0.0;         // z the sums are taken from
   float x0_ = 0.f, y0_ = 0.f;  // lower-left corner of the grid
   int nx_ = 0, ny_ = 0;

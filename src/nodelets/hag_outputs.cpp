@@ -156,6 +156,7 @@ const std::vector<float>* HagOutputs::process(const sensor_msgs::PointCloud2& in
   if (failed) view = CloudView();
   // Occlusion shadows (the shadow spike test) only where a sensor stood among the points.
   params_.setScanType(filtered.stats.scan_type);
+  params_.threads = filtered.stats.threads;  // the filter's own (the method's `threads`)
   surface_.build(view, failed ? std::vector<std::uint8_t>() : labels, params_);
   if (want_surface) {
     clouds->surface = boost::make_shared<sensor_msgs::PointCloud2>();

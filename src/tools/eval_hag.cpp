@@ -43,10 +43,11 @@ std::vector<std::pair<std::string, double>> hagNumbers(HagResult h, double ms_mi
 }
 
 HagResult hagOf(const Scan& scan, const CloudView& view, const std::vector<std::uint8_t>& labels,
-                const std::string& scan_type, int repeat) {
+                const std::string& scan_type, int threads, int repeat) {
   HagResult h;
   GroundSurfaceParams params;
   params.setScanType(scan_type);  // as the nodelets do
+  params.threads = threads;
   GroundSurface surface;
   std::vector<float> heights;
   for (int r = 0; r < repeat; ++r) {

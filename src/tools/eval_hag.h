@@ -36,9 +36,10 @@ struct HagResult {
 
 /// \brief The surface from `labels` (built `repeat` times, timed) and the heights of the scan's
 ///        points against its exact terrain (builtin: scenes) and its truth labels. `scan_type`:
-///        the filter's FilterStats::scan_type ("airborne": no shadow test, as in the nodelets).
+///        the filter's FilterStats::scan_type ("airborne": no shadow test, as in the nodelets);
+///        `threads`: its FilterStats::threads (the surface's threads, as in the nodelets).
 HagResult hagOf(const Scan& scan, const CloudView& view, const std::vector<std::uint8_t>& labels,
-                const std::string& scan_type, int repeat);
+                const std::string& scan_type, int threads, int repeat);
 
 /// \brief The numbers --hag prints: keys of the JSON, in table order.
 std::vector<std::pair<std::string, double>> hagNumbers(HagResult h, double ms_min, double ms_med);

@@ -34,7 +34,7 @@ const char kUsage[] =
     "                          [--kitti-ids GROUND,NONGROUND] [--write-clouds DIR]\n"
     "                          [--write-scans DIR]\n"
     "                          [--repeat N] [--drop-one N] [--score-labels DIR]\n"
-    "                          [--scan-measures] [--hag] PATH...\n"
+    "                          [--scan-measures] [--hag] [--hag-threads N] PATH...\n"
     "\n"
     "Runs a ground filter on every scan and prints per-file and pooled results: points, points\n"
     "labelled ground, filter time in ms, and where ground truth exists the confusion counts\n"
@@ -101,6 +101,8 @@ const char kUsage[] =
     "                    nan_share, error_median, error_p95, ground_median, ground_p5,\n"
     "                    ground_p95, ground_within_0_1, nonground_median, nonground_p5,\n"
     "                    nonground_p95 (null where undefined)\n"
+    "--hag-threads N     threads of the heights (GroundSurfaceParams::threads; 0 = all cores);\n"
+    "                    default: the filter's own `threads`, as in the nodelets\n"
     "--score-labels DIR  run no filter: score DIR/<stem>.gnd (as --write-labels writes them,\n"
     "                    e.g. another ground filter's) against each scan's truth, same protocol\n"
     "                    and output; ms is 0; not with --drop-one or --repeat\n"
@@ -117,7 +119,8 @@ struct Options {
   bool json = false;
   bool classes = false;
   bool scan_measures = false;
-  bool hag = false;  // --hag
+  bool hag = false;      // --hag
+  int hag_threads = -1;  // --hag-threads; -1: the filter's
   std::string labels_dir;
   bool kitti_labels = false;  // --label-format kitti
   gf::KittiLabelIds kitti_ids;
@@ -191,8 +194,10 @@ Options parseArgs(int argc, char** argv) {
   cli::FilterArgs filter_args;
   cli::parseCommandLine(
       argc, argv, kUsage,
-      {{"--repeat", &o.repeat, 1, 1000000}, {"--drop-one", &o.drop_one, 0, 1000000}}, nullptr,
-      &o.paths, [&](cli::ArgCursor* args) {
+      {{"--repeat", &o.repeat, 1, 1000000},
+       {"--drop-one", &o.drop_one, 0, 1000000},
+       {"--hag-threads", &o.hag_threads, 0, 256}},
+      nullptr, &o.paths, [&](cli::ArgCursor* args) {
         const std::string& arg = args->option();
         if (arg == "--json") {
           o.json = true;
@@ -386,7 +391,8 @@ FileResult evalFile(gf::GroundFilter* filter, const std::string& file, const Opt
     gf::addClassCounts(labels, scan.truth, scan.semantic, classes);
   }
   if (opt.hag) {
-    res.hag = cli::hagOf(scan, view, labels, stats.scan_type, opt.repeat);
+    res.hag = cli::hagOf(scan, view, labels, stats.scan_type,
+                         opt.hag_threads >= 0 ? opt.hag_threads : stats.threads, opt.repeat);
     if (filter) {  // shares of the filter's time (none with --score-labels)
       res.hag.filter_min = *std::min_element(times.begin(), times.end());
       res.hag.filter_med = res.ms;

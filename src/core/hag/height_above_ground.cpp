@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "common/threads_timing.h"
 #include "hag/surface_points.h"
 #include "simd/avx2_common.h"
 #include "simd/simd.h"
@@ -61,6 +62,10 @@ constexpr int kShadowReach = 5;            // ... and ends at the 11 x 11 window
 constexpr int kShadowLeast = 6;            // occupied cells of the ring's 96 that the test needs
 constexpr double kConfidencePoints = 3.0;  // confidence n / (n + this) ...
 constexpr double kConfidenceRms = 0.05;    // ... / (1 + (rms / this)^2) [m]
+
+// Points a thread of heights() takes at least: a small scan runs on one (a team's start costs a
+// few microseconds).
+constexpr std::size_t kPointsEach = 16384;
 
 // flags_ bits (per occupied cell).
 constexpr std::uint8_t kRefit = 1;  // refitted without its outliers
@@ -116,6 +121,7 @@ void checkRange(const char* name, double v, double lo, double hi) {
 void GroundSurfaceParams::validate() const {
   checkRange("cell", cell, 0.05, 100.0);
   checkRange("radius", radius, 0.0, 1000.0);
+  checkRange("threads", threads, 0.0, 256.0);
 }
 
 void GroundSurface::chooseGrid(double min_x, double min_y, double max_x, double max_y,
@@ -575,6 +581,7 @@ void GroundSurface::build(const CloudView& cloud, const std::vector<std::uint8_t
   }
   radius_ = params.radius;
   ground_level_ = params.ground_level;
+  threads_ = resolveThreads(params.threads);
   cells_.clear();
   occupied_.clear();
   acc_.clear();
@@ -656,11 +663,33 @@ void GroundSurface::heights(const CloudView& cloud, std::vector<float>* out) con
                   static_cast<float>(1.0 / cell_),
                   static_cast<float>(nx_ - 1),
                   static_cast<float>(ny_ - 1)};
-  std::size_t i = 0;
-#if GF_HAVE_AVX2_PATHS
-  if (avx2Paths()) i = hag::heightsAvx2(in, at, n, h);
+  const bool avx2 = avx2Paths();  // once for the whole team
+  // Each point's height reads the surface only: the points split over threads in any way (in
+  // blocks of eight, as the AVX2 path takes them).
+  const int team = static_cast<int>(std::min(std::max<std::size_t>(1, n / kPointsEach),
+                                             static_cast<std::size_t>(std::max(1, threads_))));
+  const std::size_t blocks = (n + 7) / 8;
+#pragma omp parallel num_threads(team) if (team > 1)
+  {
+    std::size_t t = 0, nt = 1;
+#ifdef _OPENMP
+    t = static_cast<std::size_t>(omp_get_thread_num());
+    nt = static_cast<std::size_t>(omp_get_num_threads());
 #endif
-  heightsScalar(in, at, i, n, h);
+    const std::size_t b = std::min(n, blocks * t / nt * 8),
+                      e = std::min(n, blocks * (t + 1) / nt * 8);
+    std::size_t i = b;
+#if GF_HAVE_AVX2_PATHS
+    if (avx2 && e > b) {
+      XyzReader from_b = in;
+      from_b.data += b * in.stride;
+      i = b + hag::heightsAvx2(from_b, at, e - b, h + b);
+    }
+#else
+    (void)avx2;
+#endif
+    heightsScalar(in, at, i, e, h);
+  }
 }
 
 }  // namespace ground_filter

@@ -411,6 +411,7 @@ void NormalGroundFilter::filter(const CloudView& cloud, std::vector<std::uint8_t
   FilterStats& st = stats ? *stats : im.own_stats;
   resetStats(&st);
   st.input_points = cloud.size();
+  st.threads = threads;
   st.backend = backend();
   st.note = backend_note_;
   labels->assign(cloud.size(), kNonGround);

@@ -262,6 +262,7 @@ bool VoxelGroundFilter::run(const CloudView& cloud, const WorkingVolume* volume,
   labels->assign(cloud.size(), kNonGround);
   const VoxelGroundFilterParams& p = params_;
   const int threads = resolveThreads(p.threads);
+  st.threads = threads;
   const ScanDecision& scan = m.scan.decide(cloud);
   if (stats) {  // reserved once: reused stats allocate nothing
     st.scan_type = scanTypeName(scan.type);
