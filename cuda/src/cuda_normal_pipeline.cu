@@ -151,7 +151,8 @@ struct CudaNormalPipeline::Impl {
   /// Compacts the finite points (raw_xyz, raw_src).
   void compactFinite(CudaKnn::Impl& im, std::size_t n_in);
   /// Grid-column order of the n compacted points: xyz, src (event 2).
-  void orderColumns(CudaKnn::Impl& im, int n, const XyBounds& bb, double cell_size);
+  void orderColumns(CudaKnn::Impl& im, int n, const XyBounds& bb, double cell_size,
+                    bool all_finite);
   /// The sampled points (CPU: SampleStage::gather): sidx (m + 1 entries), sampled_xyz, and the
   /// per-point flags and their scan in vflags / vpos (free until the tiles); downloads m.
   int sample(CudaKnn::Impl& im, int n, int stride, int cap);
@@ -232,9 +233,12 @@ void CudaNormalPipeline::run(const CloudView& cloud, const CudaNormalParams& prm
     tm.total_ms = msSince(t_start);
     return;
   }
-  pl.compactFinite(im, n_in);
+  // Every point finite (the packing counted them; most drivers' clouds hold no NaN): the input
+  // is its own compaction, and the compaction's four launches are left out.
+  const bool all_finite = n_valid == n_in;
+  if (!all_finite) pl.compactFinite(im, n_in);
   const int n = static_cast<int>(n_valid);
-  pl.orderColumns(im, n, bb, prm.cell_size);
+  pl.orderColumns(im, n, bb, prm.cell_size, all_finite);
 
   // ---- the sampled points (CPU: SampleStage), their K nearest neighbours (lists stay on the
   //      device), PCA + candidates and vote; the others: OR of the samples before and after
@@ -371,23 +375,26 @@ void CudaNormalPipeline::Impl::compactFinite(CudaKnn::Impl& im, std::size_t n_in
 
 // ---- grid-column order (CPU: cellIndex + spreadBits), grid cell coarsened for very wide clouds
 void CudaNormalPipeline::Impl::orderColumns(CudaKnn::Impl& im, int n, const XyBounds& bb,
-                                            double cell_size) {
+                                            double cell_size, bool all_finite) {
   cudaStream_t st = im.stream;
+  // all_finite: the points are the input as uploaded, each its own source index.
+  const float* d_raw = all_finite ? in.as<float>() : raw_xyz.as<float>();
+  const unsigned int* d_raw_src = all_finite ? nullptr : raw_src.as<unsigned int>();
   const double extent = std::max(bb.max_x - bb.min_x, bb.max_y - bb.min_y);
   const double cell = std::max(cell_size, extent / 4.0e9);
   const double inv_cell = 1.0 / cell;
   const int col_bits = bitLength(std::max(normal::cellIndex(bb.max_x, bb.min_x, inv_cell),
                                           normal::cellIndex(bb.max_y, bb.min_y, inv_cell)));
-  launchColumnKeys(raw_xyz.as<float>(), n, bb.min_x, bb.min_y, inv_cell,
-                   keys_a.as<unsigned long long>(), vals_a.as<unsigned int>(), st);
+  launchColumnKeys(d_raw, n, bb.min_x, bb.min_y, inv_cell, keys_a.as<unsigned long long>(),
+                   vals_a.as<unsigned int>(), st);
   cub::DoubleBuffer<unsigned long long> kb(keys_a.as<unsigned long long>(),
                                            keys_b.as<unsigned long long>());
   cub::DoubleBuffer<unsigned int> vb(vals_a.as<unsigned int>(), vals_b.as<unsigned int>());
   std::size_t tb = temp.bytes;
   GF_CUDA_CHECK(
       cub::DeviceRadixSort::SortPairs(temp.ptr, tb, kb, vb, n, 0, std::max(1, 2 * col_bits), st));
-  launchGatherColumns(raw_xyz.as<float>(), raw_src.as<unsigned int>(), vb.Current(), n,
-                      xyz.as<float>(), src.as<unsigned int>(), st);
+  launchGatherColumns(d_raw, d_raw_src, vb.Current(), n, xyz.as<float>(), src.as<unsigned int>(),
+                      st);
   col_keys = kb.Current();
   GF_CUDA_CHECK(cudaEventRecord(ev[2], st));
 }

@@ -61,7 +61,7 @@ __global__ void gatherColumnsKernel(const float* __restrict__ raw_xyz,
   xyz[b] = raw_xyz[a];
   xyz[b + 1] = raw_xyz[a + 1];
   xyz[b + 2] = raw_xyz[a + 2];
-  src[j] = raw_src[s];
+  src[j] = raw_src != nullptr ? raw_src[s] : s;  // null: every input point was finite
 }
 
 }  // namespace

@@ -22,7 +22,7 @@ void launchCompact(const float* in, const unsigned int* flags, const unsigned in
 /// Morton key of the x/y grid column of every compacted point (CPU: cellIndex + spreadBits).
 void launchColumnKeys(const float* raw_xyz, int n, double min_x, double min_y, double inv_cell,
                       unsigned long long* keys, unsigned int* vals, cudaStream_t st);
-/// xyz[j] = raw_xyz[order[j]], src[j] = raw_src[order[j]].
+/// xyz[j] = raw_xyz[order[j]], src[j] = raw_src[order[j]] (order[j] where raw_src is null).
 void launchGatherColumns(const float* raw_xyz, const unsigned int* raw_src,
                          const unsigned int* order, int n, float* xyz, unsigned int* src,
                          cudaStream_t st);

@@ -27,7 +27,8 @@ struct GroundSurfaceParams {
   bool ground_level = true;
   /// Threads of heights(), 0 = all cores (1; 0 .. 256): the nodelets and ground_filter_eval
   /// pass the filter's own (FilterStats::threads). The heights are the same bit for bit for any
-  /// count. build() runs on one thread (split, it was no faster on 2 cores: docs, "Cost").
+  /// count. build() runs on one thread (split, it was no faster on two cores:
+  /// docs/height_above_ground.md, "Threads").
   int threads = 1;
 
   /// \brief Sets `ground_level` from a filter's FilterStats::scan_type: every scan type but
