@@ -481,7 +481,9 @@ TEST(HeightAboveGround, SurfaceAndHeightsAreTheSameForAnyThreadCount) {
   std::size_t finite = 0;
   for (float v : want) finite += std::isfinite(v) && v != 12345.f;
   EXPECT_GT(finite, n * 9 / 10);
-  for (int threads : {2, 3, 7, 0}) {
+  // The largest team first: LLVM's libomp (the sanitizer build's) keeps the thread table it
+  // outgrows, which LeakSanitizer reports at exit.
+  for (int threads : {7, 3, 2, 0}) {
     SCOPED_TRACE("threads " + std::to_string(threads));
     const std::vector<float> got = heights(threads);
     ASSERT_EQ(cells.size(), want_cells.size());
