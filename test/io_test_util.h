@@ -255,10 +255,10 @@ struct CommandResult {
   std::string out;
 };
 
-// Runs ground_filter_eval with `args`; stdout only, or stdout + stderr when merge_stderr.
-inline CommandResult runEval(const std::string& args, bool merge_stderr = false) {
-  const std::string cmd =
-      std::string("'") + GF_EVAL_BIN + "' " + args + (merge_stderr ? " 2>&1" : " 2>/dev/null");
+// Runs the program `bin` with `args`; stdout only, or stdout + stderr when merge_stderr.
+inline CommandResult runCommand(const std::string& bin, const std::string& args,
+                                bool merge_stderr = false) {
+  const std::string cmd = "'" + bin + "' " + args + (merge_stderr ? " 2>&1" : " 2>/dev/null");
   CommandResult r;
   FILE* pipe = popen(cmd.c_str(), "r");
   if (!pipe) return r;
@@ -268,6 +268,11 @@ inline CommandResult runEval(const std::string& args, bool merge_stderr = false)
   const int st = pclose(pipe);
   r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
   return r;
+}
+
+// Runs ground_filter_eval with `args` (runCommand()).
+inline CommandResult runEval(const std::string& args, bool merge_stderr = false) {
+  return runCommand(GF_EVAL_BIN, args, merge_stderr);
 }
 
 // A flat 20 x 20 road patch at z = -1.73 (label 40) plus a 1 m box (label 50 building) and two

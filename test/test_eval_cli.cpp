@@ -245,6 +245,25 @@ TEST(EvalCli, HagThreadsGiveTheSameHeights) {
   EXPECT_NE(bad.out.find("--hag-threads"), std::string::npos) << bad.out;
 }
 
+// ground_filter_benchmark --hag-threads: the surface's table, a row per value, the timed calls
+// shared out between them; a value out of range refused by name.
+TEST(BenchmarkCli, HagThreadsTable) {
+  const auto bench = [](const std::string& args) {
+    return runCommand(GF_BENCHMARK_BIN, args, true);
+  };
+  const CommandResult r = bench("--repeat 4 --warmup 0 --hag-threads 1,2 builtin:lidar:1");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("height above ground after each filter call"), std::string::npos) << r.out;
+  for (const char* threads : {"1", "2"}) {
+    const std::regex row(std::string("builtin:lidar:1 +default +") + threads +
+                         " +2 +[0-9.]+ +[0-9.]+ +[0-9.]+ +[0-9.]+");
+    EXPECT_TRUE(std::regex_search(r.out, row)) << threads << "\n" << r.out;
+  }
+  const CommandResult bad = bench("--hag-threads 1,300 builtin:lidar:1");
+  EXPECT_NE(bad.status, 0);
+  EXPECT_NE(bad.out.find("--hag-threads"), std::string::npos) << bad.out;
+}
+
 // --write-scans: a generated sensor's scene as KITTI files, scored alike when read back; the
 // JSON names the wider stride of a sparse sensor in "note".
 TEST(EvalCli, WriteScansGivesAGeneratedSceneToOtherTools) {

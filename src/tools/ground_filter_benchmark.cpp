@@ -16,6 +16,7 @@
 #include "cli_args.h"
 #include "eval/scan_io.h"
 #include "ground_filter/ground_filter.h"
+#include "ground_filter/height_above_ground.h"
 
 namespace gf = ground_filter;
 namespace cli = ground_filter::cli;
@@ -24,7 +25,8 @@ namespace {
 
 const char kUsage[] =
     "usage: ground_filter_benchmark [--method NAME] [--params FILE] [--set NAME=VALUE]...\n"
-    "                               [--repeat N] [--warmup N] [--threads N[,N...]] [PATH...]\n"
+    "                               [--repeat N] [--warmup N] [--threads N[,N...]]\n"
+    "                               [--hag-threads N[,N...]] [PATH...]\n"
     "\n"
     "Times GroundFilter::filter() on each scan (the core only: loading is not timed) and prints\n"
     "median / min / max / mean ms per frame, million points per second (from the median) and the\n"
@@ -43,6 +45,10 @@ const char kUsage[] =
     "--warmup N          untimed runs per file before timing (default 2)\n"
     "--threads LIST      set the filter's 'threads' parameter, one table row per value\n"
     "                    (e.g. 1,2); default: the method's default\n"
+    "--hag-threads LIST  after each timed filter call, also time GroundSurface::build() and\n"
+    "                    heights() on its labels (as a nodelet does for height_above_ground),\n"
+    "                    with GroundSurfaceParams::threads taken from LIST in turn, call by call\n"
+    "                    (0 = all cores); prints their medians per file and value\n"
     "--help              this text\n";
 
 using cli::UsageError;
@@ -53,6 +59,7 @@ struct Options {
   int repeat = 20;
   int warmup = 2;
   std::vector<std::string> threads;  // empty: the method's default
+  std::vector<int> hag_threads;      // --hag-threads; empty: no surface
   std::vector<std::string> paths;
 };
 
@@ -62,6 +69,11 @@ Options parseArgs(int argc, char** argv) {
   cli::parseCommandLine(argc, argv, kUsage,
                         {{"--repeat", &o.repeat, 1, 1000000}, {"--warmup", &o.warmup, 0, 1000000}},
                         nullptr, &o.paths, [&](cli::ArgCursor* args) {
+                          if (args->option() == "--hag-threads") {
+                            o.hag_threads =
+                                cli::parseIntList("--hag-threads", args->value(), 0, 256);
+                            return true;
+                          }
                           if (args->option() != "--threads") return filter_args.consume(args);
                           for (int t : cli::parseIntList("--threads", args->value(), 0, 1000000)) {
                             o.threads.push_back(std::to_string(t));
@@ -88,6 +100,12 @@ struct Row {
   double median_ms = 0.0, min_ms = 0.0, max_ms = 0.0;
   double mean_ms = 0.0;  // with the scans that pay a periodic cost (a stream's re-measurements)
   std::vector<std::pair<std::string, double>> stages;  // name, median ms (execution order)
+  struct Hag {
+    int threads;
+    double build_ms, heights_ms, total_ms;  // medians
+    std::size_t calls;
+  };
+  std::vector<Hag> hag;  // one per --hag-threads value
 };
 
 /// One filter per thread setting, built before any loading so bad parameters fail fast.
@@ -115,11 +133,31 @@ Row benchFile(const Options& opt, gf::GroundFilter& filter, const std::string& f
   std::vector<double> times;
   std::vector<std::string> stage_order;
   std::map<std::string, std::vector<double>> stage_times;
+  // One surface per --hag-threads value, each timed right after a filter call of its own.
+  const std::size_t nh = opt.hag_threads.size();
+  std::vector<gf::GroundSurface> surfaces(nh);
+  std::vector<std::vector<double>> hag_build(nh), hag_heights(nh), hag_total(nh);
+  std::vector<float> heights;
   for (int r = 0; r < opt.repeat; ++r) {
     stats = gf::FilterStats();
     const auto t0 = std::chrono::steady_clock::now();
     filter.filter(view, labels, &stats);
     times.push_back(cli::msSince(t0));
+    if (nh > 0) {
+      const std::size_t h = static_cast<std::size_t>(r) % nh;
+      gf::GroundSurfaceParams params;
+      params.setScanType(stats.scan_type);  // as the nodelets do
+      params.threads = opt.hag_threads[h];
+      const auto b0 = std::chrono::steady_clock::now();
+      surfaces[h].build(view, *labels, params);
+      const double build_ms = cli::msSince(b0);
+      const auto h0 = std::chrono::steady_clock::now();
+      surfaces[h].heights(view, &heights);
+      const double heights_ms = cli::msSince(h0);
+      hag_build[h].push_back(build_ms);
+      hag_heights[h].push_back(heights_ms);
+      hag_total[h].push_back(build_ms + heights_ms);
+    }
     for (const auto& s : stats.stage_ms) {
       auto& v = stage_times[s.first];
       if (v.empty()) stage_order.push_back(s.first);
@@ -137,7 +175,30 @@ Row benchFile(const Options& opt, gf::GroundFilter& filter, const std::string& f
   for (const double t : times) row.mean_ms += t / static_cast<double>(times.size());
   for (const auto& name : stage_order)
     row.stages.emplace_back(name, cli::median(stage_times[name]));
+  for (std::size_t h = 0; h < nh; ++h) {
+    if (hag_total[h].empty()) continue;  // fewer timed runs than values
+    row.hag.push_back(Row::Hag{opt.hag_threads[h], cli::median(hag_build[h]),
+                               cli::median(hag_heights[h]), cli::median(hag_total[h]),
+                               hag_total[h].size()});
+  }
   return row;
+}
+
+/// --hag-threads: the surface's medians per file, filter setting and value.
+void printHag(const std::vector<Row>& rows) {
+  std::size_t name_w = 4;
+  for (const auto& r : rows) name_w = std::max(name_w, r.file.size());
+  std::printf("\nheight above ground after each filter call (build() + heights(), medians ms)\n");
+  std::printf("%-*s %7s %11s %6s %9s %10s %9s %9s\n", static_cast<int>(name_w), "file", "threads",
+              "hag_threads", "calls", "build_ms", "heights_ms", "total_ms", "%filter");
+  for (const auto& r : rows) {
+    for (const auto& h : r.hag) {
+      std::printf("%-*s %7s %11d %6zu %9.3f %10.3f %9.3f %9.1f\n", static_cast<int>(name_w),
+                  r.file.c_str(), r.threads.empty() ? "default" : r.threads.c_str(), h.threads,
+                  h.calls, h.build_ms, h.heights_ms, h.total_ms,
+                  r.median_ms > 0 ? 100.0 * h.total_ms / r.median_ms : 0.0);
+    }
+  }
 }
 
 /// The totals table: one row per file and thread setting, the sums of medians per setting.
@@ -229,6 +290,7 @@ int run(const Options& opt) {
   }
   printTotals(opt, thread_values, rows);
   printStages(rows);
+  if (!opt.hag_threads.empty()) printHag(rows);
   return 0;
 }
 
