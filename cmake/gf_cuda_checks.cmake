@@ -24,6 +24,10 @@ gf_gpu_check(test_gpu_pipeline ${GF_CUDA_DIR}/test/test_gpu_pipeline.cpp gtest_m
   ground_filter_eval_kit CUDA::cudart_static)
 add_test(NAME gpu_pipeline COMMAND test_gpu_pipeline)
 gf_gpu_check(bench_gpu_knn ${GF_CUDA_DIR}/bench/bench_gpu_knn.cpp OpenMP::OpenMP_CXX)
+# Whether capturing a scan's launches into a CUDA graph pays when sizes change every scan
+# (docs/gpu.md, "The host side, traced"): cub and the runtime only.
+add_executable(bench_graph_probe ${GF_CUDA_DIR}/bench/graph_probe.cu)
+target_link_libraries(bench_graph_probe CUDA::cudart_static)
 
 # Cost over scan size (docs/evaluation.md#ground_filter_scale_benchmark-cost-over-scan-size):
 # generated TLS scans of 1-50 M points, CPU rows and, with --gpu, GPU rows.

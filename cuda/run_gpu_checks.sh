@@ -20,7 +20,7 @@ mkdir -p "${LOG}"
 gen=(); command -v ninja > /dev/null && gen=(-G Ninja)
 # The GPU's targets and tests only (the core's own gtests run in CI).
 GPU_TARGETS="test_cuda_knn test_gpu_neighbor_search test_gpu_pipeline test_gpu_fallback bench_gpu_knn
-  ground_filter_scale_benchmark"
+  bench_graph_probe ground_filter_scale_benchmark"
 GPU_TESTS="cuda_knn|gpu_neighbor_search|gpu_pipeline|test_gpu_fallback"
 # shellcheck disable=SC2086  # GF_CMAKE_ARGS: several words on purpose
 cmake -S . -B build-cuda "${gen[@]}" -DCMAKE_BUILD_TYPE=Release -DGF_CORE_ONLY=ON -DGF_CUDA=ON \
