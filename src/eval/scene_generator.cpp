@@ -283,6 +283,7 @@ GeneratedScan airborneScan(const SceneParams& p) {
   std::vector<Ellipsoid> crowns, bushes;
   const double area = 4.0 * ext * ext;
   if (p.airborne_hall > 0.0) airborneHall(p, &boxes);  // first: the others keep clear
+  const std::size_t hall_boxes = boxes.size();
   const int buildings = std::max(2, static_cast<int>(area / 1800.0));
   for (int i = 0; i < buildings; ++i) {
     const double w = uni(8.0, 30.0), d = uni(8.0, 22.0), cx = uni(-ext, ext), cy = uni(-ext, ext);
@@ -338,13 +339,18 @@ GeneratedScan airborneScan(const SceneParams& p) {
       double z = terrain;
       std::uint16_t cls = kClassTerrain;
       float refl = kGrassReflectivity;
-      for (const Box& b : boxes) {
+      std::size_t hit = boxes.size();
+      for (std::size_t k = 0; k < boxes.size(); ++k) {
+        const Box& b = boxes[k];
         if (x >= b.lo.x && x < b.hi.x && y >= b.lo.y && y < b.hi.y && b.hi.z > z) {
           z = b.hi.z;
           cls = b.cls;
           refl = b.reflectivity;
+          hit = k;
         }
       }
+      // The hall's boxes come first; its roof strip returns nothing.
+      if (hit < hall_boxes && std::fabs(x) < 0.5 * p.airborne_hall_gap) continue;
       const double pass = u01(rng), into = u01(rng);
       for (const auto* list : {&crowns, &bushes}) {
         for (const Ellipsoid& e : *list) {
@@ -554,6 +560,7 @@ void SceneParams::validate() const {
   checkRange("airborne_extra", airborne_extra, 0.0, 0.5, "");
   checkRange("airborne_hall", airborne_hall, 0.0, 1000.0, "m");
   checkRange("airborne_hall_step", airborne_hall_step, 0.0, 6.0, "m");
+  checkRange("airborne_hall_gap", airborne_hall_gap, 0.0, 40.0, "m");
   checkRange("second_returns", second_returns, 0.0, 1.0, "");
   checkRange("ceiling_height", ceiling_height, 1.5, 30.0, "m");
   checkRange("beside_car", beside_car, 0.0, 30.0, "m");

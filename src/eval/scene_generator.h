@@ -83,6 +83,9 @@ struct SceneParams {
   /// lower, the centre this much higher (a raised bay), the east third as without it [m] (0:
   /// one flat roof; at most 6).
   double airborne_hall_step = 0.0;
+  /// kAirborne: a strip this wide across the hall's roof (along y, at its centre) returns no
+  /// pulse (a dark membrane, glass, a gap between flight lines) [m] (0: none; at most 40).
+  double airborne_hall_gap = 0.0;
   double uav_height = 40.0;  ///< kUav: flying height over the ground below it [m] (40)
   /// kUav: half the across-track field of view [deg] (35; 1..180, 180: every direction of
   /// the plane across the track, a profile scanner)

@@ -86,6 +86,7 @@ const SceneOverride kSceneOverrides[] = {
     {"airborne_density", setDouble<&P::airborne_density>},
     {"airborne_hall", setDouble<&P::airborne_hall>},
     {"airborne_hall_step", setDouble<&P::airborne_hall_step>},
+    {"airborne_hall_gap", setDouble<&P::airborne_hall_gap>},
     {"uav_height", setDouble<&P::uav_height>},
     {"uav_half_angle_deg", setDouble<&P::uav_half_angle_deg>},
     {"uav_line_step", setDouble<&P::uav_line_step>},

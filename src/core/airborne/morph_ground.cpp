@@ -391,6 +391,7 @@ std::size_t MorphGround::run(const CloudView& cloud, const MorphGroundSettings& 
   //     cells whose minima differ by no more than that slope allows over one cell: a terrain
   //     break is continuous, a roof or a crown on a slope stands above its surroundings.
   terrainSlope(c, rmax);
+  object1_.clear();  // the first opening's objects, kept below only where the steep pass runs
   if (*std::max_element(tslope_.begin(), tslope_.end()) > s.slope) {
     //     The provisional surface is flattened where the first pass cut a crest, so the slope
     //     measured there is too low; a later pass measures it again on the last pass's surface

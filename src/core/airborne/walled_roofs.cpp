@@ -94,6 +94,15 @@ bool MorphGround::walledOutside(float wall, float gap_wall) {
   return border > 0 && static_cast<double>(walls) >= kWalledShare * static_cast<double>(border);
 }
 
+bool MorphGround::keptOnlyBySteepPass() const {
+  // object1_ holds the first opening's objects only when the steep-terrain pass ran.
+  if (object1_.size() != zfill_.size()) return false;
+  std::size_t objects = 0;
+  for (const std::int32_t i : frontier_) objects += object1_[i] != 0;
+  return static_cast<double>(objects) >=
+         kSmallRoofObjectShare * static_cast<double>(frontier_.size());
+}
+
 bool MorphGround::flatRoof() {
   if (planeRms(frontier_) <= kRoofRms) return true;
   // A roof in parts at several heights (a raised bay, a lower wing): the region cut at steps of
@@ -189,14 +198,17 @@ void MorphGround::dropWalledRoofs(double c, int rmax) {
   // A roof wider than the opening (2 x window) survives it as terrain. Its border tells it from
   // terrain: walls, a drop of a storey or more from one cell to the next, all round it, and one
   // plane through it (or a few, one per part). Regions of terrain cells joined by smaller steps,
-  // wider than the opening takes, standing on walls along kWalledShare of their outer border and
-  // that flat, become objects. The raster's edge, object cells (their terrain is filled from
+  // wider than the opening takes (or narrower ones that only the steep-terrain pass kept:
+  // keptOnlyBySteepPass()), standing on walls along kWalledShare of their outer border and that
+  // flat, become objects. The raster's edge, object cells (their terrain is filled from
   // this very region) and cells far from any return (outside a clipped tile's footprint, a
   // lake: the fill joins anything across them) neither join a region nor border it.
   const float wall = static_cast<float>(std::max(kWallDrop, 2.0 * c));
   const float gap_wall = static_cast<float>(kGapWallSlope * c);
   const std::size_t n = zfill_.size();
   const std::size_t min_cells = static_cast<std::size_t>(3.14159 * rmax * rmax);
+  const std::size_t min_small =
+      std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(kSmallRoofArea / (c * c))));
   markNearReturns(2);
   outside_.assign(n, 0);
   bool changed = false;
@@ -210,7 +222,9 @@ void MorphGround::dropWalledRoofs(double c, int rmax) {
     for (std::size_t seed = 0; seed < n; ++seed) {
       if (object_[seed] || !known_[seed] || region_[seed] >= 0) continue;
       const RegionBorder b = floodRegion(static_cast<std::int32_t>(seed), wall, gap_wall);
-      if (frontier_.size() < min_cells || b.border == 0 || (b.against_roof > 0 && b.open > 0) ||
+      const std::size_t size = frontier_.size();
+      if ((size < min_cells && (size < min_small || !keptOnlyBySteepPass())) || b.border == 0 ||
+          (b.against_roof > 0 && b.open > 0) ||
           static_cast<double>(b.walls) < kWalledShare * static_cast<double>(b.border) ||
           !flatRoof() || !walledOutside(wall, gap_wall)) {
         continue;
